@@ -1,0 +1,42 @@
+"""Validation of the joint action: one clear ActionError, and never a state change, on bad input."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from parcover_env.errors import ActionError
+
+__all__ = ["to_commands"]
+
+
+def to_commands(actions: Mapping, agents: Sequence[str], max_speed: float,
+                max_turn_rate: float) -> np.ndarray:
+    """Joint action ``{agent: (2,) in [-1, 1]}`` -> unicycle commands ``(N, 2)`` (m/s, rad/s).
+
+    Out-of-range values are clipped to [-1, 1] (documented behaviour); NaN/inf, a wrong shape or
+    type, and missing or unknown agents raise ActionError naming the agent.
+    """
+    if not isinstance(actions, Mapping):
+        raise ActionError(f"actions must be a dict {{agent: array(2)}}, got {type(actions).__name__}")
+    extra = [a for a in actions if a not in agents]
+    if extra:
+        raise ActionError(f"actions for unknown or finished agents {extra}; active agents: {list(agents)}")
+    missing = [a for a in agents if a not in actions]
+    if missing:
+        raise ActionError(f"missing actions for agents {missing}")
+    out = np.empty((len(agents), 2))
+    for i, agent in enumerate(agents):
+        try:
+            a = np.asarray(actions[agent], dtype=float)
+        except (TypeError, ValueError):
+            raise ActionError(f"{agent}: action is not numeric: {actions[agent]!r}") from None
+        if a.shape != (2,):
+            raise ActionError(f"{agent}: action must have shape (2,) = (v, omega) in [-1, 1], got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ActionError(f"{agent}: action contains NaN or inf: {a.tolist()}")
+        out[i] = a
+    np.clip(out, -1.0, 1.0, out=out)
+    out *= (max_speed, max_turn_rate)
+    return out

@@ -1,0 +1,248 @@
+"""ParallelCoverageEnv: the PettingZoo ParallelEnv of the parallel path coverage mission."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from pettingzoo import ParallelEnv
+
+from parcover_env.actions import to_commands
+from parcover_env.config import Scenario, load_scenario
+from parcover_env.geometry import rotate
+from parcover_env.metrics import EpisodeMetrics
+from parcover_env.mission import Mission
+from parcover_env.observations import MAX_FIX_AGE, ObservationLayout
+from parcover_env.rewards import TERMS, reward_terms
+from parcover_env.sensors.odometry import Odometry
+from parcover_env.sensors.sonar import SonarRing
+from parcover_env.world.map_model import MapModel
+from parcover_env.world.physics import World
+from parcover_env.world.placement import start_poses
+
+__all__ = ["ParallelCoverageEnv"]
+
+
+class ParallelCoverageEnv(ParallelEnv):
+    """Parallel path coverage: a team of differential-drive robots, starting together, must visit
+    every Key Position Of Interest (KPOI) of an indoor map (Min, Fehr & Papanikolopoulos; Kim,
+    Pearce & Amato). PettingZoo ``ParallelEnv``; agents ``robot_0 .. robot_{n-1}``.
+
+    ## Scenario
+    A YAML scenario (``office``, ``tree``, ``hallway``, ``t_room``, a path, or a ``Scenario``)
+    gives the map (walls and obstacles, metres), start pose, KPOIs, overhead Kinects, robot model,
+    team size (``n_robots: auto`` = the PPCP planner's optimal r), rates, limits and reward weights.
+    The PPCP plan (``parcover_env.planning``) gives every robot a route: a polyline from the start
+    through its KPOIs; the team travels together and splits at turning positions (TPs).
+
+    ## Action space
+    ``Box(-1, 1, (2,), float32)`` per agent: ``(v, omega)`` as fractions of the robot's
+    ``max_speed`` (m/s) and ``max_turn_rate`` (rad/s). Values outside [-1, 1] are clipped; NaN/inf,
+    a wrong shape, or missing/unknown agents raise ``ActionError`` and leave the state untouched.
+
+    ## Observation space
+    One flat ``Box`` per agent, identical across agents (``env.layout`` names the slices):
+
+    | entry | size | unit | meaning |
+    |---|---|---|---|
+    | x, y | 2 | m | pose estimate (``observation.pose_source``: odometry, kinect fixes, or ground truth) |
+    | cos_theta, sin_theta | 2 | - | heading estimate |
+    | v, omega | 2 | m/s, rad/s | velocity commanded at the last step |
+    | leader | 1 | - | 1 if the robot leads its group, else 0 (follower) |
+    | slot | 1 | - | position in its group's column / (n_robots - 1); 0 = leader |
+    | fix_age | 1 | s | time since the last absolute pose fix, capped at 60 s (large = stale estimate) |
+    | goal_dx, goal_dy | 2 | m | current route waypoint in the robot frame (x ahead, y left), from the estimate |
+    | kpois_visited | 1 | - | fraction of KPOIs visited by the team |
+    | time | 1 | - | fraction of the step limit elapsed |
+    | sonar | B | m | sonar ring ranges (B beams; ``robot.sonar``), max range = no echo |
+
+    ``state()`` is the global state for centralized critics: true (x, y, cos, sin) and leader
+    flag of every robot, the visited flag of every KPOI, and the elapsed time fraction.
+
+    ## Rewards
+    Per agent, the sum of named terms whose weights come from ``rewards`` in the scenario and which
+    are reported in ``info[agent]["reward_terms"]``: ``kpoi`` (per KPOI newly visited by anyone,
+    team reward), ``progress`` (per metre of route-to-go removed, potential-based), ``time`` (per
+    step), ``collision`` (per new contact of this agent with a wall or robot). A KPOI is visited
+    when a robot's true centre comes within ``kpoi_radius`` of it.
+
+    ## Episode end
+    Terminated when every KPOI is visited; truncated after ``episode.max_steps`` control steps.
+    All agents end together; ``info[agent]["episode"]`` then holds the metrics (makespan, KPOIs
+    visited, collisions, path lengths, localization error, makespan / (c_max / v_max), ...).
+
+    ## Rates
+    One ``step`` is one control period of ``physics.substeps x physics.dt`` seconds (default
+    5 x 0.02 s = 0.1 s); pymunk integrates at ``physics.dt``.
+
+    ## Arguments
+    ``scenario`` (name, path or Scenario, default ``"office"``), ``render_mode`` (``None`` or
+    ``"rgb_array"``), ``overrides`` (nested dict merged over the scenario, e.g.
+    ``{"n_robots": 3, "episode": {"max_steps": 500}}``).
+
+    ## Version history
+    * v0: initial release.
+    """
+
+    metadata = {"name": "parcover_v0", "render_modes": ["rgb_array"], "render_fps": 10, "is_parallelizable": True}
+
+    def __init__(self, scenario: str | Path | Scenario = "office", render_mode: str | None = None,
+                 overrides: dict | None = None):
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
+        self.scenario = load_scenario(scenario, overrides)
+        self.render_mode = render_mode
+        s = self.scenario
+        self.map = MapModel.from_config(s.map, include_unknown=True)
+        self.known_map = MapModel.from_config(s.map, include_unknown=False)
+        from parcover_env.planning import plan_scenario
+
+        self.plan = plan_scenario(s, s.n_robots_fixed)
+        self.n_robots = self.plan.r
+        self.possible_agents = [f"robot_{i}" for i in range(self.n_robots)]
+        self.agents: list[str] = []
+        self._start_poses = start_poses(self.map, (s.start.x, s.start.y, s.start.theta), self.n_robots,
+                                        s.robot.radius, s.formation.spacing, s.source)
+        self.sonar = SonarRing(s.robot.sonar) if s.observation.sonar else None
+        n_sonar = self.sonar.n_beams if self.sonar else 0
+        self.layout = ObservationLayout.build(self.map.bounds, s.robot.max_speed, s.robot.max_turn_rate,
+                                              n_sonar, s.robot.sonar.range_max)
+        self._obs_space = self.layout.space()
+        self._act_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+        n_state = 5 * self.n_robots + len(s.kpois) + 1
+        self.state_space = spaces.Box(-np.inf, np.inf, (n_state,), dtype=np.float32)
+        self._rng: np.random.Generator | None = None
+
+    # ------------------------------------------------------------------ spaces
+    def observation_space(self, agent: str) -> spaces.Box:
+        return self._obs_space
+
+    def action_space(self, agent: str) -> spaces.Box:
+        return self._act_space
+
+    # ------------------------------------------------------------------ episode
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        if seed is not None or self._rng is None:
+            self._rng = np.random.default_rng(seed)
+        s = self.scenario
+        self.agents = list(self.possible_agents)
+        self.world = World(self.map, s.robot.radius, s.physics, self._start_poses)
+        true = self.world.poses()
+        self.odometry = Odometry(s.robot.odometry, true)
+        self.estimate = true.copy()
+        self.fix_age = np.zeros(self.n_robots)
+        self.mission = Mission(np.array(s.kpois), s.kpoi_radius, self.plan.routes(),
+                               waypoint_tol=max(0.15, 1.5 * s.robot.radius))
+        self.leader = np.zeros(self.n_robots, dtype=bool)
+        self.leader[0] = True
+        self.slot = np.arange(self.n_robots) / max(self.n_robots - 1, 1)
+        self.commands = np.zeros((self.n_robots, 2))
+        self.steps = 0
+        self._contacts = np.zeros((2, self.n_robots), dtype=np.int64)
+        self._remaining = self.mission.remaining(true[:, :2])
+        self.metrics = EpisodeMetrics(len(s.kpois), self.n_robots, self.plan.c_max, s.robot.max_speed,
+                                      path_lengths=[0.0] * self.n_robots)
+        self.trails = [[p[:2].copy()] for p in true]
+        self.mission.update(true[:, :2], self.estimate[:, :2], 0.0)
+        obs = self._observe(true)
+        infos = {a: {"plan": self.plan.to_dict()} for a in self.agents}
+        return obs, infos
+
+    def step(self, actions: dict[str, Any]):
+        if not self.agents:
+            raise RuntimeError("step() called on a finished episode; call reset() first")
+        self.commands = to_commands(actions, self.agents, self.scenario.robot.max_speed,
+                                    self.scenario.robot.max_turn_rate)
+        before = self.world.poses()
+        self.world.step(self.commands)
+        self.steps += 1
+        true = self.world.poses()
+        self._sense(true)
+        n_new = self.mission.update(true[:, :2], self.estimate[:, :2], self.world.time)
+        terms = self._rewards(true, n_new)
+        self._record(before, true)
+        obs = self._observe(true)
+        done = self.mission.done
+        truncated = self.steps >= self.scenario.episode.max_steps and not done
+        rewards = {a: float(sum(terms[t][i] for t in TERMS)) for i, a in enumerate(self.agents)}
+        infos = {a: {"reward_terms": {t: float(terms[t][i]) for t in TERMS}} for i, a in enumerate(self.agents)}
+        if done or truncated:
+            summary = self.metrics.summary()
+            for info in infos.values():
+                info["episode"] = summary
+        terminations = {a: done for a in self.agents}
+        truncations = {a: truncated for a in self.agents}
+        if done or truncated:
+            self.agents = []
+        return obs, rewards, terminations, truncations, infos
+
+    # ------------------------------------------------------------------ step parts
+    def _sense(self, true: np.ndarray) -> None:
+        """Pose estimates: odometry dead reckoning, or ground truth."""
+        est = self.odometry.measure(true, self._rng)
+        self.fix_age += self.scenario.physics.control_dt
+        if self.scenario.observation.pose_source == "ground_truth":
+            est[:] = true
+            self.fix_age[:] = 0.0
+        self.estimate = est
+
+    def _rewards(self, true: np.ndarray, n_new: int) -> dict[str, np.ndarray]:
+        remaining = self.mission.remaining(true[:, :2])
+        progress, self._remaining = self._remaining - remaining, remaining
+        contacts = np.stack([self.world.wall_contacts, self.world.robot_contacts])
+        new_contacts = (contacts - self._contacts).sum(axis=0)
+        self._new_contacts, self._contacts = contacts - self._contacts, contacts
+        return reward_terms(self.scenario.rewards, n_new, progress, new_contacts)
+
+    def _record(self, before: np.ndarray, true: np.ndarray) -> None:
+        m = self.metrics
+        m.path_lengths = (np.asarray(m.path_lengths) + np.hypot(*(true[:, :2] - before[:, :2]).T)).tolist()
+        m.record_step(self.world.time, int(self.mission.visited.sum()), true, self.estimate,
+                      int(self._new_contacts[0].sum()), int(self._new_contacts[1].sum()) // 2)
+        if self.mission.done and m.makespan is None:
+            m.makespan = float(np.nanmax(self.mission.visit_time))
+        if self.render_mode is not None:
+            for trail, p in zip(self.trails, true):
+                trail.append(p[:2].copy())
+
+    def _observe(self, true: np.ndarray) -> dict[str, np.ndarray]:
+        L, est, n = self.layout.slices, self.estimate, self.n_robots
+        obs = np.zeros((n, self.layout.size), dtype=np.float32)
+        obs[:, L["x"]] = est[:, 0:1]
+        obs[:, L["y"]] = est[:, 1:2]
+        obs[:, L["cos_theta"]] = np.cos(est[:, 2:3])
+        obs[:, L["sin_theta"]] = np.sin(est[:, 2:3])
+        obs[:, L["v"]] = self.commands[:, 0:1]
+        obs[:, L["omega"]] = self.commands[:, 1:2]
+        obs[:, L["leader"]] = self.leader[:, None]
+        obs[:, L["slot"]] = self.slot[:, None]
+        obs[:, L["fix_age"]] = np.minimum(self.fix_age, MAX_FIX_AGE)[:, None]
+        goal = rotate(self.mission.goals() - est[:, :2], -est[:, 2])
+        obs[:, L["goal_dx"]] = goal[:, 0:1]
+        obs[:, L["goal_dy"]] = goal[:, 1:2]
+        obs[:, L["kpois_visited"]] = self.mission.visited.mean()
+        obs[:, L["time"]] = self.steps / self.scenario.episode.max_steps
+        if self.sonar is not None:
+            obs[:, L["sonar"]] = self.sonar.measure(true, self.map.segments, self.scenario.robot.radius, self._rng)
+        self.layout.clip(obs)
+        return {f"robot_{i}": obs[i] for i in range(n) if f"robot_{i}" in self.agents}
+
+    # ------------------------------------------------------------------ extras
+    def state(self) -> np.ndarray:
+        true = self.world.poses()
+        parts = [true[:, :2], np.cos(true[:, 2:3]), np.sin(true[:, 2:3]), self.leader[:, None]]
+        robots = np.concatenate(parts, axis=1).ravel()
+        t = [self.steps / self.scenario.episode.max_steps]
+        return np.concatenate([robots, self.mission.visited.astype(float), t]).astype(np.float32)
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            return None
+        from parcover_env.render import render_frame
+
+        return render_frame(self)
+
+    def close(self) -> None:
+        pass
