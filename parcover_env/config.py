@@ -237,9 +237,15 @@ class FormationConfig:
     """Control point offset d ahead of the follower's axle (m)."""
     gains: tuple[float, float] = (1.0, 1.0)
     """(a1, a2) of the l-psi law."""
+    mode: Literal["formation", "individual"] = "formation"
+    """``individual``: no formations, every robot is localized and messaged on its own."""
+    camera_fov_deg: float = 120.0
+    """Field of view of the follower's onboard camera that measures the robot ahead."""
+    camera_range: float = 2.5
+    """Max range of that camera (m)."""
 
     def __post_init__(self) -> None:
-        _positive(self, "spacing", "offset")
+        _positive(self, "spacing", "offset", "camera_fov_deg", "camera_range")
         _check(all(g > 0 for g in self.gains), "gains", "must be > 0")
 
 

@@ -16,8 +16,11 @@ from parcover_env.metrics import EpisodeMetrics
 from parcover_env.mission import Mission
 from parcover_env.observations import MAX_FIX_AGE, ObservationLayout
 from parcover_env.rewards import TERMS, reward_terms
+from parcover_env.metrics import formation_errors
 from parcover_env.sensors.odometry import Odometry
+from parcover_env.sensors.relative import RelativeCamera
 from parcover_env.sensors.sonar import SonarRing
+from parcover_env.team import Team
 from parcover_env.world.map_model import MapModel
 from parcover_env.world.physics import World
 from parcover_env.world.placement import start_poses
@@ -52,6 +55,9 @@ class ParallelCoverageEnv(ParallelEnv):
     | v, omega | 2 | m/s, rad/s | velocity commanded at the last step |
     | leader | 1 | - | 1 if the robot leads its group, else 0 (follower) |
     | slot | 1 | - | position in its group's column / (n_robots - 1); 0 = leader |
+    | pred_dx, pred_dy | 2 | m | robot ahead in the column, in this robot's frame (onboard camera; 0 if unseen) |
+    | pred_cos, pred_sin | 2 | - | its heading relative to this robot's |
+    | pred_visible | 1 | - | 1 if a follower's camera sees its predecessor (FOV, range, walls) |
     | fix_age | 1 | s | time since the last absolute pose fix, capped at 60 s (large = stale estimate) |
     | goal_dx, goal_dy | 2 | m | current route waypoint in the robot frame (x ahead, y left), from the estimate |
     | kpois_visited | 1 | - | fraction of KPOIs visited by the team |
@@ -107,8 +113,9 @@ class ParallelCoverageEnv(ParallelEnv):
                                         s.robot.radius, s.formation.spacing, s.source)
         self.sonar = SonarRing(s.robot.sonar) if s.observation.sonar else None
         n_sonar = self.sonar.n_beams if self.sonar else 0
+        self.camera = RelativeCamera(s.formation.camera_fov_deg, s.formation.camera_range)
         self.layout = ObservationLayout.build(self.map.bounds, s.robot.max_speed, s.robot.max_turn_rate,
-                                              n_sonar, s.robot.sonar.range_max)
+                                              n_sonar, s.robot.sonar.range_max, s.formation.camera_range)
         self._obs_space = self.layout.space()
         self._act_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         n_state = 5 * self.n_robots + len(s.kpois) + 1
@@ -133,11 +140,9 @@ class ParallelCoverageEnv(ParallelEnv):
         self.odometry = Odometry(s.robot.odometry, true)
         self.estimate = true.copy()
         self.fix_age = np.zeros(self.n_robots)
-        self.mission = Mission(np.array(s.kpois), s.kpoi_radius, self.plan.routes(),
-                               waypoint_tol=max(0.15, 1.5 * s.robot.radius))
-        self.leader = np.zeros(self.n_robots, dtype=bool)
-        self.leader[0] = True
-        self.slot = np.arange(self.n_robots) / max(self.n_robots - 1, 1)
+        self.mission = Mission(np.array(s.kpois), s.kpoi_radius, self.plan.paths,
+                               waypoint_tol=min(max(0.15, 1.5 * s.robot.radius), 0.6 * s.kpoi_radius))
+        self.team = Team(self.plan, s.formation.mode, reach_tol=max(0.15, 1.5 * s.robot.radius))
         self.commands = np.zeros((self.n_robots, 2))
         self.steps = 0
         self._contacts = np.zeros((2, self.n_robots), dtype=np.int64)
@@ -146,6 +151,7 @@ class ParallelCoverageEnv(ParallelEnv):
                                       path_lengths=[0.0] * self.n_robots)
         self.trails = [[p[:2].copy()] for p in true]
         self.mission.update(true[:, :2], self.estimate[:, :2], 0.0)
+        self.team.update(self.estimate[:, :2], self.mission.waypoint)
         obs = self._observe(true)
         infos = {a: {"plan": self.plan.to_dict()} for a in self.agents}
         return obs, infos
@@ -161,6 +167,8 @@ class ParallelCoverageEnv(ParallelEnv):
         true = self.world.poses()
         self._sense(true)
         n_new = self.mission.update(true[:, :2], self.estimate[:, :2], self.world.time)
+        self.team.count_waypoints(self.mission.advanced)
+        self.team.update(self.estimate[:, :2], self.mission.waypoint)
         terms = self._rewards(true, n_new)
         self._record(before, true)
         obs = self._observe(true)
@@ -201,6 +209,10 @@ class ParallelCoverageEnv(ParallelEnv):
         m.path_lengths = (np.asarray(m.path_lengths) + np.hypot(*(true[:, :2] - before[:, :2]).T)).tolist()
         m.record_step(self.world.time, int(self.mission.visited.sum()), true, self.estimate,
                       int(self._new_contacts[0].sum()), int(self._new_contacts[1].sum()) // 2)
+        f = self.scenario.formation
+        dl, dpsi = formation_errors(true, self.team.predecessor, f.offset, f.spacing, np.radians(f.bearing_deg))
+        m.record_formation(dl, dpsi)
+        m.messages = dict(sorted(self.team.messages.items()))
         if self.mission.done and m.makespan is None:
             m.makespan = float(np.nanmax(self.mission.visit_time))
         if self.render_mode is not None:
@@ -216,12 +228,18 @@ class ParallelCoverageEnv(ParallelEnv):
         obs[:, L["sin_theta"]] = np.sin(est[:, 2:3])
         obs[:, L["v"]] = self.commands[:, 0:1]
         obs[:, L["omega"]] = self.commands[:, 1:2]
-        obs[:, L["leader"]] = self.leader[:, None]
-        obs[:, L["slot"]] = self.slot[:, None]
+        obs[:, L["leader"]] = self.team.leader[:, None]
+        obs[:, L["slot"]] = self.team.slot[:, None] / max(n - 1, 1)
         obs[:, L["fix_age"]] = np.minimum(self.fix_age, MAX_FIX_AGE)[:, None]
         goal = rotate(self.mission.goals() - est[:, :2], -est[:, 2])
         obs[:, L["goal_dx"]] = goal[:, 0:1]
         obs[:, L["goal_dy"]] = goal[:, 1:2]
+        rel = self.camera.measure(true, self.team.predecessor, self.map.segments, self._rng)
+        obs[:, L["pred_dx"]] = rel.rel_xy[:, 0:1]
+        obs[:, L["pred_dy"]] = rel.rel_xy[:, 1:2]
+        obs[:, L["pred_cos"]] = np.where(rel.visible, np.cos(rel.rel_heading), 0.0)[:, None]
+        obs[:, L["pred_sin"]] = np.where(rel.visible, np.sin(rel.rel_heading), 0.0)[:, None]
+        obs[:, L["pred_visible"]] = rel.visible[:, None]
         obs[:, L["kpois_visited"]] = self.mission.visited.mean()
         obs[:, L["time"]] = self.steps / self.scenario.episode.max_steps
         if self.sonar is not None:
@@ -232,7 +250,7 @@ class ParallelCoverageEnv(ParallelEnv):
     # ------------------------------------------------------------------ extras
     def state(self) -> np.ndarray:
         true = self.world.poses()
-        parts = [true[:, :2], np.cos(true[:, 2:3]), np.sin(true[:, 2:3]), self.leader[:, None]]
+        parts = [true[:, :2], np.cos(true[:, 2:3]), np.sin(true[:, 2:3]), self.team.leader[:, None]]
         robots = np.concatenate(parts, axis=1).ravel()
         t = [self.steps / self.scenario.episode.max_steps]
         return np.concatenate([robots, self.mission.visited.astype(float), t]).astype(np.float32)

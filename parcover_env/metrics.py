@@ -6,7 +6,19 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-__all__ = ["EpisodeMetrics"]
+__all__ = ["EpisodeMetrics", "formation_errors"]
+
+
+def formation_errors(poses: np.ndarray, predecessor: np.ndarray, offset: float, l_d: float,
+                     psi_d: float) -> tuple[np.ndarray, np.ndarray]:
+    """(l - l_d, wrap(psi - psi_d)) of every follower from true poses (seed A / Das et al. l-psi)."""
+    f = np.flatnonzero(predecessor >= 0)
+    me, lead = poses[f], poses[predecessor[f]]
+    q = me[:, :2] + offset * np.stack([np.cos(me[:, 2]), np.sin(me[:, 2])], axis=1)
+    d = q - lead[:, :2]
+    l = np.hypot(d[:, 0], d[:, 1])
+    psi = np.arctan2(d[:, 1], d[:, 0]) - lead[:, 2]
+    return l - l_d, np.angle(np.exp(1j * (psi - psi_d)))
 
 
 @dataclass
@@ -27,8 +39,21 @@ class EpisodeMetrics:
     localization_error: float = 0.0
     """RMS distance between the observed pose estimates and the true poses (m)."""
     messages: dict[str, int] = field(default_factory=dict)
+    formation_error_l: float = 0.0
+    """RMS of l - l_d over followers and steps (m)."""
+    formation_error_psi: float = 0.0
+    """RMS of wrap(psi - psi_d) over followers and steps (rad)."""
     _sq_err: float = 0.0
     _n_err: int = 0
+    _sq_form: tuple[float, float, int] = (0.0, 0.0, 0)
+
+    def record_formation(self, dl: np.ndarray, dpsi: np.ndarray) -> None:
+        sl, sp, n = self._sq_form
+        self._sq_form = (sl + float(dl @ dl), sp + float(dpsi @ dpsi), n + len(dl))
+        sl, sp, n = self._sq_form
+        if n:
+            self.formation_error_l = float(np.sqrt(sl / n))
+            self.formation_error_psi = float(np.sqrt(sp / n))
 
     def record_step(self, time: float, kpois_visited: int, true_poses: np.ndarray,
                     est_poses: np.ndarray, wall: int, robot: int) -> None:

@@ -24,7 +24,7 @@ class ObservationLayout:
 
     @classmethod
     def build(cls, bounds, max_speed: float, max_turn_rate: float, n_sonar: int,
-              sonar_max: float) -> ObservationLayout:
+              sonar_max: float, pred_range: float) -> ObservationLayout:
         x0, y0, x1, y1 = bounds
         diag = float(np.hypot(x1 - x0, y1 - y0))
         m = 1.0  # estimates may drift off the floor a little: clipped to the map box +- 1 m
@@ -34,6 +34,8 @@ class ObservationLayout:
             ("v", 1, -max_speed, max_speed), ("omega", 1, -max_turn_rate, max_turn_rate),
             ("leader", 1, 0.0, 1.0), ("slot", 1, 0.0, 1.0), ("fix_age", 1, 0.0, MAX_FIX_AGE),
             ("goal_dx", 1, -diag - 2 * m, diag + 2 * m), ("goal_dy", 1, -diag - 2 * m, diag + 2 * m),
+            ("pred_dx", 1, -pred_range, pred_range), ("pred_dy", 1, -pred_range, pred_range),
+            ("pred_cos", 1, -1.0, 1.0), ("pred_sin", 1, -1.0, 1.0), ("pred_visible", 1, 0.0, 1.0),
             ("kpois_visited", 1, 0.0, 1.0), ("time", 1, 0.0, 1.0),
             ("sonar", n_sonar, 0.0, sonar_max),
         ]

@@ -79,8 +79,8 @@ def render_frame(env: ParallelCoverageEnv) -> np.ndarray:
                         cv2.FONT_HERSHEY_SIMPLEX, 0.45, KINECT, 1, cv2.LINE_AA)
     for route in env.mission.routes:
         cv2.polylines(img, [canvas.px(route)], False, ROUTE, 1, cv2.LINE_AA)
-    for tp in env.plan.turning_points():
-        p = canvas.px(tp)
+    for tp in env.plan.turning_points:
+        p = canvas.px(tp.position)
         tri = np.array([p + [0, -8], p + [-7, 5], p + [7, 5]], dtype=np.int32)
         cv2.fillPoly(img, [tri], (240, 200, 0), cv2.LINE_AA)
     start = canvas.px([s.start.x, s.start.y])
@@ -95,7 +95,7 @@ def render_frame(env: ParallelCoverageEnv) -> np.ndarray:
     true = env.world.poses()
     rad = canvas.r(s.robot.radius)
     for i, p in enumerate(true):
-        color = LEADER if env.leader[i] else FOLLOWER
+        color = LEADER if env.team.leader[i] else FOLLOWER
         if len(env.trails[i]) > 1:
             cv2.polylines(img, [canvas.px(np.array(env.trails[i]))], False, color, 1, cv2.LINE_AA)
         c = canvas.px(p[:2])

@@ -3,7 +3,9 @@
 Robots are dynamic discs with infinite moment; each physics step their velocity is set from the
 commanded unicycle velocities ``(v, omega)`` inside ``body.velocity_func``, so contacts with walls
 and other robots are resolved by pymunk while the robots follow their commands in free space.
-(Kinematic bodies would pass through walls.)
+(Kinematic bodies would pass through walls.) pymunk moves bodies before it calls
+``velocity_func``, so a new command takes effect after one physics step (``physics.dt``), like
+an actuator delay; the velocity the contact solver corrected is what moves the body.
 """
 
 from __future__ import annotations
@@ -87,8 +89,6 @@ class World:
         for _ in range(self.physics.substeps):
             self.space.step(dt)
         self.time += self.physics.control_dt
-        for body in self.bodies:  # stop residual velocities from contact impulses
-            body.velocity = (0.0, 0.0)
 
     def poses(self) -> np.ndarray:
         """Ground-truth poses ``(N, 3)``: x, y (m), theta (rad, wrapped to (-pi, pi])."""
