@@ -136,12 +136,14 @@ class RobotConfig:
     height: float = 0.3
     """Height of the robot's top, where the Kinect markers are (m)."""
     markers: bool = True
-    """Whether robots carry the retro-reflective markers the overhead Kinect detects."""
+    """Whether leaders carry the retro-reflective markers the overhead Kinect detects (4 per robot)."""
+    marker_radius: float = 0.02
+    """Radius of each marker disc (m)."""
     sonar: SonarConfig = field(default_factory=SonarConfig)
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
 
     def __post_init__(self) -> None:
-        _positive(self, "radius", "max_speed", "max_turn_rate", "height")
+        _positive(self, "radius", "max_speed", "max_turn_rate", "height", "marker_radius")
 
 
 @dataclass(frozen=True)
@@ -161,9 +163,11 @@ class KinectConfig:
     range_max: float = 4.0
     drop_rate: float = 0.0
     """Fault injection: probability that a frame is dropped."""
+    wall_height: float = 0.5
+    """Height of walls and obstacles as the depth camera sees them (m)."""
 
     def __post_init__(self) -> None:
-        _positive(self, "height", "rate_hz", "range_max")
+        _positive(self, "height", "rate_hz", "range_max", "wall_height")
         _check(0 < self.pitch_deg <= 90, "pitch_deg", f"must be in (0, 90] (90 = looking down), got {self.pitch_deg}")
         _check(self.pitch_deg - self.fov_deg[1] / 2 > 0, "pitch_deg",
                "the top of the image looks at or above the horizon: the footprint would not be on the floor")
@@ -218,8 +222,9 @@ class RewardConfig:
 
 @dataclass(frozen=True)
 class ObservationConfig:
-    pose_source: Literal["odometry", "kinect", "ground_truth"] = "odometry"
-    """Where the pose in the observation comes from."""
+    pose_source: Literal["odometry", "kinect", "ground_truth"] = "kinect"
+    """Where the pose in the observation comes from: ``kinect`` = odometry corrected by Kinect
+    fixes for leaders inside a footprint (the paper); ``odometry`` = dead reckoning only."""
     kinect: Literal["estimate", "frames"] = "estimate"
     """``estimate``: pipeline poses only; ``frames``: raw frames via ``env.kinect_frames()``."""
     sonar: bool = True
@@ -272,6 +277,9 @@ class Scenario:
     """A KPOI is visited when a robot centre comes within this distance (m)."""
     n_robots: int | Literal["auto"] = "auto"
     """Team size; ``auto`` = the PPCP planner's optimal r."""
+    start_queue: tuple[Point, ...] = ()
+    """Polyline from the start backwards along which the team lines up in column order, one robot
+    every ``formation.spacing`` (m). Empty: straight back from the start, then side by side."""
     robot: RobotConfig = field(default_factory=RobotConfig)
     kinects: tuple[KinectConfig, ...] = ()
     formation: FormationConfig = field(default_factory=FormationConfig)
@@ -289,6 +297,9 @@ class Scenario:
         _positive(self, "kpoi_radius")
         if self.n_robots != "auto":
             _check(1 <= self.n_robots <= 256, "n_robots", f"must be in [1, 256] or 'auto', got {self.n_robots}")
+        for i, k in enumerate(self.kinects):
+            _check(k.height > self.robot.height + 0.1, f"kinects[{i}].height",
+                   f"the Kinect must hang above the robots' tops ({self.robot.height} m)")
         names = [k.name for k in self.kinects]
         _check(len(set(names)) == len(names), "kinects", f"Kinect names must be unique, got {names}")
         step = self.robot.max_speed * self.physics.dt
@@ -298,6 +309,11 @@ class Scenario:
         from parcover_env.world.map_model import validate_geometry
 
         validate_geometry(self)
+
+    @property
+    def queue(self) -> tuple[Point, ...]:
+        """The start queue polyline, beginning at the start."""
+        return ((self.start.x, self.start.y), *self.start_queue) if self.start_queue else ()
 
     @property
     def n_robots_fixed(self) -> int | None:

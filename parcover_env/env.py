@@ -12,6 +12,7 @@ from pettingzoo import ParallelEnv
 from parcover_env.actions import to_commands
 from parcover_env.config import Scenario, load_scenario
 from parcover_env.geometry import rotate
+from parcover_env.kinect_system import KinectSystem
 from parcover_env.metrics import EpisodeMetrics
 from parcover_env.mission import Mission
 from parcover_env.observations import MAX_FIX_AGE, ObservationLayout
@@ -23,7 +24,7 @@ from parcover_env.sensors.sonar import SonarRing
 from parcover_env.team import Team
 from parcover_env.world.map_model import MapModel
 from parcover_env.world.physics import World
-from parcover_env.world.placement import start_poses
+from parcover_env.world.placement import queue_poses, start_poses
 
 __all__ = ["ParallelCoverageEnv"]
 
@@ -50,7 +51,7 @@ class ParallelCoverageEnv(ParallelEnv):
 
     | entry | size | unit | meaning |
     |---|---|---|---|
-    | x, y | 2 | m | pose estimate (``observation.pose_source``: odometry, kinect fixes, or ground truth) |
+    | x, y | 2 | m | pose estimate: odometry, reset by a Kinect fix when a leader is seen (``observation.pose_source``) |
     | cos_theta, sin_theta | 2 | - | heading estimate |
     | v, omega | 2 | m/s, rad/s | velocity commanded at the last step |
     | leader | 1 | - | 1 if the robot leads its group, else 0 (follower) |
@@ -109,10 +110,16 @@ class ParallelCoverageEnv(ParallelEnv):
         self.n_robots = self.plan.r
         self.possible_agents = [f"robot_{i}" for i in range(self.n_robots)]
         self.agents: list[str] = []
-        self._start_poses = start_poses(self.map, (s.start.x, s.start.y, s.start.theta), self.n_robots,
-                                        s.robot.radius, s.formation.spacing, s.source)
+        if s.start_queue:
+            self._start_poses = queue_poses(self.map, s.queue, self.n_robots, s.robot.radius, s.formation.spacing,
+                                            s.source)
+            self._start_poses[0, 2] = s.start.theta
+        else:
+            self._start_poses = start_poses(self.map, (s.start.x, s.start.y, s.start.theta), self.n_robots,
+                                            s.robot.radius, s.formation.spacing, s.source)
         self.sonar = SonarRing(s.robot.sonar) if s.observation.sonar else None
         n_sonar = self.sonar.n_beams if self.sonar else 0
+        self.kinects = KinectSystem(s, self.map) if s.kinects and s.observation.pose_source == "kinect" else None
         self.camera = RelativeCamera(s.formation.camera_fov_deg, s.formation.camera_range)
         self.layout = ObservationLayout.build(self.map.bounds, s.robot.max_speed, s.robot.max_turn_rate,
                                               n_sonar, s.robot.sonar.range_max, s.formation.camera_range)
@@ -140,6 +147,8 @@ class ParallelCoverageEnv(ParallelEnv):
         self.odometry = Odometry(s.robot.odometry, true)
         self.estimate = true.copy()
         self.fix_age = np.zeros(self.n_robots)
+        if self.kinects is not None:
+            self.kinects.reset()
         self.mission = Mission(np.array(s.kpois), s.kpoi_radius, self.plan.paths,
                                waypoint_tol=min(max(0.15, 1.5 * s.robot.radius), 0.6 * s.kpoi_radius))
         self.team = Team(self.plan, s.formation.mode, reach_tol=max(0.15, 1.5 * s.robot.radius))
@@ -188,12 +197,19 @@ class ParallelCoverageEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ step parts
     def _sense(self, true: np.ndarray) -> None:
-        """Pose estimates: odometry dead reckoning, or ground truth."""
+        """Pose estimates: odometry dead reckoning, corrected by Kinect fixes of the leaders."""
         est = self.odometry.measure(true, self._rng)
         self.fix_age += self.scenario.physics.control_dt
         if self.scenario.observation.pose_source == "ground_truth":
             est[:] = true
             self.fix_age[:] = 0.0
+        elif self.kinects is not None:
+            markers = self.team.leader & self.scenario.robot.markers
+            fixes = self.kinects.update(self.world.time, true, markers, est, self._rng)
+            for i, pose in fixes.items():
+                self.odometry.fix(i, pose)
+                self.fix_age[i] = 0.0
+            self.team.count_pose_fixes(len(fixes))
         self.estimate = est
 
     def _rewards(self, true: np.ndarray, n_new: int) -> dict[str, np.ndarray]:
@@ -254,6 +270,20 @@ class ParallelCoverageEnv(ParallelEnv):
         robots = np.concatenate(parts, axis=1).ravel()
         t = [self.steps / self.scenario.episode.max_steps]
         return np.concatenate([robots, self.mission.visited.astype(float), t]).astype(np.float32)
+
+    def kinect_frames(self) -> dict:
+        """Depth + IR frames (``KinectFrame``) of every overhead Kinect at the current state.
+
+        With ``observation.kinect: frames`` these are the frames the pipeline localized from at the
+        last Kinect tick; otherwise they are rendered now from a generator seeded by the step count,
+        so calling this never changes the episode.
+        """
+        if self.kinects is None:
+            return {}
+        if self.scenario.observation.kinect == "frames" and self.kinects.frames:
+            return dict(self.kinects.frames)
+        markers = self.team.leader & self.scenario.robot.markers
+        return self.kinects.render_frames(self.world.poses(), markers, seed=self.steps)
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:

@@ -9,7 +9,31 @@ import numpy as np
 from parcover_env.errors import ConfigError
 from parcover_env.world.map_model import MapModel
 
-__all__ = ["start_poses"]
+__all__ = ["start_poses", "queue_poses"]
+
+
+def queue_poses(map_model: MapModel, queue, n: int, radius: float, spacing: float,
+                source: str = "") -> np.ndarray:
+    """Poses ``(n, 3)`` every ``spacing`` metres along the polyline ``queue`` (start first), each
+    robot facing the one ahead of it (robot 0 faces along the first segment, reversed)."""
+    pts = np.asarray(queue, dtype=float)
+    seg = np.diff(pts, axis=0)
+    seg_len = np.hypot(seg[:, 0], seg[:, 1])
+    cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+    s = np.arange(n) * spacing
+    if s[-1] > cum[-1] + 1e-9:
+        raise ConfigError(source, "start_queue", f"the queue is {cum[-1]:.2f} m long; {n} robots "
+                          f"{spacing} m apart need {s[-1]:.2f} m")
+    k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1)
+    u = (s - cum[k]) / np.where(seg_len[k] > 0, seg_len[k], 1.0)
+    xy = pts[k] + u[:, None] * seg[k]
+    heading = np.arctan2(-seg[k, 1], -seg[k, 0])  # facing back up the queue, toward the start
+    ok = map_model.contains(xy, margin=radius)
+    if not ok.all():
+        i = int(np.flatnonzero(~ok)[0])
+        raise ConfigError(source, "start_queue", f"robot {i}'s place {xy[i].round(3).tolist()} is in or "
+                          f"within {radius} m of a wall")
+    return np.column_stack([xy, heading])
 
 
 def start_poses(map_model: MapModel, start: tuple[float, float, float], n: int, radius: float,

@@ -1,0 +1,93 @@
+"""ScriptedExpert: seed A's robots, end to end — leaders drive the plan, followers keep formation.
+
+The expert acts from the agents' observations plus what the paper's Kinect system knows, passed
+explicitly: the scenario (map, robot model, formation parameters) and the PPCP plan. It never reads
+env internals. Roles (leader/follower), splits at TPs, and waypoints come from the observations
+(the env runs the Kinect system's Alg. 1); each robot then runs its own controller:
+
+* leader: go-to-goal toward its next waypoint (eq. 2), slowed to ``leader_speed`` of v_max while it
+  has followers so they can close gaps;
+* follower: the l-psi law (eq. 3, corrected) on its onboard camera's measurement of the robot ahead,
+  the leader's velocity estimated from successive measurements (limited information, ref. [8]);
+  if the robot ahead is out of sight, it drives along its own route (same path up to its split);
+* everyone: brakes on the front sonar beams when a robot or wall is closer than ``stop_margin``
+  (needed in ``individual`` mode, where all robots leave at once).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from parcover_env.config import Scenario
+from parcover_env.control.follower import LeaderVelocityEstimator, l_psi_control, relative_l_psi
+from parcover_env.control.leader import go_to_goal
+from parcover_env.observations import ObservationLayout
+from parcover_env.planning.plan import Plan
+
+__all__ = ["ScriptedExpert"]
+
+
+class ScriptedExpert:
+    def __init__(self, layout: ObservationLayout, scenario: Scenario, plan: Plan, control_dt: float,
+                 sonar_angles: np.ndarray | None = None, leader_speed: float = 0.8,
+                 stop_margin: float = 0.12, slow_margin: float = 0.35):
+        self.layout, self.scenario, self.plan = layout, scenario, plan
+        self.dt = control_dt
+        self.leader_speed = leader_speed
+        r = scenario.robot
+        self.v_max, self.w_max = r.max_speed, r.max_turn_rate
+        self.sonar_front = None
+        if sonar_angles is not None and len(sonar_angles):
+            self.sonar_front = np.flatnonzero(np.abs(np.angle(np.exp(1j * np.asarray(sonar_angles)))) <= np.radians(25))
+        self.stop = r.radius + stop_margin
+        self.slow = r.radius + slow_margin
+        self.estimators: dict[str, LeaderVelocityEstimator] = {}
+
+    @classmethod
+    def for_env(cls, env, **kwargs) -> ScriptedExpert:
+        """Build from an env's public spec: layout, scenario, plan, control period, sonar beams."""
+        angles = env.sonar.beam_angles if env.sonar is not None else None
+        return cls(env.layout, env.scenario, env.plan, env.scenario.physics.control_dt, angles, **kwargs)
+
+    def reset(self, observations=None) -> None:
+        self.estimators.clear()
+
+    def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        g = self.layout.get
+        agents = sorted(observations, key=lambda a: int(a.rsplit("_", 1)[1]))
+        leaders = {a: g(observations[a], "leader")[0] > 0.5 for a in agents}
+        has_followers = {a: i + 1 < len(agents) and not leaders[agents[i + 1]] for i, a in enumerate(agents)}
+        actions = {}
+        for a in agents:
+            obs = observations[a]
+            if leaders[a]:
+                self.estimators.pop(a, None)
+                scale = self.leader_speed if has_followers[a] else 1.0
+                v, w = go_to_goal(self._goal(obs), self.v_max, self.w_max, speed_scale=scale)
+            elif g(obs, "pred_visible")[0] > 0.5:
+                v, w = self._follow(a, obs)
+            else:
+                self.estimators.pop(a, None)
+                v, w = go_to_goal(self._goal(obs), self.v_max, self.w_max, speed_scale=0.6)
+            v = self._brake(obs, v)
+            actions[a] = np.array([v / self.v_max, w / self.w_max], dtype=np.float32)
+        return actions
+
+    def _goal(self, obs: np.ndarray) -> np.ndarray:
+        return np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
+
+    def _follow(self, agent: str, obs: np.ndarray) -> tuple[float, float]:
+        g, f = self.layout.get, self.scenario.formation
+        rel = np.array([g(obs, "pred_dx")[0], g(obs, "pred_dy")[0]])
+        heading = float(np.arctan2(g(obs, "pred_sin")[0], g(obs, "pred_cos")[0]))
+        est = self.estimators.setdefault(agent, LeaderVelocityEstimator(self.dt))
+        v_l, w_l = est.update(rel, heading, float(g(obs, "v")[0]), float(g(obs, "omega")[0]))
+        m = relative_l_psi(rel, heading, f.offset)
+        return l_psi_control(m, f.spacing, np.radians(f.bearing_deg), f.offset, f.gains, v_l, w_l,
+                             self.v_max, self.w_max, min_speed=-0.3 * self.v_max)
+
+    def _brake(self, obs: np.ndarray, v: float) -> float:
+        if self.sonar_front is None or v <= 0:
+            return v
+        front = float(np.min(self.layout.get(obs, "sonar")[self.sonar_front]))
+        return v * float(np.clip((front - self.stop) / (self.slow - self.stop), 0.0, 1.0))

@@ -1,0 +1,229 @@
+"""Marker pipeline, grouping, pattern fit, fast path and tracker on synthetic Kinect frames."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from parcover_env.config import KinectConfig, MapConfig, load_scenario
+from parcover_env.geometry import wrap_angle
+from parcover_env.localization.kinect import (
+    KinectTracker,
+    PipelineParams,
+    PoseEstimate,
+    detect_markers,
+    estimate_fast,
+    estimate_poses,
+    fit_pattern,
+    group_blobs,
+    pipeline_stages,
+)
+from parcover_env.sensors.kinect import KinectFrame, KinectSensor, marker_pattern
+from parcover_env.world.map_model import MapModel
+
+OPEN = MapModel.from_config(MapConfig(size=(6.0, 6.0)))
+PARAMS = PipelineParams()
+
+
+def sensor(res=(640, 480), height=2.8, **kw) -> KinectSensor:
+    return KinectSensor(KinectConfig(name="k", position=(3.0, 3.0), height=height, resolution=res, **kw),
+                        0.15, 0.3, OPEN)
+
+
+def tolerances(s: KinectSensor) -> tuple[float, float]:
+    """Position / heading tolerance from the noise model: 1 px of marker centroid error at the
+    robot's depth, plus half a disparity-quantization step of mean-depth error times the largest
+    lateral lever (tan of half the horizontal FOV); heading: 1 px over the 10 cm marker spacing."""
+    z = s.camera.C[2] - s.robot_height
+    px = z / s.camera.focal
+    q = z ** 2 / s.fb / 8
+    return px + 0.54 * q / 2, px / 0.1
+
+
+def match(poses: np.ndarray, est: list[PoseEstimate]) -> tuple[np.ndarray, np.ndarray]:
+    """Position and heading error of each true pose's nearest estimate (inf when none)."""
+    pos, head = np.full(len(poses), np.inf), np.full(len(poses), np.inf)
+    for i, p in enumerate(poses):
+        if est:
+            e = min(est, key=lambda e: np.hypot(e.x - p[0], e.y - p[1]))
+            pos[i] = np.hypot(e.x - p[0], e.y - p[1])
+            head[i] = abs(wrap_angle(e.theta - p[2]))
+    return pos, head
+
+
+@pytest.mark.parametrize("res", [(640, 480), (320, 240)])
+def test_known_poses_are_estimated_within_noise_tolerance(res):
+    s = sensor(res)
+    tol_p, tol_h = tolerances(s)
+    rng = np.random.default_rng(3)
+    for _ in range(8):
+        poses = np.array([[2.5, 2.7, 0.0], [3.1, 3.3, 0.0], [3.5, 2.6, 0.0]])
+        poses[:, :2] += rng.uniform(-0.1, 0.1, (3, 2))
+        poses[:, 2] = rng.uniform(-np.pi, np.pi, 3)
+        est = estimate_poses(s.measure(poses, [True, True, True], rng), s.camera, PARAMS)
+        assert len(est) == 3
+        pos, head = match(poses, est)
+        assert pos.max() < tol_p and head.max() < tol_h
+        assert all(e.n_markers >= 3 and abs(e.depth - 2.5) < 0.05 for e in est)
+
+
+def test_speckle_alone_gives_no_detection():
+    s = sensor()
+    rng = np.random.default_rng(4)
+    poses = np.array([[3.0, 3.0, 0.0], [2.5, 2.8, 1.0]])
+    for _ in range(10):
+        f = s.measure(poses, [False, False], rng)  # robots without markers, speckle everywhere
+        st = pipeline_stages(f.ir)
+        assert (st["threshold"] > 0).sum() > 0  # some speckle clusters pass the threshold...
+        assert not st["morphology"].any()  # ...and the 3x3 opening removes them
+        assert len(detect_markers(f.ir)) == 0
+        assert estimate_poses(f, s.camera) == []
+    assert len(detect_markers(f.ir, PipelineParams(otsu=True))) == 0
+
+
+def test_two_touching_robots_are_separated():
+    s = sensor()
+    tol_p, tol_h = tolerances(s)
+    rng = np.random.default_rng(5)
+    for _ in range(10):
+        a = np.array([3.0, 3.0])
+        ang = rng.uniform(0, 2 * np.pi)
+        b = a + 0.31 * np.array([np.cos(ang), np.sin(ang)])
+        poses = np.array([[*a, rng.uniform(-np.pi, np.pi)], [*b, rng.uniform(-np.pi, np.pi)]])
+        est = estimate_poses(s.measure(poses, [True, True], rng), s.camera, PARAMS)
+        assert len(est) == 2
+        pos, head = match(poses, est)
+        assert pos.max() < tol_p and head.max() < tol_h
+
+
+def test_robot_on_the_footprint_border_is_never_misplaced():
+    s = sensor()
+    tol_p, tol_h = tolerances(s)
+    rng = np.random.default_rng(6)
+    x_edge = 3.0 + 2.5 * np.tan(np.radians(57 / 2))  # footprint border on the marker plane
+    seen = 0
+    for dx in np.linspace(-0.2, 0.2, 17):
+        pose = np.array([[x_edge + dx, 3.0, rng.uniform(-np.pi, np.pi)]])
+        est = estimate_poses(s.measure(pose, [True], rng), s.camera, PARAMS)
+        assert len(est) <= 1
+        if est:
+            seen += 1
+            pos, head = match(pose, est)
+            assert pos[0] < tol_p and head[0] < tol_h
+        if dx <= -0.15:
+            assert est, "a robot fully inside the image must be detected"
+        if dx >= 0.05:
+            assert not est, "fewer than 3 markers in view: no estimate"
+    assert 3 <= seen < 17
+
+
+def test_fit_pattern_recovers_pose_with_any_order_and_a_missing_marker():
+    pat = marker_pattern(0.15)
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        x, y, th = rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-np.pi, np.pi)
+        c, s_ = np.cos(th), np.sin(th)
+        world = pat @ np.array([[c, s_], [-s_, c]]) + (x, y)
+        order = rng.permutation(4)[: rng.integers(3, 5)]
+        pose, rms, assign = fit_pattern(world[order] + rng.normal(0, 0.001, (len(order), 2)), pat)
+        assert np.hypot(pose[0] - x, pose[1] - y) < 0.005
+        assert abs(wrap_angle(pose[2] - th)) < 0.05
+        np.testing.assert_array_equal(assign, order)
+        assert rms < 0.003
+    with pytest.raises(ValueError, match="points"):
+        fit_pattern(np.zeros((5, 2)), pat)
+
+
+def test_group_blobs_splits_touching_robots_and_drops_strays():
+    pat = marker_pattern(0.15)
+    a = pat + (1.0, 1.0)
+    b = -pat[:3] + (1.3, 1.0)  # rotated by pi, one marker missed
+    stray = np.array([[3.0, 3.0]])
+    pts = np.concatenate([a, b, stray])
+    groups = sorted(group_blobs(pts, PARAMS), key=len)
+    assert [sorted(g.tolist()) for g in groups] == [[4, 5, 6], [0, 1, 2, 3]]
+    assert group_blobs(np.zeros((0, 2)), PARAMS) == []
+
+
+def test_dropped_frames_and_bad_input():
+    s = sensor(drop_rate=1.0)
+    f = s.measure(np.array([[3.0, 3.0, 0.0]]), [True], np.random.default_rng(0))
+    assert estimate_poses(f, s.camera) == []
+    with pytest.raises(ValueError, match="uint8"):
+        detect_markers(np.zeros((10, 10), float))
+    bad = KinectFrame("k", np.zeros((10, 10), np.float32), np.zeros((10, 10), np.uint8))
+    with pytest.raises(ValueError, match="shape"):
+        estimate_poses(bad, s.camera)
+    with pytest.raises(ValueError, match="odd"):
+        PipelineParams(median_ksize=4)
+
+
+def test_fast_path_agrees_with_full_pipeline():
+    rng = np.random.default_rng(8)
+    for res in ((640, 480), (320, 240)):
+        s = sensor(res)
+        full, fast = [], []
+        n_full = n_fast = 0
+        for _ in range(40):
+            poses = np.array([[rng.uniform(2.2, 3.8), rng.uniform(2.4, 3.6), rng.uniform(-np.pi, np.pi)]])
+            e1 = estimate_poses(s.measure(poses, [True], rng), s.camera, PARAMS)
+            e2 = estimate_fast(s, poses, [True], rng)
+            n_full, n_fast = n_full + len(e1), n_fast + len(e2)
+            full += list(match(poses, e1)[0][np.isfinite(match(poses, e1)[0])])
+            fast += list(match(poses, e2)[0][np.isfinite(match(poses, e2)[0])])
+        assert abs(n_full - n_fast) <= 4
+        m_full, m_fast = np.mean(full), np.mean(fast)
+        assert 0.5 < m_fast / m_full < 2.0, (res, m_full, m_fast)
+
+
+def test_fast_path_visibility():
+    s = sensor()
+    rng = np.random.default_rng(9)
+    inside, outside = [3.0, 3.0, 0.3], [5.5, 3.0, 0.3]
+    est = estimate_fast(s, np.array([inside, outside, inside]), [True, True, False], rng)
+    assert [e.truth_index for e in est] == [0]
+    small = sensor(height=3.6, res=(320, 240))
+    assert estimate_fast(small, np.array([inside]), [True], rng) == []  # markers too small to survive
+    mm = MapModel.from_config(MapConfig(size=(6.0, 6.0), walls=(((2.5, 2.0), (2.5, 4.0)),)))
+    cfg = KinectConfig(name="k", position=(3.0, 3.0), height=2.8)
+    tall = KinectSensor(cfg, 0.15, 0.3, mm, wall_height=2.0)
+    behind = np.array([[2.2, 3.0, 0.0]])
+    assert estimate_fast(tall, behind, [True], rng) == []  # hidden by the wall
+    assert estimate_poses(tall.measure(behind, [True], rng), tall.camera) == []  # full pipeline agrees
+    low = KinectSensor(cfg, 0.15, 0.3, mm, wall_height=0.5)
+    assert len(estimate_fast(low, behind, [True], rng)) == 1
+
+
+def est(x, y, th=0.0, n=4, k="A") -> PoseEstimate:
+    return PoseEstimate(x, y, th, n, kinect=k)
+
+
+def test_tracker_fuses_kinects_and_keeps_identities():
+    tr = KinectTracker(gate=0.3)
+    pred = {7: (1.0, 1.0, 0.0), 9: (2.0, 1.0, 0.0)}
+    out = tr.update([[est(2.02, 1.0, 0.1), est(1.01, 1.0)], [est(2.0, 1.02, -0.1, k="B")]], pred, stamp=1.0)
+    assert set(out) == {7, 9}
+    np.testing.assert_allclose(out[9], [2.01, 1.01, 0.0], atol=1e-6)  # fused, equal weights
+    assert tr.age(7, 1.5) == pytest.approx(0.5) and tr.age(3, 1.5) == np.inf
+    out = tr.update([[est(5.0, 5.0)]], pred)  # far from every prediction: gated out
+    assert out == {} and len(tr.unassigned) == 1
+    free = KinectTracker()
+    ids = free.update([[est(1.0, 1.0), est(3.0, 1.0)]])
+    for step in range(1, 5):  # robots move 5 cm per frame; ids follow them
+        nxt = free.update([[est(3.0 + 0.05 * step, 1.0), est(1.0 + 0.05 * step, 1.0)]])
+        assert set(nxt) == set(ids)
+        for k in ids:
+            assert abs(nxt[k][0] - ids[k][0] - 0.05 * step) < 1e-9
+    with pytest.raises(ValueError):
+        KinectTracker(gate=0)
+
+
+def test_write_kinect_views(tmp_path):
+    from parcover_env.localization.kinect_views import write_kinect_views
+
+    scen = load_scenario("office")
+    paths = write_kinect_views(scen, tmp_path / "views", np.random.default_rng(0), duration=2.0)
+    assert {p.name for p in paths} == {"kinect_depth.png", "kinect_ir.png", "kinect_pipeline.png",
+                                       "kinect_hull.png", "kinect_trajectory.png"}
+    for p in paths:
+        assert p.stat().st_size > 1000 and p.read_bytes()[:4] == b"\x89PNG"

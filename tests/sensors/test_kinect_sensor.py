@@ -1,0 +1,132 @@
+"""Synthetic overhead Kinect: static scene, robots, markers, noise model, inputs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from parcover_env.config import KinectConfig, MapConfig
+from parcover_env.sensors.kinect import BASELINE, KinectSensor, axial_sigma, marker_pattern
+from parcover_env.world.map_model import MapModel
+
+OPEN = MapModel.from_config(MapConfig(size=(6.0, 6.0)))
+
+
+def sensor(height=2.8, res=(320, 240), mm=OPEN, **kw) -> KinectSensor:
+    cfg = KinectConfig(name="k", position=(3.0, 3.0), height=height, resolution=res, **kw)
+    return KinectSensor(cfg, 0.15, 0.3, mm)
+
+
+def test_static_floor_depth_is_the_height_when_looking_down():
+    s = sensor()
+    assert s.static_depth.shape == (240, 320)
+    np.testing.assert_allclose(s.static_depth, 2.8, atol=1e-9)
+    assert np.all(s.static_class == KinectSensor.FLOOR)
+
+
+def test_walls_are_raised_bodies():
+    cfg = MapConfig(size=(6.0, 6.0), walls=(((3.0, 1.0), (3.0, 5.0)),), wall_thickness=0.2)
+    mm = MapModel.from_config(cfg)
+    s = KinectSensor(KinectConfig(name="k", position=(3.0, 3.0), height=2.8, resolution=(320, 240)),
+                     0.15, 0.3, mm, wall_height=0.5)
+    u, v = 159, 120  # image centre: straight down onto the wall top
+    assert s.static_depth[v, u] == pytest.approx(2.3, abs=1e-6)
+    assert s.static_class[v, u] == KinectSensor.WALL
+    assert s.static_depth[v, 5] == pytest.approx(2.8)  # floor far from the wall
+    wall_px = (s.static_class == KinectSensor.WALL).sum()
+    # Wall top 0.2 m wide at 2.3 m: ~ 0.2 * f / 2.3 px wide, plus a visible side face.
+    assert 0.2 * s.camera.focal / 2.3 * 240 * 0.9 < wall_px < 0.4 * s.camera.focal / 2.3 * 240
+
+
+def test_robot_top_depth_owner_and_markers():
+    s = sensor(res=(640, 480))
+    pose = np.array([[3.0, 3.0, 0.4]])
+    depth, owner, code = s.render_clean(pose, [True])
+    uv, _ = s.camera.project(np.array([[3.0, 3.0, 0.3]]))
+    u, v = np.rint(uv[0]).astype(int)
+    assert depth[v, u] == pytest.approx(2.5)
+    assert owner[v, u] == 0
+    # Robot top area in pixels ~ pi (r f / z)^2.
+    expected = np.pi * (0.15 * s.camera.focal / 2.5) ** 2
+    assert abs((owner == 0).sum() - expected) < 0.05 * expected
+    # Four saturated marker discs of radius 2 cm.
+    marker_area = np.pi * (0.02 * s.camera.focal / 2.5) ** 2
+    assert abs((code == 1).sum() - 4 * marker_area) < 0.2 * 4 * marker_area
+    # A robot without markers carries none.
+    _, _, code2 = s.render_clean(pose, [False])
+    assert not code2.any()
+
+
+def test_depth_missing_where_markers_saturate():
+    rng = np.random.default_rng(1)
+    s = sensor(res=(640, 480))
+    pose = np.array([[3.0, 3.0, 0.4]])
+    f = s.measure(pose, [True], rng)
+    _, _, code = s.render_clean(pose, [True])
+    assert np.all(f.depth[code > 0] == 0)
+    assert np.all(f.ir[code == 1] == 255)
+    assert f.depth.dtype == np.float32 and f.ir.dtype == np.uint8
+
+
+def test_axial_noise_and_disparity_quantization():
+    s = sensor(res=(640, 480))
+    z = np.full((200, 200), 2.8)
+    noisy = s.noisy_depth(z, np.random.default_rng(2))
+    q = 2.8 ** 2 / s.fb / 8  # depth step of 1/8 px disparity
+    expected = np.sqrt(axial_sigma(2.8) ** 2 + q ** 2 / 12)
+    assert noisy.std() == pytest.approx(expected, rel=0.15)
+    assert abs(noisy.mean() - 2.8) < 0.003
+    disp = s.fb / noisy.astype(float) * 8
+    np.testing.assert_allclose(disp, np.round(disp), atol=1e-2)  # multiples of 1/8 px
+    assert s.fb == pytest.approx(s.camera.focal * BASELINE)
+    small = sensor(res=(320, 240))
+    assert small.fb == pytest.approx(small.camera.focal * 2 * BASELINE)  # native 640-wide focal
+
+
+def test_range_limits_give_zero_depth():
+    s = sensor(height=4.2)  # floor at 4.2 m: beyond the 4.0 m range; robot top at 3.9 m: inside
+    f = s.measure(np.array([[3.0, 3.0, 0.0]]), [False], np.random.default_rng(0))
+    _, owner, _ = s.render_clean(np.array([[3.0, 3.0, 0.0]]), [False])
+    assert np.mean(f.depth[owner < 0] == 0) > 0.99
+    assert np.mean(f.depth[owner == 0] > 0) > 0.95
+    s2 = sensor(height=1.0, range_min=0.8)
+    f2 = s2.measure(np.array([[3.0, 3.0, 0.0]]), [False], np.random.default_rng(0))
+    uv, _ = s2.camera.project(np.array([[3.0, 3.0, 0.3]]))
+    u, v = np.rint(uv[0]).astype(int)
+    assert f2.depth[v, u] == 0  # robot top at 0.7 m: closer than range_min
+    assert f2.depth[0, 0] > 0
+
+
+def test_measure_is_deterministic_and_drops_frames():
+    s = sensor()
+    poses = np.array([[3.0, 3.0, 0.0], [3.5, 3.2, 1.0]])
+    a = s.measure(poses, [True, False], np.random.default_rng(5))
+    b = s.measure(poses, [True, False], np.random.default_rng(5))
+    np.testing.assert_array_equal(a.depth, b.depth)
+    np.testing.assert_array_equal(a.ir, b.ir)
+    d = sensor(drop_rate=1.0).measure(poses, [True, True], np.random.default_rng(0))
+    assert d.dropped and not d.depth.any()
+
+
+def test_bad_inputs_raise_value_error():
+    s = sensor()
+    rng = np.random.default_rng(0)
+    with pytest.raises(ValueError, match="poses"):
+        s.measure(np.zeros(3), [True], rng)
+    with pytest.raises(ValueError, match="marker_mask"):
+        s.measure(np.zeros((2, 3)), [True], rng)
+    with pytest.raises(ValueError, match="NaN"):
+        s.measure(np.full((1, 3), np.nan), [True], rng)
+    with pytest.raises(ValueError, match="not above"):
+        KinectSensor(KinectConfig(name="k", position=(3, 3), height=0.25), 0.15, 0.3, OPEN)
+    with pytest.raises(ValueError):
+        marker_pattern(0.01)
+
+
+def test_marker_pattern_fits_on_the_robot_and_is_spread():
+    for r in (0.1, 0.15, 0.3):
+        pat = marker_pattern(r)
+        assert np.linalg.norm(pat, axis=1).max() + 0.02 <= r + 1e-9
+    pat = marker_pattern(0.15)
+    d = np.linalg.norm(pat[:, None] - pat[None], axis=-1) + np.eye(4)
+    assert d.min() >= 0.099

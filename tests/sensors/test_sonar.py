@@ -1,0 +1,175 @@
+"""Sonar ring model: vectorized vs brute-force reference, specular physics, noise, blocking."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from parcover_env.config import MapConfig, SonarConfig
+from parcover_env.sensors.sonar import SonarRing
+from parcover_env.world.map_model import MapModel
+
+T_ROOM = MapConfig(size=(4.0, 4.0), boundary=((1.2, 0.0), (2.8, 0.0), (2.8, 2.4), (4.0, 2.4), (4.0, 4.0),
+                                              (0.0, 4.0), (0.0, 2.4), (1.2, 2.4)),
+                   obstacles=(((2.9, 3.0), (3.3, 3.0), (3.3, 3.3), (2.9, 3.3)),))
+
+
+def _ref_ray(o, ang, segs, discs, radius, cos_min):
+    """Brute force: nearest hit, whether it echoes (specular), plain Python loops."""
+    d = (math.cos(ang), math.sin(ang))
+    best, echo = math.inf, False
+    for x1, y1, x2, y2 in segs:
+        ex, ey = x2 - x1, y2 - y1
+        den = d[0] * ey - d[1] * ex
+        if abs(den) < 1e-12:
+            continue
+        wx, wy = x1 - o[0], y1 - o[1]
+        t = (wx * ey - wy * ex) / den
+        u = (wx * d[1] - wy * d[0]) / den
+        if t >= 0 and -1e-12 <= u <= 1 + 1e-12 and t < best:
+            best, echo = t, abs(den) / math.hypot(ex, ey) >= cos_min - 1e-12
+    for c in discs:
+        ox, oy = o[0] - c[0], o[1] - c[1]
+        b = ox * d[0] + oy * d[1]
+        cc = ox * ox + oy * oy - radius * radius
+        if b * b - cc < 0:
+            continue
+        t = 0.0 if cc <= 0 else -b - math.sqrt(b * b - cc)
+        if t >= 0 and t < best:
+            best, echo = t, True
+    return best, echo
+
+
+def _ref_corners(segs):
+    out = []
+    for i, s in enumerate(segs):
+        for j, q in enumerate(segs):
+            if j <= i:
+                continue
+            for a, a_other in ((s[:2], s[2:]), (s[2:], s[:2])):
+                for b, b_other in ((q[:2], q[2:]), (q[2:], q[:2])):
+                    if np.allclose(a, b, atol=1e-9):
+                        out.append((a, a_other - a, b_other - a))
+    return out
+
+
+def _reference(cfg: SonarConfig, origin, axes, segs, discs, radius, n_sub=5):
+    cos_min = math.cos(math.radians(cfg.incidence_max_deg))
+    spec = cfg.model == "specular"
+    offs = np.linspace(-0.5, 0.5, n_sub) * math.radians(cfg.cone_deg) if spec else [0.0]
+    corners = _ref_corners(segs) if spec else []
+    out = []
+    for ax in axes:
+        best = math.inf
+        for off in offs:
+            t, echo = _ref_ray(origin, ax + off, segs, discs, radius, cos_min if spec else -1.0)
+            if echo:
+                best = min(best, t)
+        for c, u1, u2 in corners:
+            v = np.asarray(origin) - c
+            cr = lambda p, q: p[0] * q[1] - p[1] * q[0]  # noqa: E731
+            s = cr(u1, u2)
+            if abs(s) < 1e-9 or not (cr(u1, v) * s > 0 and cr(v, u2) * s > 0):
+                continue
+            dist = float(np.linalg.norm(v))
+            bearing = math.atan2(-v[1], -v[0])
+            if dist > cfg.range_max or abs(math.remainder(bearing - ax, 2 * math.pi)) > math.radians(
+                    cfg.cone_deg) / 2:
+                continue
+            t, _ = _ref_ray(origin, bearing, segs, discs, radius, -1.0)
+            if t >= dist * (1 - 1e-7) - 1e-9:
+                best = min(best, dist)
+        out.append(min(best, cfg.range_max))
+    return np.array(out)
+
+
+@pytest.mark.parametrize("model", ["ray", "specular"])
+def test_vectorized_matches_brute_force(model):
+    m = MapModel.from_config(T_ROOM)
+    cfg = SonarConfig(model=model, n_beams=12, quantization=0.0)
+    ring = SonarRing(cfg)
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(0, 4, (400, 2))
+    pts = pts[m.contains(pts, margin=0.2)][:12]
+    poses = np.column_stack([pts, rng.uniform(-math.pi, math.pi, len(pts))])
+    got = ring.measure(poses, m.segments, 0.165, None)
+    for i, pose in enumerate(poses):
+        others = [p[:2] for j, p in enumerate(poses) if j != i]
+        want = _reference(cfg, pose[:2], pose[2] + ring.beam_angles, m.segments, others, 0.165)
+        np.testing.assert_allclose(got[i], np.maximum(want, cfg.range_min), atol=1e-4)
+    scan = ring.scan(poses[0], m.segments, poses[1:, :2], 0.165, None)
+    want = _reference(cfg, poses[0, :2], poses[0, 2] + ring.scan_angles, m.segments, poses[1:, :2], 0.165)
+    np.testing.assert_allclose(scan, np.maximum(want, cfg.range_min), atol=1e-6)
+    assert scan.shape == (72,)
+
+
+def _box_room():
+    return MapModel.from_config(MapConfig(size=(10.0, 10.0)))
+
+
+def test_specular_perpendicular_wall_echoes_oblique_does_not():
+    m = _box_room()
+    ring = SonarRing(SonarConfig(model="specular", n_beams=4, noise_std=0, noise_rel=0, quantization=0))
+    # 1.0 m from the left wall, facing it; everything else beyond range
+    pose = np.array([[1.0, 5.0, math.pi]])
+    r = ring.measure(pose, m.segments, 0.165, None)[0]
+    assert r[0] == pytest.approx(1.0, abs=1e-6)  # beam 0 points at the wall: normal incidence
+    # 50 deg off the normal (beyond cone/2 + incidence_max = 35 deg): no echo
+    r = ring.measure(np.array([[1.0, 5.0, math.pi + math.radians(50)]]), m.segments, 0.165, None)[0]
+    assert r[0] == pytest.approx(2.54)
+    # the ideal ray model still sees the oblique wall
+    ray = SonarRing(SonarConfig(model="ray", n_beams=4, quantization=0.0))
+    r = ray.measure(np.array([[1.0, 5.0, math.pi + math.radians(50)]]), m.segments, 0.165, None)[0]
+    assert r[0] == pytest.approx(1.0 / math.cos(math.radians(50)), abs=1e-6)
+
+
+def test_specular_concave_corner_retro_reflects():
+    m = _box_room()
+    ring = SonarRing(SonarConfig(model="specular", n_beams=8, quantization=0.0))
+    pose = np.array([[1.2, 1.2, math.radians(225)]])  # beam 0 points into the corner (0, 0), 45 deg off both
+    r = ring.measure(pose, m.segments, 0.165, None)[0]
+    assert r[0] == pytest.approx(math.hypot(1.2, 1.2), abs=1e-6)
+
+
+def test_other_robots_block_and_can_be_excluded():
+    m = _box_room()
+    ring = SonarRing(SonarConfig(model="specular", n_beams=8, quantization=0.0))
+    poses = np.array([[5.0, 5.0, 0.0], [6.0, 5.0, math.pi]])
+    r = ring.measure(poses, m.segments, 0.2, None)
+    assert r[0, 0] == pytest.approx(0.8, abs=1e-6) and r[1, 0] == pytest.approx(0.8, abs=1e-6)
+    r = ring.measure(poses, m.segments, 0.2, None, include_robots=False)
+    assert r[0, 0] == pytest.approx(2.54)
+
+
+def test_noise_quantization_clamp_and_garbage():
+    m = _box_room()
+    cfg = SonarConfig(model="ray", n_beams=1, noise_std=0.02, noise_rel=0.0, quantization=0.01)
+    ring = SonarRing(cfg)
+    rng = np.random.default_rng(0)
+    poses = np.tile([[1.0, 5.0, math.pi]], (2000, 1))
+    r = ring.measure(poses, m.segments, 0.1, rng, include_robots=False)[:, 0].astype(float)
+    assert r.dtype == float and abs(r.mean() - 1.0) < 0.003 and 0.017 < r.std() < 0.023
+    np.testing.assert_allclose(np.round(r / 0.01) * 0.01, r, atol=1e-5)
+    near = ring.measure([[0.05, 5.0, math.pi]], m.segments, 0.1, rng)[0, 0]
+    assert near == pytest.approx(cfg.range_min)
+    bad = SonarRing(replace(cfg, garbage_rate=1.0, noise_std=0.0))
+    g = bad.measure(poses[:200], m.segments, 0.1, rng, include_robots=False)
+    assert np.all((g >= cfg.range_min) & (g <= cfg.range_max)) and g.std() > 0.3
+
+
+def test_layouts_and_bad_input():
+    assert SonarRing(SonarConfig(layout="amigobot")).n_beams == 8
+    assert SonarRing(SonarConfig(n_beams=16)).beam_angles.shape == (16,)
+    ring = SonarRing(SonarConfig())
+    segs = _box_room().segments
+    with pytest.raises(ValueError, match="poses"):
+        ring.measure(np.zeros((2, 2)), segs, 0.1, None)
+    with pytest.raises(ValueError, match="segments"):
+        ring.measure(np.zeros((1, 3)), np.zeros((3, 3)), 0.1, None)
+    with pytest.raises(ValueError, match="NaN"):
+        ring.scan([np.nan, 0, 0], segs, None, 0.1, None)
+    with pytest.raises(ValueError, match="SonarConfig"):
+        SonarRing({"model": "ray"})
