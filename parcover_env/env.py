@@ -29,6 +29,19 @@ from parcover_env.world.placement import queue_poses, start_poses
 __all__ = ["ParallelCoverageEnv"]
 
 
+def _lead_in(queue, xy: np.ndarray) -> np.ndarray:
+    """Waypoints from a robot's place in the start queue up the queue to the start (excluded)."""
+    if not queue:
+        return np.empty((0, 2))
+    pts = np.asarray(queue, dtype=float)
+    seg = np.diff(pts, axis=0)
+    # the queue segment holding xy: the one it is closest to
+    rel = xy - pts[:-1]
+    u = np.clip(np.einsum("ij,ij->i", rel, seg) / np.einsum("ij,ij->i", seg, seg), 0.0, 1.0)
+    k = int(np.argmin(np.hypot(*(pts[:-1] + u[:, None] * seg - xy).T)))
+    return np.vstack([xy, pts[k:0:-1]])
+
+
 class ParallelCoverageEnv(ParallelEnv):
     """Parallel path coverage: a team of differential-drive robots, starting together, must visit
     every Key Position Of Interest (KPOI) of an indoor map (Min, Fehr & Papanikolopoulos; Kim,
@@ -117,6 +130,7 @@ class ParallelCoverageEnv(ParallelEnv):
         else:
             self._start_poses = start_poses(self.map, (s.start.x, s.start.y, s.start.theta), self.n_robots,
                                             s.robot.radius, s.formation.spacing, s.source)
+        self._routes = [np.vstack([_lead_in(s.queue, p[:2]), path]) for p, path in zip(self._start_poses, self.plan.paths)]
         self.sonar = SonarRing(s.robot.sonar) if s.observation.sonar else None
         n_sonar = self.sonar.n_beams if self.sonar else 0
         self.kinects = KinectSystem(s, self.map) if s.kinects and s.observation.pose_source == "kinect" else None
@@ -149,7 +163,7 @@ class ParallelCoverageEnv(ParallelEnv):
         self.fix_age = np.zeros(self.n_robots)
         if self.kinects is not None:
             self.kinects.reset()
-        self.mission = Mission(np.array(s.kpois), s.kpoi_radius, self.plan.paths,
+        self.mission = Mission(np.array(s.kpois), s.kpoi_radius, self._routes,
                                waypoint_tol=min(max(0.15, 1.5 * s.robot.radius), 0.6 * s.kpoi_radius))
         self.team = Team(self.plan, s.formation.mode, reach_tol=max(0.15, 1.5 * s.robot.radius))
         self.commands = np.zeros((self.n_robots, 2))

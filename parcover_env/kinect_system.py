@@ -30,7 +30,7 @@ class KinectSystem:
         self.reset()
 
     def reset(self) -> None:
-        self.tracker = KinectTracker(gate=0.3, fuse_radius=0.12)
+        self.tracker = KinectTracker(gate=1.0, fuse_radius=0.12)  # wide gate: re-acquire drifted leaders
         self.next_tick = np.zeros(len(self.sensors))
         self.frames: dict[str, KinectFrame] = {}
 

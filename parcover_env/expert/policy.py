@@ -10,8 +10,10 @@ env internals. Roles (leader/follower), splits at TPs, and waypoints come from t
 * follower: the l-psi law (eq. 3, corrected) on its onboard camera's measurement of the robot ahead,
   the leader's velocity estimated from successive measurements (limited information, ref. [8]);
   if the robot ahead is out of sight, it drives along its own route (same path up to its split);
-* everyone: brakes on the front sonar beams when a robot or wall is closer than ``stop_margin``
-  (needed in ``individual`` mode, where all robots leave at once).
+* leaders brake on their front sonar beams when a robot or wall is closer than ``stop_margin``
+  (needed in ``individual`` mode, where all robots leave at once); a leader braked for longer than
+  ``patience`` (plus 0.3 s per robot index, so two robots never give way together) backs off
+  briefly while turning, which breaks face-to-face deadlocks.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ __all__ = ["ScriptedExpert"]
 class ScriptedExpert:
     def __init__(self, layout: ObservationLayout, scenario: Scenario, plan: Plan, control_dt: float,
                  sonar_angles: np.ndarray | None = None, leader_speed: float = 0.8,
-                 stop_margin: float = 0.12, slow_margin: float = 0.35):
+                 stop_margin: float = 0.05, slow_margin: float = 0.25, patience: float = 2.0):
         self.layout, self.scenario, self.plan = layout, scenario, plan
         self.dt = control_dt
         self.leader_speed = leader_speed
@@ -41,7 +43,10 @@ class ScriptedExpert:
             self.sonar_front = np.flatnonzero(np.abs(np.angle(np.exp(1j * np.asarray(sonar_angles)))) <= np.radians(25))
         self.stop = r.radius + stop_margin
         self.slow = r.radius + slow_margin
+        self.patience = patience
         self.estimators: dict[str, LeaderVelocityEstimator] = {}
+        self.blocked: dict[str, int] = {}
+        self.backing: dict[str, int] = {}
 
     @classmethod
     def for_env(cls, env, **kwargs) -> ScriptedExpert:
@@ -51,6 +56,8 @@ class ScriptedExpert:
 
     def reset(self, observations=None) -> None:
         self.estimators.clear()
+        self.blocked.clear()
+        self.backing.clear()
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         g = self.layout.get
@@ -64,12 +71,12 @@ class ScriptedExpert:
                 self.estimators.pop(a, None)
                 scale = self.leader_speed if has_followers[a] else 1.0
                 v, w = go_to_goal(self._goal(obs), self.v_max, self.w_max, speed_scale=scale)
+                v, w = self._avoid(a, obs, v, w)
             elif g(obs, "pred_visible")[0] > 0.5:
                 v, w = self._follow(a, obs)
             else:
                 self.estimators.pop(a, None)
                 v, w = go_to_goal(self._goal(obs), self.v_max, self.w_max, speed_scale=0.6)
-            v = self._brake(obs, v)
             actions[a] = np.array([v / self.v_max, w / self.w_max], dtype=np.float32)
         return actions
 
@@ -86,8 +93,19 @@ class ScriptedExpert:
         return l_psi_control(m, f.spacing, np.radians(f.bearing_deg), f.offset, f.gains, v_l, w_l,
                              self.v_max, self.w_max, min_speed=-0.3 * self.v_max)
 
-    def _brake(self, obs: np.ndarray, v: float) -> float:
+    def _avoid(self, agent: str, obs: np.ndarray, v: float, w: float) -> tuple[float, float]:
+        """Brake on the front sonar beams; back off and turn after being blocked too long."""
+        if self.backing.get(agent, 0) > 0:
+            self.backing[agent] -= 1
+            return -0.4 * self.v_max, 0.6 * self.w_max
         if self.sonar_front is None or v <= 0:
-            return v
+            self.blocked[agent] = 0
+            return v, w
         front = float(np.min(self.layout.get(obs, "sonar")[self.sonar_front]))
-        return v * float(np.clip((front - self.stop) / (self.slow - self.stop), 0.0, 1.0))
+        factor = float(np.clip((front - self.stop) / (self.slow - self.stop), 0.0, 1.0))
+        self.blocked[agent] = self.blocked.get(agent, 0) + 1 if factor < 0.2 else 0
+        limit = (self.patience + 0.3 * int(agent.rsplit("_", 1)[1])) / self.dt
+        if self.blocked[agent] > limit:
+            self.blocked[agent] = 0
+            self.backing[agent] = int(round(1.0 / self.dt))
+        return v * factor, w
