@@ -15,8 +15,9 @@ def to_commands(actions: Mapping, agents: Sequence[str], max_speed: float,
                 max_turn_rate: float) -> np.ndarray:
     """Joint action ``{agent: (2,) in [-1, 1]}`` -> unicycle commands ``(N, 2)`` (m/s, rad/s).
 
-    Out-of-range values are clipped to [-1, 1] (documented behaviour); NaN/inf, a wrong shape or
-    type, and missing or unknown agents raise ActionError naming the agent.
+    Out-of-range values are clipped to [-1, 1] (documented behaviour); NaN/inf, a wrong shape, a
+    non-real type (complex, bool, strings, None) and missing or unknown agents raise ActionError
+    naming the agent.
     """
     if not isinstance(actions, Mapping):
         raise ActionError(f"actions must be a dict {{agent: array(2)}}, got {type(actions).__name__}")
@@ -29,9 +30,12 @@ def to_commands(actions: Mapping, agents: Sequence[str], max_speed: float,
     out = np.empty((len(agents), 2))
     for i, agent in enumerate(agents):
         try:
-            a = np.asarray(actions[agent], dtype=float)
-        except (TypeError, ValueError):
+            raw = np.asarray(actions[agent])
+        except (TypeError, ValueError):  # e.g. ragged nested sequences
             raise ActionError(f"{agent}: action is not numeric: {actions[agent]!r}") from None
+        if raw.dtype.kind not in "iuf":  # complex, bool, strings, objects: never silently cast
+            raise ActionError(f"{agent}: action is not numeric (real numbers): {actions[agent]!r}")
+        a = raw.astype(float)
         if a.shape != (2,):
             raise ActionError(f"{agent}: action must have shape (2,) = (v, omega) in [-1, 1], got {a.shape}")
         if not np.all(np.isfinite(a)):

@@ -238,9 +238,9 @@ class FormationConfig:
     """Desired separation l_d between consecutive robots (m)."""
     bearing_deg: float = 180.0
     """Desired bearing psi_d of a follower seen from its predecessor (180 = behind)."""
-    offset: float = 0.1
+    offset: float = 0.2
     """Control point offset d ahead of the follower's axle (m)."""
-    gains: tuple[float, float] = (1.0, 1.0)
+    gains: tuple[float, float] = (1.0, 0.7)
     """(a1, a2) of the l-psi law."""
     mode: Literal["formation", "individual"] = "formation"
     """``individual``: no formations, every robot is localized and messaged on its own."""

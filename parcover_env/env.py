@@ -29,6 +29,10 @@ from parcover_env.world.placement import queue_poses, start_poses
 __all__ = ["ParallelCoverageEnv"]
 
 
+def _length(poly: np.ndarray) -> float:
+    return float(np.hypot(*np.diff(poly, axis=0).T).sum()) if len(poly) > 1 else 0.0
+
+
 def _lead_in(queue, xy: np.ndarray) -> np.ndarray:
     """Waypoints from a robot's place in the start queue up the queue to the start (excluded)."""
     if not queue:
@@ -130,7 +134,9 @@ class ParallelCoverageEnv(ParallelEnv):
         else:
             self._start_poses = start_poses(self.map, (s.start.x, s.start.y, s.start.theta), self.n_robots,
                                             s.robot.radius, s.formation.spacing, s.source)
-        self._routes = [np.vstack([_lead_in(s.queue, p[:2]), path]) for p, path in zip(self._start_poses, self.plan.paths)]
+        lead_ins = [_lead_in(s.queue, p[:2]) for p in self._start_poses]
+        self._routes = [np.vstack([li, path]) for li, path in zip(lead_ins, self.plan.paths)]
+        self._lead_in_lengths = np.array([_length(np.vstack([li, path[:1]])) for li, path in zip(lead_ins, self.plan.paths)])
         self.sonar = SonarRing(s.robot.sonar) if s.observation.sonar else None
         n_sonar = self.sonar.n_beams if self.sonar else 0
         self.kinects = KinectSystem(s, self.map) if s.kinects and s.observation.pose_source == "kinect" else None
@@ -164,7 +170,8 @@ class ParallelCoverageEnv(ParallelEnv):
         if self.kinects is not None:
             self.kinects.reset()
         self.mission = Mission(np.array(s.kpois), s.kpoi_radius, self._routes,
-                               waypoint_tol=min(max(0.15, 1.5 * s.robot.radius), 0.6 * s.kpoi_radius))
+                               waypoint_tol=min(max(0.15, 1.5 * s.robot.radius), 0.6 * s.kpoi_radius),
+                               offsets=self._lead_in_lengths, lookahead=max(0.3, 2.5 * s.robot.radius))
         self.team = Team(self.plan, s.formation.mode, reach_tol=max(0.15, 1.5 * s.robot.radius))
         self.commands = np.zeros((self.n_robots, 2))
         self.steps = 0
@@ -174,7 +181,7 @@ class ParallelCoverageEnv(ParallelEnv):
                                       path_lengths=[0.0] * self.n_robots)
         self.trails = [[p[:2].copy()] for p in true]
         self.mission.update(true[:, :2], self.estimate[:, :2], 0.0)
-        self.team.update(self.estimate[:, :2], self.mission.waypoint)
+        self.team.update(self.estimate[:, :2], self.mission.plan_progress)
         obs = self._observe(true)
         infos = {a: {"plan": self.plan.to_dict()} for a in self.agents}
         return obs, infos
@@ -191,7 +198,7 @@ class ParallelCoverageEnv(ParallelEnv):
         self._sense(true)
         n_new = self.mission.update(true[:, :2], self.estimate[:, :2], self.world.time)
         self.team.count_waypoints(self.mission.advanced)
-        self.team.update(self.estimate[:, :2], self.mission.waypoint)
+        self.team.update(self.estimate[:, :2], self.mission.plan_progress)
         terms = self._rewards(true, n_new)
         self._record(before, true)
         obs = self._observe(true)

@@ -1,4 +1,4 @@
-"""Mission bookkeeping: KPOIs visited, each robot's planned route and its current waypoint."""
+"""Mission bookkeeping: KPOIs visited, and each robot's progress along its planned route."""
 
 from __future__ import annotations
 
@@ -7,47 +7,54 @@ import numpy as np
 __all__ = ["Mission"]
 
 
-def _beyond(prev: np.ndarray, a: np.ndarray, b: np.ndarray, p: np.ndarray) -> bool:
-    """Whether ``p`` has crossed the corner ``a`` of prev -> a -> b: past the line through ``a``
-    normal to the corner's mean direction. Sharp turn-backs (out and back) never count as passed."""
-    u_in, u_out = a - prev, b - a
-    n_in, n_out = np.hypot(*u_in), np.hypot(*u_out)
-    if n_in < 1e-9 or n_out < 1e-9:
-        return n_out < 1e-9
-    mean = u_in / n_in + u_out / n_out
-    return bool(np.hypot(*mean) > 0.5 and float((p - a) @ mean) > 0.0)
-
 class Mission:
-    """Routes are polylines ``(M_i, 2)`` (the plan's paths); the goal of robot ``i`` is the next
-    waypoint of its route not yet reached (within ``waypoint_tol`` of the robot's pose estimate).
-    A KPOI is visited when any robot's true centre comes within ``kpoi_radius`` of it."""
+    """Routes are polylines ``(M_i, 2)`` (a lead-in from the robot's start place, then its plan path).
 
-    def __init__(self, kpois: np.ndarray, kpoi_radius: float, routes: list[np.ndarray], waypoint_tol: float):
+    Progress along a route is the arc length of the robot's pose estimate projected onto the route,
+    searched only a little behind and ``window`` ahead of the current progress, so it never jumps
+    to a later, spatially overlapping leg (out-and-back tours) and never decreases. A route vertex
+    at a KPOI must be reached (within ``waypoint_tol``) before progress moves past it. The robot's
+    goal is the route point ``lookahead`` metres beyond its progress (pure-pursuit style), clamped
+    at that KPOI vertex and at the route's end. A KPOI is visited when any robot's true centre comes
+    within ``kpoi_radius`` of it.
+    """
+
+    def __init__(self, kpois: np.ndarray, kpoi_radius: float, routes: list[np.ndarray], waypoint_tol: float,
+                 offsets: np.ndarray | None = None, lookahead: float = 0.4, window: float = 1.0):
         self.kpois = np.asarray(kpois, dtype=float)
         self.kpoi_radius = float(kpoi_radius)
         self.routes = [np.asarray(r, dtype=float).reshape(-1, 2) for r in routes]
         self.tol = float(waypoint_tol)
+        self.lookahead, self.window = float(lookahead), float(window)
+        self.offsets = np.zeros(len(self.routes)) if offsets is None else np.asarray(offsets, dtype=float)
+        self._arc = []
+        self._must = []
+        for r in self.routes:
+            seg = np.hypot(*np.diff(r, axis=0).T) if len(r) > 1 else np.zeros(0)
+            self._arc.append(np.concatenate([[0.0], np.cumsum(seg)]))
+            d = np.linalg.norm(r[:, None, :] - self.kpois[None, :, :], axis=-1)
+            self._must.append(d.min(axis=1) <= self.kpoi_radius)
+        n = len(self.routes)
         self.visited = np.zeros(len(self.kpois), dtype=bool)
         self.visit_time = np.full(len(self.kpois), np.nan)
         self.visitor = np.full(len(self.kpois), -1, dtype=np.int64)
-        self.waypoint = np.zeros(len(self.routes), dtype=np.int64)
-        self.advanced = np.zeros(len(self.routes), dtype=bool)
-        # length of each route after each waypoint, for the remaining-distance potential
-        self._tail = []
-        for r in self.routes:
-            seg = np.hypot(*np.diff(r, axis=0).T) if len(r) > 1 else np.zeros(0)
-            self._tail.append(np.concatenate([np.cumsum(seg[::-1])[::-1], [0.0]]))
+        self.progress = np.zeros(n)
+        """Arc length reached along each route (m)."""
+        self.waypoint = np.ones(n, dtype=np.int64)
+        """Index of the next route vertex ahead of each robot (the one it heads for)."""
+        self.advanced = np.zeros(n, dtype=bool)
 
     @property
     def done(self) -> bool:
         return bool(self.visited.all())
 
-    def update(self, true_xy: np.ndarray, est_xy: np.ndarray, time: float) -> int:
-        """Mark KPOIs visited and advance waypoints; returns how many KPOIs were newly visited.
+    @property
+    def plan_progress(self) -> np.ndarray:
+        """Progress along the plan path proper (lead-in excluded), m."""
+        return self.progress - self.offsets
 
-        A waypoint is reached when the estimate comes within ``waypoint_tol`` of it, or has passed
-        it: within ``3 * waypoint_tol`` of it and beyond it along the next route segment (robots
-        in formation cut corners)."""
+    def update(self, true_xy: np.ndarray, est_xy: np.ndarray, time: float) -> int:
+        """Mark KPOIs visited and advance progress; returns how many KPOIs were newly visited."""
         d = np.linalg.norm(self.kpois[:, None, :] - true_xy[None, :, :], axis=-1)
         near = d <= self.kpoi_radius
         new = near.any(axis=1) & ~self.visited
@@ -56,24 +63,62 @@ class Mission:
             self.visit_time[new] = time
             self.visitor[new] = np.argmin(np.where(near, d, np.inf), axis=1)[new]
         before = self.waypoint.copy()
-        for i, route in enumerate(self.routes):
-            k, p = self.waypoint[i], est_xy[i]
-            while k < len(route) - 1:
-                d = np.hypot(*(route[k] - p))
-                prev = route[k - 1] if k > 0 else route[k]
-                if not (d < self.tol or (d < 3 * self.tol and _beyond(prev, route[k], route[k + 1], p))):
-                    break
-                k += 1
-            self.waypoint[i] = k
+        for i in range(len(self.routes)):
+            self._advance(i, est_xy[i])
         self.advanced = self.waypoint != before
         return int(new.sum())
 
+    def _advance(self, i: int, p: np.ndarray) -> None:
+        route, arc, must = self.routes[i], self._arc[i], self._must[i]
+        if len(route) < 2:
+            self.waypoint[i] = 0
+            return
+        s0 = self.progress[i]
+        # the first must-reach vertex ahead bounds the search unless the robot is at it
+        limit = s0 + self.window
+        for j in np.flatnonzero(must & (arc > s0 + 1e-9)):
+            if arc[j] > limit:
+                break
+            if np.hypot(*(route[j] - p)) <= self.tol:  # reached: progress moves past it
+                s0 = self.progress[i] = arc[j]
+                limit = s0 + self.window
+                continue
+            limit = arc[j]
+            break
+        lo = max(int(np.searchsorted(arc, s0 - 0.2, side="right")) - 1, 0)
+        hi = min(int(np.searchsorted(arc, limit, side="left")), len(route) - 1)
+        a, b = route[lo:hi], route[lo + 1:hi + 1]
+        e = b - a
+        ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-12)
+        u = np.clip(np.einsum("ij,ij->i", p - a, e) / ee, 0.0, 1.0)
+        dist = np.hypot(*(a + u[:, None] * e - p).T)
+        j = int(np.argmin(dist - 1e-6 * np.arange(len(dist))))  # ties: the later segment
+        s = min(arc[lo + j] + u[j] * np.sqrt(ee[j]), limit)
+        self.progress[i] = max(s0, s)
+        self.waypoint[i] = min(int(np.searchsorted(arc, self.progress[i] + 1e-9, side="right")), len(route) - 1)
+
+    def _goal(self, i: int) -> tuple[np.ndarray, float]:
+        route, arc, must = self.routes[i], self._arc[i], self._must[i]
+        if len(route) == 1:
+            return route[0], 0.0
+        s = self.progress[i] + self.lookahead
+        ahead = np.flatnonzero(must & (arc > self.progress[i] + 1e-9))
+        if len(ahead):
+            s = min(s, arc[ahead[0]])
+        s = min(s, arc[-1])
+        k = min(int(np.searchsorted(arc, s, side="right")) - 1, len(route) - 2)
+        seg = arc[k + 1] - arc[k]
+        u = 0.0 if seg <= 0 else (s - arc[k]) / seg
+        return route[k] + u * (route[k + 1] - route[k]), s
+
     def goals(self) -> np.ndarray:
-        """Current waypoint of every robot ``(N, 2)``."""
-        return np.array([r[k] for r, k in zip(self.routes, self.waypoint)]).reshape(-1, 2)
+        """Goal point of every robot ``(N, 2)``: the lookahead point on its route."""
+        return np.array([self._goal(i)[0] for i in range(len(self.routes))]).reshape(-1, 2)
 
     def remaining(self, xy: np.ndarray) -> np.ndarray:
-        """Route length left for each robot from ``xy (N, 2)`` (m): to its waypoint, then along."""
-        goals = self.goals()
-        tail = np.array([t[k] for t, k in zip(self._tail, self.waypoint)])
-        return np.hypot(*(goals - xy).T) + tail
+        """Route length left for each robot from ``xy (N, 2)`` (m): to its goal point, then along."""
+        out = np.empty(len(self.routes))
+        for i in range(len(self.routes)):
+            g, s = self._goal(i)
+            out[i] = np.hypot(*(g - xy[i])) + (self._arc[i][-1] - s)
+        return out

@@ -31,12 +31,6 @@ class Team:
         self.tol = reach_tol
         self.messages: Counter[str] = Counter()
         self._tps = {tuple(tp.robots): tp for tp in plan.turning_points}
-        # vertex of each TP on its leader's path, to detect passing it even without getting close
-        self._tp_vertex = {}
-        for key, tp in self._tps.items():
-            path = plan.robots[key[0]].path
-            d = np.hypot(*(path - np.asarray(tp.position)).T)
-            self._tp_vertex[key] = int(np.argmin(d))
         self.groups: list[tuple[int, int]] = ([(i, i + 1) for i in range(self.n)] if mode == "individual"
                                               else [(0, self.n)])
         self._refresh()
@@ -50,8 +44,9 @@ class Team:
             self.slot[lo:hi] = np.arange(hi - lo)
             self.predecessor[lo + 1:hi] = np.arange(lo, hi - 1)
 
-    def update(self, est_xy: np.ndarray, waypoint: np.ndarray) -> list[dict]:
-        """Split every group whose leader reached its TP; returns the split events."""
+    def update(self, est_xy: np.ndarray, plan_progress: np.ndarray) -> list[dict]:
+        """Split every group whose leader reached its TP (within ``reach_tol`` of it, or past it
+        along its plan path); returns the split events."""
         events, changed = [], True
         while changed:  # a sub-group may start on its own TP (e.g. several branches at one node)
             changed = False
@@ -60,7 +55,7 @@ class Team:
                 if tp is None or self.mode == "individual":
                     continue
                 near = np.hypot(*(est_xy[g[0]] - tp.position)) <= self.tol
-                if not (near or waypoint[g[0]] > self._tp_vertex[g]):
+                if not (near or plan_progress[g[0]] >= tp.distance - 1e-6):
                     continue
                 new = [tuple(b.robots) for b in tp.branches if b.robots[1] > b.robots[0]]
                 if new == [g]:

@@ -61,7 +61,7 @@ class LeaderVelocityEstimator:
     filter (``alpha``) smooths the camera noise.
     """
 
-    def __init__(self, dt: float, alpha: float = 0.3):
+    def __init__(self, dt: float, alpha: float = 0.1):
         self.dt, self.alpha = dt, alpha
         self.prev: tuple[np.ndarray, float] | None = None
         self.v, self.w = 0.0, 0.0

@@ -31,7 +31,7 @@ __all__ = ["ScriptedExpert"]
 
 class ScriptedExpert:
     def __init__(self, layout: ObservationLayout, scenario: Scenario, plan: Plan, control_dt: float,
-                 sonar_angles: np.ndarray | None = None, leader_speed: float = 0.8,
+                 sonar_angles: np.ndarray | None = None, leader_speed: float = 0.9,
                  stop_margin: float = 0.05, slow_margin: float = 0.25, patience: float = 2.0):
         self.layout, self.scenario, self.plan = layout, scenario, plan
         self.dt = control_dt

@@ -85,7 +85,16 @@ def build_plan(graph: nx.Graph, closure, routes: list[list[int]], *, c_max: floa
     for r, vis in enumerate(visits):
         for wi, k in vis:
             visit_at.setdefault(route_trie[r][wi], []).append((r, k))
-    # Depth-first robot numbering: children (in route order) first, then robots ending here.
+    # Depth-first robot numbering: children first, the one leading to the costliest route first (so
+    # the robots with the furthest to go head the column), then robots ending here.
+    route_cost = []
+    for rt in routes:
+        idx = [0] + [k + 1 for k in rt]
+        route_cost.append(float(sum(closure.D[a, b] for a, b in zip(idx, idx[1:]))))
+    reach = [0.0] * T
+    for r, ids in enumerate(route_trie):
+        for t in ids:
+            reach[t] = max(reach[t], route_cost[r])
     lo, hi = [0] * T, [0] * T
     robot_of = [0] * len(routes)
     counter = 0
@@ -94,7 +103,8 @@ def build_plan(graph: nx.Graph, closure, routes: list[list[int]], *, c_max: floa
         op, t = stack.pop()
         if op == "enter":
             lo[t] = counter
-            stack += [("exit", t), ("term", t)] + [("enter", c) for c in reversed(t_kids[t].values())]
+            kids = sorted(t_kids[t].values(), key=lambda c: -reach[c])  # stable: ties keep route order
+            stack += [("exit", t), ("term", t)] + [("enter", c) for c in reversed(kids)]
         elif op == "term":
             for r in t_end[t]:
                 robot_of[r] = counter

@@ -63,15 +63,8 @@ class World:
         space.on_collision(ROBOT, ROBOT, begin=self._on_robot)
         self.space = space
 
-    def _velocity_func(self, i: int):
-        cmd = self._cmd
-
-        def velocity_func(body: pymunk.Body, gravity, damping, dt) -> None:
-            v, w = cmd[i]
-            body.velocity = (v * math.cos(body.angle), v * math.sin(body.angle))
-            body.angular_velocity = w
-
-        return velocity_func
+    def _velocity_func(self, i: int) -> _UnicycleVelocity:
+        return _UnicycleVelocity(self._cmd, i)
 
     def _on_wall(self, arbiter: pymunk.Arbiter, space, data) -> None:
         for shape in arbiter.shapes:
@@ -98,3 +91,27 @@ class World:
             out[i, 2] = b.angle
         out[:, 2] = np.pi - np.mod(np.pi - out[:, 2], 2.0 * np.pi)
         return out
+
+
+class _UnicycleVelocity:
+    """``body.velocity_func`` of robot ``i``: velocity from the shared command array ``(N, 2)``.
+
+    A module-level callable (not a closure) so that a ``World`` survives ``pickle`` and
+    ``copy.deepcopy``; the command array stays shared with the world through pickle's memo.
+    """
+
+    __slots__ = ("cmd", "i")
+
+    def __init__(self, cmd: np.ndarray, i: int):
+        self.cmd, self.i = cmd, i
+
+    def __getstate__(self):
+        return self.cmd, self.i
+
+    def __setstate__(self, state) -> None:
+        self.cmd, self.i = state
+
+    def __call__(self, body: pymunk.Body, gravity, damping, dt) -> None:
+        v, w = self.cmd[self.i]
+        body.velocity = (v * math.cos(body.angle), v * math.sin(body.angle))
+        body.angular_velocity = w

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import shapely
 
 from parcover_env.errors import ConfigError
 from parcover_env.world.map_model import MapModel
@@ -43,13 +44,15 @@ def start_poses(map_model: MapModel, start: tuple[float, float, float], n: int, 
     Candidates lie on a lattice aligned with the start heading (pitch ``max(spacing, 2.6 r)``
     along, ``2.6 r`` across); they are taken in order of distance behind the start, lateral
     offsets costing twice as much, so a narrow corridor yields a column and a wide one a block.
-    All robots face the start heading. Raises ConfigError if the team does not fit.
+    All robots face the start heading. The lattice spans ``n + 1`` rows and ``n`` columns on each
+    side, so a team that fits is never refused because the lattice was too small (a larger ``n``
+    must not seat more robots than a smaller one). Raises ConfigError if the team does not fit.
     """
     x0, y0, th = start
     along = max(spacing, 2.6 * radius)
     across = 2.6 * radius
     n_rows = n + 1
-    half = max(1, math.ceil(n / 2))
+    half = max(1, n)
     rows, cols = np.meshgrid(np.arange(n_rows), np.arange(-half, half + 1), indexing="ij")
     back = rows.ravel() * along
     lat = cols.ravel() * across
@@ -59,9 +62,13 @@ def start_poses(map_model: MapModel, start: tuple[float, float, float], n: int, 
     pts = np.stack([x0 - back * c - lat * s, y0 - back * s + lat * c], axis=1)[order]
     ok = map_model.contains(pts, margin=radius * 1.05)
     region = map_model.reachable_region((x0, y0), radius)
+    if region is not None:  # one vectorized test (buffering per candidate was O(lattice) slow)
+        grown = region.buffer(1e-6)
+        shapely.prepare(grown)
+        ok &= shapely.contains_xy(grown, pts[:, 0], pts[:, 1])
     chosen: list[np.ndarray] = []
     for p, good in zip(pts, ok):
-        if not good or region is None or not region.buffer(1e-6).contains(_point(p)):
+        if not good or region is None:
             continue
         if all(np.hypot(*(p - q)) >= 2.2 * radius for q in chosen):
             chosen.append(p)
@@ -74,9 +81,3 @@ def start_poses(map_model: MapModel, start: tuple[float, float, float], n: int, 
     out[:, :2] = chosen
     out[:, 2] = th
     return out
-
-
-def _point(p):
-    from shapely.geometry import Point
-
-    return Point(float(p[0]), float(p[1]))

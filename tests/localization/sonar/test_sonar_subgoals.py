@@ -1,0 +1,123 @@
+"""Subgoal optimization of seed B §3: path nodes, eq. 1 bias, availability, team subgoal, rearrangement."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from parcover_env.config import MapConfig
+from parcover_env.localization.sonar.features import map_features
+from parcover_env.localization.sonar.subgoals import (
+    choose_subgoal,
+    densify,
+    rearrange,
+    scan_bias,
+    score_nodes,
+    team_subgoal,
+    unblocked_scan_angle,
+    wall_readings,
+)
+from parcover_env.world.map_model import MapModel
+
+ROOM = MapModel.from_config(MapConfig(size=(3.0, 3.0)))
+FEATS = map_features(ROOM)
+STEP = math.radians(5)
+
+
+def corner(x, y):
+    return next(f for f in FEATS if np.allclose(f.point, (x, y)))
+
+
+def test_densify_spacing_vertices_and_arclength():
+    p = densify([[0, 0], [1, 0], [1, 0], [1, 2]], step=0.3, s0=-0.5)
+    gaps = np.hypot(*np.diff(p.xy, axis=0).T)
+    assert gaps.max() <= 0.3 + 1e-9 and gaps.min() > 0
+    assert any(np.allclose(q, [1, 0]) for q in p.xy)
+    assert p.s[0] == -0.5 and p.s[-1] == pytest.approx(2.5)
+    assert p.length == pytest.approx(3.0)
+    assert np.allclose(p.point(0.5), [1.0, 0.0])
+    assert np.allclose(p.xy[p.index(10.0)], [1, 2])
+    with pytest.raises(ValueError, match="path"):
+        densify([[0, 0, 0]])
+    with pytest.raises(ValueError, match="step"):
+        densify([[0, 0], [1, 1]], step=0)
+
+
+def test_bias_zero_on_bisector_and_paper_example():
+    c = corner(0.0, 0.0)  # walls along +x and +y
+    on_bisector = [[1.0, 1.0]]
+    assert scan_bias(on_bisector, [c])[0, 0] == pytest.approx(0.0, abs=1e-12)
+    # the paper's example: line of sight 15 deg from one wall, 75 deg from the other -> B = 60 deg
+    a = math.radians(15)
+    b = scan_bias([[math.cos(a), math.sin(a)]], [c])[0, 0]
+    assert math.degrees(b) == pytest.approx(60.0)
+
+
+def test_wall_readings_specular_and_range():
+    c = corner(0.0, 0.0)
+    near = wall_readings([[1.0, 1.0]], c, range_max=2.54, step=STEP)
+    assert near[0, 0] > 10 and near[0, 1] > 10
+    spec = wall_readings([[1.0, 1.0]], c, range_max=2.54, step=STEP, incidence_max=math.radians(20))
+    assert 2 <= spec[0, 0] < near[0, 0]
+    # foot of the perpendicular off the wall's far end: the specular wall returns nothing
+    short = wall_readings([[2.9, 0.2]], corner(3.0, 3.0), range_max=2.54, step=STEP,
+                          incidence_max=math.radians(5))
+    assert short[0].min() == 0
+
+
+def test_score_nodes_range_condition_and_best_feature():
+    nodes = np.array([[0.6, 0.6], [1.5, 1.5], [0.6, 2.4]])
+    s = score_nodes(nodes, ROOM, FEATS, 0.15, 2.54, STEP, math.radians(20))
+    assert np.isfinite(s.bias).all()
+    assert np.allclose(FEATS[s.feature[0]].point, [0, 0])
+    assert np.allclose(FEATS[s.feature[2]].point, [0, 3])
+    short = score_nodes(nodes, ROOM, FEATS, 0.15, 1.0, STEP, math.radians(20))
+    assert np.isinf(short.bias[1]) and short.feature[1] == -1  # every corner is 2.1 m away
+    strict = score_nodes(nodes, ROOM, FEATS, 0.15, 2.54, STEP, min_wall_length=5.0)
+    assert np.isinf(strict.bias).all()
+    with pytest.raises(ValueError, match="range"):
+        score_nodes(nodes, ROOM, FEATS, 2.0, 1.0, STEP)
+
+
+def test_choose_subgoal_window_ties_and_fallback():
+    s = np.arange(6.0)
+    bias = np.array([0.0, 0.5, 0.1, 0.11, 0.9, 0.2])
+    assert choose_subgoal(s, bias, 1, 5, tie_tol=0.0) == 2
+    assert choose_subgoal(s, bias, 1, 5, tie_tol=0.02) == 3
+    assert choose_subgoal(s, np.full(6, np.inf), 1, 4, 0.0) == 4
+
+
+def test_team_subgoal_uses_the_worst_robot():
+    p = densify([[0, 0], [5, 0]], 0.5)
+    good_for_0 = np.where(np.isclose(p.s, 3.0), 0.0, 1.0)
+    bad_for_1 = np.where(np.isclose(p.s, 2.0), 2.0, 0.5)  # robot 1 sits at sigma - 1
+    assert team_subgoal([p], [good_for_0], np.array([0.0]), 1.0, 4.5, 0.5, 0.0) == pytest.approx(3.0)
+    sigma = team_subgoal([p, p], [good_for_0, bad_for_1], np.array([0.0, 1.0]), 1.0, 4.5, 0.5, 0.0)
+    assert sigma != pytest.approx(3.0)
+
+
+def test_unblocked_scan_angle_and_rearrangement():
+    c = corner(0.0, 0.0)
+    me = np.array([1.2, 1.2])
+    free = unblocked_scan_angle(me, c, np.zeros((0, 2)), 0.165, 2.54)
+    assert free > math.radians(60)
+    blocker = unblocked_scan_angle(me, c, [[0.6, 0.6]], 0.165, 2.54)
+    aside = unblocked_scan_angle(me, c, [[2.5, 2.5]], 0.165, 2.54)
+    assert blocker < free - math.radians(20)
+    assert aside == pytest.approx(free)
+    # robot 0 waits in front of robot 1 on the corner's bisector; moving along the paths frees both
+    path0 = np.array([[0.6 + 0.1 * k, 0.6] for k in range(-3, 8)])
+    path1 = np.array([[1.2, 1.2 + 0.1 * k] for k in range(-3, 8)])
+    feats = [[[c]] * len(path0), [[c]] * len(path1)]
+    before = min(unblocked_scan_angle(path0[3], c, [path1[3]], 0.165, 2.54),
+                 unblocked_scan_angle(path1[3], c, [path0[3]], 0.165, 2.54))
+    choice = rearrange([path0, path1], feats, [3, 3], 0.165, 2.54, min_separation=0.5)
+    p0, p1 = path0[choice[0]], path1[choice[1]]
+    after = min(unblocked_scan_angle(p0, c, [p1], 0.165, 2.54),
+                unblocked_scan_angle(p1, c, [p0], 0.165, 2.54))
+    assert after > before + math.radians(5)
+    assert np.hypot(*(p0 - p1)) >= 0.5
+    with pytest.raises(ValueError, match="target"):
+        rearrange([path0], [feats[0]], [99], 0.165, 2.54)
