@@ -93,6 +93,8 @@ def run_job(scenario: str, policy: str, seed: int, max_steps: int | None = None)
 
 
 def _progress(done: int, total: int, t0: float, stream=sys.stderr) -> None:
+    if not stream.isatty() and done < total and done % max(total // 10, 1):
+        return
     width = 30
     filled = int(width * done / max(total, 1))
     stream.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} episodes, {time.time() - t0:.0f} s")
@@ -148,13 +150,11 @@ def _run_ray(jobs, workers, max_steps, report, address) -> list[dict]:
     try:
         remote = ray.remote(num_cpus=1)(run_job)
         refs = [remote.remote(s, p, seed, max_steps) for s, p, seed in jobs]
-        index = {r.hex(): i for i, r in enumerate(refs)} if hasattr(refs[0], "hex") else None
         pending, done = list(refs), 0
         while pending:
             ready, pending = ray.wait(pending, num_returns=1)
             done += len(ready)
             report(done)
-        del index
         return ray.get(refs)
     finally:
         if started:

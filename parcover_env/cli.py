@@ -118,6 +118,63 @@ def cmd_render(args) -> int:
     return 0
 
 
+def cmd_plan(args) -> int:
+    from parcover_env.config import load_scenario
+    from parcover_env.planning import kinect_footprints, kinect_tree, plan_scenario
+    from parcover_env.planning.draw import draw_plan, save_png
+
+    s = load_scenario(args.scenario)
+    plan = plan_scenario(s, args.n_robots if args.n_robots is not None else s.n_robots_fixed)
+    tree = kinect_tree(kinect_footprints(s), plan, (s.start.x, s.start.y)) if s.kinects else None
+    print(f"scenario {s.name}: r = {plan.r} robots, c_max = {plan.c_max:.2f} m, c_p = {plan.c_p:.2f} m "
+          f"({plan.method}); {len(plan.turning_points)} turning positions")
+    for tp in plan.turning_points:
+        counts = ", ".join(str(b.n_robots) for b in tp.branches)
+        print(f"  TP at ({tp.position[0]:.2f}, {tp.position[1]:.2f}): robots {tp.robots[0]}-{tp.robots[1] - 1} "
+              f"split into branches of {counts}")
+    if tree is not None:
+        links = ", ".join(f"{a}-{b} ({n})" for (a, b), n in sorted(tree.links.items()))
+        print(f"  Kinect tree rooted at {tree.root}: links {links or 'none'}")
+    if args.png:
+        save_png(args.png, draw_plan(s, plan, tree))
+        print(f"wrote {args.png}")
+    return 0
+
+
+def cmd_kinect(args) -> int:
+    import numpy as np
+
+    from parcover_env.config import load_scenario
+    from parcover_env.localization.kinect_views import write_kinect_views
+
+    paths = write_kinect_views(load_scenario(args.scenario), args.out, np.random.default_rng(args.seed))
+    for p in paths:
+        print(f"wrote {p}")
+    return 0
+
+
+def cmd_sectors(args) -> int:
+    import cv2
+
+    from parcover_env.config import load_scenario
+    from parcover_env.localization.sonar import compute_sectors, map_features
+    from parcover_env.localization.sonar.views import draw_sectors
+    from parcover_env.world.map_model import MapModel
+
+    s = load_scenario(args.scenario)
+    known = MapModel.from_config(s.map, include_unknown=False)
+    features = map_features(known)
+    sectors = compute_sectors(known, s.robot.sonar.range_max, rule=args.rule, features=features)
+    name = {0: "original", 1: "rule #1", 2: "rule #2"}[args.rule]
+    print(f"scenario {s.name}: {len(features)} features, {len(sectors)} {name} sectors "
+          f"(sonar range {s.robot.sonar.range_max} m)")
+    if args.png:
+        if not cv2.imwrite(args.png, draw_sectors(known, sectors, features)[:, :, ::-1]):
+            raise ParcoverError(f"--png: cannot write {args.png}")
+        print(f"wrote {args.png}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="parcover", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)
@@ -138,6 +195,21 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--png", default="frame.png", help="output file (default: frame.png)")
     f.add_argument("--seed", type=int, default=0)
     f.set_defaults(func=cmd_render)
+    pl = sub.add_parser("plan", help="PPCP plan: print r, c_max, c_p and the TPs; draw it")
+    pl.add_argument("scenario", nargs="?", default="office")
+    pl.add_argument("--png", default=None, help="draw the map, roadmap, plan tree and Kinect tree here")
+    pl.add_argument("--n-robots", type=int, default=None, help="plan for this many robots (min-max variant)")
+    pl.set_defaults(func=cmd_plan)
+    k = sub.add_parser("kinect", help="write the Kinect views: depth, IR, pipeline stages, hull, trajectory")
+    k.add_argument("scenario", nargs="?", default="office")
+    k.add_argument("--out", default="kinect_views", help="output directory (default: kinect_views/)")
+    k.add_argument("--seed", type=int, default=0)
+    k.set_defaults(func=cmd_kinect)
+    se = sub.add_parser("sectors", help="sonar visibility sectors of a map (seed B Fig. 3/4)")
+    se.add_argument("scenario", nargs="?", default="t_room")
+    se.add_argument("--rule", type=int, choices=(0, 1, 2), default=2, help="0 original, 1 or 2 merge rule")
+    se.add_argument("--png", default=None, help="draw the sectors here")
+    se.set_defaults(func=cmd_sectors)
     return p
 
 

@@ -89,12 +89,20 @@ def save_minari(episodes: list[AgentEpisode], dataset_id: str, out: str | Path, 
                              rewards=list(e["rewards"]), terminations=list(e["terminations"]),
                              truncations=list(e["truncations"]), infos={})
                for i, e in enumerate(episodes)]
+    import warnings
+
+    with warnings.catch_warnings():  # Minari warns about optional metadata (author e-mail, permalink)
+        warnings.simplefilter("ignore", UserWarning)
+        _create(minari, dataset_id, buffers, algorithm, env, agent)
+    return Path(out) / dataset_id
+
+
+def _create(minari, dataset_id, buffers, algorithm, env, agent) -> None:
     minari.create_dataset_from_buffers(
         dataset_id, buffers, algorithm_name=algorithm, author="parcover_env",
         observation_space=env.observation_space(agent), action_space=env.action_space(agent),
         description=f"{algorithm} demonstrations on scenario '{env.scenario.name}', one episode per robot "
                     "(parameter sharing view)", data_format="hdf5")
-    return Path(out) / dataset_id
 
 
 def load_minari(dataset_id: str, root: str | Path) -> list[AgentEpisode]:

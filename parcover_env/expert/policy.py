@@ -49,8 +49,16 @@ class ScriptedExpert:
         self.backing: dict[str, int] = {}
 
     @classmethod
-    def for_env(cls, env, **kwargs) -> ScriptedExpert:
-        """Build from an env's public spec: layout, scenario, plan, control period, sonar beams."""
+    def for_env(cls, env, **kwargs):
+        """Build from an env's public spec: layout, scenario, plan, control period, sonar beams.
+
+        With ``localization: sonar`` the robots localize by stop-and-scan instead (seed B): the
+        returned policy is a :class:`~parcover_env.expert.navigator.SonarNavigator`.
+        """
+        if env.scenario.localization == "sonar" and env.sonar is not None:
+            from parcover_env.expert.navigator import SonarNavigator
+
+            return SonarNavigator.for_env(env, **kwargs)
         angles = env.sonar.beam_angles if env.sonar is not None else None
         return cls(env.layout, env.scenario, env.plan, env.scenario.physics.control_dt, angles, **kwargs)
 

@@ -97,9 +97,9 @@ def _room(rng: np.random.Generator, x0: float, x1: float, y0: float, y1: float, 
     w, d = x1 - x0, y1 - y0
     if w >= 2.3 and d >= 2.5 and rng.random() < 0.5:
         # clear of the side walls by 0.7 m, of the corridor wall (door approach) by 0.9 m and of the
-        # far wall (where the KPOIs are) by 0.8 m
+        # far wall (where the KPOIs are) by 0.9 m
         bx0, bx1 = x0 + 0.7, x1 - 0.7
-        by0, by1 = (y0 + 0.9, y1 - 0.8) if side == "top" else (y0 + 0.8, y1 - 0.9)
+        by0, by1 = y0 + 0.9, y1 - 0.9
         dx = rng.uniform(0.4, min(1.0, bx1 - bx0))
         dy = rng.uniform(0.4, min(0.8, by1 - by0))
         cx = rng.uniform(bx0 + dx / 2, bx1 - dx / 2)
