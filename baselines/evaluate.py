@@ -38,8 +38,10 @@ def evaluate(args: Args) -> list[dict]:
     from parcover_env.bench import check_policy_spec, run_job
 
     check_policy_spec(args.policy)
-    return [run_job(args.scenario, args.policy, s, args.max_steps or None)
-            for s in range(args.seed_offset, args.seed_offset + args.seeds)]
+    return [
+        run_job(args.scenario, args.policy, s, args.max_steps or None)
+        for s in range(args.seed_offset, args.seed_offset + args.seeds)
+    ]
 
 
 def main(argv=None) -> int:

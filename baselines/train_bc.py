@@ -76,7 +76,7 @@ def train(args: Args) -> Path:
     for epoch in range(args.epochs):
         perm, total = torch.randperm(len(x), generator=gen), 0.0
         for i in range(0, len(x), args.batch_size):
-            idx = perm[i:i + args.batch_size]
+            idx = perm[i : i + args.batch_size]
             loss = torch.nn.functional.mse_loss(net(x[idx]), y[idx])
             opt.zero_grad()
             loss.backward()
@@ -85,8 +85,19 @@ def train(args: Args) -> Path:
         losses.append({"epoch": epoch + 1, "mse": total / len(x)})
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    torch.save({"state_dict": net.state_dict(), "n_in": x.shape[1], "n_out": y.shape[1], "hidden": hidden,
-                "obs_mean": mean, "obs_std": std, "scenario": args.scenario, "samples": len(x)}, out / "bc.pt")
+    torch.save(
+        {
+            "state_dict": net.state_dict(),
+            "n_in": x.shape[1],
+            "n_out": y.shape[1],
+            "hidden": hidden,
+            "obs_mean": mean,
+            "obs_std": std,
+            "scenario": args.scenario,
+            "samples": len(x),
+        },
+        out / "bc.pt",
+    )
     with open(out / "bc_loss.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=["epoch", "mse"])
         w.writeheader()

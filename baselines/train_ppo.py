@@ -75,20 +75,31 @@ def train(args: Args) -> Path:
     torch.set_num_threads(args.threads)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    venv = VecNormalize(VecMonitor(ParallelVecEnv(make_env_fns(args), multiprocess=args.multiprocess)),
-                        norm_obs=True, norm_reward=True, gamma=args.gamma)
+    venv = VecNormalize(
+        VecMonitor(ParallelVecEnv(make_env_fns(args), multiprocess=args.multiprocess)),
+        norm_obs=True,
+        norm_reward=True,
+        gamma=args.gamma,
+    )
     curve: list[dict] = []
 
     class Curve(BaseCallback):
         next_report = 50_000
 
         def _on_step(self) -> bool:
-            for info, done in zip(self.locals["infos"], self.locals["dones"]):
+            for info, done in zip(self.locals["infos"], self.locals["dones"], strict=False):
                 if done and "episode" in info:
                     m = info.get("metrics", {})
-                    curve.append({"timesteps": self.num_timesteps, "return": info["episode"]["r"],
-                                  "length": info["episode"]["l"], "success": float(m.get("success", 0.0)),
-                                  "kpois_visited": m.get("kpois_visited", 0), "wall_time": time.time() - t0})
+                    curve.append(
+                        {
+                            "timesteps": self.num_timesteps,
+                            "return": info["episode"]["r"],
+                            "length": info["episode"]["l"],
+                            "success": float(m.get("success", 0.0)),
+                            "kpois_visited": m.get("kpois_visited", 0),
+                            "wall_time": time.time() - t0,
+                        }
+                    )
             if self.num_timesteps >= self.next_report:
                 self.next_report += 50_000
                 recent = curve[-20:]
@@ -96,15 +107,29 @@ def train(args: Args) -> Path:
                 if self.num_timesteps % 100_000 < 50_000:  # checkpoint (overwritten) every ~100k steps
                     model.save(out / "model.zip")
                     venv.save(str(out / "vecnormalize.pkl"))
-                print(f"{self.num_timesteps} steps, {time.time() - t0:.0f} s, {len(curve)} episodes, "
-                      f"success (last 20) {succ:.2f}", flush=True)
+                print(
+                    f"{self.num_timesteps} steps, {time.time() - t0:.0f} s, {len(curve)} episodes, "
+                    f"success (last 20) {succ:.2f}",
+                    flush=True,
+                )
             return True
 
-    model = PPO("MlpPolicy", venv, n_steps=args.n_steps, batch_size=args.batch_size, n_epochs=args.n_epochs,
-                learning_rate=args.learning_rate, gamma=args.gamma, gae_lambda=args.gae_lambda,
-                ent_coef=args.ent_coef, seed=args.seed, device="cpu", verbose=0,
-                policy_kwargs={"net_arch": [int(h) for h in args.net_arch.split(",")]},
-                tensorboard_log=args.tensorboard or None)
+    model = PPO(
+        "MlpPolicy",
+        venv,
+        n_steps=args.n_steps,
+        batch_size=args.batch_size,
+        n_epochs=args.n_epochs,
+        learning_rate=args.learning_rate,
+        gamma=args.gamma,
+        gae_lambda=args.gae_lambda,
+        ent_coef=args.ent_coef,
+        seed=args.seed,
+        device="cpu",
+        verbose=0,
+        policy_kwargs={"net_arch": [int(h) for h in args.net_arch.split(",")]},
+        tensorboard_log=args.tensorboard or None,
+    )
     t0 = time.time()
     model.learn(total_timesteps=args.total_timesteps, callback=Curve())
     model.save(out / "model.zip")
@@ -131,9 +156,9 @@ def write_curve(curve: list[dict], out: Path) -> None:
     k = max(1, len(curve) // 50)
     smooth = lambda x: np.convolve(x, np.ones(k) / k, mode="valid")  # noqa: E731
     fig, ax = plt.subplots(1, 2, figsize=(10, 3.5))
-    ax[0].plot(t[k - 1:], smooth(np.array([c["return"] for c in curve])))
+    ax[0].plot(t[k - 1 :], smooth(np.array([c["return"] for c in curve])))
     ax[0].set(xlabel="agent-steps", ylabel="episode return (per agent)")
-    ax[1].plot(t[k - 1:], smooth(np.array([c["success"] for c in curve])))
+    ax[1].plot(t[k - 1 :], smooth(np.array([c["success"] for c in curve])))
     ax[1].set(xlabel="agent-steps", ylabel="success rate", ylim=(-0.05, 1.05))
     fig.tight_layout()
     fig.savefig(out / "curve.png", dpi=100)

@@ -21,8 +21,18 @@ import numpy as np
 
 from parcover_env.errors import ParcoverError
 
-__all__ = ["make_policy", "run_job", "run_sweep", "summarize", "write_report", "cmd_bench", "cmd_collect",
-           "add_bench_parser", "add_collect_parser", "METRICS"]
+__all__ = [
+    "make_policy",
+    "run_job",
+    "run_sweep",
+    "summarize",
+    "write_report",
+    "cmd_bench",
+    "cmd_collect",
+    "add_bench_parser",
+    "add_collect_parser",
+    "METRICS",
+]
 
 BASIC_POLICIES = ("expert", "waypoint", "random")
 METRICS = {  # column -> (label, lower is better)
@@ -56,7 +66,9 @@ def make_policy(spec: str, env, seed: int | None):
         from parcover_env.learned import BCPolicy, PPOPolicy
 
         return PPOPolicy(path) if kind == "ppo" else BCPolicy(path)
-    raise ParcoverError(f"unknown policy '{spec}' (choose from {', '.join(BASIC_POLICIES)}, ppo:PATH, bc:PATH)")
+    raise ParcoverError(
+        f"unknown policy '{spec}' (choose from {', '.join(BASIC_POLICIES)}, ppo:PATH, bc:PATH)"
+    )
 
 
 def check_policy_spec(spec: str) -> None:
@@ -67,7 +79,9 @@ def check_policy_spec(spec: str) -> None:
         if not Path(path).exists():
             raise ParcoverError(f"policy '{spec}': {path} does not exist")
         return
-    raise ParcoverError(f"unknown policy '{spec}' (choose from {', '.join(BASIC_POLICIES)}, ppo:PATH, bc:PATH)")
+    raise ParcoverError(
+        f"unknown policy '{spec}' (choose from {', '.join(BASIC_POLICIES)}, ppo:PATH, bc:PATH)"
+    )
 
 
 _ENV_CACHE: dict[tuple[str, int | None], Any] = {}
@@ -80,16 +94,26 @@ def run_job(scenario: str, policy: str, seed: int, max_steps: int | None = None)
 
     key = (scenario, max_steps)
     if key not in _ENV_CACHE:
-        _ENV_CACHE[key] = ParallelCoverageEnv(scenario, overrides={"episode": {"max_steps": max_steps}}
-                                              if max_steps else None)
+        _ENV_CACHE[key] = ParallelCoverageEnv(
+            scenario, overrides={"episode": {"max_steps": max_steps}} if max_steps else None
+        )
     env = _ENV_CACHE[key]
     m = run_episode(env, make_policy(policy, env, seed), seed)
-    return {"scenario": scenario, "policy": policy, "seed": seed, "success": float(m["success"]),
-            "makespan_ratio": m["makespan_ratio"] if m["makespan_ratio"] is not None else math.nan,
-            "makespan": m["makespan"] if m["makespan"] is not None else math.nan,
-            "kpois_visited": m["kpois_visited"], "kpoi_fraction": m["kpois_visited"] / m["n_kpois"],
-            "collisions": m["collisions"], "messages": int(sum(m["messages"].values())),
-            "steps": m["steps"], "localization_error": m["localization_error"], "wall_time": m["wall_time"]}
+    return {
+        "scenario": scenario,
+        "policy": policy,
+        "seed": seed,
+        "success": float(m["success"]),
+        "makespan_ratio": m["makespan_ratio"] if m["makespan_ratio"] is not None else math.nan,
+        "makespan": m["makespan"] if m["makespan"] is not None else math.nan,
+        "kpois_visited": m["kpois_visited"],
+        "kpoi_fraction": m["kpois_visited"] / m["n_kpois"],
+        "collisions": m["collisions"],
+        "messages": int(sum(m["messages"].values())),
+        "steps": m["steps"],
+        "localization_error": m["localization_error"],
+        "wall_time": m["wall_time"],
+    }
 
 
 def _progress(done: int, total: int, t0: float, stream=sys.stderr) -> None:
@@ -97,15 +121,24 @@ def _progress(done: int, total: int, t0: float, stream=sys.stderr) -> None:
         return
     width = 30
     filled = int(width * done / max(total, 1))
-    stream.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} episodes, {time.time() - t0:.0f} s")
+    stream.write(
+        f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} episodes, {time.time() - t0:.0f} s"
+    )
     if done >= total:
         stream.write("\n")
     stream.flush()
 
 
-def run_sweep(scenarios: list[str], policies: list[str], seeds: list[int], workers: int = 1,
-              backend: str = "local", max_steps: int | None = None, progress: bool = True,
-              ray_address: str | None = None) -> list[dict]:
+def run_sweep(
+    scenarios: list[str],
+    policies: list[str],
+    seeds: list[int],
+    workers: int = 1,
+    backend: str = "local",
+    max_steps: int | None = None,
+    progress: bool = True,
+    ray_address: str | None = None,
+) -> list[dict]:
     """All (scenario, policy, seed) episodes; rows in job order."""
     if backend not in ("local", "ray"):
         raise ValueError(f"backend must be 'local' or 'ray', got {backend!r}")
@@ -145,8 +178,13 @@ def _run_ray(jobs, workers, max_steps, report, address) -> list[dict]:
         raise ParcoverError("--backend ray needs Ray: pip install 'parcover_env[distributed]'") from None
     started = not ray.is_initialized()
     if started:
-        ray.init(address=address, num_cpus=None if address else workers, include_dashboard=False,
-                 log_to_driver=False, configure_logging=False)
+        ray.init(
+            address=address,
+            num_cpus=None if address else workers,
+            include_dashboard=False,
+            log_to_driver=False,
+            configure_logging=False,
+        )
     try:
         remote = ray.remote(num_cpus=1)(run_job)
         refs = [remote.remote(s, p, seed, max_steps) for s, p, seed in jobs]
@@ -163,6 +201,7 @@ def _run_ray(jobs, workers, max_steps, report, address) -> list[dict]:
 
 # ---------------------------------------------------------------------------------------------
 # Statistics
+
 
 def mean_ci(values, level: float = 0.95) -> tuple[float, float, int]:
     """(mean, half-width of the Student-t confidence interval, n) of the finite values."""
@@ -201,8 +240,14 @@ def summarize(rows: list[dict]) -> list[dict]:
     for (scenario, policy), g in groups.items():
         n, k = len(g), sum(r["success"] for r in g)
         lo, hi = wilson_ci(k, n)
-        s = {"scenario": scenario, "policy": policy, "episodes": n, "success": k / n, "success_lo": lo,
-             "success_hi": hi}
+        s = {
+            "scenario": scenario,
+            "policy": policy,
+            "episodes": n,
+            "success": k / n,
+            "success_lo": lo,
+            "success_hi": hi,
+        }
         for m in METRICS:
             if m == "success":
                 continue
@@ -219,16 +264,31 @@ def _fmt(mean: float, half: float, digits: int = 2) -> str:
 
 
 def markdown_table(summary: list[dict]) -> str:
-    head = ["scenario", "policy", "episodes", "success [95% CI]", "makespan / (c_max/v_max)", "KPOIs visited",
-            "collisions", "messages", "wall time (s)"]
+    head = [
+        "scenario",
+        "policy",
+        "episodes",
+        "success [95% CI]",
+        "makespan / (c_max/v_max)",
+        "KPOIs visited",
+        "collisions",
+        "messages",
+        "wall time (s)",
+    ]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for s in summary:
-        cells = [s["scenario"], s["policy"], str(s["episodes"]),
-                 f"{s['success']:.2f} [{s['success_lo']:.2f}, {s['success_hi']:.2f}]",
-                 _fmt(s["makespan_ratio"], s["makespan_ratio_ci"]) + (f" (n={s['makespan_ratio_n']})"
-                                                                      if s["makespan_ratio_n"] else ""),
-                 _fmt(s["kpoi_fraction"], s["kpoi_fraction_ci"]), _fmt(s["collisions"], s["collisions_ci"], 1),
-                 _fmt(s["messages"], s["messages_ci"], 0), _fmt(s["wall_time"], s["wall_time_ci"])]
+        cells = [
+            s["scenario"],
+            s["policy"],
+            str(s["episodes"]),
+            f"{s['success']:.2f} [{s['success_lo']:.2f}, {s['success_hi']:.2f}]",
+            _fmt(s["makespan_ratio"], s["makespan_ratio_ci"])
+            + (f" (n={s['makespan_ratio_n']})" if s["makespan_ratio_n"] else ""),
+            _fmt(s["kpoi_fraction"], s["kpoi_fraction_ci"]),
+            _fmt(s["collisions"], s["collisions_ci"], 1),
+            _fmt(s["messages"], s["messages_ci"], 0),
+            _fmt(s["wall_time"], s["wall_time_ci"]),
+        ]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -252,7 +312,7 @@ def plot_summary(summary: list[dict], path: Path) -> None:
     by = {(s["scenario"], s["policy"]): s for s in summary}
     fig, axes = plt.subplots(2, 3, figsize=(13, 6.5))
     width = 0.8 / len(policies)
-    for ax, (m, (label, _)) in zip(axes.ravel(), METRICS.items()):
+    for ax, (m, (label, _)) in zip(axes.ravel(), METRICS.items(), strict=False):
         for j, p in enumerate(policies):
             xs = np.arange(len(scenarios)) + (j - (len(policies) - 1) / 2) * width
             vals, errs = [], [[], []]
@@ -298,13 +358,21 @@ def write_report(rows: list[dict], out: str | Path, plots: bool = True) -> dict[
 # ---------------------------------------------------------------------------------------------
 # CLI
 
+
 def add_bench_parser(sub) -> None:
     """Register ``parcover bench`` on an argparse subparsers object."""
     b = sub.add_parser("bench", help="benchmark policies over scenarios and seeds (table, CSV, plots)")
-    b.add_argument("scenarios", nargs="?", default="office",
-                   help="comma-separated scenario names/paths/generated:SEED (default: office)")
-    b.add_argument("--policies", default="expert,random",
-                   help="comma-separated: expert, waypoint, random, ppo:PATH, bc:PATH (default: expert,random)")
+    b.add_argument(
+        "scenarios",
+        nargs="?",
+        default="office",
+        help="comma-separated scenario names/paths/generated:SEED (default: office)",
+    )
+    b.add_argument(
+        "--policies",
+        default="expert,random",
+        help="comma-separated: expert, waypoint, random, ppo:PATH, bc:PATH (default: expert,random)",
+    )
     b.add_argument("--seeds", type=int, default=10, help="episodes per (scenario, policy): seeds 0..N-1")
     b.add_argument("--seed-offset", type=int, default=0, help="first seed (default: 0)")
     b.add_argument("--workers", type=int, default=2, help="parallel episodes (default: 2)")
@@ -323,8 +391,16 @@ def cmd_bench(args) -> int:
     if args.seeds < 1:
         raise ParcoverError(f"--seeds must be >= 1, got {args.seeds}")
     seeds = list(range(args.seed_offset, args.seed_offset + args.seeds))
-    rows = run_sweep(scenarios, policies, seeds, args.workers, args.backend, args.max_steps,
-                     progress=not args.quiet, ray_address=args.ray_address)
+    rows = run_sweep(
+        scenarios,
+        policies,
+        seeds,
+        args.workers,
+        args.backend,
+        args.max_steps,
+        progress=not args.quiet,
+        ray_address=args.ray_address,
+    )
     paths = write_report(rows, args.out, plots=not args.no_plots)
     print(paths["table"].read_text(), end="")
     print("wrote " + ", ".join(str(p) for p in paths.values()))
@@ -350,6 +426,8 @@ def cmd_collect(args) -> int:
         raise ParcoverError(f"--episodes must be >= 1, got {args.episodes}")
     check_policy_spec(args.policy)
     dataset_id, n = collect(args.scenario, args.episodes, args.out, args.seed, args.dataset_id, args.policy)
-    print(f"wrote Minari dataset '{dataset_id}' ({n} robot episodes from {args.episodes} missions) under "
-          f"{args.out}; load with MINARI_DATASETS_PATH={args.out} minari.load_dataset('{dataset_id}')")
+    print(
+        f"wrote Minari dataset '{dataset_id}' ({n} robot episodes from {args.episodes} missions) under "
+        f"{args.out}; load with MINARI_DATASETS_PATH={args.out} minari.load_dataset('{dataset_id}')"
+    )
     return 0

@@ -23,8 +23,9 @@ class AgentEpisode(dict):
     """One robot's trajectory: keys observations, actions, rewards, terminations, truncations, seed."""
 
 
-def record_episodes(scenario: Any, episodes: int, seed: int = 0, policy: str = "expert",
-                    max_steps: int | None = None) -> list[AgentEpisode]:
+def record_episodes(
+    scenario: Any, episodes: int, seed: int = 0, policy: str = "expert", max_steps: int | None = None
+) -> list[AgentEpisode]:
     """Run ``episodes`` episodes (seeds ``seed .. seed+episodes-1``); one AgentEpisode per robot."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
@@ -40,8 +41,10 @@ def record_episodes(scenario: Any, episodes: int, seed: int = 0, policy: str = "
         obs, _ = env.reset(seed=ep_seed)
         if hasattr(pol, "reset"):
             pol.reset(obs)
-        traj = {a: {"observations": [obs[a]], "actions": [], "rewards": [], "terminations": [],
-                    "truncations": []} for a in env.possible_agents}
+        traj = {
+            a: {"observations": [obs[a]], "actions": [], "rewards": [], "terminations": [], "truncations": []}
+            for a in env.possible_agents
+        }
         while env.agents:
             actions = pol.act(obs)
             live = list(env.agents)
@@ -57,10 +60,17 @@ def record_episodes(scenario: Any, episodes: int, seed: int = 0, policy: str = "
             t = traj[a]
             if not t["actions"]:
                 continue
-            out.append(AgentEpisode(
-                observations=np.asarray(t["observations"], np.float32), actions=np.asarray(t["actions"], np.float32),
-                rewards=np.asarray(t["rewards"], np.float64), terminations=np.asarray(t["terminations"], bool),
-                truncations=np.asarray(t["truncations"], bool), seed=ep_seed, agent=a))
+            out.append(
+                AgentEpisode(
+                    observations=np.asarray(t["observations"], np.float32),
+                    actions=np.asarray(t["actions"], np.float32),
+                    rewards=np.asarray(t["rewards"], np.float64),
+                    terminations=np.asarray(t["terminations"], bool),
+                    truncations=np.asarray(t["truncations"], bool),
+                    seed=ep_seed,
+                    agent=a,
+                )
+            )
     return out
 
 
@@ -72,8 +82,13 @@ def _minari():
     return minari
 
 
-def save_minari(episodes: list[AgentEpisode], dataset_id: str, out: str | Path, scenario: Any,
-                algorithm: str = "ScriptedExpert") -> Path:
+def save_minari(
+    episodes: list[AgentEpisode],
+    dataset_id: str,
+    out: str | Path,
+    scenario: Any,
+    algorithm: str = "ScriptedExpert",
+) -> Path:
     """Write the episodes as Minari dataset ``dataset_id`` under ``out`` (MINARI_DATASETS_PATH)."""
     if not episodes:
         raise ValueError("no episodes to save")
@@ -85,10 +100,19 @@ def save_minari(episodes: list[AgentEpisode], dataset_id: str, out: str | Path, 
     env = ParallelCoverageEnv(scenario)
     agent = env.possible_agents[0]
     os.environ["MINARI_DATASETS_PATH"] = str(Path(out).resolve())
-    buffers = [EpisodeBuffer(id=i, seed=int(e["seed"]), observations=e["observations"], actions=e["actions"],
-                             rewards=list(e["rewards"]), terminations=list(e["terminations"]),
-                             truncations=list(e["truncations"]), infos={})
-               for i, e in enumerate(episodes)]
+    buffers = [
+        EpisodeBuffer(
+            id=i,
+            seed=int(e["seed"]),
+            observations=e["observations"],
+            actions=e["actions"],
+            rewards=list(e["rewards"]),
+            terminations=list(e["terminations"]),
+            truncations=list(e["truncations"]),
+            infos={},
+        )
+        for i, e in enumerate(episodes)
+    ]
     import warnings
 
     with warnings.catch_warnings():  # Minari warns about optional metadata (author e-mail, permalink)
@@ -99,10 +123,16 @@ def save_minari(episodes: list[AgentEpisode], dataset_id: str, out: str | Path, 
 
 def _create(minari, dataset_id, buffers, algorithm, env, agent) -> None:
     minari.create_dataset_from_buffers(
-        dataset_id, buffers, algorithm_name=algorithm, author="parcover_env",
-        observation_space=env.observation_space(agent), action_space=env.action_space(agent),
+        dataset_id,
+        buffers,
+        algorithm_name=algorithm,
+        author="parcover_env",
+        observation_space=env.observation_space(agent),
+        action_space=env.action_space(agent),
         description=f"{algorithm} demonstrations on scenario '{env.scenario.name}', one episode per robot "
-                    "(parameter sharing view)", data_format="hdf5")
+        "(parameter sharing view)",
+        data_format="hdf5",
+    )
 
 
 def load_minari(dataset_id: str, root: str | Path) -> list[AgentEpisode]:
@@ -110,13 +140,27 @@ def load_minari(dataset_id: str, root: str | Path) -> list[AgentEpisode]:
     minari = _minari()
     os.environ["MINARI_DATASETS_PATH"] = str(Path(root).resolve())
     ds = minari.load_dataset(dataset_id)
-    return [AgentEpisode(observations=np.asarray(e.observations, np.float32), actions=np.asarray(e.actions, np.float32),
-                         rewards=np.asarray(e.rewards), terminations=np.asarray(e.terminations),
-                         truncations=np.asarray(e.truncations), seed=None) for e in ds.iterate_episodes()]
+    return [
+        AgentEpisode(
+            observations=np.asarray(e.observations, np.float32),
+            actions=np.asarray(e.actions, np.float32),
+            rewards=np.asarray(e.rewards),
+            terminations=np.asarray(e.terminations),
+            truncations=np.asarray(e.truncations),
+            seed=None,
+        )
+        for e in ds.iterate_episodes()
+    ]
 
 
-def collect(scenario: str, episodes: int, out: str | Path, seed: int = 0, dataset_id: str | None = None,
-            policy: str = "expert") -> tuple[str, int]:
+def collect(
+    scenario: str,
+    episodes: int,
+    out: str | Path,
+    seed: int = 0,
+    dataset_id: str | None = None,
+    policy: str = "expert",
+) -> tuple[str, int]:
     """Record and save; returns (dataset id, number of agent-episodes)."""
     name = str(scenario).replace(":", "-").replace("/", "-").removesuffix(".yaml")
     dataset_id = dataset_id or f"parcover/{name}-{policy}-v0"

@@ -26,7 +26,8 @@ class EpisodeMetrics:
     n_kpois: int
     n_robots: int
     c_max: float
-    """PPCP lower bound: shortest-path length to the furthest KPOI (m)."""
+    """PPCP lower bound: roadmap shortest-path length to the furthest KPOI (m). Robots drive the
+    smoothed routes, which are shorter than roadmap paths, so makespan_ratio can fall below 1."""
     max_speed: float
     steps: int = 0
     time: float = 0.0

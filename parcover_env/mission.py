@@ -12,7 +12,8 @@ class Mission:
 
     Progress along a route is the arc length of the robot's pose estimate projected onto the route,
     searched only a little behind and ``window`` ahead of the current progress, so it never jumps
-    to a later, spatially overlapping leg (out-and-back tours) and never decreases. A route vertex
+    to a later, spatially overlapping leg (out-and-back tours) and never decreases; an estimate
+    more than ``max_offset`` from that part of the route makes no progress. A route vertex
     at a KPOI must be reached (within ``waypoint_tol``) before progress moves past it. The robot's
     goal is the route point ``lookahead`` metres beyond its progress (pure-pursuit style), clamped
     at that KPOI vertex and at the route's end. A KPOI is visited when any robot's true centre comes
@@ -20,12 +21,13 @@ class Mission:
     """
 
     def __init__(self, kpois: np.ndarray, kpoi_radius: float, routes: list[np.ndarray], waypoint_tol: float,
-                 offsets: np.ndarray | None = None, lookahead: float = 0.4, window: float = 1.0):
+                 offsets: np.ndarray | None = None, lookahead: float = 0.4, window: float = 1.0,
+                 max_offset: float = 1.0):
         self.kpois = np.asarray(kpois, dtype=float)
         self.kpoi_radius = float(kpoi_radius)
         self.routes = [np.asarray(r, dtype=float).reshape(-1, 2) for r in routes]
         self.tol = float(waypoint_tol)
-        self.lookahead, self.window = float(lookahead), float(window)
+        self.lookahead, self.window, self.max_offset = float(lookahead), float(window), float(max_offset)
         self.offsets = np.zeros(len(self.routes)) if offsets is None else np.asarray(offsets, dtype=float)
         self._arc = []
         self._must = []
@@ -93,6 +95,8 @@ class Mission:
         u = np.clip(np.einsum("ij,ij->i", p - a, e) / ee, 0.0, 1.0)
         dist = np.hypot(*(a + u[:, None] * e - p).T)
         j = int(np.argmin(dist - 1e-6 * np.arange(len(dist))))  # ties: the later segment
+        if dist[j] > self.max_offset:  # far off the route (e.g. a lost estimate): no progress
+            return
         s = min(arc[lo + j] + u[j] * np.sqrt(ee[j]), limit)
         self.progress[i] = max(s0, s)
         self.waypoint[i] = min(int(np.searchsorted(arc, self.progress[i] + 1e-9, side="right")), len(route) - 1)

@@ -27,9 +27,26 @@ def _load(name: str):
 def ppo_dir(tmp_path_factory):
     train_ppo = _load("train_ppo")
     out = tmp_path_factory.mktemp("ppo")
-    args = train_ppo.parse_args(["--total-timesteps", "2000", "--n-envs", "2", "--n-steps", "256",
-                                 "--batch-size", "256", "--n-epochs", "1", "--max-steps", "100",
-                                 "--net-arch", "32", "--out", str(out)])
+    args = train_ppo.parse_args(
+        [
+            "--total-timesteps",
+            "2000",
+            "--n-envs",
+            "2",
+            "--n-steps",
+            "256",
+            "--batch-size",
+            "256",
+            "--n-epochs",
+            "1",
+            "--max-steps",
+            "100",
+            "--net-arch",
+            "32",
+            "--out",
+            str(out),
+        ]
+    )
     train_ppo.train(args)
     return out
 
@@ -55,9 +72,13 @@ def test_bc_one_epoch_then_evaluate(tmp_path):
     train_bc = _load("train_bc")
     evaluate = _load("evaluate")
     out = tmp_path / "bc"
-    train_bc.train(train_bc.parse_args(["--episodes", "1", "--epochs", "1", "--hidden", "32", "--out", str(out)]))
+    train_bc.train(
+        train_bc.parse_args(["--episodes", "1", "--epochs", "1", "--hidden", "32", "--out", str(out)])
+    )
     assert (out / "bc.pt").is_file()
-    rows = evaluate.evaluate(evaluate.parse_args(["--policy", f"bc:{out}", "--seeds", "1", "--max-steps", "30"]))
+    rows = evaluate.evaluate(
+        evaluate.parse_args(["--policy", f"bc:{out}", "--seeds", "1", "--max-steps", "30"])
+    )
     assert len(rows) == 1 and rows[0]["steps"] == 30 and rows[0]["policy"] == f"bc:{out}"
 
 

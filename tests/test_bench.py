@@ -27,9 +27,21 @@ def test_wilson_interval():
 
 
 def _row(policy, success, ratio, seed):
-    return {"scenario": "s", "policy": policy, "seed": seed, "success": success, "makespan_ratio": ratio,
-            "makespan": ratio, "kpois_visited": 2, "kpoi_fraction": 1.0 if success else 0.5, "collisions": seed,
-            "messages": 10, "steps": 5, "localization_error": 0.0, "wall_time": 0.1}
+    return {
+        "scenario": "s",
+        "policy": policy,
+        "seed": seed,
+        "success": success,
+        "makespan_ratio": ratio,
+        "makespan": ratio,
+        "kpois_visited": 2,
+        "kpoi_fraction": 1.0 if success else 0.5,
+        "collisions": seed,
+        "messages": 10,
+        "steps": 5,
+        "localization_error": 0.0,
+        "wall_time": 0.1,
+    }
 
 
 def test_summary_averages_makespan_over_successes_only(tmp_path):
@@ -61,8 +73,24 @@ def _parser():
 
 
 def test_cli_bench_local_two_seeds(tmp_path, capsys):
-    args = _parser().parse_args(["bench", "office", "--policies", "waypoint,random", "--seeds", "2", "--workers",
-                                 "1", "--max-steps", "40", "--out", str(tmp_path), "--quiet", "--no-plots"])
+    args = _parser().parse_args(
+        [
+            "bench",
+            "office",
+            "--policies",
+            "waypoint,random",
+            "--seeds",
+            "2",
+            "--workers",
+            "1",
+            "--max-steps",
+            "40",
+            "--out",
+            str(tmp_path),
+            "--quiet",
+            "--no-plots",
+        ]
+    )
     assert args.func(args) == 0
     rows = list((tmp_path / "episodes.csv").read_text().splitlines())
     assert len(rows) == 1 + 4
@@ -70,8 +98,10 @@ def test_cli_bench_local_two_seeds(tmp_path, capsys):
     # seeded: a second run gives the same episodes (wall time aside)
     again = bench.run_sweep(["office"], ["random"], [0, 1], max_steps=40, progress=False)
     first = [r for r in bench.run_sweep(["office"], ["random"], [0, 1], max_steps=40, progress=False)]
-    for a, b in zip(again, first):
-        assert {k: v for k, v in a.items() if k != "wall_time"} == {k: v for k, v in b.items() if k != "wall_time"}
+    for a, b in zip(again, first, strict=False):
+        assert {k: v for k, v in a.items() if k != "wall_time"} == {
+            k: v for k, v in b.items() if k != "wall_time"
+        }
 
 
 def test_process_pool_matches_in_process():
@@ -84,7 +114,9 @@ def test_process_pool_matches_in_process():
 @pytest.mark.slow
 def test_ray_backend_two_seeds():
     pytest.importorskip("ray")
-    rows = bench.run_sweep(["office"], ["random"], [0, 1], workers=2, backend="ray", max_steps=30, progress=False)
+    rows = bench.run_sweep(
+        ["office"], ["random"], [0, 1], workers=2, backend="ray", max_steps=30, progress=False
+    )
     local = bench.run_sweep(["office"], ["random"], [0, 1], max_steps=30, progress=False)
     assert [r["steps"] for r in rows] == [r["steps"] for r in local] == [30, 30]
     assert np.allclose([r["kpoi_fraction"] for r in rows], [r["kpoi_fraction"] for r in local])

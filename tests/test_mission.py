@@ -22,7 +22,7 @@ def test_out_and_back_route_is_followed_leg_by_leg():
     assert n == 1 and m.visited.tolist() == [True, False] and m.visit_time[0] == 2.0
     assert m.goals()[0][1] < 1.5  # now heading back down
     progress = m.progress[0]
-    m.update(np.array([[0.0, 0.0]]), np.array([[0.0, 0.0]]), 3.0)  # estimate jumps back: no regress
+    m.update(np.array([[0.0, 0.0]]), np.array([[0.0, 0.0]]), 3.0)  # estimate far off the route: no change
     assert m.progress[0] == progress
 
 

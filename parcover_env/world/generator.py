@@ -104,8 +104,15 @@ def _room(rng: np.random.Generator, x0: float, x1: float, y0: float, y1: float, 
         dy = rng.uniform(0.4, min(0.8, by1 - by0))
         cx = rng.uniform(bx0 + dx / 2, bx1 - dx / 2)
         cy = rng.uniform(by0 + dy / 2, by1 - dy / 2)
-        desk = tuple((_r(px), _r(py)) for px, py in ((cx - dx / 2, cy - dy / 2), (cx + dx / 2, cy - dy / 2),
-                                                     (cx + dx / 2, cy + dy / 2), (cx - dx / 2, cy + dy / 2)))
+        desk = tuple(
+            (_r(px), _r(py))
+            for px, py in (
+                (cx - dx / 2, cy - dy / 2),
+                (cx + dx / 2, cy - dy / 2),
+                (cx + dx / 2, cy + dy / 2),
+                (cx - dx / 2, cy + dy / 2),
+            )
+        )
     return Room(_r(x0), _r(x1), _r(y0), _r(y1), side, (_r(c - dw / 2), _r(c + dw / 2)), kpois, desk)
 
 
@@ -141,27 +148,48 @@ def generate_layout(seed: int) -> Layout:
         i = int(np.argmax([r.x1 - r.x0 if len(r.kpois) == 1 else -1 for r in rooms]))
         r = rooms[i]
         far_y = r.y1 - KPOI_INSET if r.side == "top" else r.y0 + KPOI_INSET
-        other = (_r(r.x1 - KPOI_INSET), _r(far_y)) if r.kpois[0][0] < (r.x0 + r.x1) / 2 else \
-            (_r(r.x0 + KPOI_INSET), _r(far_y))
+        other = (
+            (_r(r.x1 - KPOI_INSET), _r(far_y))
+            if r.kpois[0][0] < (r.x0 + r.x1) / 2
+            else (_r(r.x0 + KPOI_INSET), _r(far_y))
+        )
         rooms[i] = Room(r.x0, r.x1, r.y0, r.y1, r.side, r.door, (*r.kpois, other), r.desk)
     start = (_r(hall - 0.3), yc)
     m = 0.4
     queue = ((m, yc), (m, m), (_r(hall - m), m), (_r(hall - m), _r(max(m, c0 - m))))
-    kinects = [{"name": "A", "position": [_r(hall / 2 + 0.3), yc], "height": 3.9, "yaw_deg": 90.0,
-                "resolution": [320, 240]}]
+    kinects = [
+        {
+            "name": "A",
+            "position": [_r(hall / 2 + 0.3), yc],
+            "height": 3.9,
+            "yaw_deg": 90.0,
+            "resolution": [320, 240],
+        }
+    ]
     x = hall + 2.2
     while x < width - 1.0 and len(kinects) < 4:
         if rng.random() < 0.8:
-            kinects.append({"name": "ABCD"[len(kinects)], "position": [_r(x), yc], "height": 3.9,
-                            "yaw_deg": 90.0, "resolution": [320, 240]})
+            kinects.append(
+                {
+                    "name": "ABCD"[len(kinects)],
+                    "position": [_r(x), yc],
+                    "height": 3.9,
+                    "yaw_deg": 90.0,
+                    "resolution": [320, 240],
+                }
+            )
         x += 3.9
-    return Layout(int(seed), width, height, hall, (c0, c1), tuple(rooms), start, queue, tuple(extra),
-                  tuple(kinects))
+    return Layout(
+        int(seed), width, height, hall, (c0, c1), tuple(rooms), start, queue, tuple(extra), tuple(kinects)
+    )
 
 
 def _walls(lay: Layout) -> list[list[list[float]]]:
     c0, c1 = lay.corridor
-    walls = [[[lay.hall_width, c1], [lay.hall_width, lay.height]], [[lay.hall_width, 0.0], [lay.hall_width, c0]]]
+    walls = [
+        [[lay.hall_width, c1], [lay.hall_width, lay.height]],
+        [[lay.hall_width, 0.0], [lay.hall_width, c0]],
+    ]
     for side, y in (("top", c1), ("bottom", c0)):
         rooms = sorted((r for r in lay.rooms if r.side == side), key=lambda r: r.x0)
         x = lay.hall_width
@@ -178,15 +206,18 @@ def generate_scenario_mapping(seed_text: str, source: str = "") -> dict:
     """Scenario mapping (YAML schema) of ``generated:SEED``; SEED is a non-negative integer."""
     text = str(seed_text).strip()
     if not text.isdigit():
-        raise ConfigError(source or f"generated:{text}", "", f"generated scenarios need an integer seed "
-                          f"(e.g. generated:7), got '{text}'")
+        raise ConfigError(
+            source or f"generated:{text}",
+            "",
+            f"generated scenarios need an integer seed (e.g. generated:7), got '{text}'",
+        )
     lay = generate_layout(int(text))
     n_rooms, kpois = len(lay.rooms), lay.kpois
     budget = 3.0 * (lay.width + lay.height) / 0.25 / 0.1  # 3x the longest plausible route at v_max
     return {
         "name": f"generated-{lay.seed}",
         "description": f"procedural office (seed {lay.seed}): {lay.width} x {lay.height} m, {n_rooms} rooms, "
-                       f"{len(kpois)} KPOIs, {len(lay.kinects)} Kinects",
+        f"{len(kpois)} KPOIs, {len(lay.kinects)} Kinects",
         "map": {
             "size": [lay.width, lay.height],
             "wall_thickness": WALL,
@@ -198,9 +229,14 @@ def generate_scenario_mapping(seed_text: str, source: str = "") -> dict:
         "kpois": [list(k) for k in kpois],
         "kpoi_radius": 0.2,
         "n_robots": "auto",
-        "robot": {"radius": ROBOT_RADIUS, "max_speed": 0.25, "max_turn_rate": 1.2, "height": 0.3,
-                  "marker_radius": 0.03,
-                  "sonar": {"layout": "ring", "n_beams": 16, "range_min": 0.1, "range_max": 2.5}},
+        "robot": {
+            "radius": ROBOT_RADIUS,
+            "max_speed": 0.25,
+            "max_turn_rate": 1.2,
+            "height": 0.3,
+            "marker_radius": 0.03,
+            "sonar": {"layout": "ring", "n_beams": 16, "range_min": 0.1, "range_max": 2.5},
+        },
         "kinects": [dict(k) for k in lay.kinects],
         "formation": {"spacing": SPACING, "offset": 0.08, "gains": [1.0, 1.5]},
         "localization": "kinect",

@@ -22,6 +22,7 @@ SuperSuit is not needed. Wrap the result in ``VecMonitor`` for episode statistic
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing as mp
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -45,8 +46,10 @@ class AgentSlots:
         self.action_space = env.action_space(self.agents[0])
         for a in self.agents[1:]:
             if env.observation_space(a) != self.observation_space or env.action_space(a) != self.action_space:
-                raise ValueError(f"parameter sharing needs identical spaces for every agent; '{a}' differs "
-                                 f"from '{self.agents[0]}'")
+                raise ValueError(
+                    f"parameter sharing needs identical spaces for every agent; '{a}' differs "
+                    f"from '{self.agents[0]}'"
+                )
         if not isinstance(self.observation_space, spaces.Box):
             raise ValueError(f"observation space must be a Box, got {self.observation_space}")
         self._zero = np.zeros(self.observation_space.shape, dtype=self.observation_space.dtype)
@@ -56,8 +59,9 @@ class AgentSlots:
         return len(self.agents)
 
     def _stack(self, obs: dict) -> np.ndarray:
-        return np.stack([np.asarray(obs[a], dtype=self._zero.dtype) if a in obs else self._zero
-                         for a in self.agents])
+        return np.stack(
+            [np.asarray(obs[a], dtype=self._zero.dtype) if a in obs else self._zero for a in self.agents]
+        )
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> np.ndarray:
         obs, _ = self.env.reset(seed=seed, options=options or None)
@@ -126,7 +130,9 @@ class _Remote:
 
     def __init__(self, ctx, env_fn: Callable[[], Any]):
         self.pipe, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_worker, args=(child, self.pipe, CloudpickleWrapper(env_fn)), daemon=True)
+        self.proc = ctx.Process(
+            target=_worker, args=(child, self.pipe, CloudpickleWrapper(env_fn)), daemon=True
+        )
         self.proc.start()
         child.close()
         self.pipe.send(("spaces", None))
@@ -137,24 +143,27 @@ class _Remote:
         return self.pipe.recv()
 
     def close(self) -> None:
-        try:
+        with contextlib.suppress(BrokenPipeError, EOFError):
             self.pipe.send(("close", None))
-        except (BrokenPipeError, EOFError):
-            pass
         self.proc.join(timeout=5)
 
 
 class ParallelVecEnv(VecEnv):
     """SB3 ``VecEnv`` with one slot per agent of every ParallelEnv made by ``env_fns``."""
 
-    def __init__(self, env_fns: Sequence[Callable[[], Any]], multiprocess: bool = False,
-                 start_method: str | None = None):
+    def __init__(
+        self,
+        env_fns: Sequence[Callable[[], Any]],
+        multiprocess: bool = False,
+        start_method: str | None = None,
+    ):
         if not env_fns:
             raise ValueError("env_fns must hold at least one env factory")
         self.multiprocess = multiprocess
         if multiprocess:
-            ctx = mp.get_context(start_method or ("forkserver" if "forkserver" in mp.get_all_start_methods()
-                                                  else "spawn"))
+            ctx = mp.get_context(
+                start_method or ("forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn")
+            )
             self._envs: list[Any] = [_Remote(ctx, fn) for fn in env_fns]
         else:
             self._envs = [AgentSlots(fn()) for fn in env_fns]
@@ -203,13 +212,17 @@ class ParallelVecEnv(VecEnv):
     def set_options(self, options: list[dict] | dict | None = None) -> None:
         if isinstance(options, list):
             if len(options) != len(self._envs):
-                raise ValueError(f"options: expected {len(self._envs)} dicts (one per ParallelEnv), got {len(options)}")
+                raise ValueError(
+                    f"options: expected {len(self._envs)} dicts (one per ParallelEnv), got {len(options)}"
+                )
             self._env_options = list(options)
         else:
             self._env_options = [options] * len(self._envs)
 
     def reset(self) -> np.ndarray:
-        obs = [self._call(k, "reset", (self._env_seeds[k], self._env_options[k])) for k in range(len(self._envs))]
+        obs = [
+            self._call(k, "reset", (self._env_seeds[k], self._env_options[k])) for k in range(len(self._envs))
+        ]
         self._env_seeds = [None] * len(self._envs)
         self._env_options = [None] * len(self._envs)
         return np.concatenate(obs)
@@ -217,26 +230,32 @@ class ParallelVecEnv(VecEnv):
     def step_async(self, actions: np.ndarray) -> None:
         actions = np.asarray(actions)
         if actions.shape[0] != self.num_envs:
-            raise ValueError(f"actions: expected {self.num_envs} rows (one per agent slot), got {actions.shape}")
+            raise ValueError(
+                f"actions: expected {self.num_envs} rows (one per agent slot), got {actions.shape}"
+            )
         self._actions = actions
 
     def step_wait(self):
         if self._actions is None:
             raise RuntimeError("step_wait() without step_async()")
         acts, self._actions = self._actions, None
-        chunks = [acts[self._offsets[k]:self._offsets[k + 1]] for k in range(len(self._envs))]
+        chunks = [acts[self._offsets[k] : self._offsets[k + 1]] for k in range(len(self._envs))]
         if self.multiprocess:
-            for e, a in zip(self._envs, chunks):
+            for e, a in zip(self._envs, chunks, strict=False):
                 e.pipe.send(("step", a))
             results = [e.pipe.recv() for e in self._envs]
         else:
-            results = [e.step(a) for e, a in zip(self._envs, chunks)]
-        obs, rew, done, infos = zip(*results)
-        return (np.concatenate(obs), np.concatenate(rew), np.concatenate(done),
-                [i for group in infos for i in group])
+            results = [e.step(a) for e, a in zip(self._envs, chunks, strict=False)]
+        obs, rew, done, infos = zip(*results, strict=False)
+        return (
+            np.concatenate(obs),
+            np.concatenate(rew),
+            np.concatenate(done),
+            [i for group in infos for i in group],
+        )
 
     def close(self) -> None:
-        for k, e in enumerate(self._envs):
+        for _k, e in enumerate(self._envs):
             if self.multiprocess:
                 e.close()
             else:
@@ -256,27 +275,40 @@ class ParallelVecEnv(VecEnv):
 
     def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
         """Calls the method once per ParallelEnv behind the slots; one result per slot."""
-        results = {k: self._call(k, "env_method", (method_name, method_args, method_kwargs))
-                   for k in self._env_indices(indices)}
-        return [results[int(np.searchsorted(self._offsets, i, side="right") - 1)]
-                for i in self._get_indices(indices)]
+        results = {
+            k: self._call(k, "env_method", (method_name, method_args, method_kwargs))
+            for k in self._env_indices(indices)
+        }
+        return [
+            results[int(np.searchsorted(self._offsets, i, side="right") - 1)]
+            for i in self._get_indices(indices)
+        ]
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
         return [False for _ in self._get_indices(indices)]
 
     def get_images(self) -> list[np.ndarray | None]:
         frames = [self._call(k, "env_method", ("render", (), {})) for k in range(len(self._envs))]
-        return [frames[int(np.searchsorted(self._offsets, i, side="right") - 1)] for i in range(self.num_envs)]
+        return [
+            frames[int(np.searchsorted(self._offsets, i, side="right") - 1)] for i in range(self.num_envs)
+        ]
 
 
-def make_vec_env(scenario: Any = "office", n_envs: int = 1, overrides: dict | None = None,
-                 multiprocess: bool = False, monitor: bool = True) -> VecEnv:
+def make_vec_env(
+    scenario: Any = "office",
+    n_envs: int = 1,
+    overrides: dict | None = None,
+    multiprocess: bool = False,
+    monitor: bool = True,
+) -> VecEnv:
     """``n_envs`` ParallelCoverageEnvs of a scenario as one parameter-sharing VecEnv (+ VecMonitor)."""
     if n_envs < 1:
         raise ValueError(f"n_envs must be >= 1, got {n_envs}")
     from stable_baselines3.common.vec_env import VecMonitor
 
-    venv = ParallelVecEnv([_EnvFactory(scenario, overrides) for _ in range(n_envs)], multiprocess=multiprocess)
+    venv = ParallelVecEnv(
+        [_EnvFactory(scenario, overrides) for _ in range(n_envs)], multiprocess=multiprocess
+    )
     return VecMonitor(venv) if monitor else venv
 
 

@@ -98,6 +98,7 @@ def test_spawned_process_matches_in_process():
     assert_same_records(rollout(*args), child)
 
 
+@pytest.mark.slow
 def test_vec_env_single_vs_multi_process():
     """``make_vec_env`` in-process and with worker processes give identical runs (incl. auto-resets)."""
     pytest.importorskip("stable_baselines3")

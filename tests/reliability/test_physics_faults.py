@@ -12,7 +12,7 @@ import parcover_env as pe
 
 # as many robots as placement seats around each start (placement refuses more with a ConfigError)
 MANY = {"office": 8, "tree": 8, "hallway": 6, "t_room": 3}
-CI_STEPS = 1200
+CI_STEPS = 800
 WALL_TOL = 0.1   # x radius: deepest allowed wall penetration
 ROBOT_TOL = 0.25  # x radius: deepest allowed robot-robot overlap
 

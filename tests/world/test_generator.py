@@ -45,8 +45,9 @@ def test_start_queue_holds_a_robot_per_kpoi_in_free_space():
 
     for seed in range(0, 50, 7):
         s = load_scenario(f"generated:{seed}")
-        poses = queue_poses(MapModel.from_config(s.map), s.queue, len(s.kpois), s.robot.radius,
-                            s.formation.spacing)
+        poses = queue_poses(
+            MapModel.from_config(s.map), s.queue, len(s.kpois), s.robot.radius, s.formation.spacing
+        )
         assert poses.shape == (len(s.kpois), 3)
 
 

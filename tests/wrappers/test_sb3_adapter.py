@@ -33,8 +33,11 @@ class FakeParallelEnv:
         return spaces.Box(-1, 1, (1,), np.float32)
 
     def _obs(self):
-        return {a: np.array([i + 1, self.t], np.float32) for i, a in enumerate(self.possible_agents)
-                if a in self.agents}
+        return {
+            a: np.array([i + 1, self.t], np.float32)
+            for i, a in enumerate(self.possible_agents)
+            if a in self.agents
+        }
 
     def reset(self, seed=None, options=None):
         self.reset_seeds.append(seed)
@@ -112,7 +115,7 @@ def test_vecmonitor_counts_agent_episodes():
     infos_all = []
     for _ in range(4):
         _, _, done, infos = venv.step(np.zeros((2, 1)))
-        infos_all += [i for i, d in zip(infos, done) if d]
+        infos_all += [i for i, d in zip(infos, done, strict=False) if d]
     assert [i["episode"]["l"] for i in infos_all] == [2, 4]
     assert [i["episode"]["r"] for i in infos_all] == [2.0, 4.0]
 
@@ -145,7 +148,7 @@ def test_real_env_multiprocess_matches_in_process():
         for _ in range(35):
             a = rng.uniform(-1, 1, (local.num_envs, 2)).astype(np.float32)
             r1, r2 = local.step(a), remote.step(a)
-            for x, y in zip(r1[:3], r2[:3]):
+            for x, y in zip(r1[:3], r2[:3], strict=False):
                 np.testing.assert_array_equal(x, y)
         assert remote.get_attr("n_robots") == [2, 2, 2, 2]
         assert r1[3][0]["active"] is True
@@ -160,8 +163,16 @@ def _train_params(seed: int) -> np.ndarray:
 
     torch.set_num_threads(1)
     venv = make_vec_env("office", n_envs=2, overrides={"episode": {"max_steps": 40}})
-    model = PPO("MlpPolicy", venv, n_steps=32, batch_size=32, n_epochs=2, seed=seed, device="cpu",
-                policy_kwargs={"net_arch": [16]})
+    model = PPO(
+        "MlpPolicy",
+        venv,
+        n_steps=32,
+        batch_size=32,
+        n_epochs=2,
+        seed=seed,
+        device="cpu",
+        policy_kwargs={"net_arch": [16]},
+    )
     model.learn(total_timesteps=128)
     return torch.nn.utils.parameters_to_vector(model.policy.parameters()).detach().numpy()
 
