@@ -18,9 +18,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "reliability"))
 
-from hypothesis import HealthCheck, Phase, given, seed, settings  # noqa: E402
-
 from config_mutations import apply_mutations, base_mapping, cases_strategy, check_file  # noqa: E402
+from hypothesis import HealthCheck, Phase, given, seed, settings  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -30,7 +30,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--steps", type=int, default=1_000_000)
     p.add_argument("--scenario", default="office")
     p.add_argument("--every", type=int, default=50_000, help="print RSS every N steps (default: 50000)")
-    p.add_argument("--warmup", type=int, default=20_000, help="steps before the RSS baseline (default: 20000)")
+    p.add_argument("--warmup", type=int, default=20_000,
+                   help="steps before the RSS baseline (default: 20000)")
     p.add_argument("--reseed-every", type=int, default=10, help="reset with a new seed every N episodes")
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)

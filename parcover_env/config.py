@@ -30,6 +30,10 @@ __all__ = [
 ]
 
 
+MAX_RASTER_CELLS = 4e6
+"""The planner rasterizes the map at ``planner.resolution``: at most this many cells (memory, time)."""
+
+
 def _check(ok: bool, key: str, message: str) -> None:
     if not ok:
         raise ConfigError("", key, message)
@@ -63,12 +67,18 @@ class MapConfig:
         _check(max(self.size) <= 1000, "size", f"maps larger than 1 km are not supported, got {self.size}")
         for i, (a, b) in enumerate(self.walls):
             _check(a != b, f"walls[{i}]", "segment has zero length")
-        for name in ("boundary", "obstacles", "unknown_obstacles"):
+        w, h = self.size
+        for name in ("boundary", "obstacles", "unknown_obstacles", "walls"):
             polys = [self.boundary] if name == "boundary" else getattr(self, name)
             for i, poly in enumerate(polys):
-                if poly is not None:
-                    _check(len(poly) >= 3, name if name == "boundary" else f"{name}[{i}]",
-                           f"a polygon needs >= 3 vertices, got {len(poly)}")
+                if poly is None:
+                    continue
+                key = name if name == "boundary" else f"{name}[{i}]"
+                if name != "walls":
+                    _check(len(poly) >= 3, key, f"a polygon needs >= 3 vertices, got {len(poly)}")
+                for x, y in poly:
+                    _check(-1e-9 <= x <= w + 1e-9 and -1e-9 <= y <= h + 1e-9, key,
+                           f"vertex ({x}, {y}) lies outside the map box [0, {w}] x [0, {h}] (map.size)")
 
 
 @dataclass(frozen=True)
@@ -306,6 +316,12 @@ class Scenario:
         _check(step < 0.5 * min(self.robot.radius, self.map.wall_thickness), "physics.dt",
                f"a robot moves {step:.3f} m per physics step: more than half the robot radius or wall "
                "thickness risks tunnelling; lower physics.dt")
+        cells = (self.map.size[0] / self.planner.resolution) * (self.map.size[1] / self.planner.resolution)
+        if cells > MAX_RASTER_CELLS:
+            fit = (self.map.size[0] * self.map.size[1] / MAX_RASTER_CELLS) ** 0.5
+            raise ConfigError("", "planner.resolution", f"the {self.map.size[0]} x {self.map.size[1]} m map needs "
+                              f"{cells:.3g} roadmap cells at {self.planner.resolution} m (max {MAX_RASTER_CELLS:.0e}); "
+                              f"use a resolution >= {fit:.3f} m")
         from parcover_env.world.map_model import validate_geometry
 
         validate_geometry(self)

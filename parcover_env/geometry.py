@@ -48,14 +48,16 @@ def cast_rays(origins: np.ndarray, directions: np.ndarray, segments: np.ndarray,
     n_rays = len(origins)
     if n_rays == 0 or len(segments) == 0:
         return np.full(n_rays, float(max_range)), np.full(n_rays, -1, dtype=np.int64)
-    a = segments[None, :, 0:2]
-    e = segments[None, :, 2:4] - a
-    d = directions[:, None, :]
-    w = a - origins[:, None, :]
+    segments = np.asarray(segments, dtype=float)
+    # one contiguous (R, S) plane per coordinate (no (R, S, 2) temporaries)
+    ax, ay = segments[:, 0], segments[:, 1]
+    ex, ey = segments[:, 2] - ax, segments[:, 3] - ay
+    dx, dy = directions[:, 0:1], directions[:, 1:2]
+    wx, wy = ax - origins[:, 0:1], ay - origins[:, 1:2]
     # Solve origin + t d = a + u e  ->  t = cross(w, e) / cross(d, e), u = cross(w, d) / cross(d, e)
-    den = d[..., 0] * e[..., 1] - d[..., 1] * e[..., 0]
-    num_t = w[..., 0] * e[..., 1] - w[..., 1] * e[..., 0]
-    num_u = w[..., 0] * d[..., 1] - w[..., 1] * d[..., 0]
+    den = dx * ey - dy * ex
+    num_t = wx * ey - wy * ex
+    num_u = wx * dy - wy * dx
     with np.errstate(divide="ignore", invalid="ignore"):
         t = num_t / den
         u = num_u / den

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -267,6 +268,10 @@ def estimate_poses(frame: KinectFrame, camera: CameraModel,
     return out
 
 
+_STATIC: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""Static per-sensor quantities of the fast path (see ``_sensor_cache``)."""
+
+
 @dataclass(frozen=True)
 class FastNoise:
     """Error model of the fast path, calibrated with ``benchmarks/kinect_accuracy.py`` on the full
@@ -297,47 +302,102 @@ def estimate_fast(sensor: KinectSensor, poses, marker_mask, rng: np.random.Gener
     poses, mask = sensor._check_inputs(poses, marker_mask)
     if sensor.cfg.drop_rate > 0 and rng.random() < sensor.cfg.drop_rate:
         return []
+    idx = np.flatnonzero(mask)
+    box = _view_box(sensor)
+    if box is not None and len(idx):  # cheap, conservative reject of carriers far outside the view
+        px, py = poses[idx, 0], poses[idx, 1]
+        idx = idx[(px >= box[0]) & (px <= box[2]) & (py >= box[1]) & (py <= box[3])]
+    if len(idx) == 0:
+        return []
     cam = sensor.camera
-    out = []
-    for i in np.flatnonzero(mask):
-        x, y, th = poses[i]
-        c, s = math.cos(th), math.sin(th)
-        pat = sensor.pattern
-        world = np.c_[x + c * pat[:, 0] - s * pat[:, 1], y + s * pat[:, 0] + c * pat[:, 1],
-                      np.full(len(pat), sensor.robot_height)]
-        uv, z = cam.project(world)
-        if np.any(z <= 0):
-            continue
+    pat = sensor.pattern
+    m, k = len(idx), len(pat)
+    # every marker of every carrier projected at once (geometry first, then the random draws in
+    # robot order, exactly as a per-robot loop would draw them)
+    cs = np.array([(math.cos(th), math.sin(th)) for th in poses[idx, 2].tolist()]).reshape(m, 2)
+    c, s = cs[:, 0:1], cs[:, 1:2]
+    x, y = poses[idx, 0:1], poses[idx, 1:2]
+    world = np.empty((m, k, 3))
+    world[..., 0] = x + c * pat[:, 0] - s * pat[:, 1]
+    world[..., 1] = y + s * pat[:, 0] + c * pat[:, 1]
+    world[..., 2] = sensor.robot_height
+    uv, z = cam.project(world.reshape(-1, 3))
+    uv, z = uv.reshape(m, k, 2), z.reshape(m, k)
+    h, w = sensor.shape
+    with np.errstate(divide="ignore", invalid="ignore"):
         r_px = sensor.marker_radius * cam.focal / z + nz.margin_px
-        h, w = sensor.shape
-        if np.any(uv[:, 0] - r_px < 0) or np.any(uv[:, 0] + r_px > w - 1) or \
-                np.any(uv[:, 1] - r_px < 0) or np.any(uv[:, 1] + r_px > h - 1):
-            continue
-        if np.any(z < cam.range_min) or np.any(z > cam.range_max):
-            continue
-        iu, iv = np.rint(uv[:, 0]).astype(int), np.rint(uv[:, 1]).astype(int)
-        if np.any(sensor.static_depth[iv, iu] < z - 1e-6):
+        ok = np.all(z > 0, axis=1)
+        ok &= np.all((uv[..., 0] - r_px >= 0) & (uv[..., 0] + r_px <= w - 1)
+                     & (uv[..., 1] - r_px >= 0) & (uv[..., 1] + r_px <= h - 1), axis=1)
+        ok &= np.all((z >= cam.range_min) & (z <= cam.range_max), axis=1)
+    out = []
+    span = float(np.ptp(pat[:, 0])) or 0.1
+    for r in np.flatnonzero(ok):
+        zr = z[r]
+        iu, iv = np.rint(uv[r, :, 0]).astype(int), np.rint(uv[r, :, 1]).astype(int)
+        if np.any(sensor.static_depth[iv, iu] < zr - 1e-6):
             continue  # hidden by a wall top
-        r_marker = sensor.marker_radius * cam.focal / float(z.max())
-        p_det = np.clip((r_marker - nz.r_px_min) / (nz.r_px_full - nz.r_px_min), 0.0, 1.0)
-        if not _resolvable(sensor, float(z.max())) or rng.random() >= p_det:
+        z_max = float(zr.max())
+        r_marker = sensor.marker_radius * cam.focal / z_max
+        p_det = min(max((r_marker - nz.r_px_min) / (nz.r_px_full - nz.r_px_min), 0.0), 1.0)
+        if not _resolvable(sensor, z_max) or rng.random() >= p_det:
             continue
-        mpp = float(z.mean()) / cam.focal * (NATIVE_WIDTH / w) ** nz.res_exponent
-        span = float(np.ptp(pat[:, 0])) or 0.1
+        mpp = float(zr.mean()) / cam.focal * (NATIVE_WIDTH / w) ** nz.res_exponent
         ex, ey = rng.normal(0.0, nz.pos_px * mpp, size=2)
         eth = rng.normal(0.0, nz.heading_px * mpp / span)
-        out.append(PoseEstimate(float(x + ex), float(y + ey), float(wrap_angle(th + eth)), len(pat),
-                                kinect=sensor.name, stamp=stamp, truth_index=int(i)))
+        i = int(idx[r])
+        xi, yi, th = poses[i]
+        out.append(PoseEstimate(float(xi + ex), float(yi + ey), float(wrap_angle(th + eth)), k,
+                                kinect=sensor.name, stamp=stamp, truth_index=i))
     return out
+
+
+def _sensor_cache(sensor: KinectSensor) -> dict:
+    """Per-sensor cache of static quantities, dropped if the camera, pattern or height change."""
+    key = (id(sensor.camera), sensor.pattern.tobytes(), sensor.marker_radius, sensor.robot_height)
+    entry = _STATIC.get(sensor)
+    if entry is None or entry[0] != key:
+        entry = (key, {})
+        _STATIC[sensor] = entry
+    return entry[1]
+
+
+def _pattern_gap(sensor: KinectSensor) -> float:
+    """Smallest edge-to-edge distance between two markers of the pattern (m)."""
+    cache = _sensor_cache(sensor)
+    if "gap" not in cache:
+        pat = sensor.pattern
+        d = np.linalg.norm(pat[:, None] - pat[None], axis=-1) + np.eye(len(pat)) * 1e9
+        cache["gap"] = float(d.min()) - 2 * sensor.marker_radius
+    return cache["gap"]
+
+
+def _view_box(sensor: KinectSensor) -> tuple[float, float, float, float] | None:
+    """Floor box ``(x0, y0, x1, y1)`` outside which no robot centre can have all its markers in the
+    image: the image corners cast onto the marker plane, grown by the pattern's reach (1 mm slack).
+    None when a corner ray does not meet that plane (a tilted camera): no pre-filter then."""
+    cache = _sensor_cache(sensor)
+    if "box" not in cache:
+        cam = sensor.camera
+        corners = np.array([[0.0, 0.0], [cam.width - 1.0, 0.0], [cam.width - 1.0, cam.height - 1.0],
+                            [0.0, cam.height - 1.0]])
+        rays = cam.pixel_rays(corners)
+        box = None
+        if np.all(rays[:, 2] < 0) and sensor.robot_height < cam.C[2]:
+            t = (sensor.robot_height - cam.C[2]) / rays[:, 2]
+            pts = cam.C[:2] + t[:, None] * rays[:, :2]
+            reach = float(np.hypot(sensor.pattern[:, 0], sensor.pattern[:, 1]).max()) + 1e-3
+            lo, hi = pts.min(axis=0) - reach, pts.max(axis=0) + reach
+            box = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+        cache["box"] = box
+    return cache["box"]
 
 
 def _resolvable(sensor: KinectSensor, z: float, close_ksize: int = 5) -> bool:
     """Whether markers at depth ``z`` stay apart enough for the pattern fit after the 5x5 closing
     (gaps of >= 3 px keep at least 3 markers apart in the full pipeline: checked on ``tree``)."""
     ppm = sensor.camera.focal / z
-    pat = sensor.pattern
-    d = np.linalg.norm(pat[:, None] - pat[None], axis=-1) + np.eye(len(pat)) * 1e9
-    gap_px = (float(d.min()) - 2 * sensor.marker_radius) * ppm
+    gap_px = _pattern_gap(sensor) * ppm
     return gap_px >= close_ksize - 2
 
 

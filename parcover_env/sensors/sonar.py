@@ -23,6 +23,7 @@ from functools import lru_cache
 import numpy as np
 
 from parcover_env.config import SonarConfig
+from parcover_env.geometry import point_segment_distance
 
 __all__ = ["SonarRing", "AMIGOBOT_ANGLES_DEG", "concave_corners", "simulate_beams"]
 
@@ -79,23 +80,62 @@ def _corner_faces(origins: np.ndarray, pts: np.ndarray, u1: np.ndarray, u2: np.n
     return (_cross(u1[None], v) * s > 0) & (_cross(v, u2[None]) * s > 0)
 
 
-def _ray_segments(origins, dirs, segments):
-    """Nearest hit per ray: ``(t (R,), seg index (R,), |cos incidence| (R,))`` (t = inf if none)."""
-    a = segments[None, :, 0:2]
-    e = segments[None, :, 2:4] - a
-    d = dirs[:, None, :]
-    w = a - origins[:, None, :]
-    den = _cross(d, e)
+def _ray_segments(origins, dirs, segments, with_cos: bool = True):
+    """Nearest hit per ray: ``(t (R,), seg index (R,), |cos incidence| (R,) or None)`` (t = inf if
+    none). Works on contiguous ``(R, S)`` planes (one per coordinate): no ``(R, S, 2)`` temporaries."""
+    ax, ay = segments[:, 0], segments[:, 1]
+    ex, ey = segments[:, 2] - ax, segments[:, 3] - ay
+    ox, oy = origins[:, 0:1], origins[:, 1:2]
+    dx, dy = dirs[:, 0:1], dirs[:, 1:2]
+    den = dx * ey - dy * ex
+    wx, wy = ax - ox, ay - oy
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = _cross(w, e) / den
-        u = _cross(w, d) / den
-    ok = (np.abs(den) > 1e-12) & (t >= 0.0) & (u >= -1e-12) & (u <= 1.0 + 1e-12)
+        t = (wx * ey - wy * ex) / den
+        u = (wx * dy - wy * dx) / den
+    ok = (t >= 0.0) & (u >= -1e-12) & (u <= 1.0 + 1e-12) & (np.abs(den) > 1e-12)
     t = np.where(ok, t, np.inf)
     idx = np.argmin(t, axis=1)
     rows = np.arange(len(origins))
     tmin = t[rows, idx]
-    elen = np.linalg.norm(e[0], axis=-1)
+    if not with_cos:
+        return tmin, idx, None
+    elen = np.hypot(ex, ey)
     cos_inc = np.abs(den[rows, idx]) / np.maximum(elen[idx], _EPS)  # |d x e| / |e| = |cos(incidence)|
+    return tmin, idx, cos_inc
+
+
+def _ray_segments_near(origins, dirs, segments, reach: float, with_cos: bool = True):
+    """:func:`_ray_segments` for ``M`` rays from each of ``N`` origins (``dirs (N, M, 2)``), testing
+    each origin's rays only against the segments within ``reach`` of it. Hits nearer than ``reach``
+    are exactly those of the full test (a segment hit at ``t`` lies within ``t`` of the origin);
+    farther hits may be missed (inf), which callers clamp to ``reach`` anyway. Returns flat
+    ``(N * M,)`` arrays like :func:`_ray_segments`."""
+    n, m = dirs.shape[:2]
+    near = point_segment_distance(origins, segments) <= reach + 1e-6
+    width = int(near.sum(axis=1).max()) if n else 0
+    if width == 0:
+        return np.full(n * m, np.inf), np.zeros(n * m, dtype=np.int64), np.ones(n * m)
+    order = np.argsort(~near, axis=1, kind="stable")[:, :width]  # near segments first, in index order
+    keep = np.take_along_axis(near, order, axis=1)[:, None, :]
+    seg = segments[order]  # (N, W, 4)
+    ax, ay = seg[:, None, :, 0], seg[:, None, :, 1]
+    ex, ey = seg[:, None, :, 2] - ax, seg[:, None, :, 3] - ay
+    dx, dy = dirs[:, :, 0:1], dirs[:, :, 1:2]
+    den = dx * ey - dy * ex  # (N, M, W)
+    wx, wy = ax - origins[:, None, None, 0], ay - origins[:, None, None, 1]  # (N, 1, W)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (wx * ey - wy * ex) / den
+        u = (wx * dy - wy * dx) / den
+    ok = (t >= 0.0) & (u >= -1e-12) & (u <= 1.0 + 1e-12) & (np.abs(den) > 1e-12) & keep
+    t = np.where(ok, t, np.inf)
+    j = np.argmin(t, axis=2)[..., None]
+    tmin = np.take_along_axis(t, j, axis=2).ravel()
+    idx = np.take_along_axis(order[:, None, :], j, axis=2).ravel()
+    if not with_cos:
+        return tmin, idx, None
+    elen = np.hypot(ex, ey)
+    cos_inc = (np.abs(np.take_along_axis(den, j, axis=2))
+               / np.maximum(np.take_along_axis(np.broadcast_to(elen, den.shape), j, axis=2), _EPS)).ravel()
     return tmin, idx, cos_inc
 
 
@@ -103,9 +143,10 @@ def _ray_discs(origins, dirs, centres, radius, owner):
     """First hit distance of each ray on discs (inf if none); ``owner (R,)`` disc to ignore or -1."""
     if len(centres) == 0:
         return np.full(len(origins), np.inf)
-    oc = origins[:, None, :] - centres[None, :, :]
-    b = np.einsum("rck,rk->rc", oc, dirs)
-    c = np.einsum("rck,rck->rc", oc, oc) - radius * radius
+    ocx = origins[:, 0:1] - centres[None, :, 0]
+    ocy = origins[:, 1:2] - centres[None, :, 1]
+    b = ocx * dirs[:, 0:1] + ocy * dirs[:, 1:2]
+    c = (ocx * ocx + ocy * ocy) - radius * radius
     disc = b * b - c
     t_near = -b - np.sqrt(np.maximum(disc, 0.0))
     t = np.where(c <= 0.0, 0.0, t_near)
@@ -130,7 +171,8 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     own = np.repeat(owner, b * k)
     out = np.full(n * b * k, np.inf)
     if len(segments):
-        out, _, cos_inc = _ray_segments(orig, dirs, segments)
+        out, _, cos_inc = _ray_segments_near(origins, dirs.reshape(n, b * k, 2), segments, rmax,
+                                             with_cos=specular)
     t_disc = _ray_discs(orig, dirs, centres, float(radius), own) if len(centres) else out * np.inf
     if specular and len(segments):
         # an oblique wall reflects the sub-ray away; a disc in front of it still echoes
@@ -157,7 +199,7 @@ def _corner_echoes(cfg, origins, axes, segments, centres, radius, owner, pts, u1
         return np.full(axes.shape, np.inf)
     ni, ci = np.nonzero(cand)
     d = vec[ni, ci] / dist[ni, ci, None]
-    t, _, _ = _ray_segments(origins[ni], d, segments)
+    t, _, _ = _ray_segments(origins[ni], d, segments, with_cos=False)
     visible = t >= dist[ni, ci] * (1.0 - 1e-7) - 1e-9
     if len(centres):
         visible &= _ray_discs(origins[ni], d, centres, float(radius), owner[ni]) >= dist[ni, ci]

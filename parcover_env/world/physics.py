@@ -15,6 +15,11 @@ import math
 import numpy as np
 import pymunk
 
+try:  # the C setters without pymunk's Python property layers: the callback runs N x substeps times a step
+    from pymunk._chipmunk import lib as _cp
+except ImportError:  # pragma: no cover - other pymunk builds: the public properties
+    _cp = None
+
 from parcover_env.config import PhysicsConfig
 from parcover_env.world.map_model import MapModel
 
@@ -34,6 +39,7 @@ class World:
         self.n = len(poses)
         self.time = 0.0
         self._cmd = np.zeros((self.n, 2))
+        self._rows = _CommandRows(self.n)
         self.wall_contacts = np.zeros(self.n, dtype=np.int64)
         self.robot_contacts = np.zeros(self.n, dtype=np.int64)
 
@@ -64,7 +70,7 @@ class World:
         self.space = space
 
     def _velocity_func(self, i: int) -> _UnicycleVelocity:
-        return _UnicycleVelocity(self._cmd, i)
+        return _UnicycleVelocity(self._rows, i)
 
     def _on_wall(self, arbiter: pymunk.Arbiter, space, data) -> None:
         for shape in arbiter.shapes:
@@ -78,6 +84,7 @@ class World:
     def step(self, commands: np.ndarray) -> None:
         """Apply ``(v, omega)`` per robot ``(N, 2)`` for one control step (all physics substeps)."""
         self._cmd[:] = commands
+        self._rows.values = self._cmd.tolist()
         dt = self.physics.dt
         for _ in range(self.physics.substeps):
             self.space.step(dt)
@@ -93,16 +100,31 @@ class World:
         return out
 
 
+class _CommandRows:
+    """The commands ``[[v, omega], ...]`` as Python floats, shared by the world and its callbacks."""
+
+    __slots__ = ("values",)
+
+    def __init__(self, n: int):
+        self.values = [[0.0, 0.0] for _ in range(n)]
+
+    def __getstate__(self):
+        return self.values
+
+    def __setstate__(self, state) -> None:
+        self.values = state
+
+
 class _UnicycleVelocity:
-    """``body.velocity_func`` of robot ``i``: velocity from the shared command array ``(N, 2)``.
+    """``body.velocity_func`` of robot ``i``: velocity from the shared commands (``_CommandRows``).
 
     A module-level callable (not a closure) so that a ``World`` survives ``pickle`` and
-    ``copy.deepcopy``; the command array stays shared with the world through pickle's memo.
+    ``copy.deepcopy``; the commands stay shared with the world through pickle's memo.
     """
 
     __slots__ = ("cmd", "i")
 
-    def __init__(self, cmd: np.ndarray, i: int):
+    def __init__(self, cmd: _CommandRows, i: int):
         self.cmd, self.i = cmd, i
 
     def __getstate__(self):
@@ -112,6 +134,13 @@ class _UnicycleVelocity:
         self.cmd, self.i = state
 
     def __call__(self, body: pymunk.Body, gravity, damping, dt) -> None:
-        v, w = self.cmd[self.i]
-        body.velocity = (v * math.cos(body.angle), v * math.sin(body.angle))
-        body.angular_velocity = w
+        v, w = self.cmd.values[self.i]
+        if _cp is None:  # pragma: no cover
+            a = body.angle
+            body.velocity = (v * math.cos(a), v * math.sin(a))
+            body.angular_velocity = w
+            return
+        b = body._body
+        a = _cp.cpBodyGetAngle(b)
+        _cp.cpBodySetVelocity(b, (v * math.cos(a), v * math.sin(a)))
+        _cp.cpBodySetAngularVelocity(b, w)

@@ -67,7 +67,7 @@ def start_poses(map_model: MapModel, start: tuple[float, float, float], n: int, 
         shapely.prepare(grown)
         ok &= shapely.contains_xy(grown, pts[:, 0], pts[:, 1])
     chosen: list[np.ndarray] = []
-    for p, good in zip(pts, ok):
+    for p, good in zip(pts, ok, strict=True):
         if not good or region is None:
             continue
         if all(np.hypot(*(p - q)) >= 2.2 * radius for q in chosen):

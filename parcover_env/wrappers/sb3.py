@@ -16,6 +16,9 @@ Semantics (the SB3 conventions, applied per agent):
 * When every agent of a ParallelEnv is done the env is reset and the slots carry the new
   episode's first observations.
 
+ParallelEnvs of different maps (``generated:SEED``) may differ in observation bounds and team
+size; the VecEnv's observation space is the union of their boxes.
+
 ``multiprocess=True`` hosts each ParallelEnv in its own worker process (like ``SubprocVecEnv``).
 SuperSuit is not needed. Wrap the result in ``VecMonitor`` for episode statistics.
 """
@@ -168,15 +171,28 @@ class ParallelVecEnv(VecEnv):
         else:
             self._envs = [AgentSlots(fn()) for fn in env_fns]
         first = self._envs[0]
-        for e in self._envs[1:]:
-            if e.observation_space != first.observation_space or e.action_space != first.action_space:
-                raise ValueError("all ParallelEnvs must have the same observation and action spaces")
+        obs_space = first.observation_space
+        for k, e in enumerate(self._envs[1:], start=1):
+            o = e.observation_space
+            if (
+                e.action_space != first.action_space
+                or o.shape != obs_space.shape
+                or o.dtype != obs_space.dtype
+            ):
+                raise ValueError(
+                    f"ParallelEnv {k} has spaces {o}, {e.action_space}; env 0 has {obs_space}, "
+                    f"{first.action_space}: shapes and action spaces must match"
+                )
+            # different maps (domain randomization) differ only in bounds: use their union
+            obs_space = spaces.Box(
+                np.minimum(obs_space.low, o.low), np.maximum(obs_space.high, o.high), dtype=obs_space.dtype
+            )
         sizes = [e.n for e in self._envs]
         self._offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
         self._env_seeds: list[int | None] = [None] * len(self._envs)
         self._env_options: list[dict | None] = [None] * len(self._envs)
         self._actions: np.ndarray | None = None
-        super().__init__(int(self._offsets[-1]), first.observation_space, first.action_space)
+        super().__init__(int(self._offsets[-1]), obs_space, first.action_space)
 
     # ------------------------------------------------------------------ helpers
     @property

@@ -49,7 +49,8 @@ KINDS = ("drop", "set", "scale", "bad_polygon", "kpoi_in_wall", "duplicate_kpoi"
 def mutation_strategy() -> st.SearchStrategy:
     """One mutation ``(kind, selector, value)``."""
     sel = st.integers(0, 10_000)
-    odd = st.sampled_from(_ODD_VALUES) | st.floats(allow_nan=True, allow_infinity=True) | st.integers(-10**6, 10**6)
+    odd = (st.sampled_from(_ODD_VALUES) | st.floats(allow_nan=True, allow_infinity=True)
+           | st.integers(-10**6, 10**6))
     return st.one_of(
         st.tuples(st.just("drop"), sel, st.none()),
         st.tuples(st.just("set"), sel, odd),
@@ -57,22 +58,26 @@ def mutation_strategy() -> st.SearchStrategy:
         st.tuples(st.just("bad_polygon"), sel, st.sampled_from(range(len(_BAD_POLYGONS)))),
         st.tuples(st.just("kpoi_in_wall"), sel, st.none()),
         st.tuples(st.just("duplicate_kpoi"), sel, st.none()),
-        st.tuples(st.just("n_robots"), sel, st.sampled_from([0, -1, 1, 3, 8, 64, 256, 257, 1.5, "auto", "many"])),
+        st.tuples(st.just("n_robots"), sel,
+                  st.sampled_from([0, -1, 1, 3, 8, 64, 256, 257, 1.5, "auto", "many"])),
         st.tuples(st.just("kinect_pitch"), sel, st.sampled_from([-90.0, -10.0, 0.0, 5.0, 21.5, 25.0, 45.0,
                                                                  90.0, 91.0, 180.0, 270.0])),
         st.tuples(st.just("huge_map"), sel, st.sampled_from([50.0, 200.0, 1000.0, 1001.0, 1e7])),
-        st.tuples(st.just("unknown_key"), sel, st.sampled_from(["kpoi", "robots", "radius ", "mapp", "x_deg"])),
+        st.tuples(st.just("unknown_key"), sel,
+                  st.sampled_from(["kpoi", "robots", "radius ", "mapp", "x_deg"])),
         st.tuples(st.just("truncate_text"), sel, st.floats(0.0, 1.0)),
         st.tuples(st.just("top_level"), sel, st.sampled_from([None, 3, "office", [1, 2], "{"])),
-        st.tuples(st.just("wall"), sel, st.sampled_from([((1.0, 1.0), (1.0, 1.0)), ((-1.0, 2.0), (50.0, 2.0)),
-                                                          ((0.0, 0.0), (3.2, 4.6)), ((1.0,), (2.0, 2.0))])),
+        st.tuples(st.just("wall"), sel,
+                  st.sampled_from([((1.0, 1.0), (1.0, 1.0)), ((-1.0, 2.0), (50.0, 2.0)),
+                                   ((0.0, 0.0), (3.2, 4.6)), ((1.0,), (2.0, 2.0))])),
         st.tuples(st.just("no_kpois"), sel, st.sampled_from([[], None, [[1.0, 1.0, 1.0]], [["a", "b"]]])),
     )
 
 
 def cases_strategy(max_mutations: int = 3) -> st.SearchStrategy:
     """``(base scenario name, [mutations])``."""
-    return st.tuples(st.sampled_from(BASES), st.lists(mutation_strategy(), min_size=1, max_size=max_mutations))
+    muts = st.lists(mutation_strategy(), min_size=1, max_size=max_mutations)
+    return st.tuples(st.sampled_from(BASES), muts)
 
 
 def base_mapping(name: str) -> dict:
@@ -112,7 +117,8 @@ def _apply(data: Any, kind: str, sel: int, value: Any) -> Any:
     if kind in ("drop", "set", "scale"):
         paths = _paths(data)
         if kind == "scale":
-            paths = [p for p in paths if isinstance(_get(data, p), (int, float)) and not isinstance(_get(data, p), bool)]
+            paths = [p for p in paths if isinstance(_get(data, p), (int, float))
+                     and not isinstance(_get(data, p), bool)]
         if not paths:
             return data
         path = paths[sel % len(paths)]
@@ -172,10 +178,7 @@ def apply_mutations(base: dict, mutations: list[tuple]) -> str:
             cut = value
         else:
             data = _apply(data, kind, sel, value)
-    if isinstance(data, str) and data == "{":
-        text = "{\n"
-    else:
-        text = yaml.safe_dump(data, sort_keys=False)
+    text = "{\n" if isinstance(data, str) and data == "{" else yaml.safe_dump(data, sort_keys=False)
     if cut is not None:
         text = text[: int(len(text) * cut)]
     return text

@@ -42,7 +42,7 @@ def step_record(out) -> tuple:
 
 def assert_same_records(ra: list, rb: list) -> None:
     assert len(ra) == len(rb)
-    for i, (a, b) in enumerate(zip(ra, rb)):
+    for i, (a, b) in enumerate(zip(ra, rb, strict=True)):
         np.testing.assert_array_equal(a[0], b[0], err_msg=f"obs at step {i}")
         np.testing.assert_array_equal(a[1], b[1], err_msg=f"rewards at step {i}")
         assert a[2:] == b[2:], f"done flags at step {i}"

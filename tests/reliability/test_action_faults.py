@@ -5,11 +5,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from reliability_helpers import (
+    assert_same_records,
+    assert_same_snapshot,
+    random_actions,
+    snapshot,
+    step_record,
+)
 
 import parcover_env as pe
 from parcover_env.errors import ActionError, ParcoverError
-from reliability_helpers import (assert_same_records, assert_same_snapshot, random_actions, snapshot,
-                                 step_record)
 
 SCENARIOS = pe.scenario_names()
 
@@ -119,7 +124,8 @@ def test_accepted_action_containers(env_pair):
         rb = step_record(b.step(acts))
         assert_same_records([ra], [rb])
     ints = {x: np.array([1, -1]) for x in a.agents}
-    assert_same_records([step_record(a.step(ints))], [step_record(b.step({x: v.astype(float) for x, v in ints.items()}))])
+    floats = {x: v.astype(float) for x, v in ints.items()}
+    assert_same_records([step_record(a.step(ints))], [step_record(b.step(floats))])
 
 
 def test_caller_mutating_action_after_step_changes_nothing(env_pair):

@@ -9,9 +9,9 @@ import pickle
 
 import numpy as np
 import pytest
+from reliability_helpers import assert_same_records, assert_same_snapshot, continue_rollout, rollout, snapshot
 
 import parcover_env as pe
-from reliability_helpers import assert_same_records, assert_same_snapshot, continue_rollout, rollout, snapshot
 
 SCENARIOS = pe.scenario_names()
 STEPS = {"tree": 15}  # 15 robots and 4 Kinects: fewer steps keep CI fast; others use the default
@@ -44,7 +44,7 @@ def test_different_seeds_differ(name):
     r1 = continue_rollout(env, 0, 20)
     env.reset(seed=2)
     r2 = continue_rollout(env, 0, 20)
-    assert any(not np.array_equal(a[0], b[0]) for a, b in zip(r1, r2))
+    assert any(not np.array_equal(a[0], b[0]) for a, b in zip(r1, r2, strict=True))
 
 
 @pytest.mark.parametrize("name", SCENARIOS)
@@ -106,7 +106,8 @@ def test_vec_env_single_vs_multi_process():
     overrides = {"episode": {"max_steps": 25}}  # two auto-resets inside the run
     runs = []
     for multiprocess in (False, True):
-        venv = sb3.make_vec_env("office", n_envs=2, overrides=overrides, multiprocess=multiprocess, monitor=False)
+        venv = sb3.make_vec_env("office", n_envs=2, overrides=overrides, multiprocess=multiprocess,
+                                monitor=False)
         try:
             venv.seed(10)
             rec = [venv.reset()]
@@ -117,5 +118,5 @@ def test_vec_env_single_vs_multi_process():
         finally:
             venv.close()
         runs.append(rec)
-    for i, (a, b) in enumerate(zip(*runs)):
+    for i, (a, b) in enumerate(zip(*runs, strict=True)):
         np.testing.assert_array_equal(a, b, err_msg=f"record {i}")

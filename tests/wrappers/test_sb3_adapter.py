@@ -189,3 +189,19 @@ def test_env_checker_on_single_agent_wrapper():
     from parcover_env.wrappers.single_agent import SingleRobotCoverageEnv
 
     check_env(SingleRobotCoverageEnv("t_room"), warn=False)
+
+
+def test_different_maps_share_one_vecenv():
+    fns = [_EnvFactory("generated:3", None), _EnvFactory("generated:4", None)]
+    venv = ParallelVecEnv(fns)
+    sizes = [
+        len(venv.get_attr("possible_agents", [0])[0]),
+        len(venv.get_attr("possible_agents", [venv.num_envs - 1])[0]),
+    ]
+    assert venv.num_envs == sum(sizes)
+    obs = venv.reset()
+    assert venv.observation_space.contains(obs[0]) and venv.observation_space.contains(obs[-1])
+    with pytest.raises(ValueError, match="shapes and action spaces must match"):
+        ParallelVecEnv(
+            [_EnvFactory("office", None), _EnvFactory("t_room", {"observation": {"sonar": False}})]
+        )

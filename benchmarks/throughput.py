@@ -1,0 +1,437 @@
+"""Env throughput: env-steps/s and agent-steps/s of parcover_env next to its peers and its floor.
+
+All figures come from ONE run on one machine, so the ratios are side by side (absolute numbers
+move with the machine and its load; the ratios much less). Every timing is the median of
+``--repeats`` chunks of ``--steps`` steps with random actions (drawn up front, seeded); episode
+resets are excluded from the timed chunks.
+
+Sections (``--sections``, comma separated; default all):
+
+* ``ours``    - scenarios ``office``, ``tree`` and a generated 30-robot map (``generated:1``), in three
+  modes: ``default`` (as shipped: Kinect estimate model, 16-beam ring), ``frames`` (every Kinect
+  renders depth + IR at its rate and the full marker pipeline runs), ``sonar72`` (72-beam ring,
+  specular model: the seed-B 360-degree scan on every robot, every step). ``x RT`` = simulated
+  seconds per wall-clock second.
+* ``peers``   - PettingZoo MPE2 ``simple_spread`` (N=3, N=10) and VMAS ``navigation`` (4 agents,
+  lidar, 1 env, CPU), when installed (``pip install mpe2 vmas``); ratios ours (``tree``) / peer
+  in agent-steps/s.
+* ``floor``   - per scenario: pymunk ``space.step`` alone (same walls and robots, no callbacks,
+  ``substeps`` steps per control step) plus the vectorized ray casting alone (same beams, walls
+  and robot discs); ours / floor in time per step (1.0 = no overhead at all).
+* ``scaling`` - a 20 m x 20 m open box with 2, 8, 16, 32, 64 robots (env-steps/s, time per robot).
+* ``vec``     - the SB3 adapter (``parcover_env.wrappers.sb3``): 1 env in-process vs 2 worker processes.
+* ``memory``  - peak RSS, and RSS sampled over ``--soak`` steps on ``office`` (use
+  ``benchmarks/soak.py --steps 1000000`` for the 10^6-step soak).
+
+    .venv/bin/python benchmarks/throughput.py                 # everything (~5 min on 2 cores)
+    .venv/bin/python benchmarks/throughput.py --quick         # short chunks, a smoke run
+    .venv/bin/python benchmarks/throughput.py --sections ours,peers --json out.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import json
+import math
+import os
+import platform
+import resource
+import sys
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+TREE_TARGET_MPE = 5.0
+"""Target: tree agent-steps/s >= 5x MPE2 simple_spread N=10."""
+TREE_TARGET_FLOOR = 4.0
+"""Target: tree within 4x of the physics + ray-casting floor."""
+FRAMES_TARGET_RT = 20.0
+"""Target: Kinect frames mode on tree >= 20x real time."""
+
+MODES: dict[str, dict] = {
+    "default": {},
+    "frames": {"observation": {"kinect": "frames"}},
+    "sonar72": {"robot": {"sonar": {"layout": "ring", "n_beams": 72, "model": "specular"}}},
+}
+
+
+# ---------------------------------------------------------------------------------------- timing
+def rss_mb() -> float:
+    """Current resident set size (MiB)."""
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def peak_rss_mb() -> float:
+    """Peak resident set size of this process so far (MiB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def timed_chunks(step: Callable[[int], None], steps: int, repeats: int, warmup: int = 20) -> float:
+    """Median seconds per call of ``step(k)`` over ``repeats`` chunks of ``steps`` calls."""
+    for k in range(warmup):
+        step(k)
+    times = []
+    for _ in range(repeats):
+        gc.collect()
+        t0 = time.perf_counter()
+        for k in range(steps):
+            step(k)
+        times.append((time.perf_counter() - t0) / steps)
+    return float(np.median(times))
+
+
+class ParallelRunner:
+    """Steps a PettingZoo ParallelEnv with pre-drawn random actions; resets are not timed."""
+
+    def __init__(self, env, rng: np.random.Generator, n_actions: int = 4096):
+        self.env = env
+        self.env.reset(seed=0)
+        self.agents = list(env.possible_agents)
+        self.reset_time = 0.0
+        space = env.action_space(self.agents[0])
+        if hasattr(space, "n"):
+            self.actions = rng.integers(0, space.n, (n_actions, len(self.agents)))
+        else:
+            self.actions = rng.uniform(space.low, space.high, (n_actions, len(self.agents), *space.shape))
+            self.actions = self.actions.astype(space.dtype)
+
+    def __call__(self, k: int) -> None:
+        env = self.env
+        if not env.agents:
+            t0 = time.perf_counter()
+            env.reset()
+            self.reset_time += time.perf_counter() - t0
+        a = self.actions[k % len(self.actions)]
+        env.step({name: a[i] for i, name in enumerate(self.agents) if name in env.agents})
+
+
+def measure_parallel(env, steps: int, repeats: int, seed: int = 0) -> dict:
+    run = ParallelRunner(env, np.random.default_rng(seed))
+    t0 = time.perf_counter()
+    sec = timed_chunks(run, steps, repeats)
+    total = time.perf_counter() - t0
+    # resets happen inside the chunks: take their share out of the per-step figure
+    n_calls = steps * repeats + 20
+    sec = max(sec - run.reset_time / n_calls, 1e-9)
+    n = len(run.agents)
+    return {"n_agents": n, "sec_per_step": sec, "env_steps_s": 1.0 / sec, "agent_steps_s": n / sec,
+            "wall": total}
+
+
+# ---------------------------------------------------------------------------------------- ours
+def our_env(scenario: str, overrides: dict | None):
+    from parcover_env.env import ParallelCoverageEnv
+
+    return ParallelCoverageEnv(scenario, overrides=overrides or None)
+
+
+def merge(a: dict, b: dict) -> dict:
+    out = dict(a)
+    for k, v in b.items():
+        out[k] = merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+SCENARIOS: dict[str, tuple[str, dict]] = {
+    "office": ("office", {}),
+    "tree": ("tree", {}),
+    "generated-30": ("generated:1", {"n_robots": 30}),
+}
+
+
+def section_ours(args, results: dict) -> None:
+    rows = []
+    for label, (scen, base) in SCENARIOS.items():
+        for mode, extra in MODES.items():
+            try:
+                env = our_env(scen, merge(base, extra))
+            except Exception as exc:  # noqa: BLE001 - report and go on
+                print(f"  {label:13s} {mode:8s} unavailable: {exc}", flush=True)
+                continue
+            steps = args.steps if mode != "frames" else max(args.steps // 4, 20)
+            r = measure_parallel(env, steps, args.repeats)
+            dt = env.scenario.physics.control_dt
+            r.update(scenario=label, mode=mode, realtime=dt / r["sec_per_step"], n_kinects=len(env.scenario.kinects),
+                     n_beams=env.sonar.n_beams if env.sonar else 0)
+            rows.append(r)
+            print(f"  {label:13s} {mode:8s} N={r['n_agents']:3d}  {r['env_steps_s']:8.1f} env-steps/s  "
+                  f"{r['agent_steps_s']:9.0f} agent-steps/s  {1e3 * r['sec_per_step']:7.2f} ms/step  "
+                  f"{r['realtime']:7.1f} x RT", flush=True)
+            del env
+            gc.collect()
+    results["ours"] = rows
+
+
+# ---------------------------------------------------------------------------------------- peers
+def peer_mpe(n: int):
+    from mpe2 import simple_spread_v3
+
+    return simple_spread_v3.parallel_env(N=n, max_cycles=25, continuous_actions=False)
+
+
+class VmasRunner:
+    """VMAS ``navigation``: one env on the CPU, random continuous actions (torch tensors)."""
+
+    def __init__(self, n_agents: int, seed: int = 0):
+        import torch
+        import vmas
+
+        torch.manual_seed(seed)
+        self.env = vmas.make_env("navigation", num_envs=1, device="cpu", continuous_actions=True,
+                                 n_agents=n_agents, seed=seed)
+        self.env.reset()
+        self.n_agents = n_agents
+        g = torch.Generator().manual_seed(seed)
+        self.actions = [[torch.rand((1, 2), generator=g) * 2 - 1 for _ in range(n_agents)] for _ in range(256)]
+
+    def __call__(self, k: int) -> None:
+        _, _, done, _ = self.env.step(self.actions[k % len(self.actions)])
+        if bool(done.any()):
+            self.env.reset()
+
+
+def section_peers(args, results: dict) -> None:
+    rows = []
+    for n in (3, 10):
+        try:
+            env = peer_mpe(n)
+        except ImportError as exc:
+            print(f"  MPE2 simple_spread N={n}: not installed ({exc}); pip install mpe2", flush=True)
+            continue
+        r = measure_parallel(env, args.steps * 2, args.repeats)
+        r.update(peer=f"mpe2 simple_spread N={n}")
+        rows.append(r)
+        print(f"  {r['peer']:28s} {r['env_steps_s']:9.1f} env-steps/s  {r['agent_steps_s']:9.0f} agent-steps/s",
+              flush=True)
+    try:
+        run = VmasRunner(4)
+    except ImportError as exc:
+        print(f"  VMAS navigation: not installed ({exc}); pip install vmas", flush=True)
+    else:
+        sec = timed_chunks(run, args.steps, args.repeats)
+        r = {"peer": "vmas navigation 4 agents", "n_agents": 4, "sec_per_step": sec,
+             "env_steps_s": 1 / sec, "agent_steps_s": 4 / sec}
+        rows.append(r)
+        print(f"  {r['peer']:28s} {r['env_steps_s']:9.1f} env-steps/s  {r['agent_steps_s']:9.0f} agent-steps/s",
+              flush=True)
+    results["peers"] = rows
+    ours = {(r["scenario"], r["mode"]): r for r in results.get("ours", [])}
+    tree = ours.get(("tree", "default"))
+    if tree:
+        for r in rows:
+            ratio = tree["agent_steps_s"] / r["agent_steps_s"]
+            r["ratio_tree"] = ratio
+            print(f"  tree / {r['peer']:28s} = {ratio:6.2f}x agent-steps/s"
+                  + (f"  (target >= {TREE_TARGET_MPE:.0f}x)" if r["peer"].endswith("N=10") else ""), flush=True)
+
+
+# ---------------------------------------------------------------------------------------- floor
+def floor_step(scenario: str, overrides: dict | None):
+    """A step function doing only the physics (pymunk, no callbacks) and ray casting of ``scenario``."""
+    import pymunk
+
+    from parcover_env.geometry import cast_rays, cast_rays_discs
+    from parcover_env.world.physics import World
+
+    env = our_env(scenario, overrides)
+    env.reset(seed=0)
+    s = env.scenario
+    world = World(env.map, s.robot.radius, s.physics, env.world.poses())
+    for b in world.bodies:
+        b.velocity_func = pymunk.Body.update_velocity
+    space, bodies, dt, sub = world.space, world.bodies, s.physics.dt, s.physics.substeps
+    segments = env.map.segments
+    beams = env.sonar.beam_angles if env.sonar else np.zeros(0)
+    rmax = s.robot.sonar.range_max
+    n, b = len(bodies), len(beams)
+    owner = np.repeat(np.arange(n), b)
+    rng = np.random.default_rng(0)
+    cmds = rng.uniform(-1, 1, (256, n, 2)) * (s.robot.max_speed, s.robot.max_turn_rate)
+
+    def step(k: int) -> None:
+        c = cmds[k % len(cmds)]
+        for body, (v, w) in zip(bodies, c.tolist()):
+            a = body.angle
+            body.velocity = (v * math.cos(a), v * math.sin(a))
+            body.angular_velocity = w
+        for _ in range(sub):
+            space.step(dt)
+        if b:
+            xy = np.array([tuple(bd.position) for bd in bodies])
+            th = np.array([bd.angle for bd in bodies])
+            ang = (th[:, None] + beams[None, :]).ravel()
+            d = np.stack([np.cos(ang), np.sin(ang)], axis=1)
+            o = np.repeat(xy, b, axis=0)
+            dist, _ = cast_rays(o, d, segments, rmax)
+            np.minimum(dist, cast_rays_discs(o, d, xy, s.robot.radius, owner, rmax))
+
+    return step, n
+
+
+def section_floor(args, results: dict) -> None:
+    ours = {(r["scenario"], r["mode"]): r for r in results.get("ours", [])}
+    rows = []
+    for label, (scen, base) in SCENARIOS.items():
+        step, n = floor_step(scen, base)
+        sec = timed_chunks(step, args.steps, args.repeats)
+        r = {"scenario": label, "n_agents": n, "sec_per_step": sec, "env_steps_s": 1 / sec}
+        mine = ours.get((label, "default"))
+        if mine:
+            r["ours_over_floor"] = mine["sec_per_step"] / sec
+        rows.append(r)
+        tail = f"  ours/floor = {r['ours_over_floor']:5.2f}x" if mine else ""
+        if label == "tree" and mine:
+            tail += f"  (target <= {TREE_TARGET_FLOOR:.0f}x)"
+        print(f"  floor {label:13s} N={n:3d}  {r['env_steps_s']:8.1f} steps/s  {1e3 * sec:6.2f} ms/step{tail}",
+              flush=True)
+    results["floor"] = rows
+
+
+# ---------------------------------------------------------------------------------------- scaling
+def open_box(n_robots: int) -> dict:
+    """Overrides turning ``office`` into a 20 m x 20 m open box for ``n_robots`` (sonar, no Kinects)."""
+    return {
+        "map": {"size": [20.0, 20.0], "walls": [], "obstacles": [], "unknown_obstacles": []},
+        "start": {"x": 4.0, "y": 10.0, "theta_deg": 0.0},
+        "start_queue": [],
+        "kpois": [[18.0, 3.0], [18.0, 10.0], [18.0, 17.0], [10.0, 18.0], [10.0, 2.0]],
+        "kinects": [],
+        "n_robots": n_robots,
+        "episode": {"max_steps": 2000},
+    }
+
+
+def section_scaling(args, results: dict) -> None:
+    rows = []
+    for n in (2, 8, 16, 32, 64):
+        try:
+            env = our_env("office", open_box(n))
+        except Exception as exc:  # noqa: BLE001
+            print(f"  open box N={n}: unavailable: {exc}", flush=True)
+            continue
+        r = measure_parallel(env, args.steps, args.repeats)
+        r["n_robots"] = n
+        rows.append(r)
+        print(f"  open box N={n:3d}  {r['env_steps_s']:8.1f} env-steps/s  {r['agent_steps_s']:9.0f} agent-steps/s"
+              f"  {1e3 * r['sec_per_step']:6.2f} ms/step  {1e6 * r['sec_per_step'] / n:6.1f} us/robot", flush=True)
+    results["scaling"] = rows
+
+
+# ---------------------------------------------------------------------------------------- vec env
+def section_vec(args, results: dict) -> None:
+    try:
+        from parcover_env.wrappers.sb3 import make_vec_env
+    except ImportError as exc:
+        print(f"  SB3 adapter unavailable: {exc}", flush=True)
+        return
+    rows = []
+    for n_envs, multi in ((1, False), (2, True)):
+        venv = make_vec_env("tree", n_envs=n_envs, multiprocess=multi, monitor=False)
+        try:
+            venv.reset()
+            rng = np.random.default_rng(0)
+            acts = rng.uniform(-1, 1, (64, venv.num_envs, 2)).astype(np.float32)
+
+            def step(k: int, venv=venv, acts=acts) -> None:
+                venv.step(acts[k % len(acts)])
+
+            sec = timed_chunks(step, args.steps, args.repeats)
+        finally:
+            venv.close()
+        r = {"n_envs": n_envs, "processes": n_envs if multi else 0, "slots": venv.num_envs,
+             "env_steps_s": n_envs / sec, "agent_steps_s": venv.num_envs / sec}
+        rows.append(r)
+        print(f"  SB3 VecEnv tree x{n_envs} ({'2 worker processes' if multi else 'in-process'}): "
+              f"{r['env_steps_s']:8.1f} env-steps/s  {r['agent_steps_s']:9.0f} agent-steps/s", flush=True)
+    if len(rows) == 2:
+        print(f"  speed-up of 2 processes: {rows[1]['env_steps_s'] / rows[0]['env_steps_s']:.2f}x", flush=True)
+    results["vec"] = rows
+
+
+# ---------------------------------------------------------------------------------------- memory
+def section_memory(args, results: dict) -> None:
+    env = our_env("office", {})
+    run = ParallelRunner(env, np.random.default_rng(1))
+    for k in range(500):
+        run(k)
+    gc.collect()
+    samples = []
+    chunk = max(args.soak // 10, 1)
+    for i in range(10):
+        for k in range(chunk):
+            run(i * chunk + k)
+        samples.append(rss_mb())
+    x = np.arange(len(samples)) * chunk
+    slope = float(np.polyfit(x, samples, 1)[0]) * 1e6 if len(samples) > 1 else 0.0
+    r = {"soak_steps": chunk * 10, "rss_start_mb": samples[0], "rss_end_mb": samples[-1],
+         "slope_mb_per_1e6_steps": slope, "peak_rss_mb": peak_rss_mb()}
+    results["memory"] = r
+    print(f"  office soak {r['soak_steps']} steps: RSS {samples[0]:.1f} -> {samples[-1]:.1f} MiB "
+          f"(fit {slope:+.2f} MiB per 10^6 steps); peak RSS of this whole run {r['peak_rss_mb']:.0f} MiB",
+          flush=True)
+
+
+SECTIONS = {"ours": section_ours, "peers": section_peers, "floor": section_floor, "scaling": section_scaling,
+            "vec": section_vec, "memory": section_memory}
+
+
+def summary(results: dict) -> None:
+    ours = {(r["scenario"], r["mode"]): r for r in results.get("ours", [])}
+    tree, frames = ours.get(("tree", "default")), ours.get(("tree", "frames"))
+    mpe10 = next((r for r in results.get("peers", []) if r.get("peer", "").endswith("N=10")), None)
+    floor = next((r for r in results.get("floor", []) if r["scenario"] == "tree"), None)
+    print("\nTargets (tree, this run):")
+    if tree and mpe10:
+        v = tree["agent_steps_s"] / mpe10["agent_steps_s"]
+        print(f"  agent-steps/s vs MPE2 simple_spread N=10: {v:.2f}x  (target >= {TREE_TARGET_MPE:.0f}x)  "
+              f"{'MET' if v >= TREE_TARGET_MPE else 'NOT MET'}")
+    if floor and "ours_over_floor" in floor:
+        v = floor["ours_over_floor"]
+        print(f"  ours / physics+rays floor: {v:.2f}x  (target <= {TREE_TARGET_FLOOR:.0f}x)  "
+              f"{'MET' if v <= TREE_TARGET_FLOOR else 'NOT MET'}")
+    if frames:
+        v = frames["realtime"]
+        print(f"  Kinect frames mode: {v:.1f}x real time  (target >= {FRAMES_TARGET_RT:.0f}x)  "
+              f"{'MET' if v >= FRAMES_TARGET_RT else 'NOT MET'}")
+    if "memory" in results:
+        m = results["memory"]
+        print(f"  memory: {m['slope_mb_per_1e6_steps']:+.2f} MiB per 10^6 steps over {m['soak_steps']} steps")
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--steps", type=int, default=300, help="steps per timed chunk (default 300)")
+    p.add_argument("--repeats", type=int, default=3, help="timed chunks per measurement; the median is kept")
+    p.add_argument("--sections", default=",".join(SECTIONS), help=f"comma separated of {', '.join(SECTIONS)}")
+    p.add_argument("--soak", type=int, default=20000, help="steps of the memory soak (default 20000)")
+    p.add_argument("--quick", action="store_true", help="short chunks (smoke run)")
+    p.add_argument("--json", help="also write the figures to this JSON file")
+    args = p.parse_args(argv)
+    if args.quick:
+        args.steps, args.repeats, args.soak = 30, 1, 500
+    chosen = [s.strip() for s in args.sections.split(",") if s.strip()]
+    unknown = [s for s in chosen if s not in SECTIONS]
+    if unknown:
+        p.error(f"unknown sections {unknown}; choose from {', '.join(SECTIONS)}")
+    try:
+        load = os.getloadavg()[0]
+    except OSError:
+        load = float("nan")
+    print(f"# parcover_env throughput  python {platform.python_version()}  {os.cpu_count()} cores  "
+          f"load {load:.1f}  steps/chunk {args.steps} x {args.repeats}", flush=True)
+    results: dict = {"steps": args.steps, "repeats": args.repeats, "load": load}
+    for name in chosen:
+        print(f"\n## {name}", flush=True)
+        SECTIONS[name](args, results)
+    summary(results)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(results, f, indent=2)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
