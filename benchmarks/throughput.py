@@ -138,7 +138,8 @@ def merge(a: dict, b: dict) -> dict:
 SCENARIOS: dict[str, tuple[str, dict]] = {
     "office": ("office", {}),
     "tree": ("tree", {}),
-    "generated-30": ("generated:1", {"n_robots": 30}),
+    # the generated queue is too short for 30 robots at the default 0.4 m spacing: 0.3 m (> 2 radii)
+    "generated-30": ("generated:1", {"n_robots": 30, "formation": {"spacing": 0.3}}),
 }
 
 
@@ -154,8 +155,8 @@ def section_ours(args, results: dict) -> None:
             steps = args.steps if mode != "frames" else max(args.steps // 4, 20)
             r = measure_parallel(env, steps, args.repeats)
             dt = env.scenario.physics.control_dt
-            r.update(scenario=label, mode=mode, realtime=dt / r["sec_per_step"], n_kinects=len(env.scenario.kinects),
-                     n_beams=env.sonar.n_beams if env.sonar else 0)
+            r.update(scenario=label, mode=mode, realtime=dt / r["sec_per_step"],
+                     n_kinects=len(env.scenario.kinects), n_beams=env.sonar.n_beams if env.sonar else 0)
             rows.append(r)
             print(f"  {label:13s} {mode:8s} N={r['n_agents']:3d}  {r['env_steps_s']:8.1f} env-steps/s  "
                   f"{r['agent_steps_s']:9.0f} agent-steps/s  {1e3 * r['sec_per_step']:7.2f} ms/step  "
@@ -185,12 +186,18 @@ class VmasRunner:
         self.env.reset()
         self.n_agents = n_agents
         g = torch.Generator().manual_seed(seed)
-        self.actions = [[torch.rand((1, 2), generator=g) * 2 - 1 for _ in range(n_agents)] for _ in range(256)]
+        self.actions = [[torch.rand((1, 2), generator=g) * 2 - 1 for _ in range(n_agents)]
+                        for _ in range(256)]
 
     def __call__(self, k: int) -> None:
         _, _, done, _ = self.env.step(self.actions[k % len(self.actions)])
         if bool(done.any()):
             self.env.reset()
+
+
+def print_peer(r: dict) -> None:
+    print(f"  {r['peer']:28s} {r['env_steps_s']:9.1f} env-steps/s  {r['agent_steps_s']:9.0f} agent-steps/s",
+          flush=True)
 
 
 def section_peers(args, results: dict) -> None:
@@ -204,8 +211,7 @@ def section_peers(args, results: dict) -> None:
         r = measure_parallel(env, args.steps * 2, args.repeats)
         r.update(peer=f"mpe2 simple_spread N={n}")
         rows.append(r)
-        print(f"  {r['peer']:28s} {r['env_steps_s']:9.1f} env-steps/s  {r['agent_steps_s']:9.0f} agent-steps/s",
-              flush=True)
+        print_peer(r)
     try:
         run = VmasRunner(4)
     except ImportError as exc:
@@ -215,8 +221,7 @@ def section_peers(args, results: dict) -> None:
         r = {"peer": "vmas navigation 4 agents", "n_agents": 4, "sec_per_step": sec,
              "env_steps_s": 1 / sec, "agent_steps_s": 4 / sec}
         rows.append(r)
-        print(f"  {r['peer']:28s} {r['env_steps_s']:9.1f} env-steps/s  {r['agent_steps_s']:9.0f} agent-steps/s",
-              flush=True)
+        print_peer(r)
     results["peers"] = rows
     ours = {(r["scenario"], r["mode"]): r for r in results.get("ours", [])}
     tree = ours.get(("tree", "default"))
@@ -224,8 +229,8 @@ def section_peers(args, results: dict) -> None:
         for r in rows:
             ratio = tree["agent_steps_s"] / r["agent_steps_s"]
             r["ratio_tree"] = ratio
-            print(f"  tree / {r['peer']:28s} = {ratio:6.2f}x agent-steps/s"
-                  + (f"  (target >= {TREE_TARGET_MPE:.0f}x)" if r["peer"].endswith("N=10") else ""), flush=True)
+            target = f"  (target >= {TREE_TARGET_MPE:.0f}x)" if r["peer"].endswith("N=10") else ""
+            print(f"  tree / {r['peer']:28s} = {ratio:6.2f}x agent-steps/s{target}", flush=True)
 
 
 # ---------------------------------------------------------------------------------------- floor
@@ -253,7 +258,7 @@ def floor_step(scenario: str, overrides: dict | None):
 
     def step(k: int) -> None:
         c = cmds[k % len(cmds)]
-        for body, (v, w) in zip(bodies, c.tolist()):
+        for body, (v, w) in zip(bodies, c.tolist(), strict=True):
             a = body.angle
             body.velocity = (v * math.cos(a), v * math.sin(a))
             body.angular_velocity = w
@@ -285,8 +290,8 @@ def section_floor(args, results: dict) -> None:
         tail = f"  ours/floor = {r['ours_over_floor']:5.2f}x" if mine else ""
         if label == "tree" and mine:
             tail += f"  (target <= {TREE_TARGET_FLOOR:.0f}x)"
-        print(f"  floor {label:13s} N={n:3d}  {r['env_steps_s']:8.1f} steps/s  {1e3 * sec:6.2f} ms/step{tail}",
-              flush=True)
+        print(f"  floor {label:13s} N={n:3d}  {r['env_steps_s']:8.1f} steps/s  "
+              f"{1e3 * sec:6.2f} ms/step{tail}", flush=True)
     results["floor"] = rows
 
 
@@ -315,8 +320,9 @@ def section_scaling(args, results: dict) -> None:
         r = measure_parallel(env, args.steps, args.repeats)
         r["n_robots"] = n
         rows.append(r)
-        print(f"  open box N={n:3d}  {r['env_steps_s']:8.1f} env-steps/s  {r['agent_steps_s']:9.0f} agent-steps/s"
-              f"  {1e3 * r['sec_per_step']:6.2f} ms/step  {1e6 * r['sec_per_step'] / n:6.1f} us/robot", flush=True)
+        print(f"  open box N={n:3d}  {r['env_steps_s']:8.1f} env-steps/s  "
+              f"{r['agent_steps_s']:9.0f} agent-steps/s  {1e3 * r['sec_per_step']:6.2f} ms/step  "
+              f"{1e6 * r['sec_per_step'] / n:6.1f} us/robot", flush=True)
     results["scaling"] = rows
 
 
@@ -347,7 +353,8 @@ def section_vec(args, results: dict) -> None:
         print(f"  SB3 VecEnv tree x{n_envs} ({'2 worker processes' if multi else 'in-process'}): "
               f"{r['env_steps_s']:8.1f} env-steps/s  {r['agent_steps_s']:9.0f} agent-steps/s", flush=True)
     if len(rows) == 2:
-        print(f"  speed-up of 2 processes: {rows[1]['env_steps_s'] / rows[0]['env_steps_s']:.2f}x", flush=True)
+        speedup = rows[1]["env_steps_s"] / rows[0]["env_steps_s"]
+        print(f"  speed-up of 2 processes: {speedup:.2f}x", flush=True)
     results["vec"] = rows
 
 

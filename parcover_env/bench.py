@@ -63,7 +63,11 @@ def make_policy(spec: str, env, seed: int | None):
     if kind in ("ppo", "bc"):
         if not path:
             raise ParcoverError(f"policy '{spec}': give a checkpoint, e.g. {kind}:runs/{kind}_office")
+        import torch
+
         from parcover_env.learned import BCPolicy, PPOPolicy
+
+        torch.set_num_threads(1)  # small MLPs: one thread is fastest and avoids oversubscribing workers
 
         return PPOPolicy(path) if kind == "ppo" else BCPolicy(path)
     raise ParcoverError(

@@ -20,22 +20,7 @@ def _progress(done: int, total: int, width: int = 30, stream=sys.stderr) -> None
     stream.flush()
 
 
-def make_policy(name: str, env, seed: int | None):
-    """A policy object with ``act(observations) -> actions`` by CLI name."""
-    from parcover_env.policies import RandomPolicy, WaypointPolicy
-
-    if name == "random":
-        return RandomPolicy(seed)
-    if name == "waypoint":
-        return WaypointPolicy(env.layout)
-    if name == "expert":
-        from parcover_env.expert.policy import ScriptedExpert
-
-        return ScriptedExpert.for_env(env)
-    raise ParcoverError(f"--policy: unknown policy '{name}' (choose from {', '.join(POLICIES)})")
-
-
-POLICIES = ("expert", "waypoint", "random")
+POLICIES = "expert | waypoint | random | ppo:PATH | bc:PATH"
 
 
 def run_episode(env, policy, seed: int | None, max_steps: int | None = None, frames: list | None = None,
@@ -84,6 +69,8 @@ def cmd_run(args) -> int:
     from parcover_env.render import save_gif
 
     env = parallel_env(args.scenario, render_mode="rgb_array" if args.gif else None)
+    from parcover_env.bench import make_policy
+
     policy = make_policy(args.policy, env, args.seed)
     frames = [] if args.gif else None
     print(f"scenario {env.scenario.name}: {env.n_robots} robots, {len(env.scenario.kpois)} KPOIs, "
@@ -182,7 +169,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("scenario", nargs="?", default="office", help="scenario name or YAML path (default: office)")
     r.add_argument("--seed", type=int, default=0, help="episode seed (default: 0)")
     r.add_argument("--steps", type=int, default=None, help="stop after N steps (default: the scenario's limit)")
-    r.add_argument("--policy", choices=POLICIES, default="expert", help="who drives (default: expert)")
+    r.add_argument("--policy", default="expert", help=f"who drives: {POLICIES} (default: expert)")
     r.add_argument("--gif", default=None, help="write an animated GIF of the episode here")
     r.add_argument("--gif-every", type=int, default=2, help="keep every k-th frame in the GIF (default: 2)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -195,6 +182,10 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--png", default="frame.png", help="output file (default: frame.png)")
     f.add_argument("--seed", type=int, default=0)
     f.set_defaults(func=cmd_render)
+    from parcover_env.bench import add_bench_parser, add_collect_parser
+
+    add_bench_parser(sub)
+    add_collect_parser(sub)
     pl = sub.add_parser("plan", help="PPCP plan: print r, c_max, c_p and the TPs; draw it")
     pl.add_argument("scenario", nargs="?", default="office")
     pl.add_argument("--png", default=None, help="draw the map, roadmap, plan tree and Kinect tree here")

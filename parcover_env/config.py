@@ -154,6 +154,9 @@ class RobotConfig:
 
     def __post_init__(self) -> None:
         _positive(self, "radius", "max_speed", "max_turn_rate", "height", "marker_radius")
+        _check(self.marker_radius <= 0.25 * self.radius, "marker_radius",
+               f"4 markers of radius {self.marker_radius} m do not fit on a robot of radius {self.radius} m "
+               f"(max {0.25 * self.radius:.3f} m)")
 
 
 @dataclass(frozen=True)
@@ -396,7 +399,11 @@ def load_scenario(name_or_path: str | Path | Scenario, overrides: dict | None = 
             data = yaml.safe_load(path.read_text())
         except yaml.YAMLError as exc:
             mark = getattr(exc, "problem_mark", None)
-            where = f"line {mark.line + 1}" if mark else "<yaml>"
+            if mark is not None:
+                where = f"line {mark.line + 1}"
+            else:  # reader errors (bad characters) carry a character position instead
+                pos = getattr(exc, "position", 0) or 0
+                where = f"line {path.read_text(errors='replace')[:pos].count(chr(10)) + 1}"
             raise ConfigError(source, where, f"invalid YAML: {getattr(exc, 'problem', exc)}") from None
         except (OSError, UnicodeDecodeError) as exc:
             raise ConfigError(source, "", f"cannot read file: {exc}") from None

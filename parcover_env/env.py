@@ -189,8 +189,10 @@ class ParallelCoverageEnv(ParallelEnv):
     def step(self, actions: dict[str, Any]):
         if not self.agents:
             raise RuntimeError("step() called on a finished episode; call reset() first")
-        self.commands = to_commands(actions, self.agents, self.scenario.robot.max_speed,
-                                    self.scenario.robot.max_turn_rate)
+        self.commands = self._fast_commands(actions)
+        if self.commands is None:  # anything unusual: the full validation (and its error messages)
+            self.commands = to_commands(actions, self.agents, self.scenario.robot.max_speed,
+                                        self.scenario.robot.max_turn_rate)
         before = self.world.poses()
         self.world.step(self.commands)
         self.steps += 1
@@ -204,8 +206,13 @@ class ParallelCoverageEnv(ParallelEnv):
         obs = self._observe(true)
         done = self.mission.done
         truncated = self.steps >= self.scenario.episode.max_steps and not done
-        rewards = {a: float(sum(terms[t][i] for t in TERMS)) for i, a in enumerate(self.agents)}
-        infos = {a: {"reward_terms": {t: float(terms[t][i]) for t in TERMS}} for i, a in enumerate(self.agents)}
+        total = 0
+        for t in TERMS:  # summed in TERMS order, as sum() over the terms of each agent would
+            total = total + terms[t]
+        rewards = dict(zip(self.agents, total.tolist(), strict=True))
+        per_agent = zip(*(terms[t].tolist() for t in TERMS), strict=True)
+        infos = {a: {"reward_terms": dict(zip(TERMS, vals, strict=True))}
+                 for a, vals in zip(self.agents, per_agent, strict=True)}
         if done or truncated:
             summary = self.metrics.summary()
             for info in infos.values():
@@ -217,6 +224,26 @@ class ParallelCoverageEnv(ParallelEnv):
         return obs, rewards, terminations, truncations, infos
 
     # ------------------------------------------------------------------ step parts
+    def _fast_commands(self, actions: Any) -> np.ndarray | None:
+        """Commands ``(N, 2)`` when the joint action is the common case (a dict holding exactly the
+        active agents, each a finite float ndarray of shape (2,)); None sends it to ``to_commands``."""
+        agents = self.agents
+        if type(actions) is not dict or len(actions) != len(agents):
+            return None
+        try:
+            vals = [actions[a] for a in agents]
+        except KeyError:
+            return None
+        for v in vals:
+            if type(v) is not np.ndarray or v.shape != (2,) or v.dtype.kind != "f":
+                return None
+        out = np.array(vals, dtype=float)
+        if not np.isfinite(out).all():
+            return None
+        np.clip(out, -1.0, 1.0, out=out)
+        out *= (self.scenario.robot.max_speed, self.scenario.robot.max_turn_rate)
+        return out
+
     def _sense(self, true: np.ndarray) -> None:
         """Pose estimates: odometry dead reckoning, corrected by Kinect fixes of the leaders."""
         est = self.odometry.measure(true, self._rng)
@@ -282,7 +309,10 @@ class ParallelCoverageEnv(ParallelEnv):
         if self.sonar is not None:
             obs[:, L["sonar"]] = self.sonar.measure(true, self.map.segments, self.scenario.robot.radius, self._rng)
         self.layout.clip(obs)
-        return {f"robot_{i}": obs[i] for i in range(n) if f"robot_{i}" in self.agents}
+        if len(self.agents) == n:
+            return dict(zip(self.possible_agents, obs, strict=True))
+        active = set(self.agents)
+        return {a: obs[i] for i, a in enumerate(self.possible_agents) if a in active}
 
     # ------------------------------------------------------------------ extras
     def state(self) -> np.ndarray:

@@ -57,7 +57,7 @@ class Mission:
         self._pts = np.zeros((n, m, 2))
         self._arcp = np.full((n, m), np.inf)
         self._mustp = np.zeros((n, m), dtype=bool)
-        for i, (r, arc, must) in enumerate(zip(self.routes, self._arc, self._must)):
+        for i, (r, arc, must) in enumerate(zip(self.routes, self._arc, self._must, strict=True)):
             self._pts[i, :len(r)] = r
             if len(r):
                 self._pts[i, len(r):] = r[-1]
@@ -165,6 +165,10 @@ class Mission:
         goal, s = goal.reshape(n, 2), s
         self._goal_cache = (prog.copy(), goal, s)
         return goal, s
+
+    def goal(self, i: int) -> np.ndarray:
+        """Goal point of robot ``i``: the lookahead point on its route."""
+        return self._goal(i)[0]
 
     def _goal(self, i: int) -> tuple[np.ndarray, float]:
         goal, s = self._goals()

@@ -10,6 +10,9 @@ env internals. Roles (leader/follower), splits at TPs, and waypoints come from t
 * follower: the l-psi law (eq. 3, corrected) on its onboard camera's measurement of the robot ahead,
   the leader's velocity estimated from successive measurements (limited information, ref. [8]);
   if the robot ahead is out of sight, it drives along its own route (same path up to its split);
+* with ``localization: both``, a leader out of Kinect view for a while stops, turns and localizes
+  with its sonar (seed B's localizer, :mod:`parcover_env.expert.sonar_fix`) and steers by the
+  corrected pose toward the same route point;
 * leaders brake on their front sonar beams when a robot or wall is closer than ``stop_margin``
   (needed in ``individual`` mode, where all robots leave at once); a leader braked for longer than
   ``patience`` (plus 0.3 s per robot index, so two robots never give way together) backs off
@@ -23,6 +26,8 @@ import numpy as np
 from parcover_env.config import Scenario
 from parcover_env.control.follower import LeaderVelocityEstimator, l_psi_control, relative_l_psi
 from parcover_env.control.leader import go_to_goal
+from parcover_env.geometry import rotate
+from parcover_env.mission import Mission
 from parcover_env.observations import ObservationLayout
 from parcover_env.planning.plan import Plan
 
@@ -44,6 +49,16 @@ class ScriptedExpert:
         self.stop = r.radius + stop_margin
         self.slow = r.radius + slow_margin
         self.patience = patience
+        self.fixer = None
+        if scenario.localization == "both" and sonar_angles is not None:
+            from parcover_env.expert.sonar_fix import SonarFixer
+
+            self.fixer = SonarFixer(scenario, sonar_angles, control_dt)
+            # route tracking on the corrected pose (the env's waypoints follow its odometry estimate)
+            self.tracks = Mission(np.array(scenario.kpois), scenario.kpoi_radius, plan.paths,
+                                  waypoint_tol=min(max(0.15, 1.5 * r.radius), 0.6 * scenario.kpoi_radius),
+                                  lookahead=max(0.3, 2.5 * r.radius))
+            self.tracking: set[str] = set()
         self.estimators: dict[str, LeaderVelocityEstimator] = {}
         self.blocked: dict[str, int] = {}
         self.backing: dict[str, int] = {}
@@ -62,7 +77,13 @@ class ScriptedExpert:
         angles = env.sonar.beam_angles if env.sonar is not None else None
         return cls(env.layout, env.scenario, env.plan, env.scenario.physics.control_dt, angles, **kwargs)
 
+    def stats(self) -> dict:
+        return dict(self.fixer.stats) if self.fixer is not None else {}
+
     def reset(self, observations=None) -> None:
+        if self.fixer is not None:
+            self.fixer.states.clear()
+            self.tracking.clear()
         self.estimators.clear()
         self.blocked.clear()
         self.backing.clear()
@@ -75,10 +96,13 @@ class ScriptedExpert:
         actions = {}
         for a in agents:
             obs = observations[a]
-            if leaders[a]:
+            scan = self._sonar_fix(a, obs, leaders[a]) if self.fixer is not None else None
+            if scan is not None:
+                v, w = scan
+            elif leaders[a]:
                 self.estimators.pop(a, None)
                 scale = self.leader_speed if has_followers[a] else 1.0
-                v, w = go_to_goal(self._goal(obs), self.v_max, self.w_max, speed_scale=scale)
+                v, w = go_to_goal(self._goal(obs, a), self.v_max, self.w_max, speed_scale=scale)
                 v, w = self._avoid(a, obs, v, w)
             elif g(obs, "pred_visible")[0] > 0.5:
                 v, w = self._follow(a, obs)
@@ -88,8 +112,31 @@ class ScriptedExpert:
             actions[a] = np.array([v / self.v_max, w / self.w_max], dtype=np.float32)
         return actions
 
-    def _goal(self, obs: np.ndarray) -> np.ndarray:
-        return np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
+    def _goal(self, obs: np.ndarray, agent: str | None = None) -> np.ndarray:
+        """The route point in the robot frame; re-expressed from the sonar-corrected pose if any."""
+        goal = np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
+        if self.fixer is None or agent is None:
+            return goal
+        odom = self._odom(obs)
+        bel = self.fixer.belief(agent, odom)
+        i = int(agent.rsplit("_", 1)[1])
+        if bel is odom or not self.fixer.corrected(agent):
+            self.tracking.discard(agent)
+            return goal
+        if agent not in self.tracking:  # first corrected step: find the robot on its route
+            self.tracks.relocate(i, bel[:2])
+            self.tracking.add(agent)
+        self.tracks.advance(i, bel[:2])
+        return rotate(self.tracks.goal(i) - bel[:2], -bel[2])
+
+    def _odom(self, obs: np.ndarray) -> np.ndarray:
+        g = self.layout.get
+        return np.array([g(obs, "x")[0], g(obs, "y")[0], np.arctan2(g(obs, "sin_theta")[0], g(obs, "cos_theta")[0])])
+
+    def _sonar_fix(self, agent: str, obs: np.ndarray, leader: bool) -> tuple[float, float] | None:
+        g = self.layout.get
+        return self.fixer.step(agent, self._odom(obs), float(g(obs, "fix_age")[0]), float(g(obs, "v")[0]),
+                               g(obs, "sonar").astype(float), leader)
 
     def _follow(self, agent: str, obs: np.ndarray) -> tuple[float, float]:
         g, f = self.layout.get, self.scenario.formation

@@ -330,19 +330,19 @@ def estimate_fast(sensor: KinectSensor, poses, marker_mask, rng: np.random.Gener
         ok &= np.all((uv[..., 0] - r_px >= 0) & (uv[..., 0] + r_px <= w - 1)
                      & (uv[..., 1] - r_px >= 0) & (uv[..., 1] + r_px <= h - 1), axis=1)
         ok &= np.all((z >= cam.range_min) & (z <= cam.range_max), axis=1)
+    rows = np.flatnonzero(ok)
+    if len(rows):  # hidden by a wall top (static depth nearer than a marker)?
+        iu, iv = np.rint(uv[rows, :, 0]).astype(int), np.rint(uv[rows, :, 1]).astype(int)
+        rows = rows[~np.any(sensor.static_depth[iv, iu] < z[rows] - 1e-6, axis=1)]
     out = []
     span = float(np.ptp(pat[:, 0])) or 0.1
-    for r in np.flatnonzero(ok):
-        zr = z[r]
-        iu, iv = np.rint(uv[r, :, 0]).astype(int), np.rint(uv[r, :, 1]).astype(int)
-        if np.any(sensor.static_depth[iv, iu] < zr - 1e-6):
-            continue  # hidden by a wall top
-        z_max = float(zr.max())
-        r_marker = sensor.marker_radius * cam.focal / z_max
+    z_max, z_mean = z.max(axis=1).tolist(), z.mean(axis=1).tolist()
+    for r in rows.tolist():
+        r_marker = sensor.marker_radius * cam.focal / z_max[r]
         p_det = min(max((r_marker - nz.r_px_min) / (nz.r_px_full - nz.r_px_min), 0.0), 1.0)
-        if not _resolvable(sensor, z_max) or rng.random() >= p_det:
+        if not _resolvable(sensor, z_max[r]) or rng.random() >= p_det:
             continue
-        mpp = float(zr.mean()) / cam.focal * (NATIVE_WIDTH / w) ** nz.res_exponent
+        mpp = z_mean[r] / cam.focal * (NATIVE_WIDTH / w) ** nz.res_exponent
         ex, ey = rng.normal(0.0, nz.pos_px * mpp, size=2)
         eth = rng.normal(0.0, nz.heading_px * mpp / span)
         i = int(idx[r])

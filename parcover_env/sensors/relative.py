@@ -62,13 +62,14 @@ class RelativeCamera:
 
 def _blocked(a: np.ndarray, b: np.ndarray, segments: np.ndarray) -> np.ndarray:
     """Whether the segment a->b crosses any wall segment, per row."""
-    p, r = a[:, None, :], (b - a)[:, None, :]
-    q, s = segments[None, :, :2], (segments[:, 2:] - segments[:, :2])[None]
-    den = r[..., 0] * s[..., 1] - r[..., 1] * s[..., 0]
-    qp = q - p
+    # one contiguous (N, S) plane per coordinate
+    px, py = a[:, 0:1], a[:, 1:2]
+    rx, ry = (b[:, 0] - a[:, 0])[:, None], (b[:, 1] - a[:, 1])[:, None]
+    sx, sy = segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1]
+    den = rx * sy - ry * sx
+    qx, qy = segments[:, 0] - px, segments[:, 1] - py
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = (qp[..., 0] * s[..., 1] - qp[..., 1] * s[..., 0]) / den
-        u = (qp[..., 0] * r[..., 1] - qp[..., 1] * r[..., 0]) / den
+        t = (qx * sy - qy * sx) / den
+        u = (qx * ry - qy * rx) / den
     hit = (np.abs(den) > 1e-12) & (t > 0) & (t < 1) & (u >= 0) & (u <= 1)
     return hit.any(axis=1)
-

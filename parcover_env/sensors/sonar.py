@@ -31,6 +31,8 @@ AMIGOBOT_ANGLES_DEG = (90.0, 44.0, 12.0, -12.0, -44.0, -90.0, -144.0, 144.0)
 """AmigoBot sonar layout (robot frame, deg): six forward-facing transducers and two rear ones."""
 
 _EPS = 1e-9
+_NEAR_MIN_RAYS = 32
+"""Rays per robot from which the range-culled ray casting (``_ray_segments_near``) is used."""
 
 
 @lru_cache(maxsize=32)
@@ -155,6 +157,32 @@ def _ray_discs(origins, dirs, centres, radius, owner):
     return np.where(ok, t, np.inf).min(axis=1)
 
 
+def _ray_discs_near(origins, dirs, centres, radius, owner, reach: float):
+    """:func:`_ray_discs` for ``M`` rays from each of ``N`` origins (``dirs (N, M, 2)``, ``owner (N,)``),
+    testing only the discs within ``reach`` of each origin (a farther disc is hit beyond ``reach``,
+    which callers clamp). Returns ``(N * M,)`` distances (inf if none)."""
+    n, m = dirs.shape[:2]
+    ocx = origins[:, 0:1] - centres[None, :, 0]  # (N, D): the same for all rays of one origin
+    ocy = origins[:, 1:2] - centres[None, :, 1]
+    c_all = (ocx * ocx + ocy * ocy) - radius * radius
+    near = np.hypot(ocx, ocy) <= reach + radius + 1e-6
+    near &= np.arange(len(centres))[None, :] != owner[:, None]
+    width = int(near.sum(axis=1).max()) if n else 0
+    if width == 0:
+        return np.full(n * m, np.inf)
+    order = np.argsort(~near, axis=1, kind="stable")[:, :width]
+    keep = np.take_along_axis(near, order, axis=1)[:, None, :]
+    ocx = np.take_along_axis(ocx, order, axis=1)[:, None, :]
+    ocy = np.take_along_axis(ocy, order, axis=1)[:, None, :]
+    c = np.take_along_axis(c_all, order, axis=1)[:, None, :]
+    b = ocx * dirs[:, :, 0:1] + ocy * dirs[:, :, 1:2]  # (N, M, W)
+    disc = b * b - c
+    t_near = -b - np.sqrt(np.maximum(disc, 0.0))
+    t = np.where(c <= 0.0, 0.0, t_near)
+    ok = (disc >= 0.0) & ((c <= 0.0) | (t_near >= 0.0)) & keep
+    return np.where(ok, t, np.inf).min(axis=2).ravel()
+
+
 def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segments: np.ndarray,
                    centres: np.ndarray, radius: float, owner: np.ndarray, n_subrays: int = 5) -> np.ndarray:
     """Noise-free readings ``(N, B)`` for beams with world axis angles ``axes (N, B)`` from
@@ -167,13 +195,25 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     k = len(offsets)
     ang = (axes[:, :, None] + offsets[None, None, :]).reshape(-1)
     dirs = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    orig = np.repeat(origins, b * k, axis=0)
-    own = np.repeat(owner, b * k)
     out = np.full(n * b * k, np.inf)
+    # many rays per robot: test each robot's rays only against the walls and discs within range
+    # (same readings; pays off from a few dozen rays per robot, e.g. 72-beam or specular scans)
+    near_only = b * k >= _NEAR_MIN_RAYS
     if len(segments):
-        out, _, cos_inc = _ray_segments_near(origins, dirs.reshape(n, b * k, 2), segments, rmax,
-                                             with_cos=specular)
-    t_disc = _ray_discs(orig, dirs, centres, float(radius), own) if len(centres) else out * np.inf
+        if near_only:
+            out, _, cos_inc = _ray_segments_near(origins, dirs.reshape(n, b * k, 2), segments, rmax,
+                                                 with_cos=specular)
+        else:
+            out, _, cos_inc = _ray_segments(np.repeat(origins, b * k, axis=0), dirs, segments,
+                                            with_cos=specular)
+    if len(centres):
+        if near_only:
+            t_disc = _ray_discs_near(origins, dirs.reshape(n, b * k, 2), centres, float(radius), owner, rmax)
+        else:
+            t_disc = _ray_discs(np.repeat(origins, b * k, axis=0), dirs, centres, float(radius),
+                                np.repeat(owner, b * k))
+    else:
+        t_disc = out * np.inf
     if specular and len(segments):
         # an oblique wall reflects the sub-ray away; a disc in front of it still echoes
         valid = cos_inc >= math.cos(math.radians(cfg.incidence_max_deg)) - 1e-12
@@ -191,7 +231,6 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
 
 def _corner_echoes(cfg, origins, axes, segments, centres, radius, owner, pts, u1, u2) -> np.ndarray:
     """``(N, B)`` nearest concave-corner echo inside each beam's cone (inf if none)."""
-    n, c = len(origins), len(pts)
     vec = pts[None, :, :] - origins[:, None, :]
     dist = np.linalg.norm(vec, axis=-1)
     cand = (dist <= cfg.range_max) & (dist > _EPS) & _corner_faces(origins, pts, u1, u2)
@@ -203,13 +242,16 @@ def _corner_echoes(cfg, origins, axes, segments, centres, radius, owner, pts, u1
     visible = t >= dist[ni, ci] * (1.0 - 1e-7) - 1e-9
     if len(centres):
         visible &= _ray_discs(origins[ni], d, centres, float(radius), owner[ni]) >= dist[ni, ci]
-    vis = np.zeros((n, c), dtype=bool)
-    vis[ni[visible], ci[visible]] = True
-    bearing = np.arctan2(vec[..., 1], vec[..., 0])
-    diff = np.abs(np.angle(np.exp(1j * (bearing[:, None, :] - axes[:, :, None]))))
+    vi, vc = ni[visible], ci[visible]
+    out = np.full(axes.shape, np.inf)
+    if len(vi) == 0:
+        return out
+    # only the visible (origin, corner) pairs: the bearing of each against every beam axis
+    bearing = np.arctan2(vec[vi, vc, 1], vec[vi, vc, 0])
+    diff = np.abs(np.angle(np.exp(1j * (bearing[:, None] - axes[vi]))))
     in_cone = diff <= math.radians(cfg.cone_deg) / 2 + 1e-12
-    echo = np.where(vis[:, None, :] & in_cone, dist[:, None, :], np.inf)
-    return echo.min(axis=2)
+    np.minimum.at(out, vi, np.where(in_cone, dist[vi, vc][:, None], np.inf))
+    return out
 
 
 class SonarRing:

@@ -100,7 +100,7 @@ def test_category_names_file_and_key(case):
     ("name: x\nmap: {size: [1, 1]\n", "line"),     # unclosed flow mapping
     ("- 1\n- 2\n", "<top level>"),
     ("", "<top level>"),
-    ("\x00\x01binary", "<yaml>"),
+    ("\x00\x01binary", "line"),
 ])
 def test_unparseable_files(text, key):
     path = _write(text)
