@@ -310,6 +310,12 @@ class Scenario:
         _positive(self, "kpoi_radius")
         if self.n_robots != "auto":
             _check(1 <= self.n_robots <= 256, "n_robots", f"must be in [1, 256] or 'auto', got {self.n_robots}")
+        if self.n_robots != 1:
+            f = self.formation
+            _check(f.spacing - f.offset >= 2 * self.robot.radius - 1e-9, "formation.spacing",
+                   f"a follower steering its control point {f.offset} m ahead to {f.spacing} m behind the robot "
+                   f"ahead comes within {f.spacing - f.offset:.3f} m of it: less than two radii "
+                   f"({2 * self.robot.radius} m); increase spacing or reduce offset")
         for i, k in enumerate(self.kinects):
             _check(k.height > self.robot.height + 0.1, f"kinects[{i}].height",
                    f"the Kinect must hang above the robots' tops ({self.robot.height} m)")

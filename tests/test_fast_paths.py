@@ -22,7 +22,7 @@ def _room_segments() -> np.ndarray:
 
 
 @pytest.mark.parametrize("model", ["ray", "specular"])
-def test_range_culled_sonar_matches_full_ray_casting(model):
+def test_range_culled_sonar_matches_full_ray_casting(model, monkeypatch):
     rng = np.random.default_rng(3)
     seg = _room_segments()
     n, b, k = 6, 12, 5
@@ -46,13 +46,10 @@ def test_range_culled_sonar_matches_full_ray_casting(model):
     # and the whole ring reads the same through either path
     cfg = SonarConfig(layout="ring", n_beams=72, range_max=reach, model=model)
     ring_axes = origins[:, :1] + np.arange(72) * (2 * np.pi / 72)
+    monkeypatch.setattr(sn, "_NEAR_MIN_WORK", 0)  # force the range-culled path
     fast = sn.simulate_beams(cfg, origins, ring_axes, seg, origins, 0.2, owner)
-    old = sn._NEAR_MIN_RAYS
-    try:
-        sn._NEAR_MIN_RAYS = 10**9  # force the plain path
-        plain = sn.simulate_beams(cfg, origins, ring_axes, seg, origins, 0.2, owner)
-    finally:
-        sn._NEAR_MIN_RAYS = old
+    monkeypatch.setattr(sn, "_NEAR_MIN_RAYS", 10**9)  # force the plain path
+    plain = sn.simulate_beams(cfg, origins, ring_axes, seg, origins, 0.2, owner)
     np.testing.assert_array_equal(fast, plain)
     assert np.any(fast < reach)
 
@@ -155,7 +152,7 @@ def test_fast_action_path_matches_validated_path():
     assert env._fast_commands({env.agents[0]: np.zeros(2)}) is None
 
 
-def test_sonar_config_replace_keeps_fast_path_exact_on_a_scenario():
+def test_sonar_config_replace_keeps_fast_path_exact_on_a_scenario(monkeypatch):
     env = ParallelCoverageEnv("tree")
     env.reset(seed=0)
     cfg = dataclasses.replace(env.scenario.robot.sonar, n_beams=72, model="specular")
@@ -163,11 +160,8 @@ def test_sonar_config_replace_keeps_fast_path_exact_on_a_scenario():
     axes = poses[:, 2:3] + np.arange(72) * (2 * np.pi / 72)
     args = (cfg, poses[:, :2], axes, env.map.segments, poses[:, :2], env.scenario.robot.radius,
             np.arange(len(poses)))
+    assert 15 * 72 * 5 * len(env.map.segments) >= sn._NEAR_MIN_WORK  # the culled path by default
     fast = sn.simulate_beams(*args)
-    old = sn._NEAR_MIN_RAYS
-    try:
-        sn._NEAR_MIN_RAYS = 10**9
-        plain = sn.simulate_beams(*args)
-    finally:
-        sn._NEAR_MIN_RAYS = old
+    monkeypatch.setattr(sn, "_NEAR_MIN_RAYS", 10**9)
+    plain = sn.simulate_beams(*args)
     np.testing.assert_array_equal(fast, plain)

@@ -34,6 +34,17 @@ from parcover_env.planning.plan import Plan
 __all__ = ["ScriptedExpert"]
 
 
+def _nearest_arc(path: np.ndarray, p: np.ndarray) -> float:
+    """Arc length along ``path`` of its point nearest to ``p``."""
+    if len(path) < 2:
+        return 0.0
+    a, e = path[:-1], np.diff(path, axis=0)
+    ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-12)
+    u = np.clip(np.einsum("ij,ij->i", p - a, e) / ee, 0.0, 1.0)
+    j = int(np.argmin(np.hypot(*(a + u[:, None] * e - p).T)))
+    return float(np.concatenate([[0.0], np.cumsum(np.sqrt(ee))])[j] + u[j] * np.sqrt(ee[j]))
+
+
 class ScriptedExpert:
     def __init__(self, layout: ObservationLayout, scenario: Scenario, plan: Plan, control_dt: float,
                  sonar_angles: np.ndarray | None = None, leader_speed: float = 0.9,
@@ -54,11 +65,8 @@ class ScriptedExpert:
             from parcover_env.expert.sonar_fix import SonarFixer
 
             self.fixer = SonarFixer(scenario, sonar_angles, control_dt)
-            # route tracking on the corrected pose (the env's waypoints follow its odometry estimate)
-            self.tracks = Mission(np.array(scenario.kpois), scenario.kpoi_radius, plan.paths,
-                                  waypoint_tol=min(max(0.15, 1.5 * r.radius), 0.6 * scenario.kpoi_radius),
-                                  lookahead=max(0.3, 2.5 * r.radius))
-            self.tracking: set[str] = set()
+        # route tracking on the sonar-corrected pose (the env's waypoints follow its odometry estimate)
+        self.tracks: dict[str, Mission] = {}
         self.estimators: dict[str, LeaderVelocityEstimator] = {}
         self.blocked: dict[str, int] = {}
         self.backing: dict[str, int] = {}
@@ -81,9 +89,9 @@ class ScriptedExpert:
         return dict(self.fixer.stats) if self.fixer is not None else {}
 
     def reset(self, observations=None) -> None:
+        self.tracks.clear()
         if self.fixer is not None:
             self.fixer.states.clear()
-            self.tracking.clear()
         self.estimators.clear()
         self.blocked.clear()
         self.backing.clear()
@@ -119,15 +127,19 @@ class ScriptedExpert:
             return goal
         odom = self._odom(obs)
         bel = self.fixer.belief(agent, odom)
-        i = int(agent.rsplit("_", 1)[1])
-        if bel is odom or not self.fixer.corrected(agent):
-            self.tracking.discard(agent)
+        if not self.fixer.corrected(agent):
+            self.tracks.pop(agent, None)
             return goal
-        if agent not in self.tracking:  # first corrected step: find the robot on its route
-            self.tracks.relocate(i, bel[:2])
-            self.tracking.add(agent)
-        self.tracks.advance(i, bel[:2])
-        return rotate(self.tracks.goal(i) - bel[:2], -bel[2])
+        track = self.tracks.get(agent)
+        if track is None:  # first corrected step: place the robot on its own plan path
+            s, r = self.scenario, self.scenario.robot
+            path = self.plan.paths[int(agent.rsplit("_", 1)[1])]
+            track = self.tracks[agent] = Mission(np.array(s.kpois), s.kpoi_radius, [path],
+                                                 waypoint_tol=min(max(0.15, 1.5 * r.radius), 0.6 * s.kpoi_radius),
+                                                 lookahead=max(0.3, 2.5 * r.radius))
+            track.progress[0] = _nearest_arc(path, bel[:2])
+        track.update(bel[None, :2], bel[None, :2], 0.0)
+        return rotate(track.goals()[0] - bel[:2], -bel[2])
 
     def _odom(self, obs: np.ndarray) -> np.ndarray:
         g = self.layout.get

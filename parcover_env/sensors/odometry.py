@@ -31,7 +31,7 @@ class Odometry:
         """Advance the estimates with the motion since the last call; returns ``(N, 3)``."""
         delta = true_poses[:, :2] - self._last_true[:, :2]
         heading = np.stack([np.cos(self._last_true[:, 2]), np.sin(self._last_true[:, 2])], axis=1)
-        ds = np.hypot(delta[:, 0], delta[:, 1]) * np.sign(np.sum(delta * heading, axis=1))
+        ds = np.sum(delta * heading, axis=1)  # wheels measure motion along the heading, not lateral pushes
         dth = wrap_angle(true_poses[:, 2] - self._last_true[:, 2])
         n = len(ds)
         ds_m = ds * (1.0 + self.cfg.noise_v * rng.standard_normal(n))

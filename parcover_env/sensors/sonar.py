@@ -32,7 +32,9 @@ AMIGOBOT_ANGLES_DEG = (90.0, 44.0, 12.0, -12.0, -44.0, -90.0, -144.0, 144.0)
 
 _EPS = 1e-9
 _NEAR_MIN_RAYS = 32
-"""Rays per robot from which the range-culled ray casting (``_ray_segments_near``) is used."""
+"""Rays per robot from which the range-culled ray casting (``_ray_segments_near``) is used ..."""
+_NEAR_MIN_WORK = 50_000
+"""... when rays x segments (or discs) reach this: below, its set-up costs more than it saves."""
 
 
 @lru_cache(maxsize=32)
@@ -198,7 +200,7 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     out = np.full(n * b * k, np.inf)
     # many rays per robot: test each robot's rays only against the walls and discs within range
     # (same readings; pays off from a few dozen rays per robot, e.g. 72-beam or specular scans)
-    near_only = b * k >= _NEAR_MIN_RAYS
+    near_only = b * k >= _NEAR_MIN_RAYS and n * b * k * max(len(segments), len(centres)) >= _NEAR_MIN_WORK
     if len(segments):
         if near_only:
             out, _, cos_inc = _ray_segments_near(origins, dirs.reshape(n, b * k, 2), segments, rmax,
