@@ -59,7 +59,8 @@ def main() -> None:
               f"| {np.mean([m['localization_error'] for m in ms]):.3f} | {np.mean([m['wall_time'] for m in ms]):.2f} |")
     if kinect:
         print("\nMessages per episode, leader-only formations vs every robot localized (no formations):\n")
-        print("| scenario | formation: total (pose / waypoint / split / promotion) | individual: total (pose / waypoint) |")
+        print("| scenario | formation: total (pose / waypoint / split / promotion) "
+              "| individual: total (pose / waypoint) |")
         print("|---|---|---|")
         for name in kinect:
             f, i = rows[(name, "formation")], rows[(name, "individual")]

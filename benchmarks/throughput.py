@@ -138,8 +138,8 @@ def merge(a: dict, b: dict) -> dict:
 SCENARIOS: dict[str, tuple[str, dict]] = {
     "office": ("office", {}),
     "tree": ("tree", {}),
-    # the generated queue is too short for 30 robots at the default 0.4 m spacing: 0.3 m (> 2 radii)
-    "generated-30": ("generated:1", {"n_robots": 30, "formation": {"spacing": 0.3}}),
+    # the generated queue is too short for 30 robots at the default 0.4 m spacing: 0.32 m fits it
+    "generated-30": ("generated:1", {"n_robots": 30, "formation": {"spacing": 0.32}}),
 }
 
 

@@ -13,11 +13,10 @@ from parcover_env.actions import to_commands
 from parcover_env.config import Scenario, load_scenario
 from parcover_env.geometry import rotate
 from parcover_env.kinect_system import KinectSystem
-from parcover_env.metrics import EpisodeMetrics
+from parcover_env.metrics import EpisodeMetrics, formation_errors
 from parcover_env.mission import Mission
 from parcover_env.observations import MAX_FIX_AGE, ObservationLayout
 from parcover_env.rewards import TERMS, reward_terms
-from parcover_env.metrics import formation_errors
 from parcover_env.sensors.odometry import Odometry
 from parcover_env.sensors.relative import RelativeCamera
 from parcover_env.sensors.sonar import SonarRing
@@ -68,7 +67,7 @@ class ParallelCoverageEnv(ParallelEnv):
 
     | entry | size | unit | meaning |
     |---|---|---|---|
-    | x, y | 2 | m | pose estimate: odometry, reset by a Kinect fix when a leader is seen (``observation.pose_source``) |
+    | x, y | 2 | m | pose estimate: odometry, reset by Kinect fixes of seen leaders (``pose_source``) |
     | cos_theta, sin_theta | 2 | - | heading estimate |
     | v, omega | 2 | m/s, rad/s | velocity commanded at the last step |
     | leader | 1 | - | 1 if the robot leads its group, else 0 (follower) |
@@ -136,7 +135,8 @@ class ParallelCoverageEnv(ParallelEnv):
                                             s.robot.radius, s.formation.spacing, s.source)
         lead_ins = [_lead_in(s.queue, p[:2]) for p in self._start_poses]
         self._routes = [np.vstack([li, path]) for li, path in zip(lead_ins, self.plan.paths)]
-        self._lead_in_lengths = np.array([_length(np.vstack([li, path[:1]])) for li, path in zip(lead_ins, self.plan.paths)])
+        self._lead_in_lengths = np.array([_length(np.vstack([li, path[:1]]))
+                                          for li, path in zip(lead_ins, self.plan.paths)])
         self.sonar = SonarRing(s.robot.sonar) if s.observation.sonar else None
         n_sonar = self.sonar.n_beams if self.sonar else 0
         self.kinects = KinectSystem(s, self.map) if s.kinects and s.observation.pose_source == "kinect" else None
@@ -189,10 +189,11 @@ class ParallelCoverageEnv(ParallelEnv):
     def step(self, actions: dict[str, Any]):
         if not self.agents:
             raise RuntimeError("step() called on a finished episode; call reset() first")
-        self.commands = self._fast_commands(actions)
-        if self.commands is None:  # anything unusual: the full validation (and its error messages)
-            self.commands = to_commands(actions, self.agents, self.scenario.robot.max_speed,
-                                        self.scenario.robot.max_turn_rate)
+        commands = self._fast_commands(actions)
+        if commands is None:  # anything unusual: the full validation (and its error messages)
+            commands = to_commands(actions, self.agents, self.scenario.robot.max_speed,
+                                   self.scenario.robot.max_turn_rate)
+        self.commands = commands
         before = self.world.poses()
         self.world.step(self.commands)
         self.steps += 1

@@ -30,9 +30,10 @@ class Odometry:
     def measure(self, true_poses: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Advance the estimates with the motion since the last call; returns ``(N, 3)``."""
         delta = true_poses[:, :2] - self._last_true[:, :2]
-        heading = np.stack([np.cos(self._last_true[:, 2]), np.sin(self._last_true[:, 2])], axis=1)
-        ds = np.sum(delta * heading, axis=1)  # wheels measure motion along the heading, not lateral pushes
         dth = wrap_angle(true_poses[:, 2] - self._last_true[:, 2])
+        # wheels measure motion along the (mid-step) heading, not lateral pushes from contacts
+        mid_true = self._last_true[:, 2] + 0.5 * dth
+        ds = delta[:, 0] * np.cos(mid_true) + delta[:, 1] * np.sin(mid_true)
         n = len(ds)
         ds_m = ds * (1.0 + self.cfg.noise_v * rng.standard_normal(n))
         dth_m = dth * (1.0 + self.cfg.noise_omega * rng.standard_normal(n))

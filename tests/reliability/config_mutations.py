@@ -140,8 +140,11 @@ def _apply(data: Any, kind: str, sel: int, value: Any) -> Any:
             m[where] = (lst if isinstance(lst, list) else []) + [poly]
     elif kind == "kpoi_in_wall" and m is not None and isinstance(data.get("kpois"), list) and data["kpois"]:
         solids = [o for o in (m.get("obstacles") or []) if isinstance(o, list) and o]
-        if solids and sel % 2 == 0:
-            pts = np.asarray(solids[sel % len(solids)], dtype=float)
+        try:  # an earlier mutation may have mangled the polygon; then aim at the outer wall
+            pts = np.asarray(solids[sel % len(solids)], dtype=float) if solids and sel % 2 == 0 else None
+        except (TypeError, ValueError):
+            pts = None
+        if pts is not None and pts.ndim == 2 and pts.shape[1] == 2:
             target = pts.mean(axis=0).tolist()
         else:  # on the outer wall / outside the map
             target = [-0.01 * (sel % 5), 0.0]

@@ -12,7 +12,7 @@ def _drive(cfg, seed, steps=200):
     rng = np.random.default_rng(seed)
     pose = np.array([[0.0, 0.0, 0.0]])
     odo = Odometry(cfg, pose)
-    for k in range(steps):  # a circle: 0.03 m and 0.02 rad per step
+    for _ in range(steps):  # a circle: 0.03 m and 0.02 rad per step
         th = pose[0, 2] + 0.01
         pose = pose + [[0.03 * np.cos(th), 0.03 * np.sin(th), 0.02]]
         est = odo.measure(pose, rng)
