@@ -12,7 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from parcover_env.config import Scenario
-from parcover_env.localization.kinect import KinectTracker, PipelineParams, estimate_fast, estimate_poses
+from parcover_env.localization.kinect import PipelineParams, estimate_fast, estimate_poses
+from parcover_env.localization.kinect_tracker import KinectTracker
 from parcover_env.sensors.kinect import KinectFrame, KinectSensor
 from parcover_env.world.map_model import MapModel
 

@@ -37,6 +37,8 @@ import shapely
 
 from parcover_env.config import MapConfig, Scenario
 from parcover_env.control.leader import go_to_goal
+from parcover_env.expert.sonar_fix import compose as _compose
+from parcover_env.expert.sonar_fix import inverse as _inverse
 from parcover_env.geometry import wrap_angle
 from parcover_env.localization.sonar.features import MapFeature, map_features
 from parcover_env.localization.sonar.localizer import Ellipse, localize, scan_error
@@ -128,17 +130,6 @@ def known_map_features(map_cfg: MapConfig, range_max: float, rule: int = 2, reso
         return _cached_map(map_cfg, float(range_max), int(rule), float(resolution))
     except TypeError:  # unhashable config: compute without the cache
         return _cached_map.__wrapped__(map_cfg, float(range_max), int(rule), float(resolution))
-
-
-def _compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """SE(2) composition a o b of poses (x, y, theta)."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return np.array([a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], float(wrap_angle(a[2] + b[2]))])
-
-
-def _inverse(a: np.ndarray) -> np.ndarray:
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return np.array([-c * a[0] - s * a[1], s * a[0] - c * a[1], -a[2]])
 
 
 class SonarNavigator:

@@ -8,7 +8,6 @@ import pytest
 from parcover_env.config import KinectConfig, MapConfig, load_scenario
 from parcover_env.geometry import wrap_angle
 from parcover_env.localization.kinect import (
-    KinectTracker,
     PipelineParams,
     PoseEstimate,
     detect_markers,
@@ -18,6 +17,7 @@ from parcover_env.localization.kinect import (
     group_blobs,
     pipeline_stages,
 )
+from parcover_env.localization.kinect_tracker import KinectTracker
 from parcover_env.sensors.kinect import KinectFrame, KinectSensor, marker_pattern
 from parcover_env.world.map_model import MapModel
 
