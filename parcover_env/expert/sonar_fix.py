@@ -69,6 +69,8 @@ class _State:
     scan: ScanCollector | None = None
     scan_odom: np.ndarray | None = None
     driven_since_scan: float = math.inf
+    driven_since_fix: float = 0.0
+    """Distance driven since the last Kinect fix (m): bounds how far odometry can have drifted."""
 
 
 class SonarFixer:
@@ -106,9 +108,10 @@ class SonarFixer:
         """Advance this robot's scan logic; returns a (v, w) command while it is scanning."""
         st = self.states.setdefault(agent, _State(np.zeros(3)))
         if fix_age < 2 * self.dt:  # a fresh Kinect fix: the odometry pose is absolute again
-            st.correction, st.scan, st.driven_since_scan = np.zeros(3), None, math.inf
+            st.correction, st.scan, st.driven_since_scan, st.driven_since_fix = np.zeros(3), None, math.inf, 0.0
             return None
         st.driven_since_scan += abs(speed) * self.dt
+        st.driven_since_fix += abs(speed) * self.dt
         if st.scan is None:
             if not (is_leader and fix_age > self.stale_after and st.driven_since_scan >= self.rescan_distance):
                 return None
@@ -117,20 +120,20 @@ class SonarFixer:
             self.stats["sonar_scans"] += 1
         if not st.scan.add(float(odom[2]), ranges):
             return 0.0, self.scan_rate
-        self._localize(st, fix_age)
+        self._localize(st)
         st.scan, st.driven_since_scan = None, 0.0
         return None
 
-    def _localize(self, st: _State, fix_age: float) -> None:
+    def _localize(self, st: _State) -> None:
         from parcover_env.localization.sonar import Ellipse, localize
 
         prior = compose(st.correction, st.scan_odom)
-        travelled = fix_age * 0.3  # conservative: the distance a robot may have driven since its fix
-        axis = 0.15 + self.growth[0] * travelled
+        # odometry drifts by a few percent of the distance driven: a fix outside that is a false match
+        axis = 0.15 + self.growth[0] * st.driven_since_fix
         ell = Ellipse(prior[:2], (axis, axis), 0.0)
         res = localize(st.scan.ranges, self.angles, self.map, self.sectors, ell, self.params, sonar=self.sonar,
                        features=self.features)
-        if res.pose is not None and res.success:
+        if res.pose is not None and res.success and np.hypot(*(res.pose[:2] - prior[:2])) <= axis:
             st.correction = compose(res.pose, inverse(st.scan_odom))
             self.stats["sonar_localized"] += 1
         else:

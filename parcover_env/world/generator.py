@@ -227,7 +227,7 @@ def generate_scenario_mapping(seed_text: str, source: str = "") -> dict:
         "start": {"x": lay.start[0], "y": lay.start[1], "theta_deg": 0.0},
         "start_queue": [list(p) for p in lay.queue],
         "kpois": [list(k) for k in kpois],
-        "kpoi_radius": 0.2,
+        "kpoi_radius": 0.4,  # seed A Def. 1: a KPOI is covered within the robot's sensor range
         "n_robots": "auto",
         "robot": {
             "radius": ROBOT_RADIUS,
@@ -238,8 +238,8 @@ def generate_scenario_mapping(seed_text: str, source: str = "") -> dict:
             "sonar": {"layout": "ring", "n_beams": 16, "range_min": 0.1, "range_max": 2.5},
         },
         "kinects": [dict(k) for k in lay.kinects],
-        "formation": {"spacing": SPACING, "offset": 0.08, "gains": [1.0, 1.5]},
-        "localization": "kinect",
+        "formation": {"spacing": SPACING, "offset": 0.08},
+        "localization": "both",  # rooms lie outside the Kinects: stale leaders localize by sonar
         "physics": {"dt": 0.02, "substeps": 5},
         "episode": {"max_steps": int(min(4000, max(800, round(budget, -2))))},
     }
