@@ -168,6 +168,22 @@ class KinectSensor:
         u0, v0, u1, v1 = max(u0, 0), max(v0, 0), min(u1, w), min(v1, h)
         return None if u0 >= u1 or v0 >= v1 else (u0, v0, u1, v1)
 
+    def _cull_box(self) -> tuple[float, float, float, float]:
+        """Floor box outside which no robot cylinder can appear in the image (cached): the image
+        corners cast on the floor and on the robot-top plane, grown by the robot radius. Config
+        validation keeps every corner ray below the horizon, so both planes are met."""
+        if getattr(self, "_cull", None) is None:
+            cam = self.camera
+            corners = np.array([[-0.5, -0.5], [cam.width - 0.5, -0.5], [cam.width - 0.5, cam.height - 0.5],
+                                [-0.5, cam.height - 0.5]])
+            rays = cam.pixel_rays(corners)
+            pts = np.concatenate([cam.C[:2] + ((z - cam.C[2]) / rays[:, 2])[:, None] * rays[:, :2]
+                                  for z in (0.0, self.robot_height)])
+            grow = self.robot_radius * 1.05 + 1e-3
+            lo, hi = pts.min(axis=0) - grow, pts.max(axis=0) + grow
+            self._cull = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+        return self._cull
+
     def render_clean(self, poses: np.ndarray,
                      marker_mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Noise-free render: depth (inf = no surface), owner id (-1 = static), marker code.
@@ -181,8 +197,10 @@ class KinectSensor:
         C = self.camera.C
         r2 = self.robot_radius ** 2
         boxes = []
+        cx0, cy0, cx1, cy1 = self._cull_box()
         for i, (x, y, _) in enumerate(poses):
-            box = self._robot_box(np.array([x, y]))
+            seen = cx0 <= x <= cx1 and cy0 <= y <= cy1
+            box = self._robot_box(np.array([x, y])) if seen else None
             boxes.append(box)
             if box is None:
                 continue
