@@ -130,3 +130,22 @@ def test_marker_pattern_fits_on_the_robot_and_is_spread():
     pat = marker_pattern(0.15)
     d = np.linalg.norm(pat[:, None] - pat[None], axis=-1) + np.eye(4)
     assert d.min() >= 0.099
+
+
+def test_view_culling_never_changes_a_frame():
+    """Robots outside a Kinect's view are skipped before rendering: frames must be identical."""
+    import parcover_env
+
+    env = parcover_env.parallel_env("tree")
+    env.reset(seed=0)
+    rng = np.random.default_rng(1)
+    for sensor in env.kinects.sensors:
+        x0, y0, x1, y1 = sensor._cull_box()
+        assert x1 - x0 < 12 and y1 - y0 < 10  # the box really culls something on this map
+        for _ in range(30):
+            poses = np.c_[rng.uniform(0, 12, 15), rng.uniform(0, 10, 15), rng.uniform(-3, 3, 15)]
+            culled = sensor.render_clean(poses, np.ones(15, bool))
+            sensor._cull = (-np.inf, -np.inf, np.inf, np.inf)
+            full = sensor.render_clean(poses, np.ones(15, bool))
+            sensor._cull = None
+            assert all(np.array_equal(a, b) for a, b in zip(culled, full))
