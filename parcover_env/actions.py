@@ -19,6 +19,32 @@ def to_commands(actions: Mapping, agents: Sequence[str], max_speed: float,
     non-real type (complex, bool, strings, None) and missing or unknown agents raise ActionError
     naming the agent.
     """
+    out = _common_case(actions, agents)
+    if out is None:
+        out = _validated(actions, agents)
+    np.clip(out, -1.0, 1.0, out=out)
+    out *= (max_speed, max_turn_rate)
+    return out
+
+
+def _common_case(actions, agents: Sequence[str]) -> np.ndarray | None:
+    """Raw ``(N, 2)`` actions when the joint action is the common case (a dict holding exactly the
+    active agents, each a finite float ndarray of shape (2,)), cheaply; None otherwise."""
+    if type(actions) is not dict or len(actions) != len(agents):
+        return None
+    try:
+        vals = [actions[a] for a in agents]
+    except KeyError:
+        return None
+    for v in vals:
+        if type(v) is not np.ndarray or v.shape != (2,) or v.dtype.kind != "f":
+            return None
+    out = np.array(vals, dtype=float)
+    return out if np.isfinite(out).all() else None
+
+
+def _validated(actions, agents: Sequence[str]) -> np.ndarray:
+    """Raw ``(N, 2)`` actions after full validation; ActionError naming the agent otherwise."""
     if not isinstance(actions, Mapping):
         raise ActionError(f"actions must be a dict {{agent: array(2)}}, got {type(actions).__name__}")
     extra = [a for a in actions if a not in agents]
@@ -41,6 +67,4 @@ def to_commands(actions: Mapping, agents: Sequence[str], max_speed: float,
         if not np.all(np.isfinite(a)):
             raise ActionError(f"{agent}: action contains NaN or inf: {a.tolist()}")
         out[i] = a
-    np.clip(out, -1.0, 1.0, out=out)
-    out *= (max_speed, max_turn_rate)
     return out

@@ -189,11 +189,8 @@ class ParallelCoverageEnv(ParallelEnv):
     def step(self, actions: dict[str, Any]):
         if not self.agents:
             raise RuntimeError("step() called on a finished episode; call reset() first")
-        commands = self._fast_commands(actions)
-        if commands is None:  # anything unusual: the full validation (and its error messages)
-            commands = to_commands(actions, self.agents, self.scenario.robot.max_speed,
-                                   self.scenario.robot.max_turn_rate)
-        self.commands = commands
+        self.commands = to_commands(actions, self.agents, self.scenario.robot.max_speed,
+                                    self.scenario.robot.max_turn_rate)
         before = self.world.poses()
         self.world.step(self.commands)
         self.steps += 1
@@ -225,26 +222,6 @@ class ParallelCoverageEnv(ParallelEnv):
         return obs, rewards, terminations, truncations, infos
 
     # ------------------------------------------------------------------ step parts
-    def _fast_commands(self, actions: Any) -> np.ndarray | None:
-        """Commands ``(N, 2)`` when the joint action is the common case (a dict holding exactly the
-        active agents, each a finite float ndarray of shape (2,)); None sends it to ``to_commands``."""
-        agents = self.agents
-        if type(actions) is not dict or len(actions) != len(agents):
-            return None
-        try:
-            vals = [actions[a] for a in agents]
-        except KeyError:
-            return None
-        for v in vals:
-            if type(v) is not np.ndarray or v.shape != (2,) or v.dtype.kind != "f":
-                return None
-        out = np.array(vals, dtype=float)
-        if not np.isfinite(out).all():
-            return None
-        np.clip(out, -1.0, 1.0, out=out)
-        out *= (self.scenario.robot.max_speed, self.scenario.robot.max_turn_rate)
-        return out
-
     def _sense(self, true: np.ndarray) -> None:
         """Pose estimates: odometry dead reckoning, corrected by Kinect fixes of the leaders."""
         est = self.odometry.measure(true, self._rng)

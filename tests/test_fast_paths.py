@@ -137,19 +137,17 @@ def test_kinect_view_box_never_rejects_a_visible_robot():
 
 
 def test_fast_action_path_matches_validated_path():
-    env = ParallelCoverageEnv("office")
-    env.reset(seed=0)
-    acts = {a: np.array([2.0, -0.5], dtype=np.float32) for a in env.agents}
-    fast = env._fast_commands(acts)
-    from parcover_env.actions import to_commands
+    from parcover_env.actions import _common_case, _validated, to_commands
 
-    ref = to_commands(acts, env.agents, env.scenario.robot.max_speed, env.scenario.robot.max_turn_rate)
-    np.testing.assert_array_equal(fast, ref)
+    agents = ["robot_0", "robot_1"]
+    acts = {a: np.array([2.0, -0.5], dtype=np.float32) for a in agents}
+    np.testing.assert_array_equal(_common_case(acts, agents), _validated(acts, agents))
+    np.testing.assert_allclose(to_commands(acts, agents, 0.2, 1.5), [[0.2, -0.75], [0.2, -0.75]])
     # anything unusual goes to the full validation
-    assert env._fast_commands({a: [0.1, 0.2] for a in env.agents}) is None
-    assert env._fast_commands({a: np.array([np.nan, 0.0]) for a in env.agents}) is None
-    assert env._fast_commands({a: np.array([1, 0]) for a in env.agents}) is None
-    assert env._fast_commands({env.agents[0]: np.zeros(2)}) is None
+    assert _common_case({a: [0.1, 0.2] for a in agents}, agents) is None
+    assert _common_case({a: np.array([np.nan, 0.0]) for a in agents}, agents) is None
+    assert _common_case({a: np.array([1, 0]) for a in agents}, agents) is None
+    assert _common_case({agents[0]: np.zeros(2)}, agents) is None
 
 
 def test_sonar_config_replace_keeps_fast_path_exact_on_a_scenario(monkeypatch):
