@@ -11,13 +11,13 @@ from parcover_env.errors import ParcoverError
 __all__ = ["main"]
 
 
-def _progress(done: int, total: int, width: int = 30, stream=sys.stderr) -> None:
-    if not stream.isatty() and done not in (total,) and done % max(total // 10, 1):
+def _progress(done: int, total: int, width: int = 30, stream=sys.stderr, ended: bool = False) -> None:
+    """A one-line progress bar over the step limit; ``ended`` closes it when the episode ends."""
+    if not (ended or stream.isatty()) and done % max(total // 10, 1):
         return
-    filled = int(width * done / max(total, 1))
-    stream.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} steps")
-    if done >= total:
-        stream.write("\n")
+    filled = width if ended else int(width * done / max(total, 1))
+    tail = f"episode ended after {done} steps" if ended else f"{done}/{total} steps"
+    stream.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {tail}" + ("\n" if ended else ""))
     stream.flush()
 
 
@@ -39,12 +39,12 @@ def run_episode(env, policy, seed: int | None, max_steps: int | None = None, fra
         step += 1
         if frames is not None:
             frames.append(env.render())
-        if progress:
+        if progress and env.agents and step < limit:
             _progress(step, limit)
         if not env.agents:
             summary = next(iter(infos.values()))["episode"]
-    if progress and step < limit:
-        _progress(limit, limit)
+    if progress:
+        _progress(step, limit, ended=True)
     if summary is None:
         summary = env.metrics.summary()
     summary["wall_time"] = time.perf_counter() - t0
