@@ -37,6 +37,7 @@ import shapely
 from parcover_env.config import MapConfig, Scenario
 from parcover_env.control.leader import go_to_goal
 from parcover_env.expert.navigator_params import NavigatorParams
+from parcover_env.expert.sonar_fix import ScanCollector
 from parcover_env.expert.sonar_fix import compose as _compose
 from parcover_env.expert.sonar_fix import inverse as _inverse
 from parcover_env.geometry import wrap_angle
@@ -355,21 +356,12 @@ class SonarNavigator:
         odom = self.last_odom[i]
         if self.scan is None:
             self.scan = {"robot": i, "start": odom.copy(),
-                         "ranges": np.full(self.n_bins, self.sonar_cfg.range_max),
-                         "offset": np.full(self.n_bins, np.inf), "turned": 0.0, "prev": float(odom[2])}
+                         "col": ScanCollector(self.beams, self.n_bins, self.sonar_cfg.range_max, float(odom[2]),
+                                              self.p.bin_tol_deg)}
             self._stats["scans"] += 1
-        sc = self.scan
-        sc["turned"] += abs(float(wrap_angle(odom[2] - sc["prev"])))
-        sc["prev"] = float(odom[2])
         ranges = self.layout.get(observations[f"robot_{i}"], "sonar").astype(float)
-        rel = np.mod(odom[2] - sc["start"][2] + self.beams, 2 * math.pi) / self.step_rad
-        b = np.round(rel).astype(int) % self.n_bins
-        off = np.abs(rel - np.round(rel))
-        for k in range(len(b)):
-            if off[k] < sc["offset"][b[k]]:
-                sc["offset"][b[k]], sc["ranges"][b[k]] = off[k], ranges[k]
-        full = bool(np.all(sc["offset"] * self.step_rad <= math.radians(self.p.bin_tol_deg)))
-        if full or sc["turned"] >= 2 * math.pi + self.step_rad:
+        full = self.scan["col"].add(float(odom[2]), ranges)
+        if full:
             self._finish_scan(i)
             self.queue.pop(0)
             self.scan = None
@@ -380,12 +372,8 @@ class SonarNavigator:
         cmd[i] = [0.0, self.p.scan_rate]
 
     def _finish_scan(self, i: int) -> None:
-        sc = self.scan
-        ranges = sc["ranges"]
-        empty = ~np.isfinite(sc["offset"])
-        if empty.any():  # a full turn always fills the bins; guard anyway with the max range (no echo)
-            ranges[empty] = self.sonar_cfg.range_max
-        o = sc["start"]
+        ranges = self.scan["col"].ranges  # bins never reached keep the max range (no echo)
+        o = self.scan["start"]
         prior = _compose(self.correction[i], o)
         ell = self.ellipse(i).moved(prior[:2])
         others = np.delete(self.belief()[:, :2], i, axis=0)

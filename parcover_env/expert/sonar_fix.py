@@ -57,7 +57,7 @@ class ScanCollector:
         rel = np.mod(heading - self.start + self.beams, 2 * math.pi) / self.step
         b = np.round(rel).astype(int) % self.n
         off = np.abs(rel - np.round(rel))
-        for k in np.argsort(-off):  # nearest-to-centre reading written last wins
+        for k in range(len(b)):  # each bin keeps its nearest-to-centre reading
             if off[k] < self.offset[b[k]]:
                 self.offset[b[k]], self.ranges[b[k]] = off[k], ranges[k]
         return bool(np.all(self.offset * self.step <= self.tol)) or self.turned >= 2 * math.pi + self.step
