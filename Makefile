@@ -19,7 +19,7 @@ run: $(VENV)/.installed
 	$(BIN)/parcover run $(SCENARIO)
 
 test: $(VENV)/.installed
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2
 
 lint: $(VENV)/.installed
 	$(BIN)/ruff check .

@@ -35,7 +35,7 @@ def parse_args(argv=None) -> Args:
 
 
 def evaluate(args: Args) -> list[dict]:
-    from parcover_env.bench import check_policy_spec, run_job
+    from parcover_env.harness.bench import check_policy_spec, run_job
 
     check_policy_spec(args.policy)
     return [

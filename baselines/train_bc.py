@@ -6,7 +6,7 @@
 Demonstrations come from a Minari dataset written by ``parcover collect`` (``--dataset-id``) or,
 without one, are recorded on the fly from the scripted expert. The network regresses the expert's
 action (mean squared error, tanh output) from one robot's normalized observation. Writes
-``OUT/bc.pt`` (read by ``parcover_env.learned.BCPolicy``) and ``OUT/bc_loss.csv``.
+``OUT/bc.pt`` (read by ``parcover_env.policies.learned.BCPolicy``) and ``OUT/bc_loss.csv``.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ def load_demos(args: Args):
     """(observations, actions) arrays of every recorded robot step."""
     import numpy as np
 
-    from parcover_env import datasets
+    from parcover_env.harness import datasets
 
     if args.dataset_id:
         eps = datasets.load_minari(args.dataset_id, args.dataset_root)
@@ -60,7 +60,7 @@ def train(args: Args) -> Path:
     import numpy as np
     import torch
 
-    from parcover_env.learned import make_mlp
+    from parcover_env.policies.learned import make_mlp
 
     torch.manual_seed(args.seed)
     torch.set_num_threads(args.threads)

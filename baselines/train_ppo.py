@@ -3,7 +3,7 @@
     python baselines/train_ppo.py --scenario office --total-timesteps 2000000 --out runs/ppo_office
 
 Writes ``OUT/model.zip``, ``OUT/vecnormalize.pkl`` (observation statistics, read by
-``parcover_env.learned.PPOPolicy``), ``OUT/curve.csv`` and ``OUT/curve.png`` (learning curve).
+``parcover_env.policies.learned.PPOPolicy``), ``OUT/curve.csv`` and ``OUT/curve.png`` (learning curve).
 ``--scenario generated:RANDOM`` trains with domain randomization over procedural maps
 (a new ``generated:<seed>`` map per ParallelEnv). TensorBoard only with ``--tensorboard DIR``.
 """
@@ -56,7 +56,7 @@ def parse_args(argv=None) -> Args:
 
 
 def make_env_fns(args: Args):
-    from parcover_env.wrappers.sb3 import _EnvFactory
+    from parcover_env.env.vec_env import _EnvFactory
 
     overrides = {"episode": {"max_steps": args.max_steps}} if args.max_steps else None
     if args.scenario == "generated:RANDOM":
@@ -70,7 +70,7 @@ def train(args: Args) -> Path:
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
-    from parcover_env.wrappers.sb3 import ParallelVecEnv
+    from parcover_env.env.vec_env import ParallelVecEnv
 
     torch.set_num_threads(args.threads)
     out = Path(args.out)

@@ -16,8 +16,8 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 import parcover_env
-from parcover_env.cli import run_episode
 from parcover_env.expert.policy import ScriptedExpert
+from parcover_env.harness.rollout import run_episode
 
 
 def episode(job: tuple[str, int, str]) -> dict:

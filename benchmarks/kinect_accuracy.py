@@ -20,9 +20,9 @@ import numpy as np
 
 from parcover_env.config import KinectConfig, MapConfig
 from parcover_env.geometry import wrap_angle
-from parcover_env.localization.kinect import PipelineParams, estimate_poses
-from parcover_env.localization.kinect_views import trajectory_image
+from parcover_env.localization.kinect.pipeline import PipelineParams, estimate_poses
 from parcover_env.sensors.kinect import KinectSensor
+from parcover_env.viz.kinect_views import trajectory_image
 from parcover_env.world.map_model import MapModel
 
 SPEEDS = {"slow (0.015, 0.023)": (0.015, 0.023), "fast (0.08, 0.08)": (0.08, 0.08)}

@@ -82,7 +82,7 @@ def breakdown(env, steps: int) -> None:
     tm.wrap(env, "_sense", "sense: odometry + Kinect system")
     if env.kinects is not None:
         tm.wrap(env.kinects, "update", "  Kinect system update")
-    tm.wrap(env.mission, "update", "mission: KPOIs + route progress")
+    tm.wrap(env.progress, "update", "mission: KPOIs + route progress")
     tm.wrap(env.team, "update", "team: splits at TPs")
     tm.wrap(env, "_rewards", "rewards")
     tm.wrap(env, "_record", "metrics")

@@ -14,9 +14,9 @@ import sys
 import numpy as np
 
 import parcover_env as pe
-from parcover_env.cli import run_episode
+from parcover_env.config.typed import to_mapping
 from parcover_env.expert.policy import ScriptedExpert
-from parcover_env.typed_config import to_mapping
+from parcover_env.harness.rollout import run_episode
 
 
 def faults(name: str, drop: float, garbage: float) -> dict:

@@ -17,12 +17,12 @@ import time
 
 import numpy as np
 
-from parcover_env.config import load_scenario
 from parcover_env.geometry import wrap_angle
 from parcover_env.localization.sonar.features import map_features
 from parcover_env.localization.sonar.localizer import Ellipse, localize
 from parcover_env.localization.sonar.params import SonarLocalizerParams
 from parcover_env.localization.sonar.sectors import compute_sectors
+from parcover_env.scenarios import load_scenario
 from parcover_env.sensors.sonar import SonarRing
 from parcover_env.world.map_model import MapModel
 

@@ -7,9 +7,10 @@ Factories follow PettingZoo's module convention (``parallel_env()``, ``env()``, 
 
 from __future__ import annotations
 
-from parcover_env.config import Scenario, load_scenario, scenario_names
+from parcover_env.config import Scenario
 from parcover_env.env import ParallelCoverageEnv
 from parcover_env.errors import ActionError, ConfigError, ParcoverError
+from parcover_env.scenarios import load_scenario, scenario_names
 
 __all__ = [
     "ParallelCoverageEnv", "raw_env", "parallel_env", "env", "make", "Scenario", "load_scenario",
@@ -40,7 +41,7 @@ def _register() -> None:
 
     if "parcover_env/SingleRobotCoverage-v0" not in gymnasium.registry:
         gymnasium.register("parcover_env/SingleRobotCoverage-v0",
-                           entry_point="parcover_env.wrappers.single_agent:SingleRobotCoverageEnv")
+                           entry_point="parcover_env.env.single_agent:SingleRobotCoverageEnv")
 
 
 _register()

@@ -59,7 +59,7 @@ def test_ppo_saves_model_stats_and_curve(ppo_dir):
 
 def test_ppo_policy_acts_in_the_box(ppo_dir):
     from parcover_env import parallel_env
-    from parcover_env.learned import PPOPolicy
+    from parcover_env.policies.learned import PPOPolicy
 
     env = parallel_env("office")
     obs, _ = env.reset(seed=0)
@@ -86,7 +86,7 @@ def test_bc_imitates_a_known_linear_expert():
     """BC regression itself: recovers a fixed action map from synthetic demonstrations."""
     import torch
 
-    from parcover_env.learned import make_mlp
+    from parcover_env.policies.learned import make_mlp
 
     g = torch.Generator().manual_seed(0)
     x = torch.randn(2000, 4, generator=g)

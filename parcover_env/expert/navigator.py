@@ -29,22 +29,22 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from functools import lru_cache
 
 import numpy as np
 import shapely
 
-from parcover_env.config import MapConfig, Scenario
+from parcover_env.config import Scenario
 from parcover_env.control.leader import go_to_goal
+from parcover_env.env.observations import ObservationLayout
 from parcover_env.expert.navigator_params import NavigatorParams
-from parcover_env.expert.sonar_fix import ScanCollector
-from parcover_env.expert.sonar_fix import compose as _compose
-from parcover_env.expert.sonar_fix import inverse as _inverse
 from parcover_env.geometry import wrap_angle
-from parcover_env.localization.sonar.features import MapFeature, map_features
+from parcover_env.geometry.poses import compose as _compose
+from parcover_env.geometry.poses import inverse as _inverse
+from parcover_env.localization.sonar.features import MapFeature
+from parcover_env.localization.sonar.known_map import known_map_features
 from parcover_env.localization.sonar.localizer import Ellipse, localize, scan_error
 from parcover_env.localization.sonar.params import SonarLocalizerParams
-from parcover_env.localization.sonar.sectors import Sector, compute_sectors
+from parcover_env.localization.sonar.scan import ScanCollector
 from parcover_env.localization.sonar.subgoals import (
     PathNodes,
     densify,
@@ -53,28 +53,10 @@ from parcover_env.localization.sonar.subgoals import (
     team_subgoal,
     unblocked_scan_angle,
 )
-from parcover_env.observations import ObservationLayout
 from parcover_env.sensors.sonar import simulate_beams
 from parcover_env.world.map_model import MapModel
 
-__all__ = ["NavigatorParams", "SonarNavigator", "known_map_features"]
-
-
-@lru_cache(maxsize=8)
-def _cached_map(map_cfg: MapConfig, range_max: float, rule: int, resolution: float):
-    known = MapModel.from_config(map_cfg, include_unknown=False)
-    feats = map_features(known)
-    sectors = compute_sectors(known, range_max, rule=rule, features=feats, resolution=resolution)
-    return known, feats, sectors
-
-
-def known_map_features(map_cfg: MapConfig, range_max: float, rule: int = 2, resolution: float = 0.05
-                       ) -> tuple[MapModel, list[MapFeature], list[Sector]]:
-    """Known map (no unknown obstacles), its features and relaxed sectors; cached per map config."""
-    try:
-        return _cached_map(map_cfg, float(range_max), int(rule), float(resolution))
-    except TypeError:  # unhashable config: compute without the cache
-        return _cached_map.__wrapped__(map_cfg, float(range_max), int(rule), float(resolution))
+__all__ = ["NavigatorParams", "SonarNavigator"]
 
 
 class SonarNavigator:

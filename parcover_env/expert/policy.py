@@ -23,13 +23,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from parcover_env.config import Scenario
 from parcover_env.control.follower import LeaderVelocityEstimator, l_psi_control, relative_l_psi
 from parcover_env.control.leader import go_to_goal
+from parcover_env.env.observations import ObservationLayout
 from parcover_env.geometry import rotate
-from parcover_env.mission import Mission
-from parcover_env.observations import ObservationLayout
-from parcover_env.planning.plan import Plan
+from parcover_env.scenarios import Mission, RouteTracker
 
 __all__ = ["ScriptedExpert"]
 
@@ -46,11 +44,13 @@ def _nearest_arc(path: np.ndarray, p: np.ndarray) -> float:
 
 
 class ScriptedExpert:
-    def __init__(self, layout: ObservationLayout, scenario: Scenario, plan: Plan, control_dt: float,
-                 sonar_angles: np.ndarray | None = None, leader_speed: float = 0.9,
-                 stop_margin: float = 0.05, slow_margin: float = 0.25, patience: float = 2.0):
-        self.layout, self.scenario, self.plan = layout, scenario, plan
-        self.dt = control_dt
+    def __init__(self, layout: ObservationLayout, mission: Mission, sonar_angles: np.ndarray | None = None,
+                 leader_speed: float = 0.9, stop_margin: float = 0.05, slow_margin: float = 0.25,
+                 patience: float = 2.0):
+        self.layout, self.mission = layout, mission
+        self.scenario = scenario = mission.scenario
+        self.plan = mission.plan
+        self.dt = control_dt = scenario.physics.control_dt
         self.leader_speed = leader_speed
         r = scenario.robot
         self.v_max, self.w_max = r.max_speed, r.max_turn_rate
@@ -66,14 +66,14 @@ class ScriptedExpert:
 
             self.fixer = SonarFixer(scenario, sonar_angles, control_dt)
         # route tracking on the sonar-corrected pose (the env's waypoints follow its odometry estimate)
-        self.tracks: dict[str, Mission] = {}
+        self.tracks: dict[str, RouteTracker] = {}
         self.estimators: dict[str, LeaderVelocityEstimator] = {}
         self.blocked: dict[str, int] = {}
         self.backing: dict[str, int] = {}
 
     @classmethod
     def for_env(cls, env, **kwargs):
-        """Build from an env's public spec: layout, scenario, plan, control period, sonar beams.
+        """Build from an env's public spec: observation layout, mission (scenario, plan), sonar beams.
 
         With ``localization: sonar`` the robots localize by stop-and-scan instead (seed B): the
         returned policy is a :class:`~parcover_env.expert.navigator.SonarNavigator`.
@@ -83,7 +83,7 @@ class ScriptedExpert:
 
             return SonarNavigator.for_env(env, **kwargs)
         angles = env.sonar.beam_angles if env.sonar is not None else None
-        return cls(env.layout, env.scenario, env.plan, env.scenario.physics.control_dt, angles, **kwargs)
+        return cls(env.layout, env.mission, angles, **kwargs)
 
     def stats(self) -> dict:
         return dict(self.fixer.stats) if self.fixer is not None else {}
@@ -132,11 +132,8 @@ class ScriptedExpert:
             return goal
         track = self.tracks.get(agent)
         if track is None:  # first corrected step: place the robot on its own plan path
-            s, r = self.scenario, self.scenario.robot
             path = self.plan.paths[int(agent.rsplit("_", 1)[1])]
-            track = self.tracks[agent] = Mission(np.array(s.kpois), s.kpoi_radius, [path],
-                                                 waypoint_tol=min(max(0.15, 1.5 * r.radius), 0.6 * s.kpoi_radius),
-                                                 lookahead=max(0.3, 2.5 * r.radius))
+            track = self.tracks[agent] = self.mission.tracker([path])
             track.progress[0] = _nearest_arc(path, bel[:2])
         track.update(bel[None, :2], bel[None, :2], 0.0)
         return rotate(track.goals()[0] - bel[:2], -bel[2])

@@ -14,53 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from parcover_env.geometry import wrap_angle
+from parcover_env.geometry.poses import compose, inverse
+from parcover_env.localization.sonar.scan import ScanCollector
 
-__all__ = ["ScanCollector", "SonarFixer", "compose", "inverse"]
-
-
-def compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Pose composition a o b of (x, y, theta)."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return np.array([a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], float(wrap_angle(a[2] + b[2]))])
-
-
-def inverse(a: np.ndarray) -> np.ndarray:
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return np.array([-(c * a[0] + s * a[1]), s * a[0] - c * a[1], -a[2]])
-
-
-class ScanCollector:
-    """Bins ring readings taken while turning in place into ``n_bins`` scan directions.
-
-    Each bin keeps the reading whose beam direction (odometry heading + beam angle, relative to
-    the heading at the start) is closest to the bin centre; the scan is complete when every bin
-    holds a reading within ``tol`` of its centre, or after a full turn.
-    """
-
-    def __init__(self, beam_angles: np.ndarray, n_bins: int, range_max: float, start_heading: float,
-                 tol_deg: float = 2.0):
-        self.beams = np.asarray(beam_angles, dtype=float)
-        self.n = n_bins
-        self.step = 2 * math.pi / n_bins
-        self.start = start_heading
-        self.prev = start_heading
-        self.turned = 0.0
-        self.tol = math.radians(tol_deg)
-        self.ranges = np.full(n_bins, float(range_max))
-        self.offset = np.full(n_bins, np.inf)
-
-    def add(self, heading: float, ranges: np.ndarray) -> bool:
-        """Add one ring reading at odometry ``heading``; returns True when the scan is complete."""
-        self.turned += abs(float(wrap_angle(heading - self.prev)))
-        self.prev = heading
-        rel = np.mod(heading - self.start + self.beams, 2 * math.pi) / self.step
-        b = np.round(rel).astype(int) % self.n
-        off = np.abs(rel - np.round(rel))
-        for k in range(len(b)):  # each bin keeps its nearest-to-centre reading
-            if off[k] < self.offset[b[k]]:
-                self.offset[b[k]], self.ranges[b[k]] = off[k], ranges[k]
-        return bool(np.all(self.offset * self.step <= self.tol)) or self.turned >= 2 * math.pi + self.step
+__all__ = ["SonarFixer"]
 
 
 @dataclass
@@ -78,8 +35,8 @@ class SonarFixer:
 
     def __init__(self, scenario, beam_angles: np.ndarray, control_dt: float, stale_after: float = 8.0,
                  rescan_distance: float = 2.0, scan_rate: float = 0.6):
-        from parcover_env.expert.navigator import known_map_features
         from parcover_env.localization.sonar import SonarLocalizerParams
+        from parcover_env.localization.sonar.known_map import known_map_features
 
         self.sonar = scenario.robot.sonar
         self.map, self.features, self.sectors = known_map_features(scenario.map, self.sonar.range_max)

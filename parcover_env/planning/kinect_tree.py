@@ -59,7 +59,7 @@ class KinectTree:
 
 def kinect_footprints(scenario: Scenario) -> dict[str, Polygon]:
     """Floor footprint of every Kinect of the scenario (name -> shapely polygon)."""
-    from parcover_env.sensors.camera import CameraModel
+    from parcover_env.geometry.camera import CameraModel
 
     return {k.name: CameraModel.from_config(k).footprint() for k in scenario.kinects}
 

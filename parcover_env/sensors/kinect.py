@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from parcover_env.geometry import cast_rays
-from parcover_env.sensors.camera import CameraModel
+from parcover_env.geometry.camera import CameraModel
 
 if TYPE_CHECKING:
     from parcover_env.config import KinectConfig

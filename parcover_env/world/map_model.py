@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -16,12 +16,13 @@ from parcover_env.errors import ConfigError
 from parcover_env.geometry import polygon_edges
 
 if TYPE_CHECKING:
-    from parcover_env.config import MapConfig, Scenario
+    from parcover_env.config import MapConfig
 
-__all__ = ["MapModel", "validate_geometry"]
+__all__ = ["MapModel", "checked_polygon", "map_model"]
 
 
-def _polygon(coords, key: str) -> Polygon:
+def checked_polygon(coords, key: str) -> Polygon:
+    """A valid, non-degenerate shapely polygon, or a ConfigError naming ``key``."""
     poly = Polygon(coords)
     if not poly.is_valid:
         raise ConfigError("", key, f"invalid polygon ({explain_validity(poly)})")
@@ -40,12 +41,12 @@ class MapModel:
     @classmethod
     def from_config(cls, cfg: MapConfig, include_unknown: bool = True) -> MapModel:
         """Build the map; ``include_unknown`` adds the obstacles missing from the known map."""
-        floor = _polygon(cfg.boundary, "map.boundary") if cfg.boundary else box(0, 0, *cfg.size)
-        solids = [_polygon(p, f"map.obstacles[{i}]") for i, p in enumerate(cfg.obstacles)]
+        floor = checked_polygon(cfg.boundary, "map.boundary") if cfg.boundary else box(0, 0, *cfg.size)
+        solids = [checked_polygon(p, f"map.obstacles[{i}]") for i, p in enumerate(cfg.obstacles)]
         half = cfg.wall_thickness / 2
         solids += [LineString(w).buffer(half, cap_style="square", join_style="mitre") for w in cfg.walls]
         if include_unknown:
-            solids += [_polygon(p, f"map.unknown_obstacles[{i}]") for i, p in enumerate(cfg.unknown_obstacles)]
+            solids += [checked_polygon(p, f"map.unknown_obstacles[{i}]") for i, p in enumerate(cfg.unknown_obstacles)]
         free = floor.difference(unary_union(solids)) if solids else floor
         free = shapely.make_valid(free).buffer(0)
         if free.is_empty:
@@ -84,40 +85,7 @@ class MapModel:
         return None
 
 
-def validate_geometry(s: Scenario) -> None:
-    """Geometric checks of a scenario; raises ConfigError naming the offending key."""
-    cfg = s.map
-    for key, pts in (("map.boundary", [cfg.boundary] if cfg.boundary else []),):
-        for poly in pts:
-            _polygon(poly, key)
-    world = MapModel.from_config(cfg, include_unknown=True)
-    known = MapModel.from_config(cfg, include_unknown=False)
-    r = s.robot.radius
-    x0, y0, x1, y1 = world.bounds
-    start = (s.start.x, s.start.y)
-    if not (x0 <= s.start.x <= x1 and y0 <= s.start.y <= y1):
-        raise ConfigError("", "start", f"{start} lies outside the map bounds {world.bounds}")
-    if not world.contains([start], margin=r)[0]:
-        raise ConfigError("", "start", f"{start} is inside a wall or closer than the robot radius {r} m to one")
-    region = world.reachable_region(start, r)
-    if region is None:  # pragma: no cover - guarded by the check above
-        raise ConfigError("", "start", "the robot does not fit at the start")
-    seen = {}
-    for i, k in enumerate(s.kpois):
-        key = f"kpois[{i}]"
-        if not (x0 <= k[0] <= x1 and y0 <= k[1] <= y1):
-            raise ConfigError("", key, f"{k} lies outside the map bounds {world.bounds}")
-        if not known.contains([k])[0] or not world.contains([k])[0]:
-            raise ConfigError("", key, f"{k} lies inside a wall or obstacle")
-        if k in seen:
-            raise ConfigError("", key, f"duplicate of kpois[{seen[k]}]")
-        seen[k] = i
-        if region.distance(Point(k)) > s.kpoi_radius - 1e-6:
-            raise ConfigError("", key, f"{k} is unreachable from the start by a robot of radius {r} m "
-                              f"(no free path gets within kpoi_radius {s.kpoi_radius} m)")
-    for i, kin in enumerate(s.kinects):
-        from parcover_env.sensors.camera import CameraModel
-
-        footprint = CameraModel.from_config(kin).footprint()
-        if footprint.is_empty or not footprint.intersects(box(*world.bounds)):
-            raise ConfigError("", f"kinects[{i}]", f"Kinect '{kin.name}' does not see the map's floor")
+@lru_cache(maxsize=64)
+def map_model(cfg: MapConfig, include_unknown: bool = True) -> MapModel:
+    """The map of ``cfg``, built once per process and shared (maps are immutable)."""
+    return MapModel.from_config(cfg, include_unknown)

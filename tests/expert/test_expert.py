@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.cli import run_episode
 from parcover_env.expert.policy import ScriptedExpert
+from parcover_env.harness.rollout import run_episode
 
 SCENARIOS = ["office", "tree", "hallway", "t_room"]
 
@@ -43,7 +43,7 @@ def test_office_reproduces_seed_a_experiment():
     assert len(env.plan.turning_points) == 1
     split = int(np.argmax(roles[:, 1]))  # robot 1 becomes a leader at the TP
     assert split > 20 and not roles[:split, 1].any() and roles[split:, 1].all()
-    assert sorted(env.mission.visitor.tolist()) == [0, 1]  # one KPOI each
+    assert sorted(env.progress.visitor.tolist()) == [0, 1]  # one KPOI each
     assert env.metrics.formation_error_l < 0.05
 
 

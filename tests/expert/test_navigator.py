@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.cli import run_episode
 from parcover_env.expert.navigator import NavigatorParams, SonarNavigator, _compose, _inverse
+from parcover_env.harness.rollout import run_episode
 
 
 def test_pose_algebra_roundtrip():

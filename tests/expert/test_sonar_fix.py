@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 import parcover_env
-from parcover_env.cli import run_episode
 from parcover_env.config import SonarConfig
 from parcover_env.expert.policy import ScriptedExpert
-from parcover_env.expert.sonar_fix import ScanCollector, compose, inverse
+from parcover_env.geometry.poses import compose, inverse
+from parcover_env.harness.rollout import run_episode
+from parcover_env.localization.sonar.scan import ScanCollector
 from parcover_env.sensors.sonar import SonarRing
 from parcover_env.world.map_model import MapModel
 

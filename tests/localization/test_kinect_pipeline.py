@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from parcover_env.config import KinectConfig, MapConfig, load_scenario
+from parcover_env.config import KinectConfig, MapConfig
 from parcover_env.geometry import wrap_angle
-from parcover_env.localization.kinect import (
+from parcover_env.localization.kinect.pipeline import (
     PipelineParams,
     PoseEstimate,
     detect_markers,
@@ -17,7 +17,8 @@ from parcover_env.localization.kinect import (
     group_blobs,
     pipeline_stages,
 )
-from parcover_env.localization.kinect_tracker import KinectTracker
+from parcover_env.localization.kinect.tracker import KinectTracker
+from parcover_env.scenarios import load_scenario
 from parcover_env.sensors.kinect import KinectFrame, KinectSensor, marker_pattern
 from parcover_env.world.map_model import MapModel
 
@@ -219,7 +220,7 @@ def test_tracker_fuses_kinects_and_keeps_identities():
 
 
 def test_write_kinect_views(tmp_path):
-    from parcover_env.localization.kinect_views import write_kinect_views
+    from parcover_env.viz.kinect_views import write_kinect_views
 
     scen = load_scenario("office")
     paths = write_kinect_views(scen, tmp_path / "views", np.random.default_rng(0), duration=2.0)

@@ -10,7 +10,7 @@ import pytest
 import shapely
 from shapely.geometry import LineString
 
-from parcover_env.config import MapConfig, Pose, Scenario, load_scenario, scenario_names
+from parcover_env.config import MapConfig, Pose, Scenario
 from parcover_env.errors import ConfigError
 from parcover_env.planning import (
     UnreachableKpoiError,
@@ -21,6 +21,7 @@ from parcover_env.planning import (
     planner_clearance,
 )
 from parcover_env.planning.roadmap import edge_polyline
+from parcover_env.scenarios import load_scenario, scenario_names
 from parcover_env.world.map_model import MapModel
 
 ROOMS = MapConfig(size=(6.0, 4.0), walls=(((3.0, 0.0), (3.0, 1.5)), ((3.0, 2.5), (3.0, 4.0))),
@@ -127,7 +128,7 @@ def test_kinect_tree_on_a_corridor_of_three_cameras():
 
 
 def test_draw_plan_renders_tps_and_panel(tmp_path):
-    from parcover_env.planning.draw import draw_plan, save_png
+    from parcover_env.viz.plan import draw_plan, save_png
 
     s = _scenario()
     plan = plan_scenario(s)

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import copy
 import math
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +22,7 @@ import yaml
 from hypothesis import strategies as st
 
 from parcover_env.errors import ConfigError
+from parcover_env.scenarios import configs_dir
 
 BASES = ("office", "hallway", "t_room", "tree")
 
@@ -81,7 +81,7 @@ def cases_strategy(max_mutations: int = 3) -> st.SearchStrategy:
 
 
 def base_mapping(name: str) -> dict:
-    path = Path(str(resources.files("parcover_env") / "configs" / f"{name}.yaml"))
+    path = configs_dir() / f"{name}.yaml"
     return yaml.safe_load(path.read_text())
 
 

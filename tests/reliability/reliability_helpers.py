@@ -16,7 +16,7 @@ def snapshot(env) -> dict:
         "poses": env.world.poses(),
         "estimate": np.array(env.estimate, copy=True),
         "commands": np.array(env.commands, copy=True),
-        "visited": np.array(env.mission.visited, copy=True),
+        "visited": np.array(env.progress.visited, copy=True),
         "rng": repr(env._rng.bit_generator.state),
         "agents": list(env.agents),
     }

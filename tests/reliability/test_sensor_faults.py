@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import parcover_env as pe
+from parcover_env.config.typed import to_mapping
 from parcover_env.expert.policy import ScriptedExpert
-from parcover_env.typed_config import to_mapping
 
 STEPS = 300
 

@@ -9,7 +9,7 @@ import shapely
 from parcover_env.config import MapConfig
 from parcover_env.localization.sonar.features import map_features
 from parcover_env.localization.sonar.sectors import compute_sectors, visible_features
-from parcover_env.localization.sonar.views import draw_sectors
+from parcover_env.viz.sectors import draw_sectors
 from parcover_env.world.map_model import MapModel
 
 T_ROOM = MapConfig(size=(4.0, 4.0), boundary=((1.2, 0.0), (2.8, 0.0), (2.8, 2.4), (4.0, 2.4), (4.0, 4.0),
