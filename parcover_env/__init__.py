@@ -21,16 +21,17 @@ __version__ = "0.1.0"
 raw_env = ParallelCoverageEnv
 
 
-def parallel_env(scenario="office", render_mode=None, overrides=None) -> ParallelCoverageEnv:
-    """The ParallelEnv for a scenario name, YAML path or ``Scenario``."""
-    return ParallelCoverageEnv(scenario, render_mode=render_mode, overrides=overrides)
+def parallel_env(scenario="office", render_mode=None, overrides=None, preset="realistic") -> ParallelCoverageEnv:
+    """The ParallelEnv for a scenario name, YAML path or ``Scenario``; ``preset="ideal"`` turns
+    every error model off."""
+    return ParallelCoverageEnv(scenario, render_mode=render_mode, overrides=overrides, preset=preset)
 
 
-def env(scenario="office", render_mode=None, overrides=None):
+def env(scenario="office", render_mode=None, overrides=None, preset="realistic"):
     """The AEC version (``pettingzoo.utils.parallel_to_aec``) of :func:`parallel_env`."""
     from pettingzoo.utils.conversions import parallel_to_aec
 
-    return parallel_to_aec(parallel_env(scenario, render_mode=render_mode, overrides=overrides))
+    return parallel_to_aec(parallel_env(scenario, render_mode=render_mode, overrides=overrides, preset=preset))
 
 
 make = parallel_env

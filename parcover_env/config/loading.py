@@ -7,6 +7,7 @@ from pathlib import Path
 
 import yaml
 
+from parcover_env.config.presets import apply_preset
 from parcover_env.config.schema import Scenario
 from parcover_env.config.typed import from_mapping, to_mapping
 from parcover_env.errors import ConfigError
@@ -42,8 +43,11 @@ def deep_merge(base: dict, overrides: dict) -> dict:
     return out
 
 
-def scenario_from_mapping(data: object, source: str, overrides: dict | None = None) -> Scenario:
-    """A ``Scenario`` from parsed YAML (plus ``overrides``); schema errors name ``source`` and the key."""
+def scenario_from_mapping(data: object, source: str, overrides: dict | None = None,
+                          preset: str = "realistic") -> Scenario:
+    """A ``Scenario`` from parsed YAML, with ``preset`` applied and ``overrides`` merged on top;
+    schema errors name ``source`` and the key."""
+    data = apply_preset(data, preset, source)
     if overrides:
         if not isinstance(data, dict):
             raise ConfigError(source, "<top level>", "expected a mapping")

@@ -93,10 +93,10 @@ class ParallelCoverageEnv(ParallelEnv):
     metadata = {"name": "parcover_v0", "render_modes": ["rgb_array"], "render_fps": 10, "is_parallelizable": True}
 
     def __init__(self, scenario: str | Path | Scenario = "office", render_mode: str | None = None,
-                 overrides: dict | None = None):
+                 overrides: dict | None = None, preset: str = "realistic"):
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
-        self.scenario = load_scenario(scenario, overrides)
+        self.scenario = load_scenario(scenario, overrides, preset)
         self.render_mode = render_mode
         s = self.scenario
         self.mission = mission_for(s)

@@ -15,7 +15,11 @@ __all__ = ["configs_dir", "scenario_names", "resolve_scenario_path", "load_scena
 
 
 def configs_dir() -> Path:
-    """Folder of the shipped scenario YAMLs (installed as ``parcover_env/configs``)."""
+    """Folder of the shipped scenario YAMLs: ``configs/`` of a source checkout, else the installed
+    ``parcover_env/configs``."""
+    checkout = Path(__file__).resolve().parents[2] / "configs"
+    if (checkout / "__init__.py").is_file():
+        return checkout
     return Path(str(resources.files("parcover_env.configs")))
 
 
@@ -40,15 +44,17 @@ def resolve_scenario_path(name_or_path: str | Path) -> Path:
     return path
 
 
-def load_scenario(name_or_path: str | Path | Scenario, overrides: dict | None = None) -> Scenario:
+def load_scenario(name_or_path: str | Path | Scenario, overrides: dict | None = None,
+                  preset: str = "realistic") -> Scenario:
     """Load a scenario by shipped name, ``generated:SEED``, YAML path, or pass a ``Scenario`` through.
 
-    ``overrides`` is a (nested) mapping merged over the file's contents before validation,
-    e.g. ``{"n_robots": 3, "episode": {"max_steps": 500}}``. Errors are one ``ConfigError``
-    naming the source and the dotted key.
+    ``preset`` (``realistic`` or ``ideal``, see :mod:`parcover_env.config.presets`) is applied to
+    the file's contents, then ``overrides``, a (nested) mapping such as
+    ``{"n_robots": 3, "episode": {"max_steps": 500}}``, is merged on top before validation.
+    Errors are one ``ConfigError`` naming the source and the dotted key.
     """
     if isinstance(name_or_path, Scenario):
-        if not overrides:
+        if not overrides and preset == "realistic":
             return name_or_path
         data, source = to_mapping(name_or_path), name_or_path.source
     elif isinstance(name_or_path, str) and name_or_path.startswith("generated:"):
@@ -60,7 +66,7 @@ def load_scenario(name_or_path: str | Path | Scenario, overrides: dict | None = 
         path = resolve_scenario_path(name_or_path)
         source = str(path)
         data = read_yaml(path)
-    scenario = scenario_from_mapping(data, source, overrides)
+    scenario = scenario_from_mapping(data, source, overrides, preset)
     try:
         validate_geometry(scenario, map_model(scenario.map, True), map_model(scenario.map, False))
     except ConfigError as exc:
