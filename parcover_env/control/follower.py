@@ -18,11 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from parcover_env.geometry import wrap_angle
+
 __all__ = ["LPsi", "relative_l_psi", "l_psi_control", "LeaderVelocityEstimator"]
-
-
-def _wrap(a: float) -> float:
-    return float((a + np.pi) % (2.0 * np.pi) - np.pi)
 
 
 @dataclass(frozen=True)
@@ -36,8 +34,8 @@ def relative_l_psi(rel_xy, rel_heading: float, offset: float) -> LPsi:
     """l, psi, gamma from the leader's position ``rel_xy`` and heading in the follower's frame."""
     qx, qy = offset - rel_xy[0], -rel_xy[1]  # q - p_L, with q = (d, 0) in the follower frame
     l = float(np.hypot(qx, qy))
-    psi = _wrap(np.arctan2(qy, qx) - rel_heading)
-    return LPsi(l, psi, _wrap(rel_heading + psi))
+    psi = float(wrap_angle(np.arctan2(qy, qx) - rel_heading))
+    return LPsi(l, psi, float(wrap_angle(rel_heading + psi)))
 
 
 def l_psi_control(m: LPsi, l_d: float, psi_d: float, offset: float, gains: tuple[float, float],
@@ -46,7 +44,7 @@ def l_psi_control(m: LPsi, l_d: float, psi_d: float, offset: float, gains: tuple
     """Saturated ``(v_F, w_F)`` of the l-psi law."""
     a1, a2 = gains
     A = a1 * (l_d - m.l) + v_leader * np.cos(m.psi)
-    B = a2 * m.l * _wrap(psi_d - m.psi) - v_leader * np.sin(m.psi) + m.l * w_leader
+    B = a2 * m.l * float(wrap_angle(psi_d - m.psi)) - v_leader * np.sin(m.psi) + m.l * w_leader
     v = A * np.cos(m.gamma) - B * np.sin(m.gamma)
     w = (A * np.sin(m.gamma) + B * np.cos(m.gamma)) / offset
     lo = -max_speed if min_speed is None else min_speed
@@ -77,9 +75,9 @@ class LeaderVelocityEstimator:
             c, s = np.cos(turn), np.sin(turn)
             p1 = np.array([own_v * self.dt + c * rel_xy[0] - s * rel_xy[1], s * rel_xy[0] + c * rel_xy[1]])
             disp = p1 - p0
-            heading = h0 + 0.5 * _wrap(rel_heading + turn - h0)
+            heading = h0 + 0.5 * float(wrap_angle(rel_heading + turn - h0))
             v = float(disp @ np.array([np.cos(heading), np.sin(heading)])) / self.dt
-            w = _wrap(rel_heading + turn - h0) / self.dt
+            w = float(wrap_angle(rel_heading + turn - h0)) / self.dt
             self.v += self.alpha * (v - self.v)
             self.w += self.alpha * (w - self.w)
         self.prev = (rel_xy.copy(), float(rel_heading))

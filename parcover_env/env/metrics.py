@@ -6,6 +6,8 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from parcover_env.geometry import wrap_angle
+
 __all__ = ["EpisodeMetrics", "formation_errors"]
 
 
@@ -18,7 +20,7 @@ def formation_errors(poses: np.ndarray, predecessor: np.ndarray, offset: float, 
     d = q - lead[:, :2]
     l = np.hypot(d[:, 0], d[:, 1])
     psi = np.arctan2(d[:, 1], d[:, 0]) - lead[:, 2]
-    return l - l_d, np.angle(np.exp(1j * (psi - psi_d)))
+    return l - l_d, wrap_angle(psi - psi_d)
 
 
 @dataclass

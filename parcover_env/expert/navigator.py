@@ -89,7 +89,7 @@ class SonarNavigator:
         self.specular = r.sonar.model == "specular"
         self.incidence = math.radians(r.sonar.incidence_max_deg) if self.specular else math.pi / 2
         self.cone = math.radians(r.sonar.cone_deg) if self.specular else 0.0
-        self.front = np.flatnonzero(np.abs(np.angle(np.exp(1j * self.beams))) <= math.radians(25))
+        self.front = np.flatnonzero(np.abs(wrap_angle(self.beams)) <= math.radians(25))
         self.routes = [np.asarray(p, dtype=float) for p in paths]
         self.n = len(self.routes)
         self.reset()

@@ -26,7 +26,7 @@ import numpy as np
 from parcover_env.control.follower import LeaderVelocityEstimator, l_psi_control, relative_l_psi
 from parcover_env.control.leader import go_to_goal
 from parcover_env.env.observations import ObservationLayout
-from parcover_env.geometry import rotate
+from parcover_env.geometry import rotate, wrap_angle
 from parcover_env.scenarios import Mission, RouteTracker
 
 __all__ = ["ScriptedExpert"]
@@ -56,7 +56,7 @@ class ScriptedExpert:
         self.v_max, self.w_max = r.max_speed, r.max_turn_rate
         self.sonar_front = None
         if sonar_angles is not None and len(sonar_angles):
-            self.sonar_front = np.flatnonzero(np.abs(np.angle(np.exp(1j * np.asarray(sonar_angles)))) <= np.radians(25))
+            self.sonar_front = np.flatnonzero(np.abs(wrap_angle(np.asarray(sonar_angles))) <= np.radians(25))
         self.stop = r.radius + stop_margin
         self.slow = r.radius + slow_margin
         self.patience = patience

@@ -23,7 +23,7 @@ from functools import lru_cache
 import numpy as np
 
 from parcover_env.config import SonarConfig
-from parcover_env.geometry import point_segment_distance
+from parcover_env.geometry import point_segment_distance, wrap_angle
 
 __all__ = ["SonarRing", "AMIGOBOT_ANGLES_DEG", "concave_corners", "simulate_beams"]
 
@@ -250,7 +250,7 @@ def _corner_echoes(cfg, origins, axes, segments, centres, radius, owner, pts, u1
         return out
     # only the visible (origin, corner) pairs: the bearing of each against every beam axis
     bearing = np.arctan2(vec[vi, vc, 1], vec[vi, vc, 0])
-    diff = np.abs(np.angle(np.exp(1j * (bearing[:, None] - axes[vi]))))
+    diff = np.abs(wrap_angle(bearing[:, None] - axes[vi]))
     in_cone = diff <= math.radians(cfg.cone_deg) / 2 + 1e-12
     np.minimum.at(out, vi, np.where(in_cone, dist[vi, vc][:, None], np.inf))
     return out

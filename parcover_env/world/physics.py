@@ -21,6 +21,7 @@ except ImportError:  # pragma: no cover - other pymunk builds: the public proper
     _cp = None
 
 from parcover_env.config import PhysicsConfig
+from parcover_env.geometry import wrap_angle
 from parcover_env.world.map_model import MapModel
 
 __all__ = ["World"]
@@ -96,7 +97,7 @@ class World:
         for i, b in enumerate(self.bodies):
             out[i, 0], out[i, 1] = b.position
             out[i, 2] = b.angle
-        out[:, 2] = np.pi - np.mod(np.pi - out[:, 2], 2.0 * np.pi)
+        out[:, 2] = wrap_angle(out[:, 2])
         return out
 
 

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from parcover_env.geometry import wrap_angle
 from parcover_env.localization.sonar.features import MapFeature
 from parcover_env.localization.sonar.sectors import visible_features
 
@@ -87,8 +88,8 @@ def scan_bias(nodes, features: list[MapFeature]) -> np.ndarray:
     v = xy[:, None, :] - c[None, :, :]
     phi = np.arctan2(v[..., 1], v[..., 0])
     a1, a2 = np.arctan2(w[:, 0, 1], w[:, 0, 0]), np.arctan2(w[:, 1, 1], w[:, 1, 0])
-    t1 = np.abs(np.angle(np.exp(1j * (phi - a1[None, :]))))
-    t2 = np.abs(np.angle(np.exp(1j * (phi - a2[None, :]))))
+    t1 = np.abs(wrap_angle(phi - a1[None, :]))
+    t2 = np.abs(wrap_angle(phi - a2[None, :]))
     return np.abs(t1 - t2)
 
 
@@ -118,7 +119,7 @@ def wall_readings(nodes, feature: MapFeature, range_max: float, step: float,
         p_hi = feature.point + hi[:, None] * feature.walls[k]
         a_lo = np.arctan2(*(p_lo - xy)[:, ::-1].T)
         a_hi = np.arctan2(*(p_hi - xy)[:, ::-1].T)
-        span = np.abs(np.angle(np.exp(1j * (a_hi - a_lo))))
+        span = np.abs(wrap_angle(a_hi - a_lo))
         out[:, k] = np.where(ok, np.floor(span / step) + 1.0, 0.0)
     return out
 
@@ -204,7 +205,7 @@ def scan_interval(xy, feature: MapFeature, range_max: float, incidence_max: floa
             q = feature.point + hi[0] * feature.walls[k]
             bearings.append(math.atan2(*(q - p[0])[::-1]))
     ref = bearings[0]
-    rel = [float(np.angle(np.exp(1j * (b - ref)))) for b in bearings]
+    rel = [float(wrap_angle(b - ref)) for b in bearings]
     lo, hi = min(rel), max(rel)
     return ref + lo, hi - lo
 
@@ -225,7 +226,7 @@ def unblocked_scan_angle(xy, feature: MapFeature, others, robot_radius: float, r
         if r < 1e-9:
             return 0.0
         half = math.asin(min(1.0, robot_radius / r)) + cone / 2
-        free &= np.abs(np.angle(np.exp(1j * (b - math.atan2(q[1] - p[1], q[0] - p[0]))))) > half
+        free &= np.abs(wrap_angle(b - math.atan2(q[1] - p[1], q[0] - p[0]))) > half
     return float(free.sum() * resolution)
 
 
