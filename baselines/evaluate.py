@@ -8,8 +8,6 @@ For tables with confidence intervals over several policies use ``parcover bench`
 
 from __future__ import annotations
 
-import argparse
-import dataclasses
 import json
 from dataclasses import dataclass
 
@@ -28,10 +26,10 @@ class Args:
 
 
 def parse_args(argv=None) -> Args:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    for f in dataclasses.fields(Args):
-        p.add_argument("--" + f.name.replace("_", "-"), type=type(f.default), default=f.default)
-    return Args(**vars(p.parse_args(argv)))
+    """``Args`` from the command line (``--help`` lists every field with its docstring)."""
+    import tyro
+
+    return tyro.cli(Args, args=argv, description=__doc__)
 
 
 def evaluate(args: Args) -> list[dict]:

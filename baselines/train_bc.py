@@ -11,9 +11,7 @@ action (mean squared error, tanh output) from one robot's normalized observation
 
 from __future__ import annotations
 
-import argparse
 import csv
-import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,10 +33,10 @@ class Args:
 
 
 def parse_args(argv=None) -> Args:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    for f in dataclasses.fields(Args):
-        p.add_argument("--" + f.name.replace("_", "-"), type=type(f.default), default=f.default)
-    return Args(**vars(p.parse_args(argv)))
+    """``Args`` from the command line (``--help`` lists every field with its docstring)."""
+    import tyro
+
+    return tyro.cli(Args, args=argv, description=__doc__)
 
 
 def load_demos(args: Args):

@@ -10,9 +10,7 @@ Writes ``OUT/model.zip``, ``OUT/vecnormalize.pkl`` (observation statistics, read
 
 from __future__ import annotations
 
-import argparse
 import csv
-import dataclasses
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -45,14 +43,10 @@ class Args:
 
 
 def parse_args(argv=None) -> Args:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    for f in dataclasses.fields(Args):
-        flag = "--" + f.name.replace("_", "-")
-        if f.type in ("bool", bool):
-            p.add_argument(flag, action=argparse.BooleanOptionalAction, default=f.default)
-        else:
-            p.add_argument(flag, type=type(f.default), default=f.default)
-    return Args(**vars(p.parse_args(argv)))
+    """``Args`` from the command line (``--help`` lists every field with its docstring)."""
+    import tyro
+
+    return tyro.cli(Args, args=argv, description=__doc__)
 
 
 def make_env_fns(args: Args):

@@ -8,13 +8,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 from shapely.geometry import Polygon
-
-if TYPE_CHECKING:
-    from parcover_env.config import KinectConfig
 
 __all__ = ["CameraModel"]
 
@@ -32,7 +29,8 @@ class CameraModel:
     range_max: float
 
     @classmethod
-    def from_config(cls, cfg: KinectConfig) -> CameraModel:
+    def from_config(cls, cfg: Any) -> CameraModel:
+        """From a ``parcover_env.config.KinectConfig`` (read by attribute: geometry sits below config)."""
         return cls.from_pose(cfg.position, cfg.height, cfg.pitch_deg, cfg.yaw_deg, cfg.resolution,
                              cfg.fov_deg, cfg.range_min, cfg.range_max)
 

@@ -13,7 +13,7 @@ from parcover_env.errors import ConfigError
 from parcover_env.planning.plan import Plan
 from parcover_env.planning.ppcp import solve_ppcp
 from parcover_env.planning.roadmap import Roadmap, UnreachableKpoiError, build_roadmap, planner_clearance
-from parcover_env.world.map_model import MapModel
+from parcover_env.world.map_model import MapModel, map_model
 
 if TYPE_CHECKING:
     from parcover_env.config import Scenario
@@ -51,7 +51,7 @@ def make_simplifier(map_model: MapModel, radius: float, tolerance: float):
 @lru_cache(maxsize=32)
 def _cached_roadmap(map_cfg, start, kpois, radius: float, resolution: float, kind: str,
                     kpoi_radius: float) -> Roadmap:
-    model = MapModel.from_config(map_cfg, include_unknown=False)
+    model = map_model(map_cfg, include_unknown=False)
     return build_roadmap(model, start, kpois, planner_clearance(radius, resolution), resolution, kind,
                          kpoi_radius)
 
@@ -70,7 +70,7 @@ def scenario_roadmap(scenario: Scenario) -> Roadmap:
 @lru_cache(maxsize=32)
 def _cached_plan(scenario: Scenario, n_robots: int | None, method: str) -> Plan:
     roadmap = scenario_roadmap(scenario)
-    model = MapModel.from_config(scenario.map, include_unknown=False)
+    model = map_model(scenario.map, include_unknown=False)
     radius = scenario.robot.radius
     simplify = make_simplifier(model, radius, scenario.planner.resolution)
     start = np.array([scenario.start.x, scenario.start.y])

@@ -7,7 +7,7 @@ from shapely.geometry import Point, box
 from parcover_env.config import Scenario
 from parcover_env.errors import ConfigError
 from parcover_env.geometry.camera import CameraModel
-from parcover_env.world.map_model import MapModel, checked_polygon
+from parcover_env.world.map_model import MapModel, checked_polygon, map_model
 
 __all__ = ["validate_geometry"]
 
@@ -17,8 +17,8 @@ def validate_geometry(s: Scenario, world: MapModel | None = None, known: MapMode
     cfg = s.map
     if cfg.boundary:
         checked_polygon(cfg.boundary, "map.boundary")
-    world = world or MapModel.from_config(cfg, include_unknown=True)
-    known = known or MapModel.from_config(cfg, include_unknown=False)
+    world = world or map_model(cfg, include_unknown=True)
+    known = known or map_model(cfg, include_unknown=False)
     r = s.robot.radius
     x0, y0, x1, y1 = world.bounds
     start = (s.start.x, s.start.y)

@@ -140,11 +140,10 @@ def simulate_trajectory(sensor: KinectSensor, start, v: float, omega: float, dur
 
 def _kinect_and_poses(scenario: Scenario) -> tuple[KinectSensor, np.ndarray]:
     from parcover_env.config import KinectConfig
-    from parcover_env.world.map_model import MapModel
-
+    from parcover_env.world.map_model import map_model
     cfg = scenario.kinects[0] if scenario.kinects else \
         KinectConfig("overhead", (scenario.start.x, scenario.start.y))
-    mm = MapModel.from_config(scenario.map)
+    mm = map_model(scenario.map)
     sensor = KinectSensor(cfg, scenario.robot.radius, scenario.robot.height, mm)
     fp = sensor.camera.footprint().buffer(-2.5 * scenario.robot.radius)
     start = np.array([scenario.start.x, scenario.start.y])

@@ -13,7 +13,7 @@ import numpy as np
 from parcover_env.planning.kinect_tree import KinectTree, kinect_footprints
 from parcover_env.planning.plan import Plan
 from parcover_env.planning.roadmap import edge_polyline
-from parcover_env.world.map_model import MapModel
+from parcover_env.world.map_model import map_model
 
 if TYPE_CHECKING:
     from parcover_env.config import Scenario
@@ -43,7 +43,7 @@ def draw_plan(scenario: Scenario, plan: Plan, kinect_tree: KinectTree | None = N
 
     if not scale_px_per_m > 0:
         raise ValueError(f"scale_px_per_m must be > 0, got {scale_px_per_m}")
-    model = MapModel.from_config(scenario.map, include_unknown=False)
+    model = map_model(scenario.map, include_unknown=False)
     x0, y0, x1, y1 = model.bounds
     s, m = float(scale_px_per_m), 30
     w_map, h_map = int(round((x1 - x0) * s)) + 2 * m, int(round((y1 - y0) * s)) + 2 * m + 24

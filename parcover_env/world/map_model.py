@@ -85,7 +85,11 @@ class MapModel:
         return None
 
 
-@lru_cache(maxsize=64)
 def map_model(cfg: MapConfig, include_unknown: bool = True) -> MapModel:
     """The map of ``cfg``, built once per process and shared (maps are immutable)."""
+    return _cached_map_model(cfg, bool(include_unknown))
+
+
+@lru_cache(maxsize=64)
+def _cached_map_model(cfg: MapConfig, include_unknown: bool) -> MapModel:
     return MapModel.from_config(cfg, include_unknown)

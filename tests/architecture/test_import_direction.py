@@ -1,0 +1,106 @@
+"""The house's import rules, read from the source with ``ast`` (nothing is imported).
+
+Rooms sit on floors (see the README's Architecture section); a module may import from its own
+room or from rooms on lower floors, never from a higher floor. ``viz`` draws state and is imported
+only by ``env`` (lazily, inside ``render``), ``harness`` and ``cli``. No import cycles at all.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import networkx as nx
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[2] / "parcover_env"
+FLOORS = {
+    "errors": 0,
+    "geometry": 1,
+    "config": 2,
+    "world": 3, "sensors": 3,
+    "planning": 4, "localization": 4, "control": 4,
+    "scenarios": 5,
+    "viz": 6,
+    "env": 7,
+    "expert": 8, "policies": 8,
+    "harness": 9,
+    "cli": 10,
+}
+VIZ_CLIENTS = {"env", "harness", "cli"}
+
+
+def _modules() -> dict[str, Path]:
+    mods = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        mods[".".join(parts)] = path
+    return mods
+
+
+def _imports(module: str, path: Path) -> list[tuple[str, bool]]:
+    """(imported module, at module level?) for every parcover_env import of ``module``."""
+    tree = ast.parse(path.read_text())
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    top_level = {id(n) for n in tree.body}
+    for node in tree.body:  # `if TYPE_CHECKING:` blocks are not run
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            top_level -= {id(n) for n in ast.walk(node)}
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                base = ".".join(package.split(".")[: len(package.split(".")) - node.level + 1] + [base]).strip(".")
+            names = [base]
+        else:
+            continue
+        out += [(n, id(node) in top_level) for n in names if n.startswith("parcover_env")]
+    return out
+
+
+def _room(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else None
+
+
+MODULES = _modules()
+EDGES = [(m, target, top) for m, p in MODULES.items() for target, top in _imports(m, p)]
+
+
+def test_every_room_has_a_floor():
+    rooms = {_room(m) for m in MODULES} - {None, "configs"}
+    assert rooms <= set(FLOORS), f"rooms without a floor: {rooms - set(FLOORS)}"
+
+
+@pytest.mark.parametrize("module, target", [(m, t) for m, t, _ in EDGES if _room(m) and _room(t)])
+def test_imports_never_go_up_a_floor(module, target):
+    src, dst = _room(module), _room(target)
+    if dst == "viz":
+        assert src in VIZ_CLIENTS | {"viz"}, f"{module} imports {target}: only env, harness and cli draw"
+        return
+    assert FLOORS[dst] <= FLOORS[src], f"{module} (floor {FLOORS[src]}) imports {target} (floor {FLOORS[dst]})"
+
+
+def test_env_imports_viz_only_lazily():
+    eager = [(m, t) for m, t, top in EDGES if _room(m) == "env" and _room(t) == "viz" and top]
+    assert not eager, f"env must import viz inside render(): {eager}"
+
+
+def test_no_import_cycles():
+    graph = nx.DiGraph()
+    for module, target, top in EDGES:
+        while target not in MODULES and "." in target:
+            target = target.rpartition(".")[0]
+        if top and target != module and not module.startswith(target + "."):
+            graph.add_edge(module, target)
+    assert list(nx.simple_cycles(graph)) == []
+
+
+def test_at_most_four_loose_modules():
+    loose = [p.name for p in PACKAGE.glob("*.py") if p.name != "__init__.py"]
+    assert len(loose) <= 4, loose
