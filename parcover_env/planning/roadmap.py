@@ -20,7 +20,6 @@ therefore uses ``clearance = radius + 0.75 * resolution + 0.005`` (see :func:`pl
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import networkx as nx
@@ -249,8 +248,3 @@ def build_roadmap(map_model: MapModel, start, kpois, clearance: float, resolutio
     return Roadmap(graph=graph, start=int(s_cell), kpois=tuple(int(c) for c in k_cells),
                    start_point=(float(start[0]), float(start[1])), kpoi_points=kp, clearance=float(clearance),
                    resolution=float(resolution), kind=kind)
-
-
-def roadmap_points(roadmap: Roadmap, nodes: Sequence[int]) -> np.ndarray:
-    """Positions ``(N, 2)`` of roadmap nodes."""
-    return np.array([roadmap.graph.nodes[n]["pos"] for n in nodes], dtype=float).reshape(-1, 2)
