@@ -12,15 +12,16 @@ from pettingzoo import ParallelEnv
 from parcover_env.config import Scenario
 from parcover_env.env.actions import to_commands
 from parcover_env.env.metrics import EpisodeMetrics, formation_errors
-from parcover_env.env.observations import MAX_FIX_AGE, ObservationLayout
+from parcover_env.env.observations import MAX_FIX_AGE, ObservationLayout, ellipse_entries
 from parcover_env.env.rewards import TERMS, reward_terms
 from parcover_env.env.team import Team
-from parcover_env.geometry import rotate
+from parcover_env.geometry import rotate, wrap_angle
 from parcover_env.localization.kinect.system import KinectSystem
 from parcover_env.scenarios import load_scenario, mission_for
 from parcover_env.sensors.odometry import Odometry
 from parcover_env.sensors.relative import RelativeCamera
 from parcover_env.sensors.sonar import SonarRing
+from parcover_env.world.drive import wheel_targets
 from parcover_env.world.physics import World
 
 __all__ = ["ParallelCoverageEnv"]
@@ -109,7 +110,10 @@ class ParallelCoverageEnv(ParallelEnv):
         self.kinects = KinectSystem(s, self.map) if s.kinects and s.observation.pose_source == "kinect" else None
         self.camera = RelativeCamera(s.formation.camera_fov_deg, s.formation.camera_range)
         self.layout = ObservationLayout.build(self.map.bounds, s.robot.max_speed, s.robot.max_turn_rate,
-                                              n_sonar, s.robot.sonar.range_max, s.formation.camera_range)
+                                              n_sonar, s.robot.sonar.range_max, s.formation.camera_range,
+                                              covariance=s.observation.pose_covariance)
+        sxy, sth = s.observation.fix_sigma_xy, np.radians(s.observation.fix_sigma_heading_deg)
+        self._fix_cov = np.diag([sxy**2, sxy**2, sth**2])
         self._obs_space = self.layout.space()
         self._act_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         n_state = 5 * self.n_robots + len(s.kpois) + 1
@@ -129,10 +133,11 @@ class ParallelCoverageEnv(ParallelEnv):
             self._rng = np.random.default_rng(seed)
         s = self.scenario
         self.agents = list(self.possible_agents)
-        self.world = World(self.map, s.robot.radius, s.physics, self.mission.start_poses)
+        self.world = World(self.map, s.robot.radius, s.physics, self.mission.start_poses, s.robot.drive)
         true = self.world.poses()
-        self.odometry = Odometry(s.robot.odometry, true)
+        self.odometry = Odometry(s.robot.odometry, true, s.robot.drive.wheel_base, self._rng)
         self.estimate = true.copy()
+        self.velocity = np.zeros((self.n_robots, 2))
         self.fix_age = np.zeros(self.n_robots)
         if self.kinects is not None:
             self.kinects.reset()
@@ -174,8 +179,10 @@ class ParallelCoverageEnv(ParallelEnv):
             total = total + terms[t]
         rewards = dict(zip(self.agents, total.tolist(), strict=True))
         per_agent = zip(*(terms[t].tolist() for t in TERMS), strict=True)
-        infos = {a: {"reward_terms": dict(zip(TERMS, vals, strict=True))}
-                 for a, vals in zip(self.agents, per_agent, strict=True)}
+        pos_err = np.hypot(*(self.estimate[:, :2] - true[:, :2]).T).tolist()
+        head_err = np.abs(wrap_angle(self.estimate[:, 2] - true[:, 2])).tolist()
+        infos = {a: {"reward_terms": dict(zip(TERMS, vals, strict=True)), "pose_error": pe, "heading_error": he}
+                 for a, vals, pe, he in zip(self.agents, per_agent, pos_err, head_err, strict=True)}
         if done or truncated:
             summary = self.metrics.summary()
             for info in infos.values():
@@ -189,16 +196,30 @@ class ParallelCoverageEnv(ParallelEnv):
     # ------------------------------------------------------------------ step parts
     def _sense(self, true: np.ndarray) -> None:
         """Pose estimates: odometry dead reckoning, corrected by Kinect fixes of the leaders."""
-        est = self.odometry.measure(true, self._rng)
-        self.fix_age += self.scenario.physics.control_dt
-        if self.scenario.observation.pose_source == "ground_truth":
-            est[:] = true
+        s = self.scenario
+        dt = s.physics.control_dt
+        if s.robot.odometry.model == "wheels":
+            if self.world.drive is not None:
+                travel, change = self.world.drive.take_travel()
+            else:  # instant drive: the wheels turned at the commanded speeds all step
+                travel = wheel_targets(self.commands, s.robot.drive.wheel_base, np.inf) * dt
+                change = np.zeros_like(travel)
+            before = self.odometry.estimate.copy()
+            est = self.odometry.measure_wheels(travel, change, dt, self._rng)
+            ds = np.hypot(*(est[:, :2] - before[:, :2]).T) * np.sign(travel.sum(axis=1))
+            self.velocity = np.stack([ds, wrap_angle(est[:, 2] - before[:, 2])], axis=1) / dt
+        else:
+            est = self.odometry.measure(true, self._rng)
+            self.velocity = self.commands
+        self.fix_age += dt
+        if s.observation.pose_source == "ground_truth":
+            self.odometry.set_truth(true)
             self.fix_age[:] = 0.0
         elif self.kinects is not None:
             markers = self.team.leader & self.scenario.robot.markers
             fixes = self.kinects.update(self.world.time, true, markers, est, self._rng)
             for i, pose in fixes.items():
-                self.odometry.fix(i, pose)
+                self.odometry.fix(i, pose, self._fix_cov)
                 self.fix_age[i] = 0.0
             self.team.count_pose_fixes(len(fixes))
         self.estimate = est
@@ -233,11 +254,13 @@ class ParallelCoverageEnv(ParallelEnv):
         obs[:, L["y"]] = est[:, 1:2]
         obs[:, L["cos_theta"]] = np.cos(est[:, 2:3])
         obs[:, L["sin_theta"]] = np.sin(est[:, 2:3])
-        obs[:, L["v"]] = self.commands[:, 0:1]
-        obs[:, L["omega"]] = self.commands[:, 1:2]
+        obs[:, L["v"]] = self.velocity[:, 0:1]
+        obs[:, L["omega"]] = self.velocity[:, 1:2]
         obs[:, L["leader"]] = self.team.leader[:, None]
         obs[:, L["slot"]] = self.team.slot[:, None] / max(n - 1, 1)
         obs[:, L["fix_age"]] = np.minimum(self.fix_age, MAX_FIX_AGE)[:, None]
+        if "sigma_major" in L:
+            obs[:, L["sigma_major"].start:L["sigma_heading"].stop] = ellipse_entries(self.odometry.covariance, est[:, 2])
         goal = rotate(self.progress.goals() - est[:, :2], -est[:, 2])
         obs[:, L["goal_dx"]] = goal[:, 0:1]
         obs[:, L["goal_dy"]] = goal[:, 1:2]
@@ -258,6 +281,18 @@ class ParallelCoverageEnv(ParallelEnv):
         return {a: obs[i] for i, a in enumerate(self.possible_agents) if a in active}
 
     # ------------------------------------------------------------------ extras
+    def true_poses(self) -> np.ndarray:
+        """Ground-truth poses ``(n_robots, 3)`` (x, y m; theta rad in (-pi, pi]) in agent order."""
+        return self.world.poses()
+
+    def pose_estimates(self) -> np.ndarray:
+        """The robots' pose estimates ``(n_robots, 3)`` (the observations' x, y, theta), agent order."""
+        return self.estimate.copy()
+
+    def pose_covariances(self) -> np.ndarray:
+        """Covariances ``(n_robots, 3, 3)`` of the pose estimates (m^2, m rad, rad^2), agent order."""
+        return self.odometry.covariance.copy()
+
     def state(self) -> np.ndarray:
         true = self.world.poses()
         parts = [true[:, :2], np.cos(true[:, 2:3]), np.sin(true[:, 2:3]), self.team.leader[:, None]]
