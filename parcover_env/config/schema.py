@@ -196,7 +196,7 @@ class OdometryConfig:
     """``motion`` model: relative std of the turned angle per control step (-)."""
     diameter_ratio_std: float = 0.002
     """Std of E_d - 1, the right/left wheel-diameter ratio error, per robot per episode (-)."""
-    scale_std: float = 0.005
+    scale_std: float = 0.01
     """Std of the mean wheel-diameter error (both wheels' distance scale), per robot per episode (-)."""
     wheelbase_std: float = 0.01
     """Std of E_b - 1, the effective wheel-base ratio error, per robot per episode (-)."""

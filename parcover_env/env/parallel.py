@@ -260,7 +260,8 @@ class ParallelCoverageEnv(ParallelEnv):
         obs[:, L["slot"]] = self.team.slot[:, None] / max(n - 1, 1)
         obs[:, L["fix_age"]] = np.minimum(self.fix_age, MAX_FIX_AGE)[:, None]
         if "sigma_major" in L:
-            obs[:, L["sigma_major"].start:L["sigma_heading"].stop] = ellipse_entries(self.odometry.covariance, est[:, 2])
+            cov = ellipse_entries(self.odometry.covariance, est[:, 2])
+            obs[:, L["sigma_major"].start:L["sigma_heading"].stop] = cov
         goal = rotate(self.progress.goals() - est[:, :2], -est[:, 2])
         obs[:, L["goal_dx"]] = goal[:, 0:1]
         obs[:, L["goal_dy"]] = goal[:, 1:2]

@@ -94,17 +94,19 @@ class Odometry:
         """Distance travelled since the last absolute fix (m), per robot."""
         self.turned = np.zeros(n)
         """Absolute angle turned since the last absolute fix (rad), per robot."""
-        self.e_d = np.ones(n)
-        """Wheel-diameter ratio D_R / D_L per robot (UMBmark E_d)."""
-        self.scale = np.ones(n)
-        """Mean wheel diameter / nominal per robot."""
-        self.e_b = np.ones(n)
-        """Effective wheel base / nominal per robot (UMBmark E_b)."""
+        z = np.zeros((3, n))
         if cfg.model == "wheels" and rng is not None:
             z = rng.standard_normal((3, n))
-            self.e_d = 1.0 + cfg.diameter_ratio_std * z[0]
-            self.scale = 1.0 + cfg.scale_std * z[1]
-            self.e_b = 1.0 + cfg.wheelbase_std * z[2]
+        self.set_systematic(1.0 + cfg.diameter_ratio_std * z[0], 1.0 + cfg.scale_std * z[1],
+                            1.0 + cfg.wheelbase_std * z[2])
+
+    def set_systematic(self, e_d, scale, e_b) -> None:
+        """Set the systematic errors per robot (scalars or ``(N,)``): E_d = D_R / D_L, mean diameter /
+        nominal, E_b = effective wheel base / nominal."""
+        n = len(self.estimate)
+        self.e_d = np.broadcast_to(np.asarray(e_d, dtype=float), (n,)).copy()
+        self.scale = np.broadcast_to(np.asarray(scale, dtype=float), (n,)).copy()
+        self.e_b = np.broadcast_to(np.asarray(e_b, dtype=float), (n,)).copy()
         self.factors = encoder_factors(self.e_d, self.scale)
         """Encoder reading / true wheel distance ``(N, 2)`` (left, right)."""
         self.believed_base = self.wheel_base / self.e_b
