@@ -40,9 +40,14 @@ class ParallelCoverageEnv(ParallelEnv):
     through its KPOIs; the team travels together and splits at turning positions (TPs).
 
     ## Action space
-    ``Box(-1, 1, (2,), float32)`` per agent: ``(v, omega)`` as fractions of the robot's
+    ``Box(-1, 1, (2,), float32)`` per agent: normalized ``(v, omega)``, fractions of the robot's
     ``max_speed`` (m/s) and ``max_turn_rate`` (rad/s). Values outside [-1, 1] are clipped; NaN/inf,
     a wrong shape, or missing/unknown agents raise ``ActionError`` and leave the state untouched.
+    The action is a *command*, not the velocity: with ``robot.drive.model: wheels`` (default) it
+    becomes left/right wheel-speed targets (limited to ``drive.wheel_speed_max``), which the wheels
+    follow with a first-order lag (``drive.tau``) and bounded acceleration (``drive.accel_max``) at
+    the physics rate; from rest, full forward takes a few control steps. ``drive.model: instant``
+    (``ideal`` preset) applies the command as the body velocity.
 
     ## Observation space
     One flat ``Box`` per agent, identical across agents (``env.layout`` names the slices):
@@ -51,17 +56,24 @@ class ParallelCoverageEnv(ParallelEnv):
     |---|---|---|---|
     | x, y | 2 | m | pose estimate: odometry, reset by Kinect fixes of seen leaders (``pose_source``) |
     | cos_theta, sin_theta | 2 | - | heading estimate |
-    | v, omega | 2 | m/s, rad/s | velocity commanded at the last step |
+    | v, omega | 2 | m/s, rad/s | velocity measured by the wheel encoders over the last step (odometry increment / step; ``odometry.model: motion``, ideal preset: the command) |
     | leader | 1 | - | 1 if the robot leads its group, else 0 (follower) |
     | slot | 1 | - | position in its group's column / (n_robots - 1); 0 = leader |
+    | fix_age | 1 | s | time since the last absolute pose fix, capped at 60 s (large = stale estimate) |
+    | sigma_major, sigma_minor | 2 | m | axes (1 sigma) of the position uncertainty ellipse of the estimate |
+    | sigma_axis_cos2, sigma_axis_sin2 | 2 | - | cos, sin of twice the major axis' angle in the robot frame (an axis has no sign; (1, 0) for a circle) |
+    | sigma_heading | 1 | rad | heading sigma of the estimate |
+    | goal_dx, goal_dy | 2 | m | current route waypoint in the robot frame (x ahead, y left), from the estimate |
     | pred_dx, pred_dy | 2 | m | robot ahead in the column, in this robot's frame (onboard camera; 0 if unseen) |
     | pred_cos, pred_sin | 2 | - | its heading relative to this robot's |
     | pred_visible | 1 | - | 1 if a follower's camera sees its predecessor (FOV, range, walls) |
-    | fix_age | 1 | s | time since the last absolute pose fix, capped at 60 s (large = stale estimate) |
-    | goal_dx, goal_dy | 2 | m | current route waypoint in the robot frame (x ahead, y left), from the estimate |
     | kpois_visited | 1 | - | fraction of KPOIs visited by the team |
     | time | 1 | - | fraction of the step limit elapsed |
     | sonar | B | m | sonar ring ranges (B beams; ``robot.sonar``), max range = no echo |
+
+    The ``sigma_*`` entries (``observation.pose_covariance``, off in the ``ideal`` preset) come from
+    the pose covariance the odometry propagates (Chong & Kleeman) and that an absolute fix resets to
+    ``observation.fix_sigma_xy`` / ``fix_sigma_heading_deg``: a policy can tell when it is lost.
 
     ``state()`` is the global state for centralized critics: true (x, y, cos, sin) and leader
     flag of every robot, the visited flag of every KPOI, and the elapsed time fraction.
@@ -78,6 +90,11 @@ class ParallelCoverageEnv(ParallelEnv):
     All agents end together; ``info[agent]["episode"]`` then holds the metrics (makespan, KPOIs
     visited, collisions, path lengths, localization error, makespan / (c_max / v_max), ...).
 
+    ## Infos and analysis
+    ``info[agent]`` holds ``reward_terms`` and the per-step estimate error ``pose_error`` (m) and
+    ``heading_error`` (rad, absolute). ``env.true_poses()`` and ``env.pose_estimates()`` return
+    ``(n_robots, 3)`` arrays (x, y, theta) in agent order, ``env.pose_covariances()`` ``(n_robots, 3, 3)``.
+
     ## Rates
     One ``step`` is one control period of ``physics.substeps x physics.dt`` seconds (default
     5 x 0.02 s = 0.1 s); pymunk integrates at ``physics.dt``.
@@ -88,10 +105,15 @@ class ParallelCoverageEnv(ParallelEnv):
     ``{"n_robots": 3, "episode": {"max_steps": 500}}``).
 
     ## Version history
+    * v1: realistic motion and covariance observations: differential-drive dynamics (wheel limits,
+      lag, bounded acceleration), wheel odometry with UMBmark systematic, random and slip errors,
+      ``v, omega`` measured by the encoders, pose-uncertainty entries (``sigma_*``) after ``fix_age``,
+      ``info[agent]`` pose errors, ``true_poses()`` / ``pose_estimates()`` / ``pose_covariances()``.
+      The ``ideal`` preset keeps v0's motion, odometry and observation layout.
     * v0: initial release.
     """
 
-    metadata = {"name": "parcover_v0", "render_modes": ["rgb_array"], "render_fps": 10, "is_parallelizable": True}
+    metadata = {"name": "parcover_v1", "render_modes": ["rgb_array"], "render_fps": 10, "is_parallelizable": True}
 
     def __init__(self, scenario: str | Path | Scenario = "office", render_mode: str | None = None,
                  overrides: dict | None = None, preset: str = "realistic"):
