@@ -42,7 +42,14 @@ def test_fix_resets_estimate_and_travel():
 
 
 # ---------------------------------------------------------------- wheel encoder model (issue 13)
-from parcover_env.sensors.odometry import encoder_factors, propagate_covariance, wheel_increment_cov  # noqa: E402
+import pytest  # noqa: E402
+
+from parcover_env.sensors.odometry import (  # noqa: E402
+    encoder_factors,
+    integrate,
+    propagate_covariance,
+    wheel_increment_cov,
+)
 
 B = 0.18
 QUIET = OdometryConfig(diameter_ratio_std=0.0, scale_std=0.0, wheelbase_std=0.0, wheel_variance=0.0,
@@ -170,3 +177,77 @@ def test_systematic_errors_are_drawn_per_robot_from_the_episode_rng():
     assert np.allclose(a.believed_base, B / a.e_b)
     ideal = Odometry(OdometryConfig(model="motion"), np.zeros((3, 3)), B, np.random.default_rng(5))
     assert np.all(ideal.e_d == 1.0) and np.all(ideal.factors == 1.0)
+
+
+def test_motion_model_step_and_its_covariance_by_hand():
+    cfg = OdometryConfig(model="motion", noise_v=0.1, noise_omega=0.2)
+    start = np.array([[0.0, 0.0, 0.3], [1.0, 1.0, -0.2]])
+    odo = Odometry(cfg, start, B)
+    true = start + [[0.05 * np.cos(0.35), 0.05 * np.sin(0.35), 0.1], [0.0, 0.0, -0.4]]
+    est = odo.measure(true, np.random.default_rng(4)).copy()
+    z = np.random.default_rng(4).standard_normal(2), np.random.default_rng(4).standard_normal(4)[2:]
+    ds_m = np.array([0.05, 0.0]) * (1 + 0.1 * z[0])
+    dth_m = np.array([0.1, -0.4]) * (1 + 0.2 * z[1])
+    mid = start[:, 2] + dth_m / 2
+    np.testing.assert_allclose(est[:, 0], start[:, 0] + ds_m * np.cos(mid), atol=1e-15)
+    np.testing.assert_allclose(est[:, 2], start[:, 2] + dth_m, atol=1e-15)
+    q = np.zeros((2, 2, 2))
+    q[:, 0, 0], q[:, 1, 1] = (0.1 * ds_m) ** 2, (0.2 * dth_m) ** 2
+    np.testing.assert_allclose(odo.covariance, propagate_covariance(np.zeros((2, 3, 3)), start[:, 2], ds_m, dth_m, q),
+                               rtol=1e-12, atol=1e-20)
+    assert odo.covariance[1, 2, 2] == pytest.approx((0.2 * dth_m[1]) ** 2, rel=1e-12)
+    np.testing.assert_allclose(odo.travelled, np.abs(ds_m)) and np.testing.assert_allclose(odo.turned, np.abs(dth_m))
+
+
+def _pose_step(p, u):
+    out = np.array(p, dtype=float)[None].copy()
+    integrate(out, np.array([u[0]]), np.array([u[1]]))
+    return out[0]
+
+
+def test_covariance_jacobians_match_finite_differences():
+    theta, ds, dth = 0.7, 0.05, 0.3
+    p0 = np.array([0.3, -0.2, theta])
+    a = np.array([[2.0, 0.3, 0.1], [0.3, 1.0, -0.2], [0.1, -0.2, 0.5]]) * 1e-4
+    q = np.array([[[3e-6, 1e-6], [1e-6, 5e-5]]])
+    eps = 1e-7
+    f = np.stack([(_pose_step(p0 + eps * e, (ds, dth)) - _pose_step(p0 - eps * e, (ds, dth))) / (2 * eps)
+                  for e in np.eye(3)], axis=1)
+    g = np.stack([(_pose_step(p0, (ds, dth) + eps * e) - _pose_step(p0, (ds, dth) - eps * e)) / (2 * eps)
+                  for e in np.eye(2)], axis=1)
+    got = propagate_covariance(a[None], np.array([theta]), np.array([ds]), np.array([dth]), q)[0]
+    np.testing.assert_allclose(got, f @ a @ f.T + g @ q[0] @ g.T, rtol=1e-6, atol=1e-14)
+
+
+def test_random_wheel_error_is_drawn_exactly_and_the_arc_covariance_uses_each_wheel():
+    k, kc = 4e-6, 2e-5
+    cfg = OdometryConfig(diameter_ratio_std=0.0, scale_std=0.0, wheelbase_std=0.0, wheel_variance=k,
+                         slip_accel=0.0, slip_turn=0.0, covariance_wheel_variance=kc)
+    travel = np.array([[0.01, 0.03], [0.02, -0.02]])
+    rng = np.random.default_rng(11)
+    odo = _wheels(cfg, travel, 1, seed=11)
+    z = rng.standard_normal((2, 2, 2))
+    read = travel + np.sqrt(k * np.abs(travel)) * z[1]
+    ds, dth = read.mean(axis=1), (read[:, 1] - read[:, 0]) / B
+    np.testing.assert_allclose(odo.estimate[:, 2], dth, rtol=1e-12)
+    np.testing.assert_allclose(odo.estimate[:, 0], ds * np.cos(dth / 2), rtol=1e-12)
+    q = wheel_increment_cov(kc * np.abs(read[:, 0]), kc * np.abs(read[:, 1]), B)
+    np.testing.assert_allclose(odo.covariance, propagate_covariance(np.zeros((2, 3, 3)), np.zeros(2), ds, dth, q),
+                               rtol=1e-12)
+    assert q[0, 0, 1] > 0  # the faster right wheel is the noisier: heading and distance errors correlate
+    assert rng.standard_normal() == np.random.default_rng(11).standard_normal(9)[8]  # 2 x 2 wheels x 2 robots
+
+
+def test_wheel_odometry_accumulates_distance_and_turn_until_a_fix():
+    odo = _wheels(QUIET, np.array([[0.02, 0.002]]), 3)  # clockwise arc
+    assert np.isclose(odo.travelled[0], 3 * 0.011) and np.isclose(odo.turned[0], 3 * 0.018 / B)
+    assert odo.estimate[0, 2] < 0
+    odo.covariance[:] = 1.0
+    odo.fix(0, [0.0, 0.0, 0.0])
+    assert not odo.covariance.any() and odo.travelled[0] == 0.0 and odo.turned[0] == 0.0
+
+
+def test_systematic_draws_use_three_normals_per_robot():
+    rng = np.random.default_rng(9)
+    Odometry(OdometryConfig(), np.zeros((2, 3)), B, rng)
+    assert rng.standard_normal() == np.random.default_rng(9).standard_normal(7)[6]

@@ -31,6 +31,11 @@ def test_wheel_limit_scales_both_wheels_and_keeps_the_curvature():
     assert math.isclose(w / v, 2.0 / 0.9, rel_tol=1e-12)
 
 
+def test_wheel_limit_below_one_metre_per_second():
+    t = wheel_targets(np.array([[0.4, 4.0]]), 0.2, 0.5)  # unclipped (0.0, 0.8): scaled by 0.5 / 0.8
+    np.testing.assert_allclose(t, [[0.0, 0.5]], atol=1e-15)
+
+
 def test_body_velocity_is_the_inverse_of_the_wheel_targets():
     np.testing.assert_allclose(body_velocity(np.array([[0.1, 0.3]]), 0.2), [[0.2, 1.0]], atol=1e-15)
 
