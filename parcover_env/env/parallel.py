@@ -56,12 +56,12 @@ class ParallelCoverageEnv(ParallelEnv):
     |---|---|---|---|
     | x, y | 2 | m | pose estimate: odometry, reset by Kinect fixes of seen leaders (``pose_source``) |
     | cos_theta, sin_theta | 2 | - | heading estimate |
-    | v, omega | 2 | m/s, rad/s | encoder-measured velocity: odometry increment of the last step / step (ideal: command) |
+    | v, omega | 2 | m/s, rad/s | encoder velocity: odometry increment of the last step / step (ideal: command) |
     | leader | 1 | - | 1 if the robot leads its group, else 0 (follower) |
     | slot | 1 | - | position in its group's column / (n_robots - 1); 0 = leader |
     | fix_age | 1 | s | time since the last absolute pose fix, capped at 60 s (large = stale estimate) |
     | sigma_major, sigma_minor | 2 | m | axes (1 sigma) of the position uncertainty ellipse of the estimate |
-    | sigma_axis_cos2, sigma_axis_sin2 | 2 | - | cos, sin of twice the major axis' angle in the robot frame (1, 0 if round) |
+    | sigma_axis_cos2, sigma_axis_sin2 | 2 | - | cos, sin of twice the major axis angle, robot frame (1, 0 if round) |
     | sigma_heading | 1 | rad | heading sigma of the estimate |
     | goal_dx, goal_dy | 2 | m | current route waypoint in the robot frame (x ahead, y left), from the estimate |
     | pred_dx, pred_dy | 2 | m | robot ahead in the column, in this robot's frame (onboard camera; 0 if unseen) |
