@@ -235,7 +235,18 @@ def test_random_wheel_error_is_drawn_exactly_and_the_arc_covariance_uses_each_wh
     np.testing.assert_allclose(odo.covariance, propagate_covariance(np.zeros((2, 3, 3)), np.zeros(2), ds, dth, q),
                                rtol=1e-12)
     assert q[0, 0, 1] > 0  # the faster right wheel is the noisier: heading and distance errors correlate
-    assert rng.standard_normal() == np.random.default_rng(11).standard_normal(9)[8]  # 2 x 2 wheels x 2 robots
+    odo_rng = np.random.default_rng(11)
+    Odometry(cfg, np.zeros((2, 3)), B).measure_wheels(travel, np.zeros_like(travel), 0.1, odo_rng)
+    assert odo_rng.standard_normal() == np.random.default_rng(11).standard_normal(9)[8]  # 2 x 2 wheels x 2 robots
+
+
+def test_integer_start_poses_give_float_estimates():
+    for model in ("wheels", "motion"):
+        odo = Odometry(OdometryConfig(model=model, noise_v=0.0, noise_omega=0.0), [[0, 0, 0]], B)
+        odo.measure_wheels(np.array([[0.01, 0.01]]), np.zeros((1, 2)), 0.1, np.random.default_rng(0))
+        odo.measure(np.array([[0.5, 0.0, 0.0]]), np.random.default_rng(0))
+        assert odo.estimate.dtype == float and odo._last_true.dtype == float
+        assert np.isclose(odo.estimate[0, 0], 0.51, atol=1e-3)  # 0.01 m on the wheels, then 0.5 m of motion
 
 
 def test_wheel_odometry_accumulates_distance_and_turn_until_a_fix():
