@@ -34,6 +34,12 @@ def _set(data: dict, path: tuple[str, ...], values: dict) -> None:
 
 def _ideal(data: dict) -> dict:
     # Each error model registers its ideal values here (robot motion, odometry, sonar, Kinect).
+    # Motion: commands act instantly; odometry measures the true motion with the pre-realism
+    # per-step noise (the pinned rollouts' model; set noise_v = noise_omega = 0 for perfect odometry)
+    # and the observation keeps the v0 layout (no covariance entries).
+    _set(data, ("robot", "drive"), {"model": "instant"})
+    _set(data, ("robot", "odometry"), {"model": "motion"})
+    _set(data, ("observation",), {"pose_covariance": False})
     return data
 
 

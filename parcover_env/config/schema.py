@@ -20,7 +20,7 @@ Polygon = tuple[Point, ...]
 Segment = tuple[Point, Point]
 
 __all__ = [
-    "ConfigError", "MapConfig", "Pose", "SonarConfig", "OdometryConfig", "RobotConfig",
+    "ConfigError", "MapConfig", "Pose", "SonarConfig", "DriveConfig", "OdometryConfig", "RobotConfig",
     "KinectConfig", "PhysicsConfig", "EpisodeConfig", "RewardConfig", "ObservationConfig",
     "FormationConfig", "PlannerConfig", "Scenario", "Point", "Polygon", "Segment",
 ]
@@ -120,14 +120,106 @@ class SonarConfig:
 
 
 @dataclass(frozen=True)
-class OdometryConfig:
-    """Wheel odometry: relative noise on the travelled distance and turned angle per step."""
+class DriveConfig:
+    """Differential-drive dynamics: normalized actions -> wheel-speed targets -> wheel speeds.
 
-    noise_v: float = 0.02
-    noise_omega: float = 0.03
+    The action (v, omega) becomes left/right wheel ground-speed targets
+    ``v -+ omega * wheel_base / 2``; if a target exceeds ``wheel_speed_max`` both are scaled down
+    by the same factor (the path's curvature is kept). Each wheel then follows its target through
+    a first-order lag of time constant ``tau`` whose rate of change is bounded by ``accel_max``,
+    integrated exactly at the physics rate ``physics.dt``.
+
+    Figures: seed B's AmigoBot. ARIA's robot parameter file for it (``params/amigo.p``, ActivMedia /
+    MobileRobots) gives ``MaxVelocity 1000`` mm/s and ``DiffConvFactor 0.011`` (rotation rate =
+    (v_R - v_L) / 2 * DiffConvFactor, wheel speeds in mm/s), i.e. an effective wheel base of
+    2 / 0.011 mm = 0.18 m. The AmigoBot manual (AmigoBot Technical Manual v1.3, 2002) describes a
+    trapezoidal velocity profile with FLASH-configured accelerations but the parameter file leaves
+    them to the firmware (0 = FLASH value); ``accel_max`` and ``tau`` are therefore chosen, not
+    read off a sheet: with them a robot at rest commanded to full forward (0.3 m/s) reaches 33 %
+    of it after one 0.1 s control step and 90 % after 0.4 s (``tests/world/test_drive.py``,
+    ``benchmarks/odometry_drift.py``).
+    """
+
+    model: Literal["wheels", "instant"] = "wheels"
+    """``wheels``: wheel-speed limits, lag and bounded acceleration (realistic); ``instant``: the
+    commanded (v, omega) is the body velocity at the next physics step (the ``ideal`` preset)."""
+    wheel_base: float = 0.18
+    """Distance between the wheels' contact points, the effective wheel base b (m)."""
+    wheel_speed_max: float = 1.0
+    """Max ground speed of each wheel (m/s); must allow ``robot.max_speed``."""
+    accel_max: float = 1.0
+    """Max rate of change of each wheel's ground speed (m/s^2)."""
+    tau: float = 0.1
+    """Time constant of the first-order lag from wheel-speed target to wheel speed (s)."""
 
     def __post_init__(self) -> None:
-        _check(self.noise_v >= 0 and self.noise_omega >= 0, "noise_v", "noise must be >= 0")
+        _positive(self, "wheel_base", "wheel_speed_max", "accel_max", "tau")
+        _check(self.tau <= 10.0, "tau", f"a lag above 10 s leaves the robot practically unable to move, got {self.tau}")
+
+
+@dataclass(frozen=True)
+class OdometryConfig:
+    """Wheel odometry and its errors.
+
+    ``model: wheels`` (realistic) integrates the wheel encoders, i.e. the wheel motion the drive
+    produced, never the body's true motion: pushes from contacts go unseen. Its errors follow
+    Borenstein & Feng's UMBmark and Chong & Kleeman (1997):
+
+    * systematic, drawn per robot per episode from the episode RNG: wheel-diameter ratio
+      E_d = D_R / D_L ~ 1 + N(0, ``diameter_ratio_std``), mean-diameter (scale) error
+      ~ N(0, ``scale_std``) and effective wheel-base ratio E_b = b_actual / b_nominal ~
+      1 + N(0, ``wheelbase_std``). The encoders convert ticks with the nominal diameter and wheel
+      base: a straight drive with E_d > 1 is believed to curve clockwise (the robot really drifts
+      left of its estimate) and every turn is believed E_b times larger than it is;
+    * random: each wheel's distance error has variance ``wheel_variance`` x |distance| (m^2);
+    * slip: each wheel's encoder over-reads its ground distance by a fraction
+      |N(0, 1)| x (``slip_accel`` x |wheel acceleration| + ``slip_turn`` x |turn rate|).
+
+    The pose covariance is propagated per step with Chong & Kleeman's wheel-increment Jacobians,
+    from a per-wheel variance ``covariance_wheel_variance`` x |distance| that also covers the
+    systematic errors the robot cannot know, and reset to the fix's covariance at absolute fixes.
+
+    Calibration: UMBmark's typical uncalibrated E_d of 1.001-1.01 and E_b of 1-2 % set the scale
+    of the systematic stds; E_d dominates a straight drive (heading drift ~ s (E_d - 1) / b). With
+    these defaults ``benchmarks/odometry_drift.py`` (20 seeds, pure odometry, straight drive at
+    0.2 m/s) measures a median (p90) heading error of 0.99 (2.2) deg and a position error of
+    1.5 (2.6) % of the distance after 100 steps (2 m), and 4.4 (10.1) deg and 3.5 (8.8) % after
+    10 m: "a few % of distance, several degrees per 10 m". The covariance's 1-sigma major axis is
+    then of the order of the error (median error / sigma 0.7-0.8, p90 1.3-1.9).
+
+    ``model: motion`` (the ``ideal`` preset, and the simulation before issue 13) instead measures
+    the body's true displacement along its heading with relative Gaussian errors ``noise_v`` and
+    ``noise_omega`` per control step (those two fields apply to ``motion`` only).
+    """
+
+    model: Literal["wheels", "motion"] = "wheels"
+    """``wheels``: encoder model with the errors above; ``motion``: true motion + per-step noise."""
+    noise_v: float = 0.02
+    """``motion`` model: relative std of the travelled distance per control step (-)."""
+    noise_omega: float = 0.03
+    """``motion`` model: relative std of the turned angle per control step (-)."""
+    diameter_ratio_std: float = 0.002
+    """Std of E_d - 1, the right/left wheel-diameter ratio error, per robot per episode (-)."""
+    scale_std: float = 0.01
+    """Std of the mean wheel-diameter error (both wheels' distance scale), per robot per episode (-)."""
+    wheelbase_std: float = 0.01
+    """Std of E_b - 1, the effective wheel-base ratio error, per robot per episode (-)."""
+    wheel_variance: float = 1e-6
+    """Random error: variance of a wheel's distance error per metre that wheel travels (m^2/m)."""
+    slip_accel: float = 0.01
+    """Slip fraction per unit wheel acceleration (s^2/m)."""
+    slip_turn: float = 0.005
+    """Slip fraction per unit turn rate (s/rad)."""
+    covariance_wheel_variance: float = 1e-5
+    """Per-wheel distance variance per metre used to propagate the pose covariance (m^2/m)."""
+
+    def __post_init__(self) -> None:
+        for name in ("noise_v", "noise_omega", "diameter_ratio_std", "scale_std", "wheelbase_std",
+                     "wheel_variance", "slip_accel", "slip_turn", "covariance_wheel_variance"):
+            _check(getattr(self, name) >= 0, name, f"noise must be >= 0, got {getattr(self, name)}")
+        for name in ("diameter_ratio_std", "scale_std", "wheelbase_std"):
+            _check(getattr(self, name) <= 0.1, name,
+                   f"a systematic error std above 10 % is not a calibrated robot, got {getattr(self, name)}")
 
 
 @dataclass(frozen=True)
@@ -147,9 +239,13 @@ class RobotConfig:
     """Radius of each marker disc (m)."""
     sonar: SonarConfig = field(default_factory=SonarConfig)
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
+    drive: DriveConfig = field(default_factory=DriveConfig)
 
     def __post_init__(self) -> None:
         _positive(self, "radius", "max_speed", "max_turn_rate", "height", "marker_radius")
+        if self.drive.model == "wheels":
+            _check(self.drive.wheel_speed_max >= self.max_speed, "drive.wheel_speed_max",
+                   f"wheels limited to {self.drive.wheel_speed_max} m/s cannot reach max_speed {self.max_speed} m/s")
         _check(self.marker_radius <= 0.25 * self.radius, "marker_radius",
                f"4 markers of radius {self.marker_radius} m do not fit on a robot of radius {self.radius} m "
                f"(max {0.25 * self.radius:.3f} m)")
@@ -237,6 +333,19 @@ class ObservationConfig:
     kinect: Literal["estimate", "frames"] = "estimate"
     """``estimate``: pipeline poses only; ``frames``: raw frames via ``env.kinect_frames()``."""
     sonar: bool = True
+    pose_covariance: bool = True
+    """Observe the pose covariance (uncertainty ellipse axes and heading sigma); the ``ideal``
+    preset turns it off (its odometry has no modelled uncertainty)."""
+    fix_sigma_xy: float = 0.03
+    """Standard deviation of an absolute (Kinect) fix along x and y (m): the covariance the pose
+    estimate restarts from after a fix."""
+    fix_sigma_heading_deg: float = 2.0
+    """Standard deviation of an absolute fix's heading (degrees)."""
+
+    def __post_init__(self) -> None:
+        _check(self.fix_sigma_xy >= 0, "fix_sigma_xy", f"noise must be >= 0, got {self.fix_sigma_xy}")
+        _check(self.fix_sigma_heading_deg >= 0, "fix_sigma_heading_deg",
+               f"noise must be >= 0, got {self.fix_sigma_heading_deg}")
 
 
 @dataclass(frozen=True)

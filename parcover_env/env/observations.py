@@ -7,10 +7,21 @@ from dataclasses import dataclass
 import numpy as np
 from gymnasium import spaces
 
-__all__ = ["ObservationLayout", "MAX_FIX_AGE"]
+__all__ = ["ObservationLayout", "MAX_FIX_AGE", "ellipse_entries"]
 
 MAX_FIX_AGE = 60.0
 """Seconds since the last absolute pose fix are reported capped at this value."""
+
+
+def ellipse_entries(cov: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    """Pose covariances ``(N, 3, 3)`` -> ``(N, 5)``: sigma_major, sigma_minor (m), the major axis'
+    doubled angle in the robot frame as (cos 2a, sin 2a) (an axis has no sign; (1, 0) for a
+    circle), and the heading sigma (rad). ``heading``: the estimated headings ``(N,)``."""
+    a, b, c = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
+    mean, half = 0.5 * (a + c), np.hypot(0.5 * (a - c), b)
+    two_a = np.where(half <= 1e-9 * mean, 0.0, np.arctan2(2.0 * b, a - c) - 2.0 * heading)
+    return np.stack([np.sqrt(np.maximum(mean + half, 0.0)), np.sqrt(np.maximum(mean - half, 0.0)),
+                     np.cos(two_a), np.sin(two_a), np.sqrt(np.maximum(cov[:, 2, 2], 0.0))], axis=1)
 
 
 @dataclass(frozen=True)
@@ -24,7 +35,8 @@ class ObservationLayout:
 
     @classmethod
     def build(cls, bounds, max_speed: float, max_turn_rate: float, n_sonar: int,
-              sonar_max: float, pred_range: float) -> ObservationLayout:
+              sonar_max: float, pred_range: float, covariance: bool = False) -> ObservationLayout:
+        """The layout; ``covariance`` adds the pose-uncertainty entries after ``fix_age``."""
         x0, y0, x1, y1 = bounds
         diag = float(np.hypot(x1 - x0, y1 - y0))
         m = 1.0  # estimates may drift off the floor a little: clipped to the map box +- 1 m
@@ -33,6 +45,9 @@ class ObservationLayout:
             ("cos_theta", 1, -1.0, 1.0), ("sin_theta", 1, -1.0, 1.0),
             ("v", 1, -max_speed, max_speed), ("omega", 1, -max_turn_rate, max_turn_rate),
             ("leader", 1, 0.0, 1.0), ("slot", 1, 0.0, 1.0), ("fix_age", 1, 0.0, MAX_FIX_AGE),
+            *([("sigma_major", 1, 0.0, diag), ("sigma_minor", 1, 0.0, diag),
+               ("sigma_axis_cos2", 1, -1.0, 1.0), ("sigma_axis_sin2", 1, -1.0, 1.0),
+               ("sigma_heading", 1, 0.0, np.pi)] if covariance else []),
             ("goal_dx", 1, -diag - 2 * m, diag + 2 * m), ("goal_dy", 1, -diag - 2 * m, diag + 2 * m),
             ("pred_dx", 1, -pred_range, pred_range), ("pred_dy", 1, -pred_range, pred_range),
             ("pred_cos", 1, -1.0, 1.0), ("pred_sin", 1, -1.0, 1.0), ("pred_visible", 1, 0.0, 1.0),

@@ -12,15 +12,16 @@ from pettingzoo import ParallelEnv
 from parcover_env.config import Scenario
 from parcover_env.env.actions import to_commands
 from parcover_env.env.metrics import EpisodeMetrics, formation_errors
-from parcover_env.env.observations import MAX_FIX_AGE, ObservationLayout
+from parcover_env.env.observations import MAX_FIX_AGE, ObservationLayout, ellipse_entries
 from parcover_env.env.rewards import TERMS, reward_terms
 from parcover_env.env.team import Team
-from parcover_env.geometry import rotate
+from parcover_env.geometry import rotate, wrap_angle
 from parcover_env.localization.kinect.system import KinectSystem
 from parcover_env.scenarios import load_scenario, mission_for
 from parcover_env.sensors.odometry import Odometry
 from parcover_env.sensors.relative import RelativeCamera
 from parcover_env.sensors.sonar import SonarRing
+from parcover_env.world.drive import wheel_targets
 from parcover_env.world.physics import World
 
 __all__ = ["ParallelCoverageEnv"]
@@ -39,9 +40,14 @@ class ParallelCoverageEnv(ParallelEnv):
     through its KPOIs; the team travels together and splits at turning positions (TPs).
 
     ## Action space
-    ``Box(-1, 1, (2,), float32)`` per agent: ``(v, omega)`` as fractions of the robot's
+    ``Box(-1, 1, (2,), float32)`` per agent: normalized ``(v, omega)``, fractions of the robot's
     ``max_speed`` (m/s) and ``max_turn_rate`` (rad/s). Values outside [-1, 1] are clipped; NaN/inf,
     a wrong shape, or missing/unknown agents raise ``ActionError`` and leave the state untouched.
+    The action is a *command*, not the velocity: with ``robot.drive.model: wheels`` (default) it
+    becomes left/right wheel-speed targets (limited to ``drive.wheel_speed_max``), which the wheels
+    follow with a first-order lag (``drive.tau``) and bounded acceleration (``drive.accel_max``) at
+    the physics rate; from rest, full forward takes a few control steps. ``drive.model: instant``
+    (``ideal`` preset) applies the command as the body velocity.
 
     ## Observation space
     One flat ``Box`` per agent, identical across agents (``env.layout`` names the slices):
@@ -50,17 +56,24 @@ class ParallelCoverageEnv(ParallelEnv):
     |---|---|---|---|
     | x, y | 2 | m | pose estimate: odometry, reset by Kinect fixes of seen leaders (``pose_source``) |
     | cos_theta, sin_theta | 2 | - | heading estimate |
-    | v, omega | 2 | m/s, rad/s | velocity commanded at the last step |
+    | v, omega | 2 | m/s, rad/s | encoder velocity: odometry increment of the last step / step (ideal: command) |
     | leader | 1 | - | 1 if the robot leads its group, else 0 (follower) |
     | slot | 1 | - | position in its group's column / (n_robots - 1); 0 = leader |
+    | fix_age | 1 | s | time since the last absolute pose fix, capped at 60 s (large = stale estimate) |
+    | sigma_major, sigma_minor | 2 | m | axes (1 sigma) of the position uncertainty ellipse of the estimate |
+    | sigma_axis_cos2, sigma_axis_sin2 | 2 | - | cos, sin of twice the major axis angle, robot frame (1, 0 if round) |
+    | sigma_heading | 1 | rad | heading sigma of the estimate |
+    | goal_dx, goal_dy | 2 | m | current route waypoint in the robot frame (x ahead, y left), from the estimate |
     | pred_dx, pred_dy | 2 | m | robot ahead in the column, in this robot's frame (onboard camera; 0 if unseen) |
     | pred_cos, pred_sin | 2 | - | its heading relative to this robot's |
     | pred_visible | 1 | - | 1 if a follower's camera sees its predecessor (FOV, range, walls) |
-    | fix_age | 1 | s | time since the last absolute pose fix, capped at 60 s (large = stale estimate) |
-    | goal_dx, goal_dy | 2 | m | current route waypoint in the robot frame (x ahead, y left), from the estimate |
     | kpois_visited | 1 | - | fraction of KPOIs visited by the team |
     | time | 1 | - | fraction of the step limit elapsed |
     | sonar | B | m | sonar ring ranges (B beams; ``robot.sonar``), max range = no echo |
+
+    The ``sigma_*`` entries (``observation.pose_covariance``, off in the ``ideal`` preset) come from
+    the pose covariance the odometry propagates (Chong & Kleeman) and that an absolute fix resets to
+    ``observation.fix_sigma_xy`` / ``fix_sigma_heading_deg``: a policy can tell when it is lost.
 
     ``state()`` is the global state for centralized critics: true (x, y, cos, sin) and leader
     flag of every robot, the visited flag of every KPOI, and the elapsed time fraction.
@@ -77,6 +90,11 @@ class ParallelCoverageEnv(ParallelEnv):
     All agents end together; ``info[agent]["episode"]`` then holds the metrics (makespan, KPOIs
     visited, collisions, path lengths, localization error, makespan / (c_max / v_max), ...).
 
+    ## Infos and analysis
+    ``info[agent]`` holds ``reward_terms`` and the per-step estimate error ``pose_error`` (m) and
+    ``heading_error`` (rad, absolute). ``env.true_poses()`` and ``env.pose_estimates()`` return
+    ``(n_robots, 3)`` arrays (x, y, theta) in agent order, ``env.pose_covariances()`` ``(n_robots, 3, 3)``.
+
     ## Rates
     One ``step`` is one control period of ``physics.substeps x physics.dt`` seconds (default
     5 x 0.02 s = 0.1 s); pymunk integrates at ``physics.dt``.
@@ -87,10 +105,15 @@ class ParallelCoverageEnv(ParallelEnv):
     ``{"n_robots": 3, "episode": {"max_steps": 500}}``).
 
     ## Version history
+    * v1: realistic motion and covariance observations: differential-drive dynamics (wheel limits,
+      lag, bounded acceleration), wheel odometry with UMBmark systematic, random and slip errors,
+      ``v, omega`` measured by the encoders, pose-uncertainty entries (``sigma_*``) after ``fix_age``,
+      ``info[agent]`` pose errors, ``true_poses()`` / ``pose_estimates()`` / ``pose_covariances()``.
+      The ``ideal`` preset keeps v0's motion, odometry and observation layout.
     * v0: initial release.
     """
 
-    metadata = {"name": "parcover_v0", "render_modes": ["rgb_array"], "render_fps": 10, "is_parallelizable": True}
+    metadata = {"name": "parcover_v1", "render_modes": ["rgb_array"], "render_fps": 10, "is_parallelizable": True}
 
     def __init__(self, scenario: str | Path | Scenario = "office", render_mode: str | None = None,
                  overrides: dict | None = None, preset: str = "realistic"):
@@ -109,7 +132,10 @@ class ParallelCoverageEnv(ParallelEnv):
         self.kinects = KinectSystem(s, self.map) if s.kinects and s.observation.pose_source == "kinect" else None
         self.camera = RelativeCamera(s.formation.camera_fov_deg, s.formation.camera_range)
         self.layout = ObservationLayout.build(self.map.bounds, s.robot.max_speed, s.robot.max_turn_rate,
-                                              n_sonar, s.robot.sonar.range_max, s.formation.camera_range)
+                                              n_sonar, s.robot.sonar.range_max, s.formation.camera_range,
+                                              covariance=s.observation.pose_covariance)
+        sxy, sth = s.observation.fix_sigma_xy, np.radians(s.observation.fix_sigma_heading_deg)
+        self._fix_cov = np.diag([sxy**2, sxy**2, sth**2])
         self._obs_space = self.layout.space()
         self._act_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         n_state = 5 * self.n_robots + len(s.kpois) + 1
@@ -129,10 +155,11 @@ class ParallelCoverageEnv(ParallelEnv):
             self._rng = np.random.default_rng(seed)
         s = self.scenario
         self.agents = list(self.possible_agents)
-        self.world = World(self.map, s.robot.radius, s.physics, self.mission.start_poses)
+        self.world = World(self.map, s.robot.radius, s.physics, self.mission.start_poses, s.robot.drive)
         true = self.world.poses()
-        self.odometry = Odometry(s.robot.odometry, true)
+        self.odometry = Odometry(s.robot.odometry, true, s.robot.drive.wheel_base, self._rng)
         self.estimate = true.copy()
+        self.velocity = np.zeros((self.n_robots, 2))
         self.fix_age = np.zeros(self.n_robots)
         if self.kinects is not None:
             self.kinects.reset()
@@ -174,8 +201,10 @@ class ParallelCoverageEnv(ParallelEnv):
             total = total + terms[t]
         rewards = dict(zip(self.agents, total.tolist(), strict=True))
         per_agent = zip(*(terms[t].tolist() for t in TERMS), strict=True)
-        infos = {a: {"reward_terms": dict(zip(TERMS, vals, strict=True))}
-                 for a, vals in zip(self.agents, per_agent, strict=True)}
+        pos_err = np.hypot(*(self.estimate[:, :2] - true[:, :2]).T).tolist()
+        head_err = np.abs(wrap_angle(self.estimate[:, 2] - true[:, 2])).tolist()
+        infos = {a: {"reward_terms": dict(zip(TERMS, vals, strict=True)), "pose_error": pe, "heading_error": he}
+                 for a, vals, pe, he in zip(self.agents, per_agent, pos_err, head_err, strict=True)}
         if done or truncated:
             summary = self.metrics.summary()
             for info in infos.values():
@@ -189,16 +218,30 @@ class ParallelCoverageEnv(ParallelEnv):
     # ------------------------------------------------------------------ step parts
     def _sense(self, true: np.ndarray) -> None:
         """Pose estimates: odometry dead reckoning, corrected by Kinect fixes of the leaders."""
-        est = self.odometry.measure(true, self._rng)
-        self.fix_age += self.scenario.physics.control_dt
-        if self.scenario.observation.pose_source == "ground_truth":
-            est[:] = true
+        s = self.scenario
+        dt = s.physics.control_dt
+        if s.robot.odometry.model == "wheels":
+            if self.world.drive is not None:
+                travel, change = self.world.drive.take_travel()
+            else:  # instant drive: the wheels turned at the commanded speeds all step
+                travel = wheel_targets(self.commands, s.robot.drive.wheel_base, np.inf) * dt
+                change = np.zeros_like(travel)
+            before = self.odometry.estimate.copy()
+            est = self.odometry.measure_wheels(travel, change, dt, self._rng)
+            ds = np.hypot(*(est[:, :2] - before[:, :2]).T) * np.sign(travel.sum(axis=1))
+            self.velocity = np.stack([ds, wrap_angle(est[:, 2] - before[:, 2])], axis=1) / dt
+        else:
+            est = self.odometry.measure(true, self._rng)
+            self.velocity = self.commands
+        self.fix_age += dt
+        if s.observation.pose_source == "ground_truth":
+            self.odometry.set_truth(true)
             self.fix_age[:] = 0.0
         elif self.kinects is not None:
             markers = self.team.leader & self.scenario.robot.markers
             fixes = self.kinects.update(self.world.time, true, markers, est, self._rng)
             for i, pose in fixes.items():
-                self.odometry.fix(i, pose)
+                self.odometry.fix(i, pose, self._fix_cov)
                 self.fix_age[i] = 0.0
             self.team.count_pose_fixes(len(fixes))
         self.estimate = est
@@ -233,11 +276,14 @@ class ParallelCoverageEnv(ParallelEnv):
         obs[:, L["y"]] = est[:, 1:2]
         obs[:, L["cos_theta"]] = np.cos(est[:, 2:3])
         obs[:, L["sin_theta"]] = np.sin(est[:, 2:3])
-        obs[:, L["v"]] = self.commands[:, 0:1]
-        obs[:, L["omega"]] = self.commands[:, 1:2]
+        obs[:, L["v"]] = self.velocity[:, 0:1]
+        obs[:, L["omega"]] = self.velocity[:, 1:2]
         obs[:, L["leader"]] = self.team.leader[:, None]
         obs[:, L["slot"]] = self.team.slot[:, None] / max(n - 1, 1)
         obs[:, L["fix_age"]] = np.minimum(self.fix_age, MAX_FIX_AGE)[:, None]
+        if "sigma_major" in L:
+            cov = ellipse_entries(self.odometry.covariance, est[:, 2])
+            obs[:, L["sigma_major"].start:L["sigma_heading"].stop] = cov
         goal = rotate(self.progress.goals() - est[:, :2], -est[:, 2])
         obs[:, L["goal_dx"]] = goal[:, 0:1]
         obs[:, L["goal_dy"]] = goal[:, 1:2]
@@ -258,6 +304,18 @@ class ParallelCoverageEnv(ParallelEnv):
         return {a: obs[i] for i, a in enumerate(self.possible_agents) if a in active}
 
     # ------------------------------------------------------------------ extras
+    def true_poses(self) -> np.ndarray:
+        """Ground-truth poses ``(n_robots, 3)`` (x, y m; theta rad in (-pi, pi]) in agent order."""
+        return self.world.poses()
+
+    def pose_estimates(self) -> np.ndarray:
+        """The robots' pose estimates ``(n_robots, 3)`` (the observations' x, y, theta), agent order."""
+        return self.estimate.copy()
+
+    def pose_covariances(self) -> np.ndarray:
+        """Covariances ``(n_robots, 3, 3)`` of the pose estimates (m^2, m rad, rad^2), agent order."""
+        return self.odometry.covariance.copy()
+
     def state(self) -> np.ndarray:
         true = self.world.poses()
         parts = [true[:, :2], np.cos(true[:, 2:3]), np.sin(true[:, 2:3]), self.team.leader[:, None]]

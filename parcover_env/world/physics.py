@@ -6,6 +6,11 @@ and other robots are resolved by pymunk while the robots follow their commands i
 (Kinematic bodies would pass through walls.) pymunk moves bodies before it calls
 ``velocity_func``, so a new command takes effect after one physics step (``physics.dt``), like
 an actuator delay; the velocity the contact solver corrected is what moves the body.
+
+With a ``DriveConfig`` of ``model: wheels`` the commands are wheel-speed targets for a
+:class:`~parcover_env.world.drive.DiffDrive` (limits, lag, bounded acceleration) advanced once per
+physics step; the body velocity it returns is what ``velocity_func`` applies. ``model: instant``
+(or no drive) applies the commands as they are.
 """
 
 from __future__ import annotations
@@ -20,8 +25,9 @@ try:  # the C setters without pymunk's Python property layers: the callback runs
 except ImportError:  # pragma: no cover - other pymunk builds: the public properties
     _cp = None
 
-from parcover_env.config import PhysicsConfig
+from parcover_env.config import DriveConfig, PhysicsConfig
 from parcover_env.geometry import wrap_angle
+from parcover_env.world.drive import DiffDrive, wheel_targets
 from parcover_env.world.map_model import MapModel
 
 __all__ = ["World"]
@@ -33,7 +39,8 @@ _WALL_RADIUS = 0.005  # m, collision skin of the static boundary segments
 class World:
     """Physics of one episode. Build a new one at every reset (pymunk caches contact state)."""
 
-    def __init__(self, map_model: MapModel, radius: float, physics: PhysicsConfig, poses: np.ndarray):
+    def __init__(self, map_model: MapModel, radius: float, physics: PhysicsConfig, poses: np.ndarray,
+                 drive: DriveConfig | None = None):
         self.map = map_model
         self.radius = float(radius)
         self.physics = physics
@@ -41,6 +48,8 @@ class World:
         self.time = 0.0
         self._cmd = np.zeros((self.n, 2))
         self._rows = _CommandRows(self.n)
+        self.drive = DiffDrive(drive, self.n) if drive is not None and drive.model == "wheels" else None
+        """The robots' wheels (``None``: commands apply instantly)."""
         self.wall_contacts = np.zeros(self.n, dtype=np.int64)
         self.robot_contacts = np.zeros(self.n, dtype=np.int64)
 
@@ -85,10 +94,17 @@ class World:
     def step(self, commands: np.ndarray) -> None:
         """Apply ``(v, omega)`` per robot ``(N, 2)`` for one control step (all physics substeps)."""
         self._cmd[:] = commands
-        self._rows.values = self._cmd.tolist()
         dt = self.physics.dt
-        for _ in range(self.physics.substeps):
-            self.space.step(dt)
+        if self.drive is None:
+            self._rows.values = self._cmd.tolist()
+            for _ in range(self.physics.substeps):
+                self.space.step(dt)
+        else:
+            d = self.drive.cfg
+            targets = wheel_targets(self._cmd, d.wheel_base, d.wheel_speed_max)
+            for _ in range(self.physics.substeps):
+                self._rows.values = self.drive.advance(targets, dt).tolist()
+                self.space.step(dt)
         self.time += self.physics.control_dt
 
     def poses(self) -> np.ndarray:

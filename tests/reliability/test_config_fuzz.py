@@ -81,7 +81,12 @@ CASES = {
     "kinect below robots": ("office", lambda d: d["kinects"][0].update(height=0.2), "kinects[0].height"),
     "unknown key typo": ("office", _set(("robot", "radiu"), 0.1), "robot.radiu"),
     "oversized map": ("office", _set(("map", "size"), [2000, 2000]), "map.size"),
-    "tunnelling speed": ("office", _set(("robot", "max_speed"), 5.0), "physics.dt"),
+    "tunnelling speed": ("office", lambda d: (_set(("robot", "max_speed"), 5.0)(d),
+                                             _set(("robot", "drive", "wheel_speed_max"), 5.0)(d)), "physics.dt"),
+    "wheels slower than max_speed": ("office", _set(("robot", "max_speed"), 5.0), "robot.drive.wheel_speed_max"),
+    "zero drive lag": ("tree", _set(("robot", "drive", "tau"), 0.0), "robot.drive.tau"),
+    "negative odometry noise": ("hallway", _set(("robot", "odometry", "scale_std"), -0.01),
+                                "robot.odometry.scale_std"),
 }
 
 

@@ -1,0 +1,77 @@
+"""Differential-drive dynamics: unicycle commands -> wheel-speed targets -> lagged wheel speeds.
+
+Pure, batched numpy over robots. The state of the drive is each robot's left and right wheel
+ground speed (m/s); ``DiffDrive`` keeps it in plain arrays (it pickles and deep-copies as is).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from parcover_env.config import DriveConfig
+
+__all__ = ["DiffDrive", "wheel_targets", "lag_step", "body_velocity"]
+
+
+def wheel_targets(commands: np.ndarray, wheel_base: float, wheel_speed_max: float) -> np.ndarray:
+    """Unicycle commands ``(N, 2)`` (v m/s, omega rad/s) -> wheel-speed targets ``(N, 2)`` (left, right).
+
+    ``v_L = v - omega b / 2``, ``v_R = v + omega b / 2``; a pair whose larger magnitude exceeds
+    ``wheel_speed_max`` is scaled down by one common factor, which keeps the path's curvature.
+    """
+    c = np.asarray(commands, dtype=float)
+    half = 0.5 * wheel_base * c[:, 1]
+    out = np.stack([c[:, 0] - half, c[:, 0] + half], axis=1)
+    peak = np.abs(out).max(axis=1)
+    scale = np.minimum(1.0, wheel_speed_max / np.maximum(peak, 1e-300))
+    return out * scale[:, None]
+
+
+def lag_step(wheels: np.ndarray, targets: np.ndarray, tau: float, accel_max: float, dt: float) -> np.ndarray:
+    """Wheel speeds after ``dt``: the exact first-order lag towards ``targets`` (time constant
+    ``tau``), its change clipped to ``accel_max * dt`` (bounded wheel acceleration)."""
+    gain = -math.expm1(-dt / tau)  # 1 - exp(-dt / tau), accurate for small dt / tau
+    dv = np.clip((targets - wheels) * gain, -accel_max * dt, accel_max * dt)
+    return wheels + dv
+
+
+def body_velocity(wheels: np.ndarray, wheel_base: float) -> np.ndarray:
+    """Wheel speeds ``(N, 2)`` (left, right) -> body ``(v, omega)`` ``(N, 2)``."""
+    left, right = wheels[:, 0], wheels[:, 1]
+    return np.stack([0.5 * (left + right), (right - left) / wheel_base], axis=1)
+
+
+class DiffDrive:
+    """The wheels of ``n`` robots. ``advance`` runs once per physics step.
+
+    Attributes (all ``(n, 2)``, columns left, right): ``wheels`` the wheel ground speeds (m/s),
+    ``travel`` each wheel's signed distance since the last ``take_travel`` (m).
+    """
+
+    def __init__(self, cfg: DriveConfig, n: int):
+        self.cfg = cfg
+        self.wheels = np.zeros((n, 2))
+        self.travel = np.zeros((n, 2))
+        self.speed_change = np.zeros((n, 2))
+        """Sum of |speed changes| of each wheel since the last ``take_travel`` (m/s)."""
+
+    def advance(self, targets: np.ndarray, dt: float) -> np.ndarray:
+        """One physics step: the wheels move the body at their current speeds for ``dt`` (pymunk
+        integrates positions with the velocity set at the previous step), then follow ``targets``.
+        Returns the new body velocities ``(n, 2)`` (v, omega) to apply."""
+        c = self.cfg
+        self.travel += self.wheels * dt
+        new = lag_step(self.wheels, targets, c.tau, c.accel_max, dt)
+        self.speed_change += np.abs(new - self.wheels)
+        self.wheels = new
+        return body_velocity(new, c.wheel_base)
+
+    def take_travel(self) -> tuple[np.ndarray, np.ndarray]:
+        """Wheel distances (m) and summed |speed changes| (m/s), each ``(n, 2)``, since the last call;
+        resets both (the odometry reads them once per control step)."""
+        travel, change = self.travel, self.speed_change
+        self.travel = np.zeros_like(travel)
+        self.speed_change = np.zeros_like(change)
+        return travel, change
