@@ -146,7 +146,8 @@ class KinectSensor:
             if not np.any(moving):
                 continue
             sel, a, b, span = sel[moving], a[moving], b[moving], span[moving]
-            dist, hit = cast_rays(a, (b - a) / span[:, None], seg, float(span.max()) + 1.0)
+            hits = cast_rays(a, (b - a) / span[:, None], seg, float(span.max()) + 1.0)
+            dist, hit = hits.distance, hits.index
             wall = (hit >= 0) & (dist < span)
             frac = dist[wall] / span[wall]
             depth[sel[wall]] = t0[sel[wall]] + frac * (t_floor[sel[wall]] - t0[sel[wall]])

@@ -159,7 +159,7 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector], ellipse
     """Localize from a 360-degree scan with the known map (seed B Fig. 6). ``sonar`` is the sensor
     model used for synthetic scans (default: ideal ray model); ``features`` as used for ``sectors``."""
     p = params or SonarLocalizerParams()
-    sonar = sonar or SonarConfig()
+    sonar = sonar or SonarConfig(model="ray")
     r = np.asarray(scan_ranges, dtype=float)
     a = np.asarray(scan_angles, dtype=float)
     if r.ndim != 1 or r.shape != a.shape:

@@ -54,7 +54,7 @@ def test_localize_rejects_a_wrong_ellipse_and_bad_input():
     m = MapModel.from_config(T_ROOM)
     feats = map_features(m)
     sectors = compute_sectors(m, 2.54, 2, feats)
-    ring = SonarRing(SonarConfig())
+    ring = SonarRing(SonarConfig(model="ray"))
     scan = ring.scan((2.0, 1.0, 0.4), m.segments, None, 0.165, None)
     res = localize(scan, ring.scan_angles, m, sectors, Ellipse((0.6, 3.4), (0.2, 0.2)), features=feats)
     assert not res.success
