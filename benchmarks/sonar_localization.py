@@ -1,9 +1,12 @@
 """Accuracy benchmark of the sonar feature localizer (seed B Fig. 6) on the hallway and t_room maps.
 
-For each map, with and without unknown obstacles: random poses in free space (clearance = robot
-radius), a noisy 72-reading scan of the world, an uncertainty ellipse around a perturbed estimate that
-contains the true position, then ``localize`` with the known map. Prints success rate and the
-position / heading error distribution.
+For each map, with and without unknown obstacles, and with and without seed B's Fig. 11 filter
+(issue 14 item 4): random poses (clearance = robot radius) inside the relaxed sectors (where seed B
+localizes: at least one feature in sensor range; ``--where anywhere`` for all free space), a noisy
+72-reading scan of the world with the scenario's sonar (the realistic default: cone, incidence limit,
+multipath, dropouts), an uncertainty ellipse around a perturbed estimate that contains the true
+position, then ``localize`` with the known map. Prints success rate and the position / heading
+error distribution (median, p90) per scenario.
 
     .venv/bin/python benchmarks/sonar_localization.py --n 500 [--model specular|ray] [--seed 0]
 """
@@ -16,6 +19,7 @@ import math
 import time
 
 import numpy as np
+import shapely
 
 from parcover_env.geometry import wrap_angle
 from parcover_env.localization.sonar.features import map_features
@@ -35,18 +39,22 @@ UNKNOWN = {
 }
 
 
-def sample_poses(world: MapModel, n: int, clearance: float, rng: np.random.Generator) -> np.ndarray:
+def sample_poses(world: MapModel, n: int, clearance: float, rng: np.random.Generator,
+                 region=None) -> np.ndarray:
     x0, y0, x1, y1 = world.bounds
     out = np.zeros((0, 3))
     while len(out) < n:
         pts = rng.uniform([x0, y0], [x1, y1], size=(4 * n, 2))
         pts = pts[world.contains(pts, margin=clearance)]
+        if region is not None:
+            pts = pts[shapely.contains_xy(region, pts[:, 0], pts[:, 1])]
         th = rng.uniform(-math.pi, math.pi, len(pts))
         out = np.concatenate([out, np.column_stack([pts, th])])
     return out[:n]
 
 
-def run(name: str, unknown: bool, n: int, model: str | None, seed: int, params: SonarLocalizerParams):
+def run(name: str, unknown: bool, n: int, model: str | None, seed: int, params: SonarLocalizerParams,
+        where: str = "sector"):
     sc = load_scenario(name)
     map_cfg = dataclasses.replace(sc.map, unknown_obstacles=UNKNOWN[name] if unknown else ())
     world = MapModel.from_config(map_cfg, include_unknown=True)
@@ -59,7 +67,8 @@ def run(name: str, unknown: bool, n: int, model: str | None, seed: int, params: 
                               resolution=params.sector_resolution)
     t_sec = time.perf_counter() - t0
     rng = np.random.default_rng(seed)
-    poses = sample_poses(world, n, sc.robot.radius, rng)
+    region = shapely.union_all([s.polygon for s in sectors]) if where == "sector" else None
+    poses = sample_poses(world, n, sc.robot.radius, rng, region)
     pos_err, head_err, ok, correct, tried = [], [], 0, 0, []
     t0 = time.perf_counter()
     for pose in poses:
@@ -89,7 +98,8 @@ def run(name: str, unknown: bool, n: int, model: str | None, seed: int, params: 
     def q(x, k):
         return float(np.percentile(x, k)) if len(x) else float("nan")
 
-    print(f"{name:8s} unknown={unknown!s:5s} model={sonar.model:8s} n={n} sectors={len(sectors)} "
+    print(f"{name:8s} unknown={unknown!s:5s} filter={params.filter!s:5s} model={sonar.model:8s} n={n} "
+          f"sectors={len(sectors)} "
           f"({t_sec:.2f} s) | success {100 * ok / n:5.1f}% correct(<25cm,<10deg) {100 * correct / n:5.1f}% | "
           f"pos err (success) median {100 * q(pe, 50):.1f} cm p90 {100 * q(pe, 90):.1f} cm | "
           f"heading median {q(he, 50):.2f} deg p90 {q(he, 90):.2f} deg | "
@@ -104,11 +114,19 @@ def main() -> None:
     ap.add_argument("--model", choices=["ray", "specular"], default=None,
                     help="override the scenario's sonar model")
     ap.add_argument("--maps", nargs="+", default=["t_room", "hallway"])
+    ap.add_argument("--where", choices=["sector", "anywhere"], default="sector",
+                    help="sample poses inside the relaxed sectors (seed B's premise) or anywhere free")
+    ap.add_argument("--unknown", choices=["no", "yes", "both"], default="both",
+                    help="with unknown obstacles in the world")
+    ap.add_argument("--filter", choices=["on", "off", "both"], default="both", help="Fig. 11 filter")
     args = ap.parse_args()
-    params = SonarLocalizerParams()
+    unknowns = {"no": (False,), "yes": (True,), "both": (False, True)}[args.unknown]
+    filters = {"on": (True,), "off": (False,), "both": (False, True)}[args.filter]
     for name in args.maps:
-        for unknown in (False, True):
-            run(name, unknown, args.n, args.model, args.seed, params)
+        for unknown in unknowns:
+            for flt in filters:
+                params = dataclasses.replace(load_scenario(name).sonar_localizer, filter=flt)
+                run(name, unknown, args.n, args.model, args.seed, params, args.where)
 
 
 if __name__ == "__main__":

@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from parcover_env.config.localization import KinectTrackingConfig, SonarLocalizerConfig
 from parcover_env.errors import ConfigError
 
 Point = tuple[float, float]
@@ -22,7 +23,8 @@ Segment = tuple[Point, Point]
 __all__ = [
     "ConfigError", "MapConfig", "Pose", "SonarConfig", "OdometryConfig", "RobotConfig",
     "KinectConfig", "PhysicsConfig", "EpisodeConfig", "RewardConfig", "ObservationConfig",
-    "FormationConfig", "PlannerConfig", "Scenario", "Point", "Polygon", "Segment",
+    "FormationConfig", "PlannerConfig", "SonarLocalizerConfig", "KinectTrackingConfig", "Scenario",
+    "Point", "Polygon", "Segment",
 ]
 
 
@@ -331,6 +333,10 @@ class Scenario:
     formation: FormationConfig = field(default_factory=FormationConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     localization: Literal["kinect", "sonar", "both"] = "kinect"
+    sonar_localizer: SonarLocalizerConfig = field(default_factory=SonarLocalizerConfig)
+    """Tunables of the sonar feature localizer and its Fig. 11 filter (seed B)."""
+    kinect_tracking: KinectTrackingConfig = field(default_factory=KinectTrackingConfig)
+    """Gate and fusion radius of the Kinect leader tracker (seed A)."""
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)
     episode: EpisodeConfig = field(default_factory=EpisodeConfig)
     rewards: RewardConfig = field(default_factory=RewardConfig)

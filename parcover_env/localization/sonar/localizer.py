@@ -29,6 +29,7 @@ from parcover_env.localization.sonar.features import (
     characteristic_points,
     map_features,
 )
+from parcover_env.localization.sonar.filter import filter_scan
 from parcover_env.localization.sonar.params import SonarLocalizerParams
 from parcover_env.localization.sonar.sectors import Sector
 from parcover_env.sensors.sonar import simulate_beams
@@ -52,6 +53,24 @@ class Ellipse:
             raise ValueError(f"Ellipse axes must be >= 0, got {self.axes}")
         object.__setattr__(self, "center", (float(c[0]), float(c[1])))
         object.__setattr__(self, "axes", (float(a[0]), float(a[1])))
+
+    @classmethod
+    def from_covariance(cls, center, covariance, n_sigma: float = 2.0) -> Ellipse:
+        """The ``n_sigma`` ellipse of a 2x2 position covariance (m^2) around ``center``: semi-axes
+        ``n_sigma * sqrt(eigenvalues)``, oriented along the major eigenvector."""
+        cov = np.asarray(covariance, dtype=float)
+        if cov.shape != (2, 2) or not np.all(np.isfinite(cov)) or abs(cov[0, 1] - cov[1, 0]) > 1e-9 * (
+                1 + np.abs(cov).max()):
+            raise ValueError(f"covariance must be a finite symmetric 2x2 matrix, got {cov.tolist()}")
+        w, v = np.linalg.eigh(0.5 * (cov + cov.T))
+        if w[0] < -1e-12 * (1 + abs(w[1])):
+            raise ValueError(f"covariance must be positive semi-definite, eigenvalues {w.tolist()}")
+        if not n_sigma > 0:
+            raise ValueError(f"n_sigma must be > 0, got {n_sigma}")
+        sd = np.sqrt(np.maximum(w, 0.0))
+        angle = math.atan2(v[1, 1], v[0, 1])
+        angle = angle - math.pi if angle > math.pi / 2 else angle + math.pi if angle <= -math.pi / 2 else angle
+        return cls(tuple(center), (float(n_sigma * sd[1]), float(n_sigma * sd[0])), float(angle))
 
     def grow(self, distance: float, rotation: float, rate_distance: float = 0.1,
              rate_rotation: float = 0.05) -> Ellipse:
@@ -153,12 +172,18 @@ def arc_candidates(feature: MapFeature, scan: ScanPoints, region: shapely.Geomet
     return out
 
 
-def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector], ellipse: Ellipse,
+def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
+             ellipse: Ellipse | tuple[np.ndarray, np.ndarray],
              params: SonarLocalizerParams | None = None, *, sonar: SonarConfig | None = None,
              features: list[MapFeature] | None = None) -> LocalizationResult:
-    """Localize from a 360-degree scan with the known map (seed B Fig. 6). ``sonar`` is the sensor
-    model used for synthetic scans (default: ideal ray model); ``features`` as used for ``sectors``."""
+    """Localize from a 360-degree scan with the known map (seed B Fig. 6). ``ellipse``: the
+    uncertainty region, an :class:`Ellipse` or ``(center (2,), position covariance (2, 2))`` (e.g.
+    propagated odometry), whose ``params.covariance_sigmas`` ellipse is used. ``sonar`` is the
+    sensor model used for synthetic scans (default: ideal ray model); ``features`` as used for
+    ``sectors``."""
     p = params or SonarLocalizerParams()
+    if isinstance(ellipse, tuple) and len(ellipse) == 2 and np.shape(ellipse[1]) == (2, 2):
+        ellipse = Ellipse.from_covariance(ellipse[0], ellipse[1], p.covariance_sigmas)
     sonar = sonar or SonarConfig(model="ray")
     r = np.asarray(scan_ranges, dtype=float)
     a = np.asarray(scan_angles, dtype=float)
@@ -169,15 +194,22 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector], ellipse
     feats = map_features(map_model) if features is None else features
     region = ellipse.polygon().buffer(p.ellipse_distance)
     f1 = sorted(set().union(*[s.features for s in sectors if s.polygon.intersects(region)]))
-    scan = characteristic_points(r, a, sonar.range_max, p)
+    # seed B Fig. 11: features also come from the filtered scan (too-long readings moved onto the
+    # nearest walls); the raw scan's features stay candidates (the filter can erase a wall's end)
+    scans = [characteristic_points(r, a, sonar.range_max, p)]
+    if p.filter:
+        r_filt = filter_scan(r, a, sonar.range_max, p.filter_repeats, p.filter_half_window, p.filter_line_tol)
+        if not np.array_equal(r_filt, r):
+            scans.insert(0, characteristic_points(r_filt, a, sonar.range_max, p))
     cands, owners = [], []
     for fi in f1:
-        qs = [q for q in pose_candidates(feats[fi], scan, p)
-              if ellipse.distance(q[None, :2])[0] < p.ellipse_distance]
-        if not qs:
-            qs = arc_candidates(feats[fi], scan, region)
-        cands.extend(qs)
-        owners.extend([fi] * len(qs))
+        for scan in scans:
+            qs = [q for q in pose_candidates(feats[fi], scan, p)
+                  if ellipse.distance(q[None, :2])[0] < p.ellipse_distance]
+            if not qs:
+                qs = arc_candidates(feats[fi], scan, region)
+            cands.extend(qs)
+            owners.extend([fi] * len(qs))
     if not cands:
         return LocalizationResult(None, math.inf, 0, False)
     poses = np.array(cands)
