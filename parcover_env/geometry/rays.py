@@ -116,7 +116,7 @@ def cast_rays(origins, directions, segments, max_range: float = math.inf, *,
         t, den, ex, ey = _t_plane(origins[:, 0:1], origins[:, 1:2], directions[:, 0:1], directions[:, 1:2],
                                   segments[None])
         t, idx, cos = _first(t, den, ex, ey, len(segments), with_cos)
-    hit = t <= max_range
+    hit = np.isfinite(t) & (t <= max_range)
     return RayHits(np.where(hit, t, np.inf), np.where(hit, idx, -1),
                    np.where(hit, cos, 0.0) if with_cos else None)
 
