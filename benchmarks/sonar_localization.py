@@ -5,7 +5,8 @@ For each map, with and without unknown obstacles, and with and without seed B's 
 localizes: at least one feature in sensor range; ``--where anywhere`` for all free space), a noisy
 72-reading scan of the world with the scenario's sonar (the realistic default: cone, incidence limit,
 multipath, dropouts), an uncertainty ellipse around a perturbed estimate that contains the true
-position, then ``localize`` with the known map. Prints success rate and the position / heading
+position, a heading estimate (true + N(0, 5 deg), as odometry gives), then ``localize`` with the known
+map. Prints success rate and the position / heading
 error distribution (median, p90) per scenario.
 
     .venv/bin/python benchmarks/sonar_localization.py --n 500 [--model specular|ray] [--seed 0]
@@ -29,6 +30,10 @@ from parcover_env.localization.sonar.sectors import compute_sectors
 from parcover_env.scenarios import load_scenario
 from parcover_env.sensors.sonar import SonarRing
 from parcover_env.world.map_model import MapModel
+
+HEADING_SIGMA_DEG = 5.0
+"""Heading estimate handed to the localizer: the true heading plus N(0, 5 deg) (odometry drifts
+several degrees per 10 m, issue 13)."""
 
 UNKNOWN = {
     "hallway": (((3.6, 0.2), (4.2, 0.2), (4.2, 0.6), (3.6, 0.6)),
@@ -54,7 +59,7 @@ def sample_poses(world: MapModel, n: int, clearance: float, rng: np.random.Gener
 
 
 def run(name: str, unknown: bool, n: int, model: str | None, seed: int, params: SonarLocalizerParams,
-        where: str = "sector"):
+        where: str = "sector", use_heading: bool = True):
     sc = load_scenario(name)
     map_cfg = dataclasses.replace(sc.map, unknown_obstacles=UNKNOWN[name] if unknown else ())
     world = MapModel.from_config(map_cfg, include_unknown=True)
@@ -79,8 +84,9 @@ def run(name: str, unknown: bool, n: int, model: str | None, seed: int, params: 
         local = np.array([axes[0] * rad * math.cos(phi), axes[1] * rad * math.sin(phi)])
         c, s = math.cos(ang), math.sin(ang)
         centre = pose[:2] - np.array([c * local[0] - s * local[1], s * local[0] + c * local[1]])
+        heading = pose[2] + math.radians(HEADING_SIGMA_DEG) * rng.standard_normal() if use_heading else None
         res = localize(scan, ring.scan_angles, known, sectors, Ellipse(tuple(centre), tuple(axes), ang),
-                       params, sonar=sonar, features=feats)
+                       params, sonar=sonar, features=feats, heading=heading)
         tried.append(res.candidates_tried)
         if res.pose is None:
             continue
@@ -119,6 +125,7 @@ def main() -> None:
     ap.add_argument("--unknown", choices=["no", "yes", "both"], default="both",
                     help="with unknown obstacles in the world")
     ap.add_argument("--filter", choices=["on", "off", "both"], default="both", help="Fig. 11 filter")
+    ap.add_argument("--no-heading", action="store_true", help="no heading estimate for the localizer")
     args = ap.parse_args()
     unknowns = {"no": (False,), "yes": (True,), "both": (False, True)}[args.unknown]
     filters = {"on": (True,), "off": (False,), "both": (False, True)}[args.filter]
@@ -126,7 +133,7 @@ def main() -> None:
         for unknown in unknowns:
             for flt in filters:
                 params = dataclasses.replace(load_scenario(name).sonar_localizer, filter=flt)
-                run(name, unknown, args.n, args.model, args.seed, params, args.where)
+                run(name, unknown, args.n, args.model, args.seed, params, args.where, not args.no_heading)
 
 
 if __name__ == "__main__":

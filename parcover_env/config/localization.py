@@ -40,6 +40,9 @@ class SonarLocalizerConfig:
     """Fig. 6 step 7: candidate poses farther than this outside the uncertainty region are dropped (m)."""
     error_clip: float = 0.5
     """Per-reading error cap of the scan comparison (robust to unknown obstacles) (m)."""
+    error_trim: float = 0.1
+    """Share of the readings with the largest errors left out of the scan comparison (robots near
+    the scanning one, multipath paths that a few cm of pose error changes); 0 = all readings."""
     success_error: float = 0.07
     """Localization succeeds when the best pose's mean clipped scan error is below this (m)."""
     refine: bool = True
@@ -60,6 +63,17 @@ class SonarLocalizerConfig:
     """Fig. 11 line 3: readings each side of the nearest one that must lie on a line."""
     filter_line_tol: float = 0.03
     """Fig. 11 line 4: RMS residual under which those readings form a line segment (m)."""
+    heading_prior_tol_deg: float = 30.0
+    """When the caller passes a heading estimate (odometry), candidate poses whose heading differs
+    from it by more than this are dropped (deg)."""
+    grid_step: float = 0.05
+    """Fallback when no feature-derived pose explains the scan and a heading estimate is given:
+    synthetic scans from poses every this many metres inside the uncertainty ellipse (scan
+    matching; not in seed B). 0 = off."""
+    grid_heading_step_deg: float = 4.0
+    """Heading step of that fallback around the heading estimate (deg)."""
+    grid_heading_steps: int = 2
+    """Headings tried each side of the estimate by the fallback (0 = the estimate only)."""
     covariance_sigmas: float = 2.0
     """When the uncertainty region is given as a position covariance, its ellipse spans this many
     standard deviations (2 sigma holds ~86 % of a 2-D Gaussian)."""
@@ -67,9 +81,14 @@ class SonarLocalizerConfig:
     def __post_init__(self) -> None:
         for name in ("jump_threshold", "far_margin", "line_tol", "plateau_tol", "heading_tol_deg",
                      "ellipse_distance", "error_clip", "success_error", "sector_resolution",
-                     "filter_line_tol", "covariance_sigmas"):
+                     "filter_line_tol", "covariance_sigmas", "heading_prior_tol_deg"):
             _check(getattr(self, name) > 0, name, f"must be > 0, got {getattr(self, name)}")
         _check(self.prominence >= 0, "prominence", f"must be >= 0, got {self.prominence}")
+        _check(0 <= self.error_trim < 1, "error_trim", f"must be in [0, 1), got {self.error_trim}")
+        _check(self.grid_step >= 0, "grid_step", f"must be >= 0, got {self.grid_step}")
+        _check(self.grid_heading_steps >= 0, "grid_heading_steps", f"must be >= 0, got {self.grid_heading_steps}")
+        _check(self.grid_heading_step_deg > 0, "grid_heading_step_deg",
+               f"must be > 0, got {self.grid_heading_step_deg}")
         for name in ("window", "refine_iters", "max_candidates", "filter_repeats", "filter_half_window"):
             _check(getattr(self, name) >= 1, name, f"must be >= 1, got {getattr(self, name)}")
         _check(self.heading_tol_deg < 180, "heading_tol_deg", f"must be < 180, got {self.heading_tol_deg}")

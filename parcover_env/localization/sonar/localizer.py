@@ -123,9 +123,14 @@ def synthetic_scans(poses, scan_angles, segments, sonar: SonarConfig) -> np.ndar
                           np.full(len(poses), -1))
 
 
-def scan_error(measured, synthetic, clip: float) -> np.ndarray:
-    """Mean clipped absolute range error per synthetic scan (rows)."""
-    return np.minimum(np.abs(np.atleast_2d(synthetic) - np.asarray(measured)[None, :]), clip).mean(axis=1)
+def scan_error(measured, synthetic, clip: float, trim: float = 0.0) -> np.ndarray:
+    """Mean clipped absolute range error per synthetic scan (rows), over the best ``1 - trim``
+    share of the readings (``trim`` drops the worst: other robots, multipath, unknown obstacles)."""
+    e = np.minimum(np.abs(np.atleast_2d(synthetic) - np.asarray(measured)[None, :]), clip)
+    keep = e.shape[1] - int(math.floor(trim * e.shape[1]))
+    if keep < e.shape[1]:
+        e = np.partition(e, keep - 1, axis=1)[:, :keep]
+    return e.mean(axis=1)
 
 
 def pose_candidates(feature: MapFeature, scan: ScanPoints, params: SonarLocalizerParams) -> list[np.ndarray]:
@@ -172,15 +177,32 @@ def arc_candidates(feature: MapFeature, scan: ScanPoints, region: shapely.Geomet
     return out
 
 
+def _grid_candidates(ellipse: Ellipse, heading: float, map_model, p: SonarLocalizerParams) -> np.ndarray:
+    """Poses every ``grid_step`` m inside the uncertainty ellipse and in free space, at the heading
+    estimate and ``grid_heading_step_deg`` either side of it."""
+    c, s = math.cos(ellipse.angle), math.sin(ellipse.angle)
+    a, b = max(ellipse.axes[0], p.grid_step), max(ellipse.axes[1], p.grid_step)
+    u, v = np.meshgrid(np.arange(-a, a + 1e-9, p.grid_step), np.arange(-b, b + 1e-9, p.grid_step))
+    inside = (u / a) ** 2 + (v / b) ** 2 <= 1.0
+    u, v = u[inside], v[inside]
+    xy = np.stack([ellipse.center[0] + c * u - s * v, ellipse.center[1] + s * u + c * v], axis=1)
+    xy = xy[map_model.contains(xy)]
+    dh = math.radians(p.grid_heading_step_deg)
+    heads = heading + dh * np.arange(-p.grid_heading_steps, p.grid_heading_steps + 1)
+    return np.column_stack([np.repeat(xy, len(heads), axis=0), np.tile(heads, len(xy))])
+
+
 def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
              ellipse: Ellipse | tuple[np.ndarray, np.ndarray],
              params: SonarLocalizerParams | None = None, *, sonar: SonarConfig | None = None,
-             features: list[MapFeature] | None = None) -> LocalizationResult:
+             features: list[MapFeature] | None = None, heading: float | None = None) -> LocalizationResult:
     """Localize from a 360-degree scan with the known map (seed B Fig. 6). ``ellipse``: the
     uncertainty region, an :class:`Ellipse` or ``(center (2,), position covariance (2, 2))`` (e.g.
     propagated odometry), whose ``params.covariance_sigmas`` ellipse is used. ``sonar`` is the
     sensor model used for synthetic scans (default: ideal ray model); ``features`` as used for
-    ``sectors``."""
+    ``sectors``. ``heading``: the robot's heading estimate (rad, e.g. odometry); candidates farther
+    than ``params.heading_prior_tol_deg`` from it are dropped (a symmetric corridor gives the same
+    scan from a pose turned by 180 degrees)."""
     p = params or SonarLocalizerParams()
     if isinstance(ellipse, tuple) and len(ellipse) == 2 and np.shape(ellipse[1]) == (2, 2):
         ellipse = Ellipse.from_covariance(ellipse[0], ellipse[1], p.covariance_sigmas)
@@ -210,19 +232,26 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
                 qs = arc_candidates(feats[fi], scan, region)
             cands.extend(qs)
             owners.extend([fi] * len(qs))
-    if not cands:
-        return LocalizationResult(None, math.inf, 0, False)
-    poses = np.array(cands)
+    segs = map_model.segments
+    poses = np.array(cands).reshape(-1, 3)
     keep = (ellipse.distance(poses[:, :2]) < p.ellipse_distance) & map_model.contains(poses[:, :2])
-    poses, owners = poses[keep], np.asarray(owners)[keep]
-    if len(poses) == 0:
-        return LocalizationResult(None, math.inf, 0, False)
+    if heading is not None:
+        keep &= np.abs(wrap_angle(poses[:, 2] - float(heading))) <= math.radians(p.heading_prior_tol_deg)
+    poses, owners = poses[keep], np.asarray(owners, dtype=np.int64)[keep]
     _, uniq = np.unique(np.round(np.column_stack([poses[:, :2] / 0.01, poses[:, 2] / 0.01])), axis=0,
                         return_index=True)
     uniq = np.sort(uniq)[: p.max_candidates]
     poses, owners = poses[uniq], owners[uniq]
-    segs = map_model.segments
-    err = scan_error(r, synthetic_scans(poses, a, segs, sonar), p.error_clip)
+    err = scan_error(r, synthetic_scans(poses, a, segs, sonar), p.error_clip, p.error_trim) if len(poses) \
+        else np.zeros(0)
+    if heading is not None and p.grid_step > 0 and (len(err) == 0 or err.min() > p.success_error):
+        # no feature pose explains the scan: scan matching over the uncertainty region instead
+        grid = _grid_candidates(ellipse, float(heading), map_model, p)
+        poses = np.concatenate([poses, grid])
+        owners = np.concatenate([owners, np.full(len(grid), -1)])
+        err = np.concatenate([err, scan_error(r, synthetic_scans(grid, a, segs, sonar), p.error_clip, p.error_trim)])
+    if len(poses) == 0:
+        return LocalizationResult(None, math.inf, 0, False)
     best = int(np.argmin(err))
     pose, e = poses[best].copy(), float(err[best])
     if p.refine:
@@ -230,7 +259,7 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
             if not map_model.contains(x[None, :2])[0] or \
                     ellipse.distance(x[None, :2])[0] >= p.ellipse_distance:
                 return p.error_clip
-            return float(scan_error(r, synthetic_scans(x[None], a, segs, sonar), p.error_clip)[0])
+            return float(scan_error(r, synthetic_scans(x[None], a, segs, sonar), p.error_clip, p.error_trim)[0])
 
         res = minimize(cost, pose, method="Nelder-Mead",
                        options={"maxiter": p.refine_iters, "xatol": 1e-3, "fatol": 1e-5,
