@@ -104,7 +104,8 @@ def run(name: str, unknown: bool, n: int, model: str | None, seed: int, params: 
     def q(x, k):
         return float(np.percentile(x, k)) if len(x) else float("nan")
 
-    print(f"{name:8s} unknown={unknown!s:5s} filter={params.filter!s:5s} model={sonar.model:8s} n={n} "
+    print(f"{name:8s} unknown={unknown!s:5s} filter={params.filter!s:5s} grid={params.grid_step > 0!s:5s} "
+          f"model={sonar.model:8s} n={n} "
           f"sectors={len(sectors)} "
           f"({t_sec:.2f} s) | success {100 * ok / n:5.1f}% correct(<25cm,<10deg) {100 * correct / n:5.1f}% | "
           f"pos err (success) median {100 * q(pe, 50):.1f} cm p90 {100 * q(pe, 90):.1f} cm | "
@@ -126,6 +127,8 @@ def main() -> None:
                     help="with unknown obstacles in the world")
     ap.add_argument("--filter", choices=["on", "off", "both"], default="both", help="Fig. 11 filter")
     ap.add_argument("--no-heading", action="store_true", help="no heading estimate for the localizer")
+    ap.add_argument("--no-grid", action="store_true",
+                    help="feature poses only (no scan-matching fallback): the filter's own effect")
     args = ap.parse_args()
     unknowns = {"no": (False,), "yes": (True,), "both": (False, True)}[args.unknown]
     filters = {"on": (True,), "off": (False,), "both": (False, True)}[args.filter]
@@ -133,6 +136,8 @@ def main() -> None:
         for unknown in unknowns:
             for flt in filters:
                 params = dataclasses.replace(load_scenario(name).sonar_localizer, filter=flt)
+                if args.no_grid:
+                    params = dataclasses.replace(params, grid_step=0.0)
                 run(name, unknown, args.n, args.model, args.seed, params, args.where, not args.no_heading)
 
 
