@@ -270,7 +270,7 @@ def floor_step(scenario: str, overrides: dict | None):
             ang = (th[:, None] + beams[None, :]).ravel()
             d = np.stack([np.cos(ang), np.sin(ang)], axis=1)
             o = np.repeat(xy, b, axis=0)
-            dist, _ = cast_rays(o, d, segments, rmax)
+            dist = cast_rays(o, d, segments, rmax).distance
             np.minimum(dist, cast_rays_discs(o, d, xy, s.robot.radius, owner, rmax))
 
     return step, n

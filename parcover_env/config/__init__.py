@@ -10,6 +10,7 @@ from parcover_env.config.schema import (
     EpisodeConfig,
     FormationConfig,
     KinectConfig,
+    KinectTrackingConfig,
     MapConfig,
     ObservationConfig,
     OdometryConfig,
@@ -23,6 +24,7 @@ from parcover_env.config.schema import (
     Scenario,
     Segment,
     SonarConfig,
+    SonarLocalizerConfig,
 )
 from parcover_env.config.typed import from_mapping, to_mapping
 from parcover_env.errors import ConfigError
@@ -30,6 +32,7 @@ from parcover_env.errors import ConfigError
 __all__ = [
     "ConfigError", "MapConfig", "Pose", "SonarConfig", "DriveConfig", "OdometryConfig", "RobotConfig", "KinectConfig",
     "PhysicsConfig", "EpisodeConfig", "RewardConfig", "ObservationConfig", "FormationConfig", "PlannerConfig",
-    "Scenario", "Point", "Polygon", "Segment", "read_yaml", "deep_merge", "scenario_from_mapping",
+    "SonarLocalizerConfig", "KinectTrackingConfig", "Scenario", "Point", "Polygon", "Segment", "read_yaml",
+    "deep_merge", "scenario_from_mapping",
     "scenario_to_yaml", "replace_source", "from_mapping", "to_mapping",
 ]

@@ -32,6 +32,33 @@ def _set(data: dict, path: tuple[str, ...], values: dict) -> None:
     node.update(values)
 
 
+def _ideal_sensors(data: dict) -> None:
+    """Sonar and Kinect of the ``ideal`` preset: the sensor models as they were before the realism
+    work, so that pinned rollouts reproduce bit for bit.
+
+    Sonar: the ideal ray model unless the scenario names a model itself (``hallway`` and ``t_room``
+    keep their cone-and-incidence ``specular`` model), never multipath nor cross-talk, echoes below
+    ``range_min`` clipped (not lost). Range noise and quantization stay (they always were there).
+    Kinect: a perfectly mounted camera (no extrinsic error) and no lateral noise; axial noise and
+    disparity quantization stay."""
+    robot = data.setdefault("robot", {})
+    if isinstance(robot, dict):
+        sonar = robot.setdefault("sonar", {})
+        if isinstance(sonar, dict):
+            sonar.setdefault("model", "ray")
+            sonar.update({"multipath": False, "crosstalk_prob": 0.0, "below_min": "clip"})
+    kinects = data.get("kinects")
+    if isinstance(kinects, list):
+        for k in kinects:
+            if isinstance(k, dict):
+                k.update(_IDEAL_KINECT)
+
+
+_IDEAL_KINECT = {"mount_tilt_std_deg": 0.0, "mount_yaw_std_deg": 0.0, "mount_height_std": 0.0,
+                 "lateral_noise_px": 0.0}
+"""Kinect error fields the ``ideal`` preset switches off (see :class:`~parcover_env.config.KinectConfig`)."""
+
+
 def _ideal(data: dict) -> dict:
     # Each error model registers its ideal values here (robot motion, odometry, sonar, Kinect).
     # Motion: commands act instantly; odometry measures the true motion with the pre-realism
@@ -40,6 +67,7 @@ def _ideal(data: dict) -> dict:
     _set(data, ("robot", "drive"), {"model": "instant"})
     _set(data, ("robot", "odometry"), {"model": "motion"})
     _set(data, ("observation",), {"pose_covariance": False})
+    _ideal_sensors(data)
     return data
 
 

@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from parcover_env.config.localization import KinectTrackingConfig, SonarLocalizerConfig
 from parcover_env.errors import ConfigError
 
 Point = tuple[float, float]
@@ -22,7 +23,8 @@ Segment = tuple[Point, Point]
 __all__ = [
     "ConfigError", "MapConfig", "Pose", "SonarConfig", "DriveConfig", "OdometryConfig", "RobotConfig",
     "KinectConfig", "PhysicsConfig", "EpisodeConfig", "RewardConfig", "ObservationConfig",
-    "FormationConfig", "PlannerConfig", "Scenario", "Point", "Polygon", "Segment",
+    "FormationConfig", "PlannerConfig", "SonarLocalizerConfig", "KinectTrackingConfig", "Scenario",
+    "Point", "Polygon", "Segment",
 ]
 
 
@@ -90,21 +92,39 @@ class Pose:
 
 @dataclass(frozen=True)
 class SonarConfig:
-    """Sonar ring. ``model: ray`` is an ideal ray model; ``specular`` adds the physics of issue 6."""
+    """Sonar ring (seed B: AmigoBot). The default is the realistic model: a cone of ``cone_deg``
+    whose walls echo only near normal incidence, multipath, retro-reflecting concave corners,
+    echoes from robots, cross-talk between rings and readings lost below ``range_min``.
+    ``model: ray`` is one ideal ray per beam (the ``ideal`` preset)."""
 
     layout: Literal["ring", "amigobot"] = "ring"
     n_beams: int = 16
     """Number of evenly spaced beams for ``layout: ring`` (ignored for ``amigobot``: 8)."""
     range_min: float = 0.15
+    """Nearest measurable range (m): the transducer still rings while a nearer echo returns."""
     range_max: float = 2.54
-    model: Literal["ray", "specular"] = "ray"
+    """Farthest range (m); a beam with no echo reads this (seed B: 2.54 m = 'too far')."""
+    model: Literal["ray", "specular"] = "specular"
+    """``specular``: a cone of sub-rays with the specular physics below; ``ray``: one ideal ray."""
     cone_deg: float = 30.0
+    """Full opening angle of a beam (deg), sampled by sub-rays (specular model)."""
     incidence_max_deg: float = 20.0
-    """Specular model: a wall echoes only if the beam meets it within this angle of its normal."""
+    """Specular model: a wall echoes only if the beam meets it within this angle of its normal (deg)."""
+    multipath: bool = True
+    """Specular model: a sub-ray reflected away by an oblique wall is followed to the next surface;
+    if that one returns it, the reading is the two-bounce length (too long). False: lost."""
+    crosstalk_prob: float = 0.1
+    """Probability that a beam facing another robot's transducer that fires at it (each inside the
+    other's cone, in line of sight) reads that robot's ping instead: half the distance between
+    them, as time of flight is halved for a round trip. 0 = rings never hear each other."""
+    below_min: Literal["drop", "clip"] = "drop"
+    """An echo nearer than ``range_min``: ``drop`` = lost (reads ``range_max``), ``clip`` = reads
+    ``range_min``."""
     noise_std: float = 0.01
     noise_rel: float = 0.01
     """Range noise sigma = noise_std + noise_rel * range (m)."""
     quantization: float = 0.01
+    """Range resolution of a reading (m); 0 = continuous."""
     scan_step_deg: float = 5.0
     """Angular step of a 360-degree scan (72 readings at 5 degrees)."""
     garbage_rate: float = 0.0
@@ -116,7 +136,9 @@ class SonarConfig:
         _check(self.noise_std >= 0 and self.noise_rel >= 0, "noise_std", "noise must be >= 0")
         _check(self.quantization >= 0, "quantization", "must be >= 0")
         _check(0 <= self.garbage_rate <= 1, "garbage_rate", "must be in [0, 1]")
+        _check(0 <= self.crosstalk_prob <= 1, "crosstalk_prob", f"must be in [0, 1], got {self.crosstalk_prob}")
         _check(0 < self.incidence_max_deg <= 90, "incidence_max_deg", "must be in (0, 90]")
+        _check(self.cone_deg < 180, "cone_deg", f"must be < 180, got {self.cone_deg}")
 
 
 @dataclass(frozen=True)
@@ -270,9 +292,26 @@ class KinectConfig:
     """Fault injection: probability that a frame is dropped."""
     wall_height: float = 0.5
     """Height of walls and obstacles as the depth camera sees them (m)."""
+    mount_tilt_std_deg: float = 0.6
+    """Mounting error of a hand-hung camera: sigma of its pitch and of its roll about the nominal
+    pose (deg), drawn once per Kinect per episode. The localization pipeline keeps using the
+    nominal pose, so this shifts every fix (1 deg at 2.8 m ~ 5 cm) (ALGORITHMS.md)."""
+    mount_yaw_std_deg: float = 0.5
+    """Mounting error sigma of the yaw about the optical axis direction (deg), per episode."""
+    mount_height_std: float = 0.01
+    """Mounting error sigma of the camera height (m), per episode."""
+    lateral_noise_px: float = 0.8
+    """Lateral depth noise (px): each depth pixel is sampled this far (sigma, per axis) from its
+    own position, which blurs depth edges (Nguyen et al. 2012: ~0.8 px)."""
 
     def __post_init__(self) -> None:
         _positive(self, "height", "rate_hz", "range_max", "wall_height")
+        for name in ("mount_tilt_std_deg", "mount_yaw_std_deg", "mount_height_std", "lateral_noise_px"):
+            _check(getattr(self, name) >= 0, name, f"must be >= 0, got {getattr(self, name)}")
+        for name in ("mount_tilt_std_deg", "mount_yaw_std_deg"):
+            _check(getattr(self, name) <= 10, name, "mounting errors above 10 deg sigma are not a mounting error")
+        _check(self.mount_height_std <= 0.5, "mount_height_std", f"must be <= 0.5 m, got {self.mount_height_std}")
+        _check(self.lateral_noise_px <= 5, "lateral_noise_px", f"must be <= 5 px, got {self.lateral_noise_px}")
         _check(0 < self.pitch_deg <= 90, "pitch_deg", f"must be in (0, 90] (90 = looking down), got {self.pitch_deg}")
         _check(self.pitch_deg - self.fov_deg[1] / 2 > 0, "pitch_deg",
                "the top of the image looks at or above the horizon: the footprint would not be on the floor")
@@ -403,6 +442,10 @@ class Scenario:
     formation: FormationConfig = field(default_factory=FormationConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     localization: Literal["kinect", "sonar", "both"] = "kinect"
+    sonar_localizer: SonarLocalizerConfig = field(default_factory=SonarLocalizerConfig)
+    """Tunables of the sonar feature localizer and its Fig. 11 filter (seed B)."""
+    kinect_tracking: KinectTrackingConfig = field(default_factory=KinectTrackingConfig)
+    """Gate and fusion radius of the Kinect leader tracker (seed A)."""
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)
     episode: EpisodeConfig = field(default_factory=EpisodeConfig)
     rewards: RewardConfig = field(default_factory=RewardConfig)

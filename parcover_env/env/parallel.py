@@ -162,7 +162,7 @@ class ParallelCoverageEnv(ParallelEnv):
         self.velocity = np.zeros((self.n_robots, 2))
         self.fix_age = np.zeros(self.n_robots)
         if self.kinects is not None:
-            self.kinects.reset()
+            self.kinects.reset(self._rng)
         self.progress = self.mission.tracker()
         self.team = Team(self.plan, s.formation.mode, reach_tol=self.mission.reach_tol)
         self.commands = np.zeros((self.n_robots, 2))

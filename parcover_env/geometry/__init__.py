@@ -5,6 +5,14 @@ rows ``(x1, y1, x2, y2)``; angles are radians, counter-clockwise from +x, wrappe
 """
 
 from parcover_env.geometry.angles import rotate, wrap_angle
-from parcover_env.geometry.rays import cast_rays, cast_rays_discs, point_segment_distance, polygon_edges
+from parcover_env.geometry.rays import (
+    RayHits,
+    cast_rays,
+    cast_rays_discs,
+    point_segment_distance,
+    polygon_edges,
+    segments_blocked,
+)
 
-__all__ = ["wrap_angle", "rotate", "polygon_edges", "cast_rays", "cast_rays_discs", "point_segment_distance"]
+__all__ = ["wrap_angle", "rotate", "polygon_edges", "RayHits", "cast_rays", "cast_rays_discs", "segments_blocked",
+           "point_segment_distance"]

@@ -51,6 +51,21 @@ class CameraModel:
         C = np.array([position[0], position[1], height], dtype=float)
         return cls(w, h, K, R, C, float(range_min), float(range_max))
 
+    def perturbed(self, d_pitch: float, d_roll: float, d_yaw: float, d_height: float) -> CameraModel:
+        """The same camera mounted slightly off: rotated by ``d_pitch`` about its x axis (image
+        right), ``d_roll`` about its y axis (image down) and ``d_yaw`` about its optical axis (rad),
+        and raised by ``d_height`` (m). Intrinsics unchanged."""
+        def rot(axis: int, a: float) -> np.ndarray:
+            c, s = math.cos(a), math.sin(a)
+            i, j = [k for k in range(3) if k != axis]
+            q = np.eye(3)
+            q[i, i], q[i, j], q[j, i], q[j, j] = c, -s, s, c
+            return q
+
+        q = rot(0, d_pitch) @ rot(1, d_roll) @ rot(2, d_yaw)  # body rotation in the camera frame
+        return CameraModel(self.width, self.height, self.K, q.T @ self.R, self.C + np.array([0.0, 0.0, d_height]),
+                           self.range_min, self.range_max)
+
     @property
     def focal(self) -> float:
         return float(self.K[0, 0])

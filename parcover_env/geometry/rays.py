@@ -1,16 +1,50 @@
-"""Batched ray casting against segments and discs, and point-segment distances.
+"""The one ray-casting kernel: batched rays against wall segments and robot discs.
+
+Every sensor casts through here: sonar beams and their cone sub-rays, synthetic scans of the
+localizer, visibility of map corners (sectors), the Kinect's static scene, the follower camera's
+line of sight.
 
 Conventions: points are ``(..., 2)`` float arrays in metres; a segment array is ``(S, 4)`` with
 rows ``(x1, y1, x2, y2)``; angles are radians, counter-clockwise from +x.
+
+Ray layouts. ``origins (R, 2)`` with ``directions (R, 2)``: one ray per origin. ``origins (N, 2)``
+with ``directions (N, M, 2)``: a *fan* of ``M`` rays from each origin (all beams of all robots in
+one call). Fans are range-culled when it pays: each origin's rays are tested only against the
+segments (discs) within ``max_range`` of it. A hit at ``t`` lies within ``t`` of its origin, so
+every hit up to ``max_range`` is found exactly as by the full test.
+
+A hit farther than ``max_range`` is reported as no hit: distance ``inf``, segment index ``-1``.
 """
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+
 import numpy as np
 
-__all__ = ["polygon_edges", "cast_rays", "cast_rays_discs", "point_segment_distance"]
+__all__ = ["RayHits", "polygon_edges", "cast_rays", "cast_rays_discs", "segments_blocked",
+           "point_segment_distance"]
 
 _EPS = 1e-12
+"""Parallel rays (|direction x segment| below this) never hit; segment ends get this slack."""
+CULL_MIN_RAYS = 32
+"""Rays per origin from which a fan is range-culled ...               (performance, not physics)"""
+CULL_MIN_WORK = 50_000
+"""... when rays x segments (or discs) reach this: below, culling costs more than it saves."""
+
+
+@dataclass(frozen=True, eq=False)
+class RayHits:
+    """First hit per ray, shaped like ``directions[..., 0]``."""
+
+    distance: np.ndarray
+    """Distance along the (unit) direction to the first hit; ``inf`` if none within range (m)."""
+    index: np.ndarray
+    """Index of the segment hit, ``-1`` if none."""
+    cos_incidence: np.ndarray | None = None
+    """``|cos|`` of the angle between the ray and the hit segment's normal (1 = head-on), 0 where
+    nothing is hit; only when asked (``with_cos=True``) and for unit directions."""
 
 
 def polygon_edges(coords) -> np.ndarray:
@@ -21,63 +55,148 @@ def polygon_edges(coords) -> np.ndarray:
     return np.concatenate([pts, np.roll(pts, -1, axis=0)], axis=1)
 
 
-def cast_rays(origins: np.ndarray, directions: np.ndarray, segments: np.ndarray,
-              max_range: float) -> tuple[np.ndarray, np.ndarray]:
-    """First hit of each ray on ``segments``.
+def _pays(n_origins: int, per_origin: int, n_targets: int, max_range: float) -> bool:
+    return (math.isfinite(max_range) and per_origin >= CULL_MIN_RAYS
+            and n_origins * per_origin * n_targets >= CULL_MIN_WORK)
 
-    origins ``(R, 2)``, unit directions ``(R, 2)``, segments ``(S, 4)``.
-    Returns ``(distance (R,), segment index (R,))``: ``max_range`` and ``-1`` where nothing is hit.
-    """
+
+def _t_plane(ox, oy, dx, dy, seg):
+    """Ray parameter ``t`` of every (ray, segment) pair (inf where the ray misses) and ``den``.
+
+    Solves ``o + t d = a + u e``: ``t = (w x e) / (d x e)``, ``u = (w x d) / (d x e)`` with
+    ``w = a - o``. Works on one contiguous plane per coordinate (no ``(..., 2)`` temporaries)."""
+    ax, ay = seg[..., 0], seg[..., 1]
+    ex, ey = seg[..., 2] - ax, seg[..., 3] - ay
+    den = dx * ey - dy * ex
+    wx, wy = ax - ox, ay - oy
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (wx * ey - wy * ex) / den
+        u = (wx * dy - wy * dx) / den
+    ok = (t >= 0.0) & (u >= -_EPS) & (u <= 1.0 + _EPS) & (np.abs(den) > _EPS)
+    return np.where(ok, t, np.inf), den, ex, ey
+
+
+def _first(t, den, ex, ey, axis_len, with_cos):
+    """Nearest hit along the last axis: ``(t, position along that axis, |cos| or None)``."""
+    j = np.argmin(t, axis=-1)[..., None]
+    tmin = np.take_along_axis(t, j, axis=-1)[..., 0]
+    if not with_cos:
+        return tmin, j[..., 0], None
+    elen = np.broadcast_to(np.hypot(ex, ey), t.shape)
+    cos = (np.abs(np.take_along_axis(den, j, axis=-1))
+           / np.maximum(np.take_along_axis(elen, j, axis=-1), 1e-9))[..., 0]  # |d x e| / |e|
+    return tmin, j[..., 0], cos
+
+
+def cast_rays(origins, directions, segments, max_range: float = math.inf, *,
+              with_cos: bool = False, cull: bool | None = None) -> RayHits:
+    """First hit of each ray on ``segments`` within ``max_range`` (see the module docstring for the
+    ray layouts). ``cull``: force (True) or forbid (False) range culling of fans; None decides by
+    size. Directions need not be unit (distances are then in units of their length), except for
+    ``cos_incidence``."""
     origins = np.asarray(origins, dtype=float)
     directions = np.asarray(directions, dtype=float)
-    n_rays = len(origins)
-    if n_rays == 0 or len(segments) == 0:
-        return np.full(n_rays, float(max_range)), np.full(n_rays, -1, dtype=np.int64)
-    segments = np.asarray(segments, dtype=float)
-    # one contiguous (R, S) plane per coordinate (no (R, S, 2) temporaries)
-    ax, ay = segments[:, 0], segments[:, 1]
-    ex, ey = segments[:, 2] - ax, segments[:, 3] - ay
-    dx, dy = directions[:, 0:1], directions[:, 1:2]
-    wx, wy = ax - origins[:, 0:1], ay - origins[:, 1:2]
-    # Solve origin + t d = a + u e  ->  t = cross(w, e) / cross(d, e), u = cross(w, d) / cross(d, e)
-    den = dx * ey - dy * ex
-    num_t = wx * ey - wy * ex
-    num_u = wx * dy - wy * dx
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = num_t / den
-        u = num_u / den
-    valid = (np.abs(den) > _EPS) & (t >= 0.0) & (u >= 0.0) & (u <= 1.0)
-    t = np.where(valid, t, np.inf)
-    idx = np.argmin(t, axis=1)
-    dist = t[np.arange(n_rays), idx]
-    hit = dist <= max_range
-    return np.where(hit, dist, float(max_range)), np.where(hit, idx, -1)
+    segments = np.asarray(segments, dtype=float).reshape(-1, 4)
+    shape = directions.shape[:-1]
+    fan = directions.ndim == 3
+    if directions.size == 0 or len(segments) == 0:
+        return RayHits(np.full(shape, np.inf), np.full(shape, -1, dtype=np.int64),
+                       np.zeros(shape) if with_cos else None)
+    if fan:
+        n, m = shape
+        if cull is None:
+            cull = _pays(n, m, len(segments), max_range)
+        if cull and math.isfinite(max_range):
+            t, idx, cos = _fan_culled(origins, directions, segments, max_range, with_cos)
+        else:
+            t, den, ex, ey = _t_plane(origins[:, None, 0:1], origins[:, None, 1:2],
+                                      directions[..., 0:1], directions[..., 1:2], segments[None, None])
+            t, idx, cos = _first(t, den, ex, ey, len(segments), with_cos)
+    else:
+        t, den, ex, ey = _t_plane(origins[:, 0:1], origins[:, 1:2], directions[:, 0:1], directions[:, 1:2],
+                                  segments[None])
+        t, idx, cos = _first(t, den, ex, ey, len(segments), with_cos)
+    hit = np.isfinite(t) & (t <= max_range)
+    return RayHits(np.where(hit, t, np.inf), np.where(hit, idx, -1),
+                   np.where(hit, cos, 0.0) if with_cos else None)
 
 
-def cast_rays_discs(origins: np.ndarray, directions: np.ndarray, centers: np.ndarray,
-                    radii, owner: np.ndarray | None, max_range: float) -> np.ndarray:
-    """Distance from each ray origin to the first disc hit (``max_range`` if none).
+def _fan_culled(origins, dirs, segments, reach, with_cos):
+    n, m = dirs.shape[:2]
+    near = point_segment_distance(origins, segments) <= reach + 1e-6
+    width = int(near.sum(axis=1).max()) if n else 0
+    if width == 0:
+        return np.full((n, m), np.inf), np.full((n, m), -1, dtype=np.int64), np.zeros((n, m))
+    order = np.argsort(~near, axis=1, kind="stable")[:, :width]  # near segments first, in index order
+    keep = np.take_along_axis(near, order, axis=1)[:, None, :]
+    t, den, ex, ey = _t_plane(origins[:, None, 0:1], origins[:, None, 1:2], dirs[..., 0:1], dirs[..., 1:2],
+                              segments[order][:, None])
+    t = np.where(keep, t, np.inf)
+    tmin, j, cos = _first(t, den, ex, ey, width, with_cos)
+    idx = np.take_along_axis(np.broadcast_to(order[:, None, :], t.shape), j[..., None], axis=-1)[..., 0]
+    return tmin, idx, cos
 
-    ``owner (R,)`` gives, per ray, the index of a disc to ignore (the robot carrying the sensor),
-    or -1. Rays starting inside a disc other than their owner hit it at distance 0.
-    """
-    n_rays = len(origins)
-    if n_rays == 0 or len(centers) == 0:
-        return np.full(n_rays, float(max_range))
-    radii = np.broadcast_to(np.asarray(radii, dtype=float), (len(centers),))
-    oc = origins[:, None, :] - centers[None, :, :]
-    b = np.einsum("rck,rk->rc", oc, directions)
-    c = np.einsum("rck,rck->rc", oc, oc) - radii[None, :] ** 2
+
+def segments_blocked(a, b, segments) -> np.ndarray:
+    """Whether the open segment ``a -> b`` crosses any of ``segments``, per row of ``a, b (R, 2)``."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    segments = np.asarray(segments, dtype=float).reshape(-1, 4)
+    if len(a) == 0 or len(segments) == 0:
+        return np.zeros(len(a), dtype=bool)
+    t, _, _, _ = _t_plane(a[:, 0:1], a[:, 1:2], (b[:, 0] - a[:, 0])[:, None], (b[:, 1] - a[:, 1])[:, None],
+                          segments[None])
+    return ((t > 0.0) & (t < 1.0)).any(axis=1)
+
+
+def _disc_t(ocx, ocy, dx, dy, c):
+    b = ocx * dx + ocy * dy
     disc = b * b - c
-    with np.errstate(invalid="ignore"):
-        sq = np.sqrt(np.maximum(disc, 0.0))
-    t_near = -b - sq
-    t = np.where(c <= 0.0, 0.0, t_near)  # origin inside the disc
+    t_near = -b - np.sqrt(np.maximum(disc, 0.0))
     ok = (disc >= 0.0) & ((c <= 0.0) | (t_near >= 0.0))
-    if owner is not None:
-        ok &= np.arange(len(centers))[None, :] != np.asarray(owner)[:, None]
-    t = np.where(ok, t, np.inf)
-    return np.minimum(t.min(axis=1), float(max_range))
+    return np.where(ok, np.where(c <= 0.0, 0.0, t_near), np.inf)  # origin inside a disc: t = 0
+
+
+def cast_rays_discs(origins, directions, centres, radii, owner=None, max_range: float = math.inf, *,
+                    cull: bool | None = None) -> np.ndarray:
+    """Distance to the first disc hit per ray (``inf`` if none within ``max_range``), shaped like
+    ``directions[..., 0]`` (same layouts as :func:`cast_rays`). ``owner``: per origin, the index of
+    a disc to ignore (the robot carrying the sensor) or -1. A ray starting inside another disc hits
+    it at 0."""
+    origins = np.asarray(origins, dtype=float)
+    directions = np.asarray(directions, dtype=float)
+    centres = np.asarray(centres, dtype=float).reshape(-1, 2)
+    shape = directions.shape[:-1]
+    if directions.size == 0 or len(centres) == 0:
+        return np.full(shape, np.inf)
+    rad = np.broadcast_to(np.asarray(radii, dtype=float), (len(centres),))
+    r2 = rad * rad
+    n = len(origins)
+    owner = np.full(n, -1) if owner is None else np.asarray(owner)
+    ocx = origins[:, 0:1] - centres[None, :, 0]  # (N, D)
+    ocy = origins[:, 1:2] - centres[None, :, 1]
+    c = (ocx * ocx + ocy * ocy) - r2
+    mine = np.arange(len(centres))[None, :] == owner[:, None]
+    if directions.ndim == 3:
+        m = shape[1]
+        if cull is None:
+            cull = _pays(n, m, len(centres), max_range)
+        if cull and math.isfinite(max_range):
+            near = (np.hypot(ocx, ocy) <= max_range + rad[None, :] + 1e-6) & ~mine
+            width = int(near.sum(axis=1).max()) if n else 0
+            if width == 0:
+                return np.full(shape, np.inf)
+            order = np.argsort(~near, axis=1, kind="stable")[:, :width]
+            keep = np.take_along_axis(near, order, axis=1)[:, None, :]
+            ocx, ocy, c = (np.take_along_axis(x, order, axis=1)[:, None, :] for x in (ocx, ocy, c))
+            t = np.where(keep, _disc_t(ocx, ocy, directions[..., 0:1], directions[..., 1:2], c), np.inf)
+        else:
+            t = _disc_t(ocx[:, None], ocy[:, None], directions[..., 0:1], directions[..., 1:2], c[:, None])
+            t = np.where(mine[:, None, :], np.inf, t)
+    else:
+        t = np.where(mine, np.inf, _disc_t(ocx, ocy, directions[:, 0:1], directions[:, 1:2], c))
+    t = t.min(axis=-1)
+    return np.where(t <= max_range, t, np.inf)
 
 
 def point_segment_distance(points: np.ndarray, segments: np.ndarray) -> np.ndarray:

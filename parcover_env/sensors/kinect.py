@@ -19,7 +19,13 @@ Model (seed A section III-A/IV, ALGORITHMS.md "Kinect v1 model"):
 * IR: uint8. Dull floor/walls/robot levels with noise, projector speckle (isolated bright pixels
   and a few small bright clusters), saturated (255) marker blobs.
 
-Lateral depth noise (~0.8 px at edges) is not modelled (see the report).
+* Lateral noise: each depth pixel reads the depth ``N(0, lateral_noise_px)`` pixels away
+  (rounded, per axis), which frays depth edges and the marker holes (Nguyen et al.: ~0.8 px).
+* Mounting error (:meth:`KinectSensor.mount`, once per episode from the episode RNG): the camera
+  hangs off its nominal pose by ``N(0, mount_tilt_std_deg)`` in pitch and roll,
+  ``N(0, mount_yaw_std_deg)`` about its optical axis and ``N(0, mount_height_std)`` in height.
+  Frames are rendered by that *true* camera (``true_camera``); ``camera`` stays the nominal one the
+  localization pipeline uses, so every fix carries the mounting error (1 deg at 2.5 m ~ 4 cm).
 """
 
 from __future__ import annotations
@@ -92,6 +98,10 @@ class KinectSensor:
         self.cfg = cfg
         self.name = cfg.name
         self.camera = CameraModel.from_config(cfg)
+        """Nominal camera: what the localization pipeline believes (intrinsics + extrinsics)."""
+        self.true_camera = self.camera
+        """Camera as mounted this episode (:meth:`mount`); renders the frames."""
+        self._map_model = map_model
         if robot_height >= self.camera.C[2]:
             raise ValueError(f"Kinect '{cfg.name}' at {self.camera.C[2]} m is not above the robots "
                              f"({robot_height} m)")
@@ -105,18 +115,60 @@ class KinectSensor:
         self.pattern = marker_pattern(robot_radius, marker_radius)
         w, h = self.camera.width, self.camera.height
         self.shape = (h, w)
-        uu, vv = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
-        self.rays = self.camera.pixel_rays(np.stack([uu.ravel(), vv.ravel()], axis=1)).reshape(h, w, 3)
         self.fb = self.camera.focal * (NATIVE_WIDTH / w) * BASELINE
-        self.static_depth, self.static_class = self._render_static(map_model)
-        self._static_ir = np.where(self.static_class == self.WALL, 40, 55).astype(np.int16)
+        self._view_of(self.true_camera)
+        self.nominal_static_depth = self.static_depth
+        """Depth of the empty scene through the nominal camera (rendered once; the fast path's
+        wall-occlusion test uses it: a mounting error moves it by a pixel or two)."""
+
+    def _view_of(self, camera: CameraModel) -> None:
+        """Pixel rays of ``camera`` (the true one); its static scene is rendered when first needed."""
+        h, w = self.shape
+        uu, vv = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
+        self.rays = camera.pixel_rays(np.stack([uu.ravel(), vv.ravel()], axis=1)).reshape(h, w, 3)
+        self._cull = None
+        self._static = None
+
+    def _static_scene(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self._static is None:
+            depth, cls = self._render_static(self._map_model)
+            self._static = (depth, cls, np.where(cls == self.WALL, 40, 55).astype(np.int16))
+        return self._static
+
+    @property
+    def static_depth(self) -> np.ndarray:
+        """Camera depth of the empty scene through the true camera (inf where nothing is met)."""
+        return self._static_scene()[0]
+
+    @property
+    def static_class(self) -> np.ndarray:
+        """Surface class (``FLOOR`` / ``WALL``) of the empty scene through the true camera."""
+        return self._static_scene()[1]
+
+    @property
+    def _static_ir(self) -> np.ndarray:
+        return self._static_scene()[2]
+
+    def mount(self, rng: np.random.Generator) -> None:
+        """Draw this episode's mounting error (see the module notes). Without mounting errors in
+        the config nothing is drawn and the camera stays nominal."""
+        cfg = self.cfg
+        if cfg.mount_tilt_std_deg == 0 and cfg.mount_yaw_std_deg == 0 and cfg.mount_height_std == 0:
+            if self.true_camera is not self.camera:
+                self.true_camera = self.camera
+                self._view_of(self.camera)
+            return
+        tilt, yaw = math.radians(cfg.mount_tilt_std_deg), math.radians(cfg.mount_yaw_std_deg)
+        e = rng.standard_normal(4) * np.array([tilt, tilt, yaw, cfg.mount_height_std])
+        self.true_camera = self.camera.perturbed(*e.tolist())
+        self._view_of(self.true_camera)  # the true static scene is rendered only if frames are
 
     # ------------------------------------------------------------------ static scene
     def _render_static(self, map_model: MapModel) -> tuple[np.ndarray, np.ndarray]:
         """Camera depth of the empty scene (inf where the ray never meets it) and surface class."""
         h, w = self.shape
         rays = self.rays.reshape(-1, 3)
-        C = self.camera.C
+        C = self.true_camera.C
         dz = rays[:, 2]
         down = dz < -1e-12
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -146,7 +198,8 @@ class KinectSensor:
             if not np.any(moving):
                 continue
             sel, a, b, span = sel[moving], a[moving], b[moving], span[moving]
-            dist, hit = cast_rays(a, (b - a) / span[:, None], seg, float(span.max()) + 1.0)
+            hits = cast_rays(a, (b - a) / span[:, None], seg, float(span.max()) + 1.0)
+            dist, hit = hits.distance, hits.index
             wall = (hit >= 0) & (dist < span)
             frac = dist[wall] / span[wall]
             depth[sel[wall]] = t0[sel[wall]] + frac * (t_floor[sel[wall]] - t0[sel[wall]])
@@ -159,7 +212,7 @@ class KinectSensor:
         ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
         ring = np.stack([np.cos(ang), np.sin(ang)], axis=1) * (self.robot_radius * 1.05) + centre
         pts = np.concatenate([np.c_[ring, np.zeros(16)], np.c_[ring, np.full(16, self.robot_height)]])
-        uv, z = self.camera.project(pts)
+        uv, z = self.true_camera.project(pts)
         if np.any(z <= 1e-6):
             return None
         h, w = self.shape
@@ -173,7 +226,7 @@ class KinectSensor:
         corners cast on the floor and on the robot-top plane, grown by the robot radius. Config
         validation keeps every corner ray below the horizon, so both planes are met."""
         if getattr(self, "_cull", None) is None:
-            cam = self.camera
+            cam = self.true_camera
             corners = np.array([[-0.5, -0.5], [cam.width - 0.5, -0.5], [cam.width - 0.5, cam.height - 0.5],
                                 [-0.5, cam.height - 0.5]])
             rays = cam.pixel_rays(corners)
@@ -194,7 +247,7 @@ class KinectSensor:
         depth = self.static_depth.copy()
         owner = np.full(self.shape, -1, dtype=np.int32)
         top = np.zeros(self.shape, dtype=bool)
-        C = self.camera.C
+        C = self.true_camera.C
         r2 = self.robot_radius ** 2
         boxes = []
         cx0, cy0, cx1, cy1 = self._cull_box()
@@ -257,6 +310,18 @@ class KinectSensor:
         return poses, mask
 
     # ------------------------------------------------------------------ measurement
+    def lateral_jitter(self, depth: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Lateral noise: each pixel reads the depth ``N(0, lateral_noise_px)`` pixels away (rounded,
+        per axis, clamped to the image). Applied to the noisy depth, which has the same distribution
+        as noising the displaced clean depth; drawn after the IR frame so the IR noise is unchanged."""
+        if self.cfg.lateral_noise_px <= 0:
+            return depth
+        h, w = depth.shape
+        dv, du = np.rint(self.cfg.lateral_noise_px * rng.standard_normal((2, h, w))).astype(np.int64)
+        vv = np.clip(np.arange(h)[:, None] + dv, 0, h - 1)
+        uu = np.clip(np.arange(w)[None, :] + du, 0, w - 1)
+        return depth[vv, uu]
+
     def noisy_depth(self, depth: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Axial noise, 1/8-px disparity quantization and range limits applied to a clean depth."""
         z = depth.astype(np.float32)
@@ -300,6 +365,7 @@ class KinectSensor:
                                stamp, dropped=True)
         depth, owner, code = self.render_clean(poses, marker_mask)
         z = self.noisy_depth(depth, rng)
-        z[code > 0] = 0.0
         ir = self.render_ir(owner, code, rng)
+        z = self.lateral_jitter(z, rng)
+        z[code > 0] = 0.0  # depth is missing exactly where the markers saturate the IR image
         return KinectFrame(self.name, z, ir, stamp, info={"n_robots": len(poses)})

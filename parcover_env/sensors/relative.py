@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from parcover_env.geometry import wrap_angle
+from parcover_env.geometry import segments_blocked, wrap_angle
 
 __all__ = ["RelativeCamera", "RelativeReading"]
 
@@ -49,7 +49,7 @@ class RelativeCamera:
         rng_true = np.hypot(delta[:, 0], delta[:, 1])
         bearing = wrap_angle(np.arctan2(delta[:, 1], delta[:, 0]) - me[:, 2])
         seen = (rng_true <= self.max_range) & (np.abs(bearing) <= np.radians(self.fov_deg) / 2)
-        seen &= ~_blocked(me[:, :2], other[:, :2], segments)
+        seen &= ~segments_blocked(me[:, :2], other[:, :2], segments)
         r = rng_true * (1.0 + self.range_noise * rng.standard_normal(len(f)))
         b = bearing + self.bearing_noise * rng.standard_normal(len(f))
         h = wrap_angle(other[:, 2] - me[:, 2] + self.heading_noise * rng.standard_normal(len(f)))
@@ -59,17 +59,3 @@ class RelativeCamera:
         visible[f] = seen
         return RelativeReading(rel_xy, rel_heading, visible)
 
-
-def _blocked(a: np.ndarray, b: np.ndarray, segments: np.ndarray) -> np.ndarray:
-    """Whether the segment a->b crosses any wall segment, per row."""
-    # one contiguous (N, S) plane per coordinate
-    px, py = a[:, 0:1], a[:, 1:2]
-    rx, ry = (b[:, 0] - a[:, 0])[:, None], (b[:, 1] - a[:, 1])[:, None]
-    sx, sy = segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1]
-    den = rx * sy - ry * sx
-    qx, qy = segments[:, 0] - px, segments[:, 1] - py
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (qx * sy - qy * sx) / den
-        u = (qx * ry - qy * rx) / den
-    hit = (np.abs(den) > 1e-12) & (t > 0) & (t < 1) & (u >= 0) & (u <= 1)
-    return hit.any(axis=1)

@@ -3,14 +3,21 @@
 Geometry and conventions
 - The transducers sit at the robot centre (a documented simplification: ranges are measured from
   the centre, so a wall touching the robot reads ``robot_radius``). Beam angles are in the robot
-  frame, counter-clockwise from the heading.
+  frame, counter-clockwise from the heading. All rays go through :mod:`parcover_env.geometry.rays`.
 - ``model: ray`` — one ideal ray along each beam axis; reading = first hit (walls or other robots).
-- ``model: specular`` — each beam is a cone of ``cone_deg`` sampled by ``n_subrays`` rays. A sub-ray
-  echoes from a wall only when it meets the wall within ``incidence_max_deg`` of the normal (else the
-  energy is reflected away: no echo from that sub-ray); other robots (cylinders) always echo; a
-  concave corner (two walls meeting at < 180 deg, seen from inside their wedge) inside the cone and in
-  line of sight retro-reflects at the corner distance. The reading is the nearest echo in the cone.
-- No echo, or an echo beyond ``range_max``, reads ``range_max`` ("too far", the paper's 2.54 m).
+- ``model: specular`` (default) — each beam is a cone of ``cone_deg`` sampled by ``n_subrays`` rays.
+  A sub-ray echoes from a wall only when it meets the wall within ``incidence_max_deg`` of the
+  normal; otherwise it is mirrored away and, with ``multipath``, followed to the next surface: if
+  that one returns it (normal enough, or a robot) the echo retraces the path and reads the
+  two-bounce length ``t1 + t2`` (too long), else it is lost. Other robots (cylinders) always echo;
+  a concave corner (two walls meeting at < 180 deg, seen from inside their wedge) inside the cone
+  and in line of sight retro-reflects at the corner distance. The reading is the nearest echo in
+  the cone.
+- Cross-talk (:func:`crosstalk`, only in :meth:`SonarRing.measure` with an rng): with probability
+  ``crosstalk_prob`` a beam facing another robot whose ring fires back at it reads half their
+  distance (the other ping's one-way time of flight, halved as a round trip).
+- No echo, or an echo beyond ``range_max``, reads ``range_max`` ("too far", the paper's 2.54 m); an
+  echo nearer than ``range_min`` is lost (``below_min: drop``) or clipped (``clip``).
   Echoes get noise ``N(0, (noise_std + noise_rel * r)^2)``, are quantized to ``quantization`` and
   clamped to ``[range_min, range_max]``. ``garbage_rate`` replaces readings by uniform random ranges.
 """
@@ -23,18 +30,16 @@ from functools import lru_cache
 import numpy as np
 
 from parcover_env.config import SonarConfig
-from parcover_env.geometry import point_segment_distance, wrap_angle
+from parcover_env.geometry import cast_rays, cast_rays_discs, segments_blocked, wrap_angle
 
-__all__ = ["SonarRing", "AMIGOBOT_ANGLES_DEG", "concave_corners", "simulate_beams"]
+__all__ = ["SonarRing", "AMIGOBOT_ANGLES_DEG", "concave_corners", "simulate_beams", "crosstalk"]
 
 AMIGOBOT_ANGLES_DEG = (90.0, 44.0, 12.0, -12.0, -44.0, -90.0, -144.0, 144.0)
 """AmigoBot sonar layout (robot frame, deg): six forward-facing transducers and two rear ones."""
 
 _EPS = 1e-9
-_NEAR_MIN_RAYS = 32
-"""Rays per robot from which the range-culled ray casting (``_ray_segments_near``) is used ..."""
-_NEAR_MIN_WORK = 50_000
-"""... when rays x segments (or discs) reach this: below, its set-up costs more than it saves."""
+_NUDGE = 1e-7
+"""A reflected ray starts this far off the wall it left, so that it does not hit that wall again (m)."""
 
 
 @lru_cache(maxsize=32)
@@ -84,107 +89,6 @@ def _corner_faces(origins: np.ndarray, pts: np.ndarray, u1: np.ndarray, u2: np.n
     return (_cross(u1[None], v) * s > 0) & (_cross(v, u2[None]) * s > 0)
 
 
-def _ray_segments(origins, dirs, segments, with_cos: bool = True):
-    """Nearest hit per ray: ``(t (R,), seg index (R,), |cos incidence| (R,) or None)`` (t = inf if
-    none). Works on contiguous ``(R, S)`` planes (one per coordinate): no ``(R, S, 2)`` temporaries."""
-    ax, ay = segments[:, 0], segments[:, 1]
-    ex, ey = segments[:, 2] - ax, segments[:, 3] - ay
-    ox, oy = origins[:, 0:1], origins[:, 1:2]
-    dx, dy = dirs[:, 0:1], dirs[:, 1:2]
-    den = dx * ey - dy * ex
-    wx, wy = ax - ox, ay - oy
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (wx * ey - wy * ex) / den
-        u = (wx * dy - wy * dx) / den
-    ok = (t >= 0.0) & (u >= -1e-12) & (u <= 1.0 + 1e-12) & (np.abs(den) > 1e-12)
-    t = np.where(ok, t, np.inf)
-    idx = np.argmin(t, axis=1)
-    rows = np.arange(len(origins))
-    tmin = t[rows, idx]
-    if not with_cos:
-        return tmin, idx, None
-    elen = np.hypot(ex, ey)
-    cos_inc = np.abs(den[rows, idx]) / np.maximum(elen[idx], _EPS)  # |d x e| / |e| = |cos(incidence)|
-    return tmin, idx, cos_inc
-
-
-def _ray_segments_near(origins, dirs, segments, reach: float, with_cos: bool = True):
-    """:func:`_ray_segments` for ``M`` rays from each of ``N`` origins (``dirs (N, M, 2)``), testing
-    each origin's rays only against the segments within ``reach`` of it. Hits nearer than ``reach``
-    are exactly those of the full test (a segment hit at ``t`` lies within ``t`` of the origin);
-    farther hits may be missed (inf), which callers clamp to ``reach`` anyway. Returns flat
-    ``(N * M,)`` arrays like :func:`_ray_segments`."""
-    n, m = dirs.shape[:2]
-    near = point_segment_distance(origins, segments) <= reach + 1e-6
-    width = int(near.sum(axis=1).max()) if n else 0
-    if width == 0:
-        return np.full(n * m, np.inf), np.zeros(n * m, dtype=np.int64), np.ones(n * m)
-    order = np.argsort(~near, axis=1, kind="stable")[:, :width]  # near segments first, in index order
-    keep = np.take_along_axis(near, order, axis=1)[:, None, :]
-    seg = segments[order]  # (N, W, 4)
-    ax, ay = seg[:, None, :, 0], seg[:, None, :, 1]
-    ex, ey = seg[:, None, :, 2] - ax, seg[:, None, :, 3] - ay
-    dx, dy = dirs[:, :, 0:1], dirs[:, :, 1:2]
-    den = dx * ey - dy * ex  # (N, M, W)
-    wx, wy = ax - origins[:, None, None, 0], ay - origins[:, None, None, 1]  # (N, 1, W)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (wx * ey - wy * ex) / den
-        u = (wx * dy - wy * dx) / den
-    ok = (t >= 0.0) & (u >= -1e-12) & (u <= 1.0 + 1e-12) & (np.abs(den) > 1e-12) & keep
-    t = np.where(ok, t, np.inf)
-    j = np.argmin(t, axis=2)[..., None]
-    tmin = np.take_along_axis(t, j, axis=2).ravel()
-    idx = np.take_along_axis(order[:, None, :], j, axis=2).ravel()
-    if not with_cos:
-        return tmin, idx, None
-    elen = np.hypot(ex, ey)
-    cos_inc = (np.abs(np.take_along_axis(den, j, axis=2))
-               / np.maximum(np.take_along_axis(np.broadcast_to(elen, den.shape), j, axis=2), _EPS)).ravel()
-    return tmin, idx, cos_inc
-
-
-def _ray_discs(origins, dirs, centres, radius, owner):
-    """First hit distance of each ray on discs (inf if none); ``owner (R,)`` disc to ignore or -1."""
-    if len(centres) == 0:
-        return np.full(len(origins), np.inf)
-    ocx = origins[:, 0:1] - centres[None, :, 0]
-    ocy = origins[:, 1:2] - centres[None, :, 1]
-    b = ocx * dirs[:, 0:1] + ocy * dirs[:, 1:2]
-    c = (ocx * ocx + ocy * ocy) - radius * radius
-    disc = b * b - c
-    t_near = -b - np.sqrt(np.maximum(disc, 0.0))
-    t = np.where(c <= 0.0, 0.0, t_near)
-    ok = (disc >= 0.0) & ((c <= 0.0) | (t_near >= 0.0))
-    ok &= np.arange(len(centres))[None, :] != owner[:, None]
-    return np.where(ok, t, np.inf).min(axis=1)
-
-
-def _ray_discs_near(origins, dirs, centres, radius, owner, reach: float):
-    """:func:`_ray_discs` for ``M`` rays from each of ``N`` origins (``dirs (N, M, 2)``, ``owner (N,)``),
-    testing only the discs within ``reach`` of each origin (a farther disc is hit beyond ``reach``,
-    which callers clamp). Returns ``(N * M,)`` distances (inf if none)."""
-    n, m = dirs.shape[:2]
-    ocx = origins[:, 0:1] - centres[None, :, 0]  # (N, D): the same for all rays of one origin
-    ocy = origins[:, 1:2] - centres[None, :, 1]
-    c_all = (ocx * ocx + ocy * ocy) - radius * radius
-    near = np.hypot(ocx, ocy) <= reach + radius + 1e-6
-    near &= np.arange(len(centres))[None, :] != owner[:, None]
-    width = int(near.sum(axis=1).max()) if n else 0
-    if width == 0:
-        return np.full(n * m, np.inf)
-    order = np.argsort(~near, axis=1, kind="stable")[:, :width]
-    keep = np.take_along_axis(near, order, axis=1)[:, None, :]
-    ocx = np.take_along_axis(ocx, order, axis=1)[:, None, :]
-    ocy = np.take_along_axis(ocy, order, axis=1)[:, None, :]
-    c = np.take_along_axis(c_all, order, axis=1)[:, None, :]
-    b = ocx * dirs[:, :, 0:1] + ocy * dirs[:, :, 1:2]  # (N, M, W)
-    disc = b * b - c
-    t_near = -b - np.sqrt(np.maximum(disc, 0.0))
-    t = np.where(c <= 0.0, 0.0, t_near)
-    ok = (disc >= 0.0) & ((c <= 0.0) | (t_near >= 0.0)) & keep
-    return np.where(ok, t, np.inf).min(axis=2).ravel()
-
-
 def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segments: np.ndarray,
                    centres: np.ndarray, radius: float, owner: np.ndarray, n_subrays: int = 5) -> np.ndarray:
     """Noise-free readings ``(N, B)`` for beams with world axis angles ``axes (N, B)`` from
@@ -195,31 +99,21 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     specular = cfg.model == "specular"
     offsets = (np.linspace(-0.5, 0.5, n_subrays) * math.radians(cfg.cone_deg)) if specular else np.zeros(1)
     k = len(offsets)
-    ang = (axes[:, :, None] + offsets[None, None, :]).reshape(-1)
-    dirs = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    out = np.full(n * b * k, np.inf)
-    # many rays per robot: test each robot's rays only against the walls and discs within range
-    # (same readings; pays off from a few dozen rays per robot, e.g. 72-beam or specular scans)
-    near_only = b * k >= _NEAR_MIN_RAYS and n * b * k * max(len(segments), len(centres)) >= _NEAR_MIN_WORK
-    if len(segments):
-        if near_only:
-            out, _, cos_inc = _ray_segments_near(origins, dirs.reshape(n, b * k, 2), segments, rmax,
-                                                 with_cos=specular)
-        else:
-            out, _, cos_inc = _ray_segments(np.repeat(origins, b * k, axis=0), dirs, segments,
-                                            with_cos=specular)
-    if len(centres):
-        if near_only:
-            t_disc = _ray_discs_near(origins, dirs.reshape(n, b * k, 2), centres, float(radius), owner, rmax)
-        else:
-            t_disc = _ray_discs(np.repeat(origins, b * k, axis=0), dirs, centres, float(radius),
-                                np.repeat(owner, b * k))
-    else:
-        t_disc = out * np.inf
+    ang = (axes[:, :, None] + offsets[None, None, :]).reshape(n, b * k)
+    dirs = np.stack([np.cos(ang), np.sin(ang)], axis=-1)  # a fan of b * k rays per origin
+    # one call for all rays of all robots; range-culled by the kernel where that pays
+    hits = cast_rays(origins, dirs, segments, rmax, with_cos=specular)
+    out = hits.distance.reshape(-1)
+    t_disc = cast_rays_discs(origins, dirs, centres, float(radius), owner, rmax).reshape(-1)
     if specular and len(segments):
         # an oblique wall reflects the sub-ray away; a disc in front of it still echoes
-        valid = cos_inc >= math.cos(math.radians(cfg.incidence_max_deg)) - 1e-12
-        out = np.where(t_disc < out, t_disc, np.where(valid, out, np.inf))
+        cos_min = math.cos(math.radians(cfg.incidence_max_deg)) - 1e-12
+        valid = hits.cos_incidence.reshape(-1) >= cos_min
+        wall = np.where(valid, out, np.inf)
+        if cfg.multipath:
+            wall = np.where(valid, wall, _second_bounce(cfg, origins, dirs, hits, segments, centres, radius,
+                                                        owner, cos_min))
+        out = np.where(t_disc < out, t_disc, wall)
     else:
         out = np.minimum(out, t_disc)
     reading = out.reshape(n, b, k).min(axis=2)
@@ -231,6 +125,32 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     return np.minimum(reading, rmax)
 
 
+def _second_bounce(cfg, origins, dirs, hits, segments, centres, radius, owner, cos_min) -> np.ndarray:
+    """Multipath, flat ``(N * M,)``: a sub-ray reflected away by an oblique wall travels on to the
+    next surface; if that one returns it (a wall within the incidence limit, or a robot), the echo
+    retraces the path and reads the two-bounce length ``t1 + t2`` (longer than the true range)."""
+    n, m = dirs.shape[:2]
+    t1 = hits.distance.reshape(-1)
+    cos1 = hits.cos_incidence.reshape(-1)
+    out = np.full(n * m, np.inf)
+    sel = np.flatnonzero(np.isfinite(t1) & (cos1 < cos_min))
+    if len(sel) == 0:
+        return out
+    d = dirs.reshape(-1, 2)[sel]
+    seg = segments[hits.index.reshape(-1)[sel]]
+    e = seg[:, 2:4] - seg[:, 0:2]
+    nrm = np.stack([-e[:, 1], e[:, 0]], axis=1) / np.linalg.norm(e, axis=1, keepdims=True)
+    d2 = d - 2.0 * np.sum(d * nrm, axis=1, keepdims=True) * nrm  # mirror the direction in the wall
+    p = np.repeat(origins, m, axis=0)[sel] + d * t1[sel, None] + d2 * _NUDGE  # leave the first wall
+    reach = cfg.range_max - t1[sel]
+    h2 = cast_rays(p, d2, segments, float(reach.max()), with_cos=True)
+    wall2 = np.where(h2.cos_incidence >= cos_min, h2.distance, np.inf)
+    disc2 = cast_rays_discs(p, d2, centres, float(radius), np.repeat(owner, m)[sel])
+    t2 = np.where(disc2 < h2.distance, disc2, wall2) + _NUDGE
+    out[sel] = np.where(t2 <= reach, t1[sel] + t2, np.inf)
+    return out
+
+
 def _corner_echoes(cfg, origins, axes, segments, centres, radius, owner, pts, u1, u2) -> np.ndarray:
     """``(N, B)`` nearest concave-corner echo inside each beam's cone (inf if none)."""
     vec = pts[None, :, :] - origins[:, None, :]
@@ -240,10 +160,10 @@ def _corner_echoes(cfg, origins, axes, segments, centres, radius, owner, pts, u1
         return np.full(axes.shape, np.inf)
     ni, ci = np.nonzero(cand)
     d = vec[ni, ci] / dist[ni, ci, None]
-    t, _, _ = _ray_segments(origins[ni], d, segments, with_cos=False)
+    t = cast_rays(origins[ni], d, segments).distance
     visible = t >= dist[ni, ci] * (1.0 - 1e-7) - 1e-9
     if len(centres):
-        visible &= _ray_discs(origins[ni], d, centres, float(radius), owner[ni]) >= dist[ni, ci]
+        visible &= cast_rays_discs(origins[ni], d, centres, float(radius), owner[ni]) >= dist[ni, ci]
     vi, vc = ni[visible], ci[visible]
     out = np.full(axes.shape, np.inf)
     if len(vi) == 0:
@@ -281,7 +201,8 @@ class SonarRing:
     def measure(self, poses, segments, robot_radius: float, rng: np.random.Generator | None,
                 include_robots: bool = True) -> np.ndarray:
         """Ring readings ``(N, B)`` float32 for all robots ``poses (N, 3)`` at once. Other robots are
-        discs of ``robot_radius`` that block and echo (``include_robots``). ``rng=None``: noise-free."""
+        discs of ``robot_radius`` that block and echo, and whose rings may cross-talk
+        (``include_robots``). ``rng=None``: noise-free and no cross-talk."""
         poses = _as_array(poses, "poses", (-1, 3))
         segments = _as_array(segments, "segments", (-1, 4))
         axes = poses[:, 2:3] + self.beam_angles[None, :]
@@ -290,6 +211,10 @@ class SonarRing:
         owner = np.arange(n) if include_robots else np.full(n, -1)
         ideal = simulate_beams(self.cfg, poses[:, :2], axes, segments, centres, robot_radius, owner,
                                self.n_subrays)
+        if rng is not None and include_robots and n > 1 and self.cfg.crosstalk_prob > 0:
+            heard = rng.random(ideal.shape) < self.cfg.crosstalk_prob
+            ideal = np.where(heard, np.minimum(ideal, crosstalk(self.cfg, poses, self.beam_angles, segments)),
+                             ideal)
         return self.corrupt(ideal, rng).astype(np.float32)
 
     def scan(self, pose, segments, other_robot_centres, robot_radius: float,
@@ -306,9 +231,12 @@ class SonarRing:
         return self.corrupt(ideal, rng)
 
     def corrupt(self, ideal: np.ndarray, rng: np.random.Generator | None) -> np.ndarray:
-        """Noise, quantization, clamping and garbage readings applied to noise-free ranges."""
+        """Dropouts below ``range_min``, noise, quantization, clamping and garbage readings applied
+        to noise-free ranges."""
         cfg = self.cfg
         r = np.asarray(ideal, dtype=float)
+        if cfg.below_min == "drop":
+            r = np.where(r < cfg.range_min, cfg.range_max, r)
         echo = r < cfg.range_max
         if rng is not None and (cfg.noise_std > 0 or cfg.noise_rel > 0):
             sigma = cfg.noise_std + cfg.noise_rel * r
@@ -320,6 +248,30 @@ class SonarRing:
             bad = rng.random(r.shape) < cfg.garbage_rate
             r = np.where(bad, rng.uniform(cfg.range_min, cfg.range_max, r.shape), r)
         return r
+
+
+def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """``(N, B)`` reading each beam gets from another robot's ring (``inf`` if none): beam ``b`` of
+    robot ``i`` hears beam ``c`` of robot ``j`` when each robot lies inside the other beam's cone and
+    no wall is between them; the ping travels ``d`` one way, read as ``d / 2`` (range = c t / 2).
+    The nearest such robot counts. Transducers sit at the robot centres (see the module notes)."""
+    n, nb = len(poses), len(beam_angles)
+    out = np.full((n, nb), np.inf)
+    if n < 2:
+        return out
+    i, j = np.nonzero(~np.eye(n, dtype=bool))
+    delta = poses[j, :2] - poses[i, :2]
+    d = np.hypot(delta[:, 0], delta[:, 1])
+    bearing = np.arctan2(delta[:, 1], delta[:, 0])
+    half = math.radians(cfg.cone_deg) / 2 + 1e-12
+    # (pairs, B): is j inside i's beam b?  does some beam of j point back at i?
+    rx_ok = np.abs(wrap_angle(bearing[:, None] - poses[i, 2:3] - beam_angles[None, :])) <= half
+    tx_ok = (np.abs(wrap_angle(bearing[:, None] + math.pi - poses[j, 2:3] - beam_angles[None, :])) <= half).any(1)
+    ok = tx_ok & (d / 2 <= cfg.range_max) & (d > 0)
+    ok &= ~segments_blocked(poses[i, :2], poses[j, :2], segments)
+    val = np.where(rx_ok & ok[:, None], d[:, None] / 2, np.inf)
+    np.minimum.at(out, i, val)
+    return out
 
 
 def _as_array(x, name: str, shape: tuple[int, ...]) -> np.ndarray:

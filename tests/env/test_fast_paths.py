@@ -9,6 +9,7 @@ import pytest
 
 from parcover_env.config import SonarConfig
 from parcover_env.env import ParallelCoverageEnv
+from parcover_env.geometry import rays
 from parcover_env.localization.kinect.pipeline import _view_box
 from parcover_env.scenarios.progress import RouteTracker as Mission
 from parcover_env.sensors import sonar as sn
@@ -31,24 +32,29 @@ def test_range_culled_sonar_matches_full_ray_casting(model, monkeypatch):
     ang = (axes[:, :, None] + np.linspace(-0.2, 0.2, k)).reshape(-1)
     dirs = np.stack([np.cos(ang), np.sin(ang)], axis=1)
     reach = 1.5
-    t_full, i_full, c_full = sn._ray_segments(np.repeat(origins, b * k, axis=0), dirs, seg)
-    t_near, i_near, c_near = sn._ray_segments_near(origins, dirs.reshape(n, b * k, 2), seg, reach)
-    close = t_full < reach
+    fan = dirs.reshape(n, b * k, 2)
+    full = rays.cast_rays(origins, fan, seg, with_cos=True, cull=False)  # every segment, no range
+    near = rays.cast_rays(origins, fan, seg, reach, with_cos=True, cull=True)
+    flat = rays.cast_rays(np.repeat(origins, b * k, axis=0), dirs, seg, with_cos=True)  # one ray per origin
+    np.testing.assert_array_equal(flat.distance, full.distance.ravel())
+    t_full, i_full, c_full = full.distance.ravel(), full.index.ravel(), full.cos_incidence.ravel()
+    t_near, i_near, c_near = near.distance.ravel(), near.index.ravel(), near.cos_incidence.ravel()
+    close = t_full <= reach
     assert close.any() and (~close).any()  # both cases exercised
     np.testing.assert_array_equal(t_near[close], t_full[close])
     np.testing.assert_array_equal(i_near[close], i_full[close])
     np.testing.assert_array_equal(c_near[close], c_full[close])
-    assert np.all(t_near[~close] >= reach)  # beyond reach: missed (inf) or the same far hit
+    assert np.all(np.isinf(t_near[~close])) and np.all(i_near[~close] == -1)  # beyond reach: no hit
     owner = np.arange(n)
-    d_full = sn._ray_discs(np.repeat(origins, b * k, axis=0), dirs, origins, 0.2, np.repeat(owner, b * k))
-    d_near = sn._ray_discs_near(origins, dirs.reshape(n, b * k, 2), origins, 0.2, owner, reach)
-    np.testing.assert_array_equal(np.minimum(d_near, reach), np.minimum(d_full, reach))
+    d_full = rays.cast_rays_discs(np.repeat(origins, b * k, axis=0), dirs, origins, 0.2, np.repeat(owner, b * k))
+    d_near = rays.cast_rays_discs(origins, fan, origins, 0.2, owner, reach, cull=True)
+    np.testing.assert_array_equal(np.minimum(d_near.ravel(), reach), np.minimum(d_full, reach))
     # and the whole ring reads the same through either path
     cfg = SonarConfig(layout="ring", n_beams=72, range_max=reach, model=model)
     ring_axes = origins[:, :1] + np.arange(72) * (2 * np.pi / 72)
-    monkeypatch.setattr(sn, "_NEAR_MIN_WORK", 0)  # force the range-culled path
+    monkeypatch.setattr(rays, "CULL_MIN_WORK", 0)  # force the range-culled path
     fast = sn.simulate_beams(cfg, origins, ring_axes, seg, origins, 0.2, owner)
-    monkeypatch.setattr(sn, "_NEAR_MIN_RAYS", 10**9)  # force the plain path
+    monkeypatch.setattr(rays, "CULL_MIN_RAYS", 10**9)  # force the plain path
     plain = sn.simulate_beams(cfg, origins, ring_axes, seg, origins, 0.2, owner)
     np.testing.assert_array_equal(fast, plain)
     assert np.any(fast < reach)
@@ -158,8 +164,8 @@ def test_sonar_config_replace_keeps_fast_path_exact_on_a_scenario(monkeypatch):
     axes = poses[:, 2:3] + np.arange(72) * (2 * np.pi / 72)
     args = (cfg, poses[:, :2], axes, env.map.segments, poses[:, :2], env.scenario.robot.radius,
             np.arange(len(poses)))
-    assert 15 * 72 * 5 * len(env.map.segments) >= sn._NEAR_MIN_WORK  # the culled path by default
+    assert 15 * 72 * 5 * len(env.map.segments) >= rays.CULL_MIN_WORK  # the culled path by default
     fast = sn.simulate_beams(*args)
-    monkeypatch.setattr(sn, "_NEAR_MIN_RAYS", 10**9)
+    monkeypatch.setattr(rays, "CULL_MIN_RAYS", 10**9)
     plain = sn.simulate_beams(*args)
     np.testing.assert_array_equal(fast, plain)

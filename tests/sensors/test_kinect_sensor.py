@@ -84,7 +84,7 @@ def test_axial_noise_and_disparity_quantization():
 
 
 def test_range_limits_give_zero_depth():
-    s = sensor(height=4.2)  # floor at 4.2 m: beyond the 4.0 m range; robot top at 3.9 m: inside
+    s = sensor(height=4.2, lateral_noise_px=0.0)  # floor at 4.2 m: beyond the 4.0 m range; robot top at 3.9 m: inside
     f = s.measure(np.array([[3.0, 3.0, 0.0]]), [False], np.random.default_rng(0))
     _, owner, _ = s.render_clean(np.array([[3.0, 3.0, 0.0]]), [False])
     assert np.mean(f.depth[owner < 0] == 0) > 0.99

@@ -89,7 +89,7 @@ def _reference(cfg: SonarConfig, origin, axes, segs, discs, radius, n_sub=5):
 @pytest.mark.parametrize("model", ["ray", "specular"])
 def test_vectorized_matches_brute_force(model):
     m = MapModel.from_config(T_ROOM)
-    cfg = SonarConfig(model=model, n_beams=12, quantization=0.0)
+    cfg = SonarConfig(model=model, n_beams=12, quantization=0.0, multipath=False, below_min="clip")
     ring = SonarRing(cfg)
     rng = np.random.default_rng(3)
     pts = rng.uniform(0, 4, (400, 2))
@@ -153,8 +153,11 @@ def test_noise_quantization_clamp_and_garbage():
     r = ring.measure(poses, m.segments, 0.1, rng, include_robots=False)[:, 0].astype(float)
     assert r.dtype == float and abs(r.mean() - 1.0) < 0.003 and 0.017 < r.std() < 0.023
     np.testing.assert_allclose(np.round(r / 0.01) * 0.01, r, atol=1e-5)
+    # an echo nearer than range_min is lost (reads range_max) by default, or clipped
     near = ring.measure([[0.05, 5.0, math.pi]], m.segments, 0.1, rng)[0, 0]
-    assert near == pytest.approx(cfg.range_min)
+    assert near == pytest.approx(cfg.range_max)
+    clip = SonarRing(replace(cfg, below_min="clip"))
+    assert clip.measure([[0.05, 5.0, math.pi]], m.segments, 0.1, rng)[0, 0] == pytest.approx(cfg.range_min)
     bad = SonarRing(replace(cfg, garbage_rate=1.0, noise_std=0.0))
     g = bad.measure(poses[:200], m.segments, 0.1, rng, include_robots=False)
     assert np.all((g >= cfg.range_min) & (g <= cfg.range_max)) and g.std() > 0.3

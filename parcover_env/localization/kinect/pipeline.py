@@ -308,7 +308,7 @@ def estimate_fast(sensor: KinectSensor, poses, marker_mask, rng: np.random.Gener
         idx = idx[(px >= box[0]) & (px <= box[2]) & (py >= box[1]) & (py <= box[3])]
     if len(idx) == 0:
         return []
-    cam = sensor.camera
+    cam = sensor.true_camera  # what the mounted camera really sees
     pat = sensor.pattern
     m, k = len(idx), len(pat)
     # every marker of every carrier projected at once (geometry first, then the random draws in
@@ -332,9 +332,10 @@ def estimate_fast(sensor: KinectSensor, poses, marker_mask, rng: np.random.Gener
     rows = np.flatnonzero(ok)
     if len(rows):  # hidden by a wall top (static depth nearer than a marker)?
         iu, iv = np.rint(uv[rows, :, 0]).astype(int), np.rint(uv[rows, :, 1]).astype(int)
-        rows = rows[~np.any(sensor.static_depth[iv, iu] < z[rows] - 1e-6, axis=1)]
+        rows = rows[~np.any(sensor.nominal_static_depth[iv, iu] < z[rows] - 1e-6, axis=1)]
     out = []
     span = float(np.ptp(pat[:, 0])) or 0.1
+    seen = _as_seen_by_nominal(sensor, poses) if sensor.true_camera is not sensor.camera else poses
     z_max, z_mean = z.max(axis=1).tolist(), z.mean(axis=1).tolist()
     for r in rows.tolist():
         r_marker = sensor.marker_radius * cam.focal / z_max[r]
@@ -345,15 +346,28 @@ def estimate_fast(sensor: KinectSensor, poses, marker_mask, rng: np.random.Gener
         ex, ey = rng.normal(0.0, nz.pos_px * mpp, size=2)
         eth = rng.normal(0.0, nz.heading_px * mpp / span)
         i = int(idx[r])
-        xi, yi, th = poses[i]
+        xi, yi, th = seen[i]
         out.append(PoseEstimate(float(xi + ex), float(yi + ey), float(wrap_angle(th + eth)), k,
                                 kinect=sensor.name, stamp=stamp, truth_index=i))
     return out
 
 
+def _as_seen_by_nominal(sensor: KinectSensor, poses: np.ndarray) -> np.ndarray:
+    """Poses ``(N, 3)`` as the pipeline reconstructs them: the robot's top centre and a point ahead
+    imaged by the true (mis-mounted) camera, back-projected onto the marker plane with the nominal
+    camera the pipeline believes in. Carries the mounting error into the fast path."""
+    h = sensor.robot_height
+    ahead = poses[:, :2] + 0.1 * np.stack([np.cos(poses[:, 2]), np.sin(poses[:, 2])], axis=1)
+    pts = np.concatenate([poses[:, :2], ahead])
+    uv, _ = sensor.true_camera.project(np.c_[pts, np.full(len(pts), h)])
+    back, _ = sensor.camera.intersect_plane(uv, h)
+    c, a = back[: len(poses), :2], back[len(poses):, :2]
+    return np.column_stack([c, np.arctan2(a[:, 1] - c[:, 1], a[:, 0] - c[:, 0])])
+
+
 def _sensor_cache(sensor: KinectSensor) -> dict:
     """Per-sensor cache of static quantities, dropped if the camera, pattern or height change."""
-    key = (id(sensor.camera), sensor.pattern.tobytes(), sensor.marker_radius, sensor.robot_height)
+    key = (id(sensor.true_camera), sensor.pattern.tobytes(), sensor.marker_radius, sensor.robot_height)
     entry = _STATIC.get(sensor)
     if entry is None or entry[0] != key:
         entry = (key, {})
@@ -377,7 +391,7 @@ def _view_box(sensor: KinectSensor) -> tuple[float, float, float, float] | None:
     None when a corner ray does not meet that plane (a tilted camera): no pre-filter then."""
     cache = _sensor_cache(sensor)
     if "box" not in cache:
-        cam = sensor.camera
+        cam = sensor.true_camera
         corners = np.array([[0.0, 0.0], [cam.width - 1.0, 0.0], [cam.width - 1.0, cam.height - 1.0],
                             [0.0, cam.height - 1.0]])
         rays = cam.pixel_rays(corners)

@@ -28,10 +28,16 @@ class KinectSystem:
                                      marker_radius=r.marker_radius) for k in scenario.kinects]
         self.params = PipelineParams(marker_height=r.height, robot_radius=r.radius, marker_radius=r.marker_radius)
         self.periods = np.array([1.0 / k.rate_hz for k in scenario.kinects])
+        self.tracking = scenario.kinect_tracking
         self.reset()
 
-    def reset(self) -> None:
-        self.tracker = KinectTracker(gate=1.0, fuse_radius=0.12)  # wide gate: re-acquire drifted leaders
+    def reset(self, rng: np.random.Generator | None = None) -> None:
+        """New episode: fresh tracker; with ``rng``, every Kinect draws its mounting error."""
+        if rng is not None:
+            for sensor in self.sensors:
+                sensor.mount(rng)
+        t = self.tracking
+        self.tracker = KinectTracker(gate=t.gate, fuse_radius=t.fuse_radius)
         self.next_tick = np.zeros(len(self.sensors))
         self.frames: dict[str, KinectFrame] = {}
 

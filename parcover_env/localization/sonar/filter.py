@@ -4,6 +4,11 @@ Starting from the nearest unprocessed reading MS, if a few readings around it li
 left then right: every neighbour reading farther than the current one is moved onto L (sonar faults
 are mostly too long: multipath on slanted walls), until a neighbour is not farther. Repeated
 ``repeats`` times (3-5 in the paper, more robots showing up as extra close walls need more).
+
+Moving onto L only ever shortens a reading: where L's extension lies behind the reading (past a
+concave corner, the next wall is nearer than L's extension) the walk stops, so corners (the
+localizer's features) are kept. The paper is silent on this case; its premise is the same
+("faulty data is usually farther than the actual range").
 """
 
 from __future__ import annotations
@@ -53,8 +58,8 @@ def filter_scan(ranges, angles, range_max: float, repeats: int = 4, half_window:
                 if nxt == ms or r[nxt] <= r[cur]:
                     break
                 cos = float(u[nxt] @ normal)
-                if cos <= 0.05 or dist / cos > range_max:
-                    break
+                if cos <= 0.05 or dist / cos > range_max or dist / cos > r[nxt] + line_tol:
+                    break  # L runs behind the reading: a nearer surface (the next wall of a corner)
                 r[nxt] = dist / cos
                 done[nxt] = True
                 cur = nxt

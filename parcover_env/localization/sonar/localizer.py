@@ -29,6 +29,7 @@ from parcover_env.localization.sonar.features import (
     characteristic_points,
     map_features,
 )
+from parcover_env.localization.sonar.filter import filter_scan
 from parcover_env.localization.sonar.params import SonarLocalizerParams
 from parcover_env.localization.sonar.sectors import Sector
 from parcover_env.sensors.sonar import simulate_beams
@@ -52,6 +53,24 @@ class Ellipse:
             raise ValueError(f"Ellipse axes must be >= 0, got {self.axes}")
         object.__setattr__(self, "center", (float(c[0]), float(c[1])))
         object.__setattr__(self, "axes", (float(a[0]), float(a[1])))
+
+    @classmethod
+    def from_covariance(cls, center, covariance, n_sigma: float = 2.0) -> Ellipse:
+        """The ``n_sigma`` ellipse of a 2x2 position covariance (m^2) around ``center``: semi-axes
+        ``n_sigma * sqrt(eigenvalues)``, oriented along the major eigenvector."""
+        cov = np.asarray(covariance, dtype=float)
+        if cov.shape != (2, 2) or not np.all(np.isfinite(cov)) or abs(cov[0, 1] - cov[1, 0]) > 1e-9 * (
+                1 + np.abs(cov).max()):
+            raise ValueError(f"covariance must be a finite symmetric 2x2 matrix, got {cov.tolist()}")
+        w, v = np.linalg.eigh(0.5 * (cov + cov.T))
+        if w[0] < -1e-12 * (1 + abs(w[1])):
+            raise ValueError(f"covariance must be positive semi-definite, eigenvalues {w.tolist()}")
+        if not n_sigma > 0:
+            raise ValueError(f"n_sigma must be > 0, got {n_sigma}")
+        sd = np.sqrt(np.maximum(w, 0.0))
+        angle = math.atan2(v[1, 1], v[0, 1])
+        angle = angle - math.pi if angle > math.pi / 2 else angle + math.pi if angle <= -math.pi / 2 else angle
+        return cls(tuple(center), (float(n_sigma * sd[1]), float(n_sigma * sd[0])), float(angle))
 
     def grow(self, distance: float, rotation: float, rate_distance: float = 0.1,
              rate_rotation: float = 0.05) -> Ellipse:
@@ -104,9 +123,14 @@ def synthetic_scans(poses, scan_angles, segments, sonar: SonarConfig) -> np.ndar
                           np.full(len(poses), -1))
 
 
-def scan_error(measured, synthetic, clip: float) -> np.ndarray:
-    """Mean clipped absolute range error per synthetic scan (rows)."""
-    return np.minimum(np.abs(np.atleast_2d(synthetic) - np.asarray(measured)[None, :]), clip).mean(axis=1)
+def scan_error(measured, synthetic, clip: float, trim: float = 0.0) -> np.ndarray:
+    """Mean clipped absolute range error per synthetic scan (rows), over the best ``1 - trim``
+    share of the readings (``trim`` drops the worst: other robots, multipath, unknown obstacles)."""
+    e = np.minimum(np.abs(np.atleast_2d(synthetic) - np.asarray(measured)[None, :]), clip)
+    keep = e.shape[1] - int(math.floor(trim * e.shape[1]))
+    if keep < e.shape[1]:
+        e = np.partition(e, keep - 1, axis=1)[:, :keep]
+    return e.mean(axis=1)
 
 
 def pose_candidates(feature: MapFeature, scan: ScanPoints, params: SonarLocalizerParams) -> list[np.ndarray]:
@@ -153,13 +177,36 @@ def arc_candidates(feature: MapFeature, scan: ScanPoints, region: shapely.Geomet
     return out
 
 
-def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector], ellipse: Ellipse,
+def _grid_candidates(ellipse: Ellipse, heading: float, map_model, p: SonarLocalizerParams) -> np.ndarray:
+    """Poses every ``grid_step`` m inside the uncertainty ellipse and in free space, at the heading
+    estimate and ``grid_heading_step_deg`` either side of it."""
+    c, s = math.cos(ellipse.angle), math.sin(ellipse.angle)
+    a, b = max(ellipse.axes[0], p.grid_step), max(ellipse.axes[1], p.grid_step)
+    u, v = np.meshgrid(np.arange(-a, a + 1e-9, p.grid_step), np.arange(-b, b + 1e-9, p.grid_step))
+    inside = (u / a) ** 2 + (v / b) ** 2 <= 1.0
+    u, v = u[inside], v[inside]
+    xy = np.stack([ellipse.center[0] + c * u - s * v, ellipse.center[1] + s * u + c * v], axis=1)
+    xy = xy[map_model.contains(xy)]
+    dh = math.radians(p.grid_heading_step_deg)
+    heads = heading + dh * np.arange(-p.grid_heading_steps, p.grid_heading_steps + 1)
+    return np.column_stack([np.repeat(xy, len(heads), axis=0), np.tile(heads, len(xy))])
+
+
+def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
+             ellipse: Ellipse | tuple[np.ndarray, np.ndarray],
              params: SonarLocalizerParams | None = None, *, sonar: SonarConfig | None = None,
-             features: list[MapFeature] | None = None) -> LocalizationResult:
-    """Localize from a 360-degree scan with the known map (seed B Fig. 6). ``sonar`` is the sensor
-    model used for synthetic scans (default: ideal ray model); ``features`` as used for ``sectors``."""
+             features: list[MapFeature] | None = None, heading: float | None = None) -> LocalizationResult:
+    """Localize from a 360-degree scan with the known map (seed B Fig. 6). ``ellipse``: the
+    uncertainty region, an :class:`Ellipse` or ``(center (2,), position covariance (2, 2))`` (e.g.
+    propagated odometry), whose ``params.covariance_sigmas`` ellipse is used. ``sonar`` is the
+    sensor model used for synthetic scans (default: ideal ray model); ``features`` as used for
+    ``sectors``. ``heading``: the robot's heading estimate (rad, e.g. odometry); candidates farther
+    than ``params.heading_prior_tol_deg`` from it are dropped (a symmetric corridor gives the same
+    scan from a pose turned by 180 degrees)."""
     p = params or SonarLocalizerParams()
-    sonar = sonar or SonarConfig()
+    if isinstance(ellipse, tuple) and len(ellipse) == 2 and np.shape(ellipse[1]) == (2, 2):
+        ellipse = Ellipse.from_covariance(ellipse[0], ellipse[1], p.covariance_sigmas)
+    sonar = sonar or SonarConfig(model="ray")
     r = np.asarray(scan_ranges, dtype=float)
     a = np.asarray(scan_angles, dtype=float)
     if r.ndim != 1 or r.shape != a.shape:
@@ -169,28 +216,42 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector], ellipse
     feats = map_features(map_model) if features is None else features
     region = ellipse.polygon().buffer(p.ellipse_distance)
     f1 = sorted(set().union(*[s.features for s in sectors if s.polygon.intersects(region)]))
-    scan = characteristic_points(r, a, sonar.range_max, p)
+    # seed B Fig. 11: features also come from the filtered scan (too-long readings moved onto the
+    # nearest walls); the raw scan's features stay candidates (the filter can erase a wall's end)
+    scans = [characteristic_points(r, a, sonar.range_max, p)]
+    if p.filter:
+        r_filt = filter_scan(r, a, sonar.range_max, p.filter_repeats, p.filter_half_window, p.filter_line_tol)
+        if not np.array_equal(r_filt, r):
+            scans.insert(0, characteristic_points(r_filt, a, sonar.range_max, p))
     cands, owners = [], []
     for fi in f1:
-        qs = [q for q in pose_candidates(feats[fi], scan, p)
-              if ellipse.distance(q[None, :2])[0] < p.ellipse_distance]
-        if not qs:
-            qs = arc_candidates(feats[fi], scan, region)
-        cands.extend(qs)
-        owners.extend([fi] * len(qs))
-    if not cands:
-        return LocalizationResult(None, math.inf, 0, False)
-    poses = np.array(cands)
+        for scan in scans:
+            qs = [q for q in pose_candidates(feats[fi], scan, p)
+                  if ellipse.distance(q[None, :2])[0] < p.ellipse_distance]
+            if not qs:
+                qs = arc_candidates(feats[fi], scan, region)
+            cands.extend(qs)
+            owners.extend([fi] * len(qs))
+    segs = map_model.segments
+    poses = np.array(cands).reshape(-1, 3)
     keep = (ellipse.distance(poses[:, :2]) < p.ellipse_distance) & map_model.contains(poses[:, :2])
-    poses, owners = poses[keep], np.asarray(owners)[keep]
-    if len(poses) == 0:
-        return LocalizationResult(None, math.inf, 0, False)
+    if heading is not None:
+        keep &= np.abs(wrap_angle(poses[:, 2] - float(heading))) <= math.radians(p.heading_prior_tol_deg)
+    poses, owners = poses[keep], np.asarray(owners, dtype=np.int64)[keep]
     _, uniq = np.unique(np.round(np.column_stack([poses[:, :2] / 0.01, poses[:, 2] / 0.01])), axis=0,
                         return_index=True)
     uniq = np.sort(uniq)[: p.max_candidates]
     poses, owners = poses[uniq], owners[uniq]
-    segs = map_model.segments
-    err = scan_error(r, synthetic_scans(poses, a, segs, sonar), p.error_clip)
+    err = scan_error(r, synthetic_scans(poses, a, segs, sonar), p.error_clip, p.error_trim) if len(poses) \
+        else np.zeros(0)
+    if heading is not None and p.grid_step > 0 and (len(err) == 0 or err.min() > p.success_error):
+        # no feature pose explains the scan: scan matching over the uncertainty region instead
+        grid = _grid_candidates(ellipse, float(heading), map_model, p)
+        poses = np.concatenate([poses, grid])
+        owners = np.concatenate([owners, np.full(len(grid), -1)])
+        err = np.concatenate([err, scan_error(r, synthetic_scans(grid, a, segs, sonar), p.error_clip, p.error_trim)])
+    if len(poses) == 0:
+        return LocalizationResult(None, math.inf, 0, False)
     best = int(np.argmin(err))
     pose, e = poses[best].copy(), float(err[best])
     if p.refine:
@@ -198,7 +259,7 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector], ellipse
             if not map_model.contains(x[None, :2])[0] or \
                     ellipse.distance(x[None, :2])[0] >= p.ellipse_distance:
                 return p.error_clip
-            return float(scan_error(r, synthetic_scans(x[None], a, segs, sonar), p.error_clip)[0])
+            return float(scan_error(r, synthetic_scans(x[None], a, segs, sonar), p.error_clip, p.error_trim)[0])
 
         res = minimize(cost, pose, method="Nelder-Mead",
                        options={"maxiter": p.refine_iters, "xatol": 1e-3, "fatol": 1e-5,

@@ -22,8 +22,8 @@ import numpy as np
 import shapely
 from scipy import ndimage
 
+from parcover_env.geometry import cast_rays
 from parcover_env.localization.sonar.features import MapFeature, map_features
-from parcover_env.sensors.sonar import _ray_segments
 
 __all__ = ["Sector", "compute_sectors", "visible_features"]
 
@@ -57,7 +57,7 @@ def visible_features(points, map_model, features: list[MapFeature], range_max: f
         if len(pi) == 0:
             continue
         d = vec[pi, fi] / dist[pi, fi, None]
-        t, _, _ = _ray_segments(p[pi], d, segs)
+        t = cast_rays(p[pi], d, segs).distance
         ok = t >= dist[pi, fi] * (1.0 - 1e-7) - 1e-9
         out[s + pi[ok], fi[ok]] = True
     return out

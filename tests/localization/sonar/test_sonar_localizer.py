@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from parcover_env.config import MapConfig, SonarConfig
+from parcover_env.config import MapConfig, SonarConfig, SonarLocalizerConfig
 from parcover_env.localization.sonar.features import map_features
 from parcover_env.localization.sonar.localizer import Ellipse, localize
 from parcover_env.localization.sonar.sectors import compute_sectors
@@ -54,10 +54,15 @@ def test_localize_rejects_a_wrong_ellipse_and_bad_input():
     m = MapModel.from_config(T_ROOM)
     feats = map_features(m)
     sectors = compute_sectors(m, 2.54, 2, feats)
-    ring = SonarRing(SonarConfig())
+    ring = SonarRing(SonarConfig(model="ray"))
     scan = ring.scan((2.0, 1.0, 0.4), m.segments, None, 0.165, None)
-    res = localize(scan, ring.scan_angles, m, sectors, Ellipse((0.6, 3.4), (0.2, 0.2)), features=feats)
+    # with the robot's heading estimate (odometry), as the env's users pass it: the scan comparison
+    # leaves out the worst 10 % of readings, so a look-alike pose in the top bar is ruled out by heading
+    res = localize(scan, ring.scan_angles, m, sectors, Ellipse((0.6, 3.4), (0.2, 0.2)), features=feats, heading=0.4)
     assert not res.success
+    strict = SonarLocalizerConfig(error_trim=0.0)
+    assert not localize(scan, ring.scan_angles, m, sectors, Ellipse((0.6, 3.4), (0.2, 0.2)), strict,
+                        features=feats).success
     with pytest.raises(ValueError, match="scan_ranges"):
         localize(scan[:10], ring.scan_angles, m, sectors, Ellipse((2, 1), (0.2, 0.2)))
     with pytest.raises(ValueError, match="Ellipse"):

@@ -1,0 +1,178 @@
+"""The ``parcover`` command line: run missions, list scenarios, draw plans and sensor views."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from parcover_env.errors import ParcoverError
+from parcover_env.policies.registry import POLICY_SPECS
+
+__all__ = ["main"]
+
+
+def _format_metrics(m: dict) -> str:
+    rows = []
+    for key, value in m.items():
+        if isinstance(value, float):
+            value = f"{value:.3f}"
+        elif isinstance(value, list):
+            value = "[" + ", ".join(f"{v:.2f}" if isinstance(v, float) else str(v) for v in value) + "]"
+        rows.append((key, str(value)))
+    width = max(len(k) for k, _ in rows)
+    return "\n".join(f"  {k:<{width}}  {v}" for k, v in rows)
+
+
+def cmd_run(args) -> int:
+    from parcover_env import parallel_env
+    from parcover_env.harness.rollout import run_episode
+    from parcover_env.policies.registry import make_policy
+    from parcover_env.viz.render import save_gif
+
+    env = parallel_env(args.scenario, render_mode="rgb_array" if args.gif else None)
+    policy = make_policy(args.policy, env, args.seed)
+    frames = [] if args.gif else None
+    print(f"scenario {env.scenario.name}: {env.n_robots} robots, {len(env.scenario.kpois)} KPOIs, "
+          f"policy {args.policy}, seed {args.seed}")
+    m = run_episode(env, policy, args.seed, args.steps, frames, progress=not args.quiet)
+    print(_format_metrics(m))
+    if frames:
+        save_gif(args.gif, frames[:: max(1, args.gif_every)], fps=max(1, 10 // max(1, args.gif_every)))
+        print(f"wrote {args.gif} ({len(frames[:: max(1, args.gif_every)])} frames)")
+    return 0 if m["success"] or args.allow_failure else 1
+
+
+def cmd_scenarios(args) -> int:
+    from parcover_env.scenarios import load_scenario, scenario_names
+
+    for name in scenario_names():
+        s = load_scenario(name)
+        print(f"{name:<10} {s.description}  [{len(s.kpois)} KPOIs, n_robots={s.n_robots}, "
+              f"{len(s.kinects)} Kinects, map {s.map.size[0]} x {s.map.size[1]} m]")
+    return 0
+
+
+def cmd_render(args) -> int:
+    import cv2
+
+    from parcover_env import parallel_env
+
+    env = parallel_env(args.scenario, render_mode="rgb_array")
+    env.reset(seed=args.seed)
+    cv2.imwrite(args.png, cv2.cvtColor(env.render(), cv2.COLOR_RGB2BGR))
+    print(f"wrote {args.png}")
+    return 0
+
+
+def cmd_plan(args) -> int:
+    from parcover_env.planning import kinect_footprints, kinect_tree, plan_scenario
+    from parcover_env.scenarios import load_scenario
+    from parcover_env.viz.plan import draw_plan, save_png
+
+    s = load_scenario(args.scenario)
+    plan = plan_scenario(s, args.n_robots if args.n_robots is not None else s.n_robots_fixed)
+    tree = kinect_tree(kinect_footprints(s), plan, (s.start.x, s.start.y)) if s.kinects else None
+    print(f"scenario {s.name}: r = {plan.r} robots, c_max = {plan.c_max:.2f} m, c_p = {plan.c_p:.2f} m "
+          f"({plan.method}); {len(plan.turning_points)} turning positions")
+    for tp in plan.turning_points:
+        counts = ", ".join(str(b.n_robots) for b in tp.branches)
+        print(f"  TP at ({tp.position[0]:.2f}, {tp.position[1]:.2f}): robots {tp.robots[0]}-{tp.robots[1] - 1} "
+              f"split into branches of {counts}")
+    if tree is not None:
+        links = ", ".join(f"{a}-{b} ({n})" for (a, b), n in sorted(tree.links.items()))
+        print(f"  Kinect tree rooted at {tree.root}: links {links or 'none'}")
+    if args.png:
+        save_png(args.png, draw_plan(s, plan, tree))
+        print(f"wrote {args.png}")
+    return 0
+
+
+def cmd_kinect(args) -> int:
+    import numpy as np
+
+    from parcover_env.scenarios import load_scenario
+    from parcover_env.viz.kinect_views import write_kinect_views
+
+    paths = write_kinect_views(load_scenario(args.scenario), args.out, np.random.default_rng(args.seed))
+    for p in paths:
+        print(f"wrote {p}")
+    return 0
+
+
+def cmd_sectors(args) -> int:
+    import cv2
+
+    from parcover_env.localization.sonar import compute_sectors, map_features
+    from parcover_env.scenarios import load_scenario
+    from parcover_env.viz.sectors import draw_sectors
+    from parcover_env.world.map_model import map_model
+
+    s = load_scenario(args.scenario)
+    known = map_model(s.map, include_unknown=False)
+    features = map_features(known)
+    sectors = compute_sectors(known, s.robot.sonar.range_max, rule=args.rule, features=features)
+    name = {0: "original", 1: "rule #1", 2: "rule #2"}[args.rule]
+    print(f"scenario {s.name}: {len(features)} features, {len(sectors)} {name} sectors "
+          f"(sonar range {s.robot.sonar.range_max} m)")
+    if args.png:
+        if not cv2.imwrite(args.png, draw_sectors(known, sectors, features)[:, :, ::-1]):
+            raise ParcoverError(f"--png: cannot write {args.png}")
+        print(f"wrote {args.png}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="parcover", description=__doc__)
+    sub = p.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("run", help="run one mission and print its metrics")
+    r.add_argument("scenario", nargs="?", default="office", help="scenario name or YAML path (default: office)")
+    r.add_argument("--seed", type=int, default=0, help="episode seed (default: 0)")
+    r.add_argument("--steps", type=int, default=None, help="stop after N steps (default: the scenario's limit)")
+    r.add_argument("--policy", default="expert", help=f"who drives: {POLICY_SPECS} (default: expert)")
+    r.add_argument("--gif", default=None, help="write an animated GIF of the episode here")
+    r.add_argument("--gif-every", type=int, default=2, help="keep every k-th frame in the GIF (default: 2)")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--allow-failure", action="store_true", help="exit 0 even if not every KPOI was visited")
+    r.set_defaults(func=cmd_run)
+    s = sub.add_parser("scenarios", help="list the shipped scenarios")
+    s.set_defaults(func=cmd_scenarios)
+    f = sub.add_parser("render", help="write the first frame of a scenario as a PNG")
+    f.add_argument("scenario", nargs="?", default="office")
+    f.add_argument("--png", default="frame.png", help="output file (default: frame.png)")
+    f.add_argument("--seed", type=int, default=0)
+    f.set_defaults(func=cmd_render)
+    from parcover_env.cli.bench import add_bench_parser, add_collect_parser
+
+    add_bench_parser(sub)
+    add_collect_parser(sub)
+    pl = sub.add_parser("plan", help="PPCP plan: print r, c_max, c_p and the TPs; draw it")
+    pl.add_argument("scenario", nargs="?", default="office")
+    pl.add_argument("--png", default=None, help="draw the map, roadmap, plan tree and Kinect tree here")
+    pl.add_argument("--n-robots", type=int, default=None, help="plan for this many robots (min-max variant)")
+    pl.set_defaults(func=cmd_plan)
+    k = sub.add_parser("kinect", help="write the Kinect views: depth, IR, pipeline stages, hull, trajectory")
+    k.add_argument("scenario", nargs="?", default="office")
+    k.add_argument("--out", default="kinect_views", help="output directory (default: kinect_views/)")
+    k.add_argument("--seed", type=int, default=0)
+    k.set_defaults(func=cmd_kinect)
+    se = sub.add_parser("sectors", help="sonar visibility sectors of a map (seed B Fig. 3/4)")
+    se.add_argument("scenario", nargs="?", default="t_room")
+    se.add_argument("--rule", type=int, choices=(0, 1, 2), default=2, help="0 original, 1 or 2 merge rule")
+    se.add_argument("--png", default=None, help="draw the sectors here")
+    se.set_defaults(func=cmd_sectors)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except ParcoverError as exc:
+        print(f"parcover: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

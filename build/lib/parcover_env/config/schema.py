@@ -1,0 +1,338 @@
+"""Scenario schema: frozen typed dataclasses, one per concern, each field documented with its unit.
+
+Per-field checks live in ``__post_init__``; checks that need the map's geometry live in
+:mod:`parcover_env.scenarios.validation` and run when a scenario is loaded.
+
+Units: metres, seconds, radians per second for rates. Angles typed by people in YAML carry a
+``_deg`` suffix (degrees) and are converted where they are used.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from parcover_env.errors import ConfigError
+
+Point = tuple[float, float]
+Polygon = tuple[Point, ...]
+Segment = tuple[Point, Point]
+
+__all__ = [
+    "ConfigError", "MapConfig", "Pose", "SonarConfig", "OdometryConfig", "RobotConfig",
+    "KinectConfig", "PhysicsConfig", "EpisodeConfig", "RewardConfig", "ObservationConfig",
+    "FormationConfig", "PlannerConfig", "Scenario", "Point", "Polygon", "Segment",
+]
+
+
+MAX_RASTER_CELLS = 4e6
+"""The planner rasterizes the map at ``planner.resolution``: at most this many cells (memory, time)."""
+
+
+def _check(ok: bool, key: str, message: str) -> None:
+    if not ok:
+        raise ConfigError("", key, message)
+
+
+def _positive(obj: Any, *names: str) -> None:
+    for name in names:
+        _check(getattr(obj, name) > 0, name, f"must be > 0, got {getattr(obj, name)}")
+
+
+@dataclass(frozen=True)
+class MapConfig:
+    """The indoor map. Origin at the bottom-left corner; x right, y up (m)."""
+
+    size: tuple[float, float]
+    """Width and height of the map's bounding box (m)."""
+    boundary: Polygon | None = None
+    """Outline of the floor (outer wall); defaults to the ``size`` rectangle."""
+    walls: tuple[Segment, ...] = ()
+    """Thin walls as segments ((x1, y1), (x2, y2)), thickened by ``wall_thickness``."""
+    wall_thickness: float = 0.1
+    obstacles: tuple[Polygon, ...] = ()
+    """Obstacles known to the map (polygons)."""
+    unknown_obstacles: tuple[Polygon, ...] = ()
+    """Obstacles present in the world but absent from the map the expert and localizers get."""
+
+    def __post_init__(self) -> None:
+        _positive(self, "wall_thickness")
+        for i, s in enumerate(self.size):
+            _check(s > 0, f"size[{i}]", f"must be > 0, got {s}")
+        _check(max(self.size) <= 1000, "size", f"maps larger than 1 km are not supported, got {self.size}")
+        for i, (a, b) in enumerate(self.walls):
+            _check(a != b, f"walls[{i}]", "segment has zero length")
+        w, h = self.size
+        for name in ("boundary", "obstacles", "unknown_obstacles", "walls"):
+            polys = [self.boundary] if name == "boundary" else getattr(self, name)
+            for i, poly in enumerate(polys):
+                if poly is None:
+                    continue
+                key = name if name == "boundary" else f"{name}[{i}]"
+                if name != "walls":
+                    _check(len(poly) >= 3, key, f"a polygon needs >= 3 vertices, got {len(poly)}")
+                for x, y in poly:
+                    _check(-1e-9 <= x <= w + 1e-9 and -1e-9 <= y <= h + 1e-9, key,
+                           f"vertex ({x}, {y}) lies outside the map box [0, {w}] x [0, {h}] (map.size)")
+
+
+@dataclass(frozen=True)
+class Pose:
+    x: float
+    y: float
+    theta_deg: float = 0.0
+
+    @property
+    def theta(self) -> float:
+        return math.radians(self.theta_deg)
+
+
+@dataclass(frozen=True)
+class SonarConfig:
+    """Sonar ring. ``model: ray`` is an ideal ray model; ``specular`` adds the physics of issue 6."""
+
+    layout: Literal["ring", "amigobot"] = "ring"
+    n_beams: int = 16
+    """Number of evenly spaced beams for ``layout: ring`` (ignored for ``amigobot``: 8)."""
+    range_min: float = 0.15
+    range_max: float = 2.54
+    model: Literal["ray", "specular"] = "ray"
+    cone_deg: float = 30.0
+    incidence_max_deg: float = 20.0
+    """Specular model: a wall echoes only if the beam meets it within this angle of its normal."""
+    noise_std: float = 0.01
+    noise_rel: float = 0.01
+    """Range noise sigma = noise_std + noise_rel * range (m)."""
+    quantization: float = 0.01
+    scan_step_deg: float = 5.0
+    """Angular step of a 360-degree scan (72 readings at 5 degrees)."""
+    garbage_rate: float = 0.0
+    """Fault injection: probability that a reading is replaced by a uniform random range."""
+
+    def __post_init__(self) -> None:
+        _positive(self, "n_beams", "range_max", "cone_deg", "scan_step_deg")
+        _check(0 <= self.range_min < self.range_max, "range_min", "must satisfy 0 <= range_min < range_max")
+        _check(self.noise_std >= 0 and self.noise_rel >= 0, "noise_std", "noise must be >= 0")
+        _check(self.quantization >= 0, "quantization", "must be >= 0")
+        _check(0 <= self.garbage_rate <= 1, "garbage_rate", "must be in [0, 1]")
+        _check(0 < self.incidence_max_deg <= 90, "incidence_max_deg", "must be in (0, 90]")
+
+
+@dataclass(frozen=True)
+class OdometryConfig:
+    """Wheel odometry: relative noise on the travelled distance and turned angle per step."""
+
+    noise_v: float = 0.02
+    noise_omega: float = 0.03
+
+    def __post_init__(self) -> None:
+        _check(self.noise_v >= 0 and self.noise_omega >= 0, "noise_v", "noise must be >= 0")
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    """A differential-drive robot modelled as a disc (unicycle kinematics)."""
+
+    radius: float = 0.15
+    max_speed: float = 0.3
+    """Max linear speed v_max (m/s); action +-1 maps to +-max_speed."""
+    max_turn_rate: float = 1.5
+    """Max angular speed omega_max (rad/s)."""
+    height: float = 0.3
+    """Height of the robot's top, where the Kinect markers are (m)."""
+    markers: bool = True
+    """Whether leaders carry the retro-reflective markers the overhead Kinect detects (4 per robot)."""
+    marker_radius: float = 0.02
+    """Radius of each marker disc (m)."""
+    sonar: SonarConfig = field(default_factory=SonarConfig)
+    odometry: OdometryConfig = field(default_factory=OdometryConfig)
+
+    def __post_init__(self) -> None:
+        _positive(self, "radius", "max_speed", "max_turn_rate", "height", "marker_radius")
+        _check(self.marker_radius <= 0.25 * self.radius, "marker_radius",
+               f"4 markers of radius {self.marker_radius} m do not fit on a robot of radius {self.radius} m "
+               f"(max {0.25 * self.radius:.3f} m)")
+
+
+@dataclass(frozen=True)
+class KinectConfig:
+    """An overhead Kinect v1. Pitch is the tilt below horizontal (90 = straight down); yaw is
+    the direction (from +x, counter-clockwise) the camera faces, projected on the floor."""
+
+    name: str
+    position: Point
+    height: float = 2.8
+    pitch_deg: float = 90.0
+    yaw_deg: float = 90.0
+    resolution: tuple[int, int] = (640, 480)
+    fov_deg: tuple[float, float] = (57.0, 43.0)
+    rate_hz: float = 15.0
+    range_min: float = 0.8
+    range_max: float = 4.0
+    drop_rate: float = 0.0
+    """Fault injection: probability that a frame is dropped."""
+    wall_height: float = 0.5
+    """Height of walls and obstacles as the depth camera sees them (m)."""
+
+    def __post_init__(self) -> None:
+        _positive(self, "height", "rate_hz", "range_max", "wall_height")
+        _check(0 < self.pitch_deg <= 90, "pitch_deg", f"must be in (0, 90] (90 = looking down), got {self.pitch_deg}")
+        _check(self.pitch_deg - self.fov_deg[1] / 2 > 0, "pitch_deg",
+               "the top of the image looks at or above the horizon: the footprint would not be on the floor")
+        for i, r in enumerate(self.resolution):
+            _check(16 <= r <= 4096, f"resolution[{i}]", f"must be in [16, 4096], got {r}")
+        for i, f in enumerate(self.fov_deg):
+            _check(0 < f < 170, f"fov_deg[{i}]", f"must be in (0, 170), got {f}")
+        _check(0 <= self.range_min < self.range_max, "range_min", "must satisfy 0 <= range_min < range_max")
+        _check(0 <= self.drop_rate <= 1, "drop_rate", "must be in [0, 1]")
+
+
+@dataclass(frozen=True)
+class PhysicsConfig:
+    """Physics integration step and how many of them make one control (decision) step."""
+
+    dt: float = 0.02
+    substeps: int = 5
+    collision_slop: float = 0.001
+
+    def __post_init__(self) -> None:
+        _positive(self, "dt", "substeps")
+        _check(self.dt <= 0.1, "dt", f"physics steps above 0.1 s are unstable, got {self.dt}")
+        _check(self.substeps <= 1000, "substeps", f"must be <= 1000, got {self.substeps}")
+        _check(0 <= self.collision_slop <= 0.01, "collision_slop", "must be in [0, 0.01] m")
+
+    @property
+    def control_dt(self) -> float:
+        return self.dt * self.substeps
+
+
+@dataclass(frozen=True)
+class EpisodeConfig:
+    max_steps: int = 1000
+
+    def __post_init__(self) -> None:
+        _positive(self, "max_steps")
+
+
+@dataclass(frozen=True)
+class RewardConfig:
+    """Weights of the named reward terms (see the env's docstring)."""
+
+    kpoi: float = 10.0
+    """Per KPOI visited, to every agent (team reward)."""
+    progress: float = 1.0
+    """Per metre the agent gets closer to its current goal."""
+    time: float = -0.01
+    """Per step, to every agent."""
+    collision: float = -1.0
+    """Per new contact of this agent with a wall or another robot."""
+
+
+@dataclass(frozen=True)
+class ObservationConfig:
+    pose_source: Literal["odometry", "kinect", "ground_truth"] = "kinect"
+    """Where the pose in the observation comes from: ``kinect`` = odometry corrected by Kinect
+    fixes for leaders inside a footprint (the paper); ``odometry`` = dead reckoning only."""
+    kinect: Literal["estimate", "frames"] = "estimate"
+    """``estimate``: pipeline poses only; ``frames``: raw frames via ``env.kinect_frames()``."""
+    sonar: bool = True
+
+
+@dataclass(frozen=True)
+class FormationConfig:
+    """Leader-follower column formation (l-psi control, seed A eq. 3)."""
+
+    spacing: float = 0.5
+    """Desired separation l_d between consecutive robots (m)."""
+    bearing_deg: float = 180.0
+    """Desired bearing psi_d of a follower seen from its predecessor (180 = behind)."""
+    offset: float = 0.2
+    """Control point offset d ahead of the follower's axle (m)."""
+    gains: tuple[float, float] = (1.0, 0.7)
+    """(a1, a2) of the l-psi law."""
+    mode: Literal["formation", "individual"] = "formation"
+    """``individual``: no formations, every robot is localized and messaged on its own."""
+    camera_fov_deg: float = 120.0
+    """Field of view of the follower's onboard camera that measures the robot ahead."""
+    camera_range: float = 2.5
+    """Max range of that camera (m)."""
+
+    def __post_init__(self) -> None:
+        _positive(self, "spacing", "offset", "camera_fov_deg", "camera_range")
+        _check(all(g > 0 for g in self.gains), "gains", "must be > 0")
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    roadmap: Literal["medial_axis", "grid"] = "medial_axis"
+    resolution: float = 0.05
+    """Grid cell size used to build the roadmap (m)."""
+
+    def __post_init__(self) -> None:
+        _check(0.005 <= self.resolution <= 1.0, "resolution", "must be in [0.005, 1.0] m")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A whole mission: map, team, sensors, rates, limits and reward weights."""
+
+    name: str
+    map: MapConfig
+    start: Pose
+    kpois: tuple[Point, ...]
+    description: str = ""
+    kpoi_radius: float = 0.25
+    """A KPOI is visited when a robot centre comes within this distance (m)."""
+    n_robots: int | Literal["auto"] = "auto"
+    """Team size; ``auto`` = the PPCP planner's optimal r."""
+    start_queue: tuple[Point, ...] = ()
+    """Polyline from the start backwards along which the team lines up in column order, one robot
+    every ``formation.spacing`` (m). Empty: straight back from the start, then side by side."""
+    robot: RobotConfig = field(default_factory=RobotConfig)
+    kinects: tuple[KinectConfig, ...] = ()
+    formation: FormationConfig = field(default_factory=FormationConfig)
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
+    localization: Literal["kinect", "sonar", "both"] = "kinect"
+    physics: PhysicsConfig = field(default_factory=PhysicsConfig)
+    episode: EpisodeConfig = field(default_factory=EpisodeConfig)
+    rewards: RewardConfig = field(default_factory=RewardConfig)
+    observation: ObservationConfig = field(default_factory=ObservationConfig)
+    source: str = field(default="<dict>", compare=False, metadata={"internal": True})
+
+    def __post_init__(self) -> None:
+        _check(len(self.kpois) >= 1, "kpois", "at least one KPOI is required")
+        _check(len(self.kpois) <= 10000, "kpois", f"at most 10000 KPOIs, got {len(self.kpois)}")
+        _positive(self, "kpoi_radius")
+        if self.n_robots != "auto":
+            _check(1 <= self.n_robots <= 256, "n_robots", f"must be in [1, 256] or 'auto', got {self.n_robots}")
+        if self.n_robots != 1:
+            f = self.formation
+            _check(f.spacing - f.offset >= 2 * self.robot.radius - 1e-9, "formation.spacing",
+                   f"a follower steering its control point {f.offset} m ahead to {f.spacing} m behind the robot "
+                   f"ahead comes within {f.spacing - f.offset:.3f} m of it: less than two radii "
+                   f"({2 * self.robot.radius} m); increase spacing or reduce offset")
+        for i, k in enumerate(self.kinects):
+            _check(k.height > self.robot.height + 0.1, f"kinects[{i}].height",
+                   f"the Kinect must hang above the robots' tops ({self.robot.height} m)")
+        names = [k.name for k in self.kinects]
+        _check(len(set(names)) == len(names), "kinects", f"Kinect names must be unique, got {names}")
+        step = self.robot.max_speed * self.physics.dt
+        _check(step < 0.5 * min(self.robot.radius, self.map.wall_thickness), "physics.dt",
+               f"a robot moves {step:.3f} m per physics step: more than half the robot radius or wall "
+               "thickness risks tunnelling; lower physics.dt")
+        cells = (self.map.size[0] / self.planner.resolution) * (self.map.size[1] / self.planner.resolution)
+        if cells > MAX_RASTER_CELLS:
+            fit = (self.map.size[0] * self.map.size[1] / MAX_RASTER_CELLS) ** 0.5
+            raise ConfigError("", "planner.resolution", f"the {self.map.size[0]} x {self.map.size[1]} m map needs "
+                              f"{cells:.3g} roadmap cells at {self.planner.resolution} m (max {MAX_RASTER_CELLS:.0e}); "
+                              f"use a resolution >= {fit:.3f} m")
+
+    @property
+    def queue(self) -> tuple[Point, ...]:
+        """The start queue polyline, beginning at the start."""
+        return ((self.start.x, self.start.y), *self.start_queue) if self.start_queue else ()
+
+    @property
+    def n_robots_fixed(self) -> int | None:
+        return None if self.n_robots == "auto" else int(self.n_robots)

@@ -1,0 +1,1 @@
+"""Shipped scenario YAMLs, installed as ``parcover_env.configs`` (see pyproject.toml)."""

@@ -1,0 +1,21 @@
+"""Leader control (seed A eq. 2): unicycle go-to-goal toward the next waypoint, saturated."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["go_to_goal"]
+
+
+def go_to_goal(goal_xy: np.ndarray, max_speed: float, max_turn_rate: float, k_rho: float = 1.0,
+               k_alpha: float = 2.0, speed_scale: float = 1.0) -> tuple[float, float]:
+    """``(v, omega)`` driving a unicycle to ``goal_xy`` given in its own frame (x ahead, y left).
+
+    rho = |goal|, alpha = bearing; v = min(speed_scale * v_max, k_rho * rho) * max(cos alpha, 0)^2
+    (turn in place toward goals behind), omega = k_alpha * alpha; both saturated.
+    """
+    rho = float(np.hypot(goal_xy[0], goal_xy[1]))
+    alpha = float(np.arctan2(goal_xy[1], goal_xy[0]))
+    v = min(speed_scale * max_speed, k_rho * rho) * max(np.cos(alpha), 0.0) ** 2
+    w = float(np.clip(k_alpha * alpha, -max_turn_rate, max_turn_rate))
+    return float(np.clip(v, -max_speed, max_speed)), w

@@ -1,0 +1,70 @@
+"""Validation of the joint action: one clear ActionError, and never a state change, on bad input."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from parcover_env.errors import ActionError
+
+__all__ = ["to_commands"]
+
+
+def to_commands(actions: Mapping, agents: Sequence[str], max_speed: float,
+                max_turn_rate: float) -> np.ndarray:
+    """Joint action ``{agent: (2,) in [-1, 1]}`` -> unicycle commands ``(N, 2)`` (m/s, rad/s).
+
+    Out-of-range values are clipped to [-1, 1] (documented behaviour); NaN/inf, a wrong shape, a
+    non-real type (complex, bool, strings, None) and missing or unknown agents raise ActionError
+    naming the agent.
+    """
+    out = _common_case(actions, agents)
+    if out is None:
+        out = _validated(actions, agents)
+    np.clip(out, -1.0, 1.0, out=out)
+    out *= (max_speed, max_turn_rate)
+    return out
+
+
+def _common_case(actions, agents: Sequence[str]) -> np.ndarray | None:
+    """Raw ``(N, 2)`` actions when the joint action is the common case (a dict holding exactly the
+    active agents, each a finite float ndarray of shape (2,)), cheaply; None otherwise."""
+    if type(actions) is not dict or len(actions) != len(agents):
+        return None
+    try:
+        vals = [actions[a] for a in agents]
+    except KeyError:
+        return None
+    for v in vals:
+        if type(v) is not np.ndarray or v.shape != (2,) or v.dtype.kind != "f":
+            return None
+    out = np.array(vals, dtype=float)
+    return out if np.isfinite(out).all() else None
+
+
+def _validated(actions, agents: Sequence[str]) -> np.ndarray:
+    """Raw ``(N, 2)`` actions after full validation; ActionError naming the agent otherwise."""
+    if not isinstance(actions, Mapping):
+        raise ActionError(f"actions must be a dict {{agent: array(2)}}, got {type(actions).__name__}")
+    extra = [a for a in actions if a not in agents]
+    if extra:
+        raise ActionError(f"actions for unknown or finished agents {extra}; active agents: {list(agents)}")
+    missing = [a for a in agents if a not in actions]
+    if missing:
+        raise ActionError(f"missing actions for agents {missing}")
+    out = np.empty((len(agents), 2))
+    for i, agent in enumerate(agents):
+        try:
+            raw = np.asarray(actions[agent])
+        except (TypeError, ValueError):  # e.g. ragged nested sequences
+            raise ActionError(f"{agent}: action is not numeric: {actions[agent]!r}") from None
+        if raw.dtype.kind not in "iuf":  # complex, bool, strings, objects: never silently cast
+            raise ActionError(f"{agent}: action is not numeric (real numbers): {actions[agent]!r}")
+        a = raw.astype(float)
+        if a.shape != (2,):
+            raise ActionError(f"{agent}: action must have shape (2,) = (v, omega) in [-1, 1], got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ActionError(f"{agent}: action contains NaN or inf: {a.tolist()}")
+        out[i] = a
+    return out

@@ -1,0 +1,80 @@
+"""Episode metrics, reported in ``info[agent]["episode"]`` when the episode ends."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from parcover_env.geometry import wrap_angle
+
+__all__ = ["EpisodeMetrics", "formation_errors"]
+
+
+def formation_errors(poses: np.ndarray, predecessor: np.ndarray, offset: float, l_d: float,
+                     psi_d: float) -> tuple[np.ndarray, np.ndarray]:
+    """(l - l_d, wrap(psi - psi_d)) of every follower from true poses (seed A / Das et al. l-psi)."""
+    f = np.flatnonzero(predecessor >= 0)
+    me, lead = poses[f], poses[predecessor[f]]
+    q = me[:, :2] + offset * np.stack([np.cos(me[:, 2]), np.sin(me[:, 2])], axis=1)
+    d = q - lead[:, :2]
+    l = np.hypot(d[:, 0], d[:, 1])
+    psi = np.arctan2(d[:, 1], d[:, 0]) - lead[:, 2]
+    return l - l_d, wrap_angle(psi - psi_d)
+
+
+@dataclass
+class EpisodeMetrics:
+    n_kpois: int
+    n_robots: int
+    c_max: float
+    """PPCP lower bound: roadmap shortest-path length to the furthest KPOI (m). Robots drive the
+    smoothed routes, which are shorter than roadmap paths, so makespan_ratio can fall below 1."""
+    max_speed: float
+    steps: int = 0
+    time: float = 0.0
+    kpois_visited: int = 0
+    makespan: float | None = None
+    """Time when the last KPOI was visited (s); None if the mission was not completed."""
+    wall_collisions: int = 0
+    robot_collisions: int = 0
+    path_lengths: list[float] = field(default_factory=list)
+    localization_error: float = 0.0
+    """RMS distance between the observed pose estimates and the true poses (m)."""
+    messages: dict[str, int] = field(default_factory=dict)
+    formation_error_l: float = 0.0
+    """RMS of l - l_d over followers and steps (m)."""
+    formation_error_psi: float = 0.0
+    """RMS of wrap(psi - psi_d) over followers and steps (rad)."""
+    _sq_err: float = 0.0
+    _n_err: int = 0
+    _sq_form: tuple[float, float, int] = (0.0, 0.0, 0)
+
+    def record_formation(self, dl: np.ndarray, dpsi: np.ndarray) -> None:
+        sl, sp, n = self._sq_form
+        self._sq_form = (sl + float(dl @ dl), sp + float(dpsi @ dpsi), n + len(dl))
+        sl, sp, n = self._sq_form
+        if n:
+            self.formation_error_l = float(np.sqrt(sl / n))
+            self.formation_error_psi = float(np.sqrt(sp / n))
+
+    def record_step(self, time: float, kpois_visited: int, true_poses: np.ndarray,
+                    est_poses: np.ndarray, wall: int, robot: int) -> None:
+        self.steps += 1
+        self.time = time
+        self.kpois_visited = kpois_visited
+        self.wall_collisions += wall
+        self.robot_collisions += robot
+        err = true_poses[:, :2] - est_poses[:, :2]
+        self._sq_err += float(np.sum(err * err))
+        self._n_err += len(err)
+        self.localization_error = float(np.sqrt(self._sq_err / max(self._n_err, 1)))
+
+    def summary(self) -> dict:
+        """Plain-dict summary (JSON-friendly)."""
+        out = {k: v for k, v in asdict(self).items() if not k.startswith("_")}
+        out["success"] = self.kpois_visited == self.n_kpois
+        bound = self.c_max / self.max_speed if self.c_max > 0 else float("nan")
+        out["makespan_ratio"] = (self.makespan / bound) if self.makespan is not None else None
+        out["collisions"] = self.wall_collisions + self.robot_collisions
+        return out

@@ -1,0 +1,407 @@
+"""SonarNavigator: seed B's NAVIGATOR loop (Fig. 1) as a policy over the env's observations.
+
+    while goal not reached:  optimize the subgoal on the path (scan angle, eq. 1) -> replicate it for
+    the team (parallel paths) -> rearrange subgoals (max-min unblocked scan angle) -> drive all robots
+    to their subgoals and stop -> scan and localize one by one -> restart from the corrected poses.
+
+Inputs, all explicit (never env internals): the scenario (the *known* map, robot and sonar models,
+formation spacing), each robot's route ``plan.paths[i]``, the control period and the sonar beam
+angles; per step only the observations (odometry pose, sonar ring ranges).
+
+Design choices (documented deviations):
+* Pose belief = a per-robot rigid correction on top of the odometry pose. A fix ``f`` at odometry
+  pose ``o`` sets the correction to ``f o^-1``; the uncertainty ellipse (``Ellipse.grow``) grows with
+  the odometry distance and rotation since the last fix.
+* Parallel paths: robot i follows its own plan route and trails robot 0 by ``i * formation.spacing``
+  of arclength (a column along the shared route; after a split each robot simply follows its own
+  route). The team subgoal sigma minimizes the worst robot's bias (§3 "optimizes the scan angle for
+  all robots") within the horizon where every robot's ellipse stays below ``max_axis``.
+* Scan: the robot turns in place; every control step each ring beam's reading is binned by the
+  odometry heading into the 72 bins of 5 deg (the reading nearest each bin centre is kept). The turn
+  stops once every bin holds a reading within ``bin_tol_deg`` of its centre (with 8 beams this takes
+  the largest gap between beams, ~80 deg, like the paper's two-sonar half turn), or after a full turn.
+* Localization (Fig. 6) with relaxed sectors of rule 2, cached per map; other robots are unknown
+  obstacles. A failed localization keeps the belief (the ellipse keeps growing); the next subgoal is
+  then at least ``min_advance`` ahead so the robot scans from a new place.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import shapely
+
+from parcover_env.config import Scenario
+from parcover_env.control.leader import go_to_goal
+from parcover_env.env.observations import ObservationLayout
+from parcover_env.expert.navigator_params import NavigatorParams
+from parcover_env.geometry import wrap_angle
+from parcover_env.geometry.poses import compose as _compose
+from parcover_env.geometry.poses import inverse as _inverse
+from parcover_env.localization.sonar.features import MapFeature
+from parcover_env.localization.sonar.known_map import known_map_features
+from parcover_env.localization.sonar.localizer import Ellipse, localize, scan_error
+from parcover_env.localization.sonar.params import SonarLocalizerParams
+from parcover_env.localization.sonar.scan import ScanCollector
+from parcover_env.localization.sonar.subgoals import (
+    PathNodes,
+    densify,
+    rearrange,
+    score_nodes,
+    team_subgoal,
+    unblocked_scan_angle,
+)
+from parcover_env.sensors.sonar import simulate_beams
+from parcover_env.world.map_model import MapModel
+
+__all__ = ["NavigatorParams", "SonarNavigator"]
+
+
+class SonarNavigator:
+    """Seed B NAVIGATOR policy: ``for_env(env)``, ``reset(obs)``, ``act(obs) -> actions``, ``stats()``."""
+
+    def __init__(self, layout: ObservationLayout, scenario: Scenario, paths: list[np.ndarray],
+                 control_dt: float, sonar_angles: np.ndarray, params: NavigatorParams | None = None,
+                 localizer: SonarLocalizerParams | None = None):
+        if sonar_angles is None or len(sonar_angles) == 0:
+            raise ValueError("SonarNavigator needs the sonar beam angles (observation.sonar must be on)")
+        if "sonar" not in layout.slices:
+            raise ValueError("SonarNavigator needs a 'sonar' entry in the observation layout")
+        if not control_dt > 0:
+            raise ValueError(f"control_dt must be > 0, got {control_dt}")
+        if len(paths) == 0:
+            raise ValueError("SonarNavigator needs one route per robot, got none")
+        self.layout, self.scenario, self.dt = layout, scenario, float(control_dt)
+        self.p = params or NavigatorParams()
+        self.loc = localizer or SonarLocalizerParams()
+        self.beams = np.asarray(sonar_angles, dtype=float)
+        r = scenario.robot
+        self.sonar_cfg = r.sonar
+        self.v_max, self.w_max, self.radius = r.max_speed, r.max_turn_rate, r.radius
+        self.spacing = scenario.formation.spacing
+        self.map, self.features, self.sectors = known_map_features(
+            scenario.map, r.sonar.range_max, self.p.sector_rule, self.loc.sector_resolution)
+        self.n_bins = round(360.0 / r.sonar.scan_step_deg)
+        self.scan_angles = np.radians(np.arange(self.n_bins) * r.sonar.scan_step_deg)
+        self.step_rad = math.radians(r.sonar.scan_step_deg)
+        self.specular = r.sonar.model == "specular"
+        self.incidence = math.radians(r.sonar.incidence_max_deg) if self.specular else math.pi / 2
+        self.cone = math.radians(r.sonar.cone_deg) if self.specular else 0.0
+        self.front = np.flatnonzero(np.abs(wrap_angle(self.beams)) <= math.radians(25))
+        self.routes = [np.asarray(p, dtype=float) for p in paths]
+        self.n = len(self.routes)
+        self.reset()
+
+    @classmethod
+    def for_env(cls, env, **kwargs) -> SonarNavigator:
+        """Build from an env's public spec: layout, scenario, plan routes, control period, sonar beams."""
+        if env.sonar is None:
+            raise ValueError("SonarNavigator needs an env with sonar observations (observation.sonar: true)")
+        return cls(env.layout, env.scenario, list(env.plan.paths), env.scenario.physics.control_dt,
+                   env.sonar.beam_angles, **kwargs)
+
+    # ------------------------------------------------------------------ episode
+    def reset(self, observations: dict[str, np.ndarray] | None = None) -> None:
+        n = self.n
+        self.correction = np.zeros((n, 3))
+        self.last_odom: np.ndarray | None = None
+        self.travelled = np.zeros(n)
+        self.turned = np.zeros(n)
+        self.axis0 = np.full(n, self.p.initial_axis)
+        self.paths: list[PathNodes] | None = None
+        self.progress = np.zeros(n)
+        self.targets = np.zeros(n)
+        self.sigma = 0.0
+        self.done = np.zeros(n, dtype=bool)
+        self.final_scans = np.zeros(n, dtype=int)
+        self.phase = "plan"
+        self.arrived = np.zeros(n, dtype=bool)
+        self.drive_steps, self.drive_limit = 0, 0
+        self.queue: list[int] = []
+        self.scan: dict | None = None
+        self.fixes: list[dict] = []
+        self._stats = {"scans": 0, "localized": 0, "failed": 0, "corrections": [], "scan_steps": 0,
+                       "rearranged": 0, "iterations": 0}
+        if observations:
+            self._ingest(observations)
+
+    def stats(self) -> dict:
+        """Counters for the episode summary (prefixed ``sonar_``)."""
+        c = self._stats["corrections"]
+        return {"sonar_scans": self._stats["scans"], "sonar_localized": self._stats["localized"],
+                "sonar_failed": self._stats["failed"],
+                "sonar_mean_correction": float(np.mean(c)) if c else 0.0,
+                "sonar_scan_time": self._stats["scan_steps"] * self.dt,
+                "sonar_rearranged": self._stats["rearranged"], "sonar_iterations": self._stats["iterations"]}
+
+    def belief(self) -> np.ndarray:
+        """``(N, 3)`` current pose beliefs (correction applied to the last odometry poses)."""
+        if self.last_odom is None:
+            raise RuntimeError("belief() before the first observation")
+        return np.array([_compose(self.correction[i], self.last_odom[i]) for i in range(self.n)])
+
+    def ellipse(self, i: int) -> Ellipse:
+        """Robot ``i``'s uncertainty ellipse around its belief."""
+        e = Ellipse(tuple(self.belief()[i, :2]), (self.axis0[i], self.axis0[i]))
+        return e.grow(self.travelled[i], self.turned[i], self.p.rate_distance, self.p.rate_rotation)
+
+    def subgoals(self) -> np.ndarray:
+        """``(N, 2)`` current subgoal positions (the route starts before the first plan)."""
+        if self.paths is None:
+            return np.array([r[0] for r in self.routes])
+        return np.array([p.point(t) for p, t in zip(self.paths, self.targets, strict=True)])
+
+    # ------------------------------------------------------------------ act
+    def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        self._ingest(observations)
+        cmd = np.zeros((self.n, 2))
+        if self.phase == "plan" and not self.done.all():
+            self._plan()
+        if self.phase == "drive":
+            self._drive(observations, cmd)
+        if self.phase == "scan":
+            self._scan_step(observations, cmd)
+        out = {}
+        for a in observations:
+            i = int(a.rsplit("_", 1)[1])
+            out[a] = np.array([cmd[i, 0] / self.v_max, cmd[i, 1] / self.w_max], dtype=np.float32)
+        return out
+
+    def _ingest(self, observations: dict[str, np.ndarray]) -> None:
+        g = self.layout.get
+        odom = np.zeros((self.n, 3)) if self.last_odom is None else self.last_odom.copy()
+        for a, o in observations.items():
+            i = int(a.rsplit("_", 1)[1])
+            if not 0 <= i < self.n:
+                raise ValueError(f"observation for unknown agent {a!r} ({self.n} routes)")
+            odom[i] = [g(o, "x")[0], g(o, "y")[0], math.atan2(g(o, "sin_theta")[0], g(o, "cos_theta")[0])]
+        if self.last_odom is not None:
+            self.travelled += np.hypot(*(odom[:, :2] - self.last_odom[:, :2]).T)
+            self.turned += np.abs(wrap_angle(odom[:, 2] - self.last_odom[:, 2]))
+        self.last_odom = odom
+        if self.paths is None:
+            self._build_paths()
+
+    def _build_paths(self) -> None:
+        """Robot i's path: its start (if off the route) then its route; arclength 0 at the route start."""
+        self.paths = []
+        for i, route in enumerate(self.routes):
+            start = self.last_odom[i, :2]
+            lead = float(np.hypot(*(start - route[0])))
+            pts = np.vstack([start, route]) if lead > 1e-3 else route
+            self.paths.append(densify(pts, self.p.node_step, s0=-lead if lead > 1e-3 else 0.0))
+        self.scores = [score_nodes(p.xy, self.map, self.features, self.sonar_cfg.range_min,
+                                   self.sonar_cfg.range_max, self.step_rad, self.incidence,
+                                   self.p.min_wall_length, self.p.min_readings, self.p.min_walls_seen,
+                                   self.p.range_margin) for p in self.paths]
+        self.lags = np.arange(self.n) * self.spacing
+        self.progress = np.array([p.s[0] for p in self.paths])
+        self.targets = self.progress.copy()
+
+    def _update_progress(self, i: int, xy: np.ndarray) -> None:
+        p = self.paths[i]
+        win = np.nonzero((p.s >= self.progress[i] - 0.5) & (p.s <= self.progress[i] + 1.0))[0]
+        if len(win) == 0:
+            win = np.arange(len(p.s))
+        k = win[np.argmin(np.hypot(*(p.xy[win] - xy).T))]
+        self.progress[i] = p.s[k]
+
+    # ------------------------------------------------------------------ Fig. 1 lines 3-6
+    def _plan(self) -> None:
+        bel = self.belief()
+        active = np.nonzero(~self.done)[0]
+        for i in active:
+            self._update_progress(i, bel[i, :2])
+        axes = np.array([max(self.ellipse(i).axes) for i in range(self.n)])
+        horizon = np.maximum(self.p.min_advance, (self.p.max_axis - axes) / self.p.rate_distance)
+        ends = np.array([p.s[-1] for p in self.paths])
+        sigma_end = float(np.max(ends + self.lags))
+        sigma_hi = float(np.min(self.progress[active] + horizon[active] + self.lags[active]))
+        sigma_lo = min(self.sigma + self.p.min_advance, sigma_hi)
+        if sigma_hi >= sigma_end:
+            sigma = sigma_end
+        else:
+            sigma = team_subgoal([self.paths[i] for i in active], [self.scores[i].bias for i in active],
+                                 self.lags[active], sigma_lo, sigma_hi, self.p.node_step,
+                                 math.radians(self.p.tie_tol_deg))
+        self.sigma = sigma
+        starts = np.array([p.s[0] for p in self.paths])
+        targets = np.clip(sigma - self.lags, starts, ends)
+        targets[self.done] = ends[self.done]
+        self.targets = self._rearrange(targets, active, ends, horizon)
+        self.phase, self.arrived = "drive", self.done.copy()
+        self.drive_steps = 0
+        dist = np.abs(self.targets - self.progress).max()
+        self.drive_limit = int((dist / (0.5 * self.v_max) + self.p.drive_timeout) / self.dt)
+        self._stats["iterations"] += 1
+
+    def _features_at(self, i: int, k: int) -> list[MapFeature]:
+        return [self.features[j] for j in np.nonzero(self.scores[i].available[k])[0]]
+
+    def _rearrange(self, targets: np.ndarray, active: np.ndarray, ends: np.ndarray,
+                   horizon: np.ndarray) -> np.ndarray:
+        """§3.2: shift subgoals along the paths when robots block each other's features."""
+        if self.n < 2:
+            return targets
+        idx = [self.paths[i].index(targets[i]) for i in range(self.n)]
+        pts = np.array([self.paths[i].xy[k] for i, k in enumerate(idx)])
+        blocked = False
+        for i in active:
+            others = np.delete(pts, i, axis=0)
+            for f in self._features_at(i, idx[i]):
+                args = (self.radius, self.sonar_cfg.range_max, self.incidence, self.cone)
+                a_free = unblocked_scan_angle(pts[i], f, np.zeros((0, 2)), *args)
+                a = unblocked_scan_angle(pts[i], f, others, *args)
+                blocked |= a < a_free - 1e-9
+        gaps = np.hypot(*(pts[:, None] - pts[None]).transpose(2, 0, 1)) + 1e9 * np.eye(self.n)
+        too_close = gaps.min() < 2 * self.radius + self.p.separation_margin
+        if not blocked and not too_close:
+            return targets
+        cands, feats, tgt, node_ids = [], [], [], []
+        for i in range(self.n):
+            p = self.paths[i]
+            fixed = self.done[i] or targets[i] >= ends[i] - 1e-9
+            lo = max(targets[i] - self.p.max_shift, self.progress[i], p.s[0])
+            hi = min(targets[i] + self.p.max_shift, self.progress[i] + horizon[i] + 0.3, ends[i])
+            grid = [targets[i]] if fixed else \
+                sorted({*np.arange(lo, hi + 1e-9, self.p.shift_step), targets[i]})
+            ks = [p.index(g) for g in grid]
+            node_ids.append(ks)
+            cands.append(p.xy[ks])
+            feats.append([self._features_at(i, k) if i in active else [] for k in ks])
+            tgt.append(int(np.argmin(np.abs(np.asarray(grid) - targets[i]))))
+        choice = rearrange(cands, feats, tgt, self.radius, self.sonar_cfg.range_max, self.incidence,
+                           self.cone, min_separation=2 * self.radius + self.p.separation_margin)
+        out = np.array([self.paths[i].s[node_ids[i][k]] for i, k in enumerate(choice)])
+        if np.any(np.abs(out - targets) > 1e-9):
+            self._stats["rearranged"] += 1
+        return out
+
+    # ------------------------------------------------------------------ Fig. 1 line 7
+    def _drive(self, observations, cmd: np.ndarray) -> None:
+        bel = self.belief()
+        self.drive_steps += 1
+        for i in range(self.n):
+            if self.arrived[i] or f"robot_{i}" not in observations:
+                continue
+            p = self.paths[i]
+            self._update_progress(i, bel[i, :2])
+            goal_pt = p.point(self.targets[i])
+            if np.hypot(*(goal_pt - bel[i, :2])) < self.p.arrive_tol:
+                self.arrived[i] = True
+                continue
+            ahead = self.targets[i] - self.progress[i]
+            look = p.point(self.progress[i] + math.copysign(min(self.p.lookahead, abs(ahead)), ahead))
+            if np.hypot(*(goal_pt - bel[i, :2])) < self.p.lookahead:
+                look = goal_pt
+            d = look - bel[i, :2]
+            c, s = math.cos(bel[i, 2]), math.sin(bel[i, 2])
+            v, w = go_to_goal(np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]]), self.v_max, self.w_max)
+            if v > 0:
+                v *= min(self._brake(observations[f"robot_{i}"]), self._team_brake(i, bel))
+            cmd[i] = [v, w]
+        if self.arrived.all() or self.drive_steps > self.drive_limit:
+            self.arrived[:] = True
+            self.queue = [i for i in range(self.n) if not self.done[i]]
+            self.phase = "scan"
+            cmd[:] = 0.0
+
+    def _team_brake(self, i: int, bel: np.ndarray) -> float:
+        """Slow down for teammates ahead (within 90 deg of the heading) by their believed positions."""
+        d = bel[:, :2] - bel[i, :2]
+        dist = np.hypot(d[:, 0], d[:, 1])
+        ahead = (d[:, 0] * math.cos(bel[i, 2]) + d[:, 1] * math.sin(bel[i, 2])) > 0
+        ahead[i] = False
+        if not ahead.any():
+            return 1.0
+        gap = float(dist[ahead].min()) - 2 * self.radius
+        span = self.p.slow_margin - self.p.stop_margin
+        return float(np.clip((gap - self.p.stop_margin) / span, 0.0, 1.0))
+
+    def _brake(self, obs: np.ndarray) -> float:
+        if len(self.front) == 0:
+            return 1.0
+        front = float(np.min(self.layout.get(obs, "sonar")[self.front]))
+        stop, slow = self.radius + self.p.stop_margin, self.radius + self.p.slow_margin
+        return float(np.clip((front - stop) / (slow - stop), 0.0, 1.0))
+
+    # ------------------------------------------------------------------ Fig. 1 line 8
+    def _scan_step(self, observations, cmd: np.ndarray) -> None:
+        while self.queue and f"robot_{self.queue[0]}" not in observations:
+            self.queue.pop(0)
+        if not self.queue:
+            self._end_iteration()
+            return
+        i = self.queue[0]
+        odom = self.last_odom[i]
+        if self.scan is None:
+            self.scan = {"robot": i, "start": odom.copy(),
+                         "col": ScanCollector(self.beams, self.n_bins, self.sonar_cfg.range_max, float(odom[2]),
+                                              self.p.bin_tol_deg)}
+            self._stats["scans"] += 1
+        ranges = self.layout.get(observations[f"robot_{i}"], "sonar").astype(float)
+        full = self.scan["col"].add(float(odom[2]), ranges)
+        if full:
+            self._finish_scan(i)
+            self.queue.pop(0)
+            self.scan = None
+            if not self.queue:
+                self._end_iteration()
+            return
+        self._stats["scan_steps"] += 1
+        cmd[i] = [0.0, self.p.scan_rate]
+
+    def _finish_scan(self, i: int) -> None:
+        ranges = self.scan["col"].ranges  # bins never reached keep the max range (no echo)
+        o = self.scan["start"]
+        prior = _compose(self.correction[i], o)
+        ell = self.ellipse(i).moved(prior[:2])
+        others = np.delete(self.belief()[:, :2], i, axis=0)
+        res = localize(ranges, self.scan_angles, self._team_map(others), self.sectors, ell, self.loc,
+                       sonar=self.sonar_cfg, features=self.features)
+        team_error = math.inf
+        if res.pose is not None:
+            axes = (res.pose[2] + self.scan_angles)[None, :]
+            synth = simulate_beams(self.sonar_cfg, res.pose[None, :2], axes, self.map.segments, others,
+                                   self.radius, np.array([-1]))
+            team_error = float(scan_error(ranges, synth, self.loc.error_clip)[0])
+        ok = res.pose is not None and (res.success or team_error <= self.p.accept_error)
+        record = {"robot": i, "prior": prior, "ellipse": ell, "success": bool(ok), "error": res.error,
+                  "pose": None if res.pose is None else res.pose.copy(), "target": self.targets[i],
+                  "team_error": team_error}
+        self.fixes.append(record)
+        at_end = self.targets[i] >= self.paths[i].s[-1] - 1e-9
+        if at_end:
+            self.final_scans[i] += 1
+        if ok:
+            self._stats["localized"] += 1
+            self._stats["corrections"].append(float(np.hypot(*(res.pose[:2] - prior[:2]))))
+            self.correction[i] = _compose(res.pose, _inverse(o))
+            self.travelled[i] = self.turned[i] = 0.0
+            self.axis0[i] = self.p.initial_axis
+        else:
+            self._stats["failed"] += 1
+        if at_end:
+            bel = _compose(self.correction[i], self.last_odom[i])
+            close = np.hypot(*(bel[:2] - self.paths[i].xy[-1])) <= self.p.goal_tol
+            if (ok and close) or self.final_scans[i] >= self.p.max_final_scans:
+                self.done[i] = True
+
+    def _team_map(self, others: np.ndarray) -> MapModel:
+        """The known map with the teammates as 16-gon obstacles at their believed positions."""
+        if len(others) == 0 or not self.p.teammates_in_map:
+            return self.map
+        discs = shapely.union_all([shapely.Point(*q).buffer(self.radius, quad_segs=4) for q in others])
+        free = self.map.free.difference(discs)
+        return self.map if free.is_empty else MapModel(free=free, bounds=self.map.bounds)
+
+    def _end_iteration(self) -> None:
+        """Fig. 1 line 9: start again from the robots' corrected configurations."""
+        self.phase = "plan"
+
+
+def replace_params(nav: SonarNavigator, **changes) -> NavigatorParams:
+    """Copy of ``nav``'s parameters with ``changes`` (convenience for benchmarks)."""
+    return dataclasses.replace(nav.p, **changes)

@@ -1,0 +1,97 @@
+"""Sonar fixes for robots out of Kinect view (``localization: both``).
+
+A leader whose last absolute fix is older than ``stale_after`` stops and turns in place while its
+sonar ring sweeps the 5-degree bins of a 360-degree scan (seed B: rotate and scan), then localizes
+with the relaxed-sector feature localizer on the known map. A fix becomes a correction on top of
+the robot's odometry pose: ``belief = fix o odom_at_scan^-1 o odom``. A new Kinect fix (the env's
+estimate becomes absolute again) clears the correction.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from parcover_env.geometry.poses import compose, inverse
+from parcover_env.localization.sonar.scan import ScanCollector
+
+__all__ = ["SonarFixer"]
+
+
+@dataclass
+class _State:
+    correction: np.ndarray
+    scan: ScanCollector | None = None
+    scan_odom: np.ndarray | None = None
+    driven_since_scan: float = math.inf
+    driven_since_fix: float = 0.0
+    """Distance driven since the last Kinect fix (m): bounds how far odometry can have drifted."""
+
+
+class SonarFixer:
+    """Per-robot sonar localization on demand, for the scripted expert's stale leaders."""
+
+    def __init__(self, scenario, beam_angles: np.ndarray, control_dt: float, stale_after: float = 8.0,
+                 rescan_distance: float = 2.0, scan_rate: float = 0.6):
+        from parcover_env.localization.sonar import SonarLocalizerParams
+        from parcover_env.localization.sonar.known_map import known_map_features
+
+        self.sonar = scenario.robot.sonar
+        self.map, self.features, self.sectors = known_map_features(scenario.map, self.sonar.range_max)
+        self.params = SonarLocalizerParams()
+        self.beams = np.asarray(beam_angles, dtype=float)
+        self.n_bins = int(round(360.0 / self.sonar.scan_step_deg))
+        self.angles = np.arange(self.n_bins) * (2 * math.pi / self.n_bins)
+        self.dt = control_dt
+        self.stale_after, self.rescan_distance = stale_after, rescan_distance
+        self.scan_rate = min(scan_rate, scenario.robot.max_turn_rate)
+        self.growth = (0.1, 0.05)  # ellipse axis growth: m per m travelled, m per rad turned
+        self.states: dict[str, _State] = {}
+        self.stats = {"sonar_scans": 0, "sonar_localized": 0, "sonar_failed": 0}
+
+    def corrected(self, agent: str) -> bool:
+        """Whether a sonar fix currently corrects this robot's odometry."""
+        st = self.states.get(agent)
+        return st is not None and bool(np.any(st.correction != 0.0))
+
+    def belief(self, agent: str, odom: np.ndarray) -> np.ndarray:
+        st = self.states.get(agent)
+        return odom if st is None else compose(st.correction, odom)
+
+    def step(self, agent: str, odom: np.ndarray, fix_age: float, speed: float, ranges: np.ndarray,
+             is_leader: bool) -> tuple[float, float] | None:
+        """Advance this robot's scan logic; returns a (v, w) command while it is scanning."""
+        st = self.states.setdefault(agent, _State(np.zeros(3)))
+        if fix_age < 2 * self.dt:  # a fresh Kinect fix: the odometry pose is absolute again
+            st.correction, st.scan, st.driven_since_scan, st.driven_since_fix = np.zeros(3), None, math.inf, 0.0
+            return None
+        st.driven_since_scan += abs(speed) * self.dt
+        st.driven_since_fix += abs(speed) * self.dt
+        if st.scan is None:
+            if not (is_leader and fix_age > self.stale_after and st.driven_since_scan >= self.rescan_distance):
+                return None
+            st.scan = ScanCollector(self.beams, self.n_bins, self.sonar.range_max, float(odom[2]))
+            st.scan_odom = odom.copy()
+            self.stats["sonar_scans"] += 1
+        if not st.scan.add(float(odom[2]), ranges):
+            return 0.0, self.scan_rate
+        self._localize(st)
+        st.scan, st.driven_since_scan = None, 0.0
+        return None
+
+    def _localize(self, st: _State) -> None:
+        from parcover_env.localization.sonar import Ellipse, localize
+
+        prior = compose(st.correction, st.scan_odom)
+        # odometry drifts by a few percent of the distance driven: a fix outside that is a false match
+        axis = 0.15 + self.growth[0] * st.driven_since_fix
+        ell = Ellipse(prior[:2], (axis, axis), 0.0)
+        res = localize(st.scan.ranges, self.angles, self.map, self.sectors, ell, self.params, sonar=self.sonar,
+                       features=self.features)
+        if res.pose is not None and res.success and np.hypot(*(res.pose[:2] - prior[:2])) <= axis:
+            st.correction = compose(res.pose, inverse(st.scan_odom))
+            self.stats["sonar_localized"] += 1
+        else:
+            self.stats["sonar_failed"] += 1

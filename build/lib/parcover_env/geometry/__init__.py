@@ -1,0 +1,10 @@
+"""The geometric kernel: angles, batched ray casting, camera projection.
+
+Conventions: points are ``(..., 2)`` float arrays in metres; a segment array is ``(S, 4)`` with
+rows ``(x1, y1, x2, y2)``; angles are radians, counter-clockwise from +x, wrapped to (-pi, pi].
+"""
+
+from parcover_env.geometry.angles import rotate, wrap_angle
+from parcover_env.geometry.rays import cast_rays, cast_rays_discs, point_segment_distance, polygon_edges
+
+__all__ = ["wrap_angle", "rotate", "polygon_edges", "cast_rays", "cast_rays_discs", "point_segment_distance"]

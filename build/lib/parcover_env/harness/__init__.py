@@ -1,0 +1,1 @@
+"""Running policies at scale: rollouts, bench sweeps, statistics, Minari datasets, the Ray backend."""

@@ -1,0 +1,169 @@
+"""Expert demonstrations: record episodes, per agent, and store them as a Minari dataset.
+
+Minari datasets are single-agent, so each robot's trajectory is stored as its own episode
+(the parameter-sharing view the baselines train on): observations ``(T+1, obs_dim)``, actions
+``(T, 2)``, the robot's rewards, terminations and truncations. Minari (``pip install
+'parcover_env[data]'`` plus ``h5py``) is imported lazily; :func:`record_episodes` needs no extra.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from parcover_env.errors import ParcoverError
+
+__all__ = ["AgentEpisode", "record_episodes", "save_minari", "load_minari", "collect"]
+
+
+class AgentEpisode(dict):
+    """One robot's trajectory: keys observations, actions, rewards, terminations, truncations, seed."""
+
+
+def record_episodes(
+    scenario: Any, episodes: int, seed: int = 0, policy: str = "expert", max_steps: int | None = None
+) -> list[AgentEpisode]:
+    """Run ``episodes`` episodes (seeds ``seed .. seed+episodes-1``); one AgentEpisode per robot."""
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    from parcover_env.env import ParallelCoverageEnv
+    from parcover_env.policies.registry import make_policy
+
+    overrides = {"episode": {"max_steps": max_steps}} if max_steps else None
+    env = ParallelCoverageEnv(scenario, overrides=overrides)
+    out: list[AgentEpisode] = []
+    for k in range(episodes):
+        ep_seed = seed + k
+        pol = make_policy(policy, env, ep_seed)
+        obs, _ = env.reset(seed=ep_seed)
+        if hasattr(pol, "reset"):
+            pol.reset(obs)
+        traj = {
+            a: {"observations": [obs[a]], "actions": [], "rewards": [], "terminations": [], "truncations": []}
+            for a in env.possible_agents
+        }
+        while env.agents:
+            actions = pol.act(obs)
+            live = list(env.agents)
+            obs, rew, term, trunc, _ = env.step(actions)
+            for a in live:
+                t = traj[a]
+                t["actions"].append(np.clip(np.asarray(actions[a], np.float32), -1, 1))
+                t["observations"].append(obs[a])
+                t["rewards"].append(rew[a])
+                t["terminations"].append(term[a])
+                t["truncations"].append(trunc[a])
+        for a in env.possible_agents:
+            t = traj[a]
+            if not t["actions"]:
+                continue
+            out.append(
+                AgentEpisode(
+                    observations=np.asarray(t["observations"], np.float32),
+                    actions=np.asarray(t["actions"], np.float32),
+                    rewards=np.asarray(t["rewards"], np.float64),
+                    terminations=np.asarray(t["terminations"], bool),
+                    truncations=np.asarray(t["truncations"], bool),
+                    seed=ep_seed,
+                    agent=a,
+                )
+            )
+    return out
+
+
+def _minari():
+    try:
+        import minari
+    except ImportError:
+        raise ParcoverError("Minari is not installed: pip install 'parcover_env[data]' h5py") from None
+    return minari
+
+
+def save_minari(
+    episodes: list[AgentEpisode],
+    dataset_id: str,
+    out: str | Path,
+    scenario: Any,
+    algorithm: str = "ScriptedExpert",
+) -> Path:
+    """Write the episodes as Minari dataset ``dataset_id`` under ``out`` (MINARI_DATASETS_PATH)."""
+    if not episodes:
+        raise ValueError("no episodes to save")
+    minari = _minari()
+    from minari.data_collector import EpisodeBuffer
+
+    from parcover_env.env import ParallelCoverageEnv
+
+    env = ParallelCoverageEnv(scenario)
+    agent = env.possible_agents[0]
+    os.environ["MINARI_DATASETS_PATH"] = str(Path(out).resolve())
+    buffers = [
+        EpisodeBuffer(
+            id=i,
+            seed=int(e["seed"]),
+            observations=e["observations"],
+            actions=e["actions"],
+            rewards=list(e["rewards"]),
+            terminations=list(e["terminations"]),
+            truncations=list(e["truncations"]),
+            infos={},
+        )
+        for i, e in enumerate(episodes)
+    ]
+    import warnings
+
+    with warnings.catch_warnings():  # Minari warns about optional metadata (author e-mail, permalink)
+        warnings.simplefilter("ignore", UserWarning)
+        _create(minari, dataset_id, buffers, algorithm, env, agent)
+    return Path(out) / dataset_id
+
+
+def _create(minari, dataset_id, buffers, algorithm, env, agent) -> None:
+    minari.create_dataset_from_buffers(
+        dataset_id,
+        buffers,
+        algorithm_name=algorithm,
+        author="parcover_env",
+        observation_space=env.observation_space(agent),
+        action_space=env.action_space(agent),
+        description=f"{algorithm} demonstrations on scenario '{env.scenario.name}', one episode per robot "
+        "(parameter sharing view)",
+        data_format="hdf5",
+    )
+
+
+def load_minari(dataset_id: str, root: str | Path) -> list[AgentEpisode]:
+    """Read a dataset written by :func:`save_minari` back as AgentEpisodes."""
+    minari = _minari()
+    os.environ["MINARI_DATASETS_PATH"] = str(Path(root).resolve())
+    ds = minari.load_dataset(dataset_id)
+    return [
+        AgentEpisode(
+            observations=np.asarray(e.observations, np.float32),
+            actions=np.asarray(e.actions, np.float32),
+            rewards=np.asarray(e.rewards),
+            terminations=np.asarray(e.terminations),
+            truncations=np.asarray(e.truncations),
+            seed=None,
+        )
+        for e in ds.iterate_episodes()
+    ]
+
+
+def collect(
+    scenario: str,
+    episodes: int,
+    out: str | Path,
+    seed: int = 0,
+    dataset_id: str | None = None,
+    policy: str = "expert",
+) -> tuple[str, int]:
+    """Record and save; returns (dataset id, number of agent-episodes)."""
+    name = str(scenario).replace(":", "-").replace("/", "-").removesuffix(".yaml")
+    dataset_id = dataset_id or f"parcover/{name}-{policy}-v0"
+    eps = record_episodes(scenario, episodes, seed, policy)
+    save_minari(eps, dataset_id, out, scenario, algorithm=policy)
+    return dataset_id, len(eps)

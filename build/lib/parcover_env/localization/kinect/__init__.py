@@ -1,0 +1,1 @@
+"""Seed A's overhead Kinect localization: marker pipeline, multi-Kinect tracker, the system loop."""

@@ -1,0 +1,400 @@
+"""Marker-based robot localization from overhead Kinect frames (seed A section IV, Figs. 7 and 9).
+
+Pipeline, as in the paper: median filter (3x3) -> threshold (fixed; Otsu optional) -> morphology with
+a 3x3 element (opening: removes projector speckle) then a 5x5 element (closing: fills holes) ->
+marker blobs -> grouping of the blobs into robots -> convex hull of a robot's markers used as a mask
+on the depth frame -> mean depth inside -> back-projection through the camera -> world pose.
+
+Grouping and heading (our completion of the paper, which does not detail them): blob centroids are
+intersected with the marker plane (robot height) and linked when closer than ``link_dist``; a group
+of more than 4 blobs (robots touching) is split greedily into the subsets that best fit the marker
+pattern. The pose is the rigid 2-D fit (all blob-to-marker assignments tried) of the known kite
+pattern to the marker points, those being intersected with the horizontal plane at the height given
+by the hull's mean depth. A fit with residual above ``max_residual`` is rejected.
+
+:func:`estimate_fast` is a cheap statistical stand-in for the full pipeline (see its docstring) and
+:class:`~parcover_env.localization.kinect.tracker.KinectTracker` fuses several Kinects and keeps
+identities across frames.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import weakref
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from parcover_env.geometry import wrap_angle
+from parcover_env.geometry.camera import CameraModel
+from parcover_env.sensors.kinect import NATIVE_WIDTH, KinectFrame, KinectSensor, marker_pattern
+
+__all__ = ["PipelineParams", "PoseEstimate", "FastNoise", "pipeline_stages", "detect_markers", "find_blobs",
+           "group_blobs", "fit_pattern", "estimate_poses", "estimate_fast"]
+
+
+@dataclass(frozen=True)
+class PipelineParams:
+    """Parameters of the marker pipeline. ``marker_height`` = robot top (m); pattern from radius."""
+
+    marker_height: float = 0.3
+    robot_radius: float = 0.15
+    median_ksize: int = 3
+    threshold: int = 200
+    otsu: bool = False
+    otsu_floor: int = 150
+    """With ``otsu``, the Otsu threshold is raised to at least this (speckle-only frames stay empty)."""
+    open_ksize: int = 3
+    close_ksize: int = 5
+    min_area: int = 4
+    max_area_frac: float = 0.01
+    link_dist: float | None = None
+    """Blob linking distance (m); None = 1.1 x the pattern's diameter (links a robot's markers even
+    with one missed; touching robots then share a component, split by pattern fitting)."""
+    marker_radius: float = 0.02
+    max_residual: float = 0.015
+    min_markers: int = 3
+
+    def __post_init__(self) -> None:
+        for k in ("median_ksize", "open_ksize", "close_ksize"):
+            v = getattr(self, k)
+            if v < 1 or v % 2 == 0:
+                raise ValueError(f"PipelineParams.{k} must be an odd integer >= 1, got {v}")
+        if not 0 <= self.threshold <= 255:
+            raise ValueError(f"PipelineParams.threshold must be in [0, 255], got {self.threshold}")
+        if not 3 <= self.min_markers <= 4:
+            raise ValueError(f"PipelineParams.min_markers must be 3 or 4, got {self.min_markers}")
+        if self.marker_height < 0 or self.robot_radius <= 0 or (self.link_dist or 1.0) <= 0:
+            raise ValueError("PipelineParams: need marker_height >= 0, robot_radius > 0, link_dist > 0")
+        marker_pattern(self.robot_radius, self.marker_radius)
+
+    @property
+    def pattern(self) -> np.ndarray:
+        return marker_pattern(self.robot_radius, self.marker_radius)
+
+    @property
+    def link(self) -> float:
+        """Effective blob linking distance (m)."""
+        if self.link_dist is not None:
+            return self.link_dist
+        pat = self.pattern
+        return 1.1 * float(np.linalg.norm(pat[:, None] - pat[None], axis=-1).max())
+
+
+@dataclass(frozen=True)
+class PoseEstimate:
+    """A robot pose seen by one Kinect (world metres / radians) with diagnostics."""
+
+    x: float
+    y: float
+    theta: float
+    n_markers: int
+    depth: float = float("nan")
+    """Mean depth inside the marker hull (m); NaN on the fast path."""
+    residual: float = 0.0
+    """RMS of the marker-pattern fit (m)."""
+    kinect: str = ""
+    stamp: float = 0.0
+    truth_index: int | None = None
+    """Fast path only: index of the robot it was sampled from (do not use for association)."""
+
+    @property
+    def pose(self) -> np.ndarray:
+        return np.array([self.x, self.y, self.theta])
+
+
+def _check_ir(ir) -> np.ndarray:
+    ir = np.asarray(ir)
+    if ir.ndim != 2 or ir.dtype != np.uint8:
+        raise ValueError(f"IR frame must be a 2-D uint8 array, got {ir.dtype} {ir.shape}")
+    return ir
+
+
+def pipeline_stages(ir, params: PipelineParams | None = None) -> dict[str, np.ndarray]:
+    """The four images of Fig. 7: ``raw``, ``median``, ``threshold``, ``morphology`` (uint8)."""
+    p = params or PipelineParams()
+    ir = _check_ir(ir)
+    med = cv2.medianBlur(ir, p.median_ksize) if p.median_ksize > 1 else ir.copy()
+    if p.otsu:
+        otsu, _ = cv2.threshold(med, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+        thr = max(float(otsu), float(p.otsu_floor))
+    else:
+        thr = float(p.threshold)
+    binary = np.where(med > thr, 255, 0).astype(np.uint8)
+    opened = cv2.morphologyEx(binary, cv2.MORPH_OPEN, np.ones((p.open_ksize, p.open_ksize), np.uint8))
+    closed = cv2.morphologyEx(opened, cv2.MORPH_CLOSE, np.ones((p.close_ksize, p.close_ksize), np.uint8))
+    return {"raw": ir, "median": med, "threshold": binary, "morphology": closed}
+
+
+def find_blobs(ir, params: PipelineParams | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Marker blobs: centroids ``(M, 2)`` (u, v px), pixel-label image, and the blobs' labels ``(M,)``.
+
+    Blobs touching the image border (cut markers, biased centroids) and blobs outside the area
+    limits are discarded.
+    """
+    p = params or PipelineParams()
+    mask = pipeline_stages(ir, p)["morphology"]
+    n, labels, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    h, w = mask.shape
+    x, y, bw, bh, area = (stats[1:, k] for k in range(5))
+    keep = (area >= p.min_area) & (area <= p.max_area_frac * h * w)
+    keep &= (x > 0) & (y > 0) & (x + bw < w) & (y + bh < h)
+    ids = np.flatnonzero(keep) + 1
+    return cents[ids].astype(float), labels, ids
+
+
+def detect_markers(ir, params: PipelineParams | None = None) -> np.ndarray:
+    """Centroids ``(M, 2)`` (u, v pixels) of the marker blobs of an IR frame."""
+    return find_blobs(ir, params)[0]
+
+
+def _assignments(n: int, m: int) -> np.ndarray:
+    return np.array(list(itertools.permutations(range(m), n)), dtype=int).reshape(-1, n)
+
+
+def fit_pattern(points, pattern) -> tuple[np.ndarray, float, np.ndarray]:
+    """Best rigid 2-D fit of ``pattern (4, 2)`` (robot frame) to observed ``points (n, 2)``, n in 2..4.
+
+    Every injective assignment of points to pattern markers is tried. Returns the pose
+    ``(x, y, theta)`` of the robot frame, the fit's RMS residual (m) and the assignment ``(n,)``.
+    """
+    pts = np.asarray(points, dtype=float)
+    pat = np.asarray(pattern, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 2 or not 2 <= len(pts) <= len(pat):
+        raise ValueError(f"fit_pattern needs 2..{len(pat)} points of shape (n, 2), got {pts.shape}")
+    perms = _assignments(len(pts), len(pat))
+    model = pat[perms]  # (P, n, 2)
+    mc = model.mean(axis=1, keepdims=True)
+    oc = pts.mean(axis=0)
+    a, b = model - mc, pts - oc
+    cross = (a[..., 0] * b[None, :, 1] - a[..., 1] * b[None, :, 0]).sum(axis=1)
+    dot = (a * b[None]).sum(axis=(1, 2))
+    th = np.arctan2(cross, dot)
+    c, s = np.cos(th)[:, None], np.sin(th)[:, None]
+    ra = np.stack([c * a[..., 0] - s * a[..., 1], s * a[..., 0] + c * a[..., 1]], axis=-1)
+    rms = np.sqrt(((ra - b[None]) ** 2).sum(-1).mean(axis=1))
+    k = int(np.argmin(rms))
+    ck, sk, (mx, my) = c[k, 0], s[k, 0], mc[k, 0]
+    t = oc - np.array([ck * mx - sk * my, sk * mx + ck * my])
+    return np.array([t[0], t[1], float(wrap_angle(th[k]))]), float(rms[k]), perms[k]
+
+
+def group_blobs(points, params: PipelineParams | None = None) -> list[np.ndarray]:
+    """Group marker points ``(M, 2)`` (world xy on the marker plane) into robots: index arrays.
+
+    Single-linkage within ``link_dist``; components of more than 4 points are split greedily into
+    the 4- (then 3-) subsets that best fit the pattern. Groups under ``min_markers`` are dropped.
+    """
+    p = params or PipelineParams()
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    m = len(pts)
+    if m == 0:
+        return []
+    d = np.linalg.norm(pts[:, None] - pts[None], axis=-1)
+    n_comp, comp = _components(d <= p.link)
+    groups: list[np.ndarray] = []
+    for c in range(n_comp):
+        idx = np.flatnonzero(comp == c)
+        if len(idx) <= 4:
+            groups.append(idx)
+            continue
+        left = list(idx)
+        while len(left) >= p.min_markers:
+            best = None
+            for size in (4, 3):
+                if size < p.min_markers or size > len(left):
+                    continue
+                for sub in itertools.combinations(left, size):
+                    _, rms, _ = fit_pattern(pts[list(sub)], p.pattern)
+                    if best is None or rms < best[0]:
+                        best = (rms, sub)
+                if best is not None and best[0] <= p.max_residual:
+                    break
+            if best is None or best[0] > p.max_residual:
+                break
+            groups.append(np.array(sorted(best[1])))
+            left = [i for i in left if i not in best[1]]
+    return [g for g in groups if len(g) >= p.min_markers]
+
+
+def _components(adj: np.ndarray) -> tuple[int, np.ndarray]:
+    from scipy.sparse.csgraph import connected_components
+
+    return connected_components(adj, directed=False)
+
+
+def estimate_poses(frame: KinectFrame, camera: CameraModel,
+                   params: PipelineParams | None = None) -> list[PoseEstimate]:
+    """Poses of the marker-carrying robots in one frame (full pipeline of the paper)."""
+    p = params or PipelineParams()
+    if frame.dropped:
+        return []
+    depth = np.asarray(frame.depth)
+    if depth.shape != (camera.height, camera.width) or np.asarray(frame.ir).shape != depth.shape:
+        raise ValueError(f"frame shape {depth.shape} does not match the camera "
+                         f"({camera.height}, {camera.width})")
+    cents, labels, ids = find_blobs(frame.ir, p)
+    if len(cents) < p.min_markers:
+        return []
+    approx, _ = camera.intersect_plane(cents, p.marker_height)
+    ok = np.all(np.isfinite(approx), axis=1)
+    cents, ids, approx = cents[ok], ids[ok], approx[ok]
+    out = []
+    for g in group_blobs(approx[:, :2], p):
+        mask = np.isin(labels, ids[g])
+        pix = cv2.findNonZero(mask.astype(np.uint8))
+        hull = cv2.convexHull(pix)
+        hull_mask = np.zeros(depth.shape, np.uint8)
+        cv2.fillConvexPoly(hull_mask, hull, 1)
+        vv, uu = np.nonzero(hull_mask)
+        z = depth[vv, uu]
+        valid = z > 0
+        if not np.any(valid):
+            continue  # the paper's failure case: no depth at all inside the hull
+        z_mean = float(z[valid].mean())
+        centre_uv = np.array([[uu.mean(), vv.mean()]])
+        plane_z = float(camera.backproject(centre_uv, np.array([z_mean]))[0, 2])
+        marks, _ = camera.intersect_plane(cents[g], plane_z)
+        if not np.all(np.isfinite(marks)):
+            continue
+        pose, rms, _ = fit_pattern(marks[:, :2], p.pattern)
+        if rms > p.max_residual:
+            continue
+        out.append(PoseEstimate(float(pose[0]), float(pose[1]), float(pose[2]), len(g), z_mean, rms,
+                                frame.name, frame.stamp))
+    return out
+
+
+_STATIC: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""Static per-sensor quantities of the fast path (see ``_sensor_cache``)."""
+
+
+@dataclass(frozen=True)
+class FastNoise:
+    """Error model of the fast path, calibrated with ``benchmarks/kinect_accuracy.py`` on the full
+    pipeline (Kinect looking down, 2.8-3.0 m). Errors are Gaussian with per-axis position std
+    ``pos_px`` and heading std ``heading_px / span`` in pixels at the robot's depth (metres = px * z / f),
+    both times ``(640 / width) ** res_exponent``. Detection probability ramps linearly from 0 to 1
+    as the marker radius in pixels goes from ``r_px_min`` to ``r_px_full`` (small markers vanish in
+    the 3x3 opening)."""
+
+    pos_px: float = 0.05
+    heading_px: float = 0.10
+    res_exponent: float = 1.3
+    r_px_min: float = 1.95
+    r_px_full: float = 2.35
+    margin_px: float = 2.0
+
+
+def estimate_fast(sensor: KinectSensor, poses, marker_mask, rng: np.random.Generator,
+                  noise: FastNoise | None = None, stamp: float = 0.0) -> list[PoseEstimate]:
+    """Cheap stand-in for render + :func:`estimate_poses`: visibility test plus sampled errors.
+
+    A marker-carrying robot is detected when every marker disc projects inside the image (with a
+    margin), its depth is within the valid range and no wall top hides it (static depth); frames are
+    dropped at ``drop_rate``. The estimate is the true pose plus Gaussian noise whose scale
+    (``noise``, in pixels) was measured on the full pipeline, so both paths agree statistically.
+    """
+    nz = noise or FastNoise()
+    poses, mask = sensor._check_inputs(poses, marker_mask)
+    if sensor.cfg.drop_rate > 0 and rng.random() < sensor.cfg.drop_rate:
+        return []
+    idx = np.flatnonzero(mask)
+    box = _view_box(sensor)
+    if box is not None and len(idx):  # cheap, conservative reject of carriers far outside the view
+        px, py = poses[idx, 0], poses[idx, 1]
+        idx = idx[(px >= box[0]) & (px <= box[2]) & (py >= box[1]) & (py <= box[3])]
+    if len(idx) == 0:
+        return []
+    cam = sensor.camera
+    pat = sensor.pattern
+    m, k = len(idx), len(pat)
+    # every marker of every carrier projected at once (geometry first, then the random draws in
+    # robot order, exactly as a per-robot loop would draw them)
+    cs = np.array([(math.cos(th), math.sin(th)) for th in poses[idx, 2].tolist()]).reshape(m, 2)
+    c, s = cs[:, 0:1], cs[:, 1:2]
+    x, y = poses[idx, 0:1], poses[idx, 1:2]
+    world = np.empty((m, k, 3))
+    world[..., 0] = x + c * pat[:, 0] - s * pat[:, 1]
+    world[..., 1] = y + s * pat[:, 0] + c * pat[:, 1]
+    world[..., 2] = sensor.robot_height
+    uv, z = cam.project(world.reshape(-1, 3))
+    uv, z = uv.reshape(m, k, 2), z.reshape(m, k)
+    h, w = sensor.shape
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r_px = sensor.marker_radius * cam.focal / z + nz.margin_px
+        ok = np.all(z > 0, axis=1)
+        ok &= np.all((uv[..., 0] - r_px >= 0) & (uv[..., 0] + r_px <= w - 1)
+                     & (uv[..., 1] - r_px >= 0) & (uv[..., 1] + r_px <= h - 1), axis=1)
+        ok &= np.all((z >= cam.range_min) & (z <= cam.range_max), axis=1)
+    rows = np.flatnonzero(ok)
+    if len(rows):  # hidden by a wall top (static depth nearer than a marker)?
+        iu, iv = np.rint(uv[rows, :, 0]).astype(int), np.rint(uv[rows, :, 1]).astype(int)
+        rows = rows[~np.any(sensor.static_depth[iv, iu] < z[rows] - 1e-6, axis=1)]
+    out = []
+    span = float(np.ptp(pat[:, 0])) or 0.1
+    z_max, z_mean = z.max(axis=1).tolist(), z.mean(axis=1).tolist()
+    for r in rows.tolist():
+        r_marker = sensor.marker_radius * cam.focal / z_max[r]
+        p_det = min(max((r_marker - nz.r_px_min) / (nz.r_px_full - nz.r_px_min), 0.0), 1.0)
+        if not _resolvable(sensor, z_max[r]) or rng.random() >= p_det:
+            continue
+        mpp = z_mean[r] / cam.focal * (NATIVE_WIDTH / w) ** nz.res_exponent
+        ex, ey = rng.normal(0.0, nz.pos_px * mpp, size=2)
+        eth = rng.normal(0.0, nz.heading_px * mpp / span)
+        i = int(idx[r])
+        xi, yi, th = poses[i]
+        out.append(PoseEstimate(float(xi + ex), float(yi + ey), float(wrap_angle(th + eth)), k,
+                                kinect=sensor.name, stamp=stamp, truth_index=i))
+    return out
+
+
+def _sensor_cache(sensor: KinectSensor) -> dict:
+    """Per-sensor cache of static quantities, dropped if the camera, pattern or height change."""
+    key = (id(sensor.camera), sensor.pattern.tobytes(), sensor.marker_radius, sensor.robot_height)
+    entry = _STATIC.get(sensor)
+    if entry is None or entry[0] != key:
+        entry = (key, {})
+        _STATIC[sensor] = entry
+    return entry[1]
+
+
+def _pattern_gap(sensor: KinectSensor) -> float:
+    """Smallest edge-to-edge distance between two markers of the pattern (m)."""
+    cache = _sensor_cache(sensor)
+    if "gap" not in cache:
+        pat = sensor.pattern
+        d = np.linalg.norm(pat[:, None] - pat[None], axis=-1) + np.eye(len(pat)) * 1e9
+        cache["gap"] = float(d.min()) - 2 * sensor.marker_radius
+    return cache["gap"]
+
+
+def _view_box(sensor: KinectSensor) -> tuple[float, float, float, float] | None:
+    """Floor box ``(x0, y0, x1, y1)`` outside which no robot centre can have all its markers in the
+    image: the image corners cast onto the marker plane, grown by the pattern's reach (1 mm slack).
+    None when a corner ray does not meet that plane (a tilted camera): no pre-filter then."""
+    cache = _sensor_cache(sensor)
+    if "box" not in cache:
+        cam = sensor.camera
+        corners = np.array([[0.0, 0.0], [cam.width - 1.0, 0.0], [cam.width - 1.0, cam.height - 1.0],
+                            [0.0, cam.height - 1.0]])
+        rays = cam.pixel_rays(corners)
+        box = None
+        if np.all(rays[:, 2] < 0) and sensor.robot_height < cam.C[2]:
+            t = (sensor.robot_height - cam.C[2]) / rays[:, 2]
+            pts = cam.C[:2] + t[:, None] * rays[:, :2]
+            reach = float(np.hypot(sensor.pattern[:, 0], sensor.pattern[:, 1]).max()) + 1e-3
+            lo, hi = pts.min(axis=0) - reach, pts.max(axis=0) + reach
+            box = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+        cache["box"] = box
+    return cache["box"]
+
+
+def _resolvable(sensor: KinectSensor, z: float, close_ksize: int = 5) -> bool:
+    """Whether markers at depth ``z`` stay apart enough for the pattern fit after the 5x5 closing
+    (gaps of >= 3 px keep at least 3 markers apart in the full pipeline: checked on ``tree``)."""
+    ppm = sensor.camera.focal / z
+    gap_px = _pattern_gap(sensor) * ppm
+    return gap_px >= close_ksize - 2

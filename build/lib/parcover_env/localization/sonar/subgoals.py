@@ -1,0 +1,270 @@
+"""Subgoal selection for sonar localization (seed B §3): scan-angle optimization and rearrangement.
+
+Scan-angle optimization (§3.1, eq. 1). A path is cut into closely spaced nodes. At node N a map
+feature F (a concave corner with walls W1, W2) is *available* when it is in line of sight within
+``[range_min, range_max - range_margin]`` (sensor range condition), both adjacent walls are at least
+``min_wall_length`` long and at least ``min_walls_seen`` of them return ``>= min_readings`` scan
+readings (wall length condition, "at least two readings along that wall"). Readings on a wall are
+counted analytically: the part of the wall within range and — for a specular sonar — within
+``incidence_max`` of the wall's normal, as an angle seen from N, divided by the scan step.
+
+Bias (eq. 1). The paper writes ``theta_k = angle(N F) - angle(W_k)`` and ``B = |theta_1 - theta_2|``;
+read literally that difference does not depend on N. Its own example (theta_1 = 15 deg,
+theta_2 = 75 deg, B = 60 deg) and its optimum ("the line of sight exactly bisects the space between the
+walls") fix the meaning used here: theta_k is the unsigned angle between the line of sight and wall k
+at the corner, and ``B = | theta_1 - theta_2 |`` is 0 on the corner's bisector.
+
+Rearrangement (§3.2): ``A_i`` is the angle range robot i needs to scan its feature (from its farthest
+useful point of wall 1 through the corner to that of wall 2) minus the bearings blocked by other
+robots (a disc at range r blocks ``asin(R / r) + cone / 2`` either side of its bearing). Subgoals are
+shifted along the robots' paths to maximize ``min_i A_i`` (ties: smallest total shift), keeping the
+robots apart.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from parcover_env.geometry import wrap_angle
+from parcover_env.localization.sonar.features import MapFeature
+from parcover_env.localization.sonar.sectors import visible_features
+
+__all__ = ["PathNodes", "densify", "scan_bias", "wall_readings", "NodeScores", "score_nodes",
+           "choose_subgoal", "team_subgoal", "scan_interval", "unblocked_scan_angle", "rearrange"]
+
+
+@dataclass(frozen=True, eq=False)
+class PathNodes:
+    """A polyline resampled into nodes: ``xy (P, 2)`` and arclength ``s (P,)`` (m, from ``s[0]``)."""
+
+    xy: np.ndarray
+    s: np.ndarray
+
+    def index(self, sigma: float) -> int:
+        """Index of the node nearest to arclength ``sigma`` (clamped to the path)."""
+        return int(np.argmin(np.abs(self.s - sigma)))
+
+    def point(self, sigma: float) -> np.ndarray:
+        """Point at arclength ``sigma`` (linear interpolation, clamped to the ends)."""
+        return np.array([np.interp(sigma, self.s, self.xy[:, 0]), np.interp(sigma, self.s, self.xy[:, 1])])
+
+    @property
+    def length(self) -> float:
+        return float(self.s[-1] - self.s[0])
+
+
+def densify(path, step: float = 0.05, s0: float = 0.0) -> PathNodes:
+    """Nodes every ``<= step`` metres along ``path (K, 2)`` (all vertices kept, repeated ones dropped);
+    arclength starts at ``s0``."""
+    p = np.asarray(path, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 2 or len(p) < 1 or not np.all(np.isfinite(p)):
+        raise ValueError(f"path must be a finite (K, 2) array with K >= 1, got shape {p.shape}")
+    if not step > 0:
+        raise ValueError(f"step must be > 0, got {step}")
+    keep = np.concatenate([[True], np.hypot(*np.diff(p, axis=0).T) > 1e-9])
+    p = p[keep]
+    pts = [p[:1]]
+    for a, b in zip(p[:-1], p[1:], strict=True):
+        k = max(1, int(math.ceil(np.hypot(*(b - a)) / step)))
+        t = np.arange(1, k + 1)[:, None] / k
+        pts.append(a + t * (b - a))
+    xy = np.concatenate(pts)
+    s = s0 + np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    return PathNodes(xy, s)
+
+
+def scan_bias(nodes, features: list[MapFeature]) -> np.ndarray:
+    """``(P, F)`` bias B (rad) of eq. 1: ``| theta_1 - theta_2 |`` with theta_k the unsigned angle at the
+    corner between the line of sight to node N and wall k."""
+    xy = np.atleast_2d(np.asarray(nodes, dtype=float))
+    if not features:
+        return np.zeros((len(xy), 0))
+    c = np.stack([f.point for f in features])
+    w = np.stack([f.walls for f in features])  # (F, 2, 2)
+    v = xy[:, None, :] - c[None, :, :]
+    phi = np.arctan2(v[..., 1], v[..., 0])
+    a1, a2 = np.arctan2(w[:, 0, 1], w[:, 0, 0]), np.arctan2(w[:, 1, 1], w[:, 1, 0])
+    t1 = np.abs(wrap_angle(phi - a1[None, :]))
+    t2 = np.abs(wrap_angle(phi - a2[None, :]))
+    return np.abs(t1 - t2)
+
+
+def _echo_span(xy: np.ndarray, f: MapFeature, k: int, range_max: float, incidence_max: float):
+    """Per node: the wall-k interval ``[lo, hi]`` (arclength from the corner) that echoes, and
+    whether it is non-empty."""
+    rel = xy - f.point
+    d = rel @ f.normals[k]
+    s0 = rel @ f.walls[k]
+    half = np.sqrt(np.maximum(range_max ** 2 - d ** 2, 0.0))
+    if incidence_max < math.pi / 2 - 1e-9:
+        half = np.minimum(half, np.maximum(d, 0.0) * math.tan(incidence_max))
+    lo = np.maximum(s0 - half, 0.0)
+    hi = np.minimum(s0 + half, f.lengths[k])
+    return lo, hi, (d > 1e-6) & (hi > lo)
+
+
+def wall_readings(nodes, feature: MapFeature, range_max: float, step: float,
+                  incidence_max: float = math.pi / 2) -> np.ndarray:
+    """``(P, 2)`` number of scan readings (every ``step`` rad) that echo from each wall of ``feature``.
+    ``incidence_max`` (rad) models a specular sonar; pi/2 = ideal rays. Occlusion is not checked."""
+    xy = np.atleast_2d(np.asarray(nodes, dtype=float))
+    out = np.zeros((len(xy), 2))
+    for k in (0, 1):
+        lo, hi, ok = _echo_span(xy, feature, k, range_max, incidence_max)
+        p_lo = feature.point + lo[:, None] * feature.walls[k]
+        p_hi = feature.point + hi[:, None] * feature.walls[k]
+        a_lo = np.arctan2(*(p_lo - xy)[:, ::-1].T)
+        a_hi = np.arctan2(*(p_hi - xy)[:, ::-1].T)
+        span = np.abs(wrap_angle(a_hi - a_lo))
+        out[:, k] = np.where(ok, np.floor(span / step) + 1.0, 0.0)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class NodeScores:
+    """Per node: ``bias (P,)`` of the best available feature (inf: none) and its index ``feature (P,)``
+    (-1: none); ``available (P, F)`` the availability matrix."""
+
+    bias: np.ndarray
+    feature: np.ndarray
+    available: np.ndarray
+
+
+def score_nodes(nodes, map_model, features: list[MapFeature], range_min: float, range_max: float,
+                scan_step: float, incidence_max: float = math.pi / 2, min_wall_length: float = 0.3,
+                min_readings: int = 2, min_walls_seen: int = 1, range_margin: float = 0.1) -> NodeScores:
+    """Score every node by eq. 1 over the features available there (sensor range and wall length
+    conditions, see the module docstring)."""
+    xy = np.atleast_2d(np.asarray(nodes, dtype=float))
+    if xy.shape[1] != 2:
+        raise ValueError(f"nodes must be (P, 2), got {xy.shape}")
+    if not (0 <= range_min < range_max and scan_step > 0):
+        raise ValueError(f"need 0 <= range_min < range_max and scan_step > 0, got {range_min}, {range_max}, "
+                         f"{scan_step}")
+    if min_walls_seen not in (0, 1, 2):
+        raise ValueError(f"min_walls_seen must be 0, 1 or 2, got {min_walls_seen}")
+    n_f = len(features)
+    avail = visible_features(xy, map_model, features, range_max - range_margin) if n_f else \
+        np.zeros((len(xy), 0), bool)
+    for j, f in enumerate(features):
+        dist = np.hypot(*(xy - f.point).T)
+        seen = (wall_readings(xy, f, range_max, scan_step, incidence_max) >= min_readings).sum(axis=1)
+        long_enough = bool(np.all(f.lengths >= min_wall_length))
+        avail[:, j] &= (dist >= range_min) & (seen >= min_walls_seen) & long_enough
+    bias = np.where(avail, scan_bias(xy, features), np.inf)
+    best = np.argmin(bias, axis=1) if n_f else np.zeros(len(xy), dtype=int)
+    b = bias[np.arange(len(xy)), best] if n_f else np.full(len(xy), np.inf)
+    return NodeScores(b, np.where(np.isfinite(b), best, -1), avail)
+
+
+def choose_subgoal(s: np.ndarray, bias: np.ndarray, s_lo: float, s_hi: float, tie_tol: float) -> int:
+    """Index of the node with ``s_lo <= s <= s_hi`` of minimum bias; among nodes within ``tie_tol`` of
+    it, the farthest along. No feature available in the window: the farthest node (the original
+    algorithm's choice: the last node before the uncertainty grows too large)."""
+    s, bias = np.asarray(s, dtype=float), np.asarray(bias, dtype=float)
+    win = np.nonzero((s >= s_lo - 1e-9) & (s <= s_hi + 1e-9))[0]
+    if len(win) == 0:
+        return int(np.argmin(np.abs(s - np.clip(s_hi, s[0], s[-1]))))
+    b = bias[win]
+    if not np.isfinite(b).any():
+        return int(win[-1])
+    good = win[b <= b.min() + tie_tol]
+    return int(good[-1])
+
+
+def team_subgoal(paths: list[PathNodes], biases: list[np.ndarray], lags: np.ndarray, sigma_lo: float,
+                 sigma_hi: float, step: float, tie_tol: float) -> float:
+    """Team arclength sigma in ``[sigma_lo, sigma_hi]``: robot i's subgoal is on its path at
+    ``sigma - lags[i]`` (clamped to its path). Minimizes the worst robot's bias (§3: the subgoal that
+    optimizes the scan angle for all robots); ties within ``tie_tol``: the largest sigma."""
+    if sigma_hi < sigma_lo:
+        sigma_lo = sigma_hi
+    grid = np.arange(sigma_lo, sigma_hi + 1e-9, step) if sigma_hi > sigma_lo else np.array([sigma_hi])
+    if grid[-1] < sigma_hi - 1e-9:
+        grid = np.append(grid, sigma_hi)
+    worst = np.zeros(len(grid))
+    for p, b, lag in zip(paths, biases, lags, strict=True):
+        idx = np.array([p.index(g - lag) for g in grid])
+        worst = np.maximum(worst, b[idx])
+    s_idx = choose_subgoal(grid, worst, sigma_lo, sigma_hi, tie_tol)
+    return float(grid[s_idx])
+
+
+def scan_interval(xy, feature: MapFeature, range_max: float, incidence_max: float) -> tuple[float, float]:
+    """Bearings ``(start, width)`` (rad, counter-clockwise) a robot at ``xy`` needs to scan ``feature``:
+    from the farthest echoing point of wall 1 through the corner to that of wall 2."""
+    p = np.asarray(xy, dtype=float)[None, :]
+    bearings = [math.atan2(*(feature.point - p[0])[::-1])]
+    for k in (0, 1):
+        lo, hi, ok = _echo_span(p, feature, k, range_max, incidence_max)
+        if ok[0]:
+            q = feature.point + hi[0] * feature.walls[k]
+            bearings.append(math.atan2(*(q - p[0])[::-1]))
+    ref = bearings[0]
+    rel = [float(wrap_angle(b - ref)) for b in bearings]
+    lo, hi = min(rel), max(rel)
+    return ref + lo, hi - lo
+
+
+def unblocked_scan_angle(xy, feature: MapFeature, others, robot_radius: float, range_max: float,
+                         incidence_max: float = math.pi / 2, cone: float = 0.0,
+                         margin: float = math.radians(2), resolution: float = math.radians(0.5)) -> float:
+    """``A_i`` of §3.2: width (rad) of the scan interval of ``feature`` seen from ``xy`` (widened by
+    ``margin`` each side) not blocked by the discs of radius ``robot_radius`` at ``others (K, 2)``."""
+    start, width = scan_interval(xy, feature, range_max, incidence_max)
+    start, width = start - margin, width + 2 * margin
+    b = start + np.arange(0.0, width + 1e-12, resolution)
+    o = np.atleast_2d(np.asarray(others, dtype=float)).reshape(-1, 2)
+    free = np.ones(len(b), dtype=bool)
+    p = np.asarray(xy, dtype=float)
+    for q in o:
+        r = float(np.hypot(*(q - p)))
+        if r < 1e-9:
+            return 0.0
+        half = math.asin(min(1.0, robot_radius / r)) + cone / 2
+        free &= np.abs(wrap_angle(b - math.atan2(q[1] - p[1], q[0] - p[0]))) > half
+    return float(free.sum() * resolution)
+
+
+def rearrange(candidates: list[np.ndarray], features_at: list[list[list[MapFeature]]], targets: list[int],
+              robot_radius: float, range_max: float, incidence_max: float = math.pi / 2, cone: float = 0.0,
+              min_separation: float = 0.0, max_combinations: int = 5000) -> list[int]:
+    """Choose one candidate per robot maximizing ``min_i A_i`` (§3.2), ties by the smallest total index
+    distance to ``targets``. ``candidates[i] (K_i, 2)`` are robot i's admissible subgoals (its space
+    S_i), ``features_at[i][k]`` the features available at candidate k (A = best over them, 0 if none).
+    Robots closer than ``min_separation`` are infeasible. Exhaustive when the product of the K_i is
+    at most ``max_combinations``, else coordinate ascent from ``targets``."""
+    n = len(candidates)
+    if not (len(features_at) == len(targets) == n):
+        raise ValueError("candidates, features_at and targets need one entry per robot")
+    for i in range(n):
+        if not 0 <= targets[i] < len(candidates[i]):
+            raise ValueError(f"target {targets[i]} out of range for robot {i} "
+                             f"({len(candidates[i])} candidates)")
+
+    def score(choice) -> tuple[float, float]:
+        pts = np.array([candidates[i][k] for i, k in enumerate(choice)])
+        if n > 1 and min_separation > 0:
+            d = np.hypot(*(pts[:, None, :] - pts[None, :, :]).transpose(2, 0, 1))
+            if (d + np.eye(n) * 1e9).min() < min_separation:
+                return -math.inf, 0.0
+        worst = math.inf
+        for i, k in enumerate(choice):
+            others = np.delete(pts, i, axis=0)
+            a = max((unblocked_scan_angle(pts[i], f, others, robot_radius, range_max, incidence_max, cone)
+                     for f in features_at[i][k]), default=0.0)
+            worst = min(worst, a)
+        return worst, -float(sum(abs(k - t) for k, t in zip(choice, targets, strict=True)))
+
+    sizes = [len(c) for c in candidates]
+    if math.prod(sizes) <= max_combinations:
+        return list(max(itertools.product(*[range(k) for k in sizes]), key=score))
+    choice = list(targets)
+    for _ in range(3):
+        for i in range(n):
+            choice[i] = max(range(sizes[i]), key=lambda k, i=i: score(choice[:i] + [k] + choice[i + 1:]))
+    return choice

@@ -1,0 +1,107 @@
+"""Learned policies (PPO, behaviour cloning) as ``act(observations) -> actions`` objects.
+
+Both act per agent from one agent's observation vector (parameter sharing), exactly what the SB3
+adapter (``parcover_env.env.vec_env``) trains on. torch and SB3 are imported lazily.
+"""
+
+from __future__ import annotations
+
+import pickle
+from pathlib import Path
+
+import numpy as np
+
+from parcover_env.errors import ParcoverError
+
+__all__ = ["PPOPolicy", "BCPolicy", "ObsNormalizer"]
+
+
+class ObsNormalizer:
+    """``clip((obs - mean) / sqrt(var + eps), -clip, clip)``: SB3 VecNormalize's observation transform."""
+
+    def __init__(self, mean: np.ndarray, var: np.ndarray, clip: float = 10.0, eps: float = 1e-8):
+        self.mean = np.asarray(mean, dtype=np.float32)
+        self.std = np.sqrt(np.asarray(var, dtype=np.float64) + eps).astype(np.float32)
+        self.clip = float(clip)
+
+    @classmethod
+    def from_vecnormalize(cls, path: str | Path) -> ObsNormalizer:
+        """Read the statistics saved by ``VecNormalize.save`` (no env needed)."""
+        with open(path, "rb") as fh:
+            vn = pickle.load(fh)
+        return cls(vn.obs_rms.mean, vn.obs_rms.var, vn.clip_obs, vn.epsilon)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        return np.clip((obs - self.mean) / self.std, -self.clip, self.clip).astype(np.float32)
+
+
+def _stack(observations: dict[str, np.ndarray]) -> tuple[list[str], np.ndarray]:
+    agents = sorted(observations)
+    if not agents:
+        return agents, np.empty((0, 0), dtype=np.float32)
+    return agents, np.stack([np.asarray(observations[a], dtype=np.float32) for a in agents])
+
+
+class PPOPolicy:
+    """A saved SB3 PPO model (``model.zip`` + optional ``vecnormalize.pkl`` beside it)."""
+
+    def __init__(self, path: str | Path, deterministic: bool = True):
+        from stable_baselines3 import PPO
+
+        path = Path(path)
+        model_file = path / "model.zip" if path.is_dir() else path
+        if not model_file.is_file():
+            raise ParcoverError(f"PPO checkpoint not found: {model_file}")
+        self.model = PPO.load(str(model_file), device="cpu")
+        stats = model_file.parent / "vecnormalize.pkl"
+        self.normalize = ObsNormalizer.from_vecnormalize(stats) if stats.is_file() else None
+        self.deterministic = deterministic
+
+    def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        agents, obs = _stack(observations)
+        if not agents:
+            return {}
+        if self.normalize is not None:
+            obs = self.normalize(obs)
+        actions, _ = self.model.predict(obs, deterministic=self.deterministic)
+        actions = np.clip(actions, -1.0, 1.0).astype(np.float32)
+        return {a: actions[i] for i, a in enumerate(agents)}
+
+
+def make_mlp(n_in: int, n_out: int, hidden: tuple[int, ...] = (256, 256)):
+    """The BC network: MLP with tanh output in [-1, 1] (the action box)."""
+    import torch.nn as nn
+
+    layers, last = [], n_in
+    for h in hidden:
+        layers += [nn.Linear(last, h), nn.ReLU()]
+        last = h
+    layers += [nn.Linear(last, n_out), nn.Tanh()]
+    return nn.Sequential(*layers)
+
+
+class BCPolicy:
+    """A behaviour-cloning MLP saved by ``baselines/train_bc.py`` (``bc.pt``)."""
+
+    def __init__(self, path: str | Path):
+        import torch
+
+        path = Path(path)
+        file = path / "bc.pt" if path.is_dir() else path
+        if not file.is_file():
+            raise ParcoverError(f"BC checkpoint not found: {file}")
+        ckpt = torch.load(file, map_location="cpu", weights_only=False)
+        self.net = make_mlp(ckpt["n_in"], ckpt["n_out"], tuple(ckpt["hidden"]))
+        self.net.load_state_dict(ckpt["state_dict"])
+        self.net.eval()
+        self.normalize = ObsNormalizer(ckpt["obs_mean"], ckpt["obs_std"] ** 2, clip=10.0, eps=0.0)
+
+    def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        import torch
+
+        agents, obs = _stack(observations)
+        if not agents:
+            return {}
+        with torch.no_grad():
+            actions = self.net(torch.as_tensor(self.normalize(obs))).numpy()
+        return {a: actions[i].astype(np.float32) for i, a in enumerate(agents)}

@@ -1,0 +1,55 @@
+"""One registry of policies by spec string: expert, waypoint, random, ppo:PATH, bc:PATH."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from parcover_env.errors import ParcoverError
+
+__all__ = ["BASIC_POLICIES", "POLICY_SPECS", "make_policy", "check_policy_spec"]
+
+BASIC_POLICIES = ("expert", "waypoint", "random")
+POLICY_SPECS = "expert | waypoint | random | ppo:PATH | bc:PATH"
+
+
+def make_policy(spec: str, env, seed: int | None):
+    """A policy object with ``act(observations) -> actions`` from a spec string."""
+    kind, _, path = spec.partition(":")
+    if kind == "random":
+        from parcover_env.policies.simple import RandomPolicy
+
+        return RandomPolicy(seed)
+    if kind == "waypoint":
+        from parcover_env.policies.simple import WaypointPolicy
+
+        return WaypointPolicy(env.layout)
+    if kind == "expert":
+        from parcover_env.expert.policy import ScriptedExpert
+
+        return ScriptedExpert.for_env(env)
+    if kind in ("ppo", "bc"):
+        if not path:
+            raise ParcoverError(f"policy '{spec}': give a checkpoint, e.g. {kind}:runs/{kind}_office")
+        import torch
+
+        from parcover_env.policies.learned import BCPolicy, PPOPolicy
+
+        torch.set_num_threads(1)  # small MLPs: one thread is fastest and avoids oversubscribing workers
+
+        return PPOPolicy(path) if kind == "ppo" else BCPolicy(path)
+    raise ParcoverError(
+        f"unknown policy '{spec}' (choose from {', '.join(BASIC_POLICIES)}, ppo:PATH, bc:PATH)"
+    )
+
+
+def check_policy_spec(spec: str) -> None:
+    kind, _, path = spec.partition(":")
+    if kind in BASIC_POLICIES and not path:
+        return
+    if kind in ("ppo", "bc") and path:
+        if not Path(path).exists():
+            raise ParcoverError(f"policy '{spec}': {path} does not exist")
+        return
+    raise ParcoverError(
+        f"unknown policy '{spec}' (choose from {', '.join(BASIC_POLICIES)}, ppo:PATH, bc:PATH)"
+    )

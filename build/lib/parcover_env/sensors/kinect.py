@@ -1,0 +1,305 @@
+"""Synthetic overhead Kinect v1: a depth frame and an IR frame rendered from ground truth.
+
+Model (seed A section III-A/IV, ALGORITHMS.md "Kinect v1 model"):
+
+* Scene: the floor (z = 0), every non-free region of the map extruded to ``wall_height`` (walls,
+  obstacles, outside of the building), and robots as vertical cylinders of radius ``r`` and
+  height ``h`` (top disc at ``h``). The static part is rendered once in ``__init__``.
+* Markers: 4 retro-reflective discs (radius ``marker_radius``) on each marker-carrying robot's top,
+  in the asymmetric quadrilateral of :func:`marker_pattern` (robot frame, x forward, for r >= 0.13 m):
+  ``(0.105, 0)`` front, ``(0.03, 0.09)`` front-left, ``(-0.095, 0.05)`` back-left, ``(0.03, -0.065)``
+  right; smaller robots get it shrunk so the discs stay on the top. It was chosen by a search so
+  that no wrong assignment of 3 or 4 markers fits it better than 2 cm RMS (heading unique even
+  with one marker missed; a symmetric kite has a near-equilateral 3-subset) and markers are
+  >= 10 cm apart, so the pipeline's 5x5 closing does not merge them.
+* Depth: camera z (m), float32, 0 = invalid. Axial noise sigma(z) = 0.0012 + 0.0019 (z - 0.4)^2
+  (Nguyen et al. 2012), then disparity d = f b / z rounded to 1/8 px (f of the native 640-wide
+  sensor, b = 0.075 m), then the range limits (outside [range_min, range_max] -> 0). Depth is
+  missing (0) where the markers saturate the IR image (plus ``missing_factor`` margin).
+* IR: uint8. Dull floor/walls/robot levels with noise, projector speckle (isolated bright pixels
+  and a few small bright clusters), saturated (255) marker blobs.
+
+Lateral depth noise (~0.8 px at edges) is not modelled (see the report).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from parcover_env.geometry import cast_rays
+from parcover_env.geometry.camera import CameraModel
+
+if TYPE_CHECKING:
+    from parcover_env.config import KinectConfig
+    from parcover_env.world.map_model import MapModel
+
+__all__ = ["KinectFrame", "KinectSensor", "marker_pattern", "axial_sigma", "BASELINE", "NATIVE_WIDTH"]
+
+BASELINE = 0.075
+"""Projector-camera baseline b of the Kinect v1 (m)."""
+NATIVE_WIDTH = 640
+"""Disparity is computed by the device at 640 px width, whatever the output resolution."""
+_UNIT_PATTERN = np.array([[0.105, 0.0], [0.03, 0.09], [-0.095, 0.05], [0.03, -0.065]])
+
+
+def marker_pattern(robot_radius: float = 0.15, marker_radius: float = 0.02) -> np.ndarray:
+    """Marker centres ``(4, 2)`` in the robot frame (m): a kite, shrunk to fit small robots' tops."""
+    if not robot_radius > marker_radius > 0:
+        raise ValueError(f"need robot_radius > marker_radius > 0, got {robot_radius}, {marker_radius}")
+    return _UNIT_PATTERN * min(1.0, (robot_radius - marker_radius) / 0.108)
+
+
+def axial_sigma(z) -> np.ndarray:
+    """Axial depth noise std (m) at camera depth ``z`` (m), Nguyen, Izadi, Lovell 2012."""
+    z = np.asarray(z, dtype=float)
+    return 0.0012 + 0.0019 * (z - 0.4) ** 2
+
+
+@dataclass
+class KinectFrame:
+    """One Kinect measurement. ``depth`` (H, W) float32 m (0 = invalid), ``ir`` (H, W) uint8."""
+
+    name: str
+    depth: np.ndarray
+    ir: np.ndarray
+    stamp: float = 0.0
+    dropped: bool = False
+    info: dict = field(default_factory=dict)
+
+
+class KinectSensor:
+    """Overhead Kinect rendering depth + IR frames of robots on a static map.
+
+    Everything static (pixel rays, the depth and surface class of the empty scene) is computed once
+    here; :meth:`measure` only re-renders the image boxes around the robots and draws the noise.
+    """
+
+    FLOOR, WALL = 0, 1
+
+    def __init__(self, cfg: KinectConfig, robot_radius: float, robot_height: float, map_model: MapModel,
+                 wall_height: float = 0.5, marker_radius: float = 0.02, missing_factor: float = 1.5,
+                 speckle_density: float = 0.03, speckle_clusters: int = 40):
+        if not robot_radius > 0 or not robot_height > 0:
+            raise ValueError(f"robot radius and height must be > 0, got {robot_radius}, {robot_height}")
+        if not wall_height > 0 or not marker_radius > 0 or missing_factor < 1:
+            raise ValueError("wall_height and marker_radius must be > 0 and missing_factor >= 1")
+        if not 0 <= speckle_density < 0.5:
+            raise ValueError(f"speckle_density must be in [0, 0.5), got {speckle_density}")
+        self.cfg = cfg
+        self.name = cfg.name
+        self.camera = CameraModel.from_config(cfg)
+        if robot_height >= self.camera.C[2]:
+            raise ValueError(f"Kinect '{cfg.name}' at {self.camera.C[2]} m is not above the robots "
+                             f"({robot_height} m)")
+        self.robot_radius = float(robot_radius)
+        self.robot_height = float(robot_height)
+        self.wall_height = float(wall_height)
+        self.marker_radius = float(marker_radius)
+        self.missing_factor = float(missing_factor)
+        self.speckle_density = float(speckle_density)
+        self.speckle_clusters = int(speckle_clusters)
+        self.pattern = marker_pattern(robot_radius, marker_radius)
+        w, h = self.camera.width, self.camera.height
+        self.shape = (h, w)
+        uu, vv = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
+        self.rays = self.camera.pixel_rays(np.stack([uu.ravel(), vv.ravel()], axis=1)).reshape(h, w, 3)
+        self.fb = self.camera.focal * (NATIVE_WIDTH / w) * BASELINE
+        self.static_depth, self.static_class = self._render_static(map_model)
+        self._static_ir = np.where(self.static_class == self.WALL, 40, 55).astype(np.int16)
+
+    # ------------------------------------------------------------------ static scene
+    def _render_static(self, map_model: MapModel) -> tuple[np.ndarray, np.ndarray]:
+        """Camera depth of the empty scene (inf where the ray never meets it) and surface class."""
+        h, w = self.shape
+        rays = self.rays.reshape(-1, 3)
+        C = self.camera.C
+        dz = rays[:, 2]
+        down = dz < -1e-12
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_floor = np.where(down, -C[2] / dz, np.inf)
+        depth = t_floor.copy()
+        cls = np.full(len(rays), self.FLOOR, dtype=np.uint8)
+        if C[2] > self.wall_height:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t0 = np.where(down, (self.wall_height - C[2]) / dz, np.inf)
+            idx = np.flatnonzero(down)
+            p_top = C[:2] + rays[idx, :2] * t0[idx, None]
+            solid = ~map_model.contains(p_top)
+            depth[idx[solid]] = t0[idx[solid]]
+            cls[idx[solid]] = self.WALL
+            idx = idx[~solid]
+        else:
+            t0 = np.zeros(len(rays))
+            idx = np.flatnonzero(down)
+        # The ray descends through free air from t0 to the floor: first vertical wall face it meets.
+        seg = map_model.segments
+        for start in range(0, len(idx), 4096):
+            sel = idx[start:start + 4096]
+            a = C[:2] + rays[sel, :2] * t0[sel, None]
+            b = C[:2] + rays[sel, :2] * t_floor[sel, None]
+            span = np.linalg.norm(b - a, axis=1)
+            moving = span > 1e-9
+            if not np.any(moving):
+                continue
+            sel, a, b, span = sel[moving], a[moving], b[moving], span[moving]
+            dist, hit = cast_rays(a, (b - a) / span[:, None], seg, float(span.max()) + 1.0)
+            wall = (hit >= 0) & (dist < span)
+            frac = dist[wall] / span[wall]
+            depth[sel[wall]] = t0[sel[wall]] + frac * (t_floor[sel[wall]] - t0[sel[wall]])
+            cls[sel[wall]] = self.WALL
+        return depth.reshape(h, w), cls.reshape(h, w)
+
+    # ------------------------------------------------------------------ robots
+    def _robot_box(self, centre: np.ndarray) -> tuple[int, int, int, int] | None:
+        """Pixel box (u0, v0, u1, v1) (exclusive ends) covering a robot's cylinder, or None."""
+        ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+        ring = np.stack([np.cos(ang), np.sin(ang)], axis=1) * (self.robot_radius * 1.05) + centre
+        pts = np.concatenate([np.c_[ring, np.zeros(16)], np.c_[ring, np.full(16, self.robot_height)]])
+        uv, z = self.camera.project(pts)
+        if np.any(z <= 1e-6):
+            return None
+        h, w = self.shape
+        u0, v0 = np.floor(uv.min(axis=0)).astype(int) - 1
+        u1, v1 = np.ceil(uv.max(axis=0)).astype(int) + 2
+        u0, v0, u1, v1 = max(u0, 0), max(v0, 0), min(u1, w), min(v1, h)
+        return None if u0 >= u1 or v0 >= v1 else (u0, v0, u1, v1)
+
+    def _cull_box(self) -> tuple[float, float, float, float]:
+        """Floor box outside which no robot cylinder can appear in the image (cached): the image
+        corners cast on the floor and on the robot-top plane, grown by the robot radius. Config
+        validation keeps every corner ray below the horizon, so both planes are met."""
+        if getattr(self, "_cull", None) is None:
+            cam = self.camera
+            corners = np.array([[-0.5, -0.5], [cam.width - 0.5, -0.5], [cam.width - 0.5, cam.height - 0.5],
+                                [-0.5, cam.height - 0.5]])
+            rays = cam.pixel_rays(corners)
+            pts = np.concatenate([cam.C[:2] + ((z - cam.C[2]) / rays[:, 2])[:, None] * rays[:, :2]
+                                  for z in (0.0, self.robot_height)])
+            grow = self.robot_radius * 1.05 + 1e-3
+            lo, hi = pts.min(axis=0) - grow, pts.max(axis=0) + grow
+            self._cull = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+        return self._cull
+
+    def render_clean(self, poses: np.ndarray,
+                     marker_mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Noise-free render: depth (inf = no surface), owner id (-1 = static), marker code.
+
+        Marker code per pixel: 0 none, 1 saturated marker, 2 depth-missing halo only.
+        """
+        poses, marker_mask = self._check_inputs(poses, marker_mask)
+        depth = self.static_depth.copy()
+        owner = np.full(self.shape, -1, dtype=np.int32)
+        top = np.zeros(self.shape, dtype=bool)
+        C = self.camera.C
+        r2 = self.robot_radius ** 2
+        boxes = []
+        cx0, cy0, cx1, cy1 = self._cull_box()
+        for i, (x, y, _) in enumerate(poses):
+            seen = cx0 <= x <= cx1 and cy0 <= y <= cy1
+            box = self._robot_box(np.array([x, y])) if seen else None
+            boxes.append(box)
+            if box is None:
+                continue
+            u0, v0, u1, v1 = box
+            D = self.rays[v0:v1, u0:u1]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t_top = (self.robot_height - C[2]) / D[..., 2]
+            px = C[0] + D[..., 0] * t_top - x
+            py = C[1] + D[..., 1] * t_top - y
+            on_top = (t_top > 0) & (px * px + py * py <= r2)
+            ox, oy = C[0] - x, C[1] - y
+            a = D[..., 0] ** 2 + D[..., 1] ** 2
+            b = ox * D[..., 0] + oy * D[..., 1]
+            disc = b * b - a * (ox * ox + oy * oy - r2)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t_side = (-b - np.sqrt(np.maximum(disc, 0.0))) / a
+            z_side = C[2] + t_side * D[..., 2]
+            on_side = (disc > 0) & (t_side > 0) & (z_side >= 0) & (z_side <= self.robot_height)
+            t = np.minimum(np.where(on_top, t_top, np.inf), np.where(on_side, t_side, np.inf))
+            sub = depth[v0:v1, u0:u1]
+            closer = t < sub
+            sub[closer] = t[closer]
+            owner[v0:v1, u0:u1][closer] = i
+            top[v0:v1, u0:u1][closer] = on_top[closer] & (t_top[closer] <= t[closer])
+        code = np.zeros(self.shape, dtype=np.uint8)
+        rm2 = self.marker_radius ** 2
+        rh2 = (self.marker_radius * self.missing_factor) ** 2
+        for i, (x, y, th) in enumerate(poses):
+            if not marker_mask[i] or boxes[i] is None:
+                continue
+            u0, v0, u1, v1 = boxes[i]
+            mine = (owner[v0:v1, u0:u1] == i) & top[v0:v1, u0:u1]
+            if not np.any(mine):
+                continue
+            t = depth[v0:v1, u0:u1][mine]
+            D = self.rays[v0:v1, u0:u1][mine]
+            p = C[:2] + D[:, :2] * t[:, None] - (x, y)
+            c, s = math.cos(th), math.sin(th)
+            q = np.stack([c * p[:, 0] + s * p[:, 1], -s * p[:, 0] + c * p[:, 1]], axis=1)
+            d2 = ((q[:, None, :] - self.pattern[None]) ** 2).sum(-1).min(axis=1)
+            sub = code[v0:v1, u0:u1]
+            sub[mine] = np.where(d2 <= rm2, 1, np.where(d2 <= rh2, 2, 0)).astype(np.uint8)
+        return depth, owner, code
+
+    def _check_inputs(self, poses, marker_mask) -> tuple[np.ndarray, np.ndarray]:
+        poses = np.asarray(poses, dtype=float)
+        if poses.ndim != 2 or poses.shape[1] != 3:
+            raise ValueError(f"poses must have shape (N, 3) (x, y, theta), got {poses.shape}")
+        if not np.all(np.isfinite(poses)):
+            raise ValueError("poses contain NaN or inf")
+        mask = np.ones(len(poses), dtype=bool) if marker_mask is None else np.asarray(marker_mask, dtype=bool)
+        if mask.shape != (len(poses),):
+            raise ValueError(f"marker_mask must have shape ({len(poses)},), got {mask.shape}")
+        return poses, mask
+
+    # ------------------------------------------------------------------ measurement
+    def noisy_depth(self, depth: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Axial noise, 1/8-px disparity quantization and range limits applied to a clean depth."""
+        z = depth.astype(np.float32)
+        finite = np.isfinite(z)
+        z = np.where(finite, z, 0.0).astype(np.float32)
+        sig = (0.0012 + 0.0019 * (z - 0.4) ** 2).astype(np.float32)
+        z = z + sig * rng.standard_normal(z.shape, dtype=np.float32)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            disp = np.round(np.float32(self.fb) / z * 8.0) / 8.0
+            z = np.float32(self.fb) / disp
+        ok = finite & np.isfinite(z) & (z >= self.camera.range_min) & (z <= self.camera.range_max)
+        return np.where(ok, z, 0.0).astype(np.float32)
+
+    def render_ir(self, owner: np.ndarray, code: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """IR frame: dull surfaces with noise, projector speckle, saturated markers."""
+        h, w = self.shape
+        ir = self._static_ir.copy()
+        ir[owner >= 0] = 75
+        ir += rng.integers(0, 24, size=(h, w), dtype=np.int16)
+        n = int(self.speckle_density * h * w)
+        if n:
+            idx = rng.integers(0, h * w, size=n)
+            ir.reshape(-1)[idx] = rng.integers(170, 256, size=n, dtype=np.int16)
+        if self.speckle_clusters:  # a few denser projector spots (2 x 3 px): survive median + threshold
+            k = self.speckle_clusters
+            vs, us = rng.integers(0, h - 2, size=k), rng.integers(0, w - 3, size=k)
+            for dv in range(2):
+                for du in range(3):
+                    ir[vs + dv, us + du] = 255
+        ir[code == 1] = 255
+        return np.clip(ir, 0, 255).astype(np.uint8)
+
+    def measure(self, poses, marker_mask, rng: np.random.Generator, stamp: float = 0.0) -> KinectFrame:
+        """Render one frame of robots at ``poses (N, 3)``; ``marker_mask (N,)``: who carries markers.
+
+        With probability ``cfg.drop_rate`` the frame is dropped: ``dropped=True``, all-zero images.
+        """
+        poses, marker_mask = self._check_inputs(poses, marker_mask)
+        if self.cfg.drop_rate > 0 and rng.random() < self.cfg.drop_rate:
+            return KinectFrame(self.name, np.zeros(self.shape, np.float32), np.zeros(self.shape, np.uint8),
+                               stamp, dropped=True)
+        depth, owner, code = self.render_clean(poses, marker_mask)
+        z = self.noisy_depth(depth, rng)
+        z[code > 0] = 0.0
+        ir = self.render_ir(owner, code, rng)
+        return KinectFrame(self.name, z, ir, stamp, info={"n_robots": len(poses)})

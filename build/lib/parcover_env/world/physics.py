@@ -1,0 +1,147 @@
+"""The pymunk world: static walls and dynamic differential-drive robots.
+
+Robots are dynamic discs with infinite moment; each physics step their velocity is set from the
+commanded unicycle velocities ``(v, omega)`` inside ``body.velocity_func``, so contacts with walls
+and other robots are resolved by pymunk while the robots follow their commands in free space.
+(Kinematic bodies would pass through walls.) pymunk moves bodies before it calls
+``velocity_func``, so a new command takes effect after one physics step (``physics.dt``), like
+an actuator delay; the velocity the contact solver corrected is what moves the body.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pymunk
+
+try:  # the C setters without pymunk's Python property layers: the callback runs N x substeps times a step
+    from pymunk._chipmunk import lib as _cp
+except ImportError:  # pragma: no cover - other pymunk builds: the public properties
+    _cp = None
+
+from parcover_env.config import PhysicsConfig
+from parcover_env.geometry import wrap_angle
+from parcover_env.world.map_model import MapModel
+
+__all__ = ["World"]
+
+ROBOT, WALL = 1, 2
+_WALL_RADIUS = 0.005  # m, collision skin of the static boundary segments
+
+
+class World:
+    """Physics of one episode. Build a new one at every reset (pymunk caches contact state)."""
+
+    def __init__(self, map_model: MapModel, radius: float, physics: PhysicsConfig, poses: np.ndarray):
+        self.map = map_model
+        self.radius = float(radius)
+        self.physics = physics
+        self.n = len(poses)
+        self.time = 0.0
+        self._cmd = np.zeros((self.n, 2))
+        self._rows = _CommandRows(self.n)
+        self.wall_contacts = np.zeros(self.n, dtype=np.int64)
+        self.robot_contacts = np.zeros(self.n, dtype=np.int64)
+
+        space = pymunk.Space()
+        space.gravity = (0.0, 0.0)
+        space.collision_slop = physics.collision_slop
+        space.iterations = 20
+        for x1, y1, x2, y2 in map_model.segments:
+            seg = pymunk.Segment(space.static_body, (x1, y1), (x2, y2), _WALL_RADIUS)
+            seg.collision_type = WALL
+            seg.friction = 0.0
+            space.add(seg)
+        self.bodies: list[pymunk.Body] = []
+        for i, (x, y, theta) in enumerate(np.asarray(poses, dtype=float)):
+            body = pymunk.Body(1.0, math.inf)
+            body.position = (x, y)
+            body.angle = theta
+            body.velocity_func = self._velocity_func(i)
+            shape = pymunk.Circle(body, self.radius)
+            shape.collision_type = ROBOT
+            shape.friction = 0.0
+            shape.elasticity = 0.0
+            shape.robot_index = i
+            space.add(body, shape)
+            self.bodies.append(body)
+        space.on_collision(ROBOT, WALL, begin=self._on_wall)
+        space.on_collision(ROBOT, ROBOT, begin=self._on_robot)
+        self.space = space
+
+    def _velocity_func(self, i: int) -> _UnicycleVelocity:
+        return _UnicycleVelocity(self._rows, i)
+
+    def _on_wall(self, arbiter: pymunk.Arbiter, space, data) -> None:
+        for shape in arbiter.shapes:
+            if shape.collision_type == ROBOT:
+                self.wall_contacts[shape.robot_index] += 1
+
+    def _on_robot(self, arbiter: pymunk.Arbiter, space, data) -> None:
+        for shape in arbiter.shapes:
+            self.robot_contacts[shape.robot_index] += 1
+
+    def step(self, commands: np.ndarray) -> None:
+        """Apply ``(v, omega)`` per robot ``(N, 2)`` for one control step (all physics substeps)."""
+        self._cmd[:] = commands
+        self._rows.values = self._cmd.tolist()
+        dt = self.physics.dt
+        for _ in range(self.physics.substeps):
+            self.space.step(dt)
+        self.time += self.physics.control_dt
+
+    def poses(self) -> np.ndarray:
+        """Ground-truth poses ``(N, 3)``: x, y (m), theta (rad, wrapped to (-pi, pi])."""
+        out = np.empty((self.n, 3))
+        for i, b in enumerate(self.bodies):
+            out[i, 0], out[i, 1] = b.position
+            out[i, 2] = b.angle
+        out[:, 2] = wrap_angle(out[:, 2])
+        return out
+
+
+class _CommandRows:
+    """The commands ``[[v, omega], ...]`` as Python floats, shared by the world and its callbacks."""
+
+    __slots__ = ("values",)
+
+    def __init__(self, n: int):
+        self.values = [[0.0, 0.0] for _ in range(n)]
+
+    def __getstate__(self):
+        return self.values
+
+    def __setstate__(self, state) -> None:
+        self.values = state
+
+
+class _UnicycleVelocity:
+    """``body.velocity_func`` of robot ``i``: velocity from the shared commands (``_CommandRows``).
+
+    A module-level callable (not a closure) so that a ``World`` survives ``pickle`` and
+    ``copy.deepcopy``; the commands stay shared with the world through pickle's memo.
+    """
+
+    __slots__ = ("cmd", "i")
+
+    def __init__(self, cmd: _CommandRows, i: int):
+        self.cmd, self.i = cmd, i
+
+    def __getstate__(self):
+        return self.cmd, self.i
+
+    def __setstate__(self, state) -> None:
+        self.cmd, self.i = state
+
+    def __call__(self, body: pymunk.Body, gravity, damping, dt) -> None:
+        v, w = self.cmd.values[self.i]
+        if _cp is None:  # pragma: no cover
+            a = body.angle
+            body.velocity = (v * math.cos(a), v * math.sin(a))
+            body.angular_velocity = w
+            return
+        b = body._body
+        a = _cp.cpBodyGetAngle(b)
+        _cp.cpBodySetVelocity(b, (v * math.cos(a), v * math.sin(a)))
+        _cp.cpBodySetAngularVelocity(b, w)

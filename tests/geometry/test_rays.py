@@ -1,0 +1,63 @@
+"""The one ray-casting kernel: hand-built hits, incidence, fans, culling, discs, blocking."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from parcover_env.geometry import cast_rays, cast_rays_discs, segments_blocked
+
+WALL = np.array([[2.0, -1.0, 2.0, 1.0]])  # the line x = 2 for |y| <= 1
+
+
+def _dir(deg: float) -> np.ndarray:
+    return np.array([[math.cos(math.radians(deg)), math.sin(math.radians(deg))]])
+
+
+def test_hit_distance_index_and_incidence_on_a_wall():
+    seg = np.vstack([[5.0, 5.0, 6.0, 5.0], WALL])  # index 1 is the wall in front
+    h = cast_rays(np.zeros((1, 2)), _dir(25.0), seg, with_cos=True)
+    assert h.distance[0] == pytest.approx(2.0 / math.cos(math.radians(25)))
+    assert h.index[0] == 1
+    assert h.cos_incidence[0] == pytest.approx(math.cos(math.radians(25)))
+    # past the wall's end, beyond max_range or pointing away: no hit
+    assert cast_rays(np.zeros((1, 2)), _dir(30.0), seg).index[0] == -1  # y = 2 tan 30 > 1
+    far = cast_rays(np.zeros((1, 2)), _dir(25.0), seg, 2.0, with_cos=True)
+    assert math.isinf(far.distance[0]) and far.index[0] == -1 and far.cos_incidence[0] == 0.0
+    back = cast_rays(np.zeros((1, 2)), _dir(180.0), seg)
+    assert math.isinf(back.distance[0]) and back.index[0] == -1
+
+
+def test_fan_of_rays_per_origin_with_and_without_culling():
+    origins = np.array([[0.0, 0.0], [1.5, 0.0]])
+    angles = np.radians(np.linspace(-40, 40, 40))
+    fan = np.broadcast_to(np.stack([np.cos(angles), np.sin(angles)], axis=1), (2, 40, 2))
+    walls = np.vstack([WALL, [[10.0, -1.0, 10.0, 1.0]]])
+    full = cast_rays(origins, fan, walls, 3.0, cull=False)
+    near = cast_rays(origins, fan, walls, 3.0, cull=True)
+    assert full.distance.shape == (2, 40)
+    np.testing.assert_array_equal(full.distance, near.distance)
+    np.testing.assert_allclose(full.distance[1, 20], 0.5 / math.cos(angles[20]))
+    # from x = 0 the 2 m-wide wall at 2 m is met within atan(1 / 2) of the axis (in range: 3 m)
+    inside = np.abs(angles) <= math.atan(0.5)
+    assert np.all(np.isfinite(full.distance[0, inside])) and np.all(np.isinf(full.distance[0, ~inside]))
+
+
+def test_discs_owner_inside_and_range():
+    centres = np.array([[0.0, 0.0], [3.0, 0.0], [1.0, 0.0]])
+    d = cast_rays_discs(np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([[1.0, 0.0], [1.0, 0.0]]), centres, 0.25,
+                        owner=np.array([0, 2]))
+    assert d[0] == pytest.approx(0.75)  # own disc ignored, the one at x = 1 hit at 1 - 0.25
+    assert d[1] == pytest.approx(1.75)  # from inside its own disc: the next one at 3 - 0.25 - 1
+    assert cast_rays_discs(np.zeros((1, 2)), np.array([[1.0, 0.0]]), centres[1:2], 0.25, None, 2.0)[0] == np.inf
+    inside = cast_rays_discs(np.array([[3.1, 0.0]]), np.array([[-1.0, 0.0]]), centres[1:2], 0.25)
+    assert inside[0] == 0.0
+
+
+def test_segments_blocked_is_an_open_segment_test():
+    a = np.array([[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
+    b = np.array([[3.0, 0.0], [1.9, 0.0], [3.0, 3.0]])
+    np.testing.assert_array_equal(segments_blocked(a, b, WALL), [True, False, False])
+    assert segments_blocked(a, b, np.zeros((0, 4))).tolist() == [False, False, False]
