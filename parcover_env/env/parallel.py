@@ -9,11 +9,11 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from parcover_env.config import Scenario
+from parcover_env.config import Scenario, deep_merge
 from parcover_env.env.actions import to_commands
 from parcover_env.env.metrics import EpisodeMetrics, formation_errors
 from parcover_env.env.observations import MAX_FIX_AGE, ObservationLayout
-from parcover_env.env.rewards import TERMS, reward_terms
+from parcover_env.env.rewards import REWARD_KEYS, TERMS, reward_terms
 from parcover_env.env.team import Team
 from parcover_env.geometry import rotate
 from parcover_env.localization.kinect.system import KinectSystem
@@ -67,35 +67,51 @@ class ParallelCoverageEnv(ParallelEnv):
 
     ## Rewards
     Per agent, the sum of named terms whose weights come from ``rewards`` in the scenario and which
-    are reported in ``info[agent]["reward_terms"]``: ``kpoi`` (per KPOI newly visited by anyone,
+    are reported in ``info[agent]["reward_<term>"]``: ``kpoi`` (per KPOI newly visited by anyone,
     team reward), ``progress`` (per metre of route-to-go removed, potential-based), ``time`` (per
     step), ``collision`` (per new contact of this agent with a wall or robot). A KPOI is visited
     when a robot's true centre comes within ``kpoi_radius`` of it.
 
     ## Episode end
     Terminated when every KPOI is visited; truncated after ``episode.max_steps`` control steps.
-    All agents end together; ``info[agent]["episode"]`` then holds the metrics (makespan, KPOIs
-    visited, collisions, path lengths, localization error, makespan / (c_max / v_max), ...).
+    All agents end together. Infos are flat (scalars and arrays, the same keys at reset and at
+    every step): the ``reward_<term>`` values and ``metrics/<name>`` entries that are 0 until
+    the step that ends the episode (``metrics/ended`` = 1), where they hold the metrics (makespan,
+    KPOIs visited, collisions, path lengths, localization error, makespan / (c_max / v_max), ...);
+    ``parcover_env.env.metrics.episode_metrics(info)`` gives them back as a dict.
 
     ## Rates
     One ``step`` is one control period of ``physics.substeps x physics.dt`` seconds (default
     5 x 0.02 s = 0.1 s); pymunk integrates at ``physics.dt``.
 
     ## Arguments
-    ``scenario`` (name, path or Scenario, default ``"office"``), ``render_mode`` (``None`` or
-    ``"rgb_array"``), ``overrides`` (nested dict merged over the scenario, e.g.
-    ``{"n_robots": 3, "episode": {"max_steps": 500}}``).
+    ``scenario`` (name, path or Scenario, default ``"office"``), ``render_mode`` (``None``,
+    ``"rgb_array"`` or ``"human"``: an OpenCV window, which needs a display and an OpenCV build
+    with GUI support), ``overrides`` (nested dict merged over the scenario, e.g.
+    ``{"n_robots": 3, "episode": {"max_steps": 500}}``), ``preset`` (``"realistic"`` or
+    ``"ideal"``: every error model off), ``max_cycles`` (step limit, like MPE's; default: the
+    scenario's ``episode.max_steps``).
+
+    ``env.np_random`` is the episode's ``numpy.random.Generator`` (made by ``reset(seed=...)``).
 
     ## Version history
-    * v0: initial release.
+    * v0 (0.2.0): episode metrics moved from ``info[agent]["episode"]`` (which Gymnasium's
+      ``RecordEpisodeStatistics`` and SB3's ``Monitor`` own) to flat ``info[agent]["metrics/<name>"]``
+      entries; reward terms moved from ``info[agent]["reward_terms"]`` to flat
+      ``info[agent]["reward_<term>"]``; the reset info no longer carries the plan (``env.plan``);
+      ``human`` render mode; ``max_cycles``; finite ``state_space`` bounds; ``env.np_random``.
+    * v0 (0.1.0): initial release.
     """
 
-    metadata = {"name": "parcover_v0", "render_modes": ["rgb_array"], "render_fps": 10, "is_parallelizable": True}
+    metadata = {"name": "parcover_v0", "render_modes": ["rgb_array", "human"], "render_fps": 10,
+                "is_parallelizable": True}
 
     def __init__(self, scenario: str | Path | Scenario = "office", render_mode: str | None = None,
-                 overrides: dict | None = None, preset: str = "realistic"):
+                 overrides: dict | None = None, preset: str = "realistic", max_cycles: int | None = None):
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
+        if max_cycles is not None:
+            overrides = deep_merge(overrides or {}, {"episode": {"max_steps": max_cycles}})
         self.scenario = load_scenario(scenario, overrides, preset)
         self.render_mode = render_mode
         s = self.scenario
@@ -112,9 +128,9 @@ class ParallelCoverageEnv(ParallelEnv):
                                               n_sonar, s.robot.sonar.range_max, s.formation.camera_range)
         self._obs_space = self.layout.space()
         self._act_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
-        n_state = 5 * self.n_robots + len(s.kpois) + 1
-        self.state_space = spaces.Box(-np.inf, np.inf, (n_state,), dtype=np.float32)
+        self.state_space = _state_space(self.map.bounds, self.n_robots, len(s.kpois))
         self._rng: np.random.Generator | None = None
+        self._window: str | None = None
 
     # ------------------------------------------------------------------ spaces
     def observation_space(self, agent: str) -> spaces.Box:
@@ -122,6 +138,25 @@ class ParallelCoverageEnv(ParallelEnv):
 
     def action_space(self, agent: str) -> spaces.Box:
         return self._act_space
+
+    @property
+    def np_random(self) -> np.random.Generator:
+        """The episode's random generator (seeded by ``reset(seed=...)``; made unseeded if needed)."""
+        if self._rng is None:
+            self._rng = np.random.default_rng()
+        return self._rng
+
+    @property
+    def max_cycles(self) -> int:
+        """Step limit of an episode (``episode.max_steps``); settable (takes effect at once)."""
+        return self.scenario.episode.max_steps
+
+    @max_cycles.setter
+    def max_cycles(self, value: int) -> None:
+        import dataclasses
+
+        s = self.scenario
+        self.scenario = dataclasses.replace(s, episode=dataclasses.replace(s.episode, max_steps=value))
 
     # ------------------------------------------------------------------ episode
     def reset(self, seed: int | None = None, options: dict | None = None):
@@ -148,7 +183,9 @@ class ParallelCoverageEnv(ParallelEnv):
         self.progress.update(true[:, :2], self.estimate[:, :2], 0.0)
         self.team.update(self.estimate[:, :2], self.progress.plan_progress)
         obs = self._observe(true)
-        infos = {a: {"plan": self.plan.to_dict()} for a in self.agents}
+        zeros = dict.fromkeys(REWARD_KEYS, 0.0)
+        metrics = self.metrics.flat(ended=False)
+        infos = {a: {**zeros, **metrics} for a in self.agents}
         return obs, infos
 
     def step(self, actions: dict[str, Any]):
@@ -173,13 +210,10 @@ class ParallelCoverageEnv(ParallelEnv):
         for t in TERMS:  # summed in TERMS order, as sum() over the terms of each agent would
             total = total + terms[t]
         rewards = dict(zip(self.agents, total.tolist(), strict=True))
+        metrics = self.metrics.flat(ended=done or truncated)
         per_agent = zip(*(terms[t].tolist() for t in TERMS), strict=True)
-        infos = {a: {"reward_terms": dict(zip(TERMS, vals, strict=True))}
+        infos = {a: {**dict(zip(REWARD_KEYS, vals, strict=True)), **metrics}
                  for a, vals in zip(self.agents, per_agent, strict=True)}
-        if done or truncated:
-            summary = self.metrics.summary()
-            for info in infos.values():
-                info["episode"] = summary
         terminations = {a: done for a in self.agents}
         truncations = {a: truncated for a in self.agents}
         if done or truncated:
@@ -280,11 +314,30 @@ class ParallelCoverageEnv(ParallelEnv):
         return self.kinects.render_frames(self.world.poses(), markers, seed=self.steps)
 
     def render(self) -> np.ndarray | None:
+        """``rgb_array``: the top-down frame (H, W, 3) uint8; ``human``: show it in a window, None."""
         if self.render_mode is None:
             return None
-        from parcover_env.viz.render import render_frame
+        from parcover_env.viz.render import render_frame, show_frame
 
-        return render_frame(self)
+        frame = render_frame(self)
+        if self.render_mode == "human":
+            self._window = show_frame(frame, f"parcover {self.scenario.name}", 1000 // self.metadata["render_fps"])
+            return None
+        return frame
 
     def close(self) -> None:
-        pass
+        if self._window is not None:
+            from parcover_env.viz.render import close_window
+
+            close_window(self._window)
+            self._window = None
+
+
+def _state_space(bounds, n_robots: int, n_kpois: int) -> spaces.Box:
+    """Bounds of ``state()``: per robot x, y in the map box, cos, sin in [-1, 1], leader flag in [0, 1];
+    KPOI visited flags and the elapsed time fraction in [0, 1]."""
+    x0, y0, x1, y1 = bounds
+    robot_lo, robot_hi = [x0, y0, -1.0, -1.0, 0.0], [x1, y1, 1.0, 1.0, 1.0]
+    low = np.array(robot_lo * n_robots + [0.0] * (n_kpois + 1), dtype=np.float32)
+    high = np.array(robot_hi * n_robots + [1.0] * (n_kpois + 1), dtype=np.float32)
+    return spaces.Box(low, high, dtype=np.float32)
