@@ -64,3 +64,15 @@ def check_writable_dir(path: str | os.PathLike, option: str) -> None:
         raise OutputError(f"{option}: cannot create directory {p}: {exc.strerror or exc}") from None
     if not os.access(p, os.W_OK | os.X_OK):
         raise OutputError(f"{option}: cannot write into directory {p}: permission denied")
+
+
+def write_image(path: str | os.PathLike, rgb, option: str) -> None:
+    """Write an RGB image (PNG or any format OpenCV knows by the extension) or raise OutputError."""
+    import cv2
+
+    try:
+        ok = cv2.imwrite(str(path), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+    except cv2.error:
+        ok = False
+    if not ok:
+        raise OutputError(f"{option}: cannot write {path} (check the directory and the file extension, e.g. .png)")

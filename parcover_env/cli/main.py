@@ -15,8 +15,9 @@ from parcover_env.cli.checks import (
     check_writable_file,
     non_negative_int,
     positive_int,
+    write_image,
 )
-from parcover_env.errors import OutputError, ParcoverError
+from parcover_env.errors import ParcoverError
 from parcover_env.policies.registry import POLICY_SPECS
 
 __all__ = ["main", "build_parser"]
@@ -69,15 +70,13 @@ def cmd_scenarios(args) -> int:
 
 
 def cmd_render(args) -> int:
-    import cv2
 
     from parcover_env import parallel_env
 
     check_writable_file(args.png, "--png")
     env = parallel_env(args.scenario, render_mode="rgb_array")
     env.reset(seed=args.seed)
-    if not cv2.imwrite(args.png, cv2.cvtColor(env.render(), cv2.COLOR_RGB2BGR)):
-        raise OutputError(f"--png: cannot write {args.png} (check the directory and the file extension)")
+    write_image(args.png, env.render(), "--png")
     print(f"wrote {args.png}")
     return 0
 
@@ -85,7 +84,7 @@ def cmd_render(args) -> int:
 def cmd_plan(args) -> int:
     from parcover_env.planning import kinect_footprints, kinect_tree, plan_scenario
     from parcover_env.scenarios import load_scenario
-    from parcover_env.viz.plan import draw_plan, save_png
+    from parcover_env.viz.plan import draw_plan
 
     if args.png:
         check_writable_file(args.png, "--png")
@@ -102,10 +101,7 @@ def cmd_plan(args) -> int:
         links = ", ".join(f"{a}-{b} ({n})" for (a, b), n in sorted(tree.links.items()))
         print(f"  Kinect tree rooted at {tree.root}: links {links or 'none'}")
     if args.png:
-        try:
-            save_png(args.png, draw_plan(s, plan, tree))
-        except ValueError as exc:
-            raise OutputError(f"--png: {exc}") from None
+        write_image(args.png, draw_plan(s, plan, tree), "--png")
         print(f"wrote {args.png}")
     return 0
 
@@ -124,7 +120,6 @@ def cmd_kinect(args) -> int:
 
 
 def cmd_sectors(args) -> int:
-    import cv2
 
     from parcover_env.localization.sonar import compute_sectors, map_features
     from parcover_env.scenarios import load_scenario
@@ -141,8 +136,7 @@ def cmd_sectors(args) -> int:
     print(f"scenario {s.name}: {len(features)} features, {len(sectors)} {name} sectors "
           f"(sonar range {s.robot.sonar.range_max} m)")
     if args.png:
-        if not cv2.imwrite(args.png, draw_sectors(known, sectors, features)[:, :, ::-1]):
-            raise OutputError(f"--png: cannot write {args.png} (check the directory and the file extension)")
+        write_image(args.png, draw_sectors(known, sectors, features), "--png")
         print(f"wrote {args.png}")
     return 0
 
