@@ -156,6 +156,11 @@ def render_frame(env) -> np.ndarray:
     return frame
 
 
+GIF_QUANTIZER = 2
+"""Pillow quantizer of the streaming GIF writer: 2 = fast octree. (Median cut, 0, can give palettes of
+fewer than 256 colours, which the streaming writer then encodes into an unreadable file.)"""
+
+
 class GifRecorder:
     """Animated GIF written frame by frame (imageio's streaming Pillow GIF writer): memory stays at
     a few frames whatever the episode length. Keeps every ``every``-th frame and always the last
@@ -167,7 +172,8 @@ class GifRecorder:
         if every < 1:
             raise ValueError(f"every must be >= 1, got {every}")
         self.path, self.every = path, int(every)
-        self._writer = imageio.get_writer(path, format="GIF-PIL", mode="I", duration=1.0 / fps, loop=0)
+        self._writer = imageio.get_writer(path, format="GIF-PIL", mode="I", duration=1.0 / fps, loop=0,
+                                          quantizer=GIF_QUANTIZER)
         self._seen = 0
         self._pending: np.ndarray | None = None  # last frame not yet written (written at close)
         self.written = 0
