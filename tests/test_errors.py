@@ -16,6 +16,8 @@ from parcover_env.errors import ConfigError, DependencyError, ParcoverError
 
 def _all_error_classes() -> list[type]:
     for mod in pkgutil.walk_packages(parcover_env.__path__, "parcover_env."):
+        if mod.name.endswith("__main__"):
+            continue
         with contextlib.suppress(ImportError):  # optional dependencies
             importlib.import_module(mod.name)
     seen, todo = [], [ParcoverError]
