@@ -260,3 +260,32 @@ def test_episode_metrics_zero_c_max_gives_nan_bound():
     m = EpisodeMetrics(n_kpois=1, n_robots=1, c_max=0.0, max_speed=1.0, path_lengths=[0.0])
     m.makespan = 2.0
     assert math.isnan(m.summary()["makespan_ratio"])
+
+
+def test_layout_goal_bounds_use_the_map_diagonal_off_origin():
+    lay = ObservationLayout.build((2.0, -1.0, 12.0, 5.0), 0.5, 1.2, 0, 4.0, 2.5)
+    diag = math.hypot(10.0, 6.0)
+    assert lay.high[lay.slices["goal_dx"]][0] == pytest.approx(diag + 2, rel=1e-6)
+    assert lay.low[lay.slices["x"]][0] == 1.0 and lay.high[lay.slices["x"]][0] == 13.0
+
+
+def test_formation_errors_with_the_leader_away_from_the_origin():
+    poses = np.array([[3.0, 2.0, 0.0], [1.9, 2.0, 0.0]])  # follower 1.1 m behind, camera point 0.1 m ahead
+    dl, dpsi = formation_errors(poses, np.array([-1, 0]), 0.1, 0.5, math.pi)
+    np.testing.assert_allclose(dl, [0.5])
+    np.testing.assert_allclose(dpsi, [0.0], atol=1e-12)
+
+
+def test_localization_error_of_a_single_robot_step():
+    m = EpisodeMetrics(n_kpois=1, n_robots=1, c_max=0.5, max_speed=0.25, path_lengths=[0.0])
+    m.record_step(0.1, 0, np.zeros((1, 3)), np.array([[0.3, 0.4, 0.0]]), wall=0, robot=0)
+    assert m.localization_error == pytest.approx(0.5)
+    m.makespan = 4.0
+    assert m.summary()["makespan_ratio"] == pytest.approx(2.0)  # c_max below 1 m still defines the bound
+    back = episode_metrics(m.flat())
+    assert type(back["steps"]) is int and type(back["n_kpois"]) is int and type(back["time"]) is float
+
+
+def test_non_dict_actions_name_their_type():
+    with pytest.raises(ActionError, match="got list"):
+        to_commands([np.zeros(2)], ["a"], 1.0, 1.0)
