@@ -16,6 +16,7 @@ import time
 import numpy as np
 
 import parcover_env
+from parcover_env.env.metrics import episode_metrics
 from parcover_env.expert.navigator import NavigatorParams, SonarNavigator
 
 
@@ -35,7 +36,7 @@ def episode(name: str, seed: int, params: NavigatorParams) -> dict:
                 true = env.world.poses()[f["robot"]]
                 fix_err.append(float(np.hypot(*(nav.belief()[f["robot"], :2] - true[:2]))))
         if not env.agents:
-            summary = next(iter(infos.values()))["episode"]
+            summary = episode_metrics(next(iter(infos.values())))
     true = env.world.poses()
     end_err = np.hypot(*(nav.belief()[:, :2] - true[:, :2]).T)
     summary = summary or env.metrics.summary()

@@ -1,7 +1,8 @@
 """parcover_env: multi-robot parallel path coverage as a PettingZoo / Gymnasium environment.
 
 Factories follow PettingZoo's module convention (``parallel_env()``, ``env()``, ``raw_env``);
-``make`` is an alias of ``parallel_env``. The single-robot Gymnasium env is registered as
+``make`` is an alias of ``parallel_env``; ``parcover_env.parcover_v0`` is the same factories under
+PettingZoo's ``<name>_v<N>`` module convention. The single-robot Gymnasium env is registered as
 ``parcover_env/SingleRobotCoverage-v0``.
 """
 
@@ -16,33 +17,48 @@ __all__ = [
     "ParallelCoverageEnv", "raw_env", "parallel_env", "env", "make", "Scenario", "load_scenario",
     "scenario_names", "ConfigError", "ActionError", "ParcoverError", "__version__",
 ]
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 raw_env = ParallelCoverageEnv
 
 
-def parallel_env(scenario="office", render_mode=None, overrides=None, preset="realistic") -> ParallelCoverageEnv:
+def parallel_env(scenario="office", render_mode=None, overrides=None, preset="realistic",
+                 max_cycles=None) -> ParallelCoverageEnv:
     """The ParallelEnv for a scenario name, YAML path or ``Scenario``; ``preset="ideal"`` turns
-    every error model off."""
-    return ParallelCoverageEnv(scenario, render_mode=render_mode, overrides=overrides, preset=preset)
+    every error model off; ``max_cycles`` overrides the step limit."""
+    return ParallelCoverageEnv(scenario, render_mode=render_mode, overrides=overrides, preset=preset,
+                               max_cycles=max_cycles)
 
 
-def env(scenario="office", render_mode=None, overrides=None, preset="realistic"):
+def env(scenario="office", render_mode=None, overrides=None, preset="realistic", max_cycles=None):
     """The AEC version (``pettingzoo.utils.parallel_to_aec``) of :func:`parallel_env`."""
     from pettingzoo.utils.conversions import parallel_to_aec
 
-    return parallel_to_aec(parallel_env(scenario, render_mode=render_mode, overrides=overrides, preset=preset))
+    return parallel_to_aec(parallel_env(scenario, render_mode=render_mode, overrides=overrides, preset=preset,
+                                        max_cycles=max_cycles))
 
 
 make = parallel_env
 
 
 def _register() -> None:
+    """Register the Gymnasium id; and have worker processes started by the ``forkserver`` method
+    (SB3 ``SubprocVecEnv``'s default on Linux) import this package first, so that
+    ``make_vec_env("parcover_env/SingleRobotCoverage-v0", vec_env_cls=SubprocVecEnv)`` finds the id
+    in its workers without a ``parcover_env:`` prefix (Gymnasium 1.x has no entry-point plugins)."""
     import gymnasium
 
     if "parcover_env/SingleRobotCoverage-v0" not in gymnasium.registry:
         gymnasium.register("parcover_env/SingleRobotCoverage-v0",
                            entry_point="parcover_env.env.single_agent:SingleRobotCoverageEnv")
+    try:
+        import multiprocessing.forkserver as forkserver
+
+        preload = list(getattr(forkserver._forkserver, "_preload_modules", ["__main__"]))
+        if __name__ not in preload:
+            forkserver.set_forkserver_preload([*preload, __name__])
+    except (ImportError, AttributeError, ValueError):  # pragma: no cover - platforms without forkserver
+        pass
 
 
 _register()

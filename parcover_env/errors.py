@@ -1,10 +1,27 @@
-"""Errors raised by parcover_env: one clear line each, never a deep traceback."""
+"""Errors raised by parcover_env: one clear line each, never a deep traceback.
+
+Every error pickles round-trip (same class, message and attributes), so an error raised in a
+benchmark worker process reaches the parent as itself, not as ``BrokenProcessPool``.
+"""
 
 from __future__ import annotations
+
+__all__ = ["ParcoverError", "ConfigError", "ActionError", "DependencyError", "OutputError"]
+
+
+def _rebuild(cls: type, args: tuple, state: dict) -> ParcoverError:
+    """Unpickle an error without calling its ``__init__`` (whose signature varies by subclass)."""
+    exc = cls.__new__(cls)
+    exc.args = args
+    exc.__dict__.update(state)
+    return exc
 
 
 class ParcoverError(Exception):
     """Base class of every error this package raises on bad input."""
+
+    def __reduce__(self):
+        return _rebuild, (type(self), self.args, dict(self.__dict__))
 
 
 class ConfigError(ParcoverError, ValueError):
@@ -20,3 +37,27 @@ class ConfigError(ParcoverError, ValueError):
 
 class ActionError(ParcoverError, ValueError):
     """An action passed to ``step`` is malformed; names the agent and what is wrong."""
+
+
+class DependencyError(ParcoverError, ImportError):
+    """An optional dependency is missing; names the package and the extra that installs it."""
+
+    def __init__(self, package: str, extra: str, purpose: str = ""):
+        self.package = package
+        self.extra = extra
+        for_what = f" for {purpose}" if purpose else ""
+        super().__init__(f"{package} is needed{for_what}: pip install 'parcover_env[{extra}]'")
+
+
+class OutputError(ParcoverError, OSError):
+    """An output file or directory cannot be written; names the path."""
+
+
+def require(module: str, extra: str, purpose: str = "", package: str | None = None):
+    """Import optional ``module`` or raise :class:`DependencyError` naming the extra to install."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise DependencyError(package or module.split(".")[0], extra, purpose) from None

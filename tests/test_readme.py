@@ -11,5 +11,5 @@ def test_readme_api_example_runs():
     code = re.search(r"## The API in 15 lines\n\n```python\n(.*?)```", text, re.S).group(1)
     namespace: dict = {}
     exec(compile(code, "README.md", "exec"), namespace)
-    assert namespace["infos"]["robot_0"]["episode"]["success"]
+    assert namespace["infos"]["robot_0"]["metrics/success"] == 1.0
     assert namespace["frame"].ndim == 3

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from parcover_env.cli.checks import check_writable_dir, non_negative_int, positive_int
 from parcover_env.errors import ParcoverError
-from parcover_env.harness.bench import run_sweep, write_report
 from parcover_env.policies.registry import check_policy_spec
 
 __all__ = ["add_bench_parser", "add_collect_parser"]
@@ -23,12 +23,12 @@ def add_bench_parser(sub) -> None:
         default="expert,random",
         help="comma-separated: expert, waypoint, random, ppo:PATH, bc:PATH (default: expert,random)",
     )
-    b.add_argument("--seeds", type=int, default=10, help="episodes per (scenario, policy): seeds 0..N-1")
-    b.add_argument("--seed-offset", type=int, default=0, help="first seed (default: 0)")
-    b.add_argument("--workers", type=int, default=2, help="parallel episodes (default: 2)")
+    b.add_argument("--seeds", type=positive_int, default=10, help="episodes per (scenario, policy): seeds 0..N-1")
+    b.add_argument("--seed-offset", type=non_negative_int, default=0, help="first seed (default: 0)")
+    b.add_argument("--workers", type=positive_int, default=2, help="parallel episodes (default: 2)")
     b.add_argument("--backend", choices=("local", "ray"), default="local")
     b.add_argument("--ray-address", default=None, help="Ray cluster address (default: start a local Ray)")
-    b.add_argument("--max-steps", type=int, default=None, help="override the scenarios' step limit")
+    b.add_argument("--max-steps", type=positive_int, default=None, help="override the scenarios' step limit")
     b.add_argument("--out", default="runs/bench", help="output directory (default: runs/bench)")
     b.add_argument("--no-plots", action="store_true")
     b.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -36,10 +36,19 @@ def add_bench_parser(sub) -> None:
 
 
 def cmd_bench(args) -> int:
+    from parcover_env.harness.bench import run_sweep, write_report
+
     scenarios = [s for s in args.scenarios.split(",") if s]
     policies = [p for p in args.policies.split(",") if p]
-    if args.seeds < 1:
-        raise ParcoverError(f"--seeds must be >= 1, got {args.seeds}")
+    if not scenarios or not policies:
+        raise ParcoverError("give at least one scenario and one policy")
+    for p in policies:
+        check_policy_spec(p)
+    if not args.no_plots:
+        from parcover_env.errors import require
+
+        require("matplotlib", "viz", "bench plots (or pass --no-plots)")
+    check_writable_dir(args.out, "--out")
     seeds = list(range(args.seed_offset, args.seed_offset + args.seeds))
     rows = run_sweep(
         scenarios,
@@ -61,8 +70,8 @@ def add_collect_parser(sub) -> None:
     """Register ``parcover collect`` on an argparse subparsers object."""
     c = sub.add_parser("collect", help="record expert episodes as a Minari dataset (needs the [data] extra)")
     c.add_argument("scenario", nargs="?", default="office")
-    c.add_argument("--episodes", type=int, default=10)
-    c.add_argument("--seed", type=int, default=0, help="first episode seed (default: 0)")
+    c.add_argument("--episodes", type=positive_int, default=10)
+    c.add_argument("--seed", type=non_negative_int, default=0, help="first episode seed (default: 0)")
     c.add_argument("--out", default="runs/datasets", help="dataset root (MINARI_DATASETS_PATH)")
     c.add_argument("--dataset-id", default=None, help="default: parcover/<scenario>-expert-v0")
     c.add_argument("--policy", default="expert", help="who drives (default: expert)")
@@ -72,9 +81,8 @@ def add_collect_parser(sub) -> None:
 def cmd_collect(args) -> int:
     from parcover_env.harness.datasets import collect
 
-    if args.episodes < 1:
-        raise ParcoverError(f"--episodes must be >= 1, got {args.episodes}")
     check_policy_spec(args.policy)
+    check_writable_dir(args.out, "--out")
     dataset_id, n = collect(args.scenario, args.episodes, args.out, args.seed, args.dataset_id, args.policy)
     print(
         f"wrote Minari dataset '{dataset_id}' ({n} robot episodes from {args.episodes} missions) under "

@@ -1,14 +1,26 @@
-"""The ``parcover`` command line: run missions, list scenarios, draw plans and sensor views."""
+"""parcover: run parallel path coverage missions, list scenarios, draw plans and sensor views.
+
+Bad input (an unknown scenario, a negative seed, a path that cannot be written, a missing optional
+dependency) is reported as one line "parcover: error: ..." with exit status 2.
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
+from parcover_env.cli.checks import (
+    OneLineParser,
+    check_writable_dir,
+    check_writable_file,
+    non_negative_int,
+    positive_int,
+    write_image,
+)
 from parcover_env.errors import ParcoverError
 from parcover_env.policies.registry import POLICY_SPECS
 
-__all__ = ["main"]
+__all__ = ["main", "build_parser"]
 
 
 def _format_metrics(m: dict) -> str:
@@ -27,18 +39,23 @@ def cmd_run(args) -> int:
     from parcover_env import parallel_env
     from parcover_env.harness.rollout import run_episode
     from parcover_env.policies.registry import make_policy
-    from parcover_env.viz.render import save_gif
+    from parcover_env.viz.render import GifRecorder
 
+    if args.gif:
+        check_writable_file(args.gif, "--gif")
     env = parallel_env(args.scenario, render_mode="rgb_array" if args.gif else None)
     policy = make_policy(args.policy, env, args.seed)
-    frames = [] if args.gif else None
     print(f"scenario {env.scenario.name}: {env.n_robots} robots, {len(env.scenario.kpois)} KPOIs, "
           f"policy {args.policy}, seed {args.seed}")
-    m = run_episode(env, policy, args.seed, args.steps, frames, progress=not args.quiet)
+    recorder = GifRecorder(args.gif, every=args.gif_every, fps=max(1, 10 // args.gif_every)) if args.gif else None
+    try:
+        m = run_episode(env, policy, args.seed, args.steps, recorder, progress=not args.quiet)
+    finally:
+        if recorder is not None:
+            recorder.close()
     print(_format_metrics(m))
-    if frames:
-        save_gif(args.gif, frames[:: max(1, args.gif_every)], fps=max(1, 10 // max(1, args.gif_every)))
-        print(f"wrote {args.gif} ({len(frames[:: max(1, args.gif_every)])} frames)")
+    if recorder is not None:
+        print(f"wrote {args.gif} ({recorder.written} frames)")
     return 0 if m["success"] or args.allow_failure else 1
 
 
@@ -53,13 +70,13 @@ def cmd_scenarios(args) -> int:
 
 
 def cmd_render(args) -> int:
-    import cv2
 
     from parcover_env import parallel_env
 
+    check_writable_file(args.png, "--png")
     env = parallel_env(args.scenario, render_mode="rgb_array")
     env.reset(seed=args.seed)
-    cv2.imwrite(args.png, cv2.cvtColor(env.render(), cv2.COLOR_RGB2BGR))
+    write_image(args.png, env.render(), "--png")
     print(f"wrote {args.png}")
     return 0
 
@@ -67,8 +84,10 @@ def cmd_render(args) -> int:
 def cmd_plan(args) -> int:
     from parcover_env.planning import kinect_footprints, kinect_tree, plan_scenario
     from parcover_env.scenarios import load_scenario
-    from parcover_env.viz.plan import draw_plan, save_png
+    from parcover_env.viz.plan import draw_plan
 
+    if args.png:
+        check_writable_file(args.png, "--png")
     s = load_scenario(args.scenario)
     plan = plan_scenario(s, args.n_robots if args.n_robots is not None else s.n_robots_fixed)
     tree = kinect_tree(kinect_footprints(s), plan, (s.start.x, s.start.y)) if s.kinects else None
@@ -82,7 +101,7 @@ def cmd_plan(args) -> int:
         links = ", ".join(f"{a}-{b} ({n})" for (a, b), n in sorted(tree.links.items()))
         print(f"  Kinect tree rooted at {tree.root}: links {links or 'none'}")
     if args.png:
-        save_png(args.png, draw_plan(s, plan, tree))
+        write_image(args.png, draw_plan(s, plan, tree), "--png")
         print(f"wrote {args.png}")
     return 0
 
@@ -93,6 +112,7 @@ def cmd_kinect(args) -> int:
     from parcover_env.scenarios import load_scenario
     from parcover_env.viz.kinect_views import write_kinect_views
 
+    check_writable_dir(args.out, "--out")
     paths = write_kinect_views(load_scenario(args.scenario), args.out, np.random.default_rng(args.seed))
     for p in paths:
         print(f"wrote {p}")
@@ -100,13 +120,14 @@ def cmd_kinect(args) -> int:
 
 
 def cmd_sectors(args) -> int:
-    import cv2
 
     from parcover_env.localization.sonar import compute_sectors, map_features
     from parcover_env.scenarios import load_scenario
     from parcover_env.viz.sectors import draw_sectors
     from parcover_env.world.map_model import map_model
 
+    if args.png:
+        check_writable_file(args.png, "--png")
     s = load_scenario(args.scenario)
     known = map_model(s.map, include_unknown=False)
     features = map_features(known)
@@ -115,22 +136,24 @@ def cmd_sectors(args) -> int:
     print(f"scenario {s.name}: {len(features)} features, {len(sectors)} {name} sectors "
           f"(sonar range {s.robot.sonar.range_max} m)")
     if args.png:
-        if not cv2.imwrite(args.png, draw_sectors(known, sectors, features)[:, :, ::-1]):
-            raise ParcoverError(f"--png: cannot write {args.png}")
+        write_image(args.png, draw_sectors(known, sectors, features), "--png")
         print(f"wrote {args.png}")
     return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="parcover", description=__doc__)
-    sub = p.add_subparsers(dest="command", required=True)
+    from parcover_env import __version__
+
+    p = OneLineParser(prog="parcover", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--version", action="version", version=f"parcover {__version__}")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     r = sub.add_parser("run", help="run one mission and print its metrics")
     r.add_argument("scenario", nargs="?", default="office", help="scenario name or YAML path (default: office)")
-    r.add_argument("--seed", type=int, default=0, help="episode seed (default: 0)")
-    r.add_argument("--steps", type=int, default=None, help="stop after N steps (default: the scenario's limit)")
+    r.add_argument("--seed", type=non_negative_int, default=0, help="episode seed (default: 0)")
+    r.add_argument("--steps", type=positive_int, default=None, help="stop after N steps (default: scenario's limit)")
     r.add_argument("--policy", default="expert", help=f"who drives: {POLICY_SPECS} (default: expert)")
     r.add_argument("--gif", default=None, help="write an animated GIF of the episode here")
-    r.add_argument("--gif-every", type=int, default=2, help="keep every k-th frame in the GIF (default: 2)")
+    r.add_argument("--gif-every", type=positive_int, default=2, help="keep every k-th frame in the GIF (default: 2)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--allow-failure", action="store_true", help="exit 0 even if not every KPOI was visited")
     r.set_defaults(func=cmd_run)
@@ -139,7 +162,7 @@ def build_parser() -> argparse.ArgumentParser:
     f = sub.add_parser("render", help="write the first frame of a scenario as a PNG")
     f.add_argument("scenario", nargs="?", default="office")
     f.add_argument("--png", default="frame.png", help="output file (default: frame.png)")
-    f.add_argument("--seed", type=int, default=0)
+    f.add_argument("--seed", type=non_negative_int, default=0)
     f.set_defaults(func=cmd_render)
     from parcover_env.cli.bench import add_bench_parser, add_collect_parser
 
@@ -148,12 +171,12 @@ def build_parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("plan", help="PPCP plan: print r, c_max, c_p and the TPs; draw it")
     pl.add_argument("scenario", nargs="?", default="office")
     pl.add_argument("--png", default=None, help="draw the map, roadmap, plan tree and Kinect tree here")
-    pl.add_argument("--n-robots", type=int, default=None, help="plan for this many robots (min-max variant)")
+    pl.add_argument("--n-robots", type=positive_int, default=None, help="plan for this many robots (min-max variant)")
     pl.set_defaults(func=cmd_plan)
     k = sub.add_parser("kinect", help="write the Kinect views: depth, IR, pipeline stages, hull, trajectory")
     k.add_argument("scenario", nargs="?", default="office")
     k.add_argument("--out", default="kinect_views", help="output directory (default: kinect_views/)")
-    k.add_argument("--seed", type=int, default=0)
+    k.add_argument("--seed", type=non_negative_int, default=0)
     k.set_defaults(func=cmd_kinect)
     se = sub.add_parser("sectors", help="sonar visibility sectors of a map (seed B Fig. 3/4)")
     se.add_argument("scenario", nargs="?", default="t_room")
@@ -163,12 +186,23 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    """Run the command line; returns the exit status (2 = bad input, reported in one line)."""
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # --help, --version (0) and argument errors (2, already printed)
+        return int(exc.code or 0)
     try:
         return args.func(args)
     except ParcoverError as exc:
-        print(f"parcover: error: {exc}", file=sys.stderr)
+        print(f"parcover: error: {_one_line(exc)}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # a file the user named cannot be read or written
+        print(f"parcover: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130

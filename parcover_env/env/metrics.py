@@ -1,14 +1,25 @@
-"""Episode metrics, reported in ``info[agent]["episode"]`` when the episode ends."""
+"""Episode metrics, reported in the flat ``info[agent]["metrics/<name>"]`` entries.
+
+Infos are flat (scalars and arrays only, the same keys at reset and at every step: TorchRL's
+PettingZoo wrapper builds its spec from the reset infos). ``metrics/*`` entries are 0 (and
+``metrics/ended`` is 0) until the step that ends the episode; :func:`episode_metrics` turns an
+info back into the metrics dict.
+"""
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from parcover_env.geometry import wrap_angle
 
-__all__ = ["EpisodeMetrics", "formation_errors"]
+__all__ = ["EpisodeMetrics", "formation_errors", "MESSAGE_KINDS", "METRICS_PREFIX", "episode_metrics"]
+
+MESSAGE_KINDS = ("split", "promotion", "waypoint", "pose")
+"""Kinds of message the Kinect system sends (counted in ``messages``)."""
+METRICS_PREFIX = "metrics/"
 
 
 def formation_errors(poses: np.ndarray, predecessor: np.ndarray, offset: float, l_d: float,
@@ -78,3 +89,44 @@ class EpisodeMetrics:
         out["makespan_ratio"] = (self.makespan / bound) if self.makespan is not None else None
         out["collisions"] = self.wall_collisions + self.robot_collisions
         return out
+
+    def flat(self, ended: bool = True) -> dict[str, float | np.ndarray]:
+        """The ``metrics/<name>`` info entries: floats (and the ``(N,)`` path lengths). All 0 with
+        ``metrics/ended`` = 0 until the episode ends (not NaN: infos must compare equal across
+        identical runs); at the end, undefined values (makespan of a failed mission) are NaN."""
+        p = METRICS_PREFIX
+        if not ended:
+            out = dict.fromkeys((p + k for k in _FLAT_SCALARS), 0.0)
+            out[p + "path_lengths"] = np.zeros(self.n_robots)
+            return out
+        s = self.summary()
+        out = {p + k: math.nan if s[k] is None else float(s[k]) for k in _SCALARS}
+        for kind in MESSAGE_KINDS:
+            out[f"{p}messages_{kind}"] = float(s["messages"].get(kind, 0))
+        out[p + "messages"] = float(sum(s["messages"].values()))
+        out[p + "ended"] = 1.0
+        out[p + "path_lengths"] = np.asarray(s["path_lengths"], dtype=float)
+        return out
+
+
+_SCALARS = ("n_kpois", "n_robots", "c_max", "max_speed", "steps", "time", "kpois_visited", "makespan",
+            "wall_collisions", "robot_collisions", "localization_error", "formation_error_l",
+            "formation_error_psi", "success", "makespan_ratio", "collisions")
+_INTS = ("n_kpois", "n_robots", "steps", "kpois_visited", "wall_collisions", "robot_collisions", "collisions")
+_FLAT_SCALARS = (*_SCALARS, *(f"messages_{k}" for k in MESSAGE_KINDS), "messages", "ended")
+
+
+def episode_metrics(info: dict) -> dict | None:
+    """The episode metrics (as :meth:`EpisodeMetrics.summary` gives them) from one agent's flat
+    info; None if the info is not from the step that ended the episode."""
+    p = METRICS_PREFIX
+    if info.get(p + "ended", 0.0) != 1.0:
+        return None
+    out: dict = {}
+    for k in _SCALARS:
+        v = float(info[p + k])
+        out[k] = None if math.isnan(v) else (int(v) if k in _INTS else v)
+    out["success"] = bool(out["success"])
+    out["path_lengths"] = np.asarray(info[p + "path_lengths"], dtype=float).tolist()
+    out["messages"] = {k: int(info[f"{p}messages_{k}"]) for k in MESSAGE_KINDS}
+    return out

@@ -9,11 +9,11 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from parcover_env.config import Scenario
+from parcover_env.config import Scenario, deep_merge
 from parcover_env.env.actions import to_commands
 from parcover_env.env.metrics import EpisodeMetrics, formation_errors
 from parcover_env.env.observations import MAX_FIX_AGE, ObservationLayout, ellipse_entries
-from parcover_env.env.rewards import TERMS, reward_terms
+from parcover_env.env.rewards import REWARD_KEYS, TERMS, reward_terms
 from parcover_env.env.team import Team
 from parcover_env.geometry import rotate, wrap_angle
 from parcover_env.localization.kinect.system import KinectSystem
@@ -80,18 +80,21 @@ class ParallelCoverageEnv(ParallelEnv):
 
     ## Rewards
     Per agent, the sum of named terms whose weights come from ``rewards`` in the scenario and which
-    are reported in ``info[agent]["reward_terms"]``: ``kpoi`` (per KPOI newly visited by anyone,
+    are reported in ``info[agent]["reward_<term>"]``: ``kpoi`` (per KPOI newly visited by anyone,
     team reward), ``progress`` (per metre of route-to-go removed, potential-based), ``time`` (per
     step), ``collision`` (per new contact of this agent with a wall or robot). A KPOI is visited
     when a robot's true centre comes within ``kpoi_radius`` of it.
 
     ## Episode end
     Terminated when every KPOI is visited; truncated after ``episode.max_steps`` control steps.
-    All agents end together; ``info[agent]["episode"]`` then holds the metrics (makespan, KPOIs
-    visited, collisions, path lengths, localization error, makespan / (c_max / v_max), ...).
+    All agents end together. Infos are flat (scalars and arrays, the same keys at reset and at
+    every step): the ``reward_<term>`` values and ``metrics/<name>`` entries that are 0 until
+    the step that ends the episode (``metrics/ended`` = 1), where they hold the metrics (makespan,
+    KPOIs visited, collisions, path lengths, localization error, makespan / (c_max / v_max), ...);
+    ``parcover_env.env.metrics.episode_metrics(info)`` gives them back as a dict.
 
     ## Infos and analysis
-    ``info[agent]`` holds ``reward_terms`` and the per-step estimate error ``pose_error`` (m) and
+    ``info[agent]`` also holds the per-step estimate error ``pose_error`` (m) and
     ``heading_error`` (rad, absolute). ``env.true_poses()`` and ``env.pose_estimates()`` return
     ``(n_robots, 3)`` arrays (x, y, theta) in agent order, ``env.pose_covariances()`` ``(n_robots, 3, 3)``.
 
@@ -100,25 +103,39 @@ class ParallelCoverageEnv(ParallelEnv):
     5 x 0.02 s = 0.1 s); pymunk integrates at ``physics.dt``.
 
     ## Arguments
-    ``scenario`` (name, path or Scenario, default ``"office"``), ``render_mode`` (``None`` or
-    ``"rgb_array"``), ``overrides`` (nested dict merged over the scenario, e.g.
-    ``{"n_robots": 3, "episode": {"max_steps": 500}}``).
+    ``scenario`` (name, path or Scenario, default ``"office"``), ``render_mode`` (``None``,
+    ``"rgb_array"`` or ``"human"``: an OpenCV window, which needs a display and an OpenCV build
+    with GUI support), ``overrides`` (nested dict merged over the scenario, e.g.
+    ``{"n_robots": 3, "episode": {"max_steps": 500}}``), ``preset`` (``"realistic"`` or
+    ``"ideal"``: every error model off), ``max_cycles`` (step limit, like MPE's; default: the
+    scenario's ``episode.max_steps``).
+
+    ``env.np_random`` is the episode's ``numpy.random.Generator`` (made by ``reset(seed=...)``).
 
     ## Version history
-    * v1: realistic motion and covariance observations: differential-drive dynamics (wheel limits,
-      lag, bounded acceleration), wheel odometry with UMBmark systematic, random and slip errors,
-      ``v, omega`` measured by the encoders, pose-uncertainty entries (``sigma_*``) after ``fix_age``,
-      ``info[agent]`` pose errors, ``true_poses()`` / ``pose_estimates()`` / ``pose_covariances()``.
-      The ``ideal`` preset keeps v0's motion, odometry and observation layout.
-    * v0: initial release.
+    * v1 (0.2.0): realistic motion and covariance observations: differential-drive dynamics (wheel
+      limits, lag, bounded acceleration), wheel odometry with UMBmark systematic, random and slip
+      errors, ``v, omega`` measured by the encoders, pose-uncertainty entries (``sigma_*``) after
+      ``fix_age``, ``info[agent]`` pose errors, ``true_poses()`` / ``pose_estimates()`` /
+      ``pose_covariances()``; realistic Kinect mounting errors and sonar (multipath, cross-talk,
+      dropouts). Episode metrics moved from ``info[agent]["episode"]`` (which Gymnasium's
+      ``RecordEpisodeStatistics`` and SB3's ``Monitor`` own) to flat ``info[agent]["metrics/<name>"]``
+      entries; reward terms moved from ``info[agent]["reward_terms"]`` to flat
+      ``info[agent]["reward_<term>"]``; the reset info no longer carries the plan (``env.plan``);
+      ``human`` render mode; ``max_cycles``; finite ``state_space`` bounds; ``env.np_random``.
+      ``preset="ideal"`` keeps v0's motion, odometry, sensors and observation layout.
+    * v0 (0.1.0): initial release.
     """
 
-    metadata = {"name": "parcover_v1", "render_modes": ["rgb_array"], "render_fps": 10, "is_parallelizable": True}
+    metadata = {"name": "parcover_v1", "render_modes": ["rgb_array", "human"], "render_fps": 10,
+                "is_parallelizable": True}
 
     def __init__(self, scenario: str | Path | Scenario = "office", render_mode: str | None = None,
-                 overrides: dict | None = None, preset: str = "realistic"):
+                 overrides: dict | None = None, preset: str = "realistic", max_cycles: int | None = None):
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
+        if max_cycles is not None:
+            overrides = deep_merge(overrides or {}, {"episode": {"max_steps": max_cycles}})
         self.scenario = load_scenario(scenario, overrides, preset)
         self.render_mode = render_mode
         s = self.scenario
@@ -138,9 +155,9 @@ class ParallelCoverageEnv(ParallelEnv):
         self._fix_cov = np.diag([sxy**2, sxy**2, sth**2])
         self._obs_space = self.layout.space()
         self._act_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
-        n_state = 5 * self.n_robots + len(s.kpois) + 1
-        self.state_space = spaces.Box(-np.inf, np.inf, (n_state,), dtype=np.float32)
+        self.state_space = _state_space(self.map.bounds, self.n_robots, len(s.kpois))
         self._rng: np.random.Generator | None = None
+        self._window: str | None = None
 
     # ------------------------------------------------------------------ spaces
     def observation_space(self, agent: str) -> spaces.Box:
@@ -148,6 +165,25 @@ class ParallelCoverageEnv(ParallelEnv):
 
     def action_space(self, agent: str) -> spaces.Box:
         return self._act_space
+
+    @property
+    def np_random(self) -> np.random.Generator:
+        """The episode's random generator (seeded by ``reset(seed=...)``; made unseeded if needed)."""
+        if self._rng is None:
+            self._rng = np.random.default_rng()
+        return self._rng
+
+    @property
+    def max_cycles(self) -> int:
+        """Step limit of an episode (``episode.max_steps``); settable (takes effect at once)."""
+        return self.scenario.episode.max_steps
+
+    @max_cycles.setter
+    def max_cycles(self, value: int) -> None:
+        import dataclasses
+
+        s = self.scenario
+        self.scenario = dataclasses.replace(s, episode=dataclasses.replace(s.episode, max_steps=value))
 
     # ------------------------------------------------------------------ episode
     def reset(self, seed: int | None = None, options: dict | None = None):
@@ -175,7 +211,12 @@ class ParallelCoverageEnv(ParallelEnv):
         self.progress.update(true[:, :2], self.estimate[:, :2], 0.0)
         self.team.update(self.estimate[:, :2], self.progress.plan_progress)
         obs = self._observe(true)
-        infos = {a: {"plan": self.plan.to_dict()} for a in self.agents}
+        zeros = dict.fromkeys(REWARD_KEYS, 0.0)
+        metrics = self.metrics.flat(ended=False)
+        pos_err = np.hypot(*(self.estimate[:, :2] - true[:, :2]).T).tolist()
+        head_err = np.abs(wrap_angle(self.estimate[:, 2] - true[:, 2])).tolist()
+        infos = {a: {**zeros, **metrics, "pose_error": pe, "heading_error": he}
+                 for a, pe, he in zip(self.agents, pos_err, head_err, strict=True)}
         return obs, infos
 
     def step(self, actions: dict[str, Any]):
@@ -200,15 +241,12 @@ class ParallelCoverageEnv(ParallelEnv):
         for t in TERMS:  # summed in TERMS order, as sum() over the terms of each agent would
             total = total + terms[t]
         rewards = dict(zip(self.agents, total.tolist(), strict=True))
+        metrics = self.metrics.flat(ended=done or truncated)
         per_agent = zip(*(terms[t].tolist() for t in TERMS), strict=True)
         pos_err = np.hypot(*(self.estimate[:, :2] - true[:, :2]).T).tolist()
         head_err = np.abs(wrap_angle(self.estimate[:, 2] - true[:, 2])).tolist()
-        infos = {a: {"reward_terms": dict(zip(TERMS, vals, strict=True)), "pose_error": pe, "heading_error": he}
+        infos = {a: {**dict(zip(REWARD_KEYS, vals, strict=True)), **metrics, "pose_error": pe, "heading_error": he}
                  for a, vals, pe, he in zip(self.agents, per_agent, pos_err, head_err, strict=True)}
-        if done or truncated:
-            summary = self.metrics.summary()
-            for info in infos.values():
-                info["episode"] = summary
         terminations = {a: done for a in self.agents}
         truncations = {a: truncated for a in self.agents}
         if done or truncated:
@@ -338,11 +376,30 @@ class ParallelCoverageEnv(ParallelEnv):
         return self.kinects.render_frames(self.world.poses(), markers, seed=self.steps)
 
     def render(self) -> np.ndarray | None:
+        """``rgb_array``: the top-down frame (H, W, 3) uint8; ``human``: show it in a window, None."""
         if self.render_mode is None:
             return None
-        from parcover_env.viz.render import render_frame
+        from parcover_env.viz.render import render_frame, show_frame
 
-        return render_frame(self)
+        frame = render_frame(self)
+        if self.render_mode == "human":
+            self._window = show_frame(frame, f"parcover {self.scenario.name}", 1000 // self.metadata["render_fps"])
+            return None
+        return frame
 
     def close(self) -> None:
-        pass
+        if self._window is not None:
+            from parcover_env.viz.render import close_window
+
+            close_window(self._window)
+            self._window = None
+
+
+def _state_space(bounds, n_robots: int, n_kpois: int) -> spaces.Box:
+    """Bounds of ``state()``: per robot x, y in the map box, cos, sin in [-1, 1], leader flag in [0, 1];
+    KPOI visited flags and the elapsed time fraction in [0, 1]."""
+    x0, y0, x1, y1 = bounds
+    robot_lo, robot_hi = [x0, y0, -1.0, -1.0, 0.0], [x1, y1, 1.0, 1.0, 1.0]
+    low = np.array(robot_lo * n_robots + [0.0] * (n_kpois + 1), dtype=np.float32)
+    high = np.array(robot_hi * n_robots + [1.0] * (n_kpois + 1), dtype=np.float32)
+    return spaces.Box(low, high, dtype=np.float32)

@@ -6,9 +6,11 @@ import numpy as np
 
 from parcover_env.config import RewardConfig
 
-__all__ = ["TERMS", "reward_terms"]
+__all__ = ["TERMS", "REWARD_KEYS", "reward_terms"]
 
 TERMS = ("kpoi", "progress", "time", "collision")
+REWARD_KEYS = tuple(f"reward_{t}" for t in TERMS)
+"""Info keys of the terms: ``info[agent]["reward_kpoi"]`` etc. (flat, present at reset as 0)."""
 
 
 def reward_terms(w: RewardConfig, n_new_kpois: int, progress: np.ndarray,

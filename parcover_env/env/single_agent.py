@@ -5,6 +5,7 @@ from __future__ import annotations
 import gymnasium as gym
 
 from parcover_env.env import ParallelCoverageEnv
+from parcover_env.env.metrics import episode_metrics
 
 __all__ = ["SingleRobotCoverageEnv"]
 
@@ -18,8 +19,8 @@ class SingleRobotCoverageEnv(gym.Env):
 
     metadata = ParallelCoverageEnv.metadata
 
-    def __init__(self, scenario="t_room", render_mode=None, overrides=None):
-        self.par = ParallelCoverageEnv(scenario, render_mode=render_mode, overrides=overrides)
+    def __init__(self, scenario="t_room", render_mode=None, overrides=None, preset="realistic"):
+        self.par = ParallelCoverageEnv(scenario, render_mode=render_mode, overrides=overrides, preset=preset)
         if self.par.n_robots != 1:
             raise ValueError(f"scenario '{self.par.scenario.name}' has {self.par.n_robots} robots; the single-agent "
                              "env needs 1 (pass overrides={'n_robots': 1})")
@@ -35,7 +36,11 @@ class SingleRobotCoverageEnv(gym.Env):
 
     def step(self, action):
         obs, rew, term, trunc, infos = self.par.step({self.agent: action})
-        return obs[self.agent], rew[self.agent], term[self.agent], trunc[self.agent], infos[self.agent]
+        info = infos[self.agent]
+        metrics = episode_metrics(info)
+        if metrics is not None:  # gymnasium's RecordEpisodeStatistics owns info["episode"]
+            info["metrics"] = metrics
+        return obs[self.agent], rew[self.agent], term[self.agent], trunc[self.agent], info
 
     def render(self):
         return self.par.render()

@@ -11,8 +11,9 @@ Semantics (the SB3 conventions, applied per agent):
 * An agent that finishes before its team (PettingZoo: it disappears from ``env.agents``) leaves an
   idle slot until the whole ParallelEnv resets: zero observation, zero reward, ``done=False``,
   ``info["active"] = False``; its actions are ignored (SuperSuit's "black death" convention).
-* The env's end-of-episode metrics (``info["episode"]`` in ParallelCoverageEnv) are moved to
-  ``info["metrics"]``: SB3 and ``VecMonitor`` reserve ``info["episode"]`` for ``{"r", "l", "t"}``.
+* The env's end-of-episode metrics (flat ``metrics/<name>`` entries in ParallelCoverageEnv) are
+  gathered into ``info["metrics"]`` (a dict); SB3 and ``VecMonitor`` own ``info["episode"]``
+  (``{"r", "l", "t"}``).
 * When every agent of a ParallelEnv is done the env is reset and the slots carry the new
   episode's first observations.
 
@@ -33,6 +34,8 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import CloudpickleWrapper, VecEnv
+
+from parcover_env.env.metrics import episode_metrics
 
 __all__ = ["AgentSlots", "ParallelVecEnv", "make_vec_env"]
 
@@ -84,8 +87,9 @@ class AgentSlots:
                 out_infos.append({"active": False})
                 continue
             info = dict(infos.get(a, {}))
-            if "episode" in info:  # SB3/VecMonitor own info["episode"] = {"r", "l", "t"}
-                info["metrics"] = info.pop("episode")
+            metrics = episode_metrics(info)
+            if metrics is not None:  # SB3/VecMonitor own info["episode"] = {"r", "l", "t"}
+                info["metrics"] = metrics
             info["active"] = True
             rewards[i] = float(rew.get(a, 0.0))
             t, tr = bool(term.get(a, False)), bool(trunc.get(a, False))

@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import csv
 import math
-import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -73,19 +71,6 @@ def run_job(scenario: str, policy: str, seed: int, max_steps: int | None = None)
     }
 
 
-def _progress(done: int, total: int, t0: float, stream=sys.stderr) -> None:
-    if not stream.isatty() and done < total and done % max(total // 10, 1):
-        return
-    width = 30
-    filled = int(width * done / max(total, 1))
-    stream.write(
-        f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} episodes, {time.time() - t0:.0f} s"
-    )
-    if done >= total:
-        stream.write("\n")
-    stream.flush()
-
-
 def run_sweep(
     scenarios: list[str],
     policies: list[str],
@@ -106,26 +91,28 @@ def run_sweep(
     jobs = [(s, p, seed) for s in scenarios for p in policies for seed in seeds]
     if not jobs:
         raise ValueError("nothing to run: no scenarios, policies or seeds")
-    t0 = time.time()
-    report = (lambda d: _progress(d, len(jobs), t0)) if progress else (lambda d: None)
-    if backend == "ray":
-        return _run_ray(jobs, workers, max_steps, report, ray_address)
-    if workers == 1:
-        rows = []
-        for i, (s, p, seed) in enumerate(jobs):
-            rows.append(run_job(s, p, seed, max_steps))
-            report(i + 1)
-        return rows
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from tqdm import tqdm
 
-    rows: list[dict | None] = [None] * len(jobs)
-    with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
-        futures = {pool.submit(run_job, s, p, seed, max_steps): i for i, (s, p, seed) in enumerate(jobs)}
-        for n, fut in enumerate(as_completed(futures)):
-            rows[futures[fut]] = fut.result()
-            report(n + 1)
-    return rows  # type: ignore[return-value]
+    with tqdm(total=len(jobs), unit="episode", desc="bench", disable=not progress, dynamic_ncols=True) as bar:
+        report = bar.update
+        if backend == "ray":
+            return _run_ray(jobs, workers, max_steps, report, ray_address)
+        if workers == 1:
+            rows = []
+            for s, p, seed in jobs:
+                rows.append(run_job(s, p, seed, max_steps))
+                report(1)
+            return rows
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        rows: list[dict | None] = [None] * len(jobs)
+        with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
+            futures = {pool.submit(run_job, s, p, seed, max_steps): i for i, (s, p, seed) in enumerate(jobs)}
+            for fut in as_completed(futures):
+                rows[futures[fut]] = fut.result()  # a ParcoverError in a worker is re-raised here as itself
+                report(1)
+        return rows  # type: ignore[return-value]
 
 
 def _run_ray(jobs, workers, max_steps, report, address) -> list[dict]:
@@ -145,11 +132,10 @@ def _run_ray(jobs, workers, max_steps, report, address) -> list[dict]:
     try:
         remote = ray.remote(num_cpus=1)(run_job)
         refs = [remote.remote(s, p, seed, max_steps) for s, p, seed in jobs]
-        pending, done = list(refs), 0
+        pending = list(refs)
         while pending:
             ready, pending = ray.wait(pending, num_returns=1)
-            done += len(ready)
-            report(done)
+            report(len(ready))
         return ray.get(refs)
     finally:
         if started:
@@ -174,16 +160,54 @@ def mean_ci(values, level: float = 0.95) -> tuple[float, float, int]:
 
 
 def wilson_ci(k: float, n: int, level: float = 0.95) -> tuple[float, float]:
-    """Wilson score interval of a proportion k/n."""
+    """Wilson score interval of a proportion k/n (scipy), clipped so that lo <= k/n <= hi."""
     from scipy import stats
 
     if n == 0:
         return math.nan, math.nan
-    z = stats.norm.ppf(0.5 + level / 2)
+    ci = stats.binomtest(int(round(k)), int(n)).proportion_ci(confidence_level=level, method="wilson")
     p = k / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return centre - half, centre + half
+    return min(float(ci.low), p), max(float(ci.high), p)
+
+
+IQM_BOOTSTRAP = 2000
+"""Bootstrap resamples of the IQM confidence interval."""
+
+
+def iqm_ci(values, level: float = 0.95, seed: int = 0) -> tuple[float, float, float]:
+    """Interquartile mean (scipy ``trim_mean`` at 25 %) and its percentile-bootstrap CI (lo, hi) over
+    the finite values; the CI is clipped to contain the IQM. NaN when fewer than 2 values."""
+    from scipy import stats
+
+    x = np.asarray([v for v in values if v is not None and np.isfinite(v)], dtype=float)
+    if len(x) == 0:
+        return math.nan, math.nan, math.nan
+    iqm = float(stats.trim_mean(x, 0.25))
+    if len(x) < 2 or np.ptp(x) == 0:
+        return iqm, iqm if len(x) >= 2 else math.nan, iqm if len(x) >= 2 else math.nan
+    res = stats.bootstrap((x,), lambda a, axis: stats.trim_mean(a, 0.25, axis=axis), confidence_level=level,
+                          n_resamples=IQM_BOOTSTRAP, method="percentile", rng=np.random.default_rng(seed))
+    return iqm, min(float(res.confidence_interval.low), iqm), max(float(res.confidence_interval.high), iqm)
+
+
+def stratified_iqm_ci(groups: list[list[float]], level: float = 0.95, seed: int = 0,
+                      n_resamples: int = IQM_BOOTSTRAP) -> tuple[float, float, float]:
+    """IQM over all runs of several tasks (scenarios) and its stratified-bootstrap CI: each resample
+    draws runs with replacement within every task (Agarwal et al. 2021, rliable); clipped to contain
+    the IQM."""
+    from scipy import stats
+
+    xs = [np.asarray([v for v in g if v is not None and np.isfinite(v)], dtype=float) for g in groups]
+    xs = [x for x in xs if len(x)]
+    if not xs:
+        return math.nan, math.nan, math.nan
+    iqm = float(stats.trim_mean(np.concatenate(xs), 0.25))
+    rng = np.random.default_rng(seed)
+    boots = np.empty(n_resamples)
+    for b in range(n_resamples):
+        boots[b] = stats.trim_mean(np.concatenate([x[rng.integers(0, len(x), len(x))] for x in xs]), 0.25)
+    lo, hi = np.quantile(boots, [(1 - level) / 2, (1 + level) / 2])
+    return iqm, min(float(lo), iqm), max(float(hi), iqm)
 
 
 def summarize(rows: list[dict]) -> list[dict]:
@@ -210,6 +234,8 @@ def summarize(rows: list[dict]) -> list[dict]:
                 continue
             mean, half, cnt = mean_ci([r[m] for r in g])
             s[m], s[f"{m}_ci"], s[f"{m}_n"] = mean, half, cnt
+        s["makespan_ratio_iqm"], s["makespan_ratio_iqm_lo"], s["makespan_ratio_iqm_hi"] = iqm_ci(
+            [r["makespan_ratio"] for r in g])
         out.append(s)
     return out
 
@@ -227,6 +253,7 @@ def markdown_table(summary: list[dict]) -> str:
         "episodes",
         "success [95% CI]",
         "makespan / (c_max/v_max)",
+        "makespan ratio IQM [95% CI]",
         "KPOIs visited",
         "collisions",
         "messages",
@@ -241,6 +268,8 @@ def markdown_table(summary: list[dict]) -> str:
             f"{s['success']:.2f} [{s['success_lo']:.2f}, {s['success_hi']:.2f}]",
             _fmt(s["makespan_ratio"], s["makespan_ratio_ci"])
             + (f" (n={s['makespan_ratio_n']})" if s["makespan_ratio_n"] else ""),
+            (f"{s['makespan_ratio_iqm']:.2f} [{s['makespan_ratio_iqm_lo']:.2f}, {s['makespan_ratio_iqm_hi']:.2f}]"
+             if np.isfinite(s["makespan_ratio_iqm_lo"]) else _fmt(s["makespan_ratio_iqm"], math.nan)),
             _fmt(s["kpoi_fraction"], s["kpoi_fraction_ci"]),
             _fmt(s["collisions"], s["collisions_ci"], 1),
             _fmt(s["messages"], s["messages_ci"], 0),
@@ -259,8 +288,9 @@ def _write_csv(path: Path, rows: list[dict]) -> None:
 
 def plot_summary(summary: list[dict], path: Path) -> None:
     """One bar chart per metric, policies side by side per scenario, 95 % CI error bars."""
-    import matplotlib
+    from parcover_env.errors import require
 
+    matplotlib = require("matplotlib", "viz", "bench plots")
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -281,8 +311,8 @@ def plot_summary(summary: list[dict], path: Path) -> None:
                     errs[1].append(0)
                 elif m == "success":
                     vals.append(s["success"])
-                    errs[0].append(s["success"] - s["success_lo"])
-                    errs[1].append(s["success_hi"] - s["success"])
+                    errs[0].append(max(0.0, s["success"] - s["success_lo"]))  # never a negative error bar
+                    errs[1].append(max(0.0, s["success_hi"] - s["success"]))
                 else:
                     half = s[f"{m}_ci"] if np.isfinite(s[f"{m}_ci"]) else 0.0
                     vals.append(s[m])

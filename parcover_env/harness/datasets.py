@@ -75,11 +75,16 @@ def record_episodes(
 
 
 def _minari():
-    try:
-        import minari
-    except ImportError:
-        raise ParcoverError("Minari is not installed: pip install 'parcover_env[data]' h5py") from None
+    from parcover_env.errors import require
+
+    minari = require("minari", "data", "Minari datasets")
+    require("h5py", "data", "Minari datasets")
     return minari
+
+
+def dataset_path(dataset_id: str, root: str | Path) -> Path:
+    """Where Minari keeps dataset ``dataset_id`` under ``root`` (MINARI_DATASETS_PATH)."""
+    return Path(root) / dataset_id
 
 
 def save_minari(
@@ -129,9 +134,28 @@ def _create(minari, dataset_id, buffers, algorithm, env, agent) -> None:
         author="parcover_env",
         observation_space=env.observation_space(agent),
         action_space=env.action_space(agent),
+        env_spec=_env_spec(env),
         description=f"{algorithm} demonstrations on scenario '{env.scenario.name}', one episode per robot "
         "(parameter sharing view)",
         data_format="hdf5",
+    )
+
+
+def _env_spec(env):
+    """The Gymnasium spec of the one-robot view of the scenario, so ``dataset.recover_environment()``
+    can rebuild an env (``parcover_env/SingleRobotCoverage-v0`` with the scenario and a 1-robot team)."""
+    from gymnasium.envs.registration import EnvSpec
+
+    from parcover_env.scenarios import configs_dir
+
+    source = env.scenario.source
+    if Path(source).parent == configs_dir():  # a shipped scenario: by name, not by this machine's path
+        source = Path(source).stem
+    return EnvSpec(
+        id="parcover_env/SingleRobotCoverage-v0",
+        entry_point="parcover_env.env.single_agent:SingleRobotCoverageEnv",
+        max_episode_steps=env.scenario.episode.max_steps,
+        kwargs={"scenario": source, "overrides": {"n_robots": 1}},
     )
 
 
@@ -164,6 +188,10 @@ def collect(
     """Record and save; returns (dataset id, number of agent-episodes)."""
     name = str(scenario).replace(":", "-").replace("/", "-").removesuffix(".yaml")
     dataset_id = dataset_id or f"parcover/{name}-{policy}-v0"
+    if dataset_path(dataset_id, out).exists():
+        raise ParcoverError(f"dataset '{dataset_id}' already exists under {out}; choose another --dataset-id "
+                            "or --out, or delete it")
+    _minari()  # fail before recording, not after
     eps = record_episodes(scenario, episodes, seed, policy)
     save_minari(eps, dataset_id, out, scenario, algorithm=policy)
     return dataset_id, len(eps)

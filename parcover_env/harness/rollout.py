@@ -2,43 +2,48 @@
 
 from __future__ import annotations
 
-import sys
 import time
+
+from parcover_env.env.metrics import episode_metrics
 
 __all__ = ["run_episode"]
 
 
-def _progress(done: int, total: int, width: int = 30, stream=sys.stderr, ended: bool = False) -> None:
-    """A one-line progress bar over the step limit; ``ended`` closes it when the episode ends."""
-    if not (ended or stream.isatty()) and done % max(total // 10, 1):
-        return
-    filled = width if ended else int(width * done / max(total, 1))
-    tail = f"episode ended after {done} steps" if ended else f"{done}/{total} steps"
-    stream.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {tail}" + ("\n" if ended else ""))
-    stream.flush()
-
-
-def run_episode(env, policy, seed: int | None, max_steps: int | None = None, frames: list | None = None,
+def run_episode(env, policy, seed: int | None, max_steps: int | None = None, frames=None,
                 progress: bool = False) -> dict:
-    """Run one episode; returns the episode metrics (plus wall time)."""
+    """Run one episode; returns the episode metrics (plus wall time).
+
+    ``frames``: anything with ``append`` (a list, or a streaming ``viz.render.GifRecorder``) that
+    receives every rendered frame, the first and the last included. ``progress``: a tqdm bar over
+    the step limit on stderr, closed with the step at which the episode ended.
+    """
     obs, _ = env.reset(seed=seed)
     if hasattr(policy, "reset"):
         policy.reset(obs)
     limit = max_steps or env.scenario.episode.max_steps
     summary, t0, step = None, time.perf_counter(), 0
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=limit, unit="step", desc=env.scenario.name, leave=True, dynamic_ncols=True)
     if frames is not None:
         frames.append(env.render())
-    while env.agents and step < limit:
-        obs, _, _, _, infos = env.step(policy.act(obs))
-        step += 1
-        if frames is not None:
-            frames.append(env.render())
-        if progress and env.agents and step < limit:
-            _progress(step, limit)
-        if not env.agents:
-            summary = next(iter(infos.values()))["episode"]
-    if progress:
-        _progress(step, limit, ended=True)
+    try:
+        while env.agents and step < limit:
+            obs, _, _, _, infos = env.step(policy.act(obs))
+            step += 1
+            if frames is not None:
+                frames.append(env.render())
+            if bar is not None:
+                bar.update(1)
+            if not env.agents:
+                summary = episode_metrics(next(iter(infos.values())))
+        if bar is not None:
+            bar.set_postfix_str(f"episode ended after {step} steps", refresh=False)
+    finally:
+        if bar is not None:
+            bar.close()
     if summary is None:
         summary = env.metrics.summary()
     summary["wall_time"] = time.perf_counter() - t0

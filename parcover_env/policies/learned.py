@@ -52,10 +52,14 @@ class PPOPolicy:
         model_file = path / "model.zip" if path.is_dir() else path
         if not model_file.is_file():
             raise ParcoverError(f"PPO checkpoint not found: {model_file}")
-        self.model = PPO.load(str(model_file), device="cpu")
+        try:
+            self.model = PPO.load(str(model_file), device="cpu")
+        except Exception as exc:  # a corrupt or foreign file: name it instead of a deep traceback
+            raise ParcoverError(f"cannot load PPO checkpoint {model_file}: {type(exc).__name__}: {exc}") from None
         stats = model_file.parent / "vecnormalize.pkl"
         self.normalize = ObsNormalizer.from_vecnormalize(stats) if stats.is_file() else None
         self.deterministic = deterministic
+        self.obs_shape = tuple(self.model.observation_space.shape)
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         agents, obs = _stack(observations)
@@ -95,6 +99,7 @@ class BCPolicy:
         self.net.load_state_dict(ckpt["state_dict"])
         self.net.eval()
         self.normalize = ObsNormalizer(ckpt["obs_mean"], ckpt["obs_std"] ** 2, clip=10.0, eps=0.0)
+        self.obs_shape = (int(ckpt["n_in"]),)
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         import torch

@@ -30,13 +30,22 @@ def make_policy(spec: str, env, seed: int | None):
     if kind in ("ppo", "bc"):
         if not path:
             raise ParcoverError(f"policy '{spec}': give a checkpoint, e.g. {kind}:runs/{kind}_office")
-        import torch
+        check_policy_spec(spec)
+        from parcover_env.errors import require
 
+        torch = require("torch", "train", f"policy '{spec}'")
+        if kind == "ppo":
+            require("stable_baselines3", "train", f"policy '{spec}'", package="stable-baselines3")
         from parcover_env.policies.learned import BCPolicy, PPOPolicy
 
         torch.set_num_threads(1)  # small MLPs: one thread is fastest and avoids oversubscribing workers
 
-        return PPOPolicy(path) if kind == "ppo" else BCPolicy(path)
+        policy = PPOPolicy(path) if kind == "ppo" else BCPolicy(path)
+        expected = env.observation_space(env.possible_agents[0]).shape
+        if tuple(policy.obs_shape) != tuple(expected):
+            raise ParcoverError(f"policy '{spec}' was trained on observations of shape {tuple(policy.obs_shape)}; "
+                                f"scenario '{env.scenario.name}' gives {tuple(expected)}")
+        return policy
     raise ParcoverError(
         f"unknown policy '{spec}' (choose from {', '.join(BASIC_POLICIES)}, ppo:PATH, bc:PATH)"
     )

@@ -13,6 +13,7 @@ import numpy as np
 from parcover_env.planning.kinect_tree import KinectTree, kinect_footprints
 from parcover_env.planning.plan import Plan
 from parcover_env.planning.roadmap import edge_polyline
+from parcover_env.viz.render import kpoi_label
 from parcover_env.world.map_model import map_model
 
 if TYPE_CHECKING:
@@ -90,7 +91,7 @@ def draw_plan(scenario: Scenario, plan: Plan, kinect_tree: KinectTree | None = N
         col = cols[owner[i]] if 0 <= owner[i] < len(cols) else (0, 0, 0)
         cv2.rectangle(img, tuple(c - half), tuple(c + half), col, -1)
         cv2.rectangle(img, tuple(c - half), tuple(c + half), _TEXT, 1)
-        cv2.putText(img, str(i), (int(c[0]) + half + 2, int(c[1]) - half), _FONT, 0.4, _TEXT, 1, cv2.LINE_AA)
+        cv2.putText(img, kpoi_label(i), (int(c[0]) + half + 2, int(c[1]) - half), _FONT, 0.4, _TEXT, 1, cv2.LINE_AA)
     for tp in plan.turning_points:
         c = px([tp.position])[0]
         tri = np.array([[c[0], c[1] - half - 3], [c[0] - half - 2, c[1] + half],

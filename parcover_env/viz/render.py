@@ -1,10 +1,12 @@
-"""Top-down frames drawn with OpenCV (RGB uint8), and a GIF writer.
+"""Top-down frames drawn with OpenCV (RGB uint8): a header band, the map, a legend; a streaming
+GIF writer and the ``human`` render window.
 
 Rendering reads world state only; it never feeds back into observations.
 """
 
 from __future__ import annotations
 
+import contextlib
 from functools import lru_cache
 from typing import TYPE_CHECKING
 
@@ -15,7 +17,8 @@ if TYPE_CHECKING:
     from parcover_env.scenarios import Mission
     from parcover_env.world.map_model import MapModel
 
-__all__ = ["MapCanvas", "render_frame", "save_gif"]
+__all__ = ["MapCanvas", "render_frame", "save_gif", "GifRecorder", "kpoi_label", "show_frame", "close_window",
+           "HEADER_PX", "LEGEND_PX"]
 
 WALL = (70, 70, 80)
 FLOOR = (250, 250, 248)
@@ -25,6 +28,19 @@ FOLLOWER = (40, 110, 200)
 KPOI_OPEN = (210, 40, 40)
 KPOI_DONE = (40, 170, 70)
 ROUTE = (200, 200, 210)
+TP = (240, 200, 0)
+BAND = (35, 35, 45)
+BAND_TEXT = (245, 245, 245)
+HEADER_PX = 28
+"""Height of the header band above the map (px)."""
+LEGEND_PX = 26
+"""Height of the legend band below the map (px)."""
+_FONT = cv2.FONT_HERSHEY_SIMPLEX
+
+
+def kpoi_label(index: int) -> str:
+    """Label of KPOI ``index`` (0-based in the scenario) in every drawing: ``K1``, ``K2``, ..."""
+    return f"K{index + 1}"
 
 
 class MapCanvas:
@@ -82,25 +98,48 @@ def _static_layer(mission: Mission) -> tuple[MapCanvas, np.ndarray]:
     for tp in mission.plan.turning_points:
         p = canvas.px(tp.position)
         tri = np.array([p + [0, -8], p + [-7, 5], p + [7, 5]], dtype=np.int32)
-        cv2.fillPoly(img, [tri], (240, 200, 0), cv2.LINE_AA)
+        cv2.fillPoly(img, [tri], TP, cv2.LINE_AA)
     start = canvas.px([s.start.x, s.start.y])
     cv2.circle(img, tuple(start), 9, (90, 90, 90), 1, cv2.LINE_AA)
     cv2.putText(img, "S", tuple(start + [-4, 4]), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (90, 90, 90), 1, cv2.LINE_AA)
+    img = np.concatenate([np.full((HEADER_PX, canvas.width, 3), BAND, np.uint8), img, _legend(canvas.width)])
     img.setflags(write=False)
     return canvas, img
+
+
+def _legend(width: int) -> np.ndarray:
+    """The legend band: swatches for leader, follower, KPOI to visit / visited, TP, route, Kinect."""
+    band = np.full((LEGEND_PX, width, 3), BAND, np.uint8)
+    y, x = LEGEND_PX // 2, 8
+    items = [("leader", LEADER, "disc"), ("follower", FOLLOWER, "disc"), ("KPOI to visit", KPOI_OPEN, "box"),
+             ("visited", KPOI_DONE, "box"), ("TP", TP, "tri"), ("route", ROUTE, "line"), ("Kinect", KINECT, "box")]
+    for text, color, mark in items:
+        if mark == "disc":
+            cv2.circle(band, (x + 5, y), 5, color, -1, cv2.LINE_AA)
+        elif mark == "box":
+            cv2.rectangle(band, (x, y - 5), (x + 10, y + 5), color, 2)
+        elif mark == "tri":
+            cv2.fillPoly(band, [np.array([[x + 5, y - 6], [x, y + 5], [x + 10, y + 5]], np.int32)], color, cv2.LINE_AA)
+        else:
+            cv2.line(band, (x, y), (x + 10, y), color, 2, cv2.LINE_AA)
+        cv2.putText(band, text, (x + 14, y + 5), _FONT, 0.42, BAND_TEXT, 1, cv2.LINE_AA)
+        x += 14 + cv2.getTextSize(text, _FONT, 0.42, 1)[0][0] + 14
+        if x > width - 40:
+            break
+    return band
 
 
 def render_frame(env) -> np.ndarray:
     """The env's current top-down frame (RGB uint8); reads the env's public state only."""
     canvas, background = _static_layer(env.mission)
-    img = background.copy()
+    frame = background.copy()
+    img = frame[HEADER_PX:HEADER_PX + canvas.height]  # the map area (a view: drawing on it draws on the frame)
     s = env.scenario
     half = max(4, canvas.r(s.kpoi_radius) // 2)
     for k, (p, done) in enumerate(zip(canvas.px(np.array(s.kpois)), env.progress.visited)):
         color = KPOI_DONE if done else KPOI_OPEN
         cv2.rectangle(img, tuple(p - half), tuple(p + half), color, 2, cv2.LINE_AA)
-        cv2.putText(img, str(k + 1), tuple(p + [half + 2, -half]), cv2.FONT_HERSHEY_SIMPLEX, 0.35, color, 1,
-                    cv2.LINE_AA)
+        cv2.putText(img, kpoi_label(k), tuple(p + [half + 2, -half]), _FONT, 0.4, color, 1, cv2.LINE_AA)
     true = env.world.poses()
     rad = canvas.r(s.robot.radius)
     for i, p in enumerate(true):
@@ -111,14 +150,97 @@ def render_frame(env) -> np.ndarray:
         cv2.circle(img, tuple(c), rad, color, -1, cv2.LINE_AA)
         tip = canvas.px(p[:2] + s.robot.radius * np.array([np.cos(p[2]), np.sin(p[2])]))
         cv2.line(img, tuple(c), tuple(tip), (255, 255, 255), max(1, rad // 4), cv2.LINE_AA)
-    label = f"{s.name}  t={env.world.time:5.1f}s  KPOIs {int(env.progress.visited.sum())}/{len(s.kpois)}"
-    cv2.putText(img, label, (canvas.margin + 2, canvas.margin + 12), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
-                (255, 255, 255), 1, cv2.LINE_AA)
-    return img
+    label = (f"{s.name}   t = {env.world.time:6.1f} s   step {env.steps}   "
+             f"KPOIs {int(env.progress.visited.sum())}/{len(s.kpois)}   robots {env.n_robots}")
+    cv2.putText(frame, label, (8, HEADER_PX - 9), _FONT, 0.55, BAND_TEXT, 1, cv2.LINE_AA)
+    return frame
 
 
-def save_gif(path, frames: list[np.ndarray], fps: int = 10) -> None:
-    """Write RGB frames to an animated GIF."""
-    import imageio.v2 as imageio
+GIF_QUANTIZER = 2
+"""Pillow quantizer of the streaming GIF writer: 2 = fast octree. (Median cut, 0, can give palettes of
+fewer than 256 colours, which the streaming writer then encodes into an unreadable file.)"""
 
-    imageio.mimsave(path, frames, duration=1.0 / fps, loop=0)
+
+class GifRecorder:
+    """Animated GIF written frame by frame (imageio's streaming Pillow GIF writer): memory stays at
+    a few frames whatever the episode length. Keeps every ``every``-th frame and always the last
+    one; ``append`` has the ``list.append`` signature, so it can stand in for a frame list."""
+
+    def __init__(self, path, every: int = 1, fps: float = 10.0):
+        import imageio.v2 as imageio
+
+        if every < 1:
+            raise ValueError(f"every must be >= 1, got {every}")
+        self.path, self.every = path, int(every)
+        self._writer = imageio.get_writer(path, format="GIF-PIL", mode="I", duration=1.0 / fps, loop=0,
+                                          quantizer=GIF_QUANTIZER)
+        self._seen = 0
+        self._pending: np.ndarray | None = None  # last frame not yet written (written at close)
+        self.written = 0
+
+    def append(self, frame: np.ndarray) -> None:
+        if self._seen % self.every == 0:
+            self._write(frame)
+            self._pending = None
+        else:
+            self._pending = frame
+        self._seen += 1
+
+    def _write(self, frame: np.ndarray) -> None:
+        self._writer.append_data(np.asarray(frame))
+        self.written += 1
+
+    def close(self) -> None:
+        """Write the final frame (if it was skipped) and finish the file."""
+        if self._writer is None:
+            return
+        if self._pending is not None:
+            self._write(self._pending)
+            self._pending = None
+        self._writer.close()
+        self._writer = None
+
+    def __enter__(self) -> GifRecorder:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def save_gif(path, frames, fps: float = 10.0, every: int = 1) -> int:
+    """Write RGB frames (any iterable) to an animated GIF, streaming; returns the frames written."""
+    with GifRecorder(path, every=every, fps=fps) as rec:
+        for f in frames:
+            rec.append(f)
+    return rec.written
+
+
+def _has_display() -> bool:
+    import os
+    import sys
+
+    return sys.platform in ("win32", "darwin") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def show_frame(frame: np.ndarray, window: str, wait_ms: int) -> str:
+    """Show an RGB frame in an OpenCV window (the ``human`` render mode); returns the window name.
+
+    Raises ParcoverError when there is no display or OpenCV was built without GUI support."""
+    from parcover_env.errors import ParcoverError
+
+    if not _has_display():
+        raise ParcoverError("render_mode='human' needs a display (no DISPLAY/WAYLAND_DISPLAY); "
+                            "use render_mode='rgb_array'")
+    try:
+        cv2.imshow(window, cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
+        cv2.waitKey(max(1, int(wait_ms)))
+    except cv2.error:
+        raise ParcoverError("render_mode='human' needs OpenCV with GUI support (pip install opencv-python, "
+                            "not opencv-python-headless); use render_mode='rgb_array'") from None
+    return window
+
+
+def close_window(window: str) -> None:
+    """Close a window opened by :func:`show_frame`."""
+    with contextlib.suppress(cv2.error):
+        cv2.destroyWindow(window)

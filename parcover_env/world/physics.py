@@ -33,6 +33,7 @@ from parcover_env.world.map_model import MapModel
 __all__ = ["World"]
 
 ROBOT, WALL = 1, 2
+_REBUILT = ("space", "bodies", "_rows", "_suppress")  # World attributes rebuilt from a snapshot, never copied
 _WALL_RADIUS = 0.005  # m, collision skin of the static boundary segments
 
 
@@ -52,21 +53,33 @@ class World:
         """The robots' wheels (``None``: commands apply instantly)."""
         self.wall_contacts = np.zeros(self.n, dtype=np.int64)
         self.robot_contacts = np.zeros(self.n, dtype=np.int64)
+        self._build_space(np.asarray(poses, dtype=float), np.zeros((self.n, 3)))
 
+    # ------------------------------------------------------------------ snapshot / rebuild
+    def _build_space(self, poses: np.ndarray, velocities: np.ndarray, touching: frozenset = frozenset()) -> None:
+        """A fresh pymunk space: walls, and robots at ``poses`` (N, 3) moving at ``velocities``
+        (N, 3: vx, vy, omega). ``touching``: contacts already counted (not counted again when the
+        fresh space reports them as beginning)."""
+        physics = self.physics
+        self._rows = _CommandRows(self.n)
+        self._rows.values = self._cmd.tolist()
+        self._suppress = set(touching)
         space = pymunk.Space()
         space.gravity = (0.0, 0.0)
         space.collision_slop = physics.collision_slop
         space.iterations = 20
-        for x1, y1, x2, y2 in map_model.segments:
+        for x1, y1, x2, y2 in self.map.segments:
             seg = pymunk.Segment(space.static_body, (x1, y1), (x2, y2), _WALL_RADIUS)
             seg.collision_type = WALL
             seg.friction = 0.0
             space.add(seg)
         self.bodies: list[pymunk.Body] = []
-        for i, (x, y, theta) in enumerate(np.asarray(poses, dtype=float)):
+        for i, ((x, y, theta), (vx, vy, w)) in enumerate(zip(poses.tolist(), velocities.tolist(), strict=True)):
             body = pymunk.Body(1.0, math.inf)
             body.position = (x, y)
             body.angle = theta
+            body.velocity = (vx, vy)
+            body.angular_velocity = w
             body.velocity_func = self._velocity_func(i)
             shape = pymunk.Circle(body, self.radius)
             shape.collision_type = ROBOT
@@ -79,17 +92,69 @@ class World:
         space.on_collision(ROBOT, ROBOT, begin=self._on_robot)
         self.space = space
 
+    def _touching(self) -> frozenset:
+        """Contacts present now: ``(i, -1)`` robot i with a wall, ``(i, j)`` robots i < j."""
+        pairs = set()
+        for i, body in enumerate(self.bodies):
+            def visit(arbiter, i=i):
+                a, b = arbiter.shapes
+                other = b if a.body is self.bodies[i] else a
+                j = getattr(other, "robot_index", -1)
+                pairs.add((i, j) if j < 0 else (min(i, j), max(i, j)))
+            body.each_arbiter(visit)
+        return frozenset(pairs)
+
+    def _snapshot(self) -> dict:
+        """Everything that determines the future: our attributes, body poses and velocities, and the
+        contacts in progress (pymunk's contact cache itself is not kept)."""
+        state = {k: v for k, v in self.__dict__.items() if k not in _REBUILT}
+        state["_poses"] = np.array([(*b.position, b.angle) for b in self.bodies], dtype=float).reshape(self.n, 3)
+        state["_velocities"] = np.array([(*b.velocity, b.angular_velocity) for b in self.bodies],
+                                        dtype=float).reshape(self.n, 3)
+        state["_touching"] = self._touching() | frozenset(self._suppress)
+        return state
+
+    def _restore(self, state: dict) -> None:
+        state = dict(state)
+        poses, velocities, touching = state.pop("_poses"), state.pop("_velocities"), state.pop("_touching")
+        self.__dict__.update(state)
+        self._build_space(poses, velocities, touching)
+
+    def __getstate__(self) -> dict:
+        """Snapshot for pickle/deepcopy. The world itself is rebuilt from the same snapshot, so the
+        original and every copy continue bit-identically, in contact or not: a rebuilt space starts
+        without pymunk's contact cache (warm-start impulses), so the original must drop it too."""
+        state = self._snapshot()
+        self._restore(state)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self._restore(state)
+
+    def __deepcopy__(self, memo: dict) -> World:
+        import copy
+
+        new = World.__new__(World)
+        memo[id(self)] = new
+        new._restore(copy.deepcopy(self.__getstate__(), memo))
+        return new
+
     def _velocity_func(self, i: int) -> _UnicycleVelocity:
         return _UnicycleVelocity(self._rows, i)
 
     def _on_wall(self, arbiter: pymunk.Arbiter, space, data) -> None:
         for shape in arbiter.shapes:
             if shape.collision_type == ROBOT:
+                if self._suppress and (shape.robot_index, -1) in self._suppress:
+                    continue  # a contact in progress when the space was rebuilt: counted already
                 self.wall_contacts[shape.robot_index] += 1
 
     def _on_robot(self, arbiter: pymunk.Arbiter, space, data) -> None:
-        for shape in arbiter.shapes:
-            self.robot_contacts[shape.robot_index] += 1
+        a, b = (s.robot_index for s in arbiter.shapes)
+        if self._suppress and (min(a, b), max(a, b)) in self._suppress:
+            return
+        self.robot_contacts[a] += 1
+        self.robot_contacts[b] += 1
 
     def step(self, commands: np.ndarray) -> None:
         """Apply ``(v, omega)`` per robot ``(N, 2)`` for one control step (all physics substeps)."""
@@ -97,14 +162,15 @@ class World:
         dt = self.physics.dt
         if self.drive is None:
             self._rows.values = self._cmd.tolist()
-            for _ in range(self.physics.substeps):
-                self.space.step(dt)
         else:
             d = self.drive.cfg
             targets = wheel_targets(self._cmd, d.wheel_base, d.wheel_speed_max)
-            for _ in range(self.physics.substeps):
+        for _ in range(self.physics.substeps):
+            if self.drive is not None:
                 self._rows.values = self.drive.advance(targets, dt).tolist()
-                self.space.step(dt)
+            self.space.step(dt)
+            if self._suppress:  # only the first step of a rebuilt space re-reports contacts in progress
+                self._suppress = set()
         self.time += self.physics.control_dt
 
     def poses(self) -> np.ndarray:

@@ -15,7 +15,7 @@ def test_t_room_passes_gymnasium_checker():
     check_env(env.unwrapped, skip_render_check=True)
     obs, _ = env.reset(seed=0)
     obs2, rew, term, trunc, info = env.step(np.array([0.5, 0.0], dtype=np.float32))
-    assert obs2.shape == obs.shape and "reward_terms" in info
+    assert obs2.shape == obs.shape and "reward_progress" in info
 
 
 def test_multi_robot_scenario_is_refused():

@@ -10,6 +10,7 @@ pytest.importorskip("stable_baselines3")
 
 from stable_baselines3.common.vec_env import VecMonitor  # noqa: E402
 
+from parcover_env.env.metrics import EpisodeMetrics  # noqa: E402
 from parcover_env.env.vec_env import ParallelVecEnv, _EnvFactory, make_vec_env  # noqa: E402
 
 
@@ -52,7 +53,7 @@ class FakeParallelEnv:
         term = {a: self.t >= self.lengths[i] for i, a in enumerate(self.possible_agents) if a in self.agents}
         trunc = {a: self.t >= self.max_steps and not term[a] for a in term}
         rew = {a: 1.0 for a in term}
-        infos = {a: {"episode": {"success": True}} if term[a] or trunc[a] else {} for a in term}
+        infos = {a: EpisodeMetrics(1, 3, 1.0, 1.0).flat(ended=term[a] or trunc[a]) for a in term}
         self.agents = [a for a in self.agents if not (term[a] or trunc[a])]
         return obs, rew, term, trunc, infos
 
@@ -75,7 +76,8 @@ def test_one_slot_per_agent_and_early_finishers():
     assert done.tolist() == [True, False, False] * 2
     assert infos[0]["terminal_observation"].tolist() == [1, 2]
     assert infos[0]["TimeLimit.truncated"] is False
-    assert infos[0]["metrics"] == {"success": True} and "episode" not in infos[0]
+    assert infos[0]["metrics"]["n_robots"] == 3 and infos[0]["metrics"]["success"] is False
+    assert "episode" not in infos[0]
     obs, rew, done, infos = venv.step(acts)  # t = 3: slot 0 idle, a1 terminates
     assert obs[0].tolist() == [0, 0] and rew[0] == 0 and not done[0] and infos[0]["active"] is False
     assert done[1] and rew[1] == 1
