@@ -19,14 +19,25 @@ from parcover_env.errors import ParcoverError
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def test_parcover_v0_module_follows_the_pettingzoo_convention():
+def test_parcover_v1_module_follows_the_pettingzoo_convention():
+    from parcover_env import parcover_v1
+
+    assert parcover_v1.raw_env is parcover_env.ParallelCoverageEnv
+    par = parcover_v1.parallel_env("t_room")
+    assert isinstance(par, parcover_env.ParallelCoverageEnv) and par.metadata["name"] == "parcover_v1"
+    aec = parcover_v1.env("t_room")
+    assert aec.unwrapped.metadata["name"] == "parcover_v1"
+
+
+def test_parcover_v0_module_is_the_ideal_preset_without_covariance_entries():
     from parcover_env import parcover_v0
 
-    assert parcover_v0.raw_env is parcover_env.ParallelCoverageEnv
-    par = parcover_v0.parallel_env("t_room")
-    assert isinstance(par, parcover_env.ParallelCoverageEnv) and par.metadata["name"] == "parcover_v0"
-    aec = parcover_v0.env("t_room")
-    assert aec.unwrapped.metadata["name"] == "parcover_v0"
+    v0, v1 = parcover_v0.parallel_env("t_room"), parcover_env.parallel_env("t_room")
+    assert v0.scenario == parcover_env.load_scenario("t_room", preset="ideal")
+    assert "sigma_major" in v1.layout.slices and "sigma_major" not in v0.layout.slices
+    assert v0.layout.size == v1.layout.size - 5
+    assert parcover_v0.env("t_room").unwrapped.scenario == v0.scenario
+    assert parcover_v0.raw_env("t_room").scenario == v0.scenario
 
 
 def test_human_render_mode_shows_a_window(monkeypatch):
@@ -131,4 +142,5 @@ def test_sb3_subproc_vec_env_finds_the_id_without_a_module_prefix():
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=ROOT,
                        env=dict(os.environ, PYTHONPATH=str(ROOT)))
     assert p.returncode == 0, p.stderr[-2000:]
-    assert p.stdout.strip().endswith("(2, 26)")
+    size = parcover_env.parallel_env("t_room").layout.size
+    assert p.stdout.strip().endswith(f"(2, {size})")
