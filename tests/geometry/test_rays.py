@@ -61,3 +61,22 @@ def test_segments_blocked_is_an_open_segment_test():
     b = np.array([[3.0, 0.0], [1.9, 0.0], [3.0, 3.0]])
     np.testing.assert_array_equal(segments_blocked(a, b, WALL), [True, False, False])
     assert segments_blocked(a, b, np.zeros((0, 4))).tolist() == [False, False, False]
+
+
+@pytest.mark.parametrize("cull", [False, True])
+def test_disc_fans_match_hand_values_with_and_without_culling(cull):
+    origins = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 2.5]])
+    angles = np.radians(np.arange(36) * 10.0)
+    fan = np.broadcast_to(np.stack([np.cos(angles), np.sin(angles)], axis=1), (3, 36, 2))
+    d = cast_rays_discs(origins, fan, origins, np.array([0.2, 0.2, 0.3]), np.arange(3), 3.0, cull=cull)
+    assert d.shape == (3, 36)
+    assert d[0, 0] == pytest.approx(0.8) and d[1, 18] == pytest.approx(0.8)  # robots 0 and 1 face each other
+    assert d[0, 9] == pytest.approx(2.2)  # robot 2 at 2.5 m, radius 0.3
+    assert math.isinf(d[1, 0]) and math.isinf(d[2, 9])  # nothing that way (own disc ignored)
+    assert d[2, 27] == pytest.approx(2.3)  # robot 0 from robot 2, straight down
+    assert math.isinf(d[2, 27 - 3])  # 30 deg off: misses robot 0's disc
+    flat = cast_rays_discs(np.repeat(origins, 36, axis=0), fan.reshape(-1, 2), origins, np.array([0.2, 0.2, 0.3]),
+                           np.repeat(np.arange(3), 36), 3.0)
+    np.testing.assert_array_equal(flat.reshape(3, 36), d)
+    far = cast_rays_discs(origins[:1], fan[:1], origins[2:], 0.3, np.array([-1]), 1.0, cull=cull)
+    assert np.all(np.isinf(far))
