@@ -167,6 +167,18 @@ def cmd_sectors(args) -> int:
         if not cv2.imwrite(args.png, draw_sectors(known, sectors, features)[:, :, ::-1]):
             raise ParcoverError(f"--png: cannot write {args.png}")
         _sayer(args)(f"wrote {args.png}")
+    if args.rearrangement:
+        import numpy as np
+
+        from parcover_env.viz.sectors import rearrangement_figure
+
+        img, info = rearrangement_figure(s)
+        if not cv2.imwrite(args.rearrangement, img[:, :, ::-1]):
+            raise ParcoverError(f"--rearrangement: cannot write {args.rearrangement}")
+        _sayer(args)(f"wrote {args.rearrangement}: Fig. 9 subgoals "
+                     f"{np.round(info['before'], 2).tolist()} -> {np.round(info['after'], 2).tolist()} "
+                     f"(min scan angle {info['min_scan_angle_deg_before']:.0f} -> "
+                     f"{info['min_scan_angle_deg_after']:.0f} deg)")
     return 0
 
 
@@ -215,6 +227,8 @@ def build_parser() -> argparse.ArgumentParser:
     se.add_argument("--range", type=_range, default=None, metavar="R|inf",
                     help="sonar range in metres, or inf (default: the scenario's sonar range_max)")
     se.add_argument("--json", action="store_true", help="print features and sectors as one JSON object")
+    se.add_argument("--rearrangement", default=None, metavar="PNG",
+                    help="draw seed B Fig. 9(a)->(b) here: two robots' subgoals before/after the bisector rearrangement")
     se.set_defaults(func=cmd_sectors)
     return p
 

@@ -79,3 +79,10 @@ def test_run_json_is_one_object_on_stdout(capsys):
     captured = capsys.readouterr()
     m = json.loads(captured.out)
     assert m["steps"] == 5 and "kinect_splits" in m and "scenario office" in captured.err
+
+
+def test_sectors_draws_fig9_rearrangement(tmp_path, capsys):
+    png = tmp_path / "fig9.png"
+    assert main(["sectors", "hallway", "--rearrangement", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert "Fig. 9 subgoals" in out and png.stat().st_size > 1000
