@@ -228,7 +228,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="sonar range in metres, or inf (default: the scenario's sonar range_max)")
     se.add_argument("--json", action="store_true", help="print features and sectors as one JSON object")
     se.add_argument("--rearrangement", default=None, metavar="PNG",
-                    help="draw seed B Fig. 9(a)->(b) here: two robots' subgoals before/after the bisector rearrangement")
+                    help="draw seed B Fig. 9(a)->(b) here: two robots' subgoals before/after the bisector "
+                    "rearrangement")
     se.set_defaults(func=cmd_sectors)
     return p
 

@@ -156,7 +156,8 @@ def rearrangement_figure(scenario, px_per_m: float = 70.0, node_step: float = 0.
                                                      else 0.0) for i in range(2)))
 
     info = {"feature": fi, "min_scan_angle_deg_before": worst_deg(before),
-            "min_scan_angle_deg_after": worst_deg(res.subgoals), "feature_point": f.point.tolist(), "before": before.tolist(),
+            "min_scan_angle_deg_after": worst_deg(res.subgoals), "feature_point": f.point.tolist(),
+            "before": before.tolist(),
             "after": res.subgoals.tolist(), "on_path": list(res.on_path),
             "sight_clear_before": [clearance(before, i) > r for i in range(2)],
             "sight_clear_after": [clearance(res.subgoals, i) > r for i in range(2)]}
