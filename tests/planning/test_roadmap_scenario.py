@@ -106,7 +106,7 @@ def test_tree_scenario_is_fig6():
     assert plan.c_p == pytest.approx(plan.c_max)
     assert len(plan.turning_points) == 4
     counts = sorted(sorted(b.n_robots for b in tp.branches) for tp in plan.turning_points)
-    assert counts == [[1, 1, 1, 1]] * 3 + [[1, 1, 1, 4, 4, 4]]
+    assert counts == [[1, 1, 1, 1, 1]] * 3 + [[5, 5, 5]]
     root_tp = min(plan.turning_points, key=lambda tp: tp.distance)
     assert root_tp.robots == (0, 15)
     kt = kinect_tree(kinect_footprints(s), plan, (s.start.x, s.start.y))
