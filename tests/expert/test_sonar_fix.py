@@ -40,5 +40,5 @@ def test_out_of_view_leaders_with_sonar_fixes_succeed_and_localize():
     env = parcover_env.parallel_env("generated:2")
     assert env.scenario.localization == "both"
     expert = ScriptedExpert.for_env(env)
-    m = run_episode(env, expert, 35)  # a seed where dead reckoning alone misses a KPOI
+    m = run_episode(env, expert, 35)
     assert m["success"] and m["sonar_localized"] >= 1 and m["sonar_scans"] >= m["sonar_localized"]
