@@ -7,6 +7,7 @@ dependency) is reported as one line "parcover: error: ..." with exit status 2.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 from parcover_env.cli.checks import (
@@ -35,6 +36,40 @@ def _format_metrics(m: dict) -> str:
     return "\n".join(f"  {k:<{width}}  {v}" for k, v in rows)
 
 
+def _sayer(args):
+    """``print`` for human-readable lines: to stderr when ``--json`` owns stdout."""
+    stream = sys.stderr if getattr(args, "json", False) else sys.stdout
+    return lambda text: print(text, file=stream)
+
+
+def _finite(obj):
+    """Non-finite floats become ``null`` (JSON has no NaN or infinity); numpy scalars become floats."""
+    if isinstance(obj, dict):
+        return {str(k): _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite(v) for v in obj]
+    if hasattr(obj, "item") and not isinstance(obj, str):
+        obj = obj.item()
+    return obj if not isinstance(obj, float) or math.isfinite(obj) else None
+
+
+def _print_json(obj) -> None:
+    import json
+
+    print(json.dumps(_finite(obj), allow_nan=False))
+
+
+def _range(text: str) -> float:
+    """``--range``: metres > 0, or ``inf`` for unlimited range."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected metres or 'inf', got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0 (or 'inf'), got {text!r}")
+    return value
+
+
 def cmd_run(args) -> int:
     from parcover_env import parallel_env
     from parcover_env.harness.rollout import run_episode
@@ -45,17 +80,21 @@ def cmd_run(args) -> int:
         check_writable_file(args.gif, "--gif")
     env = parallel_env(args.scenario, render_mode="rgb_array" if args.gif else None)
     policy = make_policy(args.policy, env, args.seed)
-    print(f"scenario {env.scenario.name}: {env.n_robots} robots, {len(env.scenario.kpois)} KPOIs, "
-          f"policy {args.policy}, seed {args.seed}")
+    say = _sayer(args)  # with --json, human-readable lines go to stderr, the JSON object to stdout
+    say(f"scenario {env.scenario.name}: {env.n_robots} robots, {len(env.scenario.kpois)} KPOIs, "
+        f"policy {args.policy}, seed {args.seed}")
     recorder = GifRecorder(args.gif, every=args.gif_every, fps=max(1, 10 // args.gif_every)) if args.gif else None
     try:
         m = run_episode(env, policy, args.seed, args.steps, recorder, progress=not args.quiet)
     finally:
         if recorder is not None:
             recorder.close()
-    print(_format_metrics(m))
+    if args.json:
+        _print_json(m)
+    else:
+        print(_format_metrics(m))
     if recorder is not None:
-        print(f"wrote {args.gif} ({recorder.written} frames)")
+        say(f"wrote {args.gif} ({recorder.written} frames)")
     return 0 if m["success"] or args.allow_failure else 1
 
 
@@ -82,7 +121,7 @@ def cmd_render(args) -> int:
 
 
 def cmd_plan(args) -> int:
-    from parcover_env.planning import kinect_footprints, kinect_tree, plan_scenario
+    from parcover_env.planning import kinect_footprints, kinect_tree, plan_scenario, plan_summary
     from parcover_env.scenarios import load_scenario
     from parcover_env.viz.plan import draw_plan
 
@@ -91,6 +130,11 @@ def cmd_plan(args) -> int:
     s = load_scenario(args.scenario)
     plan = plan_scenario(s, args.n_robots if args.n_robots is not None else s.n_robots_fixed)
     tree = kinect_tree(kinect_footprints(s), plan, (s.start.x, s.start.y)) if s.kinects else None
+    if args.json:
+        _print_json(plan_summary(plan, tree))
+        if args.png:
+            write_image(args.png, draw_plan(s, plan, tree), "--png")
+        return 0
     print(f"scenario {s.name}: r = {plan.r} robots, c_max = {plan.c_max:.2f} m, c_p = {plan.c_p:.2f} m "
           f"({plan.method}); {len(plan.turning_points)} turning positions")
     for tp in plan.turning_points:
@@ -121,7 +165,8 @@ def cmd_kinect(args) -> int:
 
 def cmd_sectors(args) -> int:
 
-    from parcover_env.localization.sonar import compute_sectors, map_features
+    from parcover_env.localization.sonar import compute_sectors, map_features, sectors_summary
+    from parcover_env.localization.sonar.sectors import RULE_NAMES
     from parcover_env.scenarios import load_scenario
     from parcover_env.viz.sectors import draw_sectors
     from parcover_env.world.map_model import map_model
@@ -131,13 +176,29 @@ def cmd_sectors(args) -> int:
     s = load_scenario(args.scenario)
     known = map_model(s.map, include_unknown=False)
     features = map_features(known)
-    sectors = compute_sectors(known, s.robot.sonar.range_max, rule=args.rule, features=features)
-    name = {0: "original", 1: "rule #1", 2: "rule #2"}[args.rule]
-    print(f"scenario {s.name}: {len(features)} features, {len(sectors)} {name} sectors "
-          f"(sonar range {s.robot.sonar.range_max} m)")
+    range_max = s.robot.sonar.range_max if args.range is None else args.range
+    sectors = compute_sectors(known, range_max, rule=args.rule, features=features)
+    if args.json:
+        _print_json({"scenario": s.name, **sectors_summary(known, range_max, args.rule, features, sectors)})
+    else:
+        reach = "unlimited range" if range_max == float("inf") else f"range {range_max} m"
+        print(f"scenario {s.name}: {len(features)} features, {len(sectors)} {RULE_NAMES[args.rule]} sectors "
+              f"({reach})")
     if args.png:
         write_image(args.png, draw_sectors(known, sectors, features), "--png")
-        print(f"wrote {args.png}")
+        _sayer(args)(f"wrote {args.png}")
+    if args.rearrangement:
+        import numpy as np
+
+        from parcover_env.viz.sectors import rearrangement_figure
+
+        check_writable_file(args.rearrangement, "--rearrangement")
+        img, info = rearrangement_figure(s)
+        write_image(args.rearrangement, img, "--rearrangement")
+        _sayer(args)(f"wrote {args.rearrangement}: Fig. 9 subgoals "
+                     f"{np.round(info['before'], 2).tolist()} -> {np.round(info['after'], 2).tolist()} "
+                     f"(min scan angle {info['min_scan_angle_deg_before']:.0f} -> "
+                     f"{info['min_scan_angle_deg_after']:.0f} deg)")
     return 0
 
 
@@ -156,6 +217,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--gif-every", type=positive_int, default=2, help="keep every k-th frame in the GIF (default: 2)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--allow-failure", action="store_true", help="exit 0 even if not every KPOI was visited")
+    r.add_argument("--json", action="store_true", help="print the episode metrics as one JSON object "
+                   "(other output goes to stderr)")
     r.set_defaults(func=cmd_run)
     s = sub.add_parser("scenarios", help="list the shipped scenarios")
     s.set_defaults(func=cmd_scenarios)
@@ -172,6 +235,8 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("scenario", nargs="?", default="office")
     pl.add_argument("--png", default=None, help="draw the map, roadmap, plan tree and Kinect tree here")
     pl.add_argument("--n-robots", type=positive_int, default=None, help="plan for this many robots (min-max variant)")
+    pl.add_argument("--json", action="store_true", help="print n_robots, c_max, turning_positions, "
+                    "kinect_tree and routes as one JSON object")
     pl.set_defaults(func=cmd_plan)
     k = sub.add_parser("kinect", help="write the Kinect views: depth, IR, pipeline stages, hull, trajectory")
     k.add_argument("scenario", nargs="?", default="office")
@@ -182,6 +247,12 @@ def build_parser() -> argparse.ArgumentParser:
     se.add_argument("scenario", nargs="?", default="t_room")
     se.add_argument("--rule", type=int, choices=(0, 1, 2), default=2, help="0 original, 1 or 2 merge rule")
     se.add_argument("--png", default=None, help="draw the sectors here")
+    se.add_argument("--range", type=_range, default=None, metavar="R|inf",
+                    help="sonar range in metres, or inf (default: the scenario's sonar range_max)")
+    se.add_argument("--json", action="store_true", help="print features and sectors as one JSON object")
+    se.add_argument("--rearrangement", default=None, metavar="PNG",
+                    help="draw seed B Fig. 9(a)->(b) here: two robots' subgoals before/after the bisector "
+                    "rearrangement")
     se.set_defaults(func=cmd_sectors)
     return p
 

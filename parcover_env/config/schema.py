@@ -416,9 +416,14 @@ class PlannerConfig:
     roadmap: Literal["medial_axis", "grid"] = "medial_axis"
     resolution: float = 0.05
     """Grid cell size used to build the roadmap (m)."""
+    tp_merge_tol: float = 0.1
+    """Turning positions reached within this distance (m, along the paths) after another one merge
+    into it: one multi-way TP (seed A Fig. 2, Alg. 1 step 3a) instead of a cascade of two-way splits
+    where the roadmap forks at several nearby points. About half a corridor width suits hub rooms."""
 
     def __post_init__(self) -> None:
         _check(0.005 <= self.resolution <= 1.0, "resolution", "must be in [0.005, 1.0] m")
+        _check(0.0 <= self.tp_merge_tol <= 5.0, "tp_merge_tol", f"must be in [0, 5] m, got {self.tp_merge_tol}")
 
 
 @dataclass(frozen=True)

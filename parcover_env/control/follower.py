@@ -5,7 +5,10 @@ l = |q - p_L|; psi = atan2(q - p_L) - th_L (psi = pi: directly behind); gamma = 
 Feedback linearization with gains a1, a2 gives
     A = a1 (l_d - l) + v_L cos psi,   B = a2 l wrap(psi_d - psi) - v_L sin psi + l w_L,
     v_F = A cos gamma - B sin gamma,  w_F = (A sin gamma + B cos gamma) / d,
-which is seed A's eq. 3 with its leader-input matrix corrected to [[-cos psi, 0], [sin psi / l, -1]].
+Seed A's printed eq. 3 is garbled (its input matrix has a zero second column, so the angle error
+would never reach the wheels); we read it as the l-psi law of its ref. [8] (Das et al. 2002), in
+the coordinates above. What we rely on is tested: l -> l_d and psi -> psi_d from perturbed starts
+while the leader drives and turns (``tests/control/test_follower.py``).
 
 Limited information (seed A ref. [8]): the follower does not receive the leader's velocities. It
 estimates them from successive camera measurements and its own motion (:class:`LeaderVelocityEstimator`);

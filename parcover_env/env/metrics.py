@@ -53,6 +53,12 @@ class EpisodeMetrics:
     localization_error: float = 0.0
     """RMS distance between the observed pose estimates and the true poses (m)."""
     messages: dict[str, int] = field(default_factory=dict)
+    kinect_splits: int = 0
+    """Splits at TPs triggered by the Kinect system detecting the leader there (seed A Alg. 1)."""
+    odometry_splits: int = 0
+    """Splits decided on the leader's own estimate: its TP lay outside every Kinect footprint."""
+    unseen_leader_time: float = 0.0
+    """Leader-seconds spent outside every Kinect footprint, driving on odometry (s)."""
     formation_error_l: float = 0.0
     """RMS of l - l_d over followers and steps (m)."""
     formation_error_psi: float = 0.0

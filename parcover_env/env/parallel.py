@@ -209,7 +209,7 @@ class ParallelCoverageEnv(ParallelEnv):
                                       path_lengths=[0.0] * self.n_robots)
         self.trails = [[p[:2].copy()] for p in true]
         self.progress.update(true[:, :2], self.estimate[:, :2], 0.0)
-        self.team.update(self.estimate[:, :2], self.progress.plan_progress)
+        self._update_team()
         obs = self._observe(true)
         zeros = dict.fromkeys(REWARD_KEYS, 0.0)
         metrics = self.metrics.flat(ended=False)
@@ -231,7 +231,7 @@ class ParallelCoverageEnv(ParallelEnv):
         self._sense(true)
         n_new = self.progress.update(true[:, :2], self.estimate[:, :2], self.world.time)
         self.team.count_waypoints(self.progress.advanced)
-        self.team.update(self.estimate[:, :2], self.progress.plan_progress)
+        self._update_team()
         terms = self._rewards(true, n_new)
         self._record(before, true)
         obs = self._observe(true)
@@ -254,6 +254,14 @@ class ParallelCoverageEnv(ParallelEnv):
         return obs, rewards, terminations, truncations, infos
 
     # ------------------------------------------------------------------ step parts
+    def _update_team(self) -> None:
+        """Alg. 1: splits on the Kinect system's detections of leaders (estimates out of view)."""
+        est = self.estimate[:, :2]
+        if self.kinects is None:
+            self.team.update(est, self.progress.plan_progress)
+        else:
+            self.team.update(est, self.progress.plan_progress, self.kinects.last_fixes, self.kinects.in_view(est))
+
     def _sense(self, true: np.ndarray) -> None:
         """Pose estimates: odometry dead reckoning, corrected by Kinect fixes of the leaders."""
         s = self.scenario
@@ -301,6 +309,9 @@ class ParallelCoverageEnv(ParallelEnv):
         dl, dpsi = formation_errors(true, self.team.predecessor, f.offset, f.spacing, np.radians(f.bearing_deg))
         m.record_formation(dl, dpsi)
         m.messages = dict(sorted(self.team.messages.items()))
+        m.kinect_splits, m.odometry_splits = self.team.splits["kinect"], self.team.splits["odometry"]
+        seen = self.kinects.in_view(true[:, :2]) if self.kinects is not None else np.zeros(self.n_robots, bool)
+        m.unseen_leader_time += self.scenario.physics.control_dt * int(np.count_nonzero(self.team.leader & ~seen))
         if self.progress.done and m.makespan is None:
             m.makespan = float(np.nanmax(self.progress.visit_time))
         if self.render_mode is not None:

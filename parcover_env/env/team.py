@@ -6,6 +6,13 @@ robots part, the system splits it: one sub-group per branch, sized by the robots
 the first robot of each block leading it (a promotion for every block but the first). Only
 leaders talk to the Kinect system; followers keep formation with their own cameras.
 
+Alg. 1 runs "whenever the sensor detects a leader robot": with overhead Kinects, a group splits
+when the Kinect system *detects* its leader at the TP (a pose fix this step within ``reach_tol``
+of the TP, or past it along the leader's plan path), not on the leader's own estimate. A leader
+outside every footprint (by its estimate) keeps going on odometry; if it reaches its TP there, the
+split falls back on its estimate and is counted in ``splits["odometry"]`` (without Kinects every
+split is such a fallback). ``splits["kinect"]`` counts the splits the Kinect system triggered.
+
 Messages counted by type: ``split`` (to each sub-group at a TP), ``promotion`` (a follower made
 leader), ``waypoint`` (next desired position sent to a leader), ``pose`` (a Kinect pose fix sent to
 a leader). In ``individual`` mode every robot is its own group: all are localized and messaged.
@@ -30,6 +37,8 @@ class Team:
         self.mode = mode
         self.tol = reach_tol
         self.messages: Counter[str] = Counter()
+        self.splits: Counter[str] = Counter()
+        """Splits by what detected the leader at its TP: ``kinect`` or ``odometry`` (fallback)."""
         self._tps = {tuple(tp.robots): tp for tp in plan.turning_points}
         self.groups: list[tuple[int, int]] = ([(i, i + 1) for i in range(self.n)] if mode == "individual"
                                               else [(0, self.n)])
@@ -44,9 +53,16 @@ class Team:
             self.slot[lo:hi] = np.arange(hi - lo)
             self.predecessor[lo + 1:hi] = np.arange(lo, hi - 1)
 
-    def update(self, est_xy: np.ndarray, plan_progress: np.ndarray) -> list[dict]:
-        """Split every group whose leader reached its TP (within ``reach_tol`` of it, or past it
-        along its plan path); returns the split events."""
+    def update(self, est_xy: np.ndarray, plan_progress: np.ndarray, fixes: dict[int, np.ndarray] | None = None,
+               in_view: np.ndarray | None = None) -> list[dict]:
+        """Split every group whose leader reached its TP; returns the split events.
+
+        ``fixes`` (robot -> Kinect pose fix of this step) and ``in_view`` (per robot: its estimate lies
+        in some Kinect footprint) come from the Kinect system; ``None`` = no Kinects (estimates only).
+        A leader with a fix splits when the fix is within ``reach_tol`` of the TP or its plan progress
+        is past it; a leader out of view splits on its estimate (odometry); a leader in view but not
+        detected this step waits for the next detection.
+        """
         events, changed = [], True
         while changed:  # a sub-group may start on its own TP (e.g. several branches at one node)
             changed = False
@@ -54,8 +70,15 @@ class Team:
                 tp = self._tps.get(g)
                 if tp is None or self.mode == "individual":
                     continue
-                near = np.hypot(*(est_xy[g[0]] - tp.position)) <= self.tol
-                if not (near or plan_progress[g[0]] >= tp.distance - 1e-6):
+                lead = g[0]
+                past = plan_progress[lead] >= tp.distance - 1e-6
+                if fixes is not None and lead in fixes:
+                    source, xy = "kinect", np.asarray(fixes[lead][:2], dtype=float)
+                elif fixes is None or in_view is None or not in_view[lead]:
+                    source, xy = "odometry", est_xy[lead]
+                else:
+                    continue  # in a footprint, not detected this step: wait for the Kinect
+                if not (np.hypot(*(xy - tp.position)) <= self.tol or past):
                     continue
                 new = [tuple(b.robots) for b in tp.branches if b.robots[1] > b.robots[0]]
                 if new == [g]:
@@ -66,7 +89,9 @@ class Team:
                 del self._tps[g]
                 self.messages["split"] += len(new)
                 self.messages["promotion"] += sum(1 for b in new if b[0] != g[0])
-                events.append({"tp": tp.node, "position": list(tp.position), "groups": [list(b) for b in new]})
+                self.splits[source] += 1
+                events.append({"tp": tp.node, "position": list(tp.position), "groups": [list(b) for b in new],
+                               "source": source})
                 changed = True
         if events:
             self._refresh()

@@ -89,23 +89,25 @@ class CameraModel:
         """Pixels ``(N, 2)`` with depth (camera z, m) -> world points ``(N, 3)``."""
         return self.C + self.pixel_rays(uv) * np.asarray(depth, dtype=float)[:, None]
 
-    def footprint(self) -> Polygon:
-        """Floor region (z = 0) seen by the camera with a valid depth (shapely polygon)."""
+    def footprint(self, z: float = 0.0) -> Polygon:
+        """Region of the horizontal plane at height ``z`` (m; 0 = the floor, the robots' top for
+        their markers) seen by the camera with a valid depth (shapely polygon)."""
         corners = np.array([[-0.5, -0.5], [self.width - 0.5, -0.5],
                             [self.width - 0.5, self.height - 0.5], [-0.5, self.height - 0.5]])
         rays = self.pixel_rays(corners)
-        if np.any(rays[:, 2] >= 0):
+        h = self.C[2] - float(z)
+        if np.any(rays[:, 2] >= 0) or h <= 0:
             return Polygon()
-        pts = self.C[:2] + rays[:, :2] * (self.C[2] / -rays[:, 2])[:, None]
+        pts = self.C[:2] + rays[:, :2] * (h / -rays[:, 2])[:, None]
         quad = Polygon(pts)
         # Valid depth band: range_min <= forward . (p - C) <= range_max, a strip on the floor.
         f = self.R[2]
         g = f[:2]
         norm = float(np.hypot(*g))
-        lo = self.range_min + f[2] * self.C[2]  # forward.(p - C) = g.(p - C_xy) - f_z * h
-        hi = self.range_max + f[2] * self.C[2]
+        lo = self.range_min + f[2] * h  # forward.(p - C) = g.(p - C_xy) - f_z * h
+        hi = self.range_max + f[2] * h
         if norm < 1e-9:  # looking straight down: depth is the height everywhere
-            return quad if self.range_min <= self.C[2] <= self.range_max else Polygon()
+            return quad if self.range_min <= h <= self.range_max else Polygon()
         u = g / norm
         v = np.array([-u[1], u[0]])
         big = 1e3

@@ -24,7 +24,7 @@ from parcover_env.planning.plan import Plan
 if TYPE_CHECKING:
     from parcover_env.config import Scenario
 
-__all__ = ["KinectTree", "kinect_tree", "kinect_footprints"]
+__all__ = ["KinectTree", "kinect_tree", "kinect_footprints", "plan_summary"]
 
 
 @dataclass(frozen=True)
@@ -48,6 +48,11 @@ class KinectTree:
 
     def outputs(self, name: str) -> int:
         return sum(c for (a, b), c in self.links.items() if a == name)
+
+    def edges(self) -> list[list[str]]:
+        """Adjacent Kinect pairs as sorted ``[a, b]`` (seed A Fig. 6(b): "A is connected with B, C
+        and D, and B with D"), whatever the direction the plan crosses them in."""
+        return [list(p) for p in sorted({tuple(sorted(k)) for k in self.links})]
 
     def to_dict(self) -> dict[str, Any]:
         return {"root": self.root, "parent": dict(self.parent),
@@ -145,3 +150,22 @@ def kinect_tree(footprints: dict[str, Polygon], plan: Plan, start, step: float =
                       links=links, unreached=tuple(n for n in names if n not in parent),
                       tp_cover=tuple(tuple(names[i] for i in np.flatnonzero(r)) for r in tp_member),
                       kpoi_cover=tuple(tuple(names[i] for i in np.flatnonzero(r)) for r in kp_member))
+
+
+def plan_summary(plan: Plan, tree: KinectTree | None = None) -> dict[str, Any]:
+    """The plan as scripts want it (``parcover plan --json``): ``n_robots``, ``c_max``, ``c_p``,
+    ``method``, ``turning_positions`` ``[[x, y], ...]``, ``tp_branches`` (robots per branch of each TP,
+    the numbers beside the TPs of seed A Fig. 6(c)), ``kinect_tree`` (adjacent Kinect pairs, empty
+    without Kinects), ``kinect_root``, ``kinect_links`` ``[[from, to, crossings], ...]`` and ``routes``
+    (per robot: ``kpois`` in visiting order, ``cost`` on the roadmap metric, ``path`` ``[[x, y], ...]``)."""
+    return {
+        "n_robots": plan.r, "c_max": float(plan.c_max), "c_p": float(plan.c_p), "method": plan.method,
+        "n_leaves": plan.n_leaves,
+        "turning_positions": [[float(tp.position[0]), float(tp.position[1])] for tp in plan.turning_points],
+        "tp_branches": [[b.n_robots for b in tp.branches] for tp in plan.turning_points],
+        "kinect_tree": tree.edges() if tree is not None else [],
+        "kinect_root": tree.root if tree is not None else None,
+        "kinect_links": [[a, b, int(c)] for (a, b), c in sorted(tree.links.items())] if tree is not None else [],
+        "routes": [{"robot": rp.index, "kpois": list(rp.kpois), "cost": float(rp.cost), "path": rp.path.tolist()}
+                   for rp in plan.robots],
+    }

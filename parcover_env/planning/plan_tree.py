@@ -18,7 +18,7 @@ from parcover_env.planning import exact as exact_mod
 from parcover_env.planning.plan import Branch, Plan, PlanTree, RobotPlan, TurningPoint
 from parcover_env.planning.roadmap import edge_polyline
 
-__all__ = ["build_plan", "polyline_length"]
+__all__ = ["build_plan", "polyline_length", "merge_turning_points"]
 
 
 def polyline_length(points: np.ndarray) -> float:
@@ -48,8 +48,37 @@ def _join(parts: list[np.ndarray]) -> np.ndarray:
     return np.concatenate(out, axis=0)
 
 
+def merge_turning_points(tps: list[TurningPoint], tol: float) -> list[TurningPoint]:
+    """Merge every TP reached within ``tol`` metres (along the paths) after the TP whose branch leads to
+    it into that TP: one multi-way TP instead of a cascade of splits a few centimetres apart (a
+    roadmap forks at several nearby points where corridors meet). The merged TP keeps the first
+    TP's position; its branches are the later TP's branches in place of the branch leading there."""
+    if tol <= 0:
+        return list(tps)
+    by_group = {tp.robots: tp for tp in tps}
+    out = []
+    absorbed: set[tuple[int, int]] = set()
+    for tp in sorted(tps, key=lambda t: t.distance):
+        if tp.robots in absorbed:
+            continue
+        branches, changed = list(tp.branches), True
+        while changed:
+            changed = False
+            for k, b in enumerate(branches):
+                nxt = by_group.get(b.robots)
+                if (nxt is not None and nxt is not tp and b.robots not in absorbed
+                        and nxt.distance - tp.distance <= tol + 1e-9):
+                    branches[k:k + 1] = list(nxt.branches)
+                    absorbed.add(b.robots)
+                    changed = True
+                    break
+        out.append(TurningPoint(node=tp.node, position=tp.position, distance=tp.distance, robots=tp.robots,
+                                branches=tuple(branches)))
+    return sorted(out, key=lambda t: t.node)
+
+
 def build_plan(graph: nx.Graph, closure, routes: list[list[int]], *, c_max: float, furthest: int, method: str,
-               n_leaves: int = 0, start_point=None,
+               n_leaves: int = 0, start_point=None, tp_merge_tol: float = 0.0,
                simplify: Callable[[np.ndarray], np.ndarray] | None = None) -> Plan:
     """Assemble the plan for ``routes`` (one per robot; an empty route = a robot idle at the start)."""
     start = closure.start
@@ -184,7 +213,7 @@ def build_plan(graph: nx.Graph, closure, routes: list[list[int]], *, c_max: floa
         p = positions[ti]
         tps.append(TurningPoint(node=ti, position=(float(p[0]), float(p[1])), distance=float(dist[ti]),
                                 robots=(lo[t], hi[t]), branches=tuple(branches)))
-    tps.sort(key=lambda tp: tp.node)
+    tps = merge_turning_points(tps, tp_merge_tol)
     pos_arr = np.array(positions, dtype=float)
     dist_arr = np.array(dist, dtype=float)
     for a in (pos_arr, dist_arr):

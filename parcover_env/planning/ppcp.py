@@ -245,7 +245,7 @@ def _distinct_problem(closure: Closure):
 
 
 def solve_ppcp(graph: nx.Graph, start, kpois: Sequence, n_robots: int | None = None, *,
-               method: str = "auto", merge_tours: bool = True, start_point=None,
+               method: str = "auto", merge_tours: bool = True, start_point=None, tp_merge_tol: float = 0.0,
                simplify: Callable[[np.ndarray], np.ndarray] | None = None) -> Plan:
     """Solve the PPCP on a roadmap ``graph`` (nodes with ``pos``, edges with ``weight`` and optional
     ``path`` polylines) from node ``start`` to KPOI nodes ``kpois`` (KPOI i sits at node kpois[i]).
@@ -253,6 +253,7 @@ def solve_ppcp(graph: nx.Graph, start, kpois: Sequence, n_robots: int | None = N
     ``n_robots=None``: fewest robots at ``c_p = c_max`` (stage 1, then stage 2 if ``merge_tours``).
     ``n_robots=r``: min–max routes for exactly r robots. ``method``: ``heuristic``, ``exact``
     (<= 12 distinct KPOI nodes) or ``auto``. ``simplify`` smooths polylines between plan-tree nodes.
+    ``tp_merge_tol`` (m): TPs reached within this distance after another merge into it (one multi-way TP).
     """
     from parcover_env.planning.plan_tree import build_plan
 
@@ -294,4 +295,4 @@ def solve_ppcp(graph: nx.Graph, start, kpois: Sequence, n_robots: int | None = N
     if n_robots is not None:
         routes = routes + [[] for _ in range(int(n_robots) - len(routes))]
     return build_plan(graph, closure, routes, c_max=c_max, furthest=far, method=label, n_leaves=len(base),
-                      start_point=start_point, simplify=simplify)
+                      start_point=start_point, simplify=simplify, tp_merge_tol=tp_merge_tol)

@@ -78,7 +78,7 @@ def _cached_plan(scenario: Scenario, n_robots: int | None, method: str) -> Plan:
     to_roadmap = np.vstack([start, roadmap.node_pos(roadmap.start)])
     start_point = start if path_is_clear(region, to_roadmap) else None
     return solve_ppcp(roadmap.graph, roadmap.start, roadmap.kpois, n_robots, method=method,
-                      start_point=start_point, simplify=simplify)
+                      start_point=start_point, simplify=simplify, tp_merge_tol=scenario.planner.tp_merge_tol)
 
 
 def plan_scenario(scenario: Scenario, n_robots: int | None = None, method: str = "auto") -> Plan:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shapely
 from shapely.geometry import Point, box
 
 from parcover_env.config import Scenario
@@ -9,7 +10,7 @@ from parcover_env.errors import ConfigError
 from parcover_env.geometry.camera import CameraModel
 from parcover_env.world.map_model import MapModel, checked_polygon, map_model
 
-__all__ = ["validate_geometry"]
+__all__ = ["validate_geometry", "kinect_blind_spots"]
 
 
 def validate_geometry(s: Scenario, world: MapModel | None = None, known: MapModel | None = None) -> None:
@@ -46,3 +47,31 @@ def validate_geometry(s: Scenario, world: MapModel | None = None, known: MapMode
         footprint = CameraModel.from_config(kin).footprint()
         if footprint.is_empty or not footprint.intersects(box(*world.bounds)):
             raise ConfigError("", f"kinects[{i}]", f"Kinect '{kin.name}' does not see the map's floor")
+    if s.kinects and s.localization == "kinect":
+        blind = kinect_blind_spots(s)
+        if blind:
+            key, xy = blind[0]
+            raise ConfigError("", key, f"{tuple(round(v, 3) for v in xy)} is seen by no Kinect (a robot there is not "
+                              f"wholly inside any footprint at marker height {s.robot.height} m); with "
+                              "'localization: kinect' every start, TP and KPOI must be in view (Alg. 1) — move or "
+                              "add a Kinect, or use 'localization: both' (sonar where no Kinect sees)")
+
+
+def kinect_blind_spots(s: Scenario) -> list[tuple[str, tuple[float, float]]]:
+    """The start, turning positions and KPOIs of ``s`` no Kinect sees, as ``(key, (x, y))``.
+
+    Seen = a robot centred there lies wholly inside some Kinect's footprint at the height of its
+    markers (``robot.height``), so the marker pipeline can detect it. Seed A (Alg. 1, Fig. 11):
+    the Kinect system detects leaders at the start, at each TP (to split the group) and at the KPOIs.
+    TPs come from the scenario's PPCP plan (cached, shared with the env).
+    """
+    from parcover_env.planning import plan_scenario
+
+    seen = shapely.union_all([CameraModel.from_config(k).footprint(s.robot.height) for k in s.kinects])
+    seen = seen.buffer(-s.robot.radius)
+    shapely.prepare(seen)
+    points = [("start", (s.start.x, s.start.y))]
+    points += [(f"turning_positions[{i}]", tp.position)
+               for i, tp in enumerate(plan_scenario(s, s.n_robots_fixed).turning_points)]
+    points += [(f"kpois[{i}]", tuple(k)) for i, k in enumerate(s.kpois)]
+    return [(key, (float(x), float(y))) for key, (x, y) in points if not seen.contains(Point(x, y))]

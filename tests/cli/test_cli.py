@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from parcover_env.cli import main
 
 
@@ -24,7 +26,8 @@ def test_plan_draws_and_prints(tmp_path, capsys):
     png = tmp_path / "plan.png"
     assert main(["plan", "tree", "--png", str(png)]) == 0
     out = capsys.readouterr().out
-    assert "r = 15 robots" in out and "Kinect tree rooted at A" in out and png.stat().st_size > 1000
+    assert "r = 15 robots" in out and "4 turning positions" in out and "Kinect tree rooted at A" in out
+    assert png.stat().st_size > 1000
 
 
 def test_sectors_and_kinect_views(tmp_path, capsys):
@@ -38,3 +41,48 @@ def test_bad_input_is_one_line_and_exit_2(capsys):
     assert main(["run", "offce", "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "did you mean 'office'" in err[0]
+
+
+def _json_out(capsys, argv) -> dict:
+    import json
+
+    assert main(argv) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_plan_json_tree_is_fig6(capsys):
+    d = _json_out(capsys, ["plan", "tree", "--json"])
+    assert d["n_robots"] == 15 and len(d["turning_positions"]) == 4
+    assert d["kinect_tree"] == [["A", "B"], ["A", "C"], ["A", "D"], ["B", "D"]]
+    assert d["c_max"] > 0 and len(d["routes"]) == 15
+    assert sorted(k for r in d["routes"] for k in r["kpois"]) == list(range(15))
+    assert all(len(p) == 2 for p in d["turning_positions"])
+
+
+def test_sectors_range_and_json(capsys):
+    for rule, n in ((1, 6), (2, 2)):  # seed B Fig. 3 at unlimited range
+        d = _json_out(capsys, ["sectors", "t_room", "--rule", str(rule), "--range", "inf", "--json"])
+        assert d["n_sectors"] == n == len(d["sectors"]) and d["range_max"] is None
+        assert len(d["features"]) == 6 and d["rule"] == rule
+    d = _json_out(capsys, ["sectors", "t_room", "--rule", "2", "--range", "2.54", "--json"])
+    assert d["range_max"] == 2.54 and d["n_sectors"] == 4
+    assert main(["sectors", "t_room", "--range", "inf"]) == 0
+    assert "unlimited range" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        main(["sectors", "t_room", "--range", "-1"])
+
+
+def test_run_json_is_one_object_on_stdout(capsys):
+    import json
+
+    assert main(["run", "office", "--json", "--steps", "5", "--allow-failure", "--quiet"]) == 0
+    captured = capsys.readouterr()
+    m = json.loads(captured.out)
+    assert m["steps"] == 5 and "kinect_splits" in m and "scenario office" in captured.err
+
+
+def test_sectors_draws_fig9_rearrangement(tmp_path, capsys):
+    png = tmp_path / "fig9.png"
+    assert main(["sectors", "hallway", "--rearrangement", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert "Fig. 9 subgoals" in out and png.stat().st_size > 1000

@@ -123,3 +123,21 @@ def test_bad_input_raises_value_error():
         solve_ppcp(g, "s", [])
     with pytest.raises(ValueError, match="method"):
         solve_ppcp(g, "s", ["a"], method="magic")
+
+
+def test_tp_merge_tolerance_makes_one_multiway_tp():
+    """Two forks 4 cm apart (a roadmap crossing a junction) are one 3-way TP under the tolerance,
+    two 2-way TPs without it."""
+    pos = {"s": (0, 0), "j1": (2.0, 0), "j2": (2.04, 0), 0: (2.0, 2.0), 1: (2.04, -2.0), 2: (4.0, 0)}
+    g = graph_from(pos, [("s", "j1"), ("j1", "j2"), ("j1", 0), ("j2", 1), ("j2", 2)])
+    apart = solve_ppcp(g, "s", [0, 1, 2], method="heuristic")
+    assert [_counts(tp) for tp in apart.turning_points] == [[1, 2], [1, 1]]
+    merged = solve_ppcp(g, "s", [0, 1, 2], method="heuristic", tp_merge_tol=0.1)
+    assert len(merged.turning_points) == 1
+    tp = merged.turning_points[0]
+    assert tp.position == (2.0, 0.0) and _counts(tp) == [1, 1, 1] and tp.robots == (0, 3)
+    _check_blocks(merged)
+    # below the tolerance's reach (TPs 0.5 m apart) nothing merges
+    far = {**pos, "j2": (2.5, 0), 1: (2.5, -2.0)}
+    g2 = graph_from(far, [("s", "j1"), ("j1", "j2"), ("j1", 0), ("j2", 1), ("j2", 2)])
+    assert len(solve_ppcp(g2, "s", [0, 1, 2], method="heuristic", tp_merge_tol=0.1).turning_points) == 2

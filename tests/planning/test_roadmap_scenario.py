@@ -21,7 +21,7 @@ from parcover_env.planning import (
     planner_clearance,
 )
 from parcover_env.planning.roadmap import edge_polyline
-from parcover_env.scenarios import load_scenario, scenario_names
+from parcover_env.scenarios import load_scenario
 from parcover_env.world.map_model import MapModel
 
 ROOMS = MapConfig(size=(6.0, 4.0), walls=(((3.0, 0.0), (3.0, 1.5)), ((3.0, 2.5), (3.0, 4.0))),
@@ -96,17 +96,25 @@ def test_narrow_door_kpoi_raises_config_error_naming_it():
         plan_scenario(s, n_robots=0)
 
 
-@pytest.mark.skipif("tree" not in scenario_names(), reason="tree scenario not shipped yet")
-def test_tree_scenario_leaves_tps_and_kinect_tree():
+def test_tree_scenario_is_fig6():
+    """Seed A Fig. 6: 15 KPOI leaves, 4 TPs (one per hub), four Kinects linked A-B, A-C, A-D, B-D;
+    the planner's optimum team is one robot per leaf."""
     s = load_scenario("tree")
+    assert s.n_robots == "auto"
     plan = plan_scenario(s)
-    assert plan.n_leaves >= 12 and plan.r <= plan.n_leaves
-    assert len(plan.turning_points) >= 4
+    assert plan.n_leaves == 15 and plan.r == 15 and plan.method == "paths"
     assert plan.c_p == pytest.approx(plan.c_max)
+    assert len(plan.turning_points) == 4
+    counts = sorted(sorted(b.n_robots for b in tp.branches) for tp in plan.turning_points)
+    assert counts == [[1, 1, 1, 1, 1]] * 3 + [[5, 5, 5]]
+    root_tp = min(plan.turning_points, key=lambda tp: tp.distance)
+    assert root_tp.robots == (0, 15)
     kt = kinect_tree(kinect_footprints(s), plan, (s.start.x, s.start.y))
-    assert kt.root == "A" and set(kt.parent) == {"A", "B", "C", "D"} and kt.unreached == ()
-    assert all(c >= 1 for c in kt.links.values())
-    assert len(kt.tp_cover) == len(plan.turning_points) and len(kt.kpoi_cover) == len(s.kpois)
+    assert kt.root == "A" and kt.unreached == ()
+    assert kt.edges() == [["A", "B"], ["A", "C"], ["A", "D"], ["B", "D"]]
+    # each TP is seen by a Kinect (Alg. 1 splits on a detection): A, C, D, B
+    assert all(len(c) >= 1 for c in kt.tp_cover)
+    assert len(kt.kpoi_cover) == len(s.kpois)
     json.dumps(kt.to_dict())
 
 

@@ -15,10 +15,11 @@ import parcover_env
 from parcover_env.expert.policy import ScriptedExpert
 
 PINNED = {  # scenario: (random actions, seed 3), (expert, seed 5)
-    "office": ("2be93746d694f6a4", "f1668b41d1220ce1"),
-    "tree": ("1812302c3ba8c97b", "6c817395fc207914"),
+    "office": ("d98e2b74c17d449f", "669718af5c066b7b"),
+    "tree": ("393320070f84a3c7", "d20fa0acd925bd90"),
     "hallway": ("628ea18c8d4b84ab", "ea6a0a294ec770de"),
     "t_room": ("c95573cf86299f95", "1593c2a3bc997382"),
+    "triangle_room": ("b6d2804c171ab135", "f9e5be8c4104b1df"),
 }
 
 

@@ -10,6 +10,7 @@ model (fast); ``kinect: frames`` renders depth + IR frames and runs the full pip
 from __future__ import annotations
 
 import numpy as np
+import shapely
 
 from parcover_env.config import Scenario
 from parcover_env.localization.kinect.pipeline import PipelineParams, estimate_fast, estimate_poses
@@ -29,7 +30,17 @@ class KinectSystem:
         self.params = PipelineParams(marker_height=r.height, robot_radius=r.radius, marker_radius=r.marker_radius)
         self.periods = np.array([1.0 / k.rate_hz for k in scenario.kinects])
         self.tracking = scenario.kinect_tracking
+        self.footprint = shapely.union_all([s.camera.footprint(r.height) for s in self.sensors])
+        """Where any Kinect sees a robot's markers (union of the footprints at the robots' height)."""
+        shapely.prepare(self.footprint)
+        self.last_fixes: dict[int, np.ndarray] = {}
+        """Pose fixes of the last :meth:`update` (Alg. 1 splits on these detections)."""
         self.reset()
+
+    def in_view(self, xy: np.ndarray) -> np.ndarray:
+        """Per point ``(N, 2)``: inside some Kinect's footprint."""
+        xy = np.atleast_2d(np.asarray(xy, dtype=float))
+        return shapely.contains_xy(self.footprint, xy[:, 0], xy[:, 1])
 
     def reset(self, rng: np.random.Generator | None = None) -> None:
         """New episode: fresh tracker; with ``rng``, every Kinect draws its mounting error."""
@@ -40,11 +51,13 @@ class KinectSystem:
         self.tracker = KinectTracker(gate=t.gate, fuse_radius=t.fuse_radius)
         self.next_tick = np.zeros(len(self.sensors))
         self.frames: dict[str, KinectFrame] = {}
+        self.last_fixes = {}
 
     def update(self, time: float, true_poses: np.ndarray, markers: np.ndarray, predicted: np.ndarray,
                rng: np.random.Generator) -> dict[int, np.ndarray]:
         """Pose fixes ``{robot index: (x, y, theta)}`` for the marker carriers seen at this step."""
         due = np.flatnonzero(self.next_tick <= time + 1e-9)
+        self.last_fixes = {}
         if len(due) == 0 or not markers.any():
             self.next_tick[due] = time + self.periods[due]
             return {}
@@ -59,7 +72,8 @@ class KinectSystem:
                 per_kinect.append(estimate_fast(sensor, true_poses, markers, rng, stamp=time))
         self.next_tick[due] = time + self.periods[due]
         ids = np.flatnonzero(markers)
-        return self.tracker.update(per_kinect, {int(i): predicted[i] for i in ids}, stamp=time)
+        self.last_fixes = self.tracker.update(per_kinect, {int(i): predicted[i] for i in ids}, stamp=time)
+        return self.last_fixes
 
     def render_frames(self, true_poses: np.ndarray, markers: np.ndarray, seed: int) -> dict[str, KinectFrame]:
         """Frames of every Kinect now, from a separate generator (never disturbs the episode RNG)."""

@@ -4,7 +4,8 @@ from parcover_env.localization.sonar.features import MapFeature, characteristic_
 from parcover_env.localization.sonar.filter import filter_scan
 from parcover_env.localization.sonar.localizer import Ellipse, LocalizationResult, localize
 from parcover_env.localization.sonar.params import SonarLocalizerParams
-from parcover_env.localization.sonar.sectors import Sector, compute_sectors
+from parcover_env.localization.sonar.sectors import Sector, compute_sectors, sectors_summary
 
 __all__ = ["MapFeature", "characteristic_points", "map_features", "filter_scan", "Ellipse",
-           "LocalizationResult", "localize", "SonarLocalizerParams", "Sector", "compute_sectors"]
+           "LocalizationResult", "localize", "SonarLocalizerParams", "Sector", "compute_sectors",
+           "sectors_summary"]

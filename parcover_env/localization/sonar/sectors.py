@@ -25,7 +25,9 @@ from scipy import ndimage
 from parcover_env.geometry import cast_rays
 from parcover_env.localization.sonar.features import MapFeature, map_features
 
-__all__ = ["Sector", "compute_sectors", "visible_features"]
+__all__ = ["Sector", "compute_sectors", "visible_features", "sectors_summary", "RULE_NAMES"]
+
+RULE_NAMES = {0: "original", 1: "rule #1", 2: "rule #2"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -226,3 +228,27 @@ def _cells_polygon(mask: np.ndarray, x0: float, y0: float, res: float):
         return shapely.Polygon()
     b = np.concatenate(boxes)
     return shapely.union_all(shapely.box(b[:, 0], b[:, 1], b[:, 2], b[:, 3]))
+
+
+def sectors_summary(map_model, range_max: float, rule: int, features: list[MapFeature] | None = None,
+                    sectors: list[Sector] | None = None) -> dict:
+    """JSON-ready description of the sectors of ``map_model`` (computed unless ``sectors`` given).
+
+    ``range_max`` may be ``inf`` (unlimited range: the paper's Figs. 3-4 are about visibility only);
+    it is reported as ``null`` then, since JSON has no infinity. Keys: ``rule``, ``rule_name``,
+    ``range_max``, ``n_features``, ``n_sectors``, ``features`` (corner ``[x, y]`` per feature index) and
+    ``sectors`` (per sector: ``features`` union, ``common`` features, ``area`` m^2, ``centroid``).
+    """
+    feats = map_features(map_model) if features is None else features
+    if sectors is None:
+        sectors = compute_sectors(map_model, range_max, rule=rule, features=feats)
+    rows = []
+    for sec in sectors:
+        c = sec.polygon.centroid
+        rows.append({"features": sorted(int(f) for f in sec.features),
+                     "common": sorted(int(f) for f in sec.common),
+                     "area": float(sec.polygon.area), "centroid": [float(c.x), float(c.y)]})
+    return {"rule": int(rule), "rule_name": RULE_NAMES[int(rule)],
+            "range_max": float(range_max) if np.isfinite(range_max) else None,
+            "n_features": len(feats), "n_sectors": len(sectors),
+            "features": [[float(f.point[0]), float(f.point[1])] for f in feats], "sectors": rows}

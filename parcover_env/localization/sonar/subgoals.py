@@ -19,6 +19,13 @@ useful point of wall 1 through the corner to that of wall 2) minus the bearings 
 robots (a disc at range r blocks ``asin(R / r) + cone / 2`` either side of its bearing). Subgoals are
 shifted along the robots' paths to maximize ``min_i A_i`` (ties: smallest total shift), keeping the
 robots apart.
+
+Bisector construction (§4, the implementation behind Fig. 9(a) -> (b)): take the perpendicular
+bisector of the segment from the robots' centre c to the feature F. A robot whose path crosses it
+moves its subgoal to the crossing (the one nearest its old subgoal along the path); the other robot
+takes the point of the bisector closest to its old subgoal (slid along the bisector, away from the
+first, to keep ``min_separation``). Both then stand abreast across the line of sight to F, half as
+far from it, so neither blocks the other's scan of F (:func:`bisector_rearrangement`).
 """
 
 from __future__ import annotations
@@ -34,7 +41,8 @@ from parcover_env.localization.sonar.features import MapFeature
 from parcover_env.localization.sonar.sectors import visible_features
 
 __all__ = ["PathNodes", "densify", "scan_bias", "wall_readings", "NodeScores", "score_nodes",
-           "choose_subgoal", "team_subgoal", "scan_interval", "unblocked_scan_angle", "rearrange"]
+           "choose_subgoal", "team_subgoal", "scan_interval", "unblocked_scan_angle", "rearrange",
+           "bisector_rearrangement", "Rearrangement"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -268,3 +276,62 @@ def rearrange(candidates: list[np.ndarray], features_at: list[list[list[MapFeatu
         for i in range(n):
             choice[i] = max(range(sizes[i]), key=lambda k, i=i: score(choice[:i] + [k] + choice[i + 1:]))
     return choice
+
+
+@dataclass(frozen=True)
+class Rearrangement:
+    """Result of :func:`bisector_rearrangement`."""
+
+    subgoals: np.ndarray
+    """(2, 2) new subgoals."""
+    on_path: tuple[bool, bool]
+    """Per robot: its path crosses the bisector and its subgoal moved to the crossing."""
+    bisector: tuple[np.ndarray, np.ndarray]
+    """A point of the bisector (midpoint of c-F) and its unit direction."""
+
+
+def _path_crossing(path: PathNodes, m: np.ndarray, n: np.ndarray, near: float) -> np.ndarray | None:
+    """Crossing of ``path`` with the line ``(x - m) . n = 0`` nearest arclength ``near``, or None."""
+    d = (path.xy - m) @ n
+    idx = np.nonzero(np.sign(d[:-1]) * np.sign(d[1:]) <= 0)[0]
+    if len(idx) == 0:
+        return None
+    t = np.where(np.abs(d[idx] - d[idx + 1]) > 1e-12, d[idx] / (d[idx] - d[idx + 1] + 1e-300), 0.0)
+    sig = path.s[idx] + t * (path.s[idx + 1] - path.s[idx])
+    k = int(np.argmin(np.abs(sig - near)))
+    return path.xy[idx[k]] + t[k] * (path.xy[idx[k] + 1] - path.xy[idx[k]])
+
+
+def bisector_rearrangement(subgoals, paths: list[PathNodes], sigmas, feature_point, min_separation: float,
+                           free=None, max_slide: float = 3.0, slide_step: float = 0.02) -> Rearrangement:
+    """Seed B §4: rearrange the subgoals of two robots sharing a sector so both can scan the feature.
+
+    ``subgoals (2, 2)`` the current subgoals on ``paths`` at arclengths ``sigmas``; ``feature_point``
+    the corner both localize on; ``free(points) -> bool array`` optional free-space test for the
+    off-path point (e.g. the map eroded by the robot radius). See the module docstring.
+    """
+    sub = np.asarray(subgoals, dtype=float).reshape(2, 2)
+    f = np.asarray(feature_point, dtype=float)
+    c = sub.mean(axis=0)
+    axis = f - c
+    if not np.hypot(*axis) > 1e-9:
+        raise ValueError("the robots' centre coincides with the feature")
+    n = axis / np.hypot(*axis)
+    m = 0.5 * (c + f)
+    u = np.array([-n[1], n[0]])
+    hits = [_path_crossing(p, m, n, float(s)) for p, s in zip(paths, sigmas, strict=True)]
+    on_path = [h is not None for h in hits]
+    out = np.array([h if h is not None else p - ((p - m) @ n) * n for h, p in zip(hits, sub, strict=True)])
+    if np.hypot(*(out[1] - out[0])) < min_separation:
+        # slide an off-path robot (else the second) along the bisector, away from the other one
+        k = 1 if not on_path[1] or on_path[0] else 0
+        j = 1 - k
+        side = np.sign((out[k] - out[j]) @ u) or np.sign((sub[k] - sub[j]) @ u) or 1.0
+        base = out[k].copy()
+        for step in range(1, int(max_slide / slide_step) + 1):
+            cand = base + side * step * slide_step * u
+            if np.hypot(*(cand - out[j])) >= min_separation and (free is None or bool(free(cand[None])[0])):
+                out[k] = cand
+                on_path[k] = False
+                break
+    return Rearrangement(out, (bool(on_path[0]), bool(on_path[1])), (m, u))

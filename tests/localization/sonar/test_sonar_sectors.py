@@ -64,3 +64,33 @@ def test_draw_sectors_image(room):
     assert len(np.unique(img.reshape(-1, 3), axis=0)) > 5
     with pytest.raises(ValueError, match="rule"):
         compute_sectors(m, 2.54, 3, f)
+
+
+def test_fig3_t_room_scenario_at_unlimited_range():
+    """Seed B Fig. 3 on the shipped scenario: rule #1 -> 6 sectors (one per feature), rule #2 -> 2."""
+    from parcover_env.localization.sonar.sectors import sectors_summary
+    from parcover_env.scenarios import load_scenario
+    from parcover_env.world.map_model import map_model
+
+    known = map_model(load_scenario("t_room").map, include_unknown=False)
+    counts = [sectors_summary(known, np.inf, rule)["n_sectors"] for rule in (0, 1, 2)]
+    assert counts[1:] == [6, 2] and counts[0] > 6
+    d = sectors_summary(known, np.inf, 1)
+    assert d["range_max"] is None and d["n_features"] == 6
+    assert sorted(len(s["common"]) >= 1 for s in d["sectors"]) == [True] * 6
+
+
+def test_fig4_triangle_room_counts():
+    """Seed B Fig. 4 (room with a triangular obstacle): rule #1 -> 7 sectors (not the number of
+    features, 6), rule #2 -> 3, none a sliver; the original count is ours (the paper has 65)."""
+    from parcover_env.scenarios import load_scenario
+    from parcover_env.world.map_model import map_model
+
+    known = map_model(load_scenario("triangle_room").map, include_unknown=False)
+    feats = map_features(known)
+    s0, s1, s2 = (compute_sectors(known, np.inf, rule, feats) for rule in (0, 1, 2))
+    assert len(feats) == 6 and len(s1) == 7 and len(s2) == 3
+    assert len(s0) == 32
+    assert min(s.polygon.area for s in s1 + s2) > 0.1
+    union = shapely.union_all([s.polygon for s in s2])
+    assert known.free.difference(union).area < 1e-9

@@ -121,3 +121,39 @@ def test_unblocked_scan_angle_and_rearrangement():
     assert np.hypot(*(p0 - p1)) >= 0.5
     with pytest.raises(ValueError, match="target"):
         rearrange([path0], [feats[0]], [99], 0.165, 2.54)
+
+
+def test_bisector_rearrangement_puts_the_pair_abreast_of_the_feature():
+    """§4: two robots one behind the other on one path towards corner F. The leader moves to where
+    its path crosses the perpendicular bisector of (centre, F); the other takes the bisector point
+    nearest its subgoal, slid to keep the separation. Neither then blocks the other's scan of F."""
+    from parcover_env.localization.sonar.subgoals import bisector_rearrangement
+
+    room = MapModel.from_config(MapConfig(size=(5.0, 3.0)))
+    f = next(x for x in map_features(room) if np.allclose(x.point, (5.0, 0.0)))
+    path = densify(np.array([[0.3, 1.0], [4.6, 1.0]]), 0.02)
+    before = np.array([[2.0, 1.0], [1.4, 1.0]])
+    res = bisector_rearrangement(before, [path, path], [1.7, 1.1], f.point, min_separation=0.4)
+    c, m = before.mean(axis=0), 0.5 * (before.mean(axis=0) + f.point)
+    n = (f.point - c) / np.hypot(*(f.point - c))
+    assert res.subgoals[0] == pytest.approx([m[0] + (1.0 - m[1]) * -n[1] / n[0], 1.0], abs=0.02)
+    assert abs((res.subgoals[1] - m) @ n) < 1e-9 and res.on_path == (True, False)
+    assert np.hypot(*(res.subgoals[1] - res.subgoals[0])) >= 0.4 - 1e-9
+
+    def worst_angle(pts):  # min_i A_i of §3.2 with the AmigoBot's 2.54 m range
+        return min(unblocked_scan_angle(pts[i], f, pts[[1 - i]], 0.165, 2.54) for i in range(2))
+
+    def sight_clearance(pts):  # smallest distance from a robot's line of sight to F to the other robot
+        out = []
+        for i in range(2):
+            a, d = pts[i], f.point - pts[i]
+            t = np.clip((pts[1 - i] - a) @ d / (d @ d), 0.0, 1.0)
+            out.append(np.hypot(*(a + t * d - pts[1 - i])))
+        return min(out)
+
+    assert sight_clearance(before) < 0.165 < sight_clearance(res.subgoals)  # blocked -> clear
+    assert worst_angle(res.subgoals) > worst_angle(before) + math.radians(20)
+    # two parallel paths: both robots cross the bisector and move to their crossings
+    lower = densify(np.array([[0.3, 0.6], [4.6, 0.6]]), 0.02)
+    res2 = bisector_rearrangement(np.array([[2.0, 1.0], [1.6, 0.6]]), [path, lower], [1.7, 1.3], f.point, 0.3)
+    assert res2.on_path == (True, True) and res2.subgoals[:, 1] == pytest.approx([1.0, 0.6])
