@@ -7,9 +7,11 @@ Loading a scenario *by name* (and checking it against the map's geometry) is
 from parcover_env.config.loading import deep_merge, read_yaml, replace_source, scenario_from_mapping, scenario_to_yaml
 from parcover_env.config.schema import (
     EpisodeConfig,
+    ExpertConfig,
     FormationConfig,
     KinectConfig,
     MapConfig,
+    NavigatorConfig,
     ObservationConfig,
     OdometryConfig,
     PhysicsConfig,
@@ -22,6 +24,7 @@ from parcover_env.config.schema import (
     Scenario,
     Segment,
     SonarConfig,
+    SonarFixConfig,
 )
 from parcover_env.config.typed import from_mapping, to_mapping
 from parcover_env.errors import ConfigError
@@ -29,6 +32,7 @@ from parcover_env.errors import ConfigError
 __all__ = [
     "ConfigError", "MapConfig", "Pose", "SonarConfig", "OdometryConfig", "RobotConfig", "KinectConfig",
     "PhysicsConfig", "EpisodeConfig", "RewardConfig", "ObservationConfig", "FormationConfig", "PlannerConfig",
+    "ExpertConfig", "NavigatorConfig", "SonarFixConfig",
     "Scenario", "Point", "Polygon", "Segment", "read_yaml", "deep_merge", "scenario_from_mapping",
     "scenario_to_yaml", "replace_source", "from_mapping", "to_mapping",
 ]

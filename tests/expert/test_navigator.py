@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.expert.navigator import NavigatorParams, SonarNavigator, _compose, _inverse
+from parcover_env.config import NavigatorConfig
+from parcover_env.expert.navigator import SonarNavigator, _compose, _inverse
 from parcover_env.harness.rollout import run_episode
 
 
@@ -41,7 +42,7 @@ def test_bad_inputs_raise():
     with pytest.raises(ValueError, match="sonar"):
         SonarNavigator.for_env(env)
     with pytest.raises(ValueError, match="max_axis"):
-        NavigatorParams(max_axis=0.0)
+        NavigatorConfig(max_axis=0.0)
 
 
 def test_scan_in_place_localizes_and_corrects_the_belief():
