@@ -35,17 +35,6 @@ from parcover_env.scenarios import Mission, RouteTracker
 __all__ = ["ScriptedExpert"]
 
 
-def _nearest_arc(path: np.ndarray, p: np.ndarray) -> float:
-    """Arc length along ``path`` of its point nearest to ``p``."""
-    if len(path) < 2:
-        return 0.0
-    a, e = path[:-1], np.diff(path, axis=0)
-    ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-12)
-    u = np.clip(np.einsum("ij,ij->i", p - a, e) / ee, 0.0, 1.0)
-    j = int(np.argmin(np.hypot(*(a + u[:, None] * e - p).T)))
-    return float(np.concatenate([[0.0], np.cumsum(np.sqrt(ee))])[j] + u[j] * np.sqrt(ee[j]))
-
-
 class ScriptedExpert:
     """Seed A's robots as a policy: ``for_env(env)``, ``reset(obs)``, ``act(obs) -> actions``, ``stats()``.
 
@@ -73,8 +62,10 @@ class ScriptedExpert:
             from parcover_env.expert.sonar_fix import SonarFixer
 
             self.fixer = SonarFixer(scenario, sonar_angles, control_dt, cfg.sonar_fix)
-        # route tracking on the sonar-corrected pose (the env's waypoints follow its odometry estimate)
-        self.tracks: dict[str, RouteTracker] = {}
+        # with sonar fixes, the robots' progress along their routes is tracked on the corrected pose
+        # (the env's waypoints follow its odometry estimate), from the start so that out-and-back
+        # legs are never confused
+        self.track: RouteTracker | None = None
         self.estimators: dict[str, LeaderVelocityEstimator] = {}
         self.blocked: dict[str, int] = {}
         self.backing: dict[str, int] = {}
@@ -107,7 +98,7 @@ class ScriptedExpert:
         return out
 
     def reset(self, observations=None) -> None:
-        self.tracks.clear()
+        self.track = self.mission.tracker() if self.fixer is not None else None
         if self.fixer is not None:
             self.fixer.states.clear()
         self.estimators.clear()
@@ -119,43 +110,42 @@ class ScriptedExpert:
         agents = sorted(observations, key=lambda a: int(a.rsplit("_", 1)[1]))
         leaders = {a: g(observations[a], "leader")[0] > 0.5 for a in agents}
         has_followers = {a: i + 1 < len(agents) and not leaders[agents[i + 1]] for i, a in enumerate(agents)}
-        actions = {}
+        scans = {}
         for a in agents:
             obs = observations[a]
             self._last_odom[int(a.rsplit("_", 1)[1])] = self._odom(obs)
-            scan = self._sonar_fix(a, obs, leaders[a]) if self.fixer is not None else None
-            if scan is not None:
-                v, w = scan
+            scans[a] = self._sonar_fix(a, obs, leaders[a]) if self.fixer is not None else None
+        bel = None
+        if self.fixer is not None:
+            bel = self.belief()
+            if self.track is None:
+                self.track = self.mission.tracker()
+            self.track.update(bel[:, :2], bel[:, :2], 0.0)
+        actions = {}
+        for a in agents:
+            obs = observations[a]
+            if scans[a] is not None:
+                v, w = scans[a]
             elif leaders[a]:
                 self.estimators.pop(a, None)
                 scale = self.cfg.leader_speed if has_followers[a] else 1.0
-                v, w = go_to_goal(self._goal(obs, a), self.v_max, self.w_max, speed_scale=scale)
+                v, w = go_to_goal(self._goal(obs, a, bel), self.v_max, self.w_max, speed_scale=scale)
                 v, w = self._avoid(a, obs, v, w)
             elif g(obs, "pred_visible")[0] > 0.5:
                 v, w = self._follow(a, obs)
             else:
                 self.estimators.pop(a, None)
-                v, w = go_to_goal(self._goal(obs), self.v_max, self.w_max, speed_scale=self.cfg.search_speed)
+                v, w = go_to_goal(self._goal(obs, a, bel), self.v_max, self.w_max, speed_scale=self.cfg.search_speed)
             actions[a] = np.array([v / self.v_max, w / self.w_max], dtype=np.float32)
         return actions
 
-    def _goal(self, obs: np.ndarray, agent: str | None = None) -> np.ndarray:
-        """The route point in the robot frame; re-expressed from the sonar-corrected pose if any."""
-        goal = np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
-        if self.fixer is None or agent is None:
-            return goal
-        odom = self._odom(obs)
-        bel = self.fixer.belief(agent, odom)
-        if not self.fixer.corrected(agent):
-            self.tracks.pop(agent, None)
-            return goal
-        track = self.tracks.get(agent)
-        if track is None:  # first corrected step: place the robot on its own plan path
-            path = self.plan.paths[int(agent.rsplit("_", 1)[1])]
-            track = self.tracks[agent] = self.mission.tracker([path])
-            track.progress[0] = _nearest_arc(path, bel[:2])
-        track.update(bel[None, :2], bel[None, :2], 0.0)
-        return rotate(track.goals()[0] - bel[:2], -bel[2])
+    def _goal(self, obs: np.ndarray, agent: str, bel: np.ndarray | None) -> np.ndarray:
+        """The route point in the robot frame: the observed one, or with sonar fixes the expert's own
+        tracker's from the corrected pose (identical while there is no correction)."""
+        if bel is None or not self.fixer.corrected(agent):
+            return np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
+        i = int(agent.rsplit("_", 1)[1])
+        return rotate(self.track.goals()[i] - bel[i, :2], -bel[i, 2])
 
     def _odom(self, obs: np.ndarray) -> np.ndarray:
         g = self.layout.get
