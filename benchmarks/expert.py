@@ -14,6 +14,7 @@ scenarios, the messages of formation mode vs every-robot-localized mode (``--mes
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
@@ -71,8 +72,14 @@ def main() -> None:
     kinect = [s for s in args.scenarios if args.messages and s != "generated" and parcover_env.load_scenario(s).kinects]
     jobs += [(s, k, "individual", args.preset) for s in kinect for k in list(seeds)[:10]]
     t0 = time.perf_counter()
+    results = []
     with ProcessPoolExecutor(args.workers) as pool:
-        results = list(pool.map(episode, jobs))
+        for m in pool.map(episode, jobs):  # in order, as they finish: a running tally on stderr
+            results.append(m)
+            failed = [r["seed"] for r in results if not r["success"]]
+            print(f"\r{len(results)}/{len(jobs)} episodes, failed seeds: {failed}", end="", file=sys.stderr,
+                  flush=True)
+    print(file=sys.stderr)
     rows: dict[tuple[str, str], list[dict]] = {}
     for (name, _, mode, _), m in zip(jobs, results, strict=True):
         rows.setdefault((name, mode), []).append(m)
