@@ -78,3 +78,11 @@ def test_hallway_mission_completes_with_sonar_navigator():
     assert m["sonar_scans"] >= 4 and m["sonar_localized"] >= 2
     bel, true = nav.belief(), env.world.poses()
     assert np.hypot(*(bel[:, :2] - true[:, :2]).T).max() < 0.15
+
+
+def test_navigator_takes_its_tunables_from_the_scenario():
+    over = {"expert": {"navigator": {"max_axis": 0.2, "front_sector_deg": 50.0}}}
+    nav = SonarNavigator.for_env(parcover_env.parallel_env("hallway", overrides=over))
+    default = SonarNavigator.for_env(parcover_env.parallel_env("hallway"))
+    assert nav.p.max_axis == 0.2 and default.p.max_axis == NavigatorConfig().max_axis
+    assert 0 < len(default.front) < len(nav.front)
