@@ -32,13 +32,14 @@ class SonarFixConfig:
     """Turn rate while scanning (rad/s), capped at the robot's ``max_turn_rate``."""
     gate_distance: float = 0.15
     """A fix is accepted only within this distance of the odometry pose... (m)"""
-    gate_distance_rate: float = 0.1
-    """... plus this much per metre driven since the last Kinect fix (m/m)."""
+    gate_distance_rate: float = 0.05
+    """... plus this much per metre driven since the last fix, Kinect or sonar (m/m): odometry drifts
+    by a few percent of the distance; a wider gate admits false matches along long walls."""
     gate_heading_deg: float = 15.0
     """A fix is accepted only within this heading of the odometry pose... (deg): rooms are nearly
     symmetric, and a scan often matches the map turned by 90 or 180 degrees about a nearby point."""
     gate_heading_rate_deg: float = 1.0
-    """... plus this much per metre driven since the last Kinect fix (deg/m)."""
+    """... plus this much per metre driven since the last fix, Kinect or sonar (deg/m)."""
 
     def __post_init__(self) -> None:
         positive(self, "stale_after", "scan_rate", "gate_distance", "gate_heading_deg")

@@ -29,7 +29,8 @@ class _State:
     scan_odom: np.ndarray | None = None
     driven_since_scan: float = math.inf
     driven_since_fix: float = 0.0
-    """Distance driven since the last Kinect fix (m): bounds how far odometry can have drifted."""
+    """Distance driven since the last absolute fix, Kinect or accepted sonar fix (m): bounds how far
+    odometry can have drifted."""
 
 
 class SonarFixer:
@@ -103,6 +104,7 @@ class SonarFixer:
                        features=self.features)
         if res.pose is not None and res.success and self.accept(res.pose, prior, st.driven_since_fix):
             st.correction = compose(res.pose, inverse(st.scan_odom))
+            st.driven_since_fix = 0.0
             self.stats["sonar_localized"] += 1
         else:
             self.stats["sonar_failed"] += 1
