@@ -27,7 +27,10 @@ class SonarFixConfig:
     stale_after: float = 8.0
     """A leader whose last Kinect fix is older than this stops to scan (s)."""
     rescan_distance: float = 2.0
-    """A leader scans again only after driving this far since its last scan (m)."""
+    """A leader scans again only after driving this far since its last scan (m)..."""
+    final_rescan_distance: float = 0.2
+    """... or this far when it believes it is at its route's end, so that an arrival on drifted
+    odometry is checked, and corrected until a scan confirms it (m)."""
     scan_rate: float = 0.6
     """Turn rate while scanning (rad/s), capped at the robot's ``max_turn_rate``."""
     gate_distance: float = 0.15
@@ -44,6 +47,8 @@ class SonarFixConfig:
     def __post_init__(self) -> None:
         positive(self, "stale_after", "scan_rate", "gate_distance", "gate_heading_deg")
         check(self.rescan_distance >= 0, "rescan_distance", f"must be >= 0, got {self.rescan_distance}")
+        check(self.final_rescan_distance >= 0, "final_rescan_distance",
+              f"must be >= 0, got {self.final_rescan_distance}")
         check(self.gate_distance_rate >= 0, "gate_distance_rate", f"must be >= 0, got {self.gate_distance_rate}")
         check(self.gate_heading_rate_deg >= 0, "gate_heading_rate_deg",
               f"must be >= 0, got {self.gate_heading_rate_deg}")

@@ -153,8 +153,12 @@ class ScriptedExpert:
 
     def _sonar_fix(self, agent: str, obs: np.ndarray, leader: bool) -> tuple[float, float] | None:
         g = self.layout.get
-        return self.fixer.step(agent, self._odom(obs), float(g(obs, "fix_age")[0]), float(g(obs, "v")[0]),
-                               g(obs, "sonar").astype(float), leader)
+        i = int(agent.rsplit("_", 1)[1])
+        odom = self._odom(obs)
+        end = self.mission.routes[i][-1]
+        at_end = bool(np.hypot(*(self.fixer.belief(agent, odom)[:2] - end)) <= self.mission.waypoint_tol)
+        return self.fixer.step(agent, odom, float(g(obs, "fix_age")[0]), float(g(obs, "v")[0]),
+                               g(obs, "sonar").astype(float), leader, at_end)
 
     def _follow(self, agent: str, obs: np.ndarray) -> tuple[float, float]:
         g, f = self.layout.get, self.scenario.formation

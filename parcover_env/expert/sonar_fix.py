@@ -62,8 +62,10 @@ class SonarFixer:
         return odom if st is None else compose(st.correction, odom)
 
     def step(self, agent: str, odom: np.ndarray, fix_age: float, speed: float, ranges: np.ndarray,
-             is_leader: bool) -> tuple[float, float] | None:
-        """Advance this robot's scan logic; returns a (v, w) command while it is scanning."""
+             is_leader: bool, at_end: bool = False) -> tuple[float, float] | None:
+        """Advance this robot's scan logic; returns a (v, w) command while it is scanning. ``at_end``:
+        the robot believes it is at its route's end, where it checks its pose with a scan sooner
+        (``final_rescan_distance``), since nothing later would catch a drifted arrival."""
         st = self.states.setdefault(agent, _State(np.zeros(3)))
         if fix_age < 2 * self.dt:  # a fresh Kinect fix: the odometry pose is absolute again
             st.correction, st.scan, st.driven_since_scan, st.driven_since_fix = np.zeros(3), None, math.inf, 0.0
@@ -71,7 +73,8 @@ class SonarFixer:
         st.driven_since_scan += abs(speed) * self.dt
         st.driven_since_fix += abs(speed) * self.dt
         if st.scan is None:
-            if not (is_leader and fix_age > self.cfg.stale_after and st.driven_since_scan >= self.cfg.rescan_distance):
+            rescan = self.cfg.final_rescan_distance if at_end else self.cfg.rescan_distance
+            if not (is_leader and fix_age > self.cfg.stale_after and st.driven_since_scan >= rescan):
                 return None
             st.scan = ScanCollector(self.beams, self.n_bins, self.sonar.range_max, float(odom[2]))
             st.scan_odom = odom.copy()
