@@ -1,62 +1,116 @@
-"""Scripted expert per scenario over many seeds: success, makespan ratio, messages, errors, time.
+"""Scripted expert per scenario over many seeds: success, KPOIs, makespan ratio, failures by cause.
 
-    python benchmarks/expert.py                      # 50 seeds on every shipped scenario
+    python benchmarks/expert.py                                   # 50 seeds on every shipped scenario
     python benchmarks/expert.py --seeds 5 --scenarios office tree
+    python benchmarks/expert.py --scenarios generated --seeds 200 --preset ideal
+    python benchmarks/expert.py --scenarios generated --seeds 60 --first-seed 1000
 
-Prints one Markdown table (makespan ratio = makespan / (c_max / v_max): min / mean / p95 / max)
-and, for the Kinect scenarios, the messages of formation mode vs every-robot-localized mode.
+``generated`` stands for the maps ``generated:SEED`` with SEED = the episode seed (one map per
+seed). Prints one Markdown table (makespan ratio = makespan / (c_max / v_max): min / mean / p95 /
+max), failures by cause (``parcover_env.harness.failures``) with their seeds, and, for the Kinect
+scenarios, the messages of formation mode vs every-robot-localized mode (``--messages``).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
 import parcover_env
 from parcover_env.expert.policy import ScriptedExpert
-from parcover_env.harness.rollout import run_episode
+from parcover_env.harness.failures import CAUSES, run_diagnosed
 
 
-def episode(job: tuple[str, int, str]) -> dict:
-    name, seed, mode = job
-    env = parcover_env.parallel_env(name, overrides={"formation": {"mode": mode}})
-    m = run_episode(env, ScriptedExpert.for_env(env), seed)
+def _name(scenario: str, seed: int) -> str:
+    return f"generated:{seed}" if scenario == "generated" else scenario
+
+
+def episode(job: tuple[str, int, str, str]) -> dict:
+    scenario, seed, mode, preset = job
+    name = _name(scenario, seed)
+    try:
+        env = parcover_env.parallel_env(name, overrides={"formation": {"mode": mode}}, preset=preset)
+    except Exception as exc:  # noqa: BLE001 - a map that cannot be built is reported, not fatal
+        return {"success": False, "cause": "error", "error": f"{type(exc).__name__}: {exc}", "seed": seed}
+    m, diag = run_diagnosed(env, ScriptedExpert.for_env(env), seed)
     m["n_messages"] = sum(m["messages"].values())
+    m["seed"] = seed
+    m["error"] = diag.error
     return m
+
+
+def _ratio(ms: list[dict]) -> str:
+    ratio = np.array([m["makespan_ratio"] for m in ms if m.get("makespan_ratio") is not None])
+    if not len(ratio):
+        return "-"
+    return f"{ratio.min():.2f} / {ratio.mean():.2f} / {np.percentile(ratio, 95):.2f} / {ratio.max():.2f}"
+
+
+def _mean(ms: list[dict], key: str, default: float = float("nan")) -> float:
+    vals = [m[key] for m in ms if key in m]
+    return float(np.mean(vals)) if vals else default
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", type=int, default=50)
-    ap.add_argument("--scenarios", nargs="+", default=["office", "tree", "hallway", "t_room"])
+    ap.add_argument("--first-seed", type=int, default=0)
+    ap.add_argument("--scenarios", nargs="+", default=["office", "tree", "hallway", "t_room"],
+                    help="shipped names, YAML paths, or 'generated' (generated:SEED, one map per seed)")
+    ap.add_argument("--preset", choices=["realistic", "ideal"], default="realistic")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--messages", action="store_true",
+                    help="also run 10 seeds per Kinect scenario in 'individual' mode and compare messages")
     args = ap.parse_args()
-    jobs = [(s, k, "formation") for s in args.scenarios for k in range(args.seeds)]
-    kinect = [s for s in args.scenarios if parcover_env.load_scenario(s).kinects]
-    jobs += [(s, k, "individual") for s in kinect for k in range(min(args.seeds, 10))]
+    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    jobs = [(s, k, "formation", args.preset) for s in args.scenarios for k in seeds]
+    kinect = [s for s in args.scenarios if args.messages and s != "generated" and parcover_env.load_scenario(s).kinects]
+    jobs += [(s, k, "individual", args.preset) for s in kinect for k in list(seeds)[:10]]
     t0 = time.perf_counter()
+    results = []
     with ProcessPoolExecutor(args.workers) as pool:
-        results = list(pool.map(episode, jobs))
-    rows = {}
-    for (name, _, mode), m in zip(jobs, results):
+        for m in pool.map(episode, jobs):  # in order, as they finish: a running tally on stderr
+            results.append(m)
+            failed = [r["seed"] for r in results if not r["success"]]
+            print(f"\r{len(results)}/{len(jobs)} episodes, failed seeds: {failed}", end="", file=sys.stderr,
+                  flush=True)
+    print(file=sys.stderr)
+    rows: dict[tuple[str, str], list[dict]] = {}
+    for (name, _, mode, _), m in zip(jobs, results, strict=True):
         rows.setdefault((name, mode), []).append(m)
-    print(f"{len(jobs)} episodes in {time.perf_counter() - t0:.0f} s on {args.workers} workers\n")
+    print(f"{len(jobs)} episodes in {time.perf_counter() - t0:.0f} s on {args.workers} workers, "
+          f"preset {args.preset}, seeds {seeds.start}..{seeds.stop - 1}\n")
     print("| scenario | seeds | success | KPOIs | makespan ratio min / mean / p95 / max | wall coll. | robot coll. "
           "| messages | formation err l (m) | loc. err (m) | wall time / ep (s) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for name in args.scenarios:
         ms = rows[(name, "formation")]
-        ratio = np.array([m["makespan_ratio"] for m in ms if m["makespan_ratio"] is not None])
-        r = (f"{ratio.min():.2f} / {ratio.mean():.2f} / {np.percentile(ratio, 95):.2f} / {ratio.max():.2f}"
-             if len(ratio) else "-")
-        print(f"| {name} | {len(ms)} | {np.mean([m['success'] for m in ms]):.0%} "
-              f"| {np.mean([m['kpois_visited'] / m['n_kpois'] for m in ms]):.1%} | {r} "
-              f"| {sum(m['wall_collisions'] for m in ms)} | {np.mean([m['robot_collisions'] for m in ms]):.1f} avg "
-              f"| {np.mean([m['n_messages'] for m in ms]):.0f} | {np.mean([m['formation_error_l'] for m in ms]):.3f} "
-              f"| {np.mean([m['localization_error'] for m in ms]):.3f} | {np.mean([m['wall_time'] for m in ms]):.2f} |")
+        ok = [m for m in ms if "n_kpois" in m]
+        print(f"| {name} | {len(ms)} | {np.mean([m['success'] for m in ms]):.1%} "
+              f"| {np.mean([m['kpois_visited'] / m['n_kpois'] for m in ok]):.1%} | {_ratio(ok)} "
+              f"| {sum(m['wall_collisions'] for m in ok)} | {_mean(ok, 'robot_collisions'):.1f} avg "
+              f"| {_mean(ok, 'n_messages'):.0f} | {_mean(ok, 'formation_error_l'):.3f} "
+              f"| {_mean(ok, 'localization_error'):.3f} | {_mean(ok, 'wall_time'):.2f} |")
+    print("\nFailures by cause (seeds):\n")
+    print("| scenario | " + " | ".join(c for c in CAUSES if c != "solved") + " |")
+    print("|---|" + "---|" * (len(CAUSES) - 1))
+    for name in args.scenarios:
+        ms = rows[(name, "formation")]
+        count = Counter(m["cause"] for m in ms)
+        cells = []
+        for c in CAUSES[1:]:
+            seeds_c = [m["seed"] for m in ms if m["cause"] == c]
+            shown = ", ".join(map(str, seeds_c[:12])) + (", ..." if len(seeds_c) > 12 else "")
+            cells.append(f"{count[c]} ({shown})" if count[c] else "0")
+        print(f"| {name} | " + " | ".join(cells) + " |")
+    errors = [(m["seed"], m["error"]) for (n, _), ms in rows.items() for m in ms if m.get("error")]
+    for seed, err in errors[:10]:
+        print(f"\nseed {seed}: {err}")
     if kinect:
         print("\nMessages per episode, leader-only formations vs every robot localized (no formations):\n")
         print("| scenario | formation: total (pose / waypoint / split / promotion) "

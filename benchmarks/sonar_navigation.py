@@ -16,11 +16,12 @@ import time
 import numpy as np
 
 import parcover_env
+from parcover_env.config import NavigatorConfig
 from parcover_env.env.metrics import episode_metrics
-from parcover_env.expert.navigator import NavigatorParams, SonarNavigator
+from parcover_env.expert.navigator import SonarNavigator
 
 
-def episode(name: str, seed: int, params: NavigatorParams) -> dict:
+def episode(name: str, seed: int, params: NavigatorConfig) -> dict:
     env = parcover_env.parallel_env(name)
     nav = SonarNavigator.for_env(env, params=params)
     obs, _ = env.reset(seed=seed)
@@ -49,9 +50,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--maps", nargs="+", default=["hallway", "t_room"])
-    ap.add_argument("--max-axis", type=float, default=None, help="override NavigatorParams.max_axis (m)")
+    ap.add_argument("--max-axis", type=float, default=None, help="override expert.navigator.max_axis (m)")
     args = ap.parse_args()
-    params = NavigatorParams() if args.max_axis is None else NavigatorParams(max_axis=args.max_axis)
+    params = NavigatorConfig() if args.max_axis is None else NavigatorConfig(max_axis=args.max_axis)
     for name in args.maps:
         rows = [episode(name, s, params) for s in range(args.seeds)]
         ok = [r for r in rows if r["success"]]

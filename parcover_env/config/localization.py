@@ -8,14 +8,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from parcover_env.errors import ConfigError
+from parcover_env.config.checks import check as _check
 
 __all__ = ["SonarLocalizerConfig", "KinectTrackingConfig"]
-
-
-def _check(ok: bool, key: str, message: str) -> None:
-    if not ok:
-        raise ConfigError("", key, message)
 
 
 @dataclass(frozen=True)

@@ -11,8 +11,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Literal
 
+from parcover_env.config.checks import check as _check
+from parcover_env.config.checks import positive as _positive
+from parcover_env.config.expert import ExpertConfig, NavigatorConfig, SonarFixConfig
 from parcover_env.config.localization import KinectTrackingConfig, SonarLocalizerConfig
 from parcover_env.errors import ConfigError
 
@@ -23,7 +26,8 @@ Segment = tuple[Point, Point]
 __all__ = [
     "ConfigError", "MapConfig", "Pose", "SonarConfig", "DriveConfig", "OdometryConfig", "RobotConfig",
     "KinectConfig", "PhysicsConfig", "EpisodeConfig", "RewardConfig", "ObservationConfig",
-    "FormationConfig", "PlannerConfig", "SonarLocalizerConfig", "KinectTrackingConfig", "Scenario",
+    "FormationConfig", "PlannerConfig", "SonarLocalizerConfig", "KinectTrackingConfig", "ExpertConfig",
+    "NavigatorConfig", "SonarFixConfig", "Scenario",
     "Point", "Polygon", "Segment",
 ]
 
@@ -32,14 +36,6 @@ MAX_RASTER_CELLS = 4e6
 """The planner rasterizes the map at ``planner.resolution``: at most this many cells (memory, time)."""
 
 
-def _check(ok: bool, key: str, message: str) -> None:
-    if not ok:
-        raise ConfigError("", key, message)
-
-
-def _positive(obj: Any, *names: str) -> None:
-    for name in names:
-        _check(getattr(obj, name) > 0, name, f"must be > 0, got {getattr(obj, name)}")
 
 
 @dataclass(frozen=True)
@@ -455,6 +451,8 @@ class Scenario:
     episode: EpisodeConfig = field(default_factory=EpisodeConfig)
     rewards: RewardConfig = field(default_factory=RewardConfig)
     observation: ObservationConfig = field(default_factory=ObservationConfig)
+    expert: ExpertConfig = field(default_factory=ExpertConfig)
+    """Tunables of the scripted expert (seed A controllers, seed B navigator); not used by the env."""
     source: str = field(default="<dict>", compare=False, metadata={"internal": True})
 
     def __post_init__(self) -> None:

@@ -27,22 +27,19 @@ Design choices (documented deviations):
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
-import shapely
 
-from parcover_env.config import Scenario
+from parcover_env.config import NavigatorConfig, Scenario
 from parcover_env.control.leader import go_to_goal
 from parcover_env.env.observations import ObservationLayout
-from parcover_env.expert.navigator_params import NavigatorParams
+from parcover_env.expert.team_localizer import TeamLocalizer
 from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.poses import compose as _compose
 from parcover_env.geometry.poses import inverse as _inverse
 from parcover_env.localization.sonar.features import MapFeature
-from parcover_env.localization.sonar.known_map import known_map_features
-from parcover_env.localization.sonar.localizer import Ellipse, localize, scan_error
+from parcover_env.localization.sonar.localizer import Ellipse
 from parcover_env.localization.sonar.params import SonarLocalizerParams
 from parcover_env.localization.sonar.scan import ScanCollector
 from parcover_env.localization.sonar.subgoals import (
@@ -53,17 +50,18 @@ from parcover_env.localization.sonar.subgoals import (
     team_subgoal,
     unblocked_scan_angle,
 )
-from parcover_env.sensors.sonar import simulate_beams
-from parcover_env.world.map_model import MapModel
 
-__all__ = ["NavigatorParams", "SonarNavigator"]
+NavigatorParams = NavigatorConfig
+"""Former name of :class:`~parcover_env.config.NavigatorConfig` (the scenario's ``expert.navigator``)."""
+
+__all__ = ["NavigatorConfig", "NavigatorParams", "SonarNavigator"]
 
 
 class SonarNavigator:
     """Seed B NAVIGATOR policy: ``for_env(env)``, ``reset(obs)``, ``act(obs) -> actions``, ``stats()``."""
 
     def __init__(self, layout: ObservationLayout, scenario: Scenario, paths: list[np.ndarray],
-                 control_dt: float, sonar_angles: np.ndarray, params: NavigatorParams | None = None,
+                 control_dt: float, sonar_angles: np.ndarray, params: NavigatorConfig | None = None,
                  localizer: SonarLocalizerParams | None = None):
         if sonar_angles is None or len(sonar_angles) == 0:
             raise ValueError("SonarNavigator needs the sonar beam angles (observation.sonar must be on)")
@@ -74,22 +72,21 @@ class SonarNavigator:
         if len(paths) == 0:
             raise ValueError("SonarNavigator needs one route per robot, got none")
         self.layout, self.scenario, self.dt = layout, scenario, float(control_dt)
-        self.p = params or NavigatorParams()
+        self.p = params if params is not None else scenario.expert.navigator
         self.loc = localizer or SonarLocalizerParams()
         self.beams = np.asarray(sonar_angles, dtype=float)
         r = scenario.robot
         self.sonar_cfg = r.sonar
         self.v_max, self.w_max, self.radius = r.max_speed, r.max_turn_rate, r.radius
         self.spacing = scenario.formation.spacing
-        self.map, self.features, self.sectors = known_map_features(
-            scenario.map, r.sonar.range_max, self.p.sector_rule, self.loc.sector_resolution)
-        self.n_bins = round(360.0 / r.sonar.scan_step_deg)
-        self.scan_angles = np.radians(np.arange(self.n_bins) * r.sonar.scan_step_deg)
+        self.team_loc = TeamLocalizer(scenario, self.p, self.loc)
+        self.map, self.features = self.team_loc.map, self.team_loc.features
+        self.n_bins = self.team_loc.n_bins
         self.step_rad = math.radians(r.sonar.scan_step_deg)
         self.specular = r.sonar.model == "specular"
         self.incidence = math.radians(r.sonar.incidence_max_deg) if self.specular else math.pi / 2
         self.cone = math.radians(r.sonar.cone_deg) if self.specular else 0.0
-        self.front = np.flatnonzero(np.abs(wrap_angle(self.beams)) <= math.radians(25))
+        self.front = np.flatnonzero(np.abs(wrap_angle(self.beams)) <= math.radians(self.p.front_sector_deg))
         self.routes = [np.asarray(p, dtype=float) for p in paths]
         self.n = len(self.routes)
         self.reset()
@@ -358,16 +355,8 @@ class SonarNavigator:
         o = self.scan["start"]
         prior = _compose(self.correction[i], o)
         ell = self.ellipse(i).moved(prior[:2])
-        others = np.delete(self.belief()[:, :2], i, axis=0)
-        res = localize(ranges, self.scan_angles, self._team_map(others), self.sectors, ell, self.loc,
-                       sonar=self.sonar_cfg, features=self.features)
-        team_error = math.inf
-        if res.pose is not None:
-            axes = (res.pose[2] + self.scan_angles)[None, :]
-            synth = simulate_beams(self.sonar_cfg, res.pose[None, :2], axes, self.map.segments, others,
-                                   self.radius, np.array([-1]))
-            team_error = float(scan_error(ranges, synth, self.loc.error_clip)[0])
-        ok = res.pose is not None and (res.success or team_error <= self.p.accept_error)
+        fix = self.team_loc.localize(ranges, ell, np.delete(self.belief()[:, :2], i, axis=0))
+        res, ok, team_error = fix.result, fix.ok, fix.team_error
         record = {"robot": i, "prior": prior, "ellipse": ell, "success": bool(ok), "error": res.error,
                   "pose": None if res.pose is None else res.pose.copy(), "target": self.targets[i],
                   "team_error": team_error}
@@ -389,19 +378,7 @@ class SonarNavigator:
             if (ok and close) or self.final_scans[i] >= self.p.max_final_scans:
                 self.done[i] = True
 
-    def _team_map(self, others: np.ndarray) -> MapModel:
-        """The known map with the teammates as 16-gon obstacles at their believed positions."""
-        if len(others) == 0 or not self.p.teammates_in_map:
-            return self.map
-        discs = shapely.union_all([shapely.Point(*q).buffer(self.radius, quad_segs=4) for q in others])
-        free = self.map.free.difference(discs)
-        return self.map if free.is_empty else MapModel(free=free, bounds=self.map.bounds)
-
     def _end_iteration(self) -> None:
         """Fig. 1 line 9: start again from the robots' corrected configurations."""
         self.phase = "plan"
 
-
-def replace_params(nav: SonarNavigator, **changes) -> NavigatorParams:
-    """Copy of ``nav``'s parameters with ``changes`` (convenience for benchmarks)."""
-    return dataclasses.replace(nav.p, **changes)

@@ -5,7 +5,7 @@ explicitly: the scenario (map, robot model, formation parameters) and the PPCP p
 env internals. Roles (leader/follower), splits at TPs, and waypoints come from the observations
 (the env runs the Kinect system's Alg. 1); each robot then runs its own controller:
 
-* leader: go-to-goal toward its next waypoint (eq. 2), slowed to ``leader_speed`` of v_max while it
+* leader: go-to-goal toward its next waypoint (eq. 2), slowed to ``expert.leader_speed`` of v_max while it
   has followers so they can close gaps;
 * follower: the l-psi law (eq. 3, corrected) on its onboard camera's measurement of the robot ahead,
   the leader's velocity estimated from successive measurements (limited information, ref. [8]);
@@ -15,14 +15,17 @@ env internals. Roles (leader/follower), splits at TPs, and waypoints come from t
   corrected pose toward the same route point;
 * leaders brake on their front sonar beams when a robot or wall is closer than ``stop_margin``
   (needed in ``individual`` mode, where all robots leave at once); a leader braked for longer than
-  ``patience`` (plus 0.3 s per robot index, so two robots never give way together) backs off
-  briefly while turning, which breaks face-to-face deadlocks.
+  ``patience`` (plus ``patience_stagger`` per robot index, so two robots never give way together)
+  backs off briefly while turning, which breaks face-to-face deadlocks.
+
+Every tunable is a field of the scenario's ``expert`` section (:class:`~parcover_env.config.ExpertConfig`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from parcover_env.config import ExpertConfig
 from parcover_env.control.follower import LeaderVelocityEstimator, l_psi_control, relative_l_psi
 from parcover_env.control.leader import go_to_goal
 from parcover_env.env.observations import ObservationLayout
@@ -32,44 +35,41 @@ from parcover_env.scenarios import Mission, RouteTracker
 __all__ = ["ScriptedExpert"]
 
 
-def _nearest_arc(path: np.ndarray, p: np.ndarray) -> float:
-    """Arc length along ``path`` of its point nearest to ``p``."""
-    if len(path) < 2:
-        return 0.0
-    a, e = path[:-1], np.diff(path, axis=0)
-    ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-12)
-    u = np.clip(np.einsum("ij,ij->i", p - a, e) / ee, 0.0, 1.0)
-    j = int(np.argmin(np.hypot(*(a + u[:, None] * e - p).T)))
-    return float(np.concatenate([[0.0], np.cumsum(np.sqrt(ee))])[j] + u[j] * np.sqrt(ee[j]))
-
-
 class ScriptedExpert:
+    """Seed A's robots as a policy: ``for_env(env)``, ``reset(obs)``, ``act(obs) -> actions``, ``stats()``.
+
+    Every tunable comes from ``config`` (default: the scenario's ``expert`` section,
+    :class:`~parcover_env.config.ExpertConfig`).
+    """
+
     def __init__(self, layout: ObservationLayout, mission: Mission, sonar_angles: np.ndarray | None = None,
-                 leader_speed: float = 0.9, stop_margin: float = 0.05, slow_margin: float = 0.25,
-                 patience: float = 2.0):
+                 config: ExpertConfig | None = None):
         self.layout, self.mission = layout, mission
         self.scenario = scenario = mission.scenario
+        self.cfg = cfg = config if config is not None else scenario.expert
         self.plan = mission.plan
         self.dt = control_dt = scenario.physics.control_dt
-        self.leader_speed = leader_speed
         r = scenario.robot
         self.v_max, self.w_max = r.max_speed, r.max_turn_rate
         self.sonar_front = None
         if sonar_angles is not None and len(sonar_angles):
-            self.sonar_front = np.flatnonzero(np.abs(wrap_angle(np.asarray(sonar_angles))) <= np.radians(25))
-        self.stop = r.radius + stop_margin
-        self.slow = r.radius + slow_margin
-        self.patience = patience
+            front = np.abs(wrap_angle(np.asarray(sonar_angles))) <= np.radians(cfg.front_sector_deg)
+            self.sonar_front = np.flatnonzero(front)
+        self.stop = r.radius + cfg.stop_margin
+        self.slow = r.radius + cfg.slow_margin
         self.fixer = None
         if scenario.localization == "both" and sonar_angles is not None:
             from parcover_env.expert.sonar_fix import SonarFixer
 
-            self.fixer = SonarFixer(scenario, sonar_angles, control_dt)
-        # route tracking on the sonar-corrected pose (the env's waypoints follow its odometry estimate)
-        self.tracks: dict[str, RouteTracker] = {}
+            self.fixer = SonarFixer(scenario, sonar_angles, control_dt, cfg.sonar_fix)
+        # with sonar fixes, the robots' progress along their routes is tracked on the corrected pose
+        # (the env's waypoints follow its odometry estimate), from the start so that out-and-back
+        # legs are never confused
+        self.track: RouteTracker | None = None
         self.estimators: dict[str, LeaderVelocityEstimator] = {}
         self.blocked: dict[str, int] = {}
         self.backing: dict[str, int] = {}
+        self._last_odom = np.zeros((mission.n_robots, 3))
 
     @classmethod
     def for_env(cls, env, **kwargs):
@@ -88,8 +88,17 @@ class ScriptedExpert:
     def stats(self) -> dict:
         return dict(self.fixer.stats) if self.fixer is not None else {}
 
+    def belief(self) -> np.ndarray:
+        """``(N, 3)`` poses the robots steer by at the last step: the observed estimate, corrected by
+        a sonar fix where there is one."""
+        out = self._last_odom.copy()
+        if self.fixer is not None:
+            for i in range(len(out)):
+                out[i] = self.fixer.belief(f"robot_{i}", out[i])
+        return out
+
     def reset(self, observations=None) -> None:
-        self.tracks.clear()
+        self.track = self.mission.tracker() if self.fixer is not None else None
         if self.fixer is not None:
             self.fixer.states.clear()
         self.estimators.clear()
@@ -101,42 +110,42 @@ class ScriptedExpert:
         agents = sorted(observations, key=lambda a: int(a.rsplit("_", 1)[1]))
         leaders = {a: g(observations[a], "leader")[0] > 0.5 for a in agents}
         has_followers = {a: i + 1 < len(agents) and not leaders[agents[i + 1]] for i, a in enumerate(agents)}
+        scans = {}
+        for a in agents:
+            obs = observations[a]
+            self._last_odom[int(a.rsplit("_", 1)[1])] = self._odom(obs)
+            scans[a] = self._sonar_fix(a, obs, leaders[a]) if self.fixer is not None else None
+        bel = None
+        if self.fixer is not None:
+            bel = self.belief()
+            if self.track is None:
+                self.track = self.mission.tracker()
+            self.track.update(bel[:, :2], bel[:, :2], 0.0)
         actions = {}
         for a in agents:
             obs = observations[a]
-            scan = self._sonar_fix(a, obs, leaders[a]) if self.fixer is not None else None
-            if scan is not None:
-                v, w = scan
+            if scans[a] is not None:
+                v, w = scans[a]
             elif leaders[a]:
                 self.estimators.pop(a, None)
-                scale = self.leader_speed if has_followers[a] else 1.0
-                v, w = go_to_goal(self._goal(obs, a), self.v_max, self.w_max, speed_scale=scale)
+                scale = self.cfg.leader_speed if has_followers[a] else 1.0
+                v, w = go_to_goal(self._goal(obs, a, bel), self.v_max, self.w_max, speed_scale=scale)
                 v, w = self._avoid(a, obs, v, w)
             elif g(obs, "pred_visible")[0] > 0.5:
                 v, w = self._follow(a, obs)
             else:
                 self.estimators.pop(a, None)
-                v, w = go_to_goal(self._goal(obs), self.v_max, self.w_max, speed_scale=0.6)
+                v, w = go_to_goal(self._goal(obs, a, bel), self.v_max, self.w_max, speed_scale=self.cfg.search_speed)
             actions[a] = np.array([v / self.v_max, w / self.w_max], dtype=np.float32)
         return actions
 
-    def _goal(self, obs: np.ndarray, agent: str | None = None) -> np.ndarray:
-        """The route point in the robot frame; re-expressed from the sonar-corrected pose if any."""
-        goal = np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
-        if self.fixer is None or agent is None:
-            return goal
-        odom = self._odom(obs)
-        bel = self.fixer.belief(agent, odom)
-        if not self.fixer.corrected(agent):
-            self.tracks.pop(agent, None)
-            return goal
-        track = self.tracks.get(agent)
-        if track is None:  # first corrected step: place the robot on its own plan path
-            path = self.plan.paths[int(agent.rsplit("_", 1)[1])]
-            track = self.tracks[agent] = self.mission.tracker([path])
-            track.progress[0] = _nearest_arc(path, bel[:2])
-        track.update(bel[None, :2], bel[None, :2], 0.0)
-        return rotate(track.goals()[0] - bel[:2], -bel[2])
+    def _goal(self, obs: np.ndarray, agent: str, bel: np.ndarray | None) -> np.ndarray:
+        """The route point in the robot frame: the observed one, or with sonar fixes the expert's own
+        tracker's from the corrected pose (identical while there is no correction)."""
+        if bel is None or not self.fixer.corrected(agent):
+            return np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
+        i = int(agent.rsplit("_", 1)[1])
+        return rotate(self.track.goals()[i] - bel[i, :2], -bel[i, 2])
 
     def _odom(self, obs: np.ndarray) -> np.ndarray:
         g = self.layout.get
@@ -144,8 +153,12 @@ class ScriptedExpert:
 
     def _sonar_fix(self, agent: str, obs: np.ndarray, leader: bool) -> tuple[float, float] | None:
         g = self.layout.get
-        return self.fixer.step(agent, self._odom(obs), float(g(obs, "fix_age")[0]), float(g(obs, "v")[0]),
-                               g(obs, "sonar").astype(float), leader)
+        i = int(agent.rsplit("_", 1)[1])
+        odom = self._odom(obs)
+        end = self.mission.routes[i][-1]
+        at_end = bool(np.hypot(*(self.fixer.belief(agent, odom)[:2] - end)) <= self.mission.waypoint_tol)
+        return self.fixer.step(agent, odom, float(g(obs, "fix_age")[0]), float(g(obs, "v")[0]),
+                               g(obs, "sonar").astype(float), leader, at_end)
 
     def _follow(self, agent: str, obs: np.ndarray) -> tuple[float, float]:
         g, f = self.layout.get, self.scenario.formation
@@ -155,21 +168,21 @@ class ScriptedExpert:
         v_l, w_l = est.update(rel, heading, float(g(obs, "v")[0]), float(g(obs, "omega")[0]))
         m = relative_l_psi(rel, heading, f.offset)
         return l_psi_control(m, f.spacing, np.radians(f.bearing_deg), f.offset, f.gains, v_l, w_l,
-                             self.v_max, self.w_max, min_speed=-0.3 * self.v_max)
+                             self.v_max, self.w_max, min_speed=self.cfg.follower_min_speed * self.v_max)
 
     def _avoid(self, agent: str, obs: np.ndarray, v: float, w: float) -> tuple[float, float]:
         """Brake on the front sonar beams; back off and turn after being blocked too long."""
         if self.backing.get(agent, 0) > 0:
             self.backing[agent] -= 1
-            return -0.4 * self.v_max, 0.6 * self.w_max
+            return -self.cfg.backoff_speed * self.v_max, self.cfg.backoff_turn * self.w_max
         if self.sonar_front is None or v <= 0:
             self.blocked[agent] = 0
             return v, w
         front = float(np.min(self.layout.get(obs, "sonar")[self.sonar_front]))
         factor = float(np.clip((front - self.stop) / (self.slow - self.stop), 0.0, 1.0))
         self.blocked[agent] = self.blocked.get(agent, 0) + 1 if factor < 0.2 else 0
-        limit = (self.patience + 0.3 * int(agent.rsplit("_", 1)[1])) / self.dt
+        limit = (self.cfg.patience + self.cfg.patience_stagger * int(agent.rsplit("_", 1)[1])) / self.dt
         if self.blocked[agent] > limit:
             self.blocked[agent] = 0
-            self.backing[agent] = int(round(1.0 / self.dt))
+            self.backing[agent] = int(round(self.cfg.backoff_time / self.dt))
         return v * factor, w

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from parcover_env.config import SonarFixConfig
+from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.poses import compose, inverse
 from parcover_env.localization.sonar.scan import ScanCollector
 
@@ -27,17 +29,18 @@ class _State:
     scan_odom: np.ndarray | None = None
     driven_since_scan: float = math.inf
     driven_since_fix: float = 0.0
-    """Distance driven since the last Kinect fix (m): bounds how far odometry can have drifted."""
+    """Distance driven since the last absolute fix, Kinect or accepted sonar fix (m): bounds how far
+    odometry can have drifted."""
 
 
 class SonarFixer:
     """Per-robot sonar localization on demand, for the scripted expert's stale leaders."""
 
-    def __init__(self, scenario, beam_angles: np.ndarray, control_dt: float, stale_after: float = 8.0,
-                 rescan_distance: float = 2.0, scan_rate: float = 0.6):
+    def __init__(self, scenario, beam_angles: np.ndarray, control_dt: float, config: SonarFixConfig | None = None):
         from parcover_env.localization.sonar import SonarLocalizerParams
         from parcover_env.localization.sonar.known_map import known_map_features
 
+        self.cfg = cfg = config if config is not None else scenario.expert.sonar_fix
         self.sonar = scenario.robot.sonar
         self.map, self.features, self.sectors = known_map_features(scenario.map, self.sonar.range_max)
         self.params = SonarLocalizerParams()
@@ -45,9 +48,7 @@ class SonarFixer:
         self.n_bins = int(round(360.0 / self.sonar.scan_step_deg))
         self.angles = np.arange(self.n_bins) * (2 * math.pi / self.n_bins)
         self.dt = control_dt
-        self.stale_after, self.rescan_distance = stale_after, rescan_distance
-        self.scan_rate = min(scan_rate, scenario.robot.max_turn_rate)
-        self.growth = (0.1, 0.05)  # ellipse axis growth: m per m travelled, m per rad turned
+        self.scan_rate = min(cfg.scan_rate, scenario.robot.max_turn_rate)
         self.states: dict[str, _State] = {}
         self.stats = {"sonar_scans": 0, "sonar_localized": 0, "sonar_failed": 0}
 
@@ -61,8 +62,10 @@ class SonarFixer:
         return odom if st is None else compose(st.correction, odom)
 
     def step(self, agent: str, odom: np.ndarray, fix_age: float, speed: float, ranges: np.ndarray,
-             is_leader: bool) -> tuple[float, float] | None:
-        """Advance this robot's scan logic; returns a (v, w) command while it is scanning."""
+             is_leader: bool, at_end: bool = False) -> tuple[float, float] | None:
+        """Advance this robot's scan logic; returns a (v, w) command while it is scanning. ``at_end``:
+        the robot believes it is at its route's end, where it checks its pose with a scan sooner
+        (``final_rescan_distance``), since nothing later would catch a drifted arrival."""
         st = self.states.setdefault(agent, _State(np.zeros(3)))
         if fix_age < 2 * self.dt:  # a fresh Kinect fix: the odometry pose is absolute again
             st.correction, st.scan, st.driven_since_scan, st.driven_since_fix = np.zeros(3), None, math.inf, 0.0
@@ -70,7 +73,8 @@ class SonarFixer:
         st.driven_since_scan += abs(speed) * self.dt
         st.driven_since_fix += abs(speed) * self.dt
         if st.scan is None:
-            if not (is_leader and fix_age > self.stale_after and st.driven_since_scan >= self.rescan_distance):
+            rescan = self.cfg.final_rescan_distance if at_end else self.cfg.rescan_distance
+            if not (is_leader and fix_age > self.cfg.stale_after and st.driven_since_scan >= rescan):
                 return None
             st.scan = ScanCollector(self.beams, self.n_bins, self.sonar.range_max, float(odom[2]))
             st.scan_odom = odom.copy()
@@ -81,17 +85,29 @@ class SonarFixer:
         st.scan, st.driven_since_scan = None, 0.0
         return None
 
+    def gate(self, driven: float) -> tuple[float, float]:
+        """(distance in m, heading in rad) within which a fix of the odometry pose is believed, after
+        ``driven`` metres since the last Kinect fix: odometry drifts by a few percent of the distance
+        driven, so a fix farther away is a false match."""
+        c = self.cfg
+        return (c.gate_distance + c.gate_distance_rate * driven,
+                math.radians(c.gate_heading_deg + c.gate_heading_rate_deg * driven))
+
+    def accept(self, fix: np.ndarray, prior: np.ndarray, driven: float) -> bool:
+        """Whether the sonar ``fix`` (x, y, theta) is believable as a correction of ``prior``."""
+        dist, turn = self.gate(driven)
+        return bool(np.hypot(*(fix[:2] - prior[:2])) <= dist and abs(wrap_angle(fix[2] - prior[2])) <= turn)
+
     def _localize(self, st: _State) -> None:
         from parcover_env.localization.sonar import Ellipse, localize
 
         prior = compose(st.correction, st.scan_odom)
-        # odometry drifts by a few percent of the distance driven: a fix outside that is a false match
-        axis = 0.15 + self.growth[0] * st.driven_since_fix
-        ell = Ellipse(prior[:2], (axis, axis), 0.0)
+        ell = Ellipse(prior[:2], (self.gate(st.driven_since_fix)[0],) * 2, 0.0)
         res = localize(st.scan.ranges, self.angles, self.map, self.sectors, ell, self.params, sonar=self.sonar,
                        features=self.features)
-        if res.pose is not None and res.success and np.hypot(*(res.pose[:2] - prior[:2])) <= axis:
+        if res.pose is not None and res.success and self.accept(res.pose, prior, st.driven_since_fix):
             st.correction = compose(res.pose, inverse(st.scan_odom))
+            st.driven_since_fix = 0.0
             self.stats["sonar_localized"] += 1
         else:
             self.stats["sonar_failed"] += 1

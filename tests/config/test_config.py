@@ -129,3 +129,23 @@ def test_top_level_not_a_mapping(tmp_path):
     path.write_text("- 1\n- 2\n")
     with pytest.raises(ConfigError, match="expected a mapping"):
         load_scenario(path)
+
+
+def test_expert_section_is_typed_validated_and_reachable_from_yaml():
+    from parcover_env.config import ExpertConfig, NavigatorConfig, SonarFixConfig
+
+    s = load_scenario("office", overrides={"expert": {"patience": 3.0, "sonar_fix": {"stale_after": 5.0},
+                                                                   "navigator": {"max_axis": 0.3}}})
+    assert s.expert.patience == 3.0 and s.expert.sonar_fix.stale_after == 5.0 and s.expert.navigator.max_axis == 0.3
+    assert load_scenario("office").expert == ExpertConfig()
+    bad = [({"leader_speed": 1.5}, "expert.leader_speed"), ({"slow_margin": 0.01}, "expert.slow_margin"),
+           ({"sonar_fix": {"gate_heading_deg": 120.0}}, "expert.sonar_fix.gate_heading_deg"),
+           ({"navigator": {"initial_axis": 0.5}}, "expert.navigator.initial_axis"),
+           ({"navigator": {"max_axs": 0.5}}, "did you mean 'max_axis'")]
+    for override, key in bad:
+        with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+            load_scenario("office", overrides={"expert": override})
+    with pytest.raises(ConfigError, match="stale_after"):
+        SonarFixConfig(stale_after=0.0)
+    with pytest.raises(ConfigError, match="sector_rule"):
+        NavigatorConfig(sector_rule=3)

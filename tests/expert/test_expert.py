@@ -72,3 +72,29 @@ def test_tree_splits_at_every_tp_and_formation_saves_messages():
             assert len(env.team.groups) == env.n_robots  # every TP split the team down to single robots
             assert m["messages"]["split"] == sum(len(tp.branches) for tp in env.plan.turning_points)
     assert sum(totals["formation"].values()) < sum(totals["individual"].values())
+
+
+# generated maps that run fast (3-6 robots, under 800 steps) and cover a leader's sonar fix that
+# matches the room turned by 180 degrees (seed 7: the heading gate must reject it)
+@pytest.mark.parametrize("seed", [3, 7, 11, 25])
+def test_expert_solves_generated_maps(seed):
+    env = parcover_env.parallel_env(f"generated:{seed}")
+    m = run_episode(env, ScriptedExpert.for_env(env), seed)
+    assert m["success"], f"generated:{seed}: {m['kpois_visited']}/{m['n_kpois']} KPOIs"
+    assert m["sonar_localized"] >= 1
+
+
+def test_expert_takes_its_tunables_from_the_scenario():
+    env = parcover_env.parallel_env("office", overrides={"expert": {"leader_speed": 0.5, "front_sector_deg": 10.0}})
+    expert = ScriptedExpert.for_env(env)
+    default = ScriptedExpert.for_env(parcover_env.parallel_env("office"))
+    assert expert.cfg.leader_speed == 0.5
+    assert 0 < len(expert.sonar_front) < len(default.sonar_front)
+    obs, _ = env.reset(seed=0)
+    expert.reset(obs)
+    speeds = []
+    for _ in range(30):
+        act = expert.act(obs)
+        speeds.append(act["robot_0"][0])  # the leader, with a follower: at most leader_speed of v_max
+        obs, *_ = env.step(act)
+    assert 0.45 < max(speeds) <= 0.5 + 1e-6

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.expert.navigator import NavigatorParams, SonarNavigator, _compose, _inverse
+from parcover_env.config import NavigatorConfig
+from parcover_env.expert.navigator import SonarNavigator, _compose, _inverse
 from parcover_env.harness.rollout import run_episode
 
 
@@ -41,7 +42,7 @@ def test_bad_inputs_raise():
     with pytest.raises(ValueError, match="sonar"):
         SonarNavigator.for_env(env)
     with pytest.raises(ValueError, match="max_axis"):
-        NavigatorParams(max_axis=0.0)
+        NavigatorConfig(max_axis=0.0)
 
 
 def test_scan_in_place_localizes_and_corrects_the_belief():
@@ -77,3 +78,11 @@ def test_hallway_mission_completes_with_sonar_navigator():
     assert m["sonar_scans"] >= 4 and m["sonar_localized"] >= 2
     bel, true = nav.belief(), env.world.poses()
     assert np.hypot(*(bel[:, :2] - true[:, :2]).T).max() < 0.15
+
+
+def test_navigator_takes_its_tunables_from_the_scenario():
+    over = {"expert": {"navigator": {"max_axis": 0.2, "front_sector_deg": 50.0}}}
+    nav = SonarNavigator.for_env(parcover_env.parallel_env("hallway", overrides=over))
+    default = SonarNavigator.for_env(parcover_env.parallel_env("hallway"))
+    assert nav.p.max_axis == 0.2 and default.p.max_axis == NavigatorConfig().max_axis
+    assert 0 < len(default.front) < len(nav.front)

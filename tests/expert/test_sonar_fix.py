@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 import parcover_env
 from parcover_env.config import SonarConfig
@@ -42,3 +43,21 @@ def test_out_of_view_leaders_with_sonar_fixes_succeed_and_localize():
     expert = ScriptedExpert.for_env(env)
     m = run_episode(env, expert, 35)
     assert m["success"] and m["sonar_localized"] >= 1 and m["sonar_scans"] >= m["sonar_localized"]
+
+
+def test_fix_gate_rejects_a_room_turned_half_round_and_widens_with_distance():
+    from parcover_env.config import SonarFixConfig
+    from parcover_env.expert.sonar_fix import SonarFixer
+
+    s = parcover_env.load_scenario("tree")
+    cfg = SonarFixConfig(gate_distance=0.15, gate_distance_rate=0.1, gate_heading_deg=15.0, gate_heading_rate_deg=1.0)
+    fixer = SonarFixer(s, np.radians(np.arange(0, 360, 45.0)), 0.1, cfg)
+    prior = np.array([2.0, 3.0, 0.4])
+    assert fixer.gate(0.0) == pytest.approx((0.15, np.radians(15.0)))
+    assert fixer.gate(5.0) == pytest.approx((0.65, np.radians(20.0)))
+    assert fixer.accept(prior + [0.1, -0.05, np.radians(10)], prior, 0.0)
+    assert not fixer.accept(prior + [0.0, 0.0, np.pi], prior, 10.0)  # the symmetric false match
+    assert not fixer.accept(prior + [0.0, 0.0, np.radians(17)], prior, 0.0)
+    assert fixer.accept(prior + [0.0, 0.0, np.radians(17)], prior, 5.0)
+    assert not fixer.accept(prior + [0.3, 0.0, 0.0], prior, 0.0)
+    assert fixer.accept(prior + [0.3, 0.0, 0.0], prior, 2.0)

@@ -1,0 +1,180 @@
+"""Tunables of the scripted expert: ``Scenario.expert`` (YAML key ``expert``).
+
+The env never reads these; they are the expert's controller gains, margins and timeouts, kept in
+the schema so that every number the expert uses is documented, validated and reachable from YAML:
+
+.. code-block:: yaml
+
+    expert:
+      leader_speed: 0.8
+      sonar_fix: {stale_after: 6.0}
+      navigator: {max_axis: 0.3}
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from parcover_env.config.checks import check, positive
+
+__all__ = ["ExpertConfig", "NavigatorConfig", "SonarFixConfig"]
+
+
+@dataclass(frozen=True)
+class SonarFixConfig:
+    """Sonar fixes of leaders out of Kinect view (``localization: both``; seed A + seed B)."""
+
+    stale_after: float = 8.0
+    """A leader whose last Kinect fix is older than this stops to scan (s)."""
+    rescan_distance: float = 2.0
+    """A leader scans again only after driving this far since its last scan (m)..."""
+    final_rescan_distance: float = 0.2
+    """... or this far when it believes it is at its route's end, so that an arrival on drifted
+    odometry is checked, and corrected until a scan confirms it (m)."""
+    scan_rate: float = 0.6
+    """Turn rate while scanning (rad/s), capped at the robot's ``max_turn_rate``."""
+    gate_distance: float = 0.15
+    """A fix is accepted only within this distance of the odometry pose... (m)"""
+    gate_distance_rate: float = 0.05
+    """... plus this much per metre driven since the last fix, Kinect or sonar (m/m): odometry drifts
+    by a few percent of the distance; a wider gate admits false matches along long walls."""
+    gate_heading_deg: float = 15.0
+    """A fix is accepted only within this heading of the odometry pose... (deg): rooms are nearly
+    symmetric, and a scan often matches the map turned by 90 or 180 degrees about a nearby point."""
+    gate_heading_rate_deg: float = 1.0
+    """... plus this much per metre driven since the last fix, Kinect or sonar (deg/m)."""
+
+    def __post_init__(self) -> None:
+        positive(self, "stale_after", "scan_rate", "gate_distance", "gate_heading_deg")
+        check(self.rescan_distance >= 0, "rescan_distance", f"must be >= 0, got {self.rescan_distance}")
+        check(self.final_rescan_distance >= 0, "final_rescan_distance",
+              f"must be >= 0, got {self.final_rescan_distance}")
+        check(self.gate_distance_rate >= 0, "gate_distance_rate", f"must be >= 0, got {self.gate_distance_rate}")
+        check(self.gate_heading_rate_deg >= 0, "gate_heading_rate_deg",
+              f"must be >= 0, got {self.gate_heading_rate_deg}")
+        check(self.gate_heading_deg < 90, "gate_heading_deg",
+              f"must be < 90 (a gate that admits a quarter turn admits the symmetric false fixes), "
+              f"got {self.gate_heading_deg}")
+
+
+@dataclass(frozen=True)
+class NavigatorConfig:
+    """Seed B's NAVIGATOR (``localization: sonar``; :mod:`parcover_env.expert.navigator`)."""
+
+    node_step: float = 0.05
+    """Spacing of the path nodes scored as subgoal candidates (m)."""
+    initial_axis: float = 0.05
+    """Ellipse semi-axes at the start and after a fix (m)."""
+    rate_distance: float = 0.05
+    """Ellipse growth per metre travelled (m/m)."""
+    rate_rotation: float = 0.03
+    """Ellipse growth per radian turned (m/rad)."""
+    max_axis: float = 0.35
+    """The subgoal is chosen before the ellipse semi-axis exceeds this (m)."""
+    min_advance: float = 0.6
+    """A new team subgoal is at least this far along the route (m)."""
+    tie_tol_deg: float = 5.0
+    """Biases within this of the best count as equal; then the farthest node wins (deg)."""
+    min_wall_length: float = 0.3
+    """A feature (corner) is usable only if both its walls are at least this long (m)."""
+    min_readings: int = 2
+    """A wall counts as seen from a node if at least this many scan readings hit it near its normal."""
+    min_walls_seen: int = 1
+    """A feature is usable from a node if at least this many of its two walls are seen (0, 1 or 2)."""
+    range_margin: float = 0.15
+    """Features are looked for within the sonar's ``range_max`` minus this (m)."""
+    max_shift: float = 0.6
+    """Rearrangement: how far a subgoal may move along its path (m)."""
+    shift_step: float = 0.1
+    """Rearrangement: spacing of the candidate subgoal shifts along the path (m)."""
+    separation_margin: float = 0.15
+    """Robots at their subgoals stay at least 2 radius + this apart (m)."""
+    lookahead: float = 0.35
+    """Pure-pursuit look-ahead distance along the path while driving to a subgoal (m)."""
+    arrive_tol: float = 0.05
+    """A robot has arrived at its subgoal within this distance (by its belief) (m)."""
+    goal_tol: float = 0.1
+    """A robot is done when a successful fix puts it within this of its route's end (m)."""
+    max_final_scans: int = 3
+    """A robot at its route's end stops after this many scans even without a good fix."""
+    scan_rate: float = 0.5
+    """Turn rate while scanning (rad/s); keep rate * dt below the 5 deg bin."""
+    bin_tol_deg: float = 2.0
+    """A scan bin is filled by a reading within this of its centre angle (deg)."""
+    drive_timeout: float = 20.0
+    """Extra seconds over the nominal driving time before a drive phase is cut short (s)."""
+    stop_margin: float = 0.05
+    """A robot stops when an obstacle ahead is within radius + this (m)..."""
+    slow_margin: float = 0.25
+    """... and slows down linearly from radius + this (m)."""
+    front_sector_deg: float = 25.0
+    """Sonar beams within this of straight ahead are the front beams used for braking (deg)."""
+    sector_rule: int = 2
+    """Visibility sector merge rule of the localizer's sectors (0 = none, 1 or 2, seed B)."""
+    teammates_in_map: bool = True
+    """Localize against the known map plus the teammates' discs at their believed positions."""
+    accept_error: float = 0.07
+    """A fix is accepted when the mean clipped error between the scan and the synthetic scan of the known
+    map *with the other robots' discs at their beliefs* is below this (m). The localizer's own
+    success test sees teammates as unknown obstacles and rejects good poses next to them."""
+
+    def __post_init__(self) -> None:
+        positive(self, "node_step", "rate_distance", "max_axis", "min_advance", "lookahead", "arrive_tol",
+                 "goal_tol", "scan_rate", "bin_tol_deg", "shift_step", "initial_axis", "accept_error",
+                 "front_sector_deg")
+        for name in ("rate_rotation", "max_shift", "separation_margin", "drive_timeout", "min_wall_length",
+                     "range_margin", "tie_tol_deg", "stop_margin"):
+            check(getattr(self, name) >= 0, name, f"must be >= 0, got {getattr(self, name)}")
+        check(self.sector_rule in (0, 1, 2), "sector_rule", f"must be 0, 1 or 2, got {self.sector_rule}")
+        check(self.min_walls_seen in (0, 1, 2), "min_walls_seen", f"must be 0, 1 or 2, got {self.min_walls_seen}")
+        check(self.min_readings >= 1, "min_readings", f"must be >= 1, got {self.min_readings}")
+        check(self.max_final_scans >= 1, "max_final_scans", f"must be >= 1, got {self.max_final_scans}")
+        check(self.initial_axis < self.max_axis, "initial_axis",
+              f"must be < max_axis ({self.max_axis} m), got {self.initial_axis}")
+        check(self.slow_margin > self.stop_margin, "slow_margin",
+              f"must be > stop_margin ({self.stop_margin} m), got {self.slow_margin}")
+        check(self.front_sector_deg <= 180, "front_sector_deg", f"must be <= 180, got {self.front_sector_deg}")
+
+
+@dataclass(frozen=True)
+class ExpertConfig:
+    """The scripted expert of seed A (leaders drive the plan, followers keep formation)."""
+
+    leader_speed: float = 0.9
+    """A leader with followers drives at this fraction of v_max so they can close gaps (-)."""
+    stop_margin: float = 0.05
+    """A leader stops when its front sonar sees something within radius + this (m)..."""
+    slow_margin: float = 0.25
+    """... and slows down linearly from radius + this (m)."""
+    front_sector_deg: float = 25.0
+    """Sonar beams within this of straight ahead are the front beams used for braking (deg)."""
+    patience: float = 2.0
+    """A leader braked (below 20 % speed) for longer than this backs off (s)..."""
+    patience_stagger: float = 0.3
+    """... plus this per robot index, so two robots never give way together (s)."""
+    backoff_time: float = 1.0
+    """How long a leader backs off (s)..."""
+    backoff_speed: float = 0.4
+    """... reversing at this fraction of v_max (-)..."""
+    backoff_turn: float = 0.6
+    """... while turning at this fraction of omega_max (-)."""
+    search_speed: float = 0.6
+    """A follower that lost sight of the robot ahead drives its own route at this fraction of v_max (-)."""
+    follower_min_speed: float = -0.3
+    """Slowest (most negative) speed of the l-psi follower, a fraction of v_max (-): it may back up
+    a little to keep its distance."""
+    sonar_fix: SonarFixConfig = field(default_factory=SonarFixConfig)
+    navigator: NavigatorConfig = field(default_factory=NavigatorConfig)
+
+    def __post_init__(self) -> None:
+        for name in ("leader_speed", "backoff_speed", "backoff_turn", "search_speed"):
+            v = getattr(self, name)
+            check(0 < v <= 1, name, f"must be in (0, 1] (a fraction of the robot's limit), got {v}")
+        check(-1 <= self.follower_min_speed <= 0, "follower_min_speed",
+              f"must be in [-1, 0], got {self.follower_min_speed}")
+        positive(self, "patience", "backoff_time", "front_sector_deg")
+        check(self.stop_margin >= 0, "stop_margin", f"must be >= 0, got {self.stop_margin}")
+        check(self.slow_margin > self.stop_margin, "slow_margin",
+              f"must be > stop_margin ({self.stop_margin} m), got {self.slow_margin}")
+        check(self.patience_stagger >= 0, "patience_stagger", f"must be >= 0, got {self.patience_stagger}")
+        check(self.front_sector_deg <= 180, "front_sector_deg", f"must be <= 180, got {self.front_sector_deg}")

@@ -1,0 +1,70 @@
+"""Localize one robot's 360-degree sonar scan on the known map, its teammates drawn in (seed B Fig. 6).
+
+Used by the navigator (:mod:`parcover_env.expert.navigator`) after each stop-and-scan. The localizer
+(:func:`parcover_env.localization.sonar.localizer.localize`) sees teammates as unknown obstacles and
+its own success test rejects good poses next to them; so a pose is also accepted when the scan
+matches the synthetic scan of the known map *with the other robots' discs at their beliefs*
+(``NavigatorConfig.accept_error``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+
+from parcover_env.config import NavigatorConfig, Scenario
+from parcover_env.localization.sonar.known_map import known_map_features
+from parcover_env.localization.sonar.localizer import Ellipse, LocalizationResult, localize, scan_error
+from parcover_env.localization.sonar.params import SonarLocalizerParams
+from parcover_env.sensors.sonar import simulate_beams
+from parcover_env.world.map_model import MapModel
+
+__all__ = ["TeamFix", "TeamLocalizer"]
+
+
+@dataclass(frozen=True)
+class TeamFix:
+    """Outcome of one localization: the localizer's result, the scan error against the map with the
+    teammates in it (m, inf without a pose), and whether the pose is accepted."""
+
+    result: LocalizationResult
+    team_error: float
+    ok: bool
+
+
+class TeamLocalizer:
+    """The known map's features and sectors (cached per map) and the acceptance rule of a fix."""
+
+    def __init__(self, scenario: Scenario, cfg: NavigatorConfig, localizer: SonarLocalizerParams):
+        self.cfg, self.loc = cfg, localizer
+        self.sonar = scenario.robot.sonar
+        self.radius = scenario.robot.radius
+        self.map, self.features, self.sectors = known_map_features(
+            scenario.map, self.sonar.range_max, cfg.sector_rule, localizer.sector_resolution)
+        self.n_bins = round(360.0 / self.sonar.scan_step_deg)
+        self.scan_angles = np.radians(np.arange(self.n_bins) * self.sonar.scan_step_deg)
+
+    def team_map(self, others: np.ndarray) -> MapModel:
+        """The known map with the teammates as 16-gon obstacles at their believed positions."""
+        if len(others) == 0 or not self.cfg.teammates_in_map:
+            return self.map
+        discs = shapely.union_all([shapely.Point(*q).buffer(self.radius, quad_segs=4) for q in others])
+        free = self.map.free.difference(discs)
+        return self.map if free.is_empty else MapModel(free=free, bounds=self.map.bounds)
+
+    def localize(self, ranges: np.ndarray, ellipse: Ellipse, others: np.ndarray) -> TeamFix:
+        """Localize the binned scan ``ranges`` (one per ``scan_angles``) inside ``ellipse``;
+        ``others`` ``(M, 2)`` are the teammates' believed positions."""
+        res = localize(ranges, self.scan_angles, self.team_map(others), self.sectors, ellipse, self.loc,
+                       sonar=self.sonar, features=self.features)
+        team_error = math.inf
+        if res.pose is not None:
+            axes = (res.pose[2] + self.scan_angles)[None, :]
+            synth = simulate_beams(self.sonar, res.pose[None, :2], axes, self.map.segments, others,
+                                   self.radius, np.array([-1]))
+            team_error = float(scan_error(ranges, synth, self.loc.error_clip)[0])
+        ok = res.pose is not None and (res.success or team_error <= self.cfg.accept_error)
+        return TeamFix(res, team_error, bool(ok))
