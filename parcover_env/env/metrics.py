@@ -117,8 +117,10 @@ class EpisodeMetrics:
 
 _SCALARS = ("n_kpois", "n_robots", "c_max", "max_speed", "steps", "time", "kpois_visited", "makespan",
             "wall_collisions", "robot_collisions", "localization_error", "formation_error_l",
-            "formation_error_psi", "success", "makespan_ratio", "collisions")
-_INTS = ("n_kpois", "n_robots", "steps", "kpois_visited", "wall_collisions", "robot_collisions", "collisions")
+            "formation_error_psi", "success", "makespan_ratio", "collisions", "kinect_splits", "odometry_splits",
+            "unseen_leader_time")
+_INTS = ("n_kpois", "n_robots", "steps", "kpois_visited", "wall_collisions", "robot_collisions", "collisions",
+         "kinect_splits", "odometry_splits")
 _FLAT_SCALARS = (*_SCALARS, *(f"messages_{k}" for k in MESSAGE_KINDS), "messages", "ended")
 
 

@@ -27,6 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from parcover_env.env.metrics import episode_metrics
+
 __all__ = ["EpisodeDiagnosis", "CAUSES", "classify_failure", "run_diagnosed"]
 
 CAUSES = ("solved", "error", "localization lost", "collision-locked", "stalled", "KPOI never approached",
@@ -111,7 +113,7 @@ def run_diagnosed(env, policy, seed: int | None, window: float = 20.0) -> tuple[
             if len(history) > keep:
                 history.pop(0)
             if not env.agents:
-                summary = next(iter(infos.values()))["episode"]
+                summary = episode_metrics(next(iter(infos.values())))
     except Exception as exc:  # noqa: BLE001 - a benchmark reports crashes as a cause, it does not stop
         error = f"{type(exc).__name__}: {exc}"
     if summary is None:

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import pytest
-
 from parcover_env.cli import main
 
 
@@ -68,8 +66,9 @@ def test_sectors_range_and_json(capsys):
     assert d["range_max"] == 2.54 and d["n_sectors"] == 4
     assert main(["sectors", "t_room", "--range", "inf"]) == 0
     assert "unlimited range" in capsys.readouterr().out
-    with pytest.raises(SystemExit):
-        main(["sectors", "t_room", "--range", "-1"])
+    assert main(["sectors", "t_room", "--range", "-1"]) == 2
+    err = capsys.readouterr().err
+    assert "--range" in err and len(err.strip().splitlines()) == 1
 
 
 def test_run_json_is_one_object_on_stdout(capsys):

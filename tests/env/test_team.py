@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from parcover_env.env.metrics import episode_metrics
 from parcover_env.env.team import Team
 from parcover_env.planning import plan_scenario
 from parcover_env.scenarios import load_scenario
@@ -74,7 +75,7 @@ def test_env_records_kinect_splits_and_unseen_leader_time():
         policy = ScriptedExpert.for_env(env)
         while env.agents:
             obs, _, _, _, infos = env.step(policy.act(obs))
-        return next(iter(infos.values()))["episode"]
+        return episode_metrics(next(iter(infos.values())))
 
     m = run(None)
     assert m["success"] and m["kinect_splits"] == 1 and m["odometry_splits"] == 0

@@ -95,4 +95,4 @@ def test_presets_realistic_default_and_ideal_sensors():
     assert load_scenario("office").kinects[0].mount_tilt_std_deg > 0
     # a scenario naming its sonar model keeps it under ideal (the pinned hallway rollouts)
     assert load_scenario("hallway", preset="ideal").robot.sonar.model == "specular"
-    assert apply_preset({"robot": "oops"}, "ideal") == {"robot": "oops"}  # malformed: left to the schema
+    assert apply_preset({"robot": "oops"}, "ideal")["robot"] == "oops"  # malformed: left to the schema

@@ -12,21 +12,24 @@ import pytest
 import parcover_env
 
 
-def _tree_world_in_contact():
-    """tree (15 robots), ideal preset: random forward commands until robots touch walls and each other."""
-    env = parcover_env.parallel_env("tree", preset="ideal")
+def _tree_world_in_contact(preset: str):
+    """tree (15 robots in a queue): random forward commands until robots touch walls and each other."""
+    env = parcover_env.parallel_env("tree", preset=preset)
     env.reset(seed=1)
     rng = np.random.default_rng(0)
     cmds = [np.column_stack([rng.uniform(0.2, 0.5, env.n_robots), rng.uniform(-1, 1, env.n_robots)])
-            for _ in range(400)]
-    for c in cmds[:40]:
+            for _ in range(600)]
+    for k, c in enumerate(cmds):
         env.world.step(c)
-    return env.world, cmds[40:]
+        if env.world.wall_contacts.sum() > 0 and env.world.robot_contacts.sum() > 0 and env.world._touching():
+            return env.world, cmds[k + 1: k + 361]
+    raise AssertionError("no contacts in progress after 600 steps")
 
 
+@pytest.mark.parametrize("preset", ["ideal", "realistic"])
 @pytest.mark.parametrize("how", ["deepcopy", "pickle"])
-def test_world_copy_in_contact_continues_bit_identically(how):
-    world, cmds = _tree_world_in_contact()
+def test_world_copy_in_contact_continues_bit_identically(how, preset):
+    world, cmds = _tree_world_in_contact(preset)
     assert world.wall_contacts.sum() > 0 and world.robot_contacts.sum() > 0 and world._touching()
     clone = copy.deepcopy(world) if how == "deepcopy" else pickle.loads(pickle.dumps(world))
     for c in cmds:
