@@ -73,7 +73,7 @@ class SonarNavigator:
             raise ValueError("SonarNavigator needs one route per robot, got none")
         self.layout, self.scenario, self.dt = layout, scenario, float(control_dt)
         self.p = params if params is not None else scenario.expert.navigator
-        self.loc = localizer or SonarLocalizerParams()
+        self.loc = localizer or scenario.sonar_localizer
         self.beams = np.asarray(sonar_angles, dtype=float)
         r = scenario.robot
         self.sonar_cfg = r.sonar
@@ -355,7 +355,7 @@ class SonarNavigator:
         o = self.scan["start"]
         prior = _compose(self.correction[i], o)
         ell = self.ellipse(i).moved(prior[:2])
-        fix = self.team_loc.localize(ranges, ell, np.delete(self.belief()[:, :2], i, axis=0))
+        fix = self.team_loc.localize(ranges, ell, np.delete(self.belief()[:, :2], i, axis=0), heading=prior[2])
         res, ok, team_error = fix.result, fix.ok, fix.team_error
         record = {"robot": i, "prior": prior, "ellipse": ell, "success": bool(ok), "error": res.error,
                   "pose": None if res.pose is None else res.pose.copy(), "target": self.targets[i],

@@ -37,13 +37,12 @@ class SonarFixer:
     """Per-robot sonar localization on demand, for the scripted expert's stale leaders."""
 
     def __init__(self, scenario, beam_angles: np.ndarray, control_dt: float, config: SonarFixConfig | None = None):
-        from parcover_env.localization.sonar import SonarLocalizerParams
         from parcover_env.localization.sonar.known_map import known_map_features
 
         self.cfg = cfg = config if config is not None else scenario.expert.sonar_fix
         self.sonar = scenario.robot.sonar
         self.map, self.features, self.sectors = known_map_features(scenario.map, self.sonar.range_max)
-        self.params = SonarLocalizerParams()
+        self.params = scenario.sonar_localizer
         self.beams = np.asarray(beam_angles, dtype=float)
         self.n_bins = int(round(360.0 / self.sonar.scan_step_deg))
         self.angles = np.arange(self.n_bins) * (2 * math.pi / self.n_bins)
@@ -104,7 +103,7 @@ class SonarFixer:
         prior = compose(st.correction, st.scan_odom)
         ell = Ellipse(prior[:2], (self.gate(st.driven_since_fix)[0],) * 2, 0.0)
         res = localize(st.scan.ranges, self.angles, self.map, self.sectors, ell, self.params, sonar=self.sonar,
-                       features=self.features)
+                       features=self.features, heading=float(prior[2]))
         if res.pose is not None and res.success and self.accept(res.pose, prior, st.driven_since_fix):
             st.correction = compose(res.pose, inverse(st.scan_odom))
             st.driven_since_fix = 0.0

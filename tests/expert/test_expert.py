@@ -12,14 +12,7 @@ from parcover_env.harness.rollout import run_episode
 SCENARIOS = ["office", "tree", "hallway", "t_room", "triangle_room"]
 
 
-# Under the realistic motion of issue 13 (lagged drive, drifting wheel odometry) these runs fail:
-# tree seed 0 takes 1.52 x the bound (more robot-robot contacts between a new group's leader and
-# the previous group's tail), tree seed 1 misses 2 KPOIs after such contacts, and hallway seed 1
-# (no Kinect: dead reckoning over 11 m) drifts ~1 m and misses a KPOI. Issue 13 item 7 (the expert
-# copes) owns the fix; the runs pass with `preset="ideal"`.
-_REALISM = pytest.mark.xfail(reason="issue 13 item 7: expert under realistic motion", strict=False)
-CASES = [pytest.param(name, seed, marks=_REALISM if (name, seed) in {("tree", 0), ("tree", 1), ("hallway", 1)} else ())
-         for seed in (0, 1) for name in SCENARIOS]
+CASES = [(name, seed) for seed in (0, 1) for name in SCENARIOS]  # realistic defaults
 
 
 @pytest.mark.parametrize("name,seed", CASES)
