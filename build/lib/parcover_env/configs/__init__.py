@@ -1,1 +1,0 @@
-"""Shipped scenario YAMLs, installed as ``parcover_env.configs`` (see pyproject.toml)."""

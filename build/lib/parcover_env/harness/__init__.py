@@ -1,1 +1,0 @@
-"""Running policies at scale: rollouts, bench sweeps, statistics, Minari datasets, the Ray backend."""

@@ -1,1 +1,0 @@
-"""Seed A's overhead Kinect localization: marker pipeline, multi-Kinect tracker, the system loop."""
