@@ -132,21 +132,19 @@ def cmd_plan(args) -> int:
     tree = kinect_tree(kinect_footprints(s), plan, (s.start.x, s.start.y)) if s.kinects else None
     if args.json:
         _print_json(plan_summary(plan, tree))
-        if args.png:
-            write_image(args.png, draw_plan(s, plan, tree), "--png")
-        return 0
-    print(f"scenario {s.name}: r = {plan.r} robots, c_max = {plan.c_max:.2f} m, c_p = {plan.c_p:.2f} m "
-          f"({plan.method}); {len(plan.turning_points)} turning positions")
-    for tp in plan.turning_points:
-        counts = ", ".join(str(b.n_robots) for b in tp.branches)
-        print(f"  TP at ({tp.position[0]:.2f}, {tp.position[1]:.2f}): robots {tp.robots[0]}-{tp.robots[1] - 1} "
-              f"split into branches of {counts}")
-    if tree is not None:
-        links = ", ".join(f"{a}-{b} ({n})" for (a, b), n in sorted(tree.links.items()))
-        print(f"  Kinect tree rooted at {tree.root}: links {links or 'none'}")
+    else:
+        print(f"scenario {s.name}: r = {plan.r} robots, c_max = {plan.c_max:.2f} m, c_p = {plan.c_p:.2f} m "
+              f"({plan.method}); {len(plan.turning_points)} turning positions")
+        for tp in plan.turning_points:
+            counts = ", ".join(str(b.n_robots) for b in tp.branches)
+            print(f"  TP at ({tp.position[0]:.2f}, {tp.position[1]:.2f}): robots {tp.robots[0]}-{tp.robots[1] - 1} "
+                  f"split into branches of {counts}")
+        if tree is not None:
+            links = ", ".join(f"{a}-{b} ({n})" for (a, b), n in sorted(tree.links.items()))
+            print(f"  Kinect tree rooted at {tree.root}: links {links or 'none'}")
     if args.png:
         write_image(args.png, draw_plan(s, plan, tree), "--png")
-        print(f"wrote {args.png}")
+        _sayer(args)(f"wrote {args.png}")
     return 0
 
 
@@ -164,7 +162,6 @@ def cmd_kinect(args) -> int:
 
 
 def cmd_sectors(args) -> int:
-
     from parcover_env.localization.sonar import compute_sectors, map_features, sectors_summary
     from parcover_env.localization.sonar.sectors import RULE_NAMES
     from parcover_env.scenarios import load_scenario
