@@ -50,7 +50,7 @@ def parse_args(argv=None) -> Args:
 
 
 def make_env_fns(args: Args):
-    from parcover_env.env.vec_env import _EnvFactory
+    from parcover_env.envs.vec_env import _EnvFactory
 
     overrides = {"episode": {"max_steps": args.max_steps}} if args.max_steps else None
     if args.scenario == "generated:RANDOM":
@@ -64,7 +64,7 @@ def train(args: Args) -> Path:
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
-    from parcover_env.env.vec_env import ParallelVecEnv
+    from parcover_env.envs.vec_env import ParallelVecEnv
 
     torch.set_num_threads(args.threads)
     out = Path(args.out)

@@ -27,7 +27,7 @@ from throughput import MODES, SCENARIOS, merge, open_box  # noqa: E402
 
 
 def make_env(scenario: str, mode: str, n_robots: int | None):
-    from parcover_env.env import ParallelCoverageEnv
+    from parcover_env.envs import ParallelCoverageEnv
 
     if scenario == "open":
         name, base = "office", open_box(n_robots or 16)

@@ -19,7 +19,7 @@ Sections (``--sections``, comma separated; default all):
   ``substeps`` steps per control step) plus the vectorized ray casting alone (same beams, walls
   and robot discs); ours / floor in time per step (1.0 = no overhead at all).
 * ``scaling`` - a 20 m x 20 m open box with 2, 8, 16, 32, 64 robots (env-steps/s, time per robot).
-* ``vec``     - the SB3 adapter (``parcover_env.env.vec_env``): 1 env in-process vs 2 worker processes.
+* ``vec``     - the SB3 adapter (``parcover_env.envs.vec_env``): 1 env in-process vs 2 worker processes.
 * ``memory``  - peak RSS, and RSS sampled over ``--soak`` steps on ``office`` (use
   ``benchmarks/soak.py --steps 1000000`` for the 10^6-step soak).
 
@@ -123,7 +123,7 @@ def measure_parallel(env, steps: int, repeats: int, seed: int = 0) -> dict:
 
 # ---------------------------------------------------------------------------------------- ours
 def our_env(scenario: str, overrides: dict | None):
-    from parcover_env.env import ParallelCoverageEnv
+    from parcover_env.envs import ParallelCoverageEnv
 
     return ParallelCoverageEnv(scenario, overrides=overrides or None)
 
@@ -329,7 +329,7 @@ def section_scaling(args, results: dict) -> None:
 # ---------------------------------------------------------------------------------------- vec env
 def section_vec(args, results: dict) -> None:
     try:
-        from parcover_env.env.vec_env import make_vec_env
+        from parcover_env.envs.vec_env import make_vec_env
     except ImportError as exc:
         print(f"  SB3 adapter unavailable: {exc}", flush=True)
         return

@@ -9,7 +9,7 @@ PettingZoo's ``<name>_v<N>`` module convention. The single-robot Gymnasium env i
 from __future__ import annotations
 
 from parcover_env.config import Scenario
-from parcover_env.env import ParallelCoverageEnv
+from parcover_env.envs import ParallelCoverageEnv
 from parcover_env.errors import ActionError, ConfigError, ParcoverError
 from parcover_env.scenarios import load_scenario, scenario_names
 
@@ -50,7 +50,7 @@ def _register() -> None:
 
     if "parcover_env/SingleRobotCoverage-v0" not in gymnasium.registry:
         gymnasium.register("parcover_env/SingleRobotCoverage-v0",
-                           entry_point="parcover_env.env.single_agent:SingleRobotCoverageEnv")
+                           entry_point="parcover_env.envs.single_agent:SingleRobotCoverageEnv")
     try:
         import multiprocessing.forkserver as forkserver
 

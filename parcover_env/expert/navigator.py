@@ -33,7 +33,7 @@ import numpy as np
 
 from parcover_env.config import NavigatorConfig, Scenario
 from parcover_env.control.leader import go_to_goal
-from parcover_env.env.observations import ObservationLayout
+from parcover_env.envs.observations import ObservationLayout
 from parcover_env.expert.team_localizer import TeamLocalizer
 from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.poses import compose as _compose

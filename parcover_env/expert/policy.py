@@ -28,7 +28,7 @@ import numpy as np
 from parcover_env.config import ExpertConfig
 from parcover_env.control.follower import LeaderVelocityEstimator, l_psi_control, relative_l_psi
 from parcover_env.control.leader import go_to_goal
-from parcover_env.env.observations import ObservationLayout
+from parcover_env.envs.observations import ObservationLayout
 from parcover_env.geometry import rotate, wrap_angle
 from parcover_env.scenarios import Mission, RouteTracker
 

@@ -43,7 +43,7 @@ _ENV_CACHE: dict[tuple[str, int | None], Any] = {}
 
 def run_job(scenario: str, policy: str, seed: int, max_steps: int | None = None) -> dict:
     """One episode; a flat row of metrics plus scenario, policy and seed. Envs are cached per process."""
-    from parcover_env.env import ParallelCoverageEnv
+    from parcover_env.envs import ParallelCoverageEnv
     from parcover_env.harness.rollout import run_episode
     from parcover_env.policies.registry import make_policy
 

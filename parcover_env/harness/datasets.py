@@ -29,7 +29,7 @@ def record_episodes(
     """Run ``episodes`` episodes (seeds ``seed .. seed+episodes-1``); one AgentEpisode per robot."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
-    from parcover_env.env import ParallelCoverageEnv
+    from parcover_env.envs import ParallelCoverageEnv
     from parcover_env.policies.registry import make_policy
 
     overrides = {"episode": {"max_steps": max_steps}} if max_steps else None
@@ -100,7 +100,7 @@ def save_minari(
     minari = _minari()
     from minari.data_collector import EpisodeBuffer
 
-    from parcover_env.env import ParallelCoverageEnv
+    from parcover_env.envs import ParallelCoverageEnv
 
     env = ParallelCoverageEnv(scenario)
     agent = env.possible_agents[0]
@@ -153,7 +153,7 @@ def _env_spec(env):
         source = Path(source).stem
     return EnvSpec(
         id="parcover_env/SingleRobotCoverage-v0",
-        entry_point="parcover_env.env.single_agent:SingleRobotCoverageEnv",
+        entry_point="parcover_env.envs.single_agent:SingleRobotCoverageEnv",
         max_episode_steps=env.scenario.episode.max_steps,
         kwargs={"scenario": source, "overrides": {"n_robots": 1}},
     )

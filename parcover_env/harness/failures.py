@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from parcover_env.env.metrics import episode_metrics
+from parcover_env.envs.metrics import episode_metrics
 
 __all__ = ["EpisodeDiagnosis", "CAUSES", "classify_failure", "run_diagnosed"]
 

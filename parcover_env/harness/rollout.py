@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-from parcover_env.env.metrics import episode_metrics
+from parcover_env.envs.metrics import episode_metrics
 
 __all__ = ["run_episode"]
 

@@ -1,7 +1,7 @@
 """Learned policies (PPO, behaviour cloning) as ``act(observations) -> actions`` objects.
 
 Both act per agent from one agent's observation vector (parameter sharing), exactly what the SB3
-adapter (``parcover_env.env.vec_env``) trains on. torch and SB3 are imported lazily.
+adapter (``parcover_env.envs.vec_env``) trains on. torch and SB3 are imported lazily.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from parcover_env.env.observations import ObservationLayout
+from parcover_env.envs.observations import ObservationLayout
 
 __all__ = ["RandomPolicy", "WaypointPolicy"]
 

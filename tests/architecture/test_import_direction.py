@@ -2,7 +2,7 @@
 
 Rooms sit on floors (see the README's Architecture section); a module may import from its own
 room or from rooms on lower floors, never from a higher floor. ``viz`` draws state and is imported
-only by ``env`` (lazily, inside ``render``), ``harness`` and ``cli``. No import cycles at all.
+only by ``envs`` (lazily, inside ``render``), ``harness`` and ``cli``. No import cycles at all.
 """
 
 from __future__ import annotations
@@ -22,12 +22,12 @@ FLOORS = {
     "planning": 4, "localization": 4, "control": 4,
     "scenarios": 5,
     "viz": 6,
-    "env": 7,
+    "envs": 7,
     "expert": 8, "policies": 8,
     "harness": 9,
     "cli": 10,
 }
-VIZ_CLIENTS = {"env", "harness", "cli"}
+VIZ_CLIENTS = {"envs", "harness", "cli"}
 
 
 def _modules() -> dict[str, Path]:
@@ -84,14 +84,14 @@ def test_every_room_has_a_floor():
 def test_imports_never_go_up_a_floor(module, target):
     src, dst = _room(module), _room(target)
     if dst == "viz":
-        assert src in VIZ_CLIENTS | {"viz"}, f"{module} imports {target}: only env, harness and cli draw"
+        assert src in VIZ_CLIENTS | {"viz"}, f"{module} imports {target}: only envs, harness and cli draw"
         return
     assert FLOORS[dst] <= FLOORS[src], f"{module} (floor {FLOORS[src]}) imports {target} (floor {FLOORS[dst]})"
 
 
 def test_env_imports_viz_only_lazily():
-    eager = [(m, t) for m, t, top in EDGES if _room(m) == "env" and _room(t) == "viz" and top]
-    assert not eager, f"env must import viz inside render(): {eager}"
+    eager = [(m, t) for m, t, top in EDGES if _room(m) == "envs" and _room(t) == "viz" and top]
+    assert not eager, f"envs must import viz inside render(): {eager}"
 
 
 def test_no_import_cycles():

@@ -102,7 +102,7 @@ def test_spawned_process_matches_in_process():
 def test_vec_env_single_vs_multi_process():
     """``make_vec_env`` in-process and with worker processes give identical runs (incl. auto-resets)."""
     pytest.importorskip("stable_baselines3")
-    sb3 = pytest.importorskip("parcover_env.env.vec_env")
+    sb3 = pytest.importorskip("parcover_env.envs.vec_env")
     overrides = {"episode": {"max_steps": 25}}  # two auto-resets inside the run
     runs = []
     for multiprocess in (False, True):

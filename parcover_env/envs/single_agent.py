@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import gymnasium as gym
 
-from parcover_env.env import ParallelCoverageEnv
-from parcover_env.env.metrics import episode_metrics
+from parcover_env.envs import ParallelCoverageEnv
+from parcover_env.envs.metrics import episode_metrics
 
 __all__ = ["SingleRobotCoverageEnv"]
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from parcover_env.config import SonarConfig
-from parcover_env.env import ParallelCoverageEnv
+from parcover_env.envs import ParallelCoverageEnv
 from parcover_env.geometry import rays
 from parcover_env.localization.kinect.pipeline import _view_box
 from parcover_env.scenarios.progress import RouteTracker as Mission
@@ -143,7 +143,7 @@ def test_kinect_view_box_never_rejects_a_visible_robot():
 
 
 def test_fast_action_path_matches_validated_path():
-    from parcover_env.env.actions import _common_case, _validated, to_commands
+    from parcover_env.envs.actions import _common_case, _validated, to_commands
 
     agents = ["robot_0", "robot_1"]
     acts = {a: np.array([2.0, -0.5], dtype=np.float32) for a in agents}

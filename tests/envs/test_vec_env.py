@@ -10,8 +10,8 @@ pytest.importorskip("stable_baselines3")
 
 from stable_baselines3.common.vec_env import VecMonitor  # noqa: E402
 
-from parcover_env.env.metrics import EpisodeMetrics  # noqa: E402
-from parcover_env.env.vec_env import ParallelVecEnv, _EnvFactory, make_vec_env  # noqa: E402
+from parcover_env.envs.metrics import EpisodeMetrics  # noqa: E402
+from parcover_env.envs.vec_env import ParallelVecEnv, _EnvFactory, make_vec_env  # noqa: E402
 
 
 class FakeParallelEnv:
@@ -188,7 +188,7 @@ def test_seeded_training_is_reproducible():
 def test_env_checker_on_single_agent_wrapper():
     from stable_baselines3.common.env_checker import check_env
 
-    from parcover_env.env.single_agent import SingleRobotCoverageEnv
+    from parcover_env.envs.single_agent import SingleRobotCoverageEnv
 
     check_env(SingleRobotCoverageEnv("t_room"), warn=False)
 

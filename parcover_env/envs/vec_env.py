@@ -35,7 +35,7 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import CloudpickleWrapper, VecEnv
 
-from parcover_env.env.metrics import episode_metrics
+from parcover_env.envs.metrics import episode_metrics
 
 __all__ = ["AgentSlots", "ParallelVecEnv", "make_vec_env"]
 
@@ -339,6 +339,6 @@ class _EnvFactory:
         self.scenario, self.overrides = scenario, overrides
 
     def __call__(self):
-        from parcover_env.env import ParallelCoverageEnv
+        from parcover_env.envs import ParallelCoverageEnv
 
         return ParallelCoverageEnv(self.scenario, overrides=self.overrides)

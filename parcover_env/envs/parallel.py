@@ -10,11 +10,11 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from parcover_env.config import Scenario, deep_merge
-from parcover_env.env.actions import to_commands
-from parcover_env.env.metrics import EpisodeMetrics, formation_errors
-from parcover_env.env.observations import MAX_FIX_AGE, ObservationLayout, ellipse_entries
-from parcover_env.env.rewards import REWARD_KEYS, TERMS, reward_terms
-from parcover_env.env.team import Team
+from parcover_env.envs.actions import to_commands
+from parcover_env.envs.metrics import EpisodeMetrics, formation_errors
+from parcover_env.envs.observations import MAX_FIX_AGE, ObservationLayout, ellipse_entries
+from parcover_env.envs.rewards import REWARD_KEYS, TERMS, reward_terms
+from parcover_env.envs.team import Team
 from parcover_env.geometry import rotate, wrap_angle
 from parcover_env.localization.kinect.system import KinectSystem
 from parcover_env.scenarios import load_scenario, mission_for
@@ -91,7 +91,7 @@ class ParallelCoverageEnv(ParallelEnv):
     every step): the ``reward_<term>`` values and ``metrics/<name>`` entries that are 0 until
     the step that ends the episode (``metrics/ended`` = 1), where they hold the metrics (makespan,
     KPOIs visited, collisions, path lengths, localization error, makespan / (c_max / v_max), ...);
-    ``parcover_env.env.metrics.episode_metrics(info)`` gives them back as a dict.
+    ``parcover_env.envs.metrics.episode_metrics(info)`` gives them back as a dict.
 
     ## Infos and analysis
     ``info[agent]`` also holds the per-step estimate error ``pose_error`` (m) and

@@ -9,7 +9,7 @@ import pytest
 from pettingzoo.test import api_test, parallel_api_test, render_test
 
 import parcover_env
-from parcover_env.env.metrics import episode_metrics
+from parcover_env.envs.metrics import episode_metrics
 from parcover_env.errors import ActionError, ConfigError
 
 SCENARIOS = ["office", "tree", "hallway", "t_room"]

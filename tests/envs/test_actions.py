@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from parcover_env.env.actions import to_commands
+from parcover_env.envs.actions import to_commands
 from parcover_env.errors import ActionError
 
 AGENTS = ["robot_0", "robot_1"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 import parcover_env
-from parcover_env.env.observations import ellipse_entries
+from parcover_env.envs.observations import ellipse_entries
 
 
 def _forward(env, steps):

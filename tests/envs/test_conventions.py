@@ -144,3 +144,13 @@ def test_sb3_subproc_vec_env_finds_the_id_without_a_module_prefix():
     assert p.returncode == 0, p.stderr[-2000:]
     size = parcover_env.parallel_env("t_room").layout.size
     assert p.stdout.strip().endswith(f"(2, {size})")
+
+
+def test_room_modules_import_as_names_next_to_the_aec_factory():
+    """``parcover_env.env`` is the AEC factory, so the env room must not share its name."""
+    import importlib
+
+    module = importlib.import_module("parcover_env.envs.vec_env")
+    assert callable(parcover_env.env)
+    assert module.__name__ == "parcover_env.envs.vec_env"
+    exec("import parcover_env.envs.metrics as m\nassert m.episode_metrics", {})
