@@ -8,10 +8,14 @@ PettingZoo's ``<name>_v<N>`` module convention. The single-robot Gymnasium env i
 
 from __future__ import annotations
 
-from parcover_env.config import Scenario
-from parcover_env.envs import ParallelCoverageEnv
+from typing import TYPE_CHECKING
+
 from parcover_env.errors import ActionError, ConfigError, ParcoverError
-from parcover_env.scenarios import load_scenario, scenario_names
+
+if TYPE_CHECKING:  # imported on first use (module ``__getattr__`` below): ``import parcover_env`` stays light
+    from parcover_env.config import Scenario
+    from parcover_env.envs import ParallelCoverageEnv
+    from parcover_env.scenarios import load_scenario, scenario_names
 
 __all__ = [
     "ParallelCoverageEnv", "raw_env", "parallel_env", "env", "make", "Scenario", "load_scenario",
@@ -19,13 +23,37 @@ __all__ = [
 ]
 __version__ = "0.2.0"
 
-raw_env = ParallelCoverageEnv
+_LAZY = {
+    "ParallelCoverageEnv": ("parcover_env.envs", "ParallelCoverageEnv"),
+    "raw_env": ("parcover_env.envs", "ParallelCoverageEnv"),
+    "Scenario": ("parcover_env.config", "Scenario"),
+    "load_scenario": ("parcover_env.scenarios", "load_scenario"),
+    "scenario_names": ("parcover_env.scenarios", "scenario_names"),
+}
+
+
+def __getattr__(name: str):
+    """The heavy public names (the env class, the config and scenario loaders), imported on first use."""
+    if name not in _LAZY:
+        raise AttributeError(f"module 'parcover_env' has no attribute {name!r}")
+    import importlib
+
+    module, attr = _LAZY[name]
+    value = getattr(importlib.import_module(module), attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
 
 
 def parallel_env(scenario="office", render_mode=None, overrides=None, preset="realistic",
                  max_cycles=None) -> ParallelCoverageEnv:
     """The ParallelEnv for a scenario name, YAML path or ``Scenario``; ``preset="ideal"`` turns
     every error model off; ``max_cycles`` overrides the step limit."""
+    from parcover_env.envs import ParallelCoverageEnv
+
     return ParallelCoverageEnv(scenario, render_mode=render_mode, overrides=overrides, preset=preset,
                                max_cycles=max_cycles)
 

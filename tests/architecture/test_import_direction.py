@@ -107,3 +107,27 @@ def test_no_import_cycles():
 def test_at_most_four_loose_modules():
     loose = [p.name for p in PACKAGE.glob("*.py") if p.name != "__init__.py"]
     assert len(loose) <= 4, loose
+
+
+def test_package_import_is_light():
+    """``import parcover_env`` loads no room (the env, planner, scipy, networkx come on first use)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, parcover_env; heavy = [m for m in sys.modules if m.startswith(('parcover_env.', 'scipy',"
+            " 'networkx', 'pymunk', 'cv2', 'torch'))]; print(sorted(heavy))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert out == "['parcover_env.errors']"
+
+
+def test_lazy_names_resolve_to_the_real_objects():
+    import parcover_env
+    from parcover_env.config import Scenario
+    from parcover_env.envs import ParallelCoverageEnv
+    from parcover_env.scenarios import load_scenario
+
+    assert parcover_env.raw_env is ParallelCoverageEnv is parcover_env.ParallelCoverageEnv
+    assert parcover_env.Scenario is Scenario and parcover_env.load_scenario is load_scenario
+    assert {"raw_env", "load_scenario", "scenario_names"} <= set(dir(parcover_env))
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        parcover_env.nope  # noqa: B018
