@@ -376,8 +376,9 @@ class ParallelCoverageEnv(ParallelEnv):
         """Depth + IR frames (``KinectFrame``) of every overhead Kinect at the current state.
 
         With ``observation.kinect: frames`` these are the frames the pipeline localized from at the
-        last Kinect tick; otherwise they are rendered now from a generator seeded by the step count,
-        so calling this never changes the episode.
+        last Kinect tick (only Kinects whose view could hold a leader render a frame); otherwise
+        they are rendered now from a generator seeded by the step count, so calling this never
+        changes the episode.
         """
         if self.kinects is None:
             return {}

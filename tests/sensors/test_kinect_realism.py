@@ -92,3 +92,60 @@ def test_lateral_noise_frays_edges_not_flat_floor():
 def test_bad_mounting_errors_name_the_key(key, value):
     with pytest.raises(ConfigError, match=key):
         KinectConfig(name="k", position=(0.0, 0.0), **{key: value})
+
+
+@pytest.mark.parametrize("sigma", [0.5, 0.8, 2.0])
+def test_rounded_normal_table_has_the_rounded_normal_probabilities(sigma):
+    from scipy.special import ndtr
+
+    from parcover_env.sensors.kinect import rounded_normal_table
+
+    table = rounded_normal_table(sigma)
+    assert table.shape == (1 << 16,) and np.all(np.diff(table) >= 0)  # an inverse CDF
+    for k in range(-3, 4):
+        exact = ndtr((k + 0.5) / sigma) - ndtr((k - 0.5) / sigma)
+        assert abs(np.mean(table == k) - exact) <= 2.0 ** -16 + 1e-12, k
+    assert table.sum() == 0  # symmetric
+    with pytest.raises(ValueError, match="sigma"):
+        rounded_normal_table(0.0)
+
+
+def test_lateral_offsets_have_the_configured_spread_and_clamp_at_the_border():
+    from scipy.special import ndtr
+
+    s = KinectSensor(KinectConfig(name="k", position=(3.0, 3.0), lateral_noise_px=0.8), 0.15, 0.3, OPEN)
+    h, w = s.shape
+    cols = np.broadcast_to(np.arange(w, dtype=float), (h, w))  # depth = column index: shows du
+    rows = np.broadcast_to(np.arange(h, dtype=float)[:, None], (h, w))
+    rng = np.random.default_rng(3)
+    du = s.lateral_jitter(cols, rng) - cols
+    dv = s.lateral_jitter(rows, rng) - rows
+    k = np.arange(-8, 9)
+    p = ndtr((k + 0.5) / 0.8) - ndtr((k - 0.5) / 0.8)
+    var = float((p * k**2).sum())  # 0.8^2 + 1/12 approximately: 0.722
+    inner = (slice(5, h - 5), slice(5, w - 5))
+    assert du[inner].var() == pytest.approx(var, rel=0.03) and dv[inner].var() == pytest.approx(var, rel=0.03)
+    assert abs(du[inner].mean()) < 0.01 and np.isclose(np.mean(du[inner] == 0), p[8], atol=0.005)
+    assert du[:, 0].min() == 0 and du[:, -1].max() == 0  # clamped to the image, never wrapped
+
+
+def test_may_see_only_marker_carriers_inside_the_view_box():
+    s = KinectSensor(KinectConfig(name="k", position=(3.0, 3.0), height=2.8), 0.15, 0.3, OPEN)
+    x0, y0, x1, y1 = s._cull_box()
+    inside, outside = [3.0, 3.0, 0.0], [x1 + 0.05, 3.0, 0.0]
+    assert s.may_see(np.array([inside]), [True])
+    assert not s.may_see(np.array([inside]), [False])  # a follower carries no markers
+    assert not s.may_see(np.array([outside]), [True])
+    assert s.may_see(np.array([outside, inside]), [False, True])
+
+
+def test_frames_mode_renders_only_kinects_that_may_see_a_leader():
+    import parcover_env
+
+    env = parcover_env.parallel_env("tree", overrides={"observation": {"kinect": "frames"}})
+    env.reset(seed=0)
+    env.step({a: np.zeros(2, np.float32) for a in env.agents})
+    poses, markers = env.true_poses(), env.team.leader & env.scenario.robot.markers
+    expected = {s.name for s in env.kinects.sensors if s.may_see(poses, markers)}
+    assert expected and expected != {s.name for s in env.kinects.sensors}  # some, not all, on tree's start
+    assert set(env.kinect_frames()) == expected

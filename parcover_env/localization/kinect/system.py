@@ -4,7 +4,9 @@ Every Kinect produces a frame when the simulated clock passes its next tick (``r
 one frame per control step). Leaders carry the markers (seed A: only leaders are localized); the
 tracker matches the detections to the leaders' predicted poses (their current estimates) and the
 matched leaders receive a pose fix. ``kinect: estimate`` samples the pipeline's calibrated error
-model (fast); ``kinect: frames`` renders depth + IR frames and runs the full pipeline.
+model (fast); ``kinect: frames`` renders depth + IR frames and runs the full pipeline, for the
+Kinects whose view can hold a leader (``KinectSensor.may_see``): a Kinect with no leader near its
+view renders nothing at that tick, which changes no detection since only markers are detected.
 """
 
 from __future__ import annotations
@@ -65,6 +67,9 @@ class KinectSystem:
         for k in due:
             sensor = self.sensors[k]
             if self.mode == "frames":
+                if not sensor.may_see(true_poses, markers):  # no marker can be in this image: no frame
+                    self.frames.pop(sensor.name, None)
+                    continue
                 frame = sensor.measure(true_poses, markers, rng, stamp=time)
                 self.frames[sensor.name] = frame
                 per_kinect.append(estimate_poses(frame, sensor.camera, self.params))
