@@ -168,9 +168,18 @@ class FormationConfig:
     """Field of view of the follower's onboard camera that measures the robot ahead."""
     camera_range: float = 2.5
     """Max range of that camera (m)."""
+    camera_range_noise: float = 0.01
+    """Range sigma of that camera per metre of distance (-): a marker camera degrades with distance."""
+    camera_bearing_noise: float = 0.01
+    """Bearing sigma of that camera (rad)."""
+    camera_heading_noise: float = 0.03
+    """Sigma of the measured relative heading of the robot ahead (rad)."""
 
     def __post_init__(self) -> None:
         _positive(self, "spacing", "offset", "camera_fov_deg", "camera_range")
+        for name in ("camera_range_noise", "camera_bearing_noise", "camera_heading_noise"):
+            value = getattr(self, name)
+            _check(0.0 <= value <= 0.5, name, f"must be in [0, 0.5], got {value}")
         _check(all(g > 0 for g in self.gains), "gains", "must be > 0")
 
 

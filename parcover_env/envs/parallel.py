@@ -147,7 +147,9 @@ class ParallelCoverageEnv(ParallelEnv):
         self.sonar = SonarRing(s.robot.sonar) if s.observation.sonar else None
         n_sonar = self.sonar.n_beams if self.sonar else 0
         self.kinects = KinectSystem(s, self.map) if s.kinects and s.observation.pose_source == "kinect" else None
-        self.camera = RelativeCamera(s.formation.camera_fov_deg, s.formation.camera_range)
+        f = s.formation
+        self.camera = RelativeCamera(f.camera_fov_deg, f.camera_range, f.camera_range_noise, f.camera_bearing_noise,
+                                     f.camera_heading_noise)
         self.layout = ObservationLayout.build(self.map.bounds, s.robot.max_speed, s.robot.max_turn_rate,
                                               n_sonar, s.robot.sonar.range_max, s.formation.camera_range,
                                               covariance=s.observation.pose_covariance)

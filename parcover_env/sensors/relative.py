@@ -27,12 +27,16 @@ class RelativeReading:
 
 @dataclass(frozen=True)
 class RelativeCamera:
+    """The follower's camera; the env builds it from ``FormationConfig.camera_*`` (units there)."""
+
     fov_deg: float = 120.0
     max_range: float = 2.5
     range_noise: float = 0.01
     """Range sigma (m) per metre of distance (stereo/marker cameras degrade with distance)."""
     bearing_noise: float = 0.01
+    """Bearing sigma (rad)."""
     heading_noise: float = 0.03
+    """Relative-heading sigma (rad)."""
 
     def measure(self, poses: np.ndarray, predecessor: np.ndarray, segments: np.ndarray,
                 rng: np.random.Generator) -> RelativeReading:

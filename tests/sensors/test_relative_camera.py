@@ -1,0 +1,45 @@
+"""Follower camera: the noise figures come from ``FormationConfig`` and have the configured spread."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import parcover_env
+from parcover_env.config import ConfigError
+from parcover_env.sensors.relative import RelativeCamera
+
+NO_WALLS = np.zeros((0, 4))
+
+
+def test_noise_free_camera_measures_the_robot_ahead_exactly():
+    poses = np.array([[0.0, 0.0, np.pi / 2], [0.0, 1.0, np.pi]])  # robot 1 is 1 m straight ahead of 0
+    cam = RelativeCamera(120.0, 2.5, 0.0, 0.0, 0.0)
+    r = cam.measure(poses, np.array([1, -1]), NO_WALLS, np.random.default_rng(0))
+    np.testing.assert_allclose(r.rel_xy[0], [1.0, 0.0], atol=1e-12)
+    assert r.rel_heading[0] == pytest.approx(np.pi / 2) and r.visible.tolist() == [True, False]
+
+
+def test_noise_has_the_configured_sigmas():
+    n = 4000
+    poses = np.zeros((2 * n, 3))
+    poses[n:, 0] = 2.0  # follower i at the origin facing +x, its predecessor n + i 2 m ahead
+    pred = np.r_[np.arange(n, 2 * n), -np.ones(n, int)]
+    cam = RelativeCamera(120.0, 2.5, range_noise=0.02, bearing_noise=0.05, heading_noise=0.1)
+    r = cam.measure(poses, pred, NO_WALLS, np.random.default_rng(1))
+    rng_err = np.hypot(*r.rel_xy[:n].T) - 2.0
+    bearing = np.arctan2(r.rel_xy[:n, 1], r.rel_xy[:n, 0])
+    assert rng_err.std() == pytest.approx(0.02 * 2.0, rel=0.05)  # per metre of distance
+    assert bearing.std() == pytest.approx(0.05, rel=0.05) and r.rel_heading[:n].std() == pytest.approx(0.1, rel=0.05)
+
+
+def test_env_builds_the_camera_from_the_formation_config():
+    env = parcover_env.parallel_env("office", overrides={"formation": {"camera_bearing_noise": 0.2,
+                                                                         "camera_range_noise": 0.0}})
+    assert (env.camera.bearing_noise, env.camera.range_noise, env.camera.heading_noise) == (0.2, 0.0, 0.03)
+
+
+@pytest.mark.parametrize("key", ["camera_range_noise", "camera_bearing_noise", "camera_heading_noise"])
+def test_negative_camera_noise_names_the_key(key):
+    with pytest.raises(ConfigError, match=key):
+        parcover_env.parallel_env("office", overrides={"formation": {key: -0.01}})
