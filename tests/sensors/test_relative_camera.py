@@ -43,3 +43,46 @@ def test_env_builds_the_camera_from_the_formation_config():
 def test_negative_camera_noise_names_the_key(key):
     with pytest.raises(ConfigError, match=key):
         parcover_env.parallel_env("office", overrides={"formation": {key: -0.01}})
+
+
+class _Ones:
+    """A generator whose every standard normal is +1: pins the sign of each noise term."""
+
+    def standard_normal(self, n):
+        return np.ones(n)
+
+
+def test_each_noise_term_enters_with_its_sign_and_scale():
+    poses = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.5]])
+    cam = RelativeCamera(120.0, 2.5, range_noise=0.1, bearing_noise=0.05, heading_noise=0.2)
+    r = cam.measure(poses, np.array([1, -1]), NO_WALLS, _Ones())
+    dist = 2.0 * (1.0 + 0.1)  # sigma per metre, relative to the true range
+    np.testing.assert_allclose(r.rel_xy[0], [dist * np.cos(0.05), dist * np.sin(0.05)], atol=1e-12)
+    assert r.rel_heading[0] == pytest.approx(0.5 + 0.2)
+
+
+@pytest.mark.parametrize("ahead, walls, seen", [
+    ((2.4, 0.0), NO_WALLS, True),                                     # in range
+    ((2.5, 0.0), NO_WALLS, True),                                     # at max_range: still seen
+    ((2.6, 0.0), NO_WALLS, False),                                    # beyond max_range
+    ((np.cos(np.radians(59)), np.sin(np.radians(59))), NO_WALLS, True),   # inside the 120 deg field of view
+    ((np.cos(np.radians(61)), np.sin(np.radians(61))), NO_WALLS, False),  # just outside it
+    ((1.0, 0.0), np.array([[0.5, -1.0, 0.5, 1.0]]), False),           # a wall in between
+    ((1.0, 0.0), np.array([[1.5, -1.0, 1.5, 1.0]]), True),            # a wall behind the robot ahead
+])
+def test_visibility_needs_range_field_of_view_and_line_of_sight(ahead, walls, seen):
+    poses = np.array([[0.0, 0.0, 0.0], [ahead[0], ahead[1], 0.3]])
+    r = RelativeCamera(120.0, 2.5, 0.0, 0.0, 0.0).measure(poses, np.array([1, -1]), walls,
+                                                        np.random.default_rng(0))
+    assert r.visible.dtype == bool and r.visible.tolist() == [seen, False]
+    if seen:
+        np.testing.assert_allclose(r.rel_xy[0], ahead, atol=1e-12)
+        assert r.rel_heading[0] == pytest.approx(0.3)
+    else:  # an unseen robot reads all zeros
+        assert r.rel_xy[0].tolist() == [0.0, 0.0] and r.rel_heading[0] == 0.0
+
+
+def test_without_followers_the_reading_is_zeros_of_the_right_shape():
+    r = RelativeCamera().measure(np.zeros((3, 3)), -np.ones(3, int), NO_WALLS, np.random.default_rng(0))
+    assert r.rel_xy.shape == (3, 2) and r.rel_heading.shape == (3,) and r.visible.dtype == bool
+    assert not r.rel_xy.any() and not r.rel_heading.any() and not r.visible.any()
