@@ -220,6 +220,14 @@ class ParallelCoverageEnv(ParallelEnv):
         return obs, infos
 
     def step(self, actions: dict[str, Any]):
+        true = self._advance(actions)
+        obs = self._observe(true)
+        return self._outputs(true, obs)
+
+    def _advance(self, actions: dict[str, Any]) -> np.ndarray:
+        """First half of ``step``: act, integrate, sense, track the mission, score and record.
+        Returns the true poses; ``_observe`` and ``_outputs`` finish the step (the batched VecEnv
+        runs the sonar of all its worlds in one call between the two halves)."""
         if not self.agents:
             raise RuntimeError("step() called on a finished episode; call reset() first")
         self.commands = to_commands(actions, self.agents, self.scenario.robot.max_speed,
@@ -232,9 +240,13 @@ class ParallelCoverageEnv(ParallelEnv):
         n_new = self.progress.update(true[:, :2], self.estimate[:, :2], self.world.time)
         self.team.count_waypoints(self.progress.advanced)
         self._update_team()
-        terms = self._rewards(true, n_new)
+        self._terms = self._rewards(true, n_new)
         self._record(before, true)
-        obs = self._observe(true)
+        return true
+
+    def _outputs(self, true: np.ndarray, obs: dict[str, np.ndarray]):
+        """Second half of ``step``: rewards, terminations, truncations and infos as PettingZoo dicts."""
+        terms = self._terms
         done = self.progress.done
         truncated = self.steps >= self.scenario.episode.max_steps and not done
         total = 0
@@ -319,6 +331,16 @@ class ParallelCoverageEnv(ParallelEnv):
                 trail.append(p[:2].copy())
 
     def _observe(self, true: np.ndarray) -> dict[str, np.ndarray]:
+        obs = self._observe_array(true)
+        if len(self.agents) == self.n_robots:
+            return dict(zip(self.possible_agents, obs, strict=True))
+        active = set(self.agents)
+        return {a: obs[i] for i, a in enumerate(self.possible_agents) if a in active}
+
+    def _observe_array(self, true: np.ndarray, sonar_ideal: np.ndarray | None = None) -> np.ndarray:
+        """Observations ``(n_robots, size)`` float32 of every robot; ``sonar_ideal``: the noise-free
+        sonar readings of this state if already cast (the batched VecEnv casts every world's rings
+        in one call); the random draws are the same either way."""
         L, est, n = self.layout.slices, self.estimate, self.n_robots
         obs = np.zeros((n, self.layout.size), dtype=np.float32)
         obs[:, L["x"]] = est[:, 0:1]
@@ -345,12 +367,10 @@ class ParallelCoverageEnv(ParallelEnv):
         obs[:, L["kpois_visited"]] = self.progress.visited.mean()
         obs[:, L["time"]] = self.steps / self.scenario.episode.max_steps
         if self.sonar is not None:
-            obs[:, L["sonar"]] = self.sonar.measure(true, self.map.segments, self.scenario.robot.radius, self._rng)
+            obs[:, L["sonar"]] = self.sonar.measure(true, self.map.segments, self.scenario.robot.radius, self._rng,
+                                                     ideal=sonar_ideal)
         self.layout.clip(obs)
-        if len(self.agents) == n:
-            return dict(zip(self.possible_agents, obs, strict=True))
-        active = set(self.agents)
-        return {a: obs[i] for i, a in enumerate(self.possible_agents) if a in active}
+        return obs
 
     # ------------------------------------------------------------------ extras
     def true_poses(self) -> np.ndarray:

@@ -160,27 +160,37 @@ def _disc_t(ocx, ocy, dx, dy, c):
 def cast_rays_discs(origins, directions, centres, radii, owner=None, max_range: float = math.inf, *,
                     cull: bool | None = None) -> np.ndarray:
     """Distance to the first disc hit per ray (``inf`` if none within ``max_range``), shaped like
-    ``directions[..., 0]`` (same layouts as :func:`cast_rays`). ``owner``: per origin, the index of
-    a disc to ignore (the robot carrying the sensor) or -1. A ray starting inside another disc hits
-    it at 0."""
+    ``directions[..., 0]`` (same layouts as :func:`cast_rays`). ``centres``: ``(D, 2)`` discs seen
+    by every origin, or ``(N, D, 2)`` a disc set per origin (batched worlds: each origin sees the
+    robots of its own world; ``radii`` is then one radius for all). ``owner``: per origin, the index
+    of a disc to ignore (the robot carrying the sensor) or -1. A ray starting inside another disc
+    hits it at 0."""
     origins = np.asarray(origins, dtype=float)
     directions = np.asarray(directions, dtype=float)
-    centres = np.asarray(centres, dtype=float).reshape(-1, 2)
+    centres = np.asarray(centres, dtype=float)
+    per_origin = centres.ndim == 3
+    if not per_origin:
+        centres = centres.reshape(-1, 2)
     shape = directions.shape[:-1]
-    if directions.size == 0 or len(centres) == 0:
+    n_discs = centres.shape[-2]
+    if directions.size == 0 or n_discs == 0:
         return np.full(shape, np.inf)
-    rad = np.broadcast_to(np.asarray(radii, dtype=float), (len(centres),))
+    rad = np.broadcast_to(np.asarray(radii, dtype=float), (n_discs,))
     r2 = rad * rad
     n = len(origins)
     owner = np.full(n, -1) if owner is None else np.asarray(owner)
-    ocx = origins[:, 0:1] - centres[None, :, 0]  # (N, D)
-    ocy = origins[:, 1:2] - centres[None, :, 1]
+    if per_origin:
+        ocx = origins[:, 0:1] - centres[:, :, 0]  # (N, D)
+        ocy = origins[:, 1:2] - centres[:, :, 1]
+    else:
+        ocx = origins[:, 0:1] - centres[None, :, 0]  # (N, D)
+        ocy = origins[:, 1:2] - centres[None, :, 1]
     c = (ocx * ocx + ocy * ocy) - r2
-    mine = np.arange(len(centres))[None, :] == owner[:, None]
+    mine = np.arange(n_discs)[None, :] == owner[:, None]
     if directions.ndim == 3:
         m = shape[1]
         if cull is None:
-            cull = _pays(n, m, len(centres), max_range)
+            cull = _pays(n, m, n_discs, max_range)
         if cull and math.isfinite(max_range):
             near = (np.hypot(ocx, ocy) <= max_range + rad[None, :] + 1e-6) & ~mine
             width = int(near.sum(axis=1).max()) if n else 0
