@@ -11,7 +11,10 @@ Ray layouts. ``origins (R, 2)`` with ``directions (R, 2)``: one ray per origin. 
 with ``directions (N, M, 2)``: a *fan* of ``M`` rays from each origin (all beams of all robots in
 one call). Fans are range-culled when it pays: each origin's rays are tested only against the
 segments (discs) within ``max_range`` of it. A hit at ``t`` lies within ``t`` of its origin, so
-every hit up to ``max_range`` is found exactly as by the full test.
+every hit up to ``max_range`` is found exactly as by the full test. Culling: each ray is tested only
+against the segments whose bounding box meets the box of its reach ``[o, o + max_range d]`` (single
+rays too); discs of a fan only when within ``max_range`` of the origin. Culled and full tests give
+the same numbers bit for bit (same arithmetic per pair, same tie-breaking).
 
 A hit farther than ``max_range`` is reported as no hit: distance ``inf``, segment index ``-1``.
 """
@@ -107,33 +110,60 @@ def cast_rays(origins, directions, segments, max_range: float = math.inf, *,
         if cull is None:
             cull = _pays(n, m, len(segments), max_range)
         if cull and math.isfinite(max_range):
-            t, idx, cos = _fan_culled(origins, directions, segments, max_range, with_cos)
+            t, idx, cos = _rays_culled(np.repeat(origins, m, axis=0), directions.reshape(n * m, 2), segments,
+                                       max_range, with_cos)
+            t, idx = t.reshape(n, m), idx.reshape(n, m)
+            cos = cos.reshape(n, m) if with_cos else None
         else:
             t, den, ex, ey = _t_plane(origins[:, None, 0:1], origins[:, None, 1:2],
                                       directions[..., 0:1], directions[..., 1:2], segments[None, None])
             t, idx, cos = _first(t, den, ex, ey, len(segments), with_cos)
     else:
-        t, den, ex, ey = _t_plane(origins[:, 0:1], origins[:, 1:2], directions[:, 0:1], directions[:, 1:2],
-                                  segments[None])
-        t, idx, cos = _first(t, den, ex, ey, len(segments), with_cos)
+        if cull is None:
+            cull = math.isfinite(max_range) and len(origins) * len(segments) >= CULL_MIN_WORK
+        if cull and math.isfinite(max_range):
+            t, idx, cos = _rays_culled(origins, directions, segments, max_range, with_cos)
+        else:
+            t, den, ex, ey = _t_plane(origins[:, 0:1], origins[:, 1:2], directions[:, 0:1], directions[:, 1:2],
+                                      segments[None])
+            t, idx, cos = _first(t, den, ex, ey, len(segments), with_cos)
     hit = np.isfinite(t) & (t <= max_range)
     return RayHits(np.where(hit, t, np.inf), np.where(hit, idx, -1),
                    np.where(hit, cos, 0.0) if with_cos else None)
 
 
-def _fan_culled(origins, dirs, segments, reach, with_cos):
-    n, m = dirs.shape[:2]
-    near = point_segment_distance(origins, segments) <= reach + 1e-6
-    width = int(near.sum(axis=1).max()) if n else 0
-    if width == 0:
-        return np.full((n, m), np.inf), np.full((n, m), -1, dtype=np.int64), np.zeros((n, m))
-    order = np.argsort(~near, axis=1, kind="stable")[:, :width]  # near segments first, in index order
-    keep = np.take_along_axis(near, order, axis=1)[:, None, :]
-    t, den, ex, ey = _t_plane(origins[:, None, 0:1], origins[:, None, 1:2], dirs[..., 0:1], dirs[..., 1:2],
-                              segments[order][:, None])
-    t = np.where(keep, t, np.inf)
-    tmin, j, cos = _first(t, den, ex, ey, width, with_cos)
-    idx = np.take_along_axis(np.broadcast_to(order[:, None, :], t.shape), j[..., None], axis=-1)[..., 0]
+_BOX_SLACK = 1e-9
+"""Margin (m) of the bounding boxes of the box-culled single rays: rounding never drops a hit."""
+
+
+def _rays_culled(origins, dirs, segments, reach, with_cos):
+    """Single rays ``(R, 2)`` tested only against the segments whose bounding box meets the box of
+    the ray's reach ``[o, o + reach d]``: the (ray, segment) pairs are computed flat, each with the
+    same arithmetic as the full test, and the nearest hit per ray is the lowest-index one among equal
+    distances (as ``argmin``), so the result is the full test's, bit for bit."""
+    r = len(origins)
+    ox, oy, dx, dy = origins[:, 0], origins[:, 1], dirs[:, 0], dirs[:, 1]
+    fx, fy = ox + dx * reach, oy + dy * reach
+    rx0, rx1 = np.minimum(ox, fx) - _BOX_SLACK, np.maximum(ox, fx) + _BOX_SLACK
+    ry0, ry1 = np.minimum(oy, fy) - _BOX_SLACK, np.maximum(oy, fy) + _BOX_SLACK
+    sx0, sx1 = np.minimum(segments[:, 0], segments[:, 2]), np.maximum(segments[:, 0], segments[:, 2])
+    sy0, sy1 = np.minimum(segments[:, 1], segments[:, 3]), np.maximum(segments[:, 1], segments[:, 3])
+    near = ((sx0[None, :] <= rx1[:, None]) & (sx1[None, :] >= rx0[:, None])
+            & (sy0[None, :] <= ry1[:, None]) & (sy1[None, :] >= ry0[:, None]))
+    ri, si = np.nonzero(near)  # sorted by ray, then by segment index
+    tmin = np.full(r, np.inf)
+    idx = np.zeros(r, dtype=np.int64)
+    cos = np.zeros(r) if with_cos else None
+    if len(ri) == 0:
+        return tmin, idx, cos
+    t, den, ex, ey = _t_plane(ox[ri], oy[ri], dx[ri], dy[ri], segments[si])
+    starts = np.flatnonzero(np.concatenate([[True], ri[1:] != ri[:-1]]))
+    tmin[ri[starts]] = np.minimum.reduceat(t, starts)
+    at_min = np.flatnonzero((t == tmin[ri]) & np.isfinite(t))
+    first = at_min[np.concatenate([[True], ri[at_min][1:] != ri[at_min][:-1]])]
+    idx[ri[first]] = si[first]
+    if with_cos:
+        cos[ri[first]] = np.abs(den[first]) / np.maximum(np.hypot(ex[first], ey[first]), 1e-9)
     return tmin, idx, cos
 
 
