@@ -22,7 +22,8 @@ size; the VecEnv's observation space is the union of their boxes.
 
 ``multiprocess=True`` hosts each ParallelEnv in its own worker process (like ``SubprocVecEnv``).
 :class:`~parcover_env.envs.batched.BatchedVecEnv` (``make_vec_env(..., backend="batched")``) steps
-K worlds of one scenario in this process with the same semantics. SuperSuit is not needed. Wrap the result in ``VecMonitor`` for episode statistics.
+K worlds of one scenario in this process with the same semantics. SuperSuit is not needed. Wrap
+the result in ``VecMonitor`` for episode statistics.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from stable_baselines3.common.vec_env.base_vec_env import CloudpickleWrapper, Ve
 
 from parcover_env.envs.metrics import episode_metrics
 
-__all__ = ["AgentSlots", "BACKENDS", "BatchedVecEnv", "ParallelVecEnv", "make_vec_env"]
+__all__ = ["AgentSlots", "BACKENDS", "ParallelVecEnv", "make_vec_env"]  # + BatchedVecEnv (lazy)
 
 
 class AgentSlots:
