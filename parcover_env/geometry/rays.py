@@ -35,6 +35,8 @@ CULL_MIN_RAYS = 32
 """Rays per origin from which a fan is range-culled ...               (performance, not physics)"""
 CULL_MIN_WORK = 50_000
 """... when rays x segments (or discs) reach this: below, culling costs more than it saves."""
+CULL_MIN_PAIRS = 10_000
+"""Single rays (one per origin) are box-culled from this many rays x segments on."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,7 +122,7 @@ def cast_rays(origins, directions, segments, max_range: float = math.inf, *,
             t, idx, cos = _first(t, den, ex, ey, len(segments), with_cos)
     else:
         if cull is None:
-            cull = math.isfinite(max_range) and len(origins) * len(segments) >= CULL_MIN_WORK
+            cull = math.isfinite(max_range) and len(origins) * len(segments) >= CULL_MIN_PAIRS
         if cull and math.isfinite(max_range):
             t, idx, cos = _rays_culled(origins, directions, segments, max_range, with_cos)
         else:
