@@ -337,10 +337,11 @@ class ParallelCoverageEnv(ParallelEnv):
         active = set(self.agents)
         return {a: obs[i] for i, a in enumerate(self.possible_agents) if a in active}
 
-    def _observe_array(self, true: np.ndarray, sonar_ideal: np.ndarray | None = None) -> np.ndarray:
-        """Observations ``(n_robots, size)`` float32 of every robot; ``sonar_ideal``: the noise-free
-        sonar readings of this state if already cast (the batched VecEnv casts every world's rings
-        in one call); the random draws are the same either way."""
+    def _observe_array(self, true: np.ndarray, sonar_ideal: np.ndarray | None = None,
+                       sonar_heard: np.ndarray | None = None) -> np.ndarray:
+        """Observations ``(n_robots, size)`` float32 of every robot; ``sonar_ideal``, ``sonar_heard``:
+        the noise-free sonar and cross-talk readings of this state if already cast (the batched
+        VecEnv casts every world's rings in one call); the random draws are the same either way."""
         L, est, n = self.layout.slices, self.estimate, self.n_robots
         obs = np.zeros((n, self.layout.size), dtype=np.float32)
         obs[:, L["x"]] = est[:, 0:1]
@@ -368,7 +369,7 @@ class ParallelCoverageEnv(ParallelEnv):
         obs[:, L["time"]] = self.steps / self.scenario.episode.max_steps
         if self.sonar is not None:
             obs[:, L["sonar"]] = self.sonar.measure(true, self.map.segments, self.scenario.robot.radius, self._rng,
-                                                     ideal=sonar_ideal)
+                                                     ideal=sonar_ideal, heard=sonar_heard)
         self.layout.clip(obs)
         return obs
 

@@ -138,13 +138,9 @@ _BOX_SLACK = 1e-9
 """Margin (m) of the bounding boxes of the box-culled single rays: rounding never drops a hit."""
 
 
-def _rays_culled(origins, dirs, segments, reach, with_cos):
-    """Single rays ``(R, 2)`` tested only against the segments whose bounding box meets the box of
-    the ray's reach ``[o, o + reach d]``: the (ray, segment) pairs are computed flat, each with the
-    same arithmetic as the full test, and the nearest hit per ray is the lowest-index one among equal
-    distances (as ``argmin``), so the result is the full test's, bit for bit."""
-    r = len(origins)
-    ox, oy, dx, dy = origins[:, 0], origins[:, 1], dirs[:, 0], dirs[:, 1]
+def _box_pairs(ox, oy, dx, dy, reach, segments) -> tuple[np.ndarray, np.ndarray]:
+    """(ray, segment) index pairs whose bounding boxes meet: the ray's ``[o, o + reach d]`` and the
+    segment's, each grown by ``_BOX_SLACK``; sorted by ray, then by segment index."""
     fx, fy = ox + dx * reach, oy + dy * reach
     rx0, rx1 = np.minimum(ox, fx) - _BOX_SLACK, np.maximum(ox, fx) + _BOX_SLACK
     ry0, ry1 = np.minimum(oy, fy) - _BOX_SLACK, np.maximum(oy, fy) + _BOX_SLACK
@@ -152,7 +148,17 @@ def _rays_culled(origins, dirs, segments, reach, with_cos):
     sy0, sy1 = np.minimum(segments[:, 1], segments[:, 3]), np.maximum(segments[:, 1], segments[:, 3])
     near = ((sx0[None, :] <= rx1[:, None]) & (sx1[None, :] >= rx0[:, None])
             & (sy0[None, :] <= ry1[:, None]) & (sy1[None, :] >= ry0[:, None]))
-    ri, si = np.nonzero(near)  # sorted by ray, then by segment index
+    return np.nonzero(near)
+
+
+def _rays_culled(origins, dirs, segments, reach, with_cos):
+    """Single rays ``(R, 2)`` tested only against the segments whose bounding box meets the box of
+    the ray's reach ``[o, o + reach d]``: the (ray, segment) pairs are computed flat, each with the
+    same arithmetic as the full test, and the nearest hit per ray is the lowest-index one among equal
+    distances (as ``argmin``), so the result is the full test's, bit for bit."""
+    r = len(origins)
+    ox, oy, dx, dy = origins[:, 0], origins[:, 1], dirs[:, 0], dirs[:, 1]
+    ri, si = _box_pairs(ox, oy, dx, dy, reach, segments)
     tmin = np.full(r, np.inf)
     idx = np.zeros(r, dtype=np.int64)
     cos = np.zeros(r) if with_cos else None
@@ -176,9 +182,16 @@ def segments_blocked(a, b, segments) -> np.ndarray:
     segments = np.asarray(segments, dtype=float).reshape(-1, 4)
     if len(a) == 0 or len(segments) == 0:
         return np.zeros(len(a), dtype=bool)
-    t, _, _, _ = _t_plane(a[:, 0:1], a[:, 1:2], (b[:, 0] - a[:, 0])[:, None], (b[:, 1] - a[:, 1])[:, None],
-                          segments[None])
-    return ((t > 0.0) & (t < 1.0)).any(axis=1)
+    dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
+    if len(a) * len(segments) < CULL_MIN_PAIRS:
+        t, _, _, _ = _t_plane(a[:, 0:1], a[:, 1:2], dx[:, None], dy[:, None], segments[None])
+        return ((t > 0.0) & (t < 1.0)).any(axis=1)
+    # box-culled: a crossing lies inside both bounding boxes (same test per pair as above)
+    ri, si = _box_pairs(a[:, 0], a[:, 1], dx, dy, 1.0, segments)
+    t, _, _, _ = _t_plane(a[ri, 0], a[ri, 1], dx[ri], dy[ri], segments[si])
+    out = np.zeros(len(a), dtype=bool)
+    out[ri[(t > 0.0) & (t < 1.0)]] = True
+    return out
 
 
 def _disc_t(ocx, ocy, dx, dy, c):

@@ -202,11 +202,13 @@ class SonarRing:
         return len(self.beam_angles)
 
     def measure(self, poses, segments, robot_radius: float, rng: np.random.Generator | None,
-                include_robots: bool = True, ideal: np.ndarray | None = None) -> np.ndarray:
+                include_robots: bool = True, ideal: np.ndarray | None = None,
+                heard: np.ndarray | None = None) -> np.ndarray:
         """Ring readings ``(N, B)`` float32 for all robots ``poses (N, 3)`` at once. Other robots are
         discs of ``robot_radius`` that block and echo, and whose rings may cross-talk
         (``include_robots``). ``rng=None``: noise-free and no cross-talk. ``ideal``: the noise-free
-        readings of these poses if already cast (:meth:`ideal_batch`); the random draws are the same."""
+        readings of these poses if already cast (:meth:`ideal_batch`), ``heard`` their cross-talk
+        readings (:func:`crosstalk`, batched); the random draws are the same either way."""
         poses = _as_array(poses, "poses", (-1, 3))
         segments = _as_array(segments, "segments", (-1, 4))
         n = len(poses)
@@ -217,9 +219,9 @@ class SonarRing:
             ideal = simulate_beams(self.cfg, poses[:, :2], axes, segments, centres, robot_radius, owner,
                                    self.n_subrays)
         if rng is not None and include_robots and n > 1 and self.cfg.crosstalk_prob > 0:
-            heard = rng.random(ideal.shape) < self.cfg.crosstalk_prob
-            ideal = np.where(heard, np.minimum(ideal, crosstalk(self.cfg, poses, self.beam_angles, segments)),
-                             ideal)
+            if heard is None:
+                heard = crosstalk(self.cfg, poses, self.beam_angles, segments)
+            ideal = np.where(rng.random(ideal.shape) < self.cfg.crosstalk_prob, np.minimum(ideal, heard), ideal)
         return self.corrupt(ideal, rng).astype(np.float32)
 
     def ideal_batch(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float) -> np.ndarray:
@@ -274,23 +276,29 @@ def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segm
     """``(N, B)`` reading each beam gets from another robot's ring (``inf`` if none): beam ``b`` of
     robot ``i`` hears beam ``c`` of robot ``j`` when each robot lies inside the other beam's cone and
     no wall is between them; the ping travels ``d`` one way, read as ``d / 2`` (range = c t / 2).
-    The nearest such robot counts. Transducers sit at the robot centres (see the module notes)."""
-    n, nb = len(poses), len(beam_angles)
-    out = np.full((n, nb), np.inf)
+    The nearest such robot counts. Transducers sit at the robot centres (see the module notes).
+    ``poses (K, N, 3)``: K worlds sharing the walls in one call (robots hear their own world only),
+    ``(K, N, B)`` out, each world's rows equal to its own call bit for bit."""
+    poses = np.asarray(poses, dtype=float)
+    if poses.ndim == 2:
+        return crosstalk(cfg, poses[None], beam_angles, segments)[0]
+    k, n, nb = poses.shape[0], poses.shape[1], len(beam_angles)
+    out = np.full((k, n, nb), np.inf)
     if n < 2:
         return out
     i, j = np.nonzero(~np.eye(n, dtype=bool))
-    delta = poses[j, :2] - poses[i, :2]
-    d = np.hypot(delta[:, 0], delta[:, 1])
-    bearing = np.arctan2(delta[:, 1], delta[:, 0])
+    pi_, pj = poses[:, i], poses[:, j]  # (K, P, 3)
+    delta = pj[..., :2] - pi_[..., :2]
+    d = np.hypot(delta[..., 0], delta[..., 1])
+    bearing = np.arctan2(delta[..., 1], delta[..., 0])
     half = math.radians(cfg.cone_deg) / 2 + 1e-12
-    # (pairs, B): is j inside i's beam b?  does some beam of j point back at i?
-    rx_ok = np.abs(wrap_angle(bearing[:, None] - poses[i, 2:3] - beam_angles[None, :])) <= half
-    tx_ok = (np.abs(wrap_angle(bearing[:, None] + math.pi - poses[j, 2:3] - beam_angles[None, :])) <= half).any(1)
+    # (K, pairs, B): is j inside i's beam b?  does some beam of j point back at i?
+    rx_ok = np.abs(wrap_angle(bearing[..., None] - pi_[..., 2:3] - beam_angles)) <= half
+    tx_ok = (np.abs(wrap_angle(bearing[..., None] + math.pi - pj[..., 2:3] - beam_angles)) <= half).any(-1)
     ok = tx_ok & (d / 2 <= cfg.range_max) & (d > 0)
-    ok &= ~segments_blocked(poses[i, :2], poses[j, :2], segments)
-    val = np.where(rx_ok & ok[:, None], d[:, None] / 2, np.inf)
-    np.minimum.at(out, i, val)
+    ok &= ~segments_blocked(pi_[..., :2].reshape(-1, 2), pj[..., :2].reshape(-1, 2), segments).reshape(ok.shape)
+    val = np.where(rx_ok & ok[..., None], d[..., None] / 2, np.inf)
+    np.minimum.at(out, (np.arange(k)[:, None], i[None, :]), val)
     return out
 
 

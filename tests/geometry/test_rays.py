@@ -145,3 +145,15 @@ def test_discs_per_origin_sets_equal_separate_calls():
     other = cast_rays_discs(np.zeros((1, 2)), np.array([[1.0, 0.0]]), np.array([[[9.0, 9.0], [8.0, 8.0]]]), 0.2,
                             np.array([-1]))
     assert other[0] == math.inf
+
+
+def test_segments_blocked_box_culled_equals_full_test():
+    from parcover_env.geometry import rays
+
+    walls, a, _ = _random_walls_and_rays(3, 400)
+    b = a + np.random.default_rng(5).uniform(-2, 2, (400, 2))
+    b[:5] = walls[30:35, 2:]  # ends on a wall end: the open segment does not cross there
+    culled = segments_blocked(a, b, walls)  # 400 x 40 pairs: box-culled
+    assert len(a) * len(walls) >= rays.CULL_MIN_PAIRS
+    full = np.array([segments_blocked(a[i:i + 1], b[i:i + 1], walls)[0] for i in range(len(a))])
+    assert 50 < culled.sum() < 350 and np.array_equal(culled, full)
