@@ -11,7 +11,8 @@ policy trained on one trains on the other. What differs is how a step runs:
 * the sonar rings of **all robots of all worlds** are cast in one vectorized call
   (:meth:`SonarRing.ideal_batch`): the worlds share the static walls, each robot's beams see
   the robots of its own world (a disc set per origin); the rings' cross-talk geometry too
-  (:func:`~parcover_env.sensors.sonar.crosstalk` over ``(K, N, 3)`` poses);
+  (:func:`~parcover_env.sensors.sonar.crosstalk` over ``(K, N, 3)`` poses), and the follower
+  cameras' lines of sight (:func:`~parcover_env.sensors.relative.lines_of_sight_blocked`);
 * each world then draws its own noise from its own generator, in the same order as the
   ParallelEnv does, so world ``k`` is bit for bit the ParallelEnv made with the same scenario,
   seed and actions (``tests/envs/test_batched.py``).
@@ -35,6 +36,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 from parcover_env.envs.metrics import episode_metrics
 from parcover_env.envs.parallel import ParallelCoverageEnv
+from parcover_env.sensors.relative import lines_of_sight_blocked
 from parcover_env.sensors.sonar import crosstalk
 
 __all__ = ["BatchedVecEnv"]
@@ -120,10 +122,12 @@ class BatchedVecEnv(VecEnv):
         trues = [w._advance(dict(zip(names, acts[k * n:(k + 1) * n], strict=True)))
                  for k, w in enumerate(self.worlds)]
         first = self.worlds[0]
+        poses, segments = np.stack(trues), first.map.segments
+        # the followers' lines of sight to their predecessors, every world in one test
+        blocked = lines_of_sight_blocked(poses, np.stack([w.team.predecessor for w in self.worlds]), segments)
         ideal: Any = [None] * self.n_worlds
         heard: Any = [None] * self.n_worlds
         if first.sonar is not None:  # every robot of every world in one cast
-            poses, segments = np.stack(trues), first.map.segments
             ideal = first.sonar.ideal_batch(poses, segments, first.scenario.robot.radius)
             if first.sonar.cfg.crosstalk_prob > 0 and n > 1:
                 heard = crosstalk(first.sonar.cfg, poses, first.sonar.beam_angles, segments)
@@ -132,7 +136,7 @@ class BatchedVecEnv(VecEnv):
         dones = np.zeros(self.num_envs, dtype=bool)
         infos: list[dict] = []
         for k, w in enumerate(self.worlds):
-            o = w._observe_array(trues[k], ideal[k], heard[k])
+            o = w._observe_array(trues[k], ideal[k], heard[k], blocked[k])
             _, rew, term, trunc, inf = w._outputs(trues[k], {})
             rows = slice(k * n, (k + 1) * n)
             rewards[rows] = [rew[a] for a in names]

@@ -338,10 +338,11 @@ class ParallelCoverageEnv(ParallelEnv):
         return {a: obs[i] for i, a in enumerate(self.possible_agents) if a in active}
 
     def _observe_array(self, true: np.ndarray, sonar_ideal: np.ndarray | None = None,
-                       sonar_heard: np.ndarray | None = None) -> np.ndarray:
-        """Observations ``(n_robots, size)`` float32 of every robot; ``sonar_ideal``, ``sonar_heard``:
-        the noise-free sonar and cross-talk readings of this state if already cast (the batched
-        VecEnv casts every world's rings in one call); the random draws are the same either way."""
+                       sonar_heard: np.ndarray | None = None, camera_blocked: np.ndarray | None = None) -> np.ndarray:
+        """Observations ``(n_robots, size)`` float32 of every robot; ``sonar_ideal``, ``sonar_heard``,
+        ``camera_blocked``: the noise-free sonar and cross-talk readings and the follower cameras'
+        blocked lines of sight of this state if already cast (the batched VecEnv casts those of every
+        world in one call each); the random draws are the same either way."""
         L, est, n = self.layout.slices, self.estimate, self.n_robots
         obs = np.zeros((n, self.layout.size), dtype=np.float32)
         obs[:, L["x"]] = est[:, 0:1]
@@ -359,7 +360,7 @@ class ParallelCoverageEnv(ParallelEnv):
         goal = rotate(self.progress.goals() - est[:, :2], -est[:, 2])
         obs[:, L["goal_dx"]] = goal[:, 0:1]
         obs[:, L["goal_dy"]] = goal[:, 1:2]
-        rel = self.camera.measure(true, self.team.predecessor, self.map.segments, self._rng)
+        rel = self.camera.measure(true, self.team.predecessor, self.map.segments, self._rng, camera_blocked)
         obs[:, L["pred_dx"]] = rel.rel_xy[:, 0:1]
         obs[:, L["pred_dy"]] = rel.rel_xy[:, 1:2]
         obs[:, L["pred_cos"]] = np.where(rel.visible, np.cos(rel.rel_heading), 0.0)[:, None]
