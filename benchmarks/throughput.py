@@ -552,6 +552,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="env-steps of the memory soaks (default 20000; 1000000 for the 10^6-step soak)")
     p.add_argument("--quick", action="store_true", help="short chunks (smoke run)")
     p.add_argument("--json", help="also write the figures to this JSON file")
+    p.add_argument("--torch-threads", type=int, default=1,
+                   help="torch threads of the VMAS peers (default 1: our env is single-threaded too, and "
+                        "on a shared machine more threads only contend)")
     args = p.parse_args(argv)
     if args.quick:
         args.steps, args.repeats, args.soak = 30, 1, 500
@@ -566,6 +569,12 @@ def main(argv: list[str] | None = None) -> int:
     print(f"# parcover_env throughput  python {platform.python_version()}  {os.cpu_count()} cores  "
           f"load {load:.1f}  steps/chunk {args.steps} x {args.repeats}", flush=True)
     results: dict = {"steps": args.steps, "repeats": args.repeats, "load": load}
+    try:
+        import torch
+
+        torch.set_num_threads(args.torch_threads)
+    except ImportError:
+        pass
     for name in chosen:
         print(f"\n## {name}", flush=True)
         SECTIONS[name](args, results)
