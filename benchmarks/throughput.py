@@ -20,8 +20,13 @@ Sections (``--sections``, comma separated; default all):
   and robot discs); ours / floor in time per step (1.0 = no overhead at all).
 * ``scaling`` - a 20 m x 20 m open box with 2, 8, 16, 32, 64 robots (env-steps/s, time per robot).
 * ``vec``     - the SB3 adapter (``parcover_env.envs.vec_env``): 1 env in-process vs 2 worker processes.
-* ``memory``  - peak RSS, and RSS sampled over ``--soak`` steps on ``office`` (use
-  ``benchmarks/soak.py --steps 1000000`` for the 10^6-step soak).
+* ``batched`` - ``make_vec_env("tree", n_envs=K, backend="batched")`` for K = 1, 4, 16, 64 (agent-steps/s
+  and the speed-up over K separate in-process worlds, measured at K = 4), team-size scaling of the
+  batched backend (open box, K = 16), and VMAS ``navigation`` batched (``num_envs`` 64, 4 agents,
+  CPU) for the K = 64 ratio.
+* ``memory``  - peak RSS, and RSS sampled over ``--soak`` env-steps on ``office`` (one ParallelEnv) and
+  over ``--soak`` world-steps of the batched backend (``office``, K = 16); ``--soak 1000000`` for
+  the 10^6-step soak.
 
     .venv/bin/python benchmarks/throughput.py                 # everything (~5 min on 2 cores)
     .venv/bin/python benchmarks/throughput.py --quick         # short chunks, a smoke run
@@ -49,6 +54,10 @@ TREE_TARGET_FLOOR = 4.0
 """Target: tree within 4x of the physics + ray-casting floor."""
 FRAMES_TARGET_RT = 20.0
 """Target: Kinect frames mode on tree >= 20x real time."""
+BATCHED_TARGET_VMAS = 2.0
+"""Target: batched tree, K = 64, >= 2x VMAS navigation (num_envs 64, CPU) in agent-steps/s."""
+BATCHED_KS = (1, 4, 16, 64)
+"""Worlds per process of the batched section."""
 
 MODES: dict[str, dict] = {
     "default": {},
@@ -358,31 +367,148 @@ def section_vec(args, results: dict) -> None:
     results["vec"] = rows
 
 
+# ---------------------------------------------------------------------------------------- batched
+class VecRunner:
+    """Steps an SB3 VecEnv with pre-drawn random actions (auto-resets inside, as in training)."""
+
+    def __init__(self, venv, seed: int = 0):
+        self.venv = venv
+        venv.seed(seed)
+        venv.reset()
+        rng = np.random.default_rng(seed)
+        self.actions = rng.uniform(-1, 1, (32, venv.num_envs, 2)).astype(np.float32)
+
+    def __call__(self, k: int) -> None:
+        self.venv.step(self.actions[k % len(self.actions)])
+
+
+class VmasBatchedRunner:
+    """VMAS ``navigation`` with ``num_envs`` vectorized worlds on the CPU, random actions."""
+
+    def __init__(self, num_envs: int, n_agents: int = 4, seed: int = 0):
+        import torch
+        import vmas
+
+        torch.manual_seed(seed)
+        self.env = vmas.make_env("navigation", num_envs=num_envs, device="cpu", continuous_actions=True,
+                                 n_agents=n_agents, seed=seed)
+        self.env.reset()
+        self.n_agents, self.num_envs = n_agents, num_envs
+        g = torch.Generator().manual_seed(seed)
+        self.actions = [[torch.rand((num_envs, 2), generator=g) * 2 - 1 for _ in range(n_agents)]
+                        for _ in range(32)]
+
+    def __call__(self, k: int) -> None:
+        _, _, done, _ = self.env.step(self.actions[k % len(self.actions)])
+        if bool(done.any()):  # reset only the finished worlds, as VMAS training loops do
+            for i in done.nonzero().flatten().tolist():
+                self.env.reset_at(i)
+
+
+def _vec_row(label: str, venv_fn: Callable[[], object], steps: int, repeats: int, k: int) -> dict:
+    t0 = time.perf_counter()
+    venv = venv_fn()
+    build = time.perf_counter() - t0
+    try:
+        run = VecRunner(venv)
+        sec = timed_chunks(run, steps, repeats, warmup=5)
+        r = {"label": label, "K": k, "slots": venv.num_envs, "sec_per_step": sec,
+             "world_steps_s": k / sec, "agent_steps_s": venv.num_envs / sec, "build_s": build}
+    finally:
+        venv.close()
+    print(f"  {label:34s} K={k:3d} {r['slots']:5d} slots  {r['world_steps_s']:8.1f} world-steps/s  "
+          f"{r['agent_steps_s']:9.0f} agent-steps/s  {1e3 * sec:8.1f} ms/step  (built in {build:.1f} s)",
+          flush=True)
+    return r
+
+
+def section_batched(args, results: dict) -> None:
+    from parcover_env.envs.vec_env import make_vec_env
+
+    out: dict = {"k": [], "team": [], "vmas": None}
+    steps = max(args.steps // 10, 5)
+    for k in BATCHED_KS:
+        out["k"].append(_vec_row("tree batched", lambda k=k: make_vec_env("tree", k, backend="batched",
+                                                                          monitor=False),
+                                 max(steps * 4 // k, 3), args.repeats, k))
+    base = out["k"][0]
+    for r in out["k"]:  # > 1: a world steps faster in a batch of K than alone (batching pays)
+        r["per_world_speedup"] = r["world_steps_s"] / base["world_steps_s"]
+    print("  world-steps/s relative to K=1: "
+          + ", ".join(f"K={r['K']}: {r['per_world_speedup']:.2f}x" for r in out["k"]), flush=True)
+    ref = _vec_row("tree in-process (K separate)", lambda: make_vec_env("tree", 4, backend="inprocess",
+                                                                         monitor=False),
+                   max(steps, 3), args.repeats, 4)
+    four = next(r for r in out["k"] if r["K"] == 4)
+    out["inprocess_4"] = ref
+    print(f"  batched / in-process at K=4: {four['agent_steps_s'] / ref['agent_steps_s']:.2f}x", flush=True)
+    for n in (2, 8, 16, 32):
+        r = _vec_row(f"open box N={n} batched", lambda n=n: make_vec_env("office", 16, overrides=open_box(n),
+                                                                         backend="batched", monitor=False),
+                     max(steps // 2, 3), args.repeats, 16)
+        r["n_robots"] = n
+        out["team"].append(r)
+    try:
+        run = VmasBatchedRunner(64)
+    except ImportError as exc:
+        print(f"  VMAS navigation batched: not installed ({exc}); pip install vmas", flush=True)
+    else:
+        sec = timed_chunks(run, steps * 4, args.repeats, warmup=5)
+        v = {"peer": "vmas navigation num_envs=64, 4 agents, cpu", "sec_per_step": sec,
+             "agent_steps_s": 64 * 4 / sec, "world_steps_s": 64 / sec}
+        out["vmas"] = v
+        print(f"  {v['peer']:34s}        {v['world_steps_s']:8.1f} world-steps/s  {v['agent_steps_s']:9.0f} "
+              f"agent-steps/s  {1e3 * sec:8.1f} ms/step", flush=True)
+        k64 = next((r for r in out["k"] if r["K"] == 64), None)
+        if k64:
+            ratio = k64["agent_steps_s"] / v["agent_steps_s"]
+            out["ratio_vmas_64"] = ratio
+            print(f"  tree batched K=64 / VMAS navigation 64 = {ratio:.2f}x agent-steps/s "
+                  f"(target >= {BATCHED_TARGET_VMAS:.0f}x)", flush=True)
+    results["batched"] = out
+
+
 # ---------------------------------------------------------------------------------------- memory
-def section_memory(args, results: dict) -> None:
-    env = our_env("office", {})
-    run = ParallelRunner(env, np.random.default_rng(1))
-    for k in range(500):
-        run(k)
+def _soak(step: Callable[[int], None], total: int) -> dict:
+    """RSS sampled 10 times over ``total`` calls of ``step`` (after a warm-up) and its linear fit."""
+    for k in range(min(500, max(total // 10, 1))):
+        step(k)
     gc.collect()
     samples = []
-    chunk = max(args.soak // 10, 1)
+    chunk = max(total // 10, 1)
     for i in range(10):
         for k in range(chunk):
-            run(i * chunk + k)
+            step(i * chunk + k)
         samples.append(rss_mb())
     x = np.arange(len(samples)) * chunk
     slope = float(np.polyfit(x, samples, 1)[0]) * 1e6 if len(samples) > 1 else 0.0
-    r = {"soak_steps": chunk * 10, "rss_start_mb": samples[0], "rss_end_mb": samples[-1],
-         "slope_mb_per_1e6_steps": slope, "peak_rss_mb": peak_rss_mb()}
-    results["memory"] = r
-    print(f"  office soak {r['soak_steps']} steps: RSS {samples[0]:.1f} -> {samples[-1]:.1f} MiB "
-          f"(fit {slope:+.2f} MiB per 10^6 steps); peak RSS of this whole run {r['peak_rss_mb']:.0f} MiB",
+    return {"soak_steps": chunk * 10, "rss_start_mb": samples[0], "rss_end_mb": samples[-1],
+            "slope_mb_per_1e6_steps": slope}
+
+
+def section_memory(args, results: dict) -> None:
+    run = ParallelRunner(our_env("office", {}), np.random.default_rng(1))
+    r = _soak(run, args.soak)
+    print(f"  office soak {r['soak_steps']} steps: RSS {r['rss_start_mb']:.1f} -> {r['rss_end_mb']:.1f} MiB "
+          f"(fit {r['slope_mb_per_1e6_steps']:+.2f} MiB per 10^6 steps)", flush=True)
+    from parcover_env.envs.vec_env import make_vec_env
+
+    k = 16
+    venv = make_vec_env("office", k, backend="batched", monitor=False)
+    b = _soak(VecRunner(venv), max(args.soak // k, 10))
+    b["K"], b["world_steps"] = k, b["soak_steps"] * k
+    venv.close()
+    print(f"  office batched K={k} soak {b['world_steps']} world-steps: RSS {b['rss_start_mb']:.1f} -> "
+          f"{b['rss_end_mb']:.1f} MiB (fit {b['slope_mb_per_1e6_steps'] / k:+.2f} MiB per 10^6 world-steps)",
           flush=True)
+    r["batched"] = b
+    r["peak_rss_mb"] = peak_rss_mb()
+    print(f"  peak RSS of this whole run {r['peak_rss_mb']:.0f} MiB", flush=True)
+    results["memory"] = r
 
 
 SECTIONS = {"ours": section_ours, "peers": section_peers, "floor": section_floor, "scaling": section_scaling,
-            "vec": section_vec, "memory": section_memory}
+            "vec": section_vec, "batched": section_batched, "memory": section_memory}
 
 
 def summary(results: dict) -> None:
@@ -403,9 +529,18 @@ def summary(results: dict) -> None:
         v = frames["realtime"]
         print(f"  Kinect frames mode: {v:.1f}x real time  (target >= {FRAMES_TARGET_RT:.0f}x)  "
               f"{'MET' if v >= FRAMES_TARGET_RT else 'NOT MET'}")
+    b = results.get("batched") or {}
+    if b.get("ratio_vmas_64") is not None:
+        v = b["ratio_vmas_64"]
+        print(f"  batched K=64 vs VMAS navigation num_envs=64: {v:.2f}x  (target >= {BATCHED_TARGET_VMAS:.0f}x)  "
+              f"{'MET' if v >= BATCHED_TARGET_VMAS else 'NOT MET'}")
     if "memory" in results:
         m = results["memory"]
         print(f"  memory: {m['slope_mb_per_1e6_steps']:+.2f} MiB per 10^6 steps over {m['soak_steps']} steps")
+        if "batched" in m:
+            mb = m["batched"]
+            print(f"  memory, batched K={mb['K']}: {mb['slope_mb_per_1e6_steps'] / mb['K']:+.2f} MiB per 10^6 "
+                  f"world-steps over {mb['world_steps']} world-steps")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -413,9 +548,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--steps", type=int, default=300, help="steps per timed chunk (default 300)")
     p.add_argument("--repeats", type=int, default=3, help="timed chunks per measurement; the median is kept")
     p.add_argument("--sections", default=",".join(SECTIONS), help=f"comma separated of {', '.join(SECTIONS)}")
-    p.add_argument("--soak", type=int, default=20000, help="steps of the memory soak (default 20000)")
+    p.add_argument("--soak", type=int, default=20000,
+                   help="env-steps of the memory soaks (default 20000; 1000000 for the 10^6-step soak)")
     p.add_argument("--quick", action="store_true", help="short chunks (smoke run)")
     p.add_argument("--json", help="also write the figures to this JSON file")
+    p.add_argument("--torch-threads", type=int, default=1,
+                   help="torch threads of the VMAS peers (default 1: our env is single-threaded too, and "
+                        "on a shared machine more threads only contend)")
     args = p.parse_args(argv)
     if args.quick:
         args.steps, args.repeats, args.soak = 30, 1, 500
@@ -430,6 +569,12 @@ def main(argv: list[str] | None = None) -> int:
     print(f"# parcover_env throughput  python {platform.python_version()}  {os.cpu_count()} cores  "
           f"load {load:.1f}  steps/chunk {args.steps} x {args.repeats}", flush=True)
     results: dict = {"steps": args.steps, "repeats": args.repeats, "load": load}
+    try:
+        import torch
+
+        torch.set_num_threads(args.torch_threads)
+    except ImportError:
+        pass
     for name in chosen:
         print(f"\n## {name}", flush=True)
         SECTIONS[name](args, results)

@@ -222,6 +222,14 @@ class ParallelCoverageEnv(ParallelEnv):
         return obs, infos
 
     def step(self, actions: dict[str, Any]):
+        true = self._advance(actions)
+        obs = self._observe(true)
+        return self._outputs(true, obs)
+
+    def _advance(self, actions: dict[str, Any]) -> np.ndarray:
+        """First half of ``step``: act, integrate, sense, track the mission, score and record.
+        Returns the true poses; ``_observe`` and ``_outputs`` finish the step (the batched VecEnv
+        runs the sonar of all its worlds in one call between the two halves)."""
         if not self.agents:
             raise RuntimeError("step() called on a finished episode; call reset() first")
         self.commands = to_commands(actions, self.agents, self.scenario.robot.max_speed,
@@ -234,9 +242,13 @@ class ParallelCoverageEnv(ParallelEnv):
         n_new = self.progress.update(true[:, :2], self.estimate[:, :2], self.world.time)
         self.team.count_waypoints(self.progress.advanced)
         self._update_team()
-        terms = self._rewards(true, n_new)
+        self._terms = self._rewards(true, n_new)
         self._record(before, true)
-        obs = self._observe(true)
+        return true
+
+    def _outputs(self, true: np.ndarray, obs: dict[str, np.ndarray]):
+        """Second half of ``step``: rewards, terminations, truncations and infos as PettingZoo dicts."""
+        terms = self._terms
         done = self.progress.done
         truncated = self.steps >= self.scenario.episode.max_steps and not done
         total = 0
@@ -321,6 +333,18 @@ class ParallelCoverageEnv(ParallelEnv):
                 trail.append(p[:2].copy())
 
     def _observe(self, true: np.ndarray) -> dict[str, np.ndarray]:
+        obs = self._observe_array(true)
+        if len(self.agents) == self.n_robots:
+            return dict(zip(self.possible_agents, obs, strict=True))
+        active = set(self.agents)
+        return {a: obs[i] for i, a in enumerate(self.possible_agents) if a in active}
+
+    def _observe_array(self, true: np.ndarray, sonar_ideal: np.ndarray | None = None,
+                       sonar_heard: np.ndarray | None = None, camera_blocked: np.ndarray | None = None) -> np.ndarray:
+        """Observations ``(n_robots, size)`` float32 of every robot; ``sonar_ideal``, ``sonar_heard``,
+        ``camera_blocked``: the noise-free sonar and cross-talk readings and the follower cameras'
+        blocked lines of sight of this state if already cast (the batched VecEnv casts those of every
+        world in one call each); the random draws are the same either way."""
         L, est, n = self.layout.slices, self.estimate, self.n_robots
         obs = np.zeros((n, self.layout.size), dtype=np.float32)
         obs[:, L["x"]] = est[:, 0:1]
@@ -338,7 +362,7 @@ class ParallelCoverageEnv(ParallelEnv):
         goal = rotate(self.progress.goals() - est[:, :2], -est[:, 2])
         obs[:, L["goal_dx"]] = goal[:, 0:1]
         obs[:, L["goal_dy"]] = goal[:, 1:2]
-        rel = self.camera.measure(true, self.team.predecessor, self.map.segments, self._rng)
+        rel = self.camera.measure(true, self.team.predecessor, self.map.segments, self._rng, camera_blocked)
         obs[:, L["pred_dx"]] = rel.rel_xy[:, 0:1]
         obs[:, L["pred_dy"]] = rel.rel_xy[:, 1:2]
         obs[:, L["pred_cos"]] = np.where(rel.visible, np.cos(rel.rel_heading), 0.0)[:, None]
@@ -347,12 +371,10 @@ class ParallelCoverageEnv(ParallelEnv):
         obs[:, L["kpois_visited"]] = self.progress.visited.mean()
         obs[:, L["time"]] = self.steps / self.scenario.episode.max_steps
         if self.sonar is not None:
-            obs[:, L["sonar"]] = self.sonar.measure(true, self.map.segments, self.scenario.robot.radius, self._rng)
+            obs[:, L["sonar"]] = self.sonar.measure(true, self.map.segments, self.scenario.robot.radius, self._rng,
+                                                     ideal=sonar_ideal, heard=sonar_heard)
         self.layout.clip(obs)
-        if len(self.agents) == n:
-            return dict(zip(self.possible_agents, obs, strict=True))
-        active = set(self.agents)
-        return {a: obs[i] for i, a in enumerate(self.possible_agents) if a in active}
+        return obs
 
     # ------------------------------------------------------------------ extras
     def true_poses(self) -> np.ndarray:

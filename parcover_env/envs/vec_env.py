@@ -21,7 +21,9 @@ ParallelEnvs of different maps (``generated:SEED``) may differ in observation bo
 size; the VecEnv's observation space is the union of their boxes.
 
 ``multiprocess=True`` hosts each ParallelEnv in its own worker process (like ``SubprocVecEnv``).
-SuperSuit is not needed. Wrap the result in ``VecMonitor`` for episode statistics.
+:class:`~parcover_env.envs.batched.BatchedVecEnv` (``make_vec_env(..., backend="batched")``) steps
+K worlds of one scenario in this process with the same semantics. SuperSuit is not needed. Wrap
+the result in ``VecMonitor`` for episode statistics.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from stable_baselines3.common.vec_env.base_vec_env import CloudpickleWrapper, Ve
 
 from parcover_env.envs.metrics import episode_metrics
 
-__all__ = ["AgentSlots", "ParallelVecEnv", "make_vec_env"]
+__all__ = ["AgentSlots", "BACKENDS", "ParallelVecEnv", "make_vec_env"]  # + BatchedVecEnv (lazy)
 
 
 class AgentSlots:
@@ -314,31 +316,67 @@ class ParallelVecEnv(VecEnv):
         ]
 
 
+BACKENDS = ("batched", "process", "inprocess")
+"""``make_vec_env`` backends: ``batched`` (K worlds in this process, the sonar of all their robots
+in one vectorized call: :class:`~parcover_env.envs.batched.BatchedVecEnv`), ``process`` (one worker
+process per world: :class:`ParallelVecEnv` with ``multiprocess=True``), ``inprocess`` (one
+:class:`ParallelVecEnv` slot group per world, stepped one after the other)."""
+
+
 def make_vec_env(
     scenario: Any = "office",
     n_envs: int = 1,
     overrides: dict | None = None,
-    multiprocess: bool = False,
+    multiprocess: bool | None = None,
     monitor: bool = True,
+    backend: str | None = None,
+    preset: str = "realistic",
+    render_mode: str | None = None,
 ) -> VecEnv:
-    """``n_envs`` ParallelCoverageEnvs of a scenario as one parameter-sharing VecEnv (+ VecMonitor)."""
+    """``n_envs`` worlds of a scenario as one parameter-sharing SB3 VecEnv (+ ``VecMonitor``).
+
+    ``num_envs = n_envs x n_robots`` slots (world ``k``'s robots are consecutive); ``seed(s)``
+    makes world ``k`` reset with seed ``s + k`` at the next ``reset()``. ``backend``: one of
+    :data:`BACKENDS`, default ``"inprocess"``; ``multiprocess=True`` (the older flag) means
+    ``"process"``. Every backend gives the same observations, rewards, dones and infos for the same
+    seeds and actions (``render_mode="rgb_array"`` for ``get_images``)."""
     if n_envs < 1:
         raise ValueError(f"n_envs must be >= 1, got {n_envs}")
+    if backend is None:
+        backend = "process" if multiprocess else "inprocess"
+    elif backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    elif multiprocess is not None and multiprocess != (backend == "process"):
+        raise ValueError(f"multiprocess={multiprocess} contradicts backend={backend!r}")
     from stable_baselines3.common.vec_env import VecMonitor
 
-    venv = ParallelVecEnv(
-        [_EnvFactory(scenario, overrides) for _ in range(n_envs)], multiprocess=multiprocess
-    )
+    if backend == "batched":
+        from parcover_env.envs.batched import BatchedVecEnv
+
+        venv: VecEnv = BatchedVecEnv(scenario, n_envs, overrides, preset=preset, render_mode=render_mode)
+    else:
+        venv = ParallelVecEnv([_EnvFactory(scenario, overrides, preset, render_mode) for _ in range(n_envs)],
+                              multiprocess=backend == "process")
     return VecMonitor(venv) if monitor else venv
 
 
 class _EnvFactory:
     """Picklable factory of a ParallelCoverageEnv (for worker processes)."""
 
-    def __init__(self, scenario: Any, overrides: dict | None):
-        self.scenario, self.overrides = scenario, overrides
+    def __init__(self, scenario: Any, overrides: dict | None, preset: str = "realistic",
+                 render_mode: str | None = None):
+        self.scenario, self.overrides, self.preset, self.render_mode = scenario, overrides, preset, render_mode
 
     def __call__(self):
         from parcover_env.envs import ParallelCoverageEnv
 
-        return ParallelCoverageEnv(self.scenario, overrides=self.overrides)
+        return ParallelCoverageEnv(self.scenario, render_mode=self.render_mode, overrides=self.overrides,
+                                   preset=self.preset)
+
+
+def __getattr__(name: str) -> Any:
+    if name == "BatchedVecEnv":  # lazily: the batched module imports the env
+        from parcover_env.envs.batched import BatchedVecEnv
+
+        return BatchedVecEnv
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -11,7 +11,10 @@ Ray layouts. ``origins (R, 2)`` with ``directions (R, 2)``: one ray per origin. 
 with ``directions (N, M, 2)``: a *fan* of ``M`` rays from each origin (all beams of all robots in
 one call). Fans are range-culled when it pays: each origin's rays are tested only against the
 segments (discs) within ``max_range`` of it. A hit at ``t`` lies within ``t`` of its origin, so
-every hit up to ``max_range`` is found exactly as by the full test.
+every hit up to ``max_range`` is found exactly as by the full test. Culling: each ray is tested only
+against the segments whose bounding box meets the box of its reach ``[o, o + max_range d]`` (single
+rays too); discs of a fan only when within ``max_range`` of the origin. Culled and full tests give
+the same numbers bit for bit (same arithmetic per pair, same tie-breaking).
 
 A hit farther than ``max_range`` is reported as no hit: distance ``inf``, segment index ``-1``.
 """
@@ -32,6 +35,8 @@ CULL_MIN_RAYS = 32
 """Rays per origin from which a fan is range-culled ...               (performance, not physics)"""
 CULL_MIN_WORK = 50_000
 """... when rays x segments (or discs) reach this: below, culling costs more than it saves."""
+CULL_MIN_PAIRS = 10_000
+"""Single rays (one per origin) are box-culled from this many rays x segments on."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,33 +112,66 @@ def cast_rays(origins, directions, segments, max_range: float = math.inf, *,
         if cull is None:
             cull = _pays(n, m, len(segments), max_range)
         if cull and math.isfinite(max_range):
-            t, idx, cos = _fan_culled(origins, directions, segments, max_range, with_cos)
+            t, idx, cos = _rays_culled(np.repeat(origins, m, axis=0), directions.reshape(n * m, 2), segments,
+                                       max_range, with_cos)
+            t, idx = t.reshape(n, m), idx.reshape(n, m)
+            cos = cos.reshape(n, m) if with_cos else None
         else:
             t, den, ex, ey = _t_plane(origins[:, None, 0:1], origins[:, None, 1:2],
                                       directions[..., 0:1], directions[..., 1:2], segments[None, None])
             t, idx, cos = _first(t, den, ex, ey, len(segments), with_cos)
     else:
-        t, den, ex, ey = _t_plane(origins[:, 0:1], origins[:, 1:2], directions[:, 0:1], directions[:, 1:2],
-                                  segments[None])
-        t, idx, cos = _first(t, den, ex, ey, len(segments), with_cos)
+        if cull is None:
+            cull = math.isfinite(max_range) and len(origins) * len(segments) >= CULL_MIN_PAIRS
+        if cull and math.isfinite(max_range):
+            t, idx, cos = _rays_culled(origins, directions, segments, max_range, with_cos)
+        else:
+            t, den, ex, ey = _t_plane(origins[:, 0:1], origins[:, 1:2], directions[:, 0:1], directions[:, 1:2],
+                                      segments[None])
+            t, idx, cos = _first(t, den, ex, ey, len(segments), with_cos)
     hit = np.isfinite(t) & (t <= max_range)
     return RayHits(np.where(hit, t, np.inf), np.where(hit, idx, -1),
                    np.where(hit, cos, 0.0) if with_cos else None)
 
 
-def _fan_culled(origins, dirs, segments, reach, with_cos):
-    n, m = dirs.shape[:2]
-    near = point_segment_distance(origins, segments) <= reach + 1e-6
-    width = int(near.sum(axis=1).max()) if n else 0
-    if width == 0:
-        return np.full((n, m), np.inf), np.full((n, m), -1, dtype=np.int64), np.zeros((n, m))
-    order = np.argsort(~near, axis=1, kind="stable")[:, :width]  # near segments first, in index order
-    keep = np.take_along_axis(near, order, axis=1)[:, None, :]
-    t, den, ex, ey = _t_plane(origins[:, None, 0:1], origins[:, None, 1:2], dirs[..., 0:1], dirs[..., 1:2],
-                              segments[order][:, None])
-    t = np.where(keep, t, np.inf)
-    tmin, j, cos = _first(t, den, ex, ey, width, with_cos)
-    idx = np.take_along_axis(np.broadcast_to(order[:, None, :], t.shape), j[..., None], axis=-1)[..., 0]
+_BOX_SLACK = 1e-9
+"""Margin (m) of the bounding boxes of the box-culled single rays: rounding never drops a hit."""
+
+
+def _box_pairs(ox, oy, dx, dy, reach, segments) -> tuple[np.ndarray, np.ndarray]:
+    """(ray, segment) index pairs whose bounding boxes meet: the ray's ``[o, o + reach d]`` and the
+    segment's, each grown by ``_BOX_SLACK``; sorted by ray, then by segment index."""
+    fx, fy = ox + dx * reach, oy + dy * reach
+    rx0, rx1 = np.minimum(ox, fx) - _BOX_SLACK, np.maximum(ox, fx) + _BOX_SLACK
+    ry0, ry1 = np.minimum(oy, fy) - _BOX_SLACK, np.maximum(oy, fy) + _BOX_SLACK
+    sx0, sx1 = np.minimum(segments[:, 0], segments[:, 2]), np.maximum(segments[:, 0], segments[:, 2])
+    sy0, sy1 = np.minimum(segments[:, 1], segments[:, 3]), np.maximum(segments[:, 1], segments[:, 3])
+    near = ((sx0[None, :] <= rx1[:, None]) & (sx1[None, :] >= rx0[:, None])
+            & (sy0[None, :] <= ry1[:, None]) & (sy1[None, :] >= ry0[:, None]))
+    return np.nonzero(near)
+
+
+def _rays_culled(origins, dirs, segments, reach, with_cos):
+    """Single rays ``(R, 2)`` tested only against the segments whose bounding box meets the box of
+    the ray's reach ``[o, o + reach d]``: the (ray, segment) pairs are computed flat, each with the
+    same arithmetic as the full test, and the nearest hit per ray is the lowest-index one among equal
+    distances (as ``argmin``), so the result is the full test's, bit for bit."""
+    r = len(origins)
+    ox, oy, dx, dy = origins[:, 0], origins[:, 1], dirs[:, 0], dirs[:, 1]
+    ri, si = _box_pairs(ox, oy, dx, dy, reach, segments)
+    tmin = np.full(r, np.inf)
+    idx = np.zeros(r, dtype=np.int64)
+    cos = np.zeros(r) if with_cos else None
+    if len(ri) == 0:
+        return tmin, idx, cos
+    t, den, ex, ey = _t_plane(ox[ri], oy[ri], dx[ri], dy[ri], segments[si])
+    starts = np.flatnonzero(np.concatenate([[True], ri[1:] != ri[:-1]]))
+    tmin[ri[starts]] = np.minimum.reduceat(t, starts)
+    at_min = np.flatnonzero((t == tmin[ri]) & np.isfinite(t))
+    first = at_min[np.concatenate([[True], ri[at_min][1:] != ri[at_min][:-1]])]
+    idx[ri[first]] = si[first]
+    if with_cos:
+        cos[ri[first]] = np.abs(den[first]) / np.maximum(np.hypot(ex[first], ey[first]), 1e-9)
     return tmin, idx, cos
 
 
@@ -144,9 +182,16 @@ def segments_blocked(a, b, segments) -> np.ndarray:
     segments = np.asarray(segments, dtype=float).reshape(-1, 4)
     if len(a) == 0 or len(segments) == 0:
         return np.zeros(len(a), dtype=bool)
-    t, _, _, _ = _t_plane(a[:, 0:1], a[:, 1:2], (b[:, 0] - a[:, 0])[:, None], (b[:, 1] - a[:, 1])[:, None],
-                          segments[None])
-    return ((t > 0.0) & (t < 1.0)).any(axis=1)
+    dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
+    if len(a) * len(segments) < CULL_MIN_PAIRS:
+        t, _, _, _ = _t_plane(a[:, 0:1], a[:, 1:2], dx[:, None], dy[:, None], segments[None])
+        return ((t > 0.0) & (t < 1.0)).any(axis=1)
+    # box-culled: a crossing lies inside both bounding boxes (same test per pair as above)
+    ri, si = _box_pairs(a[:, 0], a[:, 1], dx, dy, 1.0, segments)
+    t, _, _, _ = _t_plane(a[ri, 0], a[ri, 1], dx[ri], dy[ri], segments[si])
+    out = np.zeros(len(a), dtype=bool)
+    out[ri[(t > 0.0) & (t < 1.0)]] = True
+    return out
 
 
 def _disc_t(ocx, ocy, dx, dy, c):
@@ -160,27 +205,37 @@ def _disc_t(ocx, ocy, dx, dy, c):
 def cast_rays_discs(origins, directions, centres, radii, owner=None, max_range: float = math.inf, *,
                     cull: bool | None = None) -> np.ndarray:
     """Distance to the first disc hit per ray (``inf`` if none within ``max_range``), shaped like
-    ``directions[..., 0]`` (same layouts as :func:`cast_rays`). ``owner``: per origin, the index of
-    a disc to ignore (the robot carrying the sensor) or -1. A ray starting inside another disc hits
-    it at 0."""
+    ``directions[..., 0]`` (same layouts as :func:`cast_rays`). ``centres``: ``(D, 2)`` discs seen
+    by every origin, or ``(N, D, 2)`` a disc set per origin (batched worlds: each origin sees the
+    robots of its own world; ``radii`` is then one radius for all). ``owner``: per origin, the index
+    of a disc to ignore (the robot carrying the sensor) or -1. A ray starting inside another disc
+    hits it at 0."""
     origins = np.asarray(origins, dtype=float)
     directions = np.asarray(directions, dtype=float)
-    centres = np.asarray(centres, dtype=float).reshape(-1, 2)
+    centres = np.asarray(centres, dtype=float)
+    per_origin = centres.ndim == 3
+    if not per_origin:
+        centres = centres.reshape(-1, 2)
     shape = directions.shape[:-1]
-    if directions.size == 0 or len(centres) == 0:
+    n_discs = centres.shape[-2]
+    if directions.size == 0 or n_discs == 0:
         return np.full(shape, np.inf)
-    rad = np.broadcast_to(np.asarray(radii, dtype=float), (len(centres),))
+    rad = np.broadcast_to(np.asarray(radii, dtype=float), (n_discs,))
     r2 = rad * rad
     n = len(origins)
     owner = np.full(n, -1) if owner is None else np.asarray(owner)
-    ocx = origins[:, 0:1] - centres[None, :, 0]  # (N, D)
-    ocy = origins[:, 1:2] - centres[None, :, 1]
+    if per_origin:
+        ocx = origins[:, 0:1] - centres[:, :, 0]  # (N, D)
+        ocy = origins[:, 1:2] - centres[:, :, 1]
+    else:
+        ocx = origins[:, 0:1] - centres[None, :, 0]  # (N, D)
+        ocy = origins[:, 1:2] - centres[None, :, 1]
     c = (ocx * ocx + ocy * ocy) - r2
-    mine = np.arange(len(centres))[None, :] == owner[:, None]
+    mine = np.arange(n_discs)[None, :] == owner[:, None]
     if directions.ndim == 3:
         m = shape[1]
         if cull is None:
-            cull = _pays(n, m, len(centres), max_range)
+            cull = _pays(n, m, n_discs, max_range)
         if cull and math.isfinite(max_range):
             near = (np.hypot(ocx, ocy) <= max_range + rad[None, :] + 1e-6) & ~mine
             width = int(near.sum(axis=1).max()) if n else 0

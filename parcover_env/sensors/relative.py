@@ -13,7 +13,7 @@ import numpy as np
 
 from parcover_env.geometry import segments_blocked, wrap_angle
 
-__all__ = ["RelativeCamera", "RelativeReading"]
+__all__ = ["RelativeCamera", "RelativeReading", "lines_of_sight_blocked"]
 
 
 @dataclass(frozen=True)
@@ -39,8 +39,10 @@ class RelativeCamera:
     """Relative-heading sigma (rad)."""
 
     def measure(self, poses: np.ndarray, predecessor: np.ndarray, segments: np.ndarray,
-                rng: np.random.Generator) -> RelativeReading:
-        """``poses (N, 3)`` true poses; ``predecessor (N,)`` index of the robot each one follows, -1 none."""
+                rng: np.random.Generator, blocked: np.ndarray | None = None) -> RelativeReading:
+        """``poses (N, 3)`` true poses; ``predecessor (N,)`` index of the robot each one follows, -1 none.
+        ``blocked (N,)``: whether a wall cuts each robot's line of sight to its predecessor, if
+        already computed (:func:`lines_of_sight_blocked` over batched worlds)."""
         n = len(poses)
         rel_xy = np.zeros((n, 2))
         rel_heading = np.zeros(n)
@@ -53,7 +55,7 @@ class RelativeCamera:
         rng_true = np.hypot(delta[:, 0], delta[:, 1])
         bearing = wrap_angle(np.arctan2(delta[:, 1], delta[:, 0]) - me[:, 2])
         seen = (rng_true <= self.max_range) & (np.abs(bearing) <= np.radians(self.fov_deg) / 2)
-        seen &= ~segments_blocked(me[:, :2], other[:, :2], segments)
+        seen &= ~(segments_blocked(me[:, :2], other[:, :2], segments) if blocked is None else blocked[f])
         r = rng_true * (1.0 + self.range_noise * rng.standard_normal(len(f)))
         b = bearing + self.bearing_noise * rng.standard_normal(len(f))
         h = wrap_angle(other[:, 2] - me[:, 2] + self.heading_noise * rng.standard_normal(len(f)))
@@ -63,3 +65,16 @@ class RelativeCamera:
         visible[f] = seen
         return RelativeReading(rel_xy, rel_heading, visible)
 
+
+
+def lines_of_sight_blocked(poses: np.ndarray, predecessor: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """``(K, N)``: whether a wall cuts the line from each robot to its predecessor, for ``K`` worlds
+    sharing the walls (``poses (K, N, 3)``, ``predecessor (K, N)`` indices within the world, -1 none:
+    False) in one call; equal to what :meth:`RelativeCamera.measure` tests for each world alone."""
+    poses = np.asarray(poses, dtype=float)
+    predecessor = np.asarray(predecessor)
+    out = np.zeros(predecessor.shape, dtype=bool)
+    kk, ii = np.nonzero(predecessor >= 0)
+    if len(kk):
+        out[kk, ii] = segments_blocked(poses[kk, ii, :2], poses[kk, predecessor[kk, ii], :2], segments)
+    return out

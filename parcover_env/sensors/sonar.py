@@ -92,8 +92,9 @@ def _corner_faces(origins: np.ndarray, pts: np.ndarray, u1: np.ndarray, u2: np.n
 def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segments: np.ndarray,
                    centres: np.ndarray, radius: float, owner: np.ndarray, n_subrays: int = 5) -> np.ndarray:
     """Noise-free readings ``(N, B)`` for beams with world axis angles ``axes (N, B)`` from
-    ``origins (N, 2)``; discs ``centres (D, 2)`` of ``radius`` block and echo (``owner (N,)`` = own
-    disc index or -1). Values beyond ``range_max`` (no echo) read ``range_max``."""
+    ``origins (N, 2)``; discs ``centres (D, 2)`` (or ``(N, D, 2)``, a disc set per origin: batched
+    worlds) of ``radius`` block and echo (``owner (N,)`` = own disc index or -1). Values beyond
+    ``range_max`` (no echo) read ``range_max``."""
     n, b = axes.shape
     rmax = float(cfg.range_max)
     specular = cfg.model == "specular"
@@ -145,7 +146,8 @@ def _second_bounce(cfg, origins, dirs, hits, segments, centres, radius, owner, c
     reach = cfg.range_max - t1[sel]
     h2 = cast_rays(p, d2, segments, float(reach.max()), with_cos=True)
     wall2 = np.where(h2.cos_incidence >= cos_min, h2.distance, np.inf)
-    disc2 = cast_rays_discs(p, d2, centres, float(radius), np.repeat(owner, m)[sel])
+    src = sel // m  # the origin of each selected sub-ray
+    disc2 = cast_rays_discs(p, d2, centres[src] if centres.ndim == 3 else centres, float(radius), owner[src])
     t2 = np.where(disc2 < h2.distance, disc2, wall2) + _NUDGE
     out[sel] = np.where(t2 <= reach, t1[sel] + t2, np.inf)
     return out
@@ -162,8 +164,9 @@ def _corner_echoes(cfg, origins, axes, segments, centres, radius, owner, pts, u1
     d = vec[ni, ci] / dist[ni, ci, None]
     t = cast_rays(origins[ni], d, segments).distance
     visible = t >= dist[ni, ci] * (1.0 - 1e-7) - 1e-9
-    if len(centres):
-        visible &= cast_rays_discs(origins[ni], d, centres, float(radius), owner[ni]) >= dist[ni, ci]
+    if centres.shape[-2]:
+        visible &= cast_rays_discs(origins[ni], d, centres[ni] if centres.ndim == 3 else centres, float(radius),
+                                   owner[ni]) >= dist[ni, ci]
     vi, vc = ni[visible], ci[visible]
     out = np.full(axes.shape, np.inf)
     if len(vi) == 0:
@@ -199,23 +202,42 @@ class SonarRing:
         return len(self.beam_angles)
 
     def measure(self, poses, segments, robot_radius: float, rng: np.random.Generator | None,
-                include_robots: bool = True) -> np.ndarray:
+                include_robots: bool = True, ideal: np.ndarray | None = None,
+                heard: np.ndarray | None = None) -> np.ndarray:
         """Ring readings ``(N, B)`` float32 for all robots ``poses (N, 3)`` at once. Other robots are
         discs of ``robot_radius`` that block and echo, and whose rings may cross-talk
-        (``include_robots``). ``rng=None``: noise-free and no cross-talk."""
+        (``include_robots``). ``rng=None``: noise-free and no cross-talk. ``ideal``: the noise-free
+        readings of these poses if already cast (:meth:`ideal_batch`), ``heard`` their cross-talk
+        readings (:func:`crosstalk`, batched); the random draws are the same either way."""
         poses = _as_array(poses, "poses", (-1, 3))
         segments = _as_array(segments, "segments", (-1, 4))
-        axes = poses[:, 2:3] + self.beam_angles[None, :]
         n = len(poses)
-        centres = poses[:, :2] if include_robots else np.zeros((0, 2))
-        owner = np.arange(n) if include_robots else np.full(n, -1)
-        ideal = simulate_beams(self.cfg, poses[:, :2], axes, segments, centres, robot_radius, owner,
-                               self.n_subrays)
+        if ideal is None:
+            axes = poses[:, 2:3] + self.beam_angles[None, :]
+            centres = poses[:, :2] if include_robots else np.zeros((0, 2))
+            owner = np.arange(n) if include_robots else np.full(n, -1)
+            ideal = simulate_beams(self.cfg, poses[:, :2], axes, segments, centres, robot_radius, owner,
+                                   self.n_subrays)
         if rng is not None and include_robots and n > 1 and self.cfg.crosstalk_prob > 0:
-            heard = rng.random(ideal.shape) < self.cfg.crosstalk_prob
-            ideal = np.where(heard, np.minimum(ideal, crosstalk(self.cfg, poses, self.beam_angles, segments)),
-                             ideal)
+            if heard is None:
+                heard = crosstalk(self.cfg, poses, self.beam_angles, segments)
+            ideal = np.where(rng.random(ideal.shape) < self.cfg.crosstalk_prob, np.minimum(ideal, heard), ideal)
         return self.corrupt(ideal, rng).astype(np.float32)
+
+    def ideal_batch(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float) -> np.ndarray:
+        """Noise-free readings ``(K, N, B)`` of ``K`` worlds sharing the walls ``segments``, robots
+        ``poses (K, N, 3)``, in one cast: each robot's beams see the walls and the other robots of
+        its own world. Row ``k`` equals the readings :meth:`measure` computes for world ``k`` alone
+        (bit for bit); pass it there as ``ideal`` to add that world's noise."""
+        poses = np.asarray(poses, dtype=float)
+        k, n = poses.shape[:2]
+        flat = poses.reshape(k * n, 3)
+        axes = flat[:, 2:3] + self.beam_angles[None, :]
+        centres = np.broadcast_to(poses[:, None, :, :2], (k, n, n, 2)).reshape(k * n, n, 2)
+        owner = np.tile(np.arange(n), k)
+        ideal = simulate_beams(self.cfg, flat[:, :2], axes, np.asarray(segments, dtype=float), centres,
+                               robot_radius, owner, self.n_subrays)
+        return ideal.reshape(k, n, -1)
 
     def scan(self, pose, segments, other_robot_centres, robot_radius: float,
              rng: np.random.Generator | None) -> np.ndarray:
@@ -254,23 +276,29 @@ def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segm
     """``(N, B)`` reading each beam gets from another robot's ring (``inf`` if none): beam ``b`` of
     robot ``i`` hears beam ``c`` of robot ``j`` when each robot lies inside the other beam's cone and
     no wall is between them; the ping travels ``d`` one way, read as ``d / 2`` (range = c t / 2).
-    The nearest such robot counts. Transducers sit at the robot centres (see the module notes)."""
-    n, nb = len(poses), len(beam_angles)
-    out = np.full((n, nb), np.inf)
+    The nearest such robot counts. Transducers sit at the robot centres (see the module notes).
+    ``poses (K, N, 3)``: K worlds sharing the walls in one call (robots hear their own world only),
+    ``(K, N, B)`` out, each world's rows equal to its own call bit for bit."""
+    poses = np.asarray(poses, dtype=float)
+    if poses.ndim == 2:
+        return crosstalk(cfg, poses[None], beam_angles, segments)[0]
+    k, n, nb = poses.shape[0], poses.shape[1], len(beam_angles)
+    out = np.full((k, n, nb), np.inf)
     if n < 2:
         return out
     i, j = np.nonzero(~np.eye(n, dtype=bool))
-    delta = poses[j, :2] - poses[i, :2]
-    d = np.hypot(delta[:, 0], delta[:, 1])
-    bearing = np.arctan2(delta[:, 1], delta[:, 0])
+    pi_, pj = poses[:, i], poses[:, j]  # (K, P, 3)
+    delta = pj[..., :2] - pi_[..., :2]
+    d = np.hypot(delta[..., 0], delta[..., 1])
+    bearing = np.arctan2(delta[..., 1], delta[..., 0])
     half = math.radians(cfg.cone_deg) / 2 + 1e-12
-    # (pairs, B): is j inside i's beam b?  does some beam of j point back at i?
-    rx_ok = np.abs(wrap_angle(bearing[:, None] - poses[i, 2:3] - beam_angles[None, :])) <= half
-    tx_ok = (np.abs(wrap_angle(bearing[:, None] + math.pi - poses[j, 2:3] - beam_angles[None, :])) <= half).any(1)
+    # (K, pairs, B): is j inside i's beam b?  does some beam of j point back at i?
+    rx_ok = np.abs(wrap_angle(bearing[..., None] - pi_[..., 2:3] - beam_angles)) <= half
+    tx_ok = (np.abs(wrap_angle(bearing[..., None] + math.pi - pj[..., 2:3] - beam_angles)) <= half).any(-1)
     ok = tx_ok & (d / 2 <= cfg.range_max) & (d > 0)
-    ok &= ~segments_blocked(poses[i, :2], poses[j, :2], segments)
-    val = np.where(rx_ok & ok[:, None], d[:, None] / 2, np.inf)
-    np.minimum.at(out, i, val)
+    ok &= ~segments_blocked(pi_[..., :2].reshape(-1, 2), pj[..., :2].reshape(-1, 2), segments).reshape(ok.shape)
+    val = np.where(rx_ok & ok[..., None], d[..., None] / 2, np.inf)
+    np.minimum.at(out, (np.arange(k)[:, None], i[None, :]), val)
     return out
 
 

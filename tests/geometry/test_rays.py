@@ -80,3 +80,80 @@ def test_disc_fans_match_hand_values_with_and_without_culling(cull):
     np.testing.assert_array_equal(flat.reshape(3, 36), d)
     far = cast_rays_discs(origins[:1], fan[:1], origins[2:], 0.3, np.array([-1]), 1.0, cull=cull)
     assert np.all(np.isinf(far))
+
+
+def _random_walls_and_rays(seed: int, n_rays: int):
+    rng = np.random.default_rng(seed)
+    walls = np.concatenate([rng.uniform(0, 10, (40, 2)), rng.uniform(0, 10, (40, 2))], axis=1)
+    walls[:10, 2:] = walls[:10, :2] + rng.uniform(-1, 1, (10, 2))  # short walls
+    walls[10, :] = (0.0, 5.0, 10.0, 5.0)  # a horizontal and a vertical wall: degenerate boxes
+    walls[11, :] = (5.0, 0.0, 5.0, 10.0)
+    origins = rng.uniform(0, 10, (n_rays, 2))
+    origins[:5] = walls[20:25, :2]  # rays starting on a wall end
+    ang = rng.uniform(-math.pi, math.pi, n_rays)
+    dirs = np.stack([np.cos(ang), np.sin(ang)], axis=1)
+    dirs[:3] *= 2.5  # non-unit directions: distances in units of their length
+    dirs[5] = (1.0, 0.0)  # axis-aligned rays
+    dirs[6] = (0.0, -1.0)
+    return walls, origins, dirs
+
+
+@pytest.mark.parametrize("reach", [0.3, 2.0, 30.0])
+def test_box_culled_single_rays_equal_the_full_test_bit_for_bit(reach):
+    walls, origins, dirs = _random_walls_and_rays(1, 600)
+    full = cast_rays(origins, dirs, walls, reach, with_cos=True, cull=False)
+    culled = cast_rays(origins, dirs, walls, reach, with_cos=True, cull=True)
+    assert np.isfinite(full.distance).sum() > 20  # the comparison sees hits ...
+    assert np.isinf(full.distance).sum() > 20  # ... and misses
+    assert np.array_equal(full.distance, culled.distance)
+    assert np.array_equal(full.index, culled.index)
+    assert np.array_equal(full.cos_incidence, culled.cos_incidence)
+
+
+def test_box_culled_fan_equals_the_full_test_and_ties_take_the_lowest_index():
+    walls, origins, _ = _random_walls_and_rays(2, 30)
+    ang = np.linspace(-math.pi, math.pi, 64, endpoint=False)
+    fan = np.broadcast_to(np.stack([np.cos(ang), np.sin(ang)], axis=1), (30, 64, 2))
+    full = cast_rays(origins, fan, walls, 3.0, with_cos=True, cull=False)
+    culled = cast_rays(origins, fan, walls, 3.0, with_cos=True, cull=True)
+    assert np.array_equal(full.distance, culled.distance) and np.array_equal(full.index, culled.index)
+    assert np.array_equal(full.cos_incidence, culled.cos_incidence)
+    # two walls meeting at (2, 1): the ray through the shared end hits both at t = 1, reports wall 0
+    corner = np.array([[0.0, 1.0, 2.0, 1.0], [2.0, 0.0, 2.0, 1.0], [9.0, 9.0, 9.5, 9.5]])
+    hits = cast_rays(np.array([[1.0, 0.0]]), np.array([[1.0, 1.0]]) / math.sqrt(2), corner, 5.0, cull=True)
+    assert hits.index[0] == 0 and hits.distance[0] == pytest.approx(math.sqrt(2))
+    assert cast_rays(np.array([[1.0, 0.0]]), np.array([[1.0, 0.0]]), corner, 0.5, cull=True).index[0] == -1
+
+
+def test_discs_per_origin_sets_equal_separate_calls():
+    """Batched worlds: each origin sees its own disc set; equal to one call per world."""
+    rng = np.random.default_rng(4)
+    worlds = rng.uniform(0, 4, (3, 5, 2))  # 3 worlds of 5 robots
+    ang = rng.uniform(-math.pi, math.pi, (15, 24))
+    fan = np.stack([np.cos(ang), np.sin(ang)], axis=-1)
+    owner = np.tile(np.arange(5), 3)
+    per_origin = np.repeat(worlds, 5, axis=0)  # (15, 5, 2): origin i sees the robots of its world
+    for cull in (False, True):
+        got = cast_rays_discs(worlds.reshape(15, 2), fan, per_origin, 0.2, owner, 3.0, cull=cull)
+        for k in range(3):
+            one = cast_rays_discs(worlds[k], fan[5 * k:5 * k + 5], worlds[k], 0.2, np.arange(5), 3.0, cull=cull)
+            assert np.array_equal(got[5 * k:5 * k + 5], one)
+    # a robot of another world standing right in front of the origin is not seen
+    own = cast_rays_discs(np.zeros((1, 2)), np.array([[1.0, 0.0]]), np.array([[[1.0, 0.0], [9.0, 9.0]]]), 0.2,
+                          np.array([-1]))
+    assert own[0] == pytest.approx(0.8)
+    other = cast_rays_discs(np.zeros((1, 2)), np.array([[1.0, 0.0]]), np.array([[[9.0, 9.0], [8.0, 8.0]]]), 0.2,
+                            np.array([-1]))
+    assert other[0] == math.inf
+
+
+def test_segments_blocked_box_culled_equals_full_test():
+    from parcover_env.geometry import rays
+
+    walls, a, _ = _random_walls_and_rays(3, 400)
+    b = a + np.random.default_rng(5).uniform(-2, 2, (400, 2))
+    b[:5] = walls[30:35, 2:]  # ends on a wall end: the open segment does not cross there
+    culled = segments_blocked(a, b, walls)  # 400 x 40 pairs: box-culled
+    assert len(a) * len(walls) >= rays.CULL_MIN_PAIRS
+    full = np.array([segments_blocked(a[i:i + 1], b[i:i + 1], walls)[0] for i in range(len(a))])
+    assert 50 < culled.sum() < 350 and np.array_equal(culled, full)

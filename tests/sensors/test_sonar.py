@@ -176,3 +176,47 @@ def test_layouts_and_bad_input():
         ring.scan([np.nan, 0, 0], segs, None, 0.1, None)
     with pytest.raises(ValueError, match="SonarConfig"):
         SonarRing({"model": "ray"})
+
+
+@pytest.mark.parametrize("model", ["ray", "specular"])
+def test_ideal_batch_equals_measure_per_world_bit_for_bit(model):
+    """K worlds in one cast (walls shared, robots per world) = the noise-free ring of each world alone."""
+    cfg = SonarConfig(model=model, multipath=model == "specular", crosstalk_prob=0.0, noise_std=0.0,
+                      noise_rel=0.0, quantization=0.0)
+    ring = SonarRing(cfg)
+    walls = np.array([[0, 0, 6, 0], [6, 0, 6, 4], [6, 4, 0, 4], [0, 4, 0, 0], [2, 1, 3, 2.5]], dtype=float)
+    rng = np.random.default_rng(0)
+    poses = np.concatenate([rng.uniform(0.3, 3.7, (4, 6, 2)) * [1.5, 1.0], rng.uniform(-3, 3, (4, 6, 1))], axis=2)
+    batch = ring.ideal_batch(poses, walls, 0.2)
+    assert batch.shape == (4, 6, ring.n_beams)
+    for k in range(4):
+        one = ring.measure(poses[k], walls, 0.2, None)
+        assert np.array_equal(ring.corrupt(batch[k], None).astype(np.float32), one)
+        ideal = ring.measure(poses[k], walls, 0.2, None, ideal=batch[k])
+        assert np.array_equal(ideal, one)
+    # robots of world 1 are not in world 0: moving them leaves world 0's readings unchanged
+    moved = poses.copy()
+    moved[1, :, :2] = poses[0, :, :2] + 0.05
+    again = ring.ideal_batch(moved, walls, 0.2)
+    assert np.array_equal(again[0], batch[0]) and not np.array_equal(again[1], batch[1])
+
+
+def test_crosstalk_batched_over_worlds_equals_each_world_alone():
+    from parcover_env.sensors.sonar import crosstalk
+
+    cfg = SonarConfig(crosstalk_prob=0.5)
+    ring = SonarRing(cfg)
+    walls = np.array([[3.0, -5.0, 3.0, 0.5]])  # a wall between some of the robots
+    rng = np.random.default_rng(2)
+    poses = np.concatenate([rng.uniform(0, 6, (5, 7, 2)), rng.uniform(-3, 3, (5, 7, 1))], axis=2)
+    both = crosstalk(cfg, poses, ring.beam_angles, walls)
+    assert np.isfinite(both).sum() > 10
+    for k in range(5):
+        assert np.array_equal(both[k], crosstalk(cfg, poses[k], ring.beam_angles, walls))
+    # hand-built: two robots 2 m apart facing each other, beam 0 of each on the other: reads d / 2 = 1 m
+    face = np.array([[[0.0, 0.0, 0.0], [2.0, 0.0, math.pi]]])
+    got = crosstalk(cfg, face, ring.beam_angles, np.zeros((0, 4)))
+    assert got[0, 0, 0] == pytest.approx(1.0) and got[0, 1, 0] == pytest.approx(1.0)
+    assert np.isinf(got[0, 0, 8])  # the beam pointing away hears nothing
+    blocked = crosstalk(cfg, face, ring.beam_angles, np.array([[1.0, -1.0, 1.0, 1.0]]))
+    assert np.isinf(blocked).all()
