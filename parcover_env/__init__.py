@@ -2,8 +2,9 @@
 
 Factories follow PettingZoo's module convention (``parallel_env()``, ``env()``, ``raw_env``);
 ``make`` is an alias of ``parallel_env``; ``parcover_env.parcover_v0`` is the same factories under
-PettingZoo's ``<name>_v<N>`` module convention. The single-robot Gymnasium env is registered as
-``parcover_env/SingleRobotCoverage-v0``.
+PettingZoo's ``<name>_v<N>`` module convention. ``make_vec_env`` (SB3 VecEnv, ``train`` extra)
+has one slot per robot per world; ``backend="batched"`` steps many worlds in one process. The
+single-robot Gymnasium env is registered as ``parcover_env/SingleRobotCoverage-v0``.
 """
 
 from __future__ import annotations
@@ -15,11 +16,12 @@ from parcover_env.errors import ActionError, ConfigError, ParcoverError
 if TYPE_CHECKING:  # imported on first use (module ``__getattr__`` below): ``import parcover_env`` stays light
     from parcover_env.config import Scenario
     from parcover_env.envs import ParallelCoverageEnv
+    from parcover_env.envs.vec_env import make_vec_env
     from parcover_env.scenarios import load_scenario, scenario_names
 
 __all__ = [
     "ParallelCoverageEnv", "raw_env", "parallel_env", "env", "make", "Scenario", "load_scenario",
-    "scenario_names", "ConfigError", "ActionError", "ParcoverError", "__version__",
+    "scenario_names", "make_vec_env", "ConfigError", "ActionError", "ParcoverError", "__version__",
 ]
 __version__ = "0.2.0"
 
@@ -29,6 +31,7 @@ _LAZY = {
     "Scenario": ("parcover_env.config", "Scenario"),
     "load_scenario": ("parcover_env.scenarios", "load_scenario"),
     "scenario_names": ("parcover_env.scenarios", "scenario_names"),
+    "make_vec_env": ("parcover_env.envs.vec_env", "make_vec_env"),
 }
 
 

@@ -128,6 +128,9 @@ def test_lazy_names_resolve_to_the_real_objects():
 
     assert parcover_env.raw_env is ParallelCoverageEnv is parcover_env.ParallelCoverageEnv
     assert parcover_env.Scenario is Scenario and parcover_env.load_scenario is load_scenario
-    assert {"raw_env", "load_scenario", "scenario_names"} <= set(dir(parcover_env))
+    assert {"raw_env", "load_scenario", "scenario_names", "make_vec_env"} <= set(dir(parcover_env))
+    from parcover_env.envs.vec_env import make_vec_env
+
+    assert parcover_env.make_vec_env is make_vec_env
     with pytest.raises(AttributeError, match="no attribute 'nope'"):
         parcover_env.nope  # noqa: B018
