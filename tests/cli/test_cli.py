@@ -78,6 +78,26 @@ def test_run_json_is_one_object_on_stdout(capsys):
     captured = capsys.readouterr()
     m = json.loads(captured.out)
     assert m["steps"] == 5 and "kinect_splits" in m and "scenario office" in captured.err
+    assert (m["scenario"], m["seed"], m["policy"], m["preset"]) == ("office", 0, "expert", "realistic")
+    assert "preset realistic" in captured.err
+
+
+def test_run_json_preset_ideal_matches_the_ideal_env(capsys):
+    import json
+
+    import parcover_env
+    from parcover_env.harness.rollout import run_episode
+    from parcover_env.policies.registry import make_policy
+
+    assert main(["run", "office", "--json", "--steps", "40", "--seed", "2", "--preset", "ideal",
+                 "--allow-failure", "--quiet"]) == 0
+    m = json.loads(capsys.readouterr().out)
+    env = parcover_env.parallel_env("office", preset="ideal")
+    ref = run_episode(env, make_policy("expert", env, 2), 2, 40, None, progress=False)
+    assert m["preset"] == "ideal" and m["localization_error"] == ref["localization_error"]
+    env_r = parcover_env.parallel_env("office")
+    real = run_episode(env_r, make_policy("expert", env_r, 2), 2, 40, None, progress=False)
+    assert real["localization_error"] != ref["localization_error"]  # the flag changes the run
 
 
 def test_sectors_draws_fig9_rearrangement(tmp_path, capsys):
