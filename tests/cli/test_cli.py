@@ -82,7 +82,7 @@ def test_sectors_rule0_json_triangle_room(capsys):
         assert all(set(s) == {"features", "common", "area", "centroid"} for s in d["sectors"])
         assert all(0 <= k < 6 for s in d["sectors"] for k in s["features"])
         counts.append(d["n_sectors"])
-    assert counts == [59, 7, 3]  # the paper: 65 / 7 / 3
+    assert counts == [65, 7, 3]  # the paper: 65 / 7 / 3
 
 
 def test_run_json_is_one_object_on_stdout(capsys):

@@ -80,13 +80,14 @@ def test_fig3_t_room_scenario_at_unlimited_range():
     assert sorted(len(s["common"]) >= 1 for s in d["sectors"]) == [True] * 6
 
 
-FIG4_ORIGINAL = 59
+FIG4_ORIGINAL = 65
 """Original sectors of the shipped triangle_room at unlimited range (the paper's Fig. 4: 65)."""
 
 
 def test_fig4_triangle_room_counts():
     """Seed B Fig. 4 (room with a triangular obstacle): rule #1 -> 7 sectors (not the number of
-    features, 6), rule #2 -> 3, none a sliver; the original count within 15 % of the paper's 65."""
+    features, 6), rule #2 -> 3, none a sliver; the original count is the paper's 65 (the issue
+    allows 55-75)."""
     from parcover_env.scenarios import load_scenario
     from parcover_env.world.map_model import map_model
 
