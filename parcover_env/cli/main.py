@@ -78,19 +78,20 @@ def cmd_run(args) -> int:
 
     if args.gif:
         check_writable_file(args.gif, "--gif")
-    env = parallel_env(args.scenario, render_mode="rgb_array" if args.gif else None)
+    env = parallel_env(args.scenario, render_mode="rgb_array" if args.gif else None, preset=args.preset)
     policy = make_policy(args.policy, env, args.seed)
     say = _sayer(args)  # with --json, human-readable lines go to stderr, the JSON object to stdout
     say(f"scenario {env.scenario.name}: {env.n_robots} robots, {len(env.scenario.kpois)} KPOIs, "
-        f"policy {args.policy}, seed {args.seed}")
+        f"policy {args.policy}, seed {args.seed}, preset {args.preset}")
     recorder = GifRecorder(args.gif, every=args.gif_every, fps=max(1, 10 // args.gif_every)) if args.gif else None
     try:
         m = run_episode(env, policy, args.seed, args.steps, recorder, progress=not args.quiet)
     finally:
         if recorder is not None:
             recorder.close()
-    if args.json:
-        _print_json(m)
+    if args.json:  # what was run, then the episode metrics
+        _print_json({"scenario": env.scenario.name, "seed": args.seed, "policy": args.policy,
+                     "preset": args.preset, **m})
     else:
         print(_format_metrics(m))
     if recorder is not None:
@@ -210,6 +211,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seed", type=non_negative_int, default=0, help="episode seed (default: 0)")
     r.add_argument("--steps", type=positive_int, default=None, help="stop after N steps (default: scenario's limit)")
     r.add_argument("--policy", default="expert", help=f"who drives: {POLICY_SPECS} (default: expert)")
+    r.add_argument("--preset", choices=["realistic", "ideal"], default="realistic",
+                   help="error models: realistic (the config's) or ideal (all off) (default: realistic)")
     r.add_argument("--gif", default=None, help="write an animated GIF of the episode here")
     r.add_argument("--gif-every", type=positive_int, default=2, help="keep every k-th frame in the GIF (default: 2)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -84,9 +84,10 @@ class NavigatorConfig:
     range_margin: float = 0.15
     """Features are looked for within the sonar's ``range_max`` minus this (m)."""
     max_shift: float = 0.6
-    """Rearrangement: how far a subgoal may move along its path (m)."""
+    """Bisector rearrangement (seed B §4): farthest an off-path subgoal may lie from its path, and
+    farthest it may slide along the bisector to keep the robots apart (m)."""
     shift_step: float = 0.1
-    """Rearrangement: spacing of the candidate subgoal shifts along the path (m)."""
+    """Bisector rearrangement: step of that slide along the bisector (m)."""
     separation_margin: float = 0.15
     """Robots at their subgoals stay at least 2 radius + this apart (m)."""
     lookahead: float = 0.35

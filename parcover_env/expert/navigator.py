@@ -1,7 +1,7 @@
 """SonarNavigator: seed B's NAVIGATOR loop (Fig. 1) as a policy over the env's observations.
 
     while goal not reached:  optimize the subgoal on the path (scan angle, eq. 1) -> replicate it for
-    the team (parallel paths) -> rearrange subgoals (max-min unblocked scan angle) -> drive all robots
+    the team (parallel paths) -> rearrange subgoals (§4 bisector construction) -> drive all robots
     to their subgoals and stop -> scan and localize one by one -> restart from the corrected poses.
 
 Inputs, all explicit (never env internals): the scenario (the *known* map, robot and sonar models,
@@ -28,8 +28,10 @@ Design choices (documented deviations):
 from __future__ import annotations
 
 import math
+from functools import cached_property
 
 import numpy as np
+import shapely
 
 from parcover_env.config import NavigatorConfig, Scenario
 from parcover_env.control.leader import go_to_goal
@@ -44,8 +46,8 @@ from parcover_env.localization.sonar.params import SonarLocalizerParams
 from parcover_env.localization.sonar.scan import ScanCollector
 from parcover_env.localization.sonar.subgoals import (
     PathNodes,
+    bisector_rearrangement,
     densify,
-    rearrange,
     score_nodes,
     team_subgoal,
     unblocked_scan_angle,
@@ -110,6 +112,7 @@ class SonarNavigator:
         self.paths: list[PathNodes] | None = None
         self.progress = np.zeros(n)
         self.targets = np.zeros(n)
+        self.goal_xy = np.full((n, 2), np.nan)  # a subgoal off the path (bisector rearrangement), NaN: none
         self.sigma = 0.0
         self.done = np.zeros(n, dtype=bool)
         self.final_scans = np.zeros(n, dtype=int)
@@ -148,7 +151,8 @@ class SonarNavigator:
         """``(N, 2)`` current subgoal positions (the route starts before the first plan)."""
         if self.paths is None:
             return np.array([r[0] for r in self.routes])
-        return np.array([p.point(t) for p, t in zip(self.paths, self.targets, strict=True)])
+        on = np.array([p.point(t) for p, t in zip(self.paths, self.targets, strict=True)])
+        return np.where(np.isfinite(self.goal_xy), self.goal_xy, on)
 
     # ------------------------------------------------------------------ act
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -239,42 +243,87 @@ class SonarNavigator:
 
     def _rearrange(self, targets: np.ndarray, active: np.ndarray, ends: np.ndarray,
                    horizon: np.ndarray) -> np.ndarray:
-        """§3.2: shift subgoals along the paths when robots block each other's features."""
+        """§4 (Fig. 9(a) -> (b)): when a teammate blocks robot i's scan of the feature F selected at its
+        subgoal by eq. 1 (or stands closer than 2 radius + ``separation_margin``), the pair's subgoals
+        move onto the perpendicular bisector of (their centre, F) (:func:`bisector_rearrangement`).
+        A robot whose path crosses it within its horizon stops at the crossing; the other stops at the
+        bisector point off its path (``goal_xy``), at most ``max_shift`` from its path and in the free
+        space eroded by radius + ``stop_margin``. Kept only when it raises the pair's worst unblocked
+        scan angle (§3.2), or keeps it while separating a pair that stood too close."""
+        self.goal_xy[:] = np.nan
         if self.n < 2:
             return targets
         idx = [self.paths[i].index(targets[i]) for i in range(self.n)]
         pts = np.array([self.paths[i].xy[k] for i, k in enumerate(idx)])
-        blocked = False
+        args = (self.radius, self.sonar_cfg.range_max, self.incidence, self.cone)
+        min_sep = 2 * self.radius + self.p.separation_margin
+        out, moved = targets.copy(), np.zeros(self.n, dtype=bool)
         for i in active:
-            others = np.delete(pts, i, axis=0)
-            for f in self._features_at(i, idx[i]):
-                args = (self.radius, self.sonar_cfg.range_max, self.incidence, self.cone)
-                a_free = unblocked_scan_angle(pts[i], f, np.zeros((0, 2)), *args)
-                a = unblocked_scan_angle(pts[i], f, others, *args)
-                blocked |= a < a_free - 1e-9
-        gaps = np.hypot(*(pts[:, None] - pts[None]).transpose(2, 0, 1)) + 1e9 * np.eye(self.n)
-        too_close = gaps.min() < 2 * self.radius + self.p.separation_margin
-        if not blocked and not too_close:
-            return targets
-        cands, feats, tgt, node_ids = [], [], [], []
-        for i in range(self.n):
-            p = self.paths[i]
-            fixed = self.done[i] or targets[i] >= ends[i] - 1e-9
-            lo = max(targets[i] - self.p.max_shift, self.progress[i], p.s[0])
-            hi = min(targets[i] + self.p.max_shift, self.progress[i] + horizon[i] + 0.3, ends[i])
-            grid = [targets[i]] if fixed else \
-                sorted({*np.arange(lo, hi + 1e-9, self.p.shift_step), targets[i]})
-            ks = [p.index(g) for g in grid]
-            node_ids.append(ks)
-            cands.append(p.xy[ks])
-            feats.append([self._features_at(i, k) if i in active else [] for k in ks])
-            tgt.append(int(np.argmin(np.abs(np.asarray(grid) - targets[i]))))
-        choice = rearrange(cands, feats, tgt, self.radius, self.sonar_cfg.range_max, self.incidence,
-                           self.cone, min_separation=2 * self.radius + self.p.separation_margin)
-        out = np.array([self.paths[i].s[node_ids[i][k]] for i, k in enumerate(choice)])
-        if np.any(np.abs(out - targets) > 1e-9):
+            fi = int(self.scores[i].feature[idx[i]])  # the feature eq. 1 selected at the subgoal
+            if moved[i] or fi < 0:
+                continue
+            f = self.features[fi]
+            a_free = unblocked_scan_angle(pts[i], f, np.zeros((0, 2)), *args)
+            for j in active:
+                if j == i or moved[j]:
+                    continue
+                pair = pts[[i, j]]
+                if (unblocked_scan_angle(pts[i], f, pts[[j]], *args) >= a_free - 1e-9
+                        and np.hypot(*(pts[i] - pts[j])) >= min_sep):
+                    continue
+                new = self._bisector_pair((i, j), pair, targets, f, horizon, ends, min_sep, args)
+                if new is not None:
+                    (out[i], out[j]), moved[[i, j]] = new, True
+                    break
+        if moved.any():
             self._stats["rearranged"] += 1
         return out
+
+    def _bisector_pair(self, pair, pts, targets, f: MapFeature, horizon, ends, min_sep, args):
+        """New arclength targets of ``pair`` (setting ``goal_xy`` for an off-path robot), or None."""
+        windows = [(float(self.progress[k]), float(min(self.progress[k] + horizon[k], ends[k]))) for k in pair]
+        res = bisector_rearrangement(pts, [self.paths[k] for k in pair], targets[list(pair)], f.point, min_sep,
+                                     free=self._free_test, max_slide=self.p.max_shift,
+                                     slide_step=self.p.shift_step, windows=windows)
+        sub = res.subgoals
+        def worst(q):
+            return min(unblocked_scan_angle(q[a], f, q[[1 - a]], *args) for a in range(2))
+        apart = np.hypot(*(pts[0] - pts[1])) >= min_sep
+        if np.hypot(*(sub[0] - sub[1])) < min_sep - 1e-9 or worst(sub) < worst(pts) + (1e-9 if apart else -1e-9):
+            return None
+        new, goals = [], []
+        for a, k in enumerate(pair):
+            p = self.paths[k]
+            win = np.nonzero((p.s >= windows[a][0]) & (p.s <= windows[a][1]))[0]
+            if len(win) == 0:
+                return None
+            d = np.hypot(*(p.xy[win] - sub[a]).T)
+            node = win[int(np.argmin(d))]
+            if res.on_path[a] and d.min() <= self.p.node_step:
+                new.append(float(p.s[node]))
+                goals.append(None)
+                continue
+            # off the path: reachable straight from the nearest path node of the window
+            seg = shapely.LineString([p.xy[node], sub[a]])
+            if d.min() > self.p.max_shift or not self._free_region.covers(seg):
+                return None
+            new.append(float(p.s[node]))
+            goals.append(sub[a])
+        for k, g in zip(pair, goals, strict=True):
+            if g is not None:
+                self.goal_xy[k] = g
+        return new
+
+    @cached_property
+    def _free_region(self):
+        """Known free space eroded by radius + ``stop_margin`` (where a robot may stand off its path)."""
+        region = self.map.free.buffer(-(self.radius + self.p.stop_margin))
+        shapely.prepare(region)
+        return region
+
+    def _free_test(self, points) -> np.ndarray:
+        pts = np.atleast_2d(points)
+        return shapely.contains_xy(self._free_region, pts[:, 0], pts[:, 1])
 
     # ------------------------------------------------------------------ Fig. 1 line 7
     def _drive(self, observations, cmd: np.ndarray) -> None:
@@ -285,13 +334,14 @@ class SonarNavigator:
                 continue
             p = self.paths[i]
             self._update_progress(i, bel[i, :2])
-            goal_pt = p.point(self.targets[i])
+            off_path = bool(np.isfinite(self.goal_xy[i, 0]))
+            goal_pt = self.goal_xy[i] if off_path else p.point(self.targets[i])
             if np.hypot(*(goal_pt - bel[i, :2])) < self.p.arrive_tol:
                 self.arrived[i] = True
                 continue
             ahead = self.targets[i] - self.progress[i]
             look = p.point(self.progress[i] + math.copysign(min(self.p.lookahead, abs(ahead)), ahead))
-            if np.hypot(*(goal_pt - bel[i, :2])) < self.p.lookahead:
+            if np.hypot(*(goal_pt - bel[i, :2])) < self.p.lookahead or (off_path and abs(ahead) < self.p.lookahead):
                 look = goal_pt
             d = look - bel[i, :2]
             c, s = math.cos(bel[i, 2]), math.sin(bel[i, 2])

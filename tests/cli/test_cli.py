@@ -71,6 +71,20 @@ def test_sectors_range_and_json(capsys):
     assert "--range" in err and len(err.strip().splitlines()) == 1
 
 
+def test_sectors_rule0_json_triangle_room(capsys):
+    """Seed B Fig. 4 through the CLI: rule 0 / 1 / 2 at unlimited range, every key of the JSON."""
+    counts = []
+    for rule in (0, 1, 2):
+        d = _json_out(capsys, ["sectors", "triangle_room", "--rule", str(rule), "--range", "inf", "--json"])
+        assert set(d) >= {"scenario", "rule", "rule_name", "range_max", "n_features", "n_sectors", "features",
+                          "sectors"}
+        assert d["scenario"] == "triangle_room" and d["range_max"] is None and d["n_features"] == 6
+        assert all(set(s) == {"features", "common", "area", "centroid"} for s in d["sectors"])
+        assert all(0 <= k < 6 for s in d["sectors"] for k in s["features"])
+        counts.append(d["n_sectors"])
+    assert counts == [65, 7, 3]  # the paper: 65 / 7 / 3
+
+
 def test_run_json_is_one_object_on_stdout(capsys):
     import json
 
@@ -78,6 +92,26 @@ def test_run_json_is_one_object_on_stdout(capsys):
     captured = capsys.readouterr()
     m = json.loads(captured.out)
     assert m["steps"] == 5 and "kinect_splits" in m and "scenario office" in captured.err
+    assert (m["scenario"], m["seed"], m["policy"], m["preset"]) == ("office", 0, "expert", "realistic")
+    assert "preset realistic" in captured.err
+
+
+def test_run_json_preset_ideal_matches_the_ideal_env(capsys):
+    import json
+
+    import parcover_env
+    from parcover_env.harness.rollout import run_episode
+    from parcover_env.policies.registry import make_policy
+
+    assert main(["run", "office", "--json", "--steps", "40", "--seed", "2", "--preset", "ideal",
+                 "--allow-failure", "--quiet"]) == 0
+    m = json.loads(capsys.readouterr().out)
+    env = parcover_env.parallel_env("office", preset="ideal")
+    ref = run_episode(env, make_policy("expert", env, 2), 2, 40, None, progress=False)
+    assert m["preset"] == "ideal" and m["localization_error"] == ref["localization_error"]
+    env_r = parcover_env.parallel_env("office")
+    real = run_episode(env_r, make_policy("expert", env_r, 2), 2, 40, None, progress=False)
+    assert real["localization_error"] != ref["localization_error"]  # the flag changes the run
 
 
 def test_sectors_draws_fig9_rearrangement(tmp_path, capsys):

@@ -86,3 +86,43 @@ def test_navigator_takes_its_tunables_from_the_scenario():
     default = SonarNavigator.for_env(parcover_env.parallel_env("hallway"))
     assert nav.p.max_axis == 0.2 and default.p.max_axis == NavigatorConfig().max_axis
     assert 0 < len(default.front) < len(nav.front)
+
+
+def test_navigator_rearranges_a_blocked_pair_on_the_bisector():
+    """§4 in the navigator: at the hallway's far end robot 0 stands between robot 1 and the corner eq. 1
+    chose for it; the pair moves onto the perpendicular bisector of (their centre, that corner), off
+    their paths where the paths do not cross it, apart, in free space, and neither blocks the other."""
+    from parcover_env.localization.sonar.subgoals import unblocked_scan_angle
+
+    env = parcover_env.parallel_env("hallway", preset="ideal")
+    nav = SonarNavigator.for_env(env)
+    obs, _ = env.reset(seed=0)
+    nav.reset(obs)
+    targets = np.array([14.5, 14.0])
+    nav.progress = targets - 0.5
+    ends = np.array([p.s[-1] for p in nav.paths])
+    args = (nav.radius, nav.sonar_cfg.range_max, nav.incidence, nav.cone)
+    before = np.array([p.point(t) for p, t in zip(nav.paths, targets, strict=True)])
+    f = nav.features[int(nav.scores[1].feature[nav.paths[1].index(targets[1])])]
+
+    def worst(pts):
+        return min(unblocked_scan_angle(pts[i], f, pts[[1 - i]], *args) for i in range(2))
+
+    blocked = unblocked_scan_angle(before[1], f, before[[0]], *args)
+    assert blocked < unblocked_scan_angle(before[1], f, np.zeros((0, 2)), *args) - math.radians(10)
+    out = nav._rearrange(targets.copy(), np.arange(2), ends, np.array([3.0, 3.0]))
+    after = nav.subgoals()
+    assert np.isfinite(nav.goal_xy).all() and np.allclose(after, nav.goal_xy)
+    c = before.mean(axis=0)
+    n = (f.point - c) / np.hypot(*(f.point - c))
+    assert np.abs((after - 0.5 * (c + f.point)) @ n).max() < 0.03  # on the bisector
+    assert np.hypot(*(after[0] - after[1])) >= 2 * nav.radius + nav.p.separation_margin - 1e-9
+    assert nav._free_test(after).all()
+    assert worst(after) > worst(before) + math.radians(10)
+    assert np.all(out >= nav.progress) and nav.stats()["sonar_rearranged"] == 1
+    # a pair that does not block each other keeps its subgoals
+    nav._stats["rearranged"] = 0
+    far = np.array([3.0, 2.5])
+    nav.progress = far - 0.5
+    assert np.array_equal(nav._rearrange(far.copy(), np.arange(2), ends, np.array([3.0, 3.0])), far)
+    assert not np.isfinite(nav.goal_xy).any() and nav.stats()["sonar_rearranged"] == 0

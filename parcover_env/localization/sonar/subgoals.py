@@ -14,11 +14,10 @@ theta_2 = 75 deg, B = 60 deg) and its optimum ("the line of sight exactly bisect
 walls") fix the meaning used here: theta_k is the unsigned angle between the line of sight and wall k
 at the corner, and ``B = | theta_1 - theta_2 |`` is 0 on the corner's bisector.
 
-Rearrangement (§3.2): ``A_i`` is the angle range robot i needs to scan its feature (from its farthest
+Blocking (§3.2): ``A_i`` is the angle range robot i needs to scan its feature (from its farthest
 useful point of wall 1 through the corner to that of wall 2) minus the bearings blocked by other
-robots (a disc at range r blocks ``asin(R / r) + cone / 2`` either side of its bearing). Subgoals are
-shifted along the robots' paths to maximize ``min_i A_i`` (ties: smallest total shift), keeping the
-robots apart.
+robots (a disc at range r blocks ``asin(R / r) + cone / 2`` either side of its bearing); a teammate
+blocks robot i when it lowers ``A_i`` (:func:`unblocked_scan_angle`).
 
 Bisector construction (§4, the implementation behind Fig. 9(a) -> (b)): take the perpendicular
 bisector of the segment from the robots' centre c to the feature F. A robot whose path crosses it
@@ -30,7 +29,6 @@ far from it, so neither blocks the other's scan of F (:func:`bisector_rearrangem
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 
@@ -41,7 +39,7 @@ from parcover_env.localization.sonar.features import MapFeature
 from parcover_env.localization.sonar.sectors import visible_features
 
 __all__ = ["PathNodes", "densify", "scan_bias", "wall_readings", "NodeScores", "score_nodes",
-           "choose_subgoal", "team_subgoal", "scan_interval", "unblocked_scan_angle", "rearrange",
+           "choose_subgoal", "team_subgoal", "scan_interval", "unblocked_scan_angle",
            "bisector_rearrangement", "Rearrangement"]
 
 
@@ -238,46 +236,6 @@ def unblocked_scan_angle(xy, feature: MapFeature, others, robot_radius: float, r
     return float(free.sum() * resolution)
 
 
-def rearrange(candidates: list[np.ndarray], features_at: list[list[list[MapFeature]]], targets: list[int],
-              robot_radius: float, range_max: float, incidence_max: float = math.pi / 2, cone: float = 0.0,
-              min_separation: float = 0.0, max_combinations: int = 5000) -> list[int]:
-    """Choose one candidate per robot maximizing ``min_i A_i`` (§3.2), ties by the smallest total index
-    distance to ``targets``. ``candidates[i] (K_i, 2)`` are robot i's admissible subgoals (its space
-    S_i), ``features_at[i][k]`` the features available at candidate k (A = best over them, 0 if none).
-    Robots closer than ``min_separation`` are infeasible. Exhaustive when the product of the K_i is
-    at most ``max_combinations``, else coordinate ascent from ``targets``."""
-    n = len(candidates)
-    if not (len(features_at) == len(targets) == n):
-        raise ValueError("candidates, features_at and targets need one entry per robot")
-    for i in range(n):
-        if not 0 <= targets[i] < len(candidates[i]):
-            raise ValueError(f"target {targets[i]} out of range for robot {i} "
-                             f"({len(candidates[i])} candidates)")
-
-    def score(choice) -> tuple[float, float]:
-        pts = np.array([candidates[i][k] for i, k in enumerate(choice)])
-        if n > 1 and min_separation > 0:
-            d = np.hypot(*(pts[:, None, :] - pts[None, :, :]).transpose(2, 0, 1))
-            if (d + np.eye(n) * 1e9).min() < min_separation:
-                return -math.inf, 0.0
-        worst = math.inf
-        for i, k in enumerate(choice):
-            others = np.delete(pts, i, axis=0)
-            a = max((unblocked_scan_angle(pts[i], f, others, robot_radius, range_max, incidence_max, cone)
-                     for f in features_at[i][k]), default=0.0)
-            worst = min(worst, a)
-        return worst, -float(sum(abs(k - t) for k, t in zip(choice, targets, strict=True)))
-
-    sizes = [len(c) for c in candidates]
-    if math.prod(sizes) <= max_combinations:
-        return list(max(itertools.product(*[range(k) for k in sizes]), key=score))
-    choice = list(targets)
-    for _ in range(3):
-        for i in range(n):
-            choice[i] = max(range(sizes[i]), key=lambda k, i=i: score(choice[:i] + [k] + choice[i + 1:]))
-    return choice
-
-
 @dataclass(frozen=True)
 class Rearrangement:
     """Result of :func:`bisector_rearrangement`."""
@@ -290,25 +248,33 @@ class Rearrangement:
     """A point of the bisector (midpoint of c-F) and its unit direction."""
 
 
-def _path_crossing(path: PathNodes, m: np.ndarray, n: np.ndarray, near: float) -> np.ndarray | None:
-    """Crossing of ``path`` with the line ``(x - m) . n = 0`` nearest arclength ``near``, or None."""
+def _path_crossing(path: PathNodes, m: np.ndarray, n: np.ndarray, near: float,
+                   window: tuple[float, float] = (-math.inf, math.inf)) -> np.ndarray | None:
+    """Crossing of ``path`` with the line ``(x - m) . n = 0`` nearest arclength ``near`` among those
+    at arclengths within ``window``, or None."""
     d = (path.xy - m) @ n
     idx = np.nonzero(np.sign(d[:-1]) * np.sign(d[1:]) <= 0)[0]
     if len(idx) == 0:
         return None
     t = np.where(np.abs(d[idx] - d[idx + 1]) > 1e-12, d[idx] / (d[idx] - d[idx + 1] + 1e-300), 0.0)
     sig = path.s[idx] + t * (path.s[idx + 1] - path.s[idx])
-    k = int(np.argmin(np.abs(sig - near)))
+    ok = (sig >= window[0] - 1e-9) & (sig <= window[1] + 1e-9)
+    if not ok.any():
+        return None
+    k = int(np.argmin(np.where(ok, np.abs(sig - near), np.inf)))
     return path.xy[idx[k]] + t[k] * (path.xy[idx[k] + 1] - path.xy[idx[k]])
 
 
 def bisector_rearrangement(subgoals, paths: list[PathNodes], sigmas, feature_point, min_separation: float,
-                           free=None, max_slide: float = 3.0, slide_step: float = 0.02) -> Rearrangement:
+                           free=None, max_slide: float = 3.0, slide_step: float = 0.02,
+                           windows: list[tuple[float, float]] | None = None) -> Rearrangement:
     """Seed B §4: rearrange the subgoals of two robots sharing a sector so both can scan the feature.
 
     ``subgoals (2, 2)`` the current subgoals on ``paths`` at arclengths ``sigmas``; ``feature_point``
     the corner both localize on; ``free(points) -> bool array`` optional free-space test for the
-    off-path point (e.g. the map eroded by the robot radius). See the module docstring.
+    off-path point (e.g. the map eroded by the robot radius); ``windows`` optional per-path arclength
+    interval where a crossing counts (e.g. ahead of the robot, within its horizon). See the module
+    docstring.
     """
     sub = np.asarray(subgoals, dtype=float).reshape(2, 2)
     f = np.asarray(feature_point, dtype=float)
@@ -319,7 +285,8 @@ def bisector_rearrangement(subgoals, paths: list[PathNodes], sigmas, feature_poi
     n = axis / np.hypot(*axis)
     m = 0.5 * (c + f)
     u = np.array([-n[1], n[0]])
-    hits = [_path_crossing(p, m, n, float(s)) for p, s in zip(paths, sigmas, strict=True)]
+    wins = windows if windows is not None else [(-math.inf, math.inf)] * 2
+    hits = [_path_crossing(p, m, n, float(s), w) for p, s, w in zip(paths, sigmas, wins, strict=True)]
     on_path = [h is not None for h in hits]
     out = np.array([h if h is not None else p - ((p - m) @ n) * n for h, p in zip(hits, sub, strict=True)])
     if np.hypot(*(out[1] - out[0])) < min_separation:
@@ -328,10 +295,13 @@ def bisector_rearrangement(subgoals, paths: list[PathNodes], sigmas, feature_poi
         j = 1 - k
         side = np.sign((out[k] - out[j]) @ u) or np.sign((sub[k] - sub[j]) @ u) or 1.0
         base = out[k].copy()
+        found = False
         for step in range(1, int(max_slide / slide_step) + 1):
-            cand = base + side * step * slide_step * u
-            if np.hypot(*(cand - out[j])) >= min_separation and (free is None or bool(free(cand[None])[0])):
-                out[k] = cand
-                on_path[k] = False
+            for sgn in (side, -side):  # away from the other robot first, else past it
+                cand = base + sgn * step * slide_step * u
+                if np.hypot(*(cand - out[j])) >= min_separation and (free is None or bool(free(cand[None])[0])):
+                    out[k], on_path[k], found = cand, False, True
+                    break
+            if found:
                 break
     return Rearrangement(out, (bool(on_path[0]), bool(on_path[1])), (m, u))

@@ -80,9 +80,14 @@ def test_fig3_t_room_scenario_at_unlimited_range():
     assert sorted(len(s["common"]) >= 1 for s in d["sectors"]) == [True] * 6
 
 
+FIG4_ORIGINAL = 65
+"""Original sectors of the shipped triangle_room at unlimited range (the paper's Fig. 4: 65)."""
+
+
 def test_fig4_triangle_room_counts():
     """Seed B Fig. 4 (room with a triangular obstacle): rule #1 -> 7 sectors (not the number of
-    features, 6), rule #2 -> 3, none a sliver; the original count is ours (the paper has 65)."""
+    features, 6), rule #2 -> 3, none a sliver; the original count is the paper's 65 (the issue
+    allows 55-75)."""
     from parcover_env.scenarios import load_scenario
     from parcover_env.world.map_model import map_model
 
@@ -90,7 +95,10 @@ def test_fig4_triangle_room_counts():
     feats = map_features(known)
     s0, s1, s2 = (compute_sectors(known, np.inf, rule, feats) for rule in (0, 1, 2))
     assert len(feats) == 6 and len(s1) == 7 and len(s2) == 3
-    assert len(s0) == 32
+    assert 55 <= len(s0) <= 75 and len(s0) == FIG4_ORIGINAL
     assert min(s.polygon.area for s in s1 + s2) > 0.1
-    union = shapely.union_all([s.polygon for s in s2])
-    assert known.free.difference(union).area < 1e-9
+    for sectors in (s0, s2):
+        union = shapely.union_all([s.polygon for s in sectors])
+        assert known.free.difference(union).area < 1e-9
+    # original sectors: neighbours differ in their visible features (else they would be one sector)
+    assert len({s.features for s in s0}) > 30

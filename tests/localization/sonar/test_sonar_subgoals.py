@@ -12,7 +12,6 @@ from parcover_env.localization.sonar.features import map_features
 from parcover_env.localization.sonar.subgoals import (
     choose_subgoal,
     densify,
-    rearrange,
     scan_bias,
     score_nodes,
     team_subgoal,
@@ -98,7 +97,7 @@ def test_team_subgoal_uses_the_worst_robot():
     assert sigma != pytest.approx(3.0)
 
 
-def test_unblocked_scan_angle_and_rearrangement():
+def test_unblocked_scan_angle():
     c = corner(0.0, 0.0)
     me = np.array([1.2, 1.2])
     free = unblocked_scan_angle(me, c, np.zeros((0, 2)), 0.165, 2.54)
@@ -107,20 +106,6 @@ def test_unblocked_scan_angle_and_rearrangement():
     aside = unblocked_scan_angle(me, c, [[2.5, 2.5]], 0.165, 2.54)
     assert blocker < free - math.radians(20)
     assert aside == pytest.approx(free)
-    # robot 0 waits in front of robot 1 on the corner's bisector; moving along the paths frees both
-    path0 = np.array([[0.6 + 0.1 * k, 0.6] for k in range(-3, 8)])
-    path1 = np.array([[1.2, 1.2 + 0.1 * k] for k in range(-3, 8)])
-    feats = [[[c]] * len(path0), [[c]] * len(path1)]
-    before = min(unblocked_scan_angle(path0[3], c, [path1[3]], 0.165, 2.54),
-                 unblocked_scan_angle(path1[3], c, [path0[3]], 0.165, 2.54))
-    choice = rearrange([path0, path1], feats, [3, 3], 0.165, 2.54, min_separation=0.5)
-    p0, p1 = path0[choice[0]], path1[choice[1]]
-    after = min(unblocked_scan_angle(p0, c, [p1], 0.165, 2.54),
-                unblocked_scan_angle(p1, c, [p0], 0.165, 2.54))
-    assert after > before + math.radians(5)
-    assert np.hypot(*(p0 - p1)) >= 0.5
-    with pytest.raises(ValueError, match="target"):
-        rearrange([path0], [feats[0]], [99], 0.165, 2.54)
 
 
 def test_bisector_rearrangement_puts_the_pair_abreast_of_the_feature():
@@ -157,3 +142,31 @@ def test_bisector_rearrangement_puts_the_pair_abreast_of_the_feature():
     lower = densify(np.array([[0.3, 0.6], [4.6, 0.6]]), 0.02)
     res2 = bisector_rearrangement(np.array([[2.0, 1.0], [1.6, 0.6]]), [path, lower], [1.7, 1.3], f.point, 0.3)
     assert res2.on_path == (True, True) and res2.subgoals[:, 1] == pytest.approx([1.0, 0.6])
+
+
+def test_bisector_rearrangement_windows_and_slide_past_a_wall():
+    """A crossing outside a robot's arclength window does not count (that robot goes off its path);
+    an off-path robot that cannot slide away from its teammate (a wall) slides past it instead."""
+    from parcover_env.localization.sonar.subgoals import bisector_rearrangement
+
+    room = MapModel.from_config(MapConfig(size=(5.0, 3.0)))
+    f = next(x for x in map_features(room) if np.allclose(x.point, (5.0, 0.0)))
+    path = densify(np.array([[0.3, 1.0], [4.6, 1.0]]), 0.02)
+    before = np.array([[2.0, 1.0], [1.4, 1.0]])
+    res = bisector_rearrangement(before, [path, path], [1.7, 1.1], f.point, 0.4, windows=[(1.0, 2.0), (0.0, 2.0)])
+    assert res.on_path == (False, False)  # robot 0's crossing (x ~ 3.6) lies beyond arclength 2.0
+    m, u = res.bisector
+    n = np.array([u[1], -u[0]])
+    assert abs((res.subgoals - m) @ n).max() < 1e-9  # both on the bisector
+    assert res.subgoals[0] == pytest.approx(before[0] - ((before[0] - m) @ n) * n)
+    # the bisector runs from the top-left to the bottom-right; forbid the side away from robot 0
+    away = np.sign((res.subgoals[1] - res.subgoals[0]) @ u)
+    assert away != 0
+
+    def free(pts):
+        return np.asarray(pts) @ u * away <= res.subgoals[0] @ u * away + 1e-9
+
+    res2 = bisector_rearrangement(before, [path, path], [1.7, 1.1], f.point, 0.4, free=free,
+                                  windows=[(1.0, 2.0), (0.0, 2.0)])
+    assert np.hypot(*(res2.subgoals[1] - res2.subgoals[0])) >= 0.4 - 1e-9
+    assert (res2.subgoals[1] - res2.subgoals[0]) @ u * away < 0  # it slid past robot 0
