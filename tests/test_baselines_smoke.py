@@ -105,4 +105,5 @@ def test_bc_imitates_a_known_linear_expert():
 def test_evaluate_random_runs(capsys):
     evaluate = _load("evaluate")
     assert evaluate.main(["--policy", "random", "--seeds", "2", "--max-steps", "20"]) == 0
-    assert "random on office, 2 episodes" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "random on office (realistic), 2 episodes" in out and "| office | random | 2 | 0.00 [" in out
