@@ -36,6 +36,7 @@ import csv
 import json
 import os
 import platform
+import shlex
 import subprocess
 import sys
 import time
@@ -107,10 +108,15 @@ class Args:
     """Action log-std after BC initialization (small: act close to the cloned mean)."""
 
 
+_ARGV: list[str] = []
+"""The arguments ``parse_args`` read (written into the sidecar's command)."""
+
+
 def parse_args(argv=None) -> Args:
     """``Args`` from the command line (``--help`` lists every field with its docstring)."""
     import tyro
 
+    _ARGV[:] = list(sys.argv[1:] if argv is None else argv)
     return tyro.cli(Args, args=argv, description=__doc__)
 
 
@@ -190,12 +196,13 @@ def versions() -> dict[str, str]:
     return out
 
 
-def write_sidecar(path: Path, info: dict) -> None:
-    """``info`` + command, commit, host and versions as JSON at ``path``."""
-    rel = Path(sys.argv[0])
+def write_sidecar(path: Path, info: dict, script: str = __file__, argv: list[str] | None = None) -> None:
+    """``info`` + the command (``python SCRIPT ARGV``), git commit, CPU count and versions as JSON."""
+    rel = Path(script)
     with contextlib.suppress(ValueError):
         rel = rel.resolve().relative_to(ROOT)
-    record = {"command": " ".join(["python", str(rel), *sys.argv[1:]]), "git_commit": git_commit(),
+    argv = _ARGV if argv is None else argv
+    record = {"command": shlex.join(["python", str(rel), *argv]), "git_commit": git_commit(),
               "versions": versions(), "cpu_count": os.cpu_count(), **info}
     path.write_text(json.dumps(record, indent=2, default=str) + "\n")
 

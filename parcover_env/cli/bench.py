@@ -21,7 +21,7 @@ def add_bench_parser(sub) -> None:
     b.add_argument(
         "--policies",
         default="expert,random",
-        help="comma-separated: expert, waypoint, random, ppo:PATH, bc:PATH (default: expert,random)",
+        help="comma-separated: expert, waypoint, random, ppo:PATH, bc:PATH, mappo:PATH (default: expert,random)",
     )
     b.add_argument("--seeds", type=positive_int, default=10,
                    help="episodes per (scenario, policy): seeds OFFSET..OFFSET+N-1 (default: 10)")

@@ -85,13 +85,14 @@ def make_mlp(n_in: int, n_out: int, hidden: tuple[int, ...] = (256, 256)):
 
 
 class BCPolicy:
-    """A behaviour-cloning MLP saved by ``baselines/train_bc.py`` (``bc.pt``)."""
+    """A tanh-output MLP actor: behaviour cloning (``baselines/train_bc.py``, ``bc.pt``) or the
+    MAPPO actor (``baselines/train_mappo.py``, ``actor.pt``, same format)."""
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, filename: str = "bc.pt"):
         import torch
 
         path = Path(path)
-        file = path / "bc.pt" if path.is_dir() else path
+        file = path / filename if path.is_dir() else path
         if not file.is_file():
             raise ParcoverError(f"BC checkpoint not found: {file}")
         ckpt = torch.load(file, map_location="cpu", weights_only=False)

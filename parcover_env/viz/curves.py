@@ -69,7 +69,8 @@ def plot_learning_curves(runs: list[str | Path], path: str | Path, labels: list[
     name = metric.replace("_", " ")
     axes[0].set(xlabel="agent-steps", ylabel=name, ylim=(-0.05, 1.05))
     axes[1].set(xlabel="wall time (min)")
-    axes[0].legend(fontsize=8, loc="best")
+    if axes[0].get_legend_handles_labels()[0]:
+        axes[0].legend(fontsize=8, loc="best")
     for ax in axes:
         ax.grid(alpha=0.3)
     fig.suptitle(f"{name}: training episodes ({window}-episode mean, lines), validation (markers)", fontsize=9)
