@@ -1,6 +1,6 @@
 """Copy a trained PPO run into ``baselines/checkpoints/`` as a small, self-describing checkpoint.
 
-    python baselines/ship_checkpoint.py runs/ppo_tree --name ppo_tree --scenario tree
+    python baselines/ship_checkpoint.py --run runs/ppo_tree --name ppo_tree --scenario tree
 
 Writes ``NAME.zip`` (the SB3 model, with its optimizer state so that ``--resume`` works),
 ``NAME_vecnormalize.pkl`` (observation statistics) and ``NAME.json``: the run's sidecars (following

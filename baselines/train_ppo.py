@@ -270,7 +270,7 @@ def bc_initialize(model, venv, args: Args, scenario: str) -> dict:
     t0 = time.time()
     eps = []
     for k, sc in enumerate(stage_scenarios(scenario, args.bc_episodes, args.map_seed0 + 50)):
-        eps += record_episodes(sc, 1, seed=args.bc_seed0 + k, max_steps=args.max_steps or None)
+        eps += record_episodes(sc, 1, seed=args.bc_seed0 + k, max_steps=args.max_steps or None, preset=args.preset)
     obs = np.concatenate([e["observations"][:-1] for e in eps]).astype(np.float64)
     act = np.clip(np.concatenate([e["actions"] for e in eps]), -1, 1)
     # discounted returns-to-go (MC value targets) and the running discounted return VecNormalize tracks
