@@ -79,12 +79,14 @@ def mlp(n_in: int, hidden: tuple[int, ...], n_out: int):
 def train(args: Args) -> Path:
     import numpy as np
     import torch
+    import train_ppo
     from stable_baselines3.common.running_mean_std import RunningMeanStd
     from train_ppo import EnvFactory, plot_curve, write_csv, write_sidecar
 
     from parcover_env.envs.vec_env import ParallelVecEnv
     from parcover_env.policies.learned import make_mlp
 
+    train_ppo._START_COMMIT = train_ppo.git_commit()  # the code that ran, even if HEAD moves meanwhile
     torch.manual_seed(args.seed)
     torch.set_num_threads(args.threads)
     device = torch.device(("cuda" if torch.cuda.is_available() else "cpu") if args.device == "auto" else args.device)

@@ -110,6 +110,8 @@ class Args:
 
 _ARGV: list[str] = []
 """The arguments ``parse_args`` read (written into the sidecar's command)."""
+_START_COMMIT = ""
+"""The git commit when training started (the code that ran; HEAD may move during a long run)."""
 
 
 def parse_args(argv=None) -> Args:
@@ -202,7 +204,7 @@ def write_sidecar(path: Path, info: dict, script: str = __file__, argv: list[str
     with contextlib.suppress(ValueError):
         rel = rel.resolve().relative_to(ROOT)
     argv = _ARGV if argv is None else argv
-    record = {"command": shlex.join(["python", str(rel), *argv]), "git_commit": git_commit(),
+    record = {"command": shlex.join(["python", str(rel), *argv]), "git_commit": _START_COMMIT or git_commit(),
               "versions": versions(), "cpu_count": os.cpu_count(), **info}
     path.write_text(json.dumps(record, indent=2, default=str) + "\n")
 
@@ -326,6 +328,8 @@ def train(args: Args) -> Path:
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
 
+    global _START_COMMIT
+    _START_COMMIT = git_commit()
     torch.set_num_threads(args.threads)
     device = ("cuda" if torch.cuda.is_available() else "cpu") if args.device == "auto" else args.device
     out = Path(args.out)
