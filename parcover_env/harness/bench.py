@@ -254,7 +254,9 @@ def summarize(rows: list[dict]) -> list[dict]:
     """One row per (scenario, policy): episodes, success rate (mean, stratified bootstrap CI, and the
     Wilson interval), and the IQM [95 % bootstrap CI] of every other metric; ``makespan_ratio`` over
     successful episodes only (undefined otherwise). When a policy ran on several ``generated:*`` maps
-    an aggregate ``generated:*`` row follows, its bootstrap stratified by map."""
+    an aggregate ``generated:*`` row follows, its bootstrap stratified by map (resampling episodes
+    within each map); with a single episode per map a stratum cannot vary, so the maps themselves are
+    resampled (plain bootstrap over maps)."""
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in rows:
         groups.setdefault((r["scenario"], r["policy"]), []).append(r)
@@ -263,7 +265,15 @@ def summarize(rows: list[dict]) -> list[dict]:
     for (sc, p), g in groups.items():
         if family(sc) != sc:
             fams.setdefault((family(sc), p), []).append(g)
-    out += [_summary_row(f, p, strata) for (f, p), strata in fams.items() if len(strata) > 1]
+    for (f, p), strata in fams.items():
+        if len(strata) < 2:
+            continue
+        if all(len(g) == 1 for g in strata):  # one episode per map: the maps are the runs (plain bootstrap)
+            row = _summary_row(f, p, [[g[0] for g in strata]])
+            row["maps"] = len(strata)
+            out.append(row)
+        else:
+            out.append(_summary_row(f, p, strata))
     return out
 
 

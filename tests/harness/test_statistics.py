@@ -114,3 +114,15 @@ def test_rliable_agrees_when_installed():
     rly = pytest.importorskip("rliable.metrics")
     x = np.array([[0.1, 0.9], [0.3, 0.7], [0.2, 0.5], [0.4, 1.0], [0.9, 0.0]])  # runs x tasks
     assert bench.iqm(x.ravel()) == pytest.approx(rly.aggregate_iqm(x))
+
+
+def test_one_episode_per_map_resamples_the_maps():
+    rows = [{"scenario": f"generated:{m}", "policy": "p", "seed": 1000, "success": float(m % 2),
+             "makespan_ratio": math.nan, "kpoi_fraction": m / 10, "collisions": 0, "messages": 0,
+             "wall_time": 0.1} for m in range(10)]
+    agg = next(s for s in bench.summarize(rows) if s["scenario"] == "generated:*")
+    assert agg["maps"] == 10 and agg["episodes"] == 10
+    # resampling within a one-episode map could never move the estimate; over maps it does
+    assert agg["success"] == 0.5 and agg["success_lo"] < 0.5 < agg["success_hi"]
+    assert agg["kpoi_fraction"] == pytest.approx(np.mean([0.2, 0.3, 0.4, 0.5, 0.6, 0.7]))  # IQM: 2 cut each side
+    assert agg["kpoi_fraction_lo"] < agg["kpoi_fraction"] < agg["kpoi_fraction_hi"]
