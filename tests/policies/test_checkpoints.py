@@ -11,7 +11,7 @@ import pytest
 pytest.importorskip("stable_baselines3")
 
 CKPT = Path(__file__).resolve().parents[2] / "baselines" / "checkpoints"
-NAMES = ("ppo_office", "ppo_tree", "ppo_generated")
+NAMES = ("ppo_office", "ppo_tree", "ppo_generated", "ppo_office_ideal")
 
 
 @pytest.mark.parametrize("name", NAMES)
