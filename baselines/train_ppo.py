@@ -1,162 +1,497 @@
-"""Train PPO with parameter sharing on a parcover scenario (one policy for every robot).
+"""Train PPO with parameter sharing on parcover scenarios (one policy for every robot).
 
-    python baselines/train_ppo.py --scenario office --total-timesteps 2000000 --out runs/ppo_office
+    python baselines/train_ppo.py --scenario office --total-timesteps 600000 --out runs/ppo_office
+    python baselines/train_ppo.py --curriculum configs/train/generated_to_tree.yaml --out runs/ppo_tree
+    python baselines/train_ppo.py --scenario tree --bc-episodes 6 --out runs/bcppo_tree   # BC-initialized
 
-Writes ``OUT/model.zip``, ``OUT/vecnormalize.pkl`` (observation statistics, read by
-``parcover_env.policies.learned.PPOPolicy``), ``OUT/curve.csv`` and ``OUT/curve.png`` (learning curve).
-``--scenario generated:RANDOM`` trains with domain randomization over procedural maps
-(a new ``generated:<seed>`` map per ParallelEnv). TensorBoard only with ``--tensorboard DIR``.
+Writes into ``OUT/``: ``model.zip`` + ``vecnormalize.pkl`` (read by
+``parcover_env.policies.learned.PPOPolicy``, i.e. ``--policy ppo:OUT``), ``model.json`` (sidecar:
+exact command, git commit, seeds, steps, wall time, preset, versions), ``curve.csv`` / ``curve.png``
+(training episodes against agent-steps and wall time), ``eval.csv`` (periodic evaluation on
+validation seeds, disjoint from the training seeds and from the benchmark's seeds >= 1000),
+``checkpoints/step_<N>.zip`` (+ stats) every ``--checkpoint-freq`` agent-steps, and TensorBoard
+event files under ``OUT/tb`` when the ``tensorboard`` package is installed.
+
+Curriculum: ``--curriculum FILE`` (YAML, see ``configs/train/``) lists stages
+``{scenario, steps, n_envs, wall_time}``; the policy, its optimizer and the observation/return
+normalization carry over from stage to stage (the VecEnv is rebuilt, so team sizes may change).
+``scenario: generated:RANDOM`` gives each ParallelEnv of the stage its own procedural map
+(``generated:<map_seed0 + k>``), ``generated:A,B,C`` cycles through the listed maps.
+
+BC initialization (``--bc-episodes N``): records N expert missions (seeds ``bc_seed0 ..``) on the
+first stage's scenario, sets the observation/return normalization from them, regresses the actor's
+mean action onto the expert's and the critic onto the demonstrations' discounted returns, saves that
+network as ``OUT/bc_init/`` (evaluable as a policy by itself), then runs PPO from it.
+
+Hardware: ``--device auto`` uses CUDA when torch sees a GPU. With these small MLPs (2 x 128) the
+simulation, not the network, is the bottleneck: a GPU mostly pays off with far larger batches
+(many more envs); a Ray cluster would run the rollouts (``--multiprocess`` workers, one ParallelEnv
+each, here processes on this machine) on many cores, which is what would shorten training here.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import json
+import os
+import platform
+import shlex
+import subprocess
+import sys
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 @dataclass
 class Args:
     scenario: str = "office"
-    """Scenario name or YAML path; ``generated:RANDOM`` = a different procedural map per env."""
+    """Scenario name or YAML path; ``generated:RANDOM`` = a different procedural map per env.
+    Ignored when ``curriculum`` is given."""
+    curriculum: str = ""
+    """YAML file with ``stages: [{scenario, steps, n_envs?, wall_time?}]`` (configs/train/)."""
+    preset: str = "realistic"
+    """``realistic`` (default error models) or ``ideal`` (every error model off)."""
     seed: int = 0
+    """Seeds torch, the PPO sampler and the training episodes (ParallelEnv k resets with seed + k)."""
+    map_seed0: int = 0
+    """First procedural map of ``generated:RANDOM`` stages (stage s, env k: map_seed0 + 100 s + k)."""
     total_timesteps: int = 1_000_000
-    """Agent-steps (one per robot per env step)."""
+    """Agent-steps (one per robot per env step) without a curriculum."""
     n_envs: int = 4
     """ParallelEnvs; slots = n_envs x n_robots."""
     multiprocess: bool = False
-    n_steps: int = 512
+    """One worker process per ParallelEnv."""
+    n_steps: int = 256
+    """Rollout length per slot between updates."""
     batch_size: int = 1024
     n_epochs: int = 5
     learning_rate: float = 3e-4
     gamma: float = 0.995
     gae_lambda: float = 0.95
     ent_coef: float = 0.0
+    log_std_init: float = 0.0
     net_arch: str = "128,128"
     max_steps: int = 0
     """Override episode.max_steps (0 = the scenario's)."""
     out: str = "runs/ppo"
-    tensorboard: str = ""
+    device: str = "auto"
+    """torch device: ``auto`` (CUDA if available, else CPU), ``cpu``, ``cuda``."""
     threads: int = 1
-    """torch threads."""
+    """torch CPU threads."""
+    max_wall_time: float = 0.0
+    """Stop training after this many seconds (0 = no limit); the model so far is saved."""
+    eval_freq: int = 100_000
+    """Evaluate every this many agent-steps (0 = never)."""
+    eval_episodes: int = 2
+    """Episodes per evaluation and scenario (seeds eval_seed0 ..)."""
+    eval_seed0: int = 500
+    """First validation seed: disjoint from training seeds (0 ..) and benchmark seeds (>= 1000)."""
+    eval_scenarios: str = ""
+    """Comma-separated validation scenarios (default: the current stage's; RANDOM -> generated:500..)."""
+    checkpoint_freq: int = 200_000
+    """Save ``checkpoints/step_<N>.zip`` every this many agent-steps (0 = never)."""
+    resume: str = ""
+    """A model.zip (or its directory) to continue from; its vecnormalize.pkl is loaded too."""
+    bc_episodes: int = 0
+    """Expert missions for BC initialization (0 = PPO from scratch)."""
+    bc_scenario: str = ""
+    """Scenario of the demonstrations (default: the first stage's; ``generated:RANDOM`` = maps
+    ``map_seed0 + 50 + k``, one mission each)."""
+    bc_seed0: int = 2000
+    """First seed of the BC demonstrations."""
+    bc_epochs: int = 30
+    bc_log_std: float = -1.0
+    """Action log-std after BC initialization (small: act close to the cloned mean)."""
+
+
+_ARGV: list[str] = []
+"""The arguments ``parse_args`` read (written into the sidecar's command)."""
+_START_COMMIT = ""
+"""The git commit when training started (the code that ran; HEAD may move during a long run)."""
 
 
 def parse_args(argv=None) -> Args:
     """``Args`` from the command line (``--help`` lists every field with its docstring)."""
     import tyro
 
+    _ARGV[:] = list(sys.argv[1:] if argv is None else argv)
     return tyro.cli(Args, args=argv, description=__doc__)
 
 
-def make_env_fns(args: Args):
-    from parcover_env.envs.vec_env import _EnvFactory
+# ------------------------------------------------------------------------------ stages and envs
+def load_stages(args: Args) -> list[dict]:
+    """Curriculum stages ``[{scenario, steps, n_envs, wall_time}]`` (one stage without a curriculum)."""
+    if not args.curriculum:
+        return [{"scenario": args.scenario, "steps": args.total_timesteps, "n_envs": args.n_envs, "wall_time": 0.0}]
+    import yaml
 
-    overrides = {"episode": {"max_steps": args.max_steps}} if args.max_steps else None
-    if args.scenario == "generated:RANDOM":
-        return [_EnvFactory(f"generated:{args.seed * 1000 + i}", overrides) for i in range(args.n_envs)]
-    return [_EnvFactory(args.scenario, overrides) for _ in range(args.n_envs)]
+    spec = yaml.safe_load(Path(args.curriculum).read_text())
+    stages = []
+    for i, st in enumerate(spec.get("stages", [])):
+        if "scenario" not in st or "steps" not in st:
+            raise ValueError(f"{args.curriculum}: stage {i} needs 'scenario' and 'steps'")
+        stages.append({"scenario": str(st["scenario"]), "steps": int(st["steps"]),
+                       "n_envs": int(st.get("n_envs", args.n_envs)), "wall_time": float(st.get("wall_time", 0.0))})
+    if not stages:
+        raise ValueError(f"{args.curriculum}: no stages")
+    return stages
 
 
-def train(args: Args) -> Path:
-    import torch
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import BaseCallback
+def stage_scenarios(scenario: str, n_envs: int, map_seed: int) -> list[str]:
+    """The scenario of each ParallelEnv of a stage."""
+    if scenario == "generated:RANDOM":
+        return [f"generated:{map_seed + k}" for k in range(n_envs)]
+    if scenario.startswith("generated:") and "," in scenario:
+        maps = scenario.removeprefix("generated:").split(",")
+        return [f"generated:{maps[k % len(maps)]}" for k in range(n_envs)]
+    return [scenario] * n_envs
+
+
+class EnvFactory:
+    """Picklable factory of a ParallelCoverageEnv with a preset (for worker processes)."""
+
+    def __init__(self, scenario: str, preset: str, overrides: dict | None):
+        self.scenario, self.preset, self.overrides = scenario, preset, overrides
+
+    def __call__(self):
+        from parcover_env.envs import ParallelCoverageEnv
+
+        return ParallelCoverageEnv(self.scenario, overrides=self.overrides, preset=self.preset)
+
+
+def make_venv(args: Args, scenarios: list[str], seed: int):
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
     from parcover_env.envs.vec_env import ParallelVecEnv
 
-    torch.set_num_threads(args.threads)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    venv = VecNormalize(
-        VecMonitor(ParallelVecEnv(make_env_fns(args), multiprocess=args.multiprocess)),
-        norm_obs=True,
-        norm_reward=True,
-        gamma=args.gamma,
-    )
-    curve: list[dict] = []
+    overrides = {"episode": {"max_steps": args.max_steps}} if args.max_steps else None
+    fns = [EnvFactory(s, args.preset, overrides) for s in scenarios]
+    base = ParallelVecEnv(fns, multiprocess=args.multiprocess)
+    base.seed(seed)
+    return VecNormalize(VecMonitor(base), norm_obs=True, norm_reward=True, gamma=args.gamma)
 
-    class Curve(BaseCallback):
-        next_report = 50_000
 
-        def _on_step(self) -> bool:
-            for info, done in zip(self.locals["infos"], self.locals["dones"], strict=False):
-                if done and "episode" in info:
-                    m = info.get("metrics", {})
-                    curve.append(
-                        {
-                            "timesteps": self.num_timesteps,
-                            "return": info["episode"]["r"],
-                            "length": info["episode"]["l"],
-                            "success": float(m.get("success", 0.0)),
-                            "kpois_visited": m.get("kpois_visited", 0),
-                            "wall_time": time.time() - t0,
-                        }
-                    )
-            if self.num_timesteps >= self.next_report:
-                self.next_report += 50_000
-                recent = curve[-20:]
-                succ = sum(c["success"] for c in recent) / max(len(recent), 1)
-                if self.num_timesteps % 100_000 < 50_000:  # checkpoint (overwritten) every ~100k steps
-                    model.save(out / "model.zip")
-                    venv.save(str(out / "vecnormalize.pkl"))
-                print(
-                    f"{self.num_timesteps} steps, {time.time() - t0:.0f} s, {len(curve)} episodes, "
-                    f"success (last 20) {succ:.2f}",
-                    flush=True,
-                )
-            return True
+# ------------------------------------------------------------------------------ sidecar
+def git_commit() -> str:
+    try:
+        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, check=True)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT,
+                               capture_output=True, text=True, check=True).stdout.strip()
+        return sha.stdout.strip() + ("-dirty" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
 
-    model = PPO(
-        "MlpPolicy",
-        venv,
-        n_steps=args.n_steps,
-        batch_size=args.batch_size,
-        n_epochs=args.n_epochs,
-        learning_rate=args.learning_rate,
-        gamma=args.gamma,
-        gae_lambda=args.gae_lambda,
-        ent_coef=args.ent_coef,
-        seed=args.seed,
-        device="cpu",
-        verbose=0,
-        policy_kwargs={"net_arch": [int(h) for h in args.net_arch.split(",")]},
-        tensorboard_log=args.tensorboard or None,
-    )
-    t0 = time.time()
-    model.learn(total_timesteps=args.total_timesteps, callback=Curve())
-    model.save(out / "model.zip")
-    venv.save(str(out / "vecnormalize.pkl"))
-    venv.close()
-    write_curve(curve, out)
+
+def versions() -> dict[str, str]:
+    import importlib.metadata as md
+
+    out = {"python": platform.python_version()}
+    for pkg in ("parcover_env", "stable-baselines3", "torch", "numpy", "gymnasium", "pettingzoo", "pymunk"):
+        try:
+            out[pkg] = md.version(pkg)
+        except md.PackageNotFoundError:
+            out[pkg] = "not installed"
     return out
 
 
-def write_curve(curve: list[dict], out: Path) -> None:
-    if not curve:
-        return
-    with open(out / "curve.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(curve[0]))
-        w.writeheader()
-        w.writerows(curve)
-    import matplotlib
+def write_sidecar(path: Path, info: dict, script: str = __file__, argv: list[str] | None = None) -> None:
+    """``info`` + the command (``python SCRIPT ARGV``), git commit, CPU count and versions as JSON."""
+    rel = Path(script)
+    with contextlib.suppress(ValueError):
+        rel = rel.resolve().relative_to(ROOT)
+    argv = _ARGV if argv is None else argv
+    record = {"command": shlex.join(["python", str(rel), *argv]), "git_commit": _START_COMMIT or git_commit(),
+              "versions": versions(), "cpu_count": os.cpu_count(), **info}
+    path.write_text(json.dumps(record, indent=2, default=str) + "\n")
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+# ------------------------------------------------------------------------------ evaluation
+class _Actor:
+    """The model in training as a ``act(observations)`` policy, normalizing with the current stats."""
+
+    def __init__(self, model, obs_rms, clip: float, eps: float):
+        import numpy as np
+
+        self.model, self.mean = model, obs_rms.mean.astype(np.float32)
+        self.std = np.sqrt(obs_rms.var + eps).astype(np.float32)
+        self.clip = clip
+
+    def act(self, observations):
+        import numpy as np
+
+        agents = sorted(observations)
+        if not agents:
+            return {}
+        obs = np.stack([observations[a] for a in agents]).astype(np.float32)
+        obs = np.clip((obs - self.mean) / self.std, -self.clip, self.clip)
+        act, _ = self.model.predict(obs, deterministic=True)
+        act = np.clip(act, -1, 1).astype(np.float32)
+        return {a: act[i] for i, a in enumerate(agents)}
+
+
+def evaluate(model, venv, scenarios: list[str], args: Args) -> list[dict]:
+    """Deterministic episodes on validation seeds; one row per episode."""
+    from parcover_env.envs import ParallelCoverageEnv
+    from parcover_env.harness.rollout import run_episode
+
+    actor = _Actor(model, venv.obs_rms, venv.clip_obs, venv.epsilon)
+    rows = []
+    for sc in scenarios:
+        env = ParallelCoverageEnv(sc, preset=args.preset,
+                                  overrides={"episode": {"max_steps": args.max_steps}} if args.max_steps else None)
+        for k in range(args.eval_episodes):
+            m = run_episode(env, actor, args.eval_seed0 + k)
+            rows.append({"scenario": sc, "seed": args.eval_seed0 + k, "success": float(m["success"]),
+                         "kpoi_fraction": m["kpois_visited"] / m["n_kpois"],
+                         "makespan_ratio": m["makespan_ratio"], "collisions": m["collisions"]})
+        env.close()
+    return rows
+
+
+def eval_scenarios_for(args: Args, stage: dict) -> list[str]:
+    if args.eval_scenarios:
+        return [s for s in args.eval_scenarios.split(",") if s]
+    if stage["scenario"].startswith("generated:"):
+        return [f"generated:{args.eval_seed0 + k}" for k in range(2)]
+    return [stage["scenario"]]
+
+
+# ------------------------------------------------------------------------------ BC initialization
+def bc_initialize(model, venv, args: Args, scenario: str) -> dict:
+    """Clone the expert into the PPO actor (mean action, MSE) and fit the critic to the demos'
+    discounted returns; sets the VecNormalize statistics from the demonstrations."""
     import numpy as np
+    import torch
 
-    t = np.array([c["timesteps"] for c in curve])
-    k = max(1, len(curve) // 50)
-    smooth = lambda x: np.convolve(x, np.ones(k) / k, mode="valid")  # noqa: E731
-    fig, ax = plt.subplots(1, 2, figsize=(10, 3.5))
-    ax[0].plot(t[k - 1 :], smooth(np.array([c["return"] for c in curve])))
-    ax[0].set(xlabel="agent-steps", ylabel="episode return (per agent)")
-    ax[1].plot(t[k - 1 :], smooth(np.array([c["success"] for c in curve])))
-    ax[1].set(xlabel="agent-steps", ylabel="success rate", ylim=(-0.05, 1.05))
-    fig.tight_layout()
-    fig.savefig(out / "curve.png", dpi=100)
-    plt.close(fig)
+    from parcover_env.harness.datasets import record_episodes
+
+    t0 = time.time()
+    eps = []
+    for k, sc in enumerate(stage_scenarios(scenario, args.bc_episodes, args.map_seed0 + 50)):
+        eps += record_episodes(sc, 1, seed=args.bc_seed0 + k, max_steps=args.max_steps or None, preset=args.preset)
+    obs = np.concatenate([e["observations"][:-1] for e in eps]).astype(np.float64)
+    act = np.clip(np.concatenate([e["actions"] for e in eps]), -1, 1)
+    # discounted returns-to-go (MC value targets) and the running discounted return VecNormalize tracks
+    rtg, running = [], []
+    for e in eps:
+        r = np.asarray(e["rewards"], dtype=np.float64)
+        g, out = 0.0, np.empty_like(r)
+        for t in range(len(r) - 1, -1, -1):
+            g = r[t] + args.gamma * g
+            out[t] = g
+        rtg.append(out)
+        acc, run = 0.0, np.empty_like(r)
+        for t in range(len(r)):
+            acc = acc * args.gamma + r[t]
+            run[t] = acc
+        running.append(run)
+    rtg, running = np.concatenate(rtg), np.concatenate(running)
+    venv.obs_rms.mean, venv.obs_rms.var, venv.obs_rms.count = obs.mean(0), obs.var(0), float(len(obs))
+    venv.ret_rms.mean, venv.ret_rms.var, venv.ret_rms.count = 0.0, float(running.var()), float(len(running))
+    x = torch.as_tensor(venv.normalize_obs(obs.astype(np.float32)), dtype=torch.float32, device=model.device)
+    y = torch.as_tensor(act, dtype=torch.float32, device=model.device)
+    v = torch.as_tensor(np.clip(rtg / np.sqrt(venv.ret_rms.var + venv.epsilon), -venv.clip_reward * 50,
+                                venv.clip_reward * 50), dtype=torch.float32, device=model.device)
+    pol = model.policy
+    opt = torch.optim.Adam(pol.parameters(), lr=1e-3)
+    gen = torch.Generator().manual_seed(args.seed)
+    losses = []
+    for _epoch in range(args.bc_epochs):
+        perm, tot_a, tot_v = torch.randperm(len(x), generator=gen), 0.0, 0.0
+        for i in range(0, len(x), 512):
+            idx = perm[i : i + 512]
+            feats = pol.extract_features(x[idx])
+            lat_pi, lat_vf = pol.mlp_extractor(feats)
+            loss_a = torch.nn.functional.mse_loss(pol.action_net(lat_pi), y[idx])
+            loss_v = torch.nn.functional.mse_loss(pol.value_net(lat_vf).squeeze(-1), v[idx])
+            opt.zero_grad()
+            (loss_a + 0.5 * loss_v).backward()
+            opt.step()
+            tot_a += loss_a.item() * len(idx)
+            tot_v += loss_v.item() * len(idx)
+        losses.append((tot_a / len(x), tot_v / len(x)))
+    with torch.no_grad():
+        pol.log_std.fill_(args.bc_log_std)
+    return {"bc_samples": int(len(x)), "bc_missions": args.bc_episodes,
+            "bc_seeds": [args.bc_seed0, args.bc_seed0 + args.bc_episodes - 1], "bc_action_mse": losses[-1][0],
+            "bc_value_mse": losses[-1][1], "bc_wall_time_s": time.time() - t0}
+
+
+# ------------------------------------------------------------------------------ training
+def train(args: Args) -> Path:
+    import numpy as np
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    global _START_COMMIT
+    _START_COMMIT = git_commit()
+    torch.set_num_threads(args.threads)
+    device = ("cuda" if torch.cuda.is_available() else "cpu") if args.device == "auto" else args.device
+    out = Path(args.out)
+    (out / "checkpoints").mkdir(parents=True, exist_ok=True)
+    stages = load_stages(args)
+    try:
+        import tensorboard  # noqa: F401
+
+        tb_dir = str(out / "tb")
+    except ImportError:
+        tb_dir = None
+    t0 = time.time()
+    curve: list[dict] = []
+    evals: list[dict] = []
+    info: dict = {"stages": stages, "preset": args.preset, "seed": args.seed, "device": device,
+                  "args": asdict(args), "train_seeds": [], "eval_seeds": []}
+
+    class Hooks(BaseCallback):
+        def __init__(self, stage_idx: int, stage: dict, stage_t0: float):
+            super().__init__()
+            self.stage_idx, self.stage, self.stage_t0 = stage_idx, stage, stage_t0
+            self.next_eval = (model.num_timesteps // args.eval_freq + 1) * args.eval_freq if args.eval_freq else None
+            self.next_ckpt = ((model.num_timesteps // args.checkpoint_freq + 1) * args.checkpoint_freq
+                              if args.checkpoint_freq else None)
+            self.next_print = model.num_timesteps + 20_000
+
+        def _on_step(self) -> bool:
+            for inf, done in zip(self.locals["infos"], self.locals["dones"], strict=False):
+                if done and "episode" in inf:
+                    m = inf.get("metrics", {})
+                    curve.append({"timesteps": self.num_timesteps, "wall_time": time.time() - t0,
+                                  "stage": self.stage_idx, "return": inf["episode"]["r"],
+                                  "length": inf["episode"]["l"], "success": float(m.get("success", 0.0)),
+                                  "kpoi_fraction": m.get("kpois_visited", 0) / max(m.get("n_kpois", 1), 1)})
+            n = self.num_timesteps
+            if self.next_ckpt is not None and n >= self.next_ckpt:
+                self.next_ckpt += args.checkpoint_freq
+                model.save(out / "checkpoints" / f"step_{n}.zip")
+                venv.save(str(out / "checkpoints" / f"step_{n}_vecnormalize.pkl"))
+            if self.next_eval is not None and n >= self.next_eval:
+                self.next_eval += args.eval_freq
+                rows = evaluate(model, venv, eval_scenarios_for(args, self.stage), args)
+                for r in rows:
+                    evals.append({"timesteps": n, "wall_time": time.time() - t0, "stage": self.stage_idx, **r})
+                print(f"  eval @ {n}: success {np.mean([r['success'] for r in rows]):.2f}, KPOI fraction "
+                      f"{np.mean([r['kpoi_fraction'] for r in rows]):.2f}", flush=True)
+                write_csv(out / "eval.csv", evals)
+            if n >= self.next_print:
+                self.next_print = n + 20_000
+                recent = curve[-20:]
+                kf = np.mean([c["kpoi_fraction"] for c in recent]) if recent else float("nan")
+                print(f"stage {self.stage_idx} {n} steps, {time.time() - t0:.0f} s, {len(curve)} episodes, "
+                      f"KPOI fraction (last 20) {kf:.2f}", flush=True)
+            now = time.time()
+            if args.max_wall_time and now - t0 > args.max_wall_time:
+                return False
+            return not (self.stage["wall_time"] and now - self.stage_t0 > self.stage["wall_time"])
+
+    model, venv, prev_stats = None, None, None
+    start_stage, into_stage = 0, 0
+    if args.resume:
+        import pickle
+
+        path = Path(args.resume)
+        mz = path / "model.zip" if path.is_dir() else path
+        model = PPO.load(str(mz), device=device)
+        stats = mz.with_name("vecnormalize.pkl" if mz.stem == "model" else mz.stem + "_vecnormalize.pkl")
+        with open(stats, "rb") as fh:
+            old = pickle.load(fh)
+        prev_stats = (old.obs_rms, old.ret_rms)
+        info["resumed_from"] = {"model": str(mz), "num_timesteps": int(model.num_timesteps)}
+        start_stage, into_stage = len(stages), 0
+        done = 0
+        for k, st in enumerate(stages):  # the stage the checkpoint is in, and how far into it
+            if done + st["steps"] > model.num_timesteps:
+                start_stage, into_stage = k, model.num_timesteps - done
+                break
+            done += st["steps"]
+    for si, stage in enumerate(stages):
+        if si < start_stage:
+            continue
+        if args.max_wall_time and time.time() - t0 > args.max_wall_time:
+            break
+        scen = stage_scenarios(stage["scenario"], stage["n_envs"], args.map_seed0 + 100 * si)
+        train_seed = args.seed + 10 * si
+        if venv is not None:
+            prev_stats = (venv.obs_rms, venv.ret_rms)
+            venv.close()
+        venv = make_venv(args, scen, train_seed)
+        info["train_seeds"].append({"stage": si, "scenarios": scen, "episode_seeds_from": train_seed})
+        if prev_stats is not None:  # the normalization carries over from stage to stage
+            venv.obs_rms, venv.ret_rms = prev_stats
+        if model is None:
+            model = PPO("MlpPolicy", venv, n_steps=args.n_steps, batch_size=args.batch_size,
+                        n_epochs=args.n_epochs, learning_rate=args.learning_rate, gamma=args.gamma,
+                        gae_lambda=args.gae_lambda, ent_coef=args.ent_coef, seed=args.seed, device=device,
+                        verbose=0, tensorboard_log=tb_dir,
+                        policy_kwargs={"net_arch": [int(h) for h in args.net_arch.split(",")],
+                                       "log_std_init": args.log_std_init})
+            if args.bc_episodes:
+                info.update(bc_initialize(model, venv, args, args.bc_scenario or stage["scenario"]))
+                (out / "bc_init").mkdir(exist_ok=True)
+                model.save(out / "bc_init" / "model.zip")
+                venv.save(str(out / "bc_init" / "vecnormalize.pkl"))
+                write_sidecar(out / "bc_init" / "model.json",
+                              {**info, "timesteps": 0, "wall_time_s": time.time() - t0})
+                print(f"BC init: {info['bc_samples']} samples, action MSE {info['bc_action_mse']:.4f}", flush=True)
+        else:
+            model.set_random_seed(train_seed)
+            _switch_env(model, venv)
+        remaining = stage["steps"] - (into_stage if si == start_stage else 0)
+        print(f"stage {si}: {stage['scenario']} ({len(scen)} envs, {venv.num_envs} slots), {remaining} steps",
+              flush=True)
+        model.learn(total_timesteps=max(remaining, 1), callback=Hooks(si, stage, time.time()),
+                    reset_num_timesteps=False, tb_log_name="ppo")
+    if venv is None:
+        raise SystemExit(f"nothing to train: {args.resume} already completed every stage")
+    wall = time.time() - t0
+    model.save(out / "model.zip")
+    venv.save(str(out / "vecnormalize.pkl"))
+    if args.eval_freq and (not evals or evals[-1]["timesteps"] != model.num_timesteps):
+        rows = evaluate(model, venv, eval_scenarios_for(args, stages[-1]), args)
+        evals += [{"timesteps": model.num_timesteps, "wall_time": time.time() - t0, "stage": len(stages) - 1, **r}
+                  for r in rows]
+    venv.close()
+    info["eval_seeds"] = sorted({e["seed"] for e in evals})
+    write_csv(out / "eval.csv", evals)
+    write_csv(out / "curve.csv", curve)
+    plot_curve(out)
+    write_sidecar(out / "model.json", {**info, "timesteps": int(model.num_timesteps), "wall_time_s": wall,
+                                       "training_episodes": len(curve),
+                                       "final_eval": evals[-args.eval_episodes * 2:] if evals else []})
+    print(f"{model.num_timesteps} agent-steps in {wall:.0f} s")
+    return out
+
+
+def _switch_env(model, venv) -> None:
+    """Point a PPO model at a new VecEnv (another stage: maybe another number of slots)."""
+    model.env = venv
+    model.n_envs = venv.num_envs
+    model._vec_normalize_env = venv
+    model._last_obs = None  # learn() resets the new env
+    model.rollout_buffer = model.rollout_buffer_class(
+        model.n_steps, model.observation_space, model.action_space, device=model.device, gamma=model.gamma,
+        gae_lambda=model.gae_lambda, n_envs=model.n_envs, **model.rollout_buffer_kwargs)
+
+
+def write_csv(path: Path, rows: list[dict]) -> None:
+    if not rows:
+        return
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+
+
+def plot_curve(out: Path) -> None:
+    """``OUT/curve.png`` from ``curve.csv`` (+ ``eval.csv``); see ``parcover_env.viz.curves``."""
+    from parcover_env.viz.curves import plot_learning_curves
+
+    if (out / "curve.csv").is_file():
+        plot_learning_curves([out], out / "curve.png")
 
 
 if __name__ == "__main__":

@@ -54,7 +54,7 @@ def ppo_dir(tmp_path_factory):
 def test_ppo_saves_model_stats_and_curve(ppo_dir):
     assert {"model.zip", "vecnormalize.pkl", "curve.csv", "curve.png"} <= {p.name for p in ppo_dir.iterdir()}
     rows = (ppo_dir / "curve.csv").read_text().splitlines()
-    assert rows[0].startswith("timesteps,return") and len(rows) > 1
+    assert rows[0].startswith("timesteps,wall_time,stage,return") and len(rows) > 1
 
 
 def test_ppo_policy_acts_in_the_box(ppo_dir):
@@ -105,4 +105,78 @@ def test_bc_imitates_a_known_linear_expert():
 def test_evaluate_random_runs(capsys):
     evaluate = _load("evaluate")
     assert evaluate.main(["--policy", "random", "--seeds", "2", "--max-steps", "20"]) == 0
-    assert "random on office, 2 episodes" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "random on office (realistic), 2 episodes" in out and "| office | random | 2 | 0.00 [" in out
+
+
+@pytest.fixture(scope="module")
+def curriculum_dir(tmp_path_factory):
+    """Two stages with different team sizes (office: 2 robots, generated:3: 3 robots), BC init."""
+    train_ppo = _load("train_ppo")
+    out = tmp_path_factory.mktemp("cur")
+    cfg = out / "cur.yaml"
+    cfg.write_text("stages:\n  - {scenario: office, steps: 600, n_envs: 1}\n"
+                   "  - {scenario: 'generated:3', steps: 600, n_envs: 1}\n")
+    args = train_ppo.parse_args(["--curriculum", str(cfg), "--n-steps", "128", "--batch-size", "128",
+                                 "--n-epochs", "1", "--max-steps", "60", "--net-arch", "32",
+                                 "--eval-freq", "500", "--eval-episodes", "1", "--checkpoint-freq", "500",
+                                 "--bc-episodes", "1", "--bc-epochs", "3", "--out", str(out / "run")])
+    train_ppo.train(args)
+    return out / "run", train_ppo
+
+
+def test_curriculum_switches_team_size_and_writes_sidecar(curriculum_dir):
+    import json
+
+    out, _ = curriculum_dir
+    side = json.loads((out / "model.json").read_text())
+    assert side["command"].startswith("python ") and "--curriculum" in side["command"]
+    assert len(side["git_commit"]) >= 40 and side["preset"] == "realistic"
+    assert [s["scenarios"] for s in side["train_seeds"]] == [["office"], ["generated:3"]]
+    # stage 0: 1 env x 2 robots x 128 steps per rollout until >= 600 agent-steps (3 rollouts = 768);
+    # stage 1: 3 robots x 128 = 384 per rollout, two rollouts to reach 600 more -> 768 + 768
+    assert side["timesteps"] == 768 + 768
+    assert side["versions"]["stable-baselines3"] != "not installed"
+    assert side["bc_missions"] == 1 and side["bc_samples"] > 0
+    ev = (out / "eval.csv").read_text().splitlines()
+    seeds = {int(line.split(",")[4]) for line in ev[1:]}
+    assert seeds == {500}  # validation seeds: neither training (< 100) nor benchmark (>= 1000)
+    # checkpoints every 500 agent-steps, named by the step count at which they were taken
+    # (stage 0 counts in 2s, stage 1 from 768 in 3s)
+    assert {p.name for p in (out / "checkpoints").glob("*.zip")} == {"step_500.zip", "step_1002.zip", "step_1500.zip"}
+    assert (out / "checkpoints" / "step_500_vecnormalize.pkl").is_file()
+    assert (out / "bc_init" / "model.zip").is_file() and (out / "curve.png").stat().st_size > 1000
+
+
+def test_resume_continues_the_step_count(curriculum_dir, tmp_path):
+    import json
+
+    out, train_ppo = curriculum_dir
+    args = train_ppo.parse_args(["--scenario", "office", "--n-envs", "1", "--total-timesteps", "1000",
+                                 "--n-steps", "128", "--batch-size", "128", "--n-epochs", "1", "--max-steps", "60",
+                                 "--eval-freq", "0", "--checkpoint-freq", "0",
+                                 "--resume", str(out / "checkpoints" / "step_500.zip"), "--out", str(tmp_path)])
+    train_ppo.train(args)
+    side = json.loads((tmp_path / "model.json").read_text())
+    # 500 done of 1000: two more rollouts of 2 x 128 = 256 agent-steps -> 1012
+    assert side["resumed_from"]["num_timesteps"] == 500 and side["timesteps"] == 1012
+
+
+def test_mappo_actor_loads_as_a_policy(tmp_path):
+    import torch
+
+    from parcover_env import parallel_env
+    from parcover_env.policies.registry import make_policy
+
+    train_mappo = _load("train_mappo")
+    out = train_mappo.train(train_mappo.parse_args(["--total-timesteps", "256", "--n-envs", "1", "--n-steps", "64",
+                                                    "--max-steps", "50", "--hidden", "16",
+                                                    "--out", str(tmp_path)]))
+    env = parallel_env("office")
+    obs, _ = env.reset(seed=0)
+    ckpt = torch.load(out / "actor.pt", weights_only=False)
+    assert ckpt["critic_state_dim"] == env.state().shape[0] == 2 * 5 + 2 + 1  # 2 robots, 2 KPOIs, time
+    pol = make_policy(f"mappo:{out}", env, 0)
+    a1, a2 = pol.act(obs), pol.act(obs)
+    assert set(a1) == set(obs) and all(np.array_equal(a1[k], a2[k]) for k in a1)
+    assert all(np.all(np.abs(a) <= 1) for a in a1.values())

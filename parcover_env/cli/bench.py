@@ -21,10 +21,15 @@ def add_bench_parser(sub) -> None:
     b.add_argument(
         "--policies",
         default="expert,random",
-        help="comma-separated: expert, waypoint, random, ppo:PATH, bc:PATH (default: expert,random)",
+        help="comma-separated: expert, waypoint, random, ppo:PATH, bc:PATH, mappo:PATH (default: expert,random)",
     )
-    b.add_argument("--seeds", type=positive_int, default=10, help="episodes per (scenario, policy): seeds 0..N-1")
-    b.add_argument("--seed-offset", type=non_negative_int, default=0, help="first seed (default: 0)")
+    b.add_argument("--seeds", type=positive_int, default=10,
+                   help="episodes per (scenario, policy): seeds OFFSET..OFFSET+N-1 (default: 10)")
+    b.add_argument("--seed-offset", type=non_negative_int, default=1000,
+                   help="first evaluation seed (default: 1000, disjoint from the trainers' seeds, which are < 1000)")
+    b.add_argument("--preset", choices=("realistic", "ideal"), default="realistic",
+                   help="error models: realistic (default) or ideal (all off)")
+    b.add_argument("--json", default=None, metavar="FILE", help="also write the per-episode records as JSON")
     b.add_argument("--workers", type=positive_int, default=2, help="parallel episodes (default: 2)")
     b.add_argument("--backend", choices=("local", "ray"), default="local")
     b.add_argument("--ray-address", default=None, help="Ray cluster address (default: start a local Ray)")
@@ -49,6 +54,10 @@ def cmd_bench(args) -> int:
 
         require("matplotlib", "viz", "bench plots (or pass --no-plots)")
     check_writable_dir(args.out, "--out")
+    if args.json:
+        from pathlib import Path
+
+        check_writable_dir(str(Path(args.json).resolve().parent), "--json")
     seeds = list(range(args.seed_offset, args.seed_offset + args.seeds))
     rows = run_sweep(
         scenarios,
@@ -59,8 +68,13 @@ def cmd_bench(args) -> int:
         args.max_steps,
         progress=not args.quiet,
         ray_address=args.ray_address,
+        preset=args.preset,
     )
     paths = write_report(rows, args.out, plots=not args.no_plots)
+    if args.json:
+        from parcover_env.harness.bench import write_json
+
+        paths["json"] = write_json(rows, args.json)
     print(paths["table"].read_text(), end="")
     print("wrote " + ", ".join(str(p) for p in paths.values()))
     return 0

@@ -1,6 +1,12 @@
 """Benchmark harness: ``parcover bench`` runs (scenario x policy x seed) episodes in parallel and
-writes a Markdown table, CSVs and plots with 95 % confidence intervals; ``parcover collect``
-records expert demonstrations as a Minari dataset.
+writes a Markdown table, CSVs and plots; ``parcover collect`` records expert demonstrations as a
+Minari dataset.
+
+Statistics follow the rliable conventions (Agarwal et al., 2021, "Deep RL at the edge of the
+statistical precipice"): per (scenario, policy) the interquartile mean (IQM, the 25 %-trimmed mean)
+of every metric with a 95 % percentile-bootstrap CI, the success rate (a mean of 0/1 outcomes) with
+its bootstrap CI, and, over several procedural maps, one aggregate row whose bootstrap resamples
+episodes within each map (stratified bootstrap). No normal-approximation intervals.
 
 Policies by spec: ``expert``, ``waypoint``, ``random``, ``ppo:PATH`` (``train_ppo.py`` output dir
 or ``model.zip``), ``bc:PATH`` (``train_bc.py`` output dir or ``bc.pt``). Backends: ``local``
@@ -21,6 +27,11 @@ from parcover_env.errors import ParcoverError
 from parcover_env.policies.registry import check_policy_spec
 
 __all__ = [
+    "EPISODE_FIELDS",
+    "iqm",
+    "read_episodes",
+    "stratified_bootstrap_ci",
+    "write_json",
     "run_job",
     "run_sweep",
     "summarize",
@@ -30,39 +41,47 @@ __all__ = [
 
 METRICS = {  # column -> (label, lower is better)
     "success": ("success rate", False),
-    "makespan_ratio": ("makespan / (c_max/v_max)", True),
     "kpoi_fraction": ("KPOIs visited (fraction)", False),
+    "makespan_ratio": ("makespan / (c_max/v_max)", True),
     "collisions": ("collisions", True),
     "messages": ("messages", True),
     "wall_time": ("wall time (s)", True),
 }
+"""Summarized metrics; ``success`` by its mean, the others by their IQM (both with bootstrap CIs)."""
+
+EPISODE_FIELDS = ("scenario", "policy", "preset", "seed", "success", "kpois_visited", "n_kpois", "kpoi_fraction",
+                  "makespan", "makespan_ratio", "collisions", "messages", "steps", "localization_error",
+                  "wall_time")
+"""Keys of one per-episode record (``episodes.csv``, ``--json``)."""
 
 
-_ENV_CACHE: dict[tuple[str, int | None], Any] = {}
+_ENV_CACHE: dict[tuple[str, int | None, str], Any] = {}
 
 
-def run_job(scenario: str, policy: str, seed: int, max_steps: int | None = None) -> dict:
-    """One episode; a flat row of metrics plus scenario, policy and seed. Envs are cached per process."""
+def run_job(scenario: str, policy: str, seed: int, max_steps: int | None = None, preset: str = "realistic") -> dict:
+    """One episode; a flat record (``EPISODE_FIELDS``). Envs are cached per process."""
     from parcover_env.envs import ParallelCoverageEnv
     from parcover_env.harness.rollout import run_episode
     from parcover_env.policies.registry import make_policy
 
-    key = (scenario, max_steps)
+    key = (scenario, max_steps, preset)
     if key not in _ENV_CACHE:
         _ENV_CACHE[key] = ParallelCoverageEnv(
-            scenario, overrides={"episode": {"max_steps": max_steps}} if max_steps else None
+            scenario, overrides={"episode": {"max_steps": max_steps}} if max_steps else None, preset=preset
         )
     env = _ENV_CACHE[key]
     m = run_episode(env, make_policy(policy, env, seed), seed)
     return {
         "scenario": scenario,
         "policy": policy,
+        "preset": preset,
         "seed": seed,
         "success": float(m["success"]),
-        "makespan_ratio": m["makespan_ratio"] if m["makespan_ratio"] is not None else math.nan,
-        "makespan": m["makespan"] if m["makespan"] is not None else math.nan,
         "kpois_visited": m["kpois_visited"],
+        "n_kpois": m["n_kpois"],
         "kpoi_fraction": m["kpois_visited"] / m["n_kpois"],
+        "makespan": m["makespan"] if m["makespan"] is not None else math.nan,
+        "makespan_ratio": m["makespan_ratio"] if m["makespan_ratio"] is not None else math.nan,
         "collisions": m["collisions"],
         "messages": int(sum(m["messages"].values())),
         "steps": m["steps"],
@@ -80,6 +99,7 @@ def run_sweep(
     max_steps: int | None = None,
     progress: bool = True,
     ray_address: str | None = None,
+    preset: str = "realistic",
 ) -> list[dict]:
     """All (scenario, policy, seed) episodes; rows in job order."""
     if backend not in ("local", "ray"):
@@ -96,11 +116,11 @@ def run_sweep(
     with tqdm(total=len(jobs), unit="episode", desc="bench", disable=not progress, dynamic_ncols=True) as bar:
         report = bar.update
         if backend == "ray":
-            return _run_ray(jobs, workers, max_steps, report, ray_address)
+            return _run_ray(jobs, workers, max_steps, report, ray_address, preset)
         if workers == 1:
             rows = []
             for s, p, seed in jobs:
-                rows.append(run_job(s, p, seed, max_steps))
+                rows.append(run_job(s, p, seed, max_steps, preset))
                 report(1)
             return rows
         import multiprocessing as mp
@@ -108,14 +128,14 @@ def run_sweep(
 
         rows: list[dict | None] = [None] * len(jobs)
         with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
-            futures = {pool.submit(run_job, s, p, seed, max_steps): i for i, (s, p, seed) in enumerate(jobs)}
+            futures = {pool.submit(run_job, s, p, seed, max_steps, preset): i for i, (s, p, seed) in enumerate(jobs)}
             for fut in as_completed(futures):
                 rows[futures[fut]] = fut.result()  # a ParcoverError in a worker is re-raised here as itself
                 report(1)
         return rows  # type: ignore[return-value]
 
 
-def _run_ray(jobs, workers, max_steps, report, address) -> list[dict]:
+def _run_ray(jobs, workers, max_steps, report, address, preset) -> list[dict]:
     try:
         import ray
     except ImportError:
@@ -131,7 +151,7 @@ def _run_ray(jobs, workers, max_steps, report, address) -> list[dict]:
         )
     try:
         remote = ray.remote(num_cpus=1)(run_job)
-        refs = [remote.remote(s, p, seed, max_steps) for s, p, seed in jobs]
+        refs = [remote.remote(s, p, seed, max_steps, preset) for s, p, seed in jobs]
         pending = list(refs)
         while pending:
             ready, pending = ray.wait(pending, num_returns=1)
@@ -145,22 +165,61 @@ def _run_ray(jobs, workers, max_steps, report, address) -> list[dict]:
 # ---------------------------------------------------------------------------------------------
 # Statistics
 
+IQM_BOOTSTRAP = 2000
+"""Bootstrap resamples of every confidence interval."""
 
-def mean_ci(values, level: float = 0.95) -> tuple[float, float, int]:
-    """(mean, half-width of the Student-t confidence interval, n) of the finite values."""
+
+def _finite(values) -> np.ndarray:
+    return np.asarray([v for v in values if v is not None and np.isfinite(v)], dtype=float)
+
+
+def iqm(values) -> float:
+    """Interquartile mean: the mean of the middle 50 % (scipy ``trim_mean`` cutting 25 % each side,
+    as rliable); NaN without finite values."""
     from scipy import stats
 
-    x = np.asarray([v for v in values if v is not None and np.isfinite(v)], dtype=float)
-    if len(x) == 0:
-        return math.nan, math.nan, 0
-    if len(x) == 1:
-        return float(x[0]), math.nan, 1
-    half = stats.t.ppf(0.5 + level / 2, len(x) - 1) * x.std(ddof=1) / math.sqrt(len(x))
-    return float(x.mean()), float(half), len(x)
+    x = _finite(values)
+    return float(stats.trim_mean(x, 0.25)) if len(x) else math.nan
+
+
+def stratified_bootstrap_ci(groups: list, statistic: str = "iqm", level: float = 0.95, seed: int = 0,
+                            n_resamples: int = IQM_BOOTSTRAP) -> tuple[float, float, float]:
+    """(estimate, lo, hi): ``statistic`` (``"iqm"`` or ``"mean"``) of all finite values of all groups,
+    and its percentile-bootstrap CI where every resample draws, with replacement, as many values from
+    each group (task / map) as it has (Agarwal et al. 2021, rliable's stratified bootstrap). The CI is
+    clipped to contain the estimate. NaN without values; lo = hi = NaN with a single value."""
+    from scipy import stats
+
+    if statistic not in ("iqm", "mean"):
+        raise ValueError(f"statistic must be 'iqm' or 'mean', got {statistic!r}")
+    xs = [x for x in (_finite(g) for g in groups) if len(x)]
+    if not xs:
+        return math.nan, math.nan, math.nan
+    both = np.concatenate(xs)
+    fn = (lambda a: stats.trim_mean(a, 0.25, axis=-1)) if statistic == "iqm" else (lambda a: a.mean(axis=-1))
+    est = float(fn(both))
+    if len(both) < 2:
+        return est, math.nan, math.nan
+    rng = np.random.default_rng(seed)
+    boots = fn(np.concatenate([x[rng.integers(0, len(x), (n_resamples, len(x)))] for x in xs], axis=1))
+    lo, hi = np.quantile(boots, [(1 - level) / 2, (1 + level) / 2])
+    return est, min(float(lo), est), max(float(hi), est)
+
+
+def iqm_ci(values, level: float = 0.95, seed: int = 0) -> tuple[float, float, float]:
+    """IQM of the finite values and its percentile-bootstrap CI (one group)."""
+    return stratified_bootstrap_ci([values], "iqm", level, seed)
+
+
+def stratified_iqm_ci(groups: list[list[float]], level: float = 0.95, seed: int = 0,
+                      n_resamples: int = IQM_BOOTSTRAP) -> tuple[float, float, float]:
+    """IQM over all runs of several tasks and its stratified-bootstrap CI."""
+    return stratified_bootstrap_ci(groups, "iqm", level, seed, n_resamples)
 
 
 def wilson_ci(k: float, n: int, level: float = 0.95) -> tuple[float, float]:
-    """Wilson score interval of a proportion k/n (scipy), clipped so that lo <= k/n <= hi."""
+    """Wilson score interval of a proportion k/n (scipy), clipped so that lo <= k/n <= hi. Reported
+    beside the bootstrap CI of the success rate, which collapses to a point at 0/n and n/n."""
     from scipy import stats
 
     if n == 0:
@@ -170,110 +229,86 @@ def wilson_ci(k: float, n: int, level: float = 0.95) -> tuple[float, float]:
     return min(float(ci.low), p), max(float(ci.high), p)
 
 
-IQM_BOOTSTRAP = 2000
-"""Bootstrap resamples of the IQM confidence interval."""
+def family(scenario: str) -> str:
+    """``generated:17`` -> ``generated:*``; other scenarios are their own family."""
+    return "generated:*" if scenario.startswith("generated:") else scenario
 
 
-def iqm_ci(values, level: float = 0.95, seed: int = 0) -> tuple[float, float, float]:
-    """Interquartile mean (scipy ``trim_mean`` at 25 %) and its percentile-bootstrap CI (lo, hi) over
-    the finite values; the CI is clipped to contain the IQM. NaN when fewer than 2 values."""
-    from scipy import stats
-
-    x = np.asarray([v for v in values if v is not None and np.isfinite(v)], dtype=float)
-    if len(x) == 0:
-        return math.nan, math.nan, math.nan
-    iqm = float(stats.trim_mean(x, 0.25))
-    if len(x) < 2 or np.ptp(x) == 0:
-        return iqm, iqm if len(x) >= 2 else math.nan, iqm if len(x) >= 2 else math.nan
-    res = stats.bootstrap((x,), lambda a, axis: stats.trim_mean(a, 0.25, axis=axis), confidence_level=level,
-                          n_resamples=IQM_BOOTSTRAP, method="percentile", rng=np.random.default_rng(seed))
-    return iqm, min(float(res.confidence_interval.low), iqm), max(float(res.confidence_interval.high), iqm)
-
-
-def stratified_iqm_ci(groups: list[list[float]], level: float = 0.95, seed: int = 0,
-                      n_resamples: int = IQM_BOOTSTRAP) -> tuple[float, float, float]:
-    """IQM over all runs of several tasks (scenarios) and its stratified-bootstrap CI: each resample
-    draws runs with replacement within every task (Agarwal et al. 2021, rliable); clipped to contain
-    the IQM."""
-    from scipy import stats
-
-    xs = [np.asarray([v for v in g if v is not None and np.isfinite(v)], dtype=float) for g in groups]
-    xs = [x for x in xs if len(x)]
-    if not xs:
-        return math.nan, math.nan, math.nan
-    iqm = float(stats.trim_mean(np.concatenate(xs), 0.25))
-    rng = np.random.default_rng(seed)
-    boots = np.empty(n_resamples)
-    for b in range(n_resamples):
-        boots[b] = stats.trim_mean(np.concatenate([x[rng.integers(0, len(x), len(x))] for x in xs]), 0.25)
-    lo, hi = np.quantile(boots, [(1 - level) / 2, (1 + level) / 2])
-    return iqm, min(float(lo), iqm), max(float(hi), iqm)
+def _summary_row(scenario: str, policy: str, strata: list[list[dict]]) -> dict:
+    rows = [r for g in strata for r in g]
+    n, k = len(rows), sum(r["success"] for r in rows)
+    s: dict[str, Any] = {"scenario": scenario, "policy": policy, "episodes": n, "maps": len(strata)}
+    s["preset"] = ",".join(sorted({str(r.get("preset", "")) for r in rows}))
+    s["success"], s["success_lo"], s["success_hi"] = stratified_bootstrap_ci(
+        [[r["success"] for r in g] for g in strata], "mean")
+    s["success_wilson_lo"], s["success_wilson_hi"] = wilson_ci(k, n)
+    for m in METRICS:
+        if m == "success":
+            continue
+        s[m], s[f"{m}_lo"], s[f"{m}_hi"] = stratified_bootstrap_ci([[r[m] for r in g] for g in strata], "iqm")
+        s[f"{m}_n"] = int(sum(len(_finite([r[m] for r in g])) for g in strata))
+    return s
 
 
 def summarize(rows: list[dict]) -> list[dict]:
-    """One row per (scenario, policy): n, success (+ Wilson CI), mean +- 95 % CI of the metrics.
-
-    ``makespan_ratio`` is averaged over successful episodes only (undefined otherwise)."""
+    """One row per (scenario, policy): episodes, success rate (mean, stratified bootstrap CI, and the
+    Wilson interval), and the IQM [95 % bootstrap CI] of every other metric; ``makespan_ratio`` over
+    successful episodes only (undefined otherwise). When a policy ran on several ``generated:*`` maps
+    an aggregate ``generated:*`` row follows, its bootstrap stratified by map (resampling episodes
+    within each map); with a single episode per map a stratum cannot vary, so the maps themselves are
+    resampled (plain bootstrap over maps)."""
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in rows:
         groups.setdefault((r["scenario"], r["policy"]), []).append(r)
-    out = []
-    for (scenario, policy), g in groups.items():
-        n, k = len(g), sum(r["success"] for r in g)
-        lo, hi = wilson_ci(k, n)
-        s = {
-            "scenario": scenario,
-            "policy": policy,
-            "episodes": n,
-            "success": k / n,
-            "success_lo": lo,
-            "success_hi": hi,
-        }
-        for m in METRICS:
-            if m == "success":
-                continue
-            mean, half, cnt = mean_ci([r[m] for r in g])
-            s[m], s[f"{m}_ci"], s[f"{m}_n"] = mean, half, cnt
-        s["makespan_ratio_iqm"], s["makespan_ratio_iqm_lo"], s["makespan_ratio_iqm_hi"] = iqm_ci(
-            [r["makespan_ratio"] for r in g])
-        out.append(s)
+    out = [_summary_row(sc, p, [g]) for (sc, p), g in groups.items()]
+    fams: dict[tuple[str, str], list[list[dict]]] = {}
+    for (sc, p), g in groups.items():
+        if family(sc) != sc:
+            fams.setdefault((family(sc), p), []).append(g)
+    for (f, p), strata in fams.items():
+        if len(strata) < 2:
+            continue
+        if all(len(g) == 1 for g in strata):  # one episode per map: the maps are the runs (plain bootstrap)
+            row = _summary_row(f, p, [[g[0] for g in strata]])
+            row["maps"] = len(strata)
+            out.append(row)
+        else:
+            out.append(_summary_row(f, p, strata))
     return out
 
 
-def _fmt(mean: float, half: float, digits: int = 2) -> str:
-    if not np.isfinite(mean):
+def _fmt_ci(est: float, lo: float, hi: float, digits: int = 2) -> str:
+    if not np.isfinite(est):
         return "-"
-    return f"{mean:.{digits}f}" + (f" ± {half:.{digits}f}" if np.isfinite(half) else "")
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return f"{est:.{digits}f}"
+    return f"{est:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
+
+
+TABLE_HEAD = (
+    "scenario", "policy", "episodes", "success [95% CI]", "KPOI fraction IQM [95% CI]",
+    "makespan ratio IQM [95% CI]", "collisions IQM [95% CI]", "messages IQM [95% CI]", "wall time (s) IQM",
+)
 
 
 def markdown_table(summary: list[dict]) -> str:
-    head = [
-        "scenario",
-        "policy",
-        "episodes",
-        "success [95% CI]",
-        "makespan / (c_max/v_max)",
-        "makespan ratio IQM [95% CI]",
-        "KPOIs visited",
-        "collisions",
-        "messages",
-        "wall time (s)",
-    ]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    """The summary as a Markdown table (IQM and 95 % stratified bootstrap CIs; the success rate's
+    Wilson interval in parentheses)."""
+    lines = ["| " + " | ".join(TABLE_HEAD) + " |", "|" + "---|" * len(TABLE_HEAD)]
     for s in summary:
+        succ = _fmt_ci(s["success"], s["success_lo"], s["success_hi"])
+        if np.isfinite(s["success_wilson_lo"]):
+            succ += f" (Wilson {s['success_wilson_lo']:.2f}-{s['success_wilson_hi']:.2f})"
+        eps = str(s["episodes"]) + (f" ({s['maps']} maps)" if s["maps"] > 1 else "")
+        ms = _fmt_ci(s["makespan_ratio"], s["makespan_ratio_lo"], s["makespan_ratio_hi"])
+        if s["makespan_ratio_n"]:
+            ms += f" (n={s['makespan_ratio_n']})"
         cells = [
-            s["scenario"],
-            s["policy"],
-            str(s["episodes"]),
-            f"{s['success']:.2f} [{s['success_lo']:.2f}, {s['success_hi']:.2f}]",
-            _fmt(s["makespan_ratio"], s["makespan_ratio_ci"])
-            + (f" (n={s['makespan_ratio_n']})" if s["makespan_ratio_n"] else ""),
-            (f"{s['makespan_ratio_iqm']:.2f} [{s['makespan_ratio_iqm_lo']:.2f}, {s['makespan_ratio_iqm_hi']:.2f}]"
-             if np.isfinite(s["makespan_ratio_iqm_lo"]) else _fmt(s["makespan_ratio_iqm"], math.nan)),
-            _fmt(s["kpoi_fraction"], s["kpoi_fraction_ci"]),
-            _fmt(s["collisions"], s["collisions_ci"], 1),
-            _fmt(s["messages"], s["messages_ci"], 0),
-            _fmt(s["wall_time"], s["wall_time_ci"]),
+            s["scenario"], s["policy"], eps, succ,
+            _fmt_ci(s["kpoi_fraction"], s["kpoi_fraction_lo"], s["kpoi_fraction_hi"]), ms,
+            _fmt_ci(s["collisions"], s["collisions_lo"], s["collisions_hi"], 1),
+            _fmt_ci(s["messages"], s["messages_lo"], s["messages_hi"], 0),
+            _fmt_ci(s["wall_time"], math.nan, math.nan),
         ]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
@@ -286,8 +321,43 @@ def _write_csv(path: Path, rows: list[dict]) -> None:
         w.writerows(rows)
 
 
+def write_json(rows: list[dict], path: str | Path) -> Path:
+    """The per-episode records as a JSON list (NaN written as null)."""
+    import json
+
+    clean = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()} for r in rows]
+    path = Path(path)
+    path.write_text(json.dumps(clean, indent=1) + "\n")
+    return path
+
+
+def read_episodes(path: str | Path) -> list[dict]:
+    """Per-episode records from a ``--json`` file or an ``episodes.csv`` (null/empty -> NaN)."""
+    import json
+
+    path = Path(path)
+    if path.suffix == ".json":
+        rows = json.loads(path.read_text())
+        return [{k: (math.nan if v is None else v) for k, v in r.items()} for r in rows]
+    out = []
+    with open(path, newline="") as fh:
+        for r in csv.DictReader(fh):
+            row: dict[str, Any] = {}
+            for k, v in r.items():
+                if k in ("scenario", "policy", "preset"):
+                    row[k] = v
+                else:
+                    try:
+                        row[k] = float(v) if v != "" else math.nan
+                    except ValueError:
+                        row[k] = v
+            out.append(row)
+    return out
+
+
 def plot_summary(summary: list[dict], path: Path) -> None:
-    """One bar chart per metric, policies side by side per scenario, 95 % CI error bars."""
+    """One bar chart per metric, policies side by side per scenario: success rate and IQMs with
+    their 95 % bootstrap CIs as error bars."""
     from parcover_env.errors import require
 
     matplotlib = require("matplotlib", "viz", "bench plots")
@@ -305,23 +375,17 @@ def plot_summary(summary: list[dict], path: Path) -> None:
             vals, errs = [], [[], []]
             for sc in scenarios:
                 s = by.get((sc, p))
-                if s is None:
-                    vals.append(np.nan)
-                    errs[0].append(0)
-                    errs[1].append(0)
-                elif m == "success":
-                    vals.append(s["success"])
-                    errs[0].append(max(0.0, s["success"] - s["success_lo"]))  # never a negative error bar
-                    errs[1].append(max(0.0, s["success_hi"] - s["success"]))
-                else:
-                    half = s[f"{m}_ci"] if np.isfinite(s[f"{m}_ci"]) else 0.0
-                    vals.append(s[m])
-                    errs[0].append(half)
-                    errs[1].append(half)
+                v = s[m] if s is not None else math.nan
+                lo = s[f"{m}_lo"] if s is not None else math.nan
+                hi = s[f"{m}_hi"] if s is not None else math.nan
+                vals.append(v)
+                ok = np.isfinite(v) and np.isfinite(lo) and np.isfinite(hi)
+                errs[0].append(max(0.0, v - lo) if ok else 0.0)  # never a negative error bar
+                errs[1].append(max(0.0, hi - v) if ok else 0.0)
             ax.bar(xs, vals, width, yerr=errs, capsize=3, label=p)
-        ax.set_xticks(range(len(scenarios)), scenarios)
-        ax.set_title(label)
-    axes[0, 0].legend(fontsize=8)
+        ax.set_xticks(range(len(scenarios)), scenarios, fontsize=8)
+        ax.set_title(label + ("" if m == "success" else " (IQM)"))
+    axes[0, 0].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)

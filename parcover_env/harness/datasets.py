@@ -24,16 +24,18 @@ class AgentEpisode(dict):
 
 
 def record_episodes(
-    scenario: Any, episodes: int, seed: int = 0, policy: str = "expert", max_steps: int | None = None
+    scenario: Any, episodes: int, seed: int = 0, policy: str = "expert", max_steps: int | None = None,
+    preset: str = "realistic",
 ) -> list[AgentEpisode]:
-    """Run ``episodes`` episodes (seeds ``seed .. seed+episodes-1``); one AgentEpisode per robot."""
+    """Run ``episodes`` episodes (seeds ``seed .. seed+episodes-1``) under ``preset``; one AgentEpisode
+    per robot."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     from parcover_env.envs import ParallelCoverageEnv
     from parcover_env.policies.registry import make_policy
 
     overrides = {"episode": {"max_steps": max_steps}} if max_steps else None
-    env = ParallelCoverageEnv(scenario, overrides=overrides)
+    env = ParallelCoverageEnv(scenario, overrides=overrides, preset=preset)
     out: list[AgentEpisode] = []
     for k in range(episodes):
         ep_seed = seed + k

@@ -13,7 +13,7 @@ import numpy as np
 
 from parcover_env.errors import ParcoverError
 
-__all__ = ["PPOPolicy", "BCPolicy", "ObsNormalizer"]
+__all__ = ["PPOPolicy", "BCPolicy", "ObsNormalizer", "vecnormalize_file"]
 
 
 class ObsNormalizer:
@@ -42,8 +42,18 @@ def _stack(observations: dict[str, np.ndarray]) -> tuple[list[str], np.ndarray]:
     return agents, np.stack([np.asarray(observations[a], dtype=np.float32) for a in agents])
 
 
+def vecnormalize_file(model_file: Path) -> Path | None:
+    """The observation statistics of a saved model: ``<stem>_vecnormalize.pkl`` beside it (shipped
+    checkpoints, ``checkpoints/step_N.zip``), else ``vecnormalize.pkl`` in its directory, else None."""
+    for cand in (model_file.with_name(model_file.stem + "_vecnormalize.pkl"), model_file.with_name("vecnormalize.pkl")):
+        if cand.is_file():
+            return cand
+    return None
+
+
 class PPOPolicy:
-    """A saved SB3 PPO model (``model.zip`` + optional ``vecnormalize.pkl`` beside it)."""
+    """A saved SB3 PPO model (``model.zip`` + ``vecnormalize.pkl``, or ``NAME.zip`` +
+    ``NAME_vecnormalize.pkl``, see :func:`vecnormalize_file`)."""
 
     def __init__(self, path: str | Path, deterministic: bool = True):
         from stable_baselines3 import PPO
@@ -56,8 +66,8 @@ class PPOPolicy:
             self.model = PPO.load(str(model_file), device="cpu")
         except Exception as exc:  # a corrupt or foreign file: name it instead of a deep traceback
             raise ParcoverError(f"cannot load PPO checkpoint {model_file}: {type(exc).__name__}: {exc}") from None
-        stats = model_file.parent / "vecnormalize.pkl"
-        self.normalize = ObsNormalizer.from_vecnormalize(stats) if stats.is_file() else None
+        stats = vecnormalize_file(model_file)
+        self.normalize = ObsNormalizer.from_vecnormalize(stats) if stats is not None else None
         self.deterministic = deterministic
         self.obs_shape = tuple(self.model.observation_space.shape)
 
@@ -85,13 +95,14 @@ def make_mlp(n_in: int, n_out: int, hidden: tuple[int, ...] = (256, 256)):
 
 
 class BCPolicy:
-    """A behaviour-cloning MLP saved by ``baselines/train_bc.py`` (``bc.pt``)."""
+    """A tanh-output MLP actor: behaviour cloning (``baselines/train_bc.py``, ``bc.pt``) or the
+    MAPPO actor (``baselines/train_mappo.py``, ``actor.pt``, same format)."""
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, filename: str = "bc.pt"):
         import torch
 
         path = Path(path)
-        file = path / "bc.pt" if path.is_dir() else path
+        file = path / filename if path.is_dir() else path
         if not file.is_file():
             raise ParcoverError(f"BC checkpoint not found: {file}")
         ckpt = torch.load(file, map_location="cpu", weights_only=False)

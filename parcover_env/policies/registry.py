@@ -1,4 +1,4 @@
-"""One registry of policies by spec string: expert, waypoint, random, ppo:PATH, bc:PATH."""
+"""One registry of policies by spec string: expert, waypoint, random, ppo:PATH, bc:PATH, mappo:PATH."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ from parcover_env.errors import ParcoverError
 __all__ = ["BASIC_POLICIES", "POLICY_SPECS", "make_policy", "check_policy_spec"]
 
 BASIC_POLICIES = ("expert", "waypoint", "random")
-POLICY_SPECS = "expert | waypoint | random | ppo:PATH | bc:PATH"
+POLICY_SPECS = "expert | waypoint | random | ppo:PATH | bc:PATH | mappo:PATH"
+LEARNED_KINDS = ("ppo", "bc", "mappo")
 
 
 def make_policy(spec: str, env, seed: int | None):
@@ -27,7 +28,7 @@ def make_policy(spec: str, env, seed: int | None):
         from parcover_env.expert.policy import ScriptedExpert
 
         return ScriptedExpert.for_env(env)
-    if kind in ("ppo", "bc"):
+    if kind in LEARNED_KINDS:
         if not path:
             raise ParcoverError(f"policy '{spec}': give a checkpoint, e.g. {kind}:runs/{kind}_office")
         check_policy_spec(spec)
@@ -40,14 +41,14 @@ def make_policy(spec: str, env, seed: int | None):
 
         torch.set_num_threads(1)  # small MLPs: one thread is fastest and avoids oversubscribing workers
 
-        policy = PPOPolicy(path) if kind == "ppo" else BCPolicy(path)
+        policy = PPOPolicy(path) if kind == "ppo" else BCPolicy(path, "actor.pt" if kind == "mappo" else "bc.pt")
         expected = env.observation_space(env.possible_agents[0]).shape
         if tuple(policy.obs_shape) != tuple(expected):
             raise ParcoverError(f"policy '{spec}' was trained on observations of shape {tuple(policy.obs_shape)}; "
                                 f"scenario '{env.scenario.name}' gives {tuple(expected)}")
         return policy
     raise ParcoverError(
-        f"unknown policy '{spec}' (choose from {', '.join(BASIC_POLICIES)}, ppo:PATH, bc:PATH)"
+        f"unknown policy '{spec}' (choose from {', '.join(BASIC_POLICIES)}, ppo:PATH, bc:PATH, mappo:PATH)"
     )
 
 
@@ -55,10 +56,10 @@ def check_policy_spec(spec: str) -> None:
     kind, _, path = spec.partition(":")
     if kind in BASIC_POLICIES and not path:
         return
-    if kind in ("ppo", "bc") and path:
+    if kind in LEARNED_KINDS and path:
         if not Path(path).exists():
             raise ParcoverError(f"policy '{spec}': {path} does not exist")
         return
     raise ParcoverError(
-        f"unknown policy '{spec}' (choose from {', '.join(BASIC_POLICIES)}, ppo:PATH, bc:PATH)"
+        f"unknown policy '{spec}' (choose from {', '.join(BASIC_POLICIES)}, ppo:PATH, bc:PATH, mappo:PATH)"
     )

@@ -14,13 +14,6 @@ from parcover_env.harness import bench
 from parcover_env.policies import check_policy_spec
 
 
-def test_mean_ci_matches_student_t():
-    mean, half, n = bench.mean_ci([1.0, 2.0, 3.0, float("nan"), None])
-    assert (mean, n) == (2.0, 3)
-    assert half == pytest.approx(4.302652729911275 * 1.0 / math.sqrt(3))
-    assert math.isnan(bench.mean_ci([5.0])[1])
-
-
 def test_wilson_interval():
     lo, hi = bench.wilson_ci(20, 20)
     assert hi == pytest.approx(1.0) and 0.8 < lo < 0.85
@@ -46,14 +39,15 @@ def _row(policy, success, ratio, seed):
     }
 
 
-def test_summary_averages_makespan_over_successes_only(tmp_path):
+def test_summary_takes_makespan_over_successes_only(tmp_path):
     rows = [_row("a", 1.0, 1.2, 0), _row("a", 0.0, math.nan, 1), _row("b", 1.0, 2.0, 0)]
     s = {x["policy"]: x for x in bench.summarize(rows)}
     assert s["a"]["success"] == 0.5 and s["a"]["makespan_ratio"] == 1.2 and s["a"]["makespan_ratio_n"] == 1
+    # two values: the 25 % trim cuts int(0.5) = 0 of them, so the IQM is their mean
     assert s["a"]["collisions"] == 0.5 and s["a"]["kpoi_fraction"] == 0.75
     paths = bench.write_report(rows, tmp_path)
     table = paths["table"].read_text().splitlines()
-    assert len(table) == 4 and table[2].startswith("| s | a | 2 | 0.50 [")
+    assert len(table) == 4 and table[2].startswith("| s | a | 2 | 0.50 [0.00, 1.00] (Wilson 0.09-0.91) |")
     assert paths["plot"].stat().st_size > 1000
 
 
@@ -91,12 +85,22 @@ def test_cli_bench_local_two_seeds(tmp_path, capsys):
             str(tmp_path),
             "--quiet",
             "--no-plots",
+            "--json",
+            str(tmp_path / "eps.json"),
         ]
     )
+    assert args.seed_offset == 1000  # evaluation seeds are disjoint from the trainers' (< 1000)
     assert args.func(args) == 0
     rows = list((tmp_path / "episodes.csv").read_text().splitlines())
     assert len(rows) == 1 + 4
     assert "| office | waypoint | 2 |" in capsys.readouterr().out
+    recs = bench.read_episodes(tmp_path / "eps.json")
+    assert [r["seed"] for r in recs] == [1000, 1001, 1000, 1001]
+    assert set(bench.EPISODE_FIELDS) == set(recs[0])
+    for r in recs:  # 40 steps: nobody finishes, so makespan is null in the JSON and NaN when read back
+        assert r["preset"] == "realistic" and r["success"] == 0.0 and math.isnan(r["makespan"])
+        assert r["kpoi_fraction"] == pytest.approx(r["kpois_visited"] / r["n_kpois"])
+    assert bench.summarize(recs)[0]["episodes"] == 2
     # seeded: a second run gives the same episodes (wall time aside)
     again = bench.run_sweep(["office"], ["random"], [0, 1], max_steps=40, progress=False)
     first = [r for r in bench.run_sweep(["office"], ["random"], [0, 1], max_steps=40, progress=False)]

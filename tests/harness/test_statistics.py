@@ -1,5 +1,5 @@
-"""Bench statistics: scipy Wilson intervals that always contain the estimate (no negative error bars),
-IQM with bootstrap CIs, stratified bootstrap across scenarios."""
+"""Bench statistics: IQM and stratified percentile-bootstrap CIs (rliable conventions) checked by hand,
+scipy Wilson intervals that always contain the estimate (no negative error bars)."""
 
 from __future__ import annotations
 
@@ -55,8 +55,74 @@ def test_summary_has_iqm_columns_and_table_shows_them(tmp_path):
              "kpois_visited": 1, "kpoi_fraction": 1.0, "collisions": 0, "messages": 0, "steps": 1,
              "localization_error": 0.0, "wall_time": 0.1} for i, r in enumerate([1.0, 1.2, 1.4, 9.0])]
     (s,) = bench.summarize(rows)
-    assert s["makespan_ratio_iqm"] == pytest.approx(1.3)
+    assert s["makespan_ratio"] == pytest.approx(1.3)  # IQM of 1.0, 1.2, 1.4, 9.0: mean of 1.2, 1.4
     assert "makespan ratio IQM [95% CI]" in bench.markdown_table([s])
     # all successes: the success error bar is never negative (the default `parcover bench` crash)
     assert s["success_lo"] <= s["success"] == 1.0 <= s["success_hi"]
     bench.plot_summary([s], tmp_path / "p.png")
+
+
+def test_iqm_of_eight_values_by_hand():
+    # sorted 1, 2, 3, 4, 5, 6, 7, 100: a quarter (2 values) cut from each end -> mean of 3, 4, 5, 6
+    assert bench.iqm([7.0, 1.0, 100.0, 2.0, 6.0, 3.0, 5.0, 4.0]) == 4.5
+    assert math.isnan(bench.iqm([None, math.nan]))
+
+
+def test_bootstrap_ci_matches_the_exact_resampling_distribution():
+    # one group [0, 1]: a resample is (0,0), (0,1), (1,0) or (1,1) with probability 1/4 each, so its
+    # mean is 0 (p 1/4), 0.5 (p 1/2) or 1 (p 1/4): the 2.5 % and 97.5 % quantiles are 0 and 1, and
+    # the share of resample means equal to 0.5 is about 1/2
+    est, lo, hi = bench.stratified_bootstrap_ci([[0.0, 1.0]], "mean", n_resamples=4000)
+    assert (est, lo, hi) == (0.5, 0.0, 1.0)
+    # two strata [0, 1] and [10, 10]: the second never varies, so every resample mean is
+    # (m1 * 2 + 20) / 4 with m1 in {0, 0.5, 1}: 5, 5.25, 5.5
+    est, lo, hi = bench.stratified_bootstrap_ci([[0.0, 1.0], [10.0, 10.0]], "mean", n_resamples=4000)
+    assert est == 5.25 and lo == 5.0 and hi == 5.5
+    # pooled (unstratified) resampling could draw four 10s (mean 10) or four 0/1s: stratified cannot
+    rng = np.random.default_rng(0)
+    x = np.array([0.0, 1.0, 10.0, 10.0])
+    pooled = x[rng.integers(0, 4, (4000, 4))].mean(axis=1)
+    assert pooled.max() == 10.0 and hi < 6
+
+
+def test_success_rate_bootstrap_and_wilson_in_the_summary():
+    rows = [{"scenario": "s", "policy": "p", "seed": i, "success": float(i < 7), "makespan_ratio": 1.0,
+             "kpoi_fraction": 1.0, "collisions": 0, "messages": 0, "wall_time": 0.1} for i in range(10)]
+    (s,) = bench.summarize(rows)
+    assert s["success"] == 0.7
+    assert 0.35 <= s["success_lo"] < 0.7 < s["success_hi"] <= 1.0
+    lo, hi = bench.wilson_ci(7, 10)
+    assert (s["success_wilson_lo"], s["success_wilson_hi"]) == (lo, hi)
+
+
+def test_generated_maps_get_a_stratified_aggregate_row():
+    def row(sc, k, frac):
+        return {"scenario": sc, "policy": "p", "seed": k, "success": 0.0, "makespan_ratio": math.nan,
+                "kpoi_fraction": frac, "collisions": 0, "messages": 0, "wall_time": 0.1}
+
+    rows = [row("generated:1", k, 0.2) for k in range(4)] + [row("generated:2", k, 0.8) for k in range(4)]
+    by = {s["scenario"]: s for s in bench.summarize(rows)}
+    assert set(by) == {"generated:1", "generated:2", "generated:*"}
+    agg = by["generated:*"]
+    assert agg["episodes"] == 8 and agg["maps"] == 2
+    # every resample keeps 4 episodes per map: the IQM is always 0.5, never 0.2 or 0.8
+    assert agg["kpoi_fraction"] == agg["kpoi_fraction_lo"] == agg["kpoi_fraction_hi"] == pytest.approx(0.5)
+    assert "| generated:* | p | 8 (2 maps) |" in bench.markdown_table(list(by.values()))
+
+
+def test_rliable_agrees_when_installed():
+    rly = pytest.importorskip("rliable.metrics")
+    x = np.array([[0.1, 0.9], [0.3, 0.7], [0.2, 0.5], [0.4, 1.0], [0.9, 0.0]])  # runs x tasks
+    assert bench.iqm(x.ravel()) == pytest.approx(rly.aggregate_iqm(x))
+
+
+def test_one_episode_per_map_resamples_the_maps():
+    rows = [{"scenario": f"generated:{m}", "policy": "p", "seed": 1000, "success": float(m % 2),
+             "makespan_ratio": math.nan, "kpoi_fraction": m / 10, "collisions": 0, "messages": 0,
+             "wall_time": 0.1} for m in range(10)]
+    agg = next(s for s in bench.summarize(rows) if s["scenario"] == "generated:*")
+    assert agg["maps"] == 10 and agg["episodes"] == 10
+    # resampling within a one-episode map could never move the estimate; over maps it does
+    assert agg["success"] == 0.5 and agg["success_lo"] < 0.5 < agg["success_hi"]
+    assert agg["kpoi_fraction"] == pytest.approx(np.mean([0.2, 0.3, 0.4, 0.5, 0.6, 0.7]))  # IQM: 2 cut each side
+    assert agg["kpoi_fraction_lo"] < agg["kpoi_fraction"] < agg["kpoi_fraction_hi"]
