@@ -56,12 +56,13 @@ class TeamLocalizer:
         return self.map if free.is_empty else MapModel(free=free, bounds=self.map.bounds)
 
     def localize(self, ranges: np.ndarray, ellipse: Ellipse, others: np.ndarray,
-                 heading: float | None = None) -> TeamFix:
+                 heading: float | None = None, heading_tol: float | None = None) -> TeamFix:
         """Localize the binned scan ``ranges`` (one per ``scan_angles``) inside ``ellipse``;
         ``others`` ``(M, 2)`` are the teammates' believed positions; ``heading`` the odometry heading
-        (a prior against symmetric look-alikes)."""
+        (a prior against symmetric look-alikes), ``heading_tol`` the localizer's tolerance around it
+        (rad; default ``heading_prior_tol_deg``)."""
         res = localize(ranges, self.scan_angles, self.team_map(others), self.sectors, ellipse, self.loc,
-                       sonar=self.sonar, features=self.features, heading=heading)
+                       sonar=self.sonar, features=self.features, heading=heading, heading_tol=heading_tol)
         team_error = math.inf
         if res.pose is not None:
             axes = (res.pose[2] + self.scan_angles)[None, :]
