@@ -49,6 +49,11 @@ class SonarFixConfig:
     gate_heading_max_deg: float = 40.0
     """... plus ``gate_sigmas`` heading sigmas of the belief, at most this (deg); the localizer
     drops candidates outside the same gate."""
+    confirm_distance: float = 0.2
+    """A successful fix refused by the gate is remembered as a correction; a later fix that agrees with
+    it (carried along by the odometry) within this distance and ``gate_heading_deg`` is accepted even
+    outside the gate (m): the covariance cannot see pushes from contacts, two scans from different
+    places agreeing can."""
     fix_sigma: float = 0.05
     """Position standard deviation of an accepted sonar fix along x and y (m): the covariance the
     expert propagates the corrected belief from."""
@@ -57,7 +62,7 @@ class SonarFixConfig:
 
     def __post_init__(self) -> None:
         positive(self, "stale_after", "scan_rate", "gate_distance", "gate_heading_deg", "gate_sigmas", "fix_sigma",
-                 "fix_sigma_heading_deg")
+                 "fix_sigma_heading_deg", "confirm_distance")
         check(self.rescan_distance >= 0, "rescan_distance", f"must be >= 0, got {self.rescan_distance}")
         check(self.final_rescan_distance >= 0, "final_rescan_distance",
               f"must be >= 0, got {self.final_rescan_distance}")
@@ -130,7 +135,19 @@ class NavigatorConfig:
     map *with the other robots' discs at their beliefs* is below this (m). The localizer's own
     success test sees teammates as unknown obstacles and rejects good poses next to them."""
 
+    mask_sigmas: float = 2.0
+    """Navigator fixes rejected by both tests above are accepted when the scan matches the known map
+    (mean clipped error below ``accept_error``) on the readings no teammate can explain: a reading
+    shorter than the known map's is left out when it ends within radius + this many uncertainty
+    radii of a teammate's belief (-). At the route's end robots stand side by side, and a teammate
+    whose belief is off by more than its disc spoils both the plain and the team-map comparison."""
+    min_unmasked_share: float = 0.5
+    """... provided at least this share of the readings is left (-)."""
+
     def __post_init__(self) -> None:
+        check(self.mask_sigmas >= 0, "mask_sigmas", f"must be >= 0, got {self.mask_sigmas}")
+        check(0 < self.min_unmasked_share <= 1, "min_unmasked_share",
+              f"must be in (0, 1], got {self.min_unmasked_share}")
         positive(self, "node_step", "rate_distance", "max_axis", "min_advance", "lookahead", "arrive_tol",
                  "goal_tol", "scan_rate", "bin_tol_deg", "shift_step", "initial_axis", "accept_error",
                  "front_sector_deg")

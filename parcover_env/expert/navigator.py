@@ -355,7 +355,9 @@ class SonarNavigator:
         o = self.scan["start"]
         prior = _compose(self.correction[i], o)
         ell = self.ellipse(i).moved(prior[:2])
-        fix = self.team_loc.localize(ranges, ell, np.delete(self.belief()[:, :2], i, axis=0), heading=prior[2])
+        sigma = np.delete([max(self.ellipse(j).axes) for j in range(self.n)], i)
+        fix = self.team_loc.localize(ranges, ell, np.delete(self.belief()[:, :2], i, axis=0), heading=prior[2],
+                                     others_sigma=sigma)
         res, ok, team_error = fix.result, fix.ok, fix.team_error
         record = {"robot": i, "prior": prior, "ellipse": ell, "success": bool(ok), "error": res.error,
                   "pose": None if res.pose is None else res.pose.copy(), "target": self.targets[i],

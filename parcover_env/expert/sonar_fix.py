@@ -13,7 +13,9 @@ itself, from the fix's covariance and the odometry increments, with the same Jac
 (:func:`belief_covariance_step`). The localizer searches the ``gate_sigmas`` ellipse of that
 covariance (widened by ``gate_distance``), and a fix is accepted only inside it (Mahalanobis
 distance) and within a heading gate grown by the heading sigma: a drifted robot's fix may lie far
-off along the ellipse's major axis, while a false match along the minor axis is refused.
+off along the ellipse's major axis, while a false match along the minor axis is refused. The
+covariance does not see contacts that push a robot; a successful fix refused by the gate is
+therefore accepted when the next scan, from elsewhere, agrees with it (:meth:`SonarFixer.confirms`).
 """
 
 from __future__ import annotations
@@ -88,6 +90,8 @@ class _State:
     scan_odom: np.ndarray | None = None
     scan_cov: np.ndarray | None = None
     driven_since_scan: float = math.inf
+    refused: np.ndarray | None = None
+    """The correction a refused (outside the gate) but successful fix would have made, or None."""
 
 
 class SonarFixer:
@@ -140,7 +144,7 @@ class SonarFixer:
         st = self.states.setdefault(agent, _State(np.zeros(3), np.zeros((3, 3))))
         fresh = fix_age < 2 * self.dt  # a fresh Kinect fix: the odometry pose is absolute again
         if fresh:
-            st.correction, st.scan, st.driven_since_scan = np.zeros(3), None, math.inf
+            st.correction, st.scan, st.driven_since_scan, st.refused = np.zeros(3), None, math.inf, None
             st.cov = self.kinect_cov.copy() if odom_cov is None else odom_cov
         elif odom_cov is not None and not self.corrected(agent):
             st.cov = odom_cov
@@ -180,9 +184,22 @@ class SonarFixer:
         ell = Ellipse.from_covariance(prior[:2], pos, self.cfg.gate_sigmas)
         fix = self.team.localize(st.scan.ranges, ell, others, heading=float(prior[2]), heading_tol=turn)
         pose = fix.result.pose
-        if fix.ok and self.accept(pose, prior, st.scan_cov):
+        if fix.ok and (self.accept(pose, prior, st.scan_cov) or self.confirms(pose, st.refused, st.scan_odom)):
             st.correction = compose(pose, inverse(st.scan_odom))
-            st.cov = self.fix_cov.copy()
+            st.cov, st.refused = self.fix_cov.copy(), None
             self.stats["sonar_localized"] += 1
-        else:
-            self.stats["sonar_failed"] += 1
+            return
+        if fix.ok and abs(wrap_angle(pose[2] - prior[2])) <= math.radians(self.cfg.gate_heading_max_deg):
+            st.refused = compose(pose, inverse(st.scan_odom))
+        self.stats["sonar_failed"] += 1
+
+    def confirms(self, fix: np.ndarray, refused: np.ndarray | None, odom: np.ndarray) -> bool:
+        """Whether ``fix`` agrees with an earlier refused fix carried to here by the odometry
+        (``refused o odom``) within ``confirm_distance`` and ``gate_heading_deg``: two scans from
+        different places agreeing on the same correction outweigh an overconfident covariance (pushes
+        and slip the odometry cannot see)."""
+        if refused is None:
+            return False
+        carried = compose(refused, odom)
+        return bool(np.hypot(*(fix[:2] - carried[:2])) <= self.cfg.confirm_distance
+                    and abs(wrap_angle(fix[2] - carried[2])) <= math.radians(self.cfg.gate_heading_deg))
