@@ -114,3 +114,17 @@ def test_belief_covariance_grows_like_chong_kleeman_on_a_straight_drive():
         cov90 = belief_covariance_step(cov90, pose, nxt, np.pi / 2, odo, b)
         pose = nxt
     assert cov90[1, 1] == pytest.approx(cov[0, 0], rel=1e-6) and cov90[0, 0] == pytest.approx(cov[1, 1], rel=1e-6)
+
+
+def test_a_refused_fix_is_accepted_when_the_next_scan_confirms_it():
+    from parcover_env.config import SonarFixConfig
+
+    fixer = _fixer(SonarFixConfig(confirm_distance=0.2, gate_heading_deg=15.0))
+    # a refused fix said: the robot is 1 m further along x than its odometry believes
+    refused = compose(np.array([1.0, 0.0, 0.0]), np.zeros(3))
+    odom = np.array([3.0, 1.0, 0.5])  # two metres later, by odometry
+    carried = compose(refused, odom)
+    assert fixer.confirms(carried + [0.1, -0.1, np.radians(5)], refused, odom)
+    assert not fixer.confirms(carried + [0.3, 0.0, 0.0], refused, odom)
+    assert not fixer.confirms(carried + [0.0, 0.0, np.radians(20)], refused, odom)
+    assert not fixer.confirms(carried, None, odom)
