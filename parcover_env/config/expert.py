@@ -135,6 +135,10 @@ class NavigatorConfig:
     map *with the other robots' discs at their beliefs* is below this (m). The localizer's own
     success test sees teammates as unknown obstacles and rejects good poses next to them."""
 
+    region_sigmas: float = 3.0
+    """A scan is localized inside this many standard deviations of the belief's covariance
+    (propagated from the last fix with the robot's odometry model), widened by the seed B ellipse's
+    semi-axis (-)."""
     mask_sigmas: float = 2.0
     """Navigator fixes rejected by both tests above are accepted when the scan matches the known map
     (mean clipped error below ``accept_error``) on the readings no teammate can explain: a reading
@@ -148,6 +152,7 @@ class NavigatorConfig:
         check(self.mask_sigmas >= 0, "mask_sigmas", f"must be >= 0, got {self.mask_sigmas}")
         check(0 < self.min_unmasked_share <= 1, "min_unmasked_share",
               f"must be in (0, 1], got {self.min_unmasked_share}")
+        positive(self, "region_sigmas")
         positive(self, "node_step", "rate_distance", "max_axis", "min_advance", "lookahead", "arrive_tol",
                  "goal_tol", "scan_rate", "bin_tol_deg", "shift_step", "initial_axis", "accept_error",
                  "front_sector_deg")

@@ -49,24 +49,29 @@ def covariance_from_entries(entries: np.ndarray, heading: float) -> np.ndarray:
     return cov
 
 
-def belief_covariance_step(cov: np.ndarray, prev_odom: np.ndarray, odom: np.ndarray, belief_heading: float,
+def belief_covariance_step(cov: np.ndarray, prev_odom: np.ndarray, odom: np.ndarray, belief_heading,
                            odometry: OdometryConfig, wheel_base: float) -> np.ndarray:
-    """One step of a belief's ``(3, 3)`` covariance from the odometry increment ``prev_odom ->
-    odom`` (poses in the odometry frame), the belief heading before the step (rad) and the robot's
-    odometry model: Chong & Kleeman's propagation with the env's per-wheel variance
-    (``covariance_wheel_variance`` x |wheel distance|, ``wheels`` model) or its relative per-step
-    noise (``motion`` model)."""
-    d = odom[:2] - prev_odom[:2]
-    dth = float(wrap_angle(odom[2] - prev_odom[2]))
-    mid = prev_odom[2] + 0.5 * dth
-    ds = float(d[0] * math.cos(mid) + d[1] * math.sin(mid))
+    """One step of beliefs' covariances ``(N, 3, 3)`` (or one ``(3, 3)``) from the odometry increments
+    ``prev_odom -> odom`` (``(N, 3)`` poses in the odometry frame), the belief headings before the step
+    (rad) and the robot's odometry model: Chong & Kleeman's propagation with the env's per-wheel
+    variance (``covariance_wheel_variance`` x |wheel distance|, ``wheels`` model) or its relative
+    per-step noise (``motion`` model)."""
+    single = np.ndim(cov) == 2
+    cov = np.asarray(cov, dtype=float)[None] if single else np.asarray(cov, dtype=float)
+    prev, new = np.atleast_2d(prev_odom), np.atleast_2d(odom)
+    d = new[:, :2] - prev[:, :2]
+    dth = wrap_angle(new[:, 2] - prev[:, 2])
+    mid = prev[:, 2] + 0.5 * dth
+    ds = d[:, 0] * np.cos(mid) + d[:, 1] * np.sin(mid)
     if odometry.model == "wheels":
-        half = 0.5 * dth * wheel_base
-        v = odometry.covariance_wheel_variance
-        q = wheel_increment_cov(np.array([v * abs(ds - half)]), np.array([v * abs(ds + half)]), wheel_base)
+        half, v = 0.5 * dth * wheel_base, odometry.covariance_wheel_variance
+        q = wheel_increment_cov(v * np.abs(ds - half), v * np.abs(ds + half), wheel_base)
     else:
-        q = np.diag([(odometry.noise_v * ds) ** 2, (odometry.noise_omega * dth) ** 2])[None]
-    return propagate_covariance(cov[None], np.array([belief_heading]), np.array([ds]), np.array([dth]), q)[0]
+        q = np.zeros((len(ds), 2, 2))
+        q[:, 0, 0], q[:, 1, 1] = (odometry.noise_v * ds) ** 2, (odometry.noise_omega * dth) ** 2
+    heading = np.broadcast_to(np.asarray(belief_heading, dtype=float), ds.shape)
+    out = propagate_covariance(cov, heading, ds, dth, q)
+    return out[0] if single else out
 
 
 def fix_gate(cfg: SonarFixConfig, cov: np.ndarray) -> tuple[np.ndarray, float]:
