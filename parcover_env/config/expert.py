@@ -34,27 +34,44 @@ class SonarFixConfig:
     scan_rate: float = 0.6
     """Turn rate while scanning (rad/s), capped at the robot's ``max_turn_rate``."""
     gate_distance: float = 0.15
-    """A fix is accepted only within this distance of the odometry pose... (m)"""
-    gate_distance_rate: float = 0.05
-    """... plus this much per metre driven since the last fix, Kinect or sonar (m/m): odometry drifts
-    by a few percent of the distance; a wider gate admits false matches along long walls."""
+    """Floor of the fix gate (m): the belief's position covariance is widened by
+    (``gate_distance`` / ``gate_sigmas``)^2 in every direction, so that right after a fix, when the
+    covariance is tiny, a fix this far away is still believed (the localizer's own error)."""
+    gate_sigmas: float = 4.0
+    """A fix is accepted only inside this many standard deviations of the belief's (widened) position
+    covariance (Mahalanobis distance), and the localizer searches that ellipse (-). The covariance
+    is the odometry's (observed, Chong & Kleeman) until a sonar fix, then the expert's own
+    propagation from the fix: a gate along the covariance ellipse admits a drifted robot's true
+    fix along the major axis without admitting false matches along the minor one (seed B 3-4)."""
     gate_heading_deg: float = 15.0
-    """A fix is accepted only within this heading of the odometry pose... (deg): rooms are nearly
+    """A fix is accepted only within this heading of the belief... (deg): rooms are nearly
     symmetric, and a scan often matches the map turned by 90 or 180 degrees about a nearby point."""
-    gate_heading_rate_deg: float = 1.0
-    """... plus this much per metre driven since the last fix, Kinect or sonar (deg/m)."""
+    gate_heading_max_deg: float = 40.0
+    """... plus ``gate_sigmas`` heading sigmas of the belief, at most this (deg); the localizer
+    drops candidates outside the same gate."""
+    confirm_distance: float = 0.2
+    """A successful fix refused by the gate is remembered as a correction; a later fix that agrees with
+    it (carried along by the odometry) within this distance and ``gate_heading_deg`` is accepted even
+    outside the gate (m): the covariance cannot see pushes from contacts, two scans from different
+    places agreeing can."""
+    fix_sigma: float = 0.05
+    """Position standard deviation of an accepted sonar fix along x and y (m): the covariance the
+    expert propagates the corrected belief from."""
+    fix_sigma_heading_deg: float = 2.0
+    """Heading standard deviation of an accepted sonar fix (deg)."""
 
     def __post_init__(self) -> None:
-        positive(self, "stale_after", "scan_rate", "gate_distance", "gate_heading_deg")
+        positive(self, "stale_after", "scan_rate", "gate_distance", "gate_heading_deg", "gate_sigmas", "fix_sigma",
+                 "fix_sigma_heading_deg", "confirm_distance")
         check(self.rescan_distance >= 0, "rescan_distance", f"must be >= 0, got {self.rescan_distance}")
         check(self.final_rescan_distance >= 0, "final_rescan_distance",
               f"must be >= 0, got {self.final_rescan_distance}")
-        check(self.gate_distance_rate >= 0, "gate_distance_rate", f"must be >= 0, got {self.gate_distance_rate}")
-        check(self.gate_heading_rate_deg >= 0, "gate_heading_rate_deg",
-              f"must be >= 0, got {self.gate_heading_rate_deg}")
-        check(self.gate_heading_deg < 90, "gate_heading_deg",
-              f"must be < 90 (a gate that admits a quarter turn admits the symmetric false fixes), "
-              f"got {self.gate_heading_deg}")
+        for name in ("gate_heading_deg", "gate_heading_max_deg"):
+            check(getattr(self, name) < 90, name,
+                  f"must be < 90 (a gate that admits a quarter turn admits the symmetric false fixes), "
+                  f"got {getattr(self, name)}")
+        check(self.gate_heading_max_deg >= self.gate_heading_deg, "gate_heading_max_deg",
+              f"must be >= gate_heading_deg ({self.gate_heading_deg}), got {self.gate_heading_max_deg}")
 
 
 @dataclass(frozen=True)
@@ -119,7 +136,24 @@ class NavigatorConfig:
     map *with the other robots' discs at their beliefs* is below this (m). The localizer's own
     success test sees teammates as unknown obstacles and rejects good poses next to them."""
 
+    region_sigmas: float = 3.0
+    """A scan is localized inside this many standard deviations of the belief's covariance
+    (propagated from the last fix with the robot's odometry model), widened by the seed B ellipse's
+    semi-axis (-)."""
+    mask_sigmas: float = 2.0
+    """Navigator fixes rejected by both tests above are accepted when the scan matches the known map
+    (mean clipped error below ``accept_error``) on the readings no teammate can explain: a reading
+    shorter than the known map's is left out when it ends within radius + this many uncertainty
+    radii of a teammate's belief (-). At the route's end robots stand side by side, and a teammate
+    whose belief is off by more than its disc spoils both the plain and the team-map comparison."""
+    min_unmasked_share: float = 0.5
+    """... provided at least this share of the readings is left (-)."""
+
     def __post_init__(self) -> None:
+        check(self.mask_sigmas >= 0, "mask_sigmas", f"must be >= 0, got {self.mask_sigmas}")
+        check(0 < self.min_unmasked_share <= 1, "min_unmasked_share",
+              f"must be in (0, 1], got {self.min_unmasked_share}")
+        positive(self, "region_sigmas")
         positive(self, "node_step", "rate_distance", "max_axis", "min_advance", "lookahead", "arrive_tol",
                  "goal_tol", "scan_rate", "bin_tol_deg", "shift_step", "initial_axis", "accept_error",
                  "front_sector_deg")

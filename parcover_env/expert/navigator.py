@@ -21,8 +21,11 @@ Design choices (documented deviations):
   stops once every bin holds a reading within ``bin_tol_deg`` of its centre (with 8 beams this takes
   the largest gap between beams, ~80 deg, like the paper's two-sonar half turn), or after a full turn.
 * Localization (Fig. 6) with relaxed sectors of rule 2, cached per map; other robots are unknown
-  obstacles. A failed localization keeps the belief (the ellipse keeps growing); the next subgoal is
-  then at least ``min_advance`` ahead so the robot scans from a new place.
+  obstacles. The uncertainty region searched is the seed B ellipse widened to ``region_sigmas`` of
+  the belief's covariance, propagated from the last fix with the robot's odometry model (Chong &
+  Kleeman): realistic drift outgrows the linear seed B ellipse. A failed localization keeps the
+  belief (the ellipse keeps growing); the next subgoal is then at least ``min_advance`` ahead so the
+  robot scans from a new place.
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ import shapely
 from parcover_env.config import NavigatorConfig, Scenario
 from parcover_env.control.leader import go_to_goal
 from parcover_env.envs.observations import ObservationLayout
+from parcover_env.expert.sonar_fix import belief_covariance_step
 from parcover_env.expert.team_localizer import TeamLocalizer
 from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.poses import compose as _compose
@@ -89,6 +93,9 @@ class SonarNavigator:
         self.incidence = math.radians(r.sonar.incidence_max_deg) if self.specular else math.pi / 2
         self.cone = math.radians(r.sonar.cone_deg) if self.specular else 0.0
         self.front = np.flatnonzero(np.abs(wrap_angle(self.beams)) <= math.radians(self.p.front_sector_deg))
+        self.odometry, self.wheel_base = r.odometry, r.drive.wheel_base
+        fx = scenario.expert.sonar_fix
+        self.fix_cov = np.diag([fx.fix_sigma**2, fx.fix_sigma**2, math.radians(fx.fix_sigma_heading_deg) ** 2])
         self.routes = [np.asarray(p, dtype=float) for p in paths]
         self.n = len(self.routes)
         self.reset()
@@ -109,6 +116,8 @@ class SonarNavigator:
         self.travelled = np.zeros(n)
         self.turned = np.zeros(n)
         self.axis0 = np.full(n, self.p.initial_axis)
+        self.cov = np.repeat(self.fix_cov[None], n, axis=0)
+        """Covariances ``(N, 3, 3)`` of the beliefs, propagated from the last fix with the odometry model."""
         self.paths: list[PathNodes] | None = None
         self.progress = np.zeros(n)
         self.targets = np.zeros(n)
@@ -147,6 +156,13 @@ class SonarNavigator:
         e = Ellipse(tuple(self.belief()[i, :2]), (self.axis0[i], self.axis0[i]))
         return e.grow(self.travelled[i], self.turned[i], self.p.rate_distance, self.p.rate_rotation)
 
+    def region(self, i: int, center) -> Ellipse:
+        """Where robot ``i``'s scan is localized: the ``region_sigmas`` ellipse of its belief's
+        covariance, widened in every direction by its seed B ellipse's semi-axis (so it holds both)."""
+        k = self.p.region_sigmas
+        grown = max(self.ellipse(i).axes)
+        return Ellipse.from_covariance(center, self.cov[i][:2, :2] + (grown / k) ** 2 * np.eye(2), k)
+
     def subgoals(self) -> np.ndarray:
         """``(N, 2)`` current subgoal positions (the route starts before the first plan)."""
         if self.paths is None:
@@ -179,6 +195,8 @@ class SonarNavigator:
                 raise ValueError(f"observation for unknown agent {a!r} ({self.n} routes)")
             odom[i] = [g(o, "x")[0], g(o, "y")[0], math.atan2(g(o, "sin_theta")[0], g(o, "cos_theta")[0])]
         if self.last_odom is not None:
+            heading = self.last_odom[:, 2] + self.correction[:, 2]
+            self.cov = belief_covariance_step(self.cov, self.last_odom, odom, heading, self.odometry, self.wheel_base)
             self.travelled += np.hypot(*(odom[:, :2] - self.last_odom[:, :2]).T)
             self.turned += np.abs(wrap_angle(odom[:, 2] - self.last_odom[:, 2]))
         self.last_odom = odom
@@ -404,8 +422,10 @@ class SonarNavigator:
         ranges = self.scan["col"].ranges  # bins never reached keep the max range (no echo)
         o = self.scan["start"]
         prior = _compose(self.correction[i], o)
-        ell = self.ellipse(i).moved(prior[:2])
-        fix = self.team_loc.localize(ranges, ell, np.delete(self.belief()[:, :2], i, axis=0), heading=prior[2])
+        ell = self.region(i, prior[:2])
+        sigma = np.delete([max(self.ellipse(j).axes) for j in range(self.n)], i)
+        fix = self.team_loc.localize(ranges, ell, np.delete(self.belief()[:, :2], i, axis=0), heading=prior[2],
+                                     others_sigma=sigma)
         res, ok, team_error = fix.result, fix.ok, fix.team_error
         record = {"robot": i, "prior": prior, "ellipse": ell, "success": bool(ok), "error": res.error,
                   "pose": None if res.pose is None else res.pose.copy(), "target": self.targets[i],
@@ -420,6 +440,7 @@ class SonarNavigator:
             self.correction[i] = _compose(res.pose, _inverse(o))
             self.travelled[i] = self.turned[i] = 0.0
             self.axis0[i] = self.p.initial_axis
+            self.cov[i] = self.fix_cov
         else:
             self._stats["failed"] += 1
         if at_end:

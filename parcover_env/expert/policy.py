@@ -29,7 +29,9 @@ from parcover_env.config import ExpertConfig
 from parcover_env.control.follower import LeaderVelocityEstimator, l_psi_control, relative_l_psi
 from parcover_env.control.leader import go_to_goal
 from parcover_env.envs.observations import ObservationLayout
+from parcover_env.expert.sonar_fix import covariance_from_entries
 from parcover_env.geometry import rotate, wrap_angle
+from parcover_env.geometry.poses import compose, inverse
 from parcover_env.scenarios import Mission, RouteTracker
 
 __all__ = ["ScriptedExpert"]
@@ -112,9 +114,12 @@ class ScriptedExpert:
         has_followers = {a: i + 1 < len(agents) and not leaders[agents[i + 1]] for i, a in enumerate(agents)}
         scans = {}
         for a in agents:
+            self._last_odom[int(a.rsplit("_", 1)[1])] = self._odom(observations[a])
+        team = self._team_positions(observations, agents, leaders) if self.fixer is not None else None
+        for a in agents:
             obs = observations[a]
-            self._last_odom[int(a.rsplit("_", 1)[1])] = self._odom(obs)
-            scans[a] = self._sonar_fix(a, obs, leaders[a]) if self.fixer is not None else None
+            others = None if team is None else np.delete(team, int(a.rsplit("_", 1)[1]), axis=0)
+            scans[a] = self._sonar_fix(a, obs, leaders[a], others) if self.fixer is not None else None
         bel = None
         if self.fixer is not None:
             bel = self.belief()
@@ -151,14 +156,35 @@ class ScriptedExpert:
         g = self.layout.get
         return np.array([g(obs, "x")[0], g(obs, "y")[0], np.arctan2(g(obs, "sin_theta")[0], g(obs, "cos_theta")[0])])
 
-    def _sonar_fix(self, agent: str, obs: np.ndarray, leader: bool) -> tuple[float, float] | None:
+    def _team_positions(self, observations: dict, agents: list[str], leaders: dict) -> np.ndarray:
+        """``(N, 2)`` where the expert believes the robots are: a follower that sees the robot ahead
+        is placed by its camera measurement relative to that robot (chained along the column from the
+        leader), any other robot at its belief. Scans draw the teammates into the map there."""
+        g = self.layout.get
+        pose = self.belief()
+        for a in agents:
+            i = int(a.rsplit("_", 1)[1])
+            obs = observations[a]
+            if i == 0 or leaders[a] or g(obs, "pred_visible")[0] <= 0.5 or f"robot_{i - 1}" not in observations:
+                continue
+            rel = np.array([g(obs, "pred_dx")[0], g(obs, "pred_dy")[0],
+                            np.arctan2(g(obs, "pred_sin")[0], g(obs, "pred_cos")[0])], dtype=float)
+            pose[i] = compose(pose[i - 1], inverse(rel))
+        return pose[:, :2]
+
+    def _sonar_fix(self, agent: str, obs: np.ndarray, leader: bool,
+                   others: np.ndarray | None = None) -> tuple[float, float] | None:
         g = self.layout.get
         i = int(agent.rsplit("_", 1)[1])
         odom = self._odom(obs)
         end = self.mission.routes[i][-1]
         at_end = bool(np.hypot(*(self.fixer.belief(agent, odom)[:2] - end)) <= self.mission.waypoint_tol)
+        cov = None
+        if "sigma_major" in self.layout.slices:
+            names = ("sigma_major", "sigma_minor", "sigma_axis_cos2", "sigma_axis_sin2", "sigma_heading")
+            cov = covariance_from_entries(np.array([g(obs, k)[0] for k in names], dtype=float), float(odom[2]))
         return self.fixer.step(agent, odom, float(g(obs, "fix_age")[0]), float(g(obs, "v")[0]),
-                               g(obs, "sonar").astype(float), leader, at_end)
+                               g(obs, "sonar").astype(float), leader, at_end, cov, others)
 
     def _follow(self, agent: str, obs: np.ndarray) -> tuple[float, float]:
         g, f = self.layout.get, self.scenario.formation

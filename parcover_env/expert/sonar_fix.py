@@ -5,6 +5,17 @@ sonar ring sweeps the 5-degree bins of a 360-degree scan (seed B: rotate and sca
 with the relaxed-sector feature localizer on the known map. A fix becomes a correction on top of
 the robot's odometry pose: ``belief = fix o odom_at_scan^-1 o odom``. A new Kinect fix (the env's
 estimate becomes absolute again) clears the correction.
+
+Uncertainty region (seed B Sections 3-4). Until a sonar fix, the belief is the env's estimate and
+its uncertainty is the pose covariance the env observes (``sigma_*`` entries, Chong & Kleeman
+propagation of the odometry). After a sonar fix the expert propagates the belief's covariance
+itself, from the fix's covariance and the odometry increments, with the same Jacobians
+(:func:`belief_covariance_step`). The localizer searches the ``gate_sigmas`` ellipse of that
+covariance (widened by ``gate_distance``), and a fix is accepted only inside it (Mahalanobis
+distance) and within a heading gate grown by the heading sigma: a drifted robot's fix may lie far
+off along the ellipse's major axis, while a false match along the minor axis is refused. The
+covariance does not see contacts that push a robot; a successful fix refused by the gate is
+therefore accepted when the next scan, from elsewhere, agrees with it (:meth:`SonarFixer.confirms`).
 """
 
 from __future__ import annotations
@@ -14,35 +25,96 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from parcover_env.config import SonarFixConfig
+from parcover_env.config import OdometryConfig, SonarFixConfig
 from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.poses import compose, inverse
 from parcover_env.localization.sonar.scan import ScanCollector
+from parcover_env.sensors.odometry import propagate_covariance, wheel_increment_cov
 
-__all__ = ["SonarFixer"]
+__all__ = ["SonarFixer", "belief_covariance_step", "covariance_from_entries", "fix_gate"]
+
+
+def covariance_from_entries(entries: np.ndarray, heading: float) -> np.ndarray:
+    """Invert the observation's uncertainty entries (``sigma_major, sigma_minor, sigma_axis_cos2,
+    sigma_axis_sin2, sigma_heading``; axis angle in the robot frame) into a ``(3, 3)`` pose
+    covariance in the world frame (m^2, rad^2). The position-heading cross terms are not observed
+    and are returned as 0."""
+    major, minor, c2, s2, sh = (float(v) for v in entries)
+    ang = 0.5 * math.atan2(s2, c2) + heading
+    c, s = math.cos(ang), math.sin(ang)
+    rot = np.array([[c, -s], [s, c]])
+    cov = np.zeros((3, 3))
+    cov[:2, :2] = rot @ np.diag([major**2, minor**2]) @ rot.T
+    cov[2, 2] = sh**2
+    return cov
+
+
+def belief_covariance_step(cov: np.ndarray, prev_odom: np.ndarray, odom: np.ndarray, belief_heading,
+                           odometry: OdometryConfig, wheel_base: float) -> np.ndarray:
+    """One step of beliefs' covariances ``(N, 3, 3)`` (or one ``(3, 3)``) from the odometry increments
+    ``prev_odom -> odom`` (``(N, 3)`` poses in the odometry frame), the belief headings before the step
+    (rad) and the robot's odometry model: Chong & Kleeman's propagation with the env's per-wheel
+    variance (``covariance_wheel_variance`` x |wheel distance|, ``wheels`` model) or its relative
+    per-step noise (``motion`` model)."""
+    single = np.ndim(cov) == 2
+    cov = np.asarray(cov, dtype=float)[None] if single else np.asarray(cov, dtype=float)
+    prev, new = np.atleast_2d(prev_odom), np.atleast_2d(odom)
+    d = new[:, :2] - prev[:, :2]
+    dth = wrap_angle(new[:, 2] - prev[:, 2])
+    mid = prev[:, 2] + 0.5 * dth
+    ds = d[:, 0] * np.cos(mid) + d[:, 1] * np.sin(mid)
+    if odometry.model == "wheels":
+        half, v = 0.5 * dth * wheel_base, odometry.covariance_wheel_variance
+        q = wheel_increment_cov(v * np.abs(ds - half), v * np.abs(ds + half), wheel_base)
+    else:
+        q = np.zeros((len(ds), 2, 2))
+        q[:, 0, 0], q[:, 1, 1] = (odometry.noise_v * ds) ** 2, (odometry.noise_omega * dth) ** 2
+    heading = np.broadcast_to(np.asarray(belief_heading, dtype=float), ds.shape)
+    out = propagate_covariance(cov, heading, ds, dth, q)
+    return out[0] if single else out
+
+
+def fix_gate(cfg: SonarFixConfig, cov: np.ndarray) -> tuple[np.ndarray, float]:
+    """The gate of a fix for a belief of covariance ``cov`` (3, 3): the position covariance whose
+    ``gate_sigmas`` ellipse bounds the fix (m^2; ``cov`` widened by ``gate_distance`` in every
+    direction), and the heading gate (rad)."""
+    pos = np.asarray(cov, dtype=float)[:2, :2] + (cfg.gate_distance / cfg.gate_sigmas) ** 2 * np.eye(2)
+    sigma_heading = math.sqrt(max(float(cov[2, 2]), 0.0))
+    turn = min(math.radians(cfg.gate_heading_deg) + cfg.gate_sigmas * sigma_heading,
+               math.radians(cfg.gate_heading_max_deg))
+    return pos, turn
 
 
 @dataclass
 class _State:
     correction: np.ndarray
+    cov: np.ndarray
+    """Covariance of the belief (3, 3), propagated by the expert while a sonar fix corrects it."""
+    last_odom: np.ndarray | None = None
     scan: ScanCollector | None = None
     scan_odom: np.ndarray | None = None
+    scan_cov: np.ndarray | None = None
     driven_since_scan: float = math.inf
-    driven_since_fix: float = 0.0
-    """Distance driven since the last absolute fix, Kinect or accepted sonar fix (m): bounds how far
-    odometry can have drifted."""
+    refused: np.ndarray | None = None
+    """The correction a refused (outside the gate) but successful fix would have made, or None."""
 
 
 class SonarFixer:
     """Per-robot sonar localization on demand, for the scripted expert's stale leaders."""
 
     def __init__(self, scenario, beam_angles: np.ndarray, control_dt: float, config: SonarFixConfig | None = None):
-        from parcover_env.localization.sonar.known_map import known_map_features
+        from parcover_env.expert.team_localizer import TeamLocalizer
 
         self.cfg = cfg = config if config is not None else scenario.expert.sonar_fix
         self.sonar = scenario.robot.sonar
-        self.map, self.features, self.sectors = known_map_features(scenario.map, self.sonar.range_max)
+        self.odometry = scenario.robot.odometry
+        self.wheel_base = scenario.robot.drive.wheel_base
+        sxy, sth = scenario.observation.fix_sigma_xy, math.radians(scenario.observation.fix_sigma_heading_deg)
+        self.kinect_cov = np.diag([sxy**2, sxy**2, sth**2])
+        self.fix_cov = np.diag([cfg.fix_sigma**2, cfg.fix_sigma**2, math.radians(cfg.fix_sigma_heading_deg) ** 2])
         self.params = scenario.sonar_localizer
+        self.team = TeamLocalizer(scenario, scenario.expert.navigator, self.params)
+        self.map, self.features, self.sectors = self.team.map, self.team.features, self.team.sectors
         self.beams = np.asarray(beam_angles, dtype=float)
         self.n_bins = int(round(360.0 / self.sonar.scan_step_deg))
         self.angles = np.arange(self.n_bins) * (2 * math.pi / self.n_bins)
@@ -60,53 +132,79 @@ class SonarFixer:
         st = self.states.get(agent)
         return odom if st is None else compose(st.correction, odom)
 
+    def covariance(self, agent: str) -> np.ndarray:
+        """The covariance (3, 3) of the robot's belief at its last step (m^2, rad^2)."""
+        st = self.states.get(agent)
+        return np.zeros((3, 3)) if st is None else st.cov.copy()
+
     def step(self, agent: str, odom: np.ndarray, fix_age: float, speed: float, ranges: np.ndarray,
-             is_leader: bool, at_end: bool = False) -> tuple[float, float] | None:
+             is_leader: bool, at_end: bool = False, odom_cov: np.ndarray | None = None,
+             others: np.ndarray | None = None) -> tuple[float, float] | None:
         """Advance this robot's scan logic; returns a (v, w) command while it is scanning. ``at_end``:
         the robot believes it is at its route's end, where it checks its pose with a scan sooner
-        (``final_rescan_distance``), since nothing later would catch a drifted arrival."""
-        st = self.states.setdefault(agent, _State(np.zeros(3)))
-        if fix_age < 2 * self.dt:  # a fresh Kinect fix: the odometry pose is absolute again
-            st.correction, st.scan, st.driven_since_scan, st.driven_since_fix = np.zeros(3), None, math.inf, 0.0
+        (``final_rescan_distance``), since nothing later would catch a drifted arrival. ``odom_cov``:
+        the observed covariance (3, 3) of the odometry pose, if the observation has one; otherwise
+        the expert propagates it from the odometry increments. ``others`` ``(M, 2)``: the teammates'
+        positions as the expert believes them, drawn into the map when a scan is localized."""
+        st = self.states.setdefault(agent, _State(np.zeros(3), np.zeros((3, 3))))
+        fresh = fix_age < 2 * self.dt  # a fresh Kinect fix: the odometry pose is absolute again
+        if fresh:
+            st.correction, st.scan, st.driven_since_scan, st.refused = np.zeros(3), None, math.inf, None
+            st.cov = self.kinect_cov.copy() if odom_cov is None else odom_cov
+        elif odom_cov is not None and not self.corrected(agent):
+            st.cov = odom_cov
+        elif st.last_odom is not None:
+            heading = float(self.belief(agent, st.last_odom)[2])
+            st.cov = belief_covariance_step(st.cov, st.last_odom, odom, heading, self.odometry, self.wheel_base)
+        st.last_odom = odom.copy()
+        if fresh:
             return None
         st.driven_since_scan += abs(speed) * self.dt
-        st.driven_since_fix += abs(speed) * self.dt
         if st.scan is None:
             rescan = self.cfg.final_rescan_distance if at_end else self.cfg.rescan_distance
             if not (is_leader and fix_age > self.cfg.stale_after and st.driven_since_scan >= rescan):
                 return None
             st.scan = ScanCollector(self.beams, self.n_bins, self.sonar.range_max, float(odom[2]))
-            st.scan_odom = odom.copy()
+            st.scan_odom, st.scan_cov = odom.copy(), st.cov.copy()
             self.stats["sonar_scans"] += 1
         if not st.scan.add(float(odom[2]), ranges):
             return 0.0, self.scan_rate
-        self._localize(st)
+        self._localize(st, np.zeros((0, 2)) if others is None else np.asarray(others, dtype=float))
         st.scan, st.driven_since_scan = None, 0.0
         return None
 
-    def gate(self, driven: float) -> tuple[float, float]:
-        """(distance in m, heading in rad) within which a fix of the odometry pose is believed, after
-        ``driven`` metres since the last Kinect fix: odometry drifts by a few percent of the distance
-        driven, so a fix farther away is a false match."""
-        c = self.cfg
-        return (c.gate_distance + c.gate_distance_rate * driven,
-                math.radians(c.gate_heading_deg + c.gate_heading_rate_deg * driven))
+    def accept(self, fix: np.ndarray, prior: np.ndarray, cov: np.ndarray) -> bool:
+        """Whether the sonar ``fix`` (x, y, theta) is believable as a correction of ``prior`` whose
+        covariance is ``cov`` (3, 3): inside the gate ellipse and within the heading gate."""
+        pos, turn = fix_gate(self.cfg, cov)
+        d = np.asarray(fix[:2], dtype=float) - np.asarray(prior[:2], dtype=float)
+        inside = float(d @ np.linalg.solve(pos, d)) <= self.cfg.gate_sigmas**2
+        return bool(inside and abs(wrap_angle(fix[2] - prior[2])) <= turn)
 
-    def accept(self, fix: np.ndarray, prior: np.ndarray, driven: float) -> bool:
-        """Whether the sonar ``fix`` (x, y, theta) is believable as a correction of ``prior``."""
-        dist, turn = self.gate(driven)
-        return bool(np.hypot(*(fix[:2] - prior[:2])) <= dist and abs(wrap_angle(fix[2] - prior[2])) <= turn)
-
-    def _localize(self, st: _State) -> None:
-        from parcover_env.localization.sonar import Ellipse, localize
+    def _localize(self, st: _State, others: np.ndarray) -> None:
+        from parcover_env.localization.sonar import Ellipse
 
         prior = compose(st.correction, st.scan_odom)
-        ell = Ellipse(prior[:2], (self.gate(st.driven_since_fix)[0],) * 2, 0.0)
-        res = localize(st.scan.ranges, self.angles, self.map, self.sectors, ell, self.params, sonar=self.sonar,
-                       features=self.features, heading=float(prior[2]))
-        if res.pose is not None and res.success and self.accept(res.pose, prior, st.driven_since_fix):
-            st.correction = compose(res.pose, inverse(st.scan_odom))
-            st.driven_since_fix = 0.0
+        pos, turn = fix_gate(self.cfg, st.scan_cov)
+        ell = Ellipse.from_covariance(prior[:2], pos, self.cfg.gate_sigmas)
+        fix = self.team.localize(st.scan.ranges, ell, others, heading=float(prior[2]), heading_tol=turn)
+        pose = fix.result.pose
+        if fix.ok and (self.accept(pose, prior, st.scan_cov) or self.confirms(pose, st.refused, st.scan_odom)):
+            st.correction = compose(pose, inverse(st.scan_odom))
+            st.cov, st.refused = self.fix_cov.copy(), None
             self.stats["sonar_localized"] += 1
-        else:
-            self.stats["sonar_failed"] += 1
+            return
+        if fix.ok and abs(wrap_angle(pose[2] - prior[2])) <= math.radians(self.cfg.gate_heading_max_deg):
+            st.refused = compose(pose, inverse(st.scan_odom))
+        self.stats["sonar_failed"] += 1
+
+    def confirms(self, fix: np.ndarray, refused: np.ndarray | None, odom: np.ndarray) -> bool:
+        """Whether ``fix`` agrees with an earlier refused fix carried to here by the odometry
+        (``refused o odom``) within ``confirm_distance`` and ``gate_heading_deg``: two scans from
+        different places agreeing on the same correction outweigh an overconfident covariance (pushes
+        and slip the odometry cannot see)."""
+        if refused is None:
+            return False
+        carried = compose(refused, odom)
+        return bool(np.hypot(*(fix[:2] - carried[:2])) <= self.cfg.confirm_distance
+                    and abs(wrap_angle(fix[2] - carried[2])) <= math.radians(self.cfg.gate_heading_deg))

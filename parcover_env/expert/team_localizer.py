@@ -22,7 +22,7 @@ from parcover_env.localization.sonar.params import SonarLocalizerParams
 from parcover_env.sensors.sonar import simulate_beams
 from parcover_env.world.map_model import MapModel
 
-__all__ = ["TeamFix", "TeamLocalizer"]
+__all__ = ["TeamFix", "TeamLocalizer", "teammate_mask"]
 
 
 @dataclass(frozen=True)
@@ -56,12 +56,16 @@ class TeamLocalizer:
         return self.map if free.is_empty else MapModel(free=free, bounds=self.map.bounds)
 
     def localize(self, ranges: np.ndarray, ellipse: Ellipse, others: np.ndarray,
-                 heading: float | None = None) -> TeamFix:
+                 heading: float | None = None, heading_tol: float | None = None,
+                 others_sigma: np.ndarray | None = None) -> TeamFix:
         """Localize the binned scan ``ranges`` (one per ``scan_angles``) inside ``ellipse``;
         ``others`` ``(M, 2)`` are the teammates' believed positions; ``heading`` the odometry heading
-        (a prior against symmetric look-alikes)."""
+        (a prior against symmetric look-alikes), ``heading_tol`` the localizer's tolerance around it
+        (rad; default ``heading_prior_tol_deg``). ``others_sigma`` ``(M,)``: the teammates' position
+        uncertainty (m); if given, a pose is also accepted when the scan matches the known map on the
+        readings no teammate can block (:func:`teammate_mask`, ``NavigatorConfig.mask_sigmas``)."""
         res = localize(ranges, self.scan_angles, self.team_map(others), self.sectors, ellipse, self.loc,
-                       sonar=self.sonar, features=self.features, heading=heading)
+                       sonar=self.sonar, features=self.features, heading=heading, heading_tol=heading_tol)
         team_error = math.inf
         if res.pose is not None:
             axes = (res.pose[2] + self.scan_angles)[None, :]
@@ -69,4 +73,25 @@ class TeamLocalizer:
                                    self.radius, np.array([-1]))
             team_error = float(scan_error(ranges, synth, self.loc.error_clip)[0])
         ok = res.pose is not None and (res.success or team_error <= self.cfg.accept_error)
+        if res.pose is not None and not ok and others_sigma is not None and len(others):
+            reach = self.radius + self.cfg.mask_sigmas * np.asarray(others_sigma, dtype=float)
+            synth = simulate_beams(self.sonar, res.pose[None, :2], (res.pose[2] + self.scan_angles)[None, :],
+                                   self.map.segments, np.zeros((0, 2)), 0.0, np.array([-1]))[0]
+            keep = ~teammate_mask(res.pose, self.scan_angles, ranges, synth, np.asarray(others, dtype=float), reach)
+            if keep.mean() >= self.cfg.min_unmasked_share:
+                masked = float(scan_error(ranges[keep], synth[keep], self.loc.error_clip, self.loc.error_trim)[0])
+                ok = masked <= self.cfg.accept_error
         return TeamFix(res, team_error, bool(ok))
+
+
+def teammate_mask(pose: np.ndarray, scan_angles: np.ndarray, ranges: np.ndarray, expected: np.ndarray,
+                  others: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    """``(n,)`` True for the readings a teammate may explain: shorter than ``expected`` (the known
+    map's synthetic scan from ``pose``) and ending within ``reach`` ``(M,)`` (m: the robot radius
+    grown by the teammate's position uncertainty) of a teammate ``others (M, 2)``. ``scan_angles``
+    are in the robot frame."""
+    r = np.asarray(ranges, dtype=float)
+    ang = pose[2] + np.asarray(scan_angles, dtype=float)
+    ends = np.asarray(pose[:2], dtype=float) + r[:, None] * np.stack([np.cos(ang), np.sin(ang)], axis=1)
+    gap = np.hypot(*(ends[:, None, :] - np.asarray(others, dtype=float)[None, :, :]).transpose(2, 0, 1))
+    return (r < np.asarray(expected, dtype=float)) & np.any(gap <= np.asarray(reach, dtype=float)[None, :], axis=1)

@@ -140,6 +140,13 @@ def test_expert_section_is_typed_validated_and_reachable_from_yaml():
     assert load_scenario("office").expert == ExpertConfig()
     bad = [({"leader_speed": 1.5}, "expert.leader_speed"), ({"slow_margin": 0.01}, "expert.slow_margin"),
            ({"sonar_fix": {"gate_heading_deg": 120.0}}, "expert.sonar_fix.gate_heading_deg"),
+           ({"sonar_fix": {"gate_heading_max_deg": 95.0}}, "expert.sonar_fix.gate_heading_max_deg"),
+           ({"sonar_fix": {"gate_heading_deg": 30.0, "gate_heading_max_deg": 20.0}},
+            "expert.sonar_fix.gate_heading_max_deg"),
+           ({"sonar_fix": {"gate_sigmas": 0.0}}, "expert.sonar_fix.gate_sigmas"),
+           ({"sonar_fix": {"confirm_distance": -0.1}}, "expert.sonar_fix.confirm_distance"),
+           ({"navigator": {"min_unmasked_share": 0.0}}, "expert.navigator.min_unmasked_share"),
+           ({"navigator": {"mask_sigmas": -1.0}}, "expert.navigator.mask_sigmas"),
            ({"navigator": {"initial_axis": 0.5}}, "expert.navigator.initial_axis"),
            ({"navigator": {"max_axs": 0.5}}, "did you mean 'max_axis'")]
     for override, key in bad:

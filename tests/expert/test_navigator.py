@@ -126,3 +126,25 @@ def test_navigator_rearranges_a_blocked_pair_on_the_bisector():
     nav.progress = far - 0.5
     assert np.array_equal(nav._rearrange(far.copy(), np.arange(2), ends, np.array([3.0, 3.0])), far)
     assert not np.isfinite(nav.goal_xy).any() and nav.stats()["sonar_rearranged"] == 0
+
+
+def test_localization_region_holds_the_seed_b_circle_and_the_covariance_ellipse():
+    env = parcover_env.parallel_env("hallway")
+    nav = SonarNavigator.for_env(env)
+    obs, _ = env.reset(seed=1)
+    nav.reset(obs)
+    circle = max(nav.ellipse(0).axes)  # initial_axis at the start
+    assert circle == pytest.approx(nav.p.initial_axis)
+    k = nav.p.region_sigmas
+    nav.cov[0] = np.diag([0.4**2, 0.01**2, 0.0])  # thin along x: 0.4 m sigma along x, 1 cm across
+    e = nav.region(0, (1.0, 1.0))
+    assert e.axes[0] == pytest.approx(np.sqrt((k * 0.4) ** 2 + circle**2))  # major: k sigma, widened
+    assert e.axes[1] == pytest.approx(np.sqrt((k * 0.01) ** 2 + circle**2))  # minor: about the circle
+    assert abs(math.remainder(e.angle, math.pi)) < 1e-9
+    # driving straight (along x from the start pose) grows the covariance from the fix's
+    nav.cov[0] = nav.fix_cov
+    start = nav.cov[0].copy()
+    for _ in range(20):
+        obs, *_ = env.step({a: np.array([1.0, 0.0], dtype=np.float32) for a in env.agents})
+        nav._ingest(obs)
+    assert nav.cov[0, 0, 0] > start[0, 0] and nav.cov[0, 2, 2] > start[2, 2]

@@ -195,14 +195,16 @@ def _grid_candidates(ellipse: Ellipse, heading: float, map_model, p: SonarLocali
 def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
              ellipse: Ellipse | tuple[np.ndarray, np.ndarray],
              params: SonarLocalizerParams | None = None, *, sonar: SonarConfig | None = None,
-             features: list[MapFeature] | None = None, heading: float | None = None) -> LocalizationResult:
+             features: list[MapFeature] | None = None, heading: float | None = None,
+             heading_tol: float | None = None) -> LocalizationResult:
     """Localize from a 360-degree scan with the known map (seed B Fig. 6). ``ellipse``: the
     uncertainty region, an :class:`Ellipse` or ``(center (2,), position covariance (2, 2))`` (e.g.
     propagated odometry), whose ``params.covariance_sigmas`` ellipse is used. ``sonar`` is the
     sensor model used for synthetic scans (default: ideal ray model); ``features`` as used for
     ``sectors``. ``heading``: the robot's heading estimate (rad, e.g. odometry); candidates farther
     than ``params.heading_prior_tol_deg`` from it are dropped (a symmetric corridor gives the same
-    scan from a pose turned by 180 degrees)."""
+    scan from a pose turned by 180 degrees). ``heading_tol`` (rad), if given, replaces that tolerance
+    (e.g. a gate grown with the heading's standard deviation)."""
     p = params or SonarLocalizerParams()
     if isinstance(ellipse, tuple) and len(ellipse) == 2 and np.shape(ellipse[1]) == (2, 2):
         ellipse = Ellipse.from_covariance(ellipse[0], ellipse[1], p.covariance_sigmas)
@@ -213,6 +215,8 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
         raise ValueError(f"scan_ranges and scan_angles must be 1-D of equal length, got {r.shape}, {a.shape}")
     if not isinstance(ellipse, Ellipse):
         raise ValueError(f"ellipse must be an Ellipse, got {type(ellipse).__name__}")
+    if heading_tol is not None and not heading_tol > 0:
+        raise ValueError(f"heading_tol must be > 0 (rad), got {heading_tol}")
     feats = map_features(map_model) if features is None else features
     region = ellipse.polygon().buffer(p.ellipse_distance)
     f1 = sorted(set().union(*[s.features for s in sectors if s.polygon.intersects(region)]))
@@ -236,7 +240,8 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
     poses = np.array(cands).reshape(-1, 3)
     keep = (ellipse.distance(poses[:, :2]) < p.ellipse_distance) & map_model.contains(poses[:, :2])
     if heading is not None:
-        keep &= np.abs(wrap_angle(poses[:, 2] - float(heading))) <= math.radians(p.heading_prior_tol_deg)
+        tol = math.radians(p.heading_prior_tol_deg) if heading_tol is None else float(heading_tol)
+        keep &= np.abs(wrap_angle(poses[:, 2] - float(heading))) <= tol
     poses, owners = poses[keep], np.asarray(owners, dtype=np.int64)[keep]
     _, uniq = np.unique(np.round(np.column_stack([poses[:, :2] / 0.01, poses[:, 2] / 0.01])), axis=0,
                         return_index=True)

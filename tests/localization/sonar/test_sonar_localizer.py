@@ -67,3 +67,53 @@ def test_localize_rejects_a_wrong_ellipse_and_bad_input():
         localize(scan[:10], ring.scan_angles, m, sectors, Ellipse((2, 1), (0.2, 0.2)))
     with pytest.raises(ValueError, match="Ellipse"):
         localize(scan, ring.scan_angles, m, sectors, (2, 1))
+
+
+SQUARE = MapConfig(size=(2.4, 2.4))
+
+
+def test_a_thin_covariance_ellipse_picks_the_look_alike_along_its_major_axis():
+    # a square room looks the same from (0.8, 0.8, 0) and from that pose turned by 90, 180, 270 deg
+    # about the centre, e.g. (0.8, 1.6, -90 deg); only the uncertainty region tells them apart. The
+    # region is given as mean + 2x2 covariance (2 sigma ellipse): thin along y it holds the true pose,
+    # the same ellipse thin along x holds no pose that explains the scan.
+    m = MapModel.from_config(SQUARE)
+    feats = map_features(m)
+    sectors = compute_sectors(m, 2.54, 2, feats)
+    ring = SonarRing(SonarConfig(model="ray"))
+    truth = np.array([0.8, 0.8, 0.0])
+    scan = ring.scan(truth, m.segments, None, 0.165, None)
+    twin = ring.scan((0.8, 1.6, -math.pi / 2), m.segments, None, 0.165, None)
+    assert np.abs(scan - twin).max() < 1e-6  # the look-alike is exact
+    p = SonarLocalizerConfig(ellipse_distance=0.05, covariance_sigmas=2.0)
+    mean = np.array([0.8, 1.1])
+    along_y = np.diag([0.015**2, 0.175**2])  # 2 sigma: 0.03 m across, 0.35 m along y
+    res = localize(scan, ring.scan_angles, m, sectors, (mean, along_y), p, features=feats)
+    assert res.success
+    assert np.hypot(*(res.pose[:2] - truth[:2])) < 0.03 and abs(math.remainder(res.pose[2], 2 * math.pi)) < 0.05
+    along_x = np.diag([0.175**2, 0.015**2])
+    res = localize(scan, ring.scan_angles, m, sectors, (mean, along_x), p, features=feats)
+    assert res.pose is None or not res.success
+    # the ellipse of the covariance: semi-axes 2 sigma along the eigenvectors
+    e = Ellipse.from_covariance(mean, along_y, 2.0)
+    assert e.axes == pytest.approx((0.35, 0.03)) and abs(math.remainder(e.angle - math.pi / 2, math.pi)) < 1e-9
+
+
+def test_heading_tolerance_argument_replaces_the_configured_one():
+    m = MapModel.from_config(T_ROOM)
+    feats = map_features(m)
+    sectors = compute_sectors(m, 2.54, 2, feats)
+    ring = SonarRing(SonarConfig(model="ray"))
+    pose = (2.0, 1.0, 0.4)
+    scan = ring.scan(pose, m.segments, None, 0.165, None)
+    ell = Ellipse((2.1, 0.95), (0.3, 0.3))
+    p = SonarLocalizerConfig(grid_step=0.0)
+    # odometry heading 20 deg off: the default 30 deg tolerance keeps the true pose, 10 deg drops it
+    head = 0.4 + math.radians(20)
+    assert localize(scan, ring.scan_angles, m, sectors, ell, p, features=feats, heading=head).success
+    narrow = localize(scan, ring.scan_angles, m, sectors, ell, p, features=feats, heading=head,
+                      heading_tol=math.radians(10))
+    assert narrow.pose is None or abs(narrow.pose[2] - head) <= math.radians(10) + 0.1
+    assert not narrow.success or np.hypot(*(narrow.pose[:2] - pose[:2])) > 0.05
+    with pytest.raises(ValueError, match="heading_tol"):
+        localize(scan, ring.scan_angles, m, sectors, ell, p, features=feats, heading=head, heading_tol=0.0)
