@@ -27,9 +27,10 @@ class _DuplicateKey(yaml.YAMLError):
         self.key, self.line = key, line
 
 
-class _Loader(yaml.SafeLoader):
+class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):
     """Safe YAML loader that rejects duplicate keys and reads YAML 1.2 floats (``1e9``, ``2.5E-3``)
-    as numbers (PyYAML's YAML 1.1 rules read them as strings)."""
+    as numbers (PyYAML's YAML 1.1 rules read them as strings). Parses with libyaml when PyYAML was
+    built with it (the wheels are), else in pure Python."""
 
     def construct_mapping(self, node, deep=False):
         seen: dict = {}

@@ -31,6 +31,7 @@ Model (seed A section III-A/IV, ALGORITHMS.md "Kinect v1 model"):
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -75,6 +76,10 @@ class KinectFrame:
     stamp: float = 0.0
     dropped: bool = False
     info: dict = field(default_factory=dict)
+
+
+_NOMINAL_STATIC: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""Static scenes through nominal cameras: map model -> {(KinectConfig, wall height): (depth, class, IR)}."""
 
 
 class KinectSensor:
@@ -132,8 +137,16 @@ class KinectSensor:
 
     def _static_scene(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if self._static is None:
-            depth, cls = self._render_static(self._map_model)
-            self._static = (depth, cls, np.where(cls == self.WALL, 40, 55).astype(np.int16))
+            nominal = self.true_camera is self.camera
+            key = (self.cfg, self.wall_height)
+            cache = _NOMINAL_STATIC.setdefault(self._map_model, {}) if nominal else {}
+            if key not in cache:  # the nominal scene is rendered once per map and Kinect per process
+                depth, cls = self._render_static(self._map_model)
+                ir = np.where(cls == self.WALL, 40, 55).astype(np.int16)
+                for a in (depth, cls, ir):
+                    a.setflags(write=False)  # shared between sensors: every user copies before drawing
+                cache[key] = (depth, cls, ir)
+            self._static = cache[key]
         return self._static
 
     @property

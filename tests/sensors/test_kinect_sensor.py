@@ -149,3 +149,25 @@ def test_view_culling_never_changes_a_frame():
             full = sensor.render_clean(poses, np.ones(15, bool))
             sensor._cull = None
             assert all(np.array_equal(a, b) for a, b in zip(culled, full))
+
+
+def test_nominal_static_scene_is_rendered_once_per_map_and_shared_read_only(monkeypatch):
+    calls = []
+    original = KinectSensor._render_static
+
+    def counting(self, map_model):
+        calls.append(self.name)
+        return original(self, map_model)
+
+    monkeypatch.setattr(KinectSensor, "_render_static", counting)
+    mm = MapModel.from_config(MapConfig(size=(5.0, 5.0)))
+    cfg = KinectConfig(name="k", position=(2.5, 2.5), height=2.8, resolution=(80, 60))
+    a, b = KinectSensor(cfg, 0.15, 0.3, mm), KinectSensor(cfg, 0.15, 0.3, mm)
+    assert calls == ["k"] and a.static_depth is b.static_depth and not a.static_depth.flags.writeable
+    KinectSensor(cfg, 0.15, 0.3, MapModel.from_config(MapConfig(size=(5.0, 5.0))))  # another map: rendered
+    KinectSensor(KinectConfig(name="k", position=(2.0, 2.5), height=2.8, resolution=(80, 60)), 0.15, 0.3, mm)
+    assert calls == ["k", "k", "k"]
+    a.mount(np.random.default_rng(0))  # a mounted (perturbed) camera renders its own scene
+    assert not np.array_equal(a.static_depth, b.static_depth) and calls == ["k"] * 4
+    depth, _, _ = b.render_clean(np.array([[2.5, 2.5, 0.0]]), [True])  # drawing robots copies first
+    assert depth.flags.writeable and np.isclose(b.static_depth, 2.8, atol=0.05).mean() > 0.9
