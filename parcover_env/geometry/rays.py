@@ -168,7 +168,8 @@ def _rays_culled(origins, dirs, segments, reach, with_cos):
     starts = np.flatnonzero(np.concatenate([[True], ri[1:] != ri[:-1]]))
     tmin[ri[starts]] = np.minimum.reduceat(t, starts)
     at_min = np.flatnonzero((t == tmin[ri]) & np.isfinite(t))
-    first = at_min[np.concatenate([[True], ri[at_min][1:] != ri[at_min][:-1]])]
+    ray_at_min = ri[at_min]
+    first = at_min[np.concatenate([[True], ray_at_min[1:] != ray_at_min[:-1]])] if len(at_min) else at_min
     idx[ri[first]] = si[first]
     if with_cos:
         cos[ri[first]] = np.abs(den[first]) / np.maximum(np.hypot(ex[first], ey[first]), 1e-9)

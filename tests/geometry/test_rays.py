@@ -125,6 +125,15 @@ def test_box_culled_fan_equals_the_full_test_and_ties_take_the_lowest_index():
     assert cast_rays(np.array([[1.0, 0.0]]), np.array([[1.0, 0.0]]), corner, 0.5, cull=True).index[0] == -1
 
 
+def test_box_culled_rays_whose_boxes_meet_walls_they_all_miss():
+    """Regression (generated:5): every (ray, wall) box pair misses, so no ray has a nearest hit."""
+    walls = np.array([[0.5, 0.1, 0.6, 0.2], [0.1, 0.5, 0.2, 0.7]])  # inside the ray's box, off its line
+    origins, dirs = np.zeros((1, 2)), np.array([[0.6, 0.8]])
+    for cull in (True, False):
+        hits = cast_rays(origins, dirs, walls, 1.0, with_cos=True, cull=cull)
+        assert np.isinf(hits.distance[0]) and hits.index[0] == -1 and hits.cos_incidence[0] == 0.0
+
+
 def test_discs_per_origin_sets_equal_separate_calls():
     """Batched worlds: each origin sees its own disc set; equal to one call per world."""
     rng = np.random.default_rng(4)
