@@ -198,6 +198,10 @@ class ExpertConfig:
     follower_min_speed: float = -0.3
     """Slowest (most negative) speed of the l-psi follower, a fraction of v_max (-): it may back up
     a little to keep its distance."""
+    off_route_distance: float = 0.5
+    """A leader farther than this from its route (m; e.g. carried past its turn by the robot ahead
+    before it was promoted) whose route point lies behind a wall heads for the last earlier point
+    of its route it can see instead: back to its route, not into the wall."""
     sonar_fix: SonarFixConfig = field(default_factory=SonarFixConfig)
     navigator: NavigatorConfig = field(default_factory=NavigatorConfig)
 
@@ -212,4 +216,5 @@ class ExpertConfig:
         check(self.slow_margin > self.stop_margin, "slow_margin",
               f"must be > stop_margin ({self.stop_margin} m), got {self.slow_margin}")
         check(self.patience_stagger >= 0, "patience_stagger", f"must be >= 0, got {self.patience_stagger}")
+        check(self.off_route_distance > 0, "off_route_distance", f"must be > 0, got {self.off_route_distance}")
         check(self.front_sector_deg <= 180, "front_sector_deg", f"must be <= 180, got {self.front_sector_deg}")

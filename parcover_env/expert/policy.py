@@ -30,8 +30,9 @@ from parcover_env.control.follower import LeaderVelocityEstimator, l_psi_control
 from parcover_env.control.leader import go_to_goal
 from parcover_env.envs.observations import ObservationLayout
 from parcover_env.expert.sonar_fix import covariance_from_entries
-from parcover_env.geometry import rotate, wrap_angle
+from parcover_env.geometry import rotate, segments_blocked, wrap_angle
 from parcover_env.geometry.poses import compose, inverse
+from parcover_env.geometry.rays import point_segment_distance
 from parcover_env.scenarios import Mission, RouteTracker
 
 __all__ = ["ScriptedExpert"]
@@ -146,11 +147,37 @@ class ScriptedExpert:
 
     def _goal(self, obs: np.ndarray, agent: str, bel: np.ndarray | None) -> np.ndarray:
         """The route point in the robot frame: the observed one, or with sonar fixes the expert's own
-        tracker's from the corrected pose (identical while there is no correction)."""
-        if bel is None or not self.fixer.corrected(agent):
-            return np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
+        tracker's from the corrected pose (identical while there is no correction); see
+        :meth:`_visible_goal` for a robot off its route."""
         i = int(agent.rsplit("_", 1)[1])
-        return rotate(self.track.goals()[i] - bel[i, :2], -bel[i, 2])
+        if bel is None or not self.fixer.corrected(agent):
+            pose = self._odom(obs)
+            rel = np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
+        else:
+            pose = bel[i]
+            rel = rotate(self.track.goals()[i] - pose[:2], -pose[2])
+        return self._visible_goal(i, pose, rel)
+
+    def _visible_goal(self, i: int, pose: np.ndarray, rel: np.ndarray) -> np.ndarray:
+        """``rel`` (robot frame), unless robot ``i`` is farther than ``off_route_distance`` from its
+        route and a wall of the known map lies between it and that point: then the latest route
+        vertex before the point that it can see (it drives back to its route around the corner)."""
+        route = self.mission.routes[i]
+        if len(route) < 2:
+            return rel
+        xy = pose[:2]
+        off = float(point_segment_distance(xy[None], np.c_[route[:-1], route[1:]]).min())
+        walls = self.mission.known_map.segments
+        goal = xy + rotate(rel, pose[2])
+        if off <= self.cfg.off_route_distance or not segments_blocked(xy[None], goal[None], walls)[0]:
+            return rel
+        upto = int(np.argmin(np.hypot(*(route - goal).T))) + 1
+        seen = ~segments_blocked(np.repeat(xy[None], upto, axis=0), route[:upto], walls)
+        if seen.any():
+            return rotate(route[int(np.flatnonzero(seen)[-1])] - xy, -pose[2])
+        # none of its own route in sight (carried into a teammate's branch): back along the plan tree
+        via = route_tree_waypoint(self.mission.routes, xy, route[upto - 1], walls)
+        return rel if via is None else rotate(via - xy, -pose[2])
 
     def _odom(self, obs: np.ndarray) -> np.ndarray:
         g = self.layout.get
@@ -212,3 +239,29 @@ class ScriptedExpert:
             self.blocked[agent] = 0
             self.backing[agent] = int(round(self.cfg.backoff_time / self.dt))
         return v * factor, w
+
+
+def route_tree_waypoint(routes, xy: np.ndarray, target: np.ndarray, walls: np.ndarray) -> np.ndarray | None:
+    """The vertex of the plan's route tree to head for from ``xy`` toward the route vertex
+    ``target``: among the vertices of all ``routes`` in line of sight of ``xy`` (no wall of
+    ``walls`` between), the one minimizing straight distance plus distance along the tree to
+    ``target``; None if no vertex is in sight or ``target`` is not a vertex. The routes share their
+    common prefix (they all start at the start), so the tree joins them at the turning positions."""
+    import networkx as nx
+
+    graph = nx.Graph()
+    for route in routes:
+        pts = [tuple(p) for p in np.asarray(route, dtype=float)]
+        for a, b in zip(pts[:-1], pts[1:], strict=True):
+            graph.add_edge(a, b, weight=float(np.hypot(b[0] - a[0], b[1] - a[1])))
+    key = tuple(np.asarray(target, dtype=float))
+    if key not in graph:
+        return None
+    along = nx.single_source_dijkstra_path_length(graph, key, weight="weight")
+    nodes = np.array(list(along))
+    seen = ~segments_blocked(np.repeat(np.asarray(xy, dtype=float)[None], len(nodes), axis=0), nodes, walls)
+    if not seen.any():
+        return None
+    cost = np.hypot(*(nodes - xy).T) + np.array([along[tuple(n)] for n in nodes])
+    cost[~seen] = np.inf
+    return nodes[int(np.argmin(cost))]

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 import parcover_env
 from parcover_env.expert.policy import ScriptedExpert
+from parcover_env.geometry import rotate
 from parcover_env.harness.rollout import run_episode
 
 SCENARIOS = ["office", "tree", "hallway", "t_room", "triangle_room"]
@@ -91,3 +94,44 @@ def test_expert_takes_its_tunables_from_the_scenario():
         speeds.append(act["robot_0"][0])  # the leader, with a follower: at most leader_speed of v_max
         obs, *_ = env.step(act)
     assert 0.45 < max(speeds) <= 0.5 + 1e-6
+
+
+def test_route_tree_waypoint_leads_back_through_the_shared_trunk():
+    """A robot carried into a teammate's branch (B) heads for the turning position (2, 0) where its
+    own branch (A) leaves, the visible tree vertex with the least straight + along-tree distance."""
+    from parcover_env.expert.policy import route_tree_waypoint
+
+    routes = (np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]]), np.array([[0.0, 0.0], [2.0, 0.0], [4.0, 0.0]]))
+    wall = np.array([[2.2, 0.3, 2.2, 3.0]])  # hides A's branch and the start from the robot
+    robot = np.array([3.5, 0.5])
+    np.testing.assert_array_equal(route_tree_waypoint(routes, robot, np.array([2.0, 2.0]), wall), [2.0, 0.0])
+    # without the wall the target itself is in sight and nearest along the tree
+    np.testing.assert_array_equal(route_tree_waypoint(routes, robot, np.array([2.0, 2.0]), np.zeros((0, 4))),
+                                  [2.0, 2.0])
+    assert route_tree_waypoint(routes, robot, np.array([9.0, 9.0]), wall) is None  # not a tree vertex
+    box = np.array([[3.0, 0.2, 4.0, 0.2], [3.0, 0.8, 4.0, 0.8], [3.0, 0.2, 3.0, 0.8], [4.0, 0.2, 4.0, 0.8]])
+    assert route_tree_waypoint(routes, robot, np.array([2.0, 2.0]), box) is None  # walled in
+
+
+def test_visible_goal_only_redirects_a_leader_off_its_route_with_a_wall_in_between():
+    from types import SimpleNamespace
+
+    import parcover_env
+
+    expert = ScriptedExpert.for_env(parcover_env.parallel_env("office", preset="ideal"))
+    routes = (np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]]), np.array([[0.0, 0.0], [2.0, 0.0], [4.0, 0.0]]))
+    wall = np.array([[2.2, 0.3, 2.2, 3.0]])
+    expert.mission = SimpleNamespace(routes=routes, known_map=SimpleNamespace(segments=wall))
+    goal = np.array([2.0, 1.5])  # robot 0's lookahead point on its branch A
+
+    def steer(xy, heading=0.0):
+        pose = np.array([*xy, heading])
+        rel = expert._visible_goal(0, pose, rotate(goal - pose[:2], -heading))
+        return pose[:2] + rotate(rel, heading)  # back in the world frame
+
+    np.testing.assert_allclose(steer([3.5, 0.5], heading=1.0), [2.0, 0.0], atol=1e-12)  # via the TP
+    np.testing.assert_allclose(steer([2.0, 0.5]), goal, atol=1e-12)  # on its route: unchanged
+    np.testing.assert_allclose(steer([2.6, 0.5]), [2.0, 0.0], atol=1e-12)  # 0.6 m off, own TP in sight
+    expert.cfg = replace(expert.cfg, off_route_distance=0.7)
+    np.testing.assert_allclose(steer([3.5, 0.5]), [2.0, 0.0], atol=1e-12)  # 1.5 m off: still redirected
+    np.testing.assert_allclose(steer([2.6, 0.5]), goal, atol=1e-12)  # 0.6 m off < 0.7: unchanged
