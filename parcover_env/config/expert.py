@@ -54,15 +54,27 @@ class SonarFixConfig:
     it (carried along by the odometry) within this distance and ``gate_heading_deg`` is accepted even
     outside the gate (m): the covariance cannot see pushes from contacts, two scans from different
     places agreeing can."""
+    refused_rescans: int = 2
+    """After a successful fix refused by the gate, the leader scans again at once (without driving
+    ``rescan_distance`` first), up to this many times in a row: a second scan can confirm the refused
+    fix (``confirm_distance``) while the robot is still where it doubted its belief, e.g. stuck at
+    what it wrongly believes is its route's end (-)."""
     fix_sigma: float = 0.05
     """Position standard deviation of an accepted sonar fix along x and y (m): the covariance the
     expert propagates the corrected belief from."""
     fix_sigma_heading_deg: float = 2.0
     """Heading standard deviation of an accepted sonar fix (deg)."""
+    follow_chain: bool = True
+    """A follower that sees the robot ahead fuses, at every step, the pose that the camera measurement
+    implies (the robot ahead's belief composed with the measured relative pose) into its own belief
+    (a Kalman update with the chained covariance): seed A's followers are localized relative to
+    their leader, so a follower promoted at a split starts from its leader's accuracy instead of its
+    own drifted, contact-pushed odometry. False: followers keep pure odometry until they lead."""
 
     def __post_init__(self) -> None:
         positive(self, "stale_after", "scan_rate", "gate_distance", "gate_heading_deg", "gate_sigmas", "fix_sigma",
                  "fix_sigma_heading_deg", "confirm_distance")
+        check(self.refused_rescans >= 0, "refused_rescans", f"must be >= 0, got {self.refused_rescans}")
         check(self.rescan_distance >= 0, "rescan_distance", f"must be >= 0, got {self.rescan_distance}")
         check(self.final_rescan_distance >= 0, "final_rescan_distance",
               f"must be >= 0, got {self.final_rescan_distance}")

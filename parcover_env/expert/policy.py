@@ -29,7 +29,7 @@ from parcover_env.config import ExpertConfig
 from parcover_env.control.follower import LeaderVelocityEstimator, l_psi_control, relative_l_psi
 from parcover_env.control.leader import go_to_goal
 from parcover_env.envs.observations import ObservationLayout
-from parcover_env.expert.sonar_fix import covariance_from_entries
+from parcover_env.expert.sonar_fix import chain_pose, covariance_from_entries
 from parcover_env.geometry import rotate, segments_blocked, wrap_angle
 from parcover_env.geometry.poses import compose, inverse
 from parcover_env.geometry.rays import point_segment_distance
@@ -123,6 +123,8 @@ class ScriptedExpert:
             scans[a] = self._sonar_fix(a, obs, leaders[a], others) if self.fixer is not None else None
         bel = None
         if self.fixer is not None:
+            if self.cfg.sonar_fix.follow_chain:
+                self._chain_followers(observations, agents, leaders, scans)
             bel = self.belief()
             if self.track is None:
                 self.track = self.mission.tracker()
@@ -198,6 +200,23 @@ class ScriptedExpert:
                             np.arctan2(g(obs, "pred_sin")[0], g(obs, "pred_cos")[0])], dtype=float)
             pose[i] = compose(pose[i - 1], inverse(rel))
         return pose[:, :2]
+
+    def _chain_followers(self, observations: dict, agents: list[str], leaders: dict, scans: dict) -> None:
+        """Fuse into each follower's belief the pose its camera implies relative to the robot ahead
+        (``expert.sonar_fix.follow_chain``), front to back so that each uses the updated belief ahead."""
+        g, f = self.layout.get, self.scenario.formation
+        for a in agents:
+            i = int(a.rsplit("_", 1)[1])
+            obs = observations[a]
+            if (i == 0 or leaders[a] or scans[a] is not None or g(obs, "pred_visible")[0] <= 0.5
+                    or f"robot_{i - 1}" not in observations):
+                continue
+            ahead = f"robot_{i - 1}"
+            rel = np.array([g(obs, "pred_dx")[0], g(obs, "pred_dy")[0],
+                            np.arctan2(g(obs, "pred_sin")[0], g(obs, "pred_cos")[0])], dtype=float)
+            pose, cov = chain_pose(self.fixer.belief(ahead, self._last_odom[i - 1]), self.fixer.covariance(ahead), rel,
+                                   f.camera_range_noise, f.camera_bearing_noise, f.camera_heading_noise)
+            self.fixer.relative_update(a, self._last_odom[i], pose, cov)
 
     def _sonar_fix(self, agent: str, obs: np.ndarray, leader: bool,
                    others: np.ndarray | None = None) -> tuple[float, float] | None:

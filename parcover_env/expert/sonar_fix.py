@@ -31,7 +31,7 @@ from parcover_env.geometry.poses import compose, inverse
 from parcover_env.localization.sonar.scan import ScanCollector
 from parcover_env.sensors.odometry import propagate_covariance, wheel_increment_cov
 
-__all__ = ["SonarFixer", "belief_covariance_step", "covariance_from_entries", "fix_gate"]
+__all__ = ["SonarFixer", "belief_covariance_step", "chain_pose", "covariance_from_entries", "fix_gate", "fuse_pose"]
 
 
 def covariance_from_entries(entries: np.ndarray, heading: float) -> np.ndarray:
@@ -85,6 +85,40 @@ def fix_gate(cfg: SonarFixConfig, cov: np.ndarray) -> tuple[np.ndarray, float]:
     return pos, turn
 
 
+def chain_pose(ahead: np.ndarray, ahead_cov: np.ndarray, rel: np.ndarray, range_noise: float,
+               bearing_noise: float, heading_noise: float) -> tuple[np.ndarray, np.ndarray]:
+    """A follower's pose (x, y, theta) and its covariance (3, 3) from the robot ahead's pose ``ahead``
+    (covariance ``ahead_cov``) and the follower camera's measurement ``rel`` of that robot in the
+    follower's frame (dx, dy, relative heading): ``ahead o rel^-1``. The camera's noise (range sigma
+    per metre, bearing and heading sigmas in rad, as in ``formation.camera_*_noise``) adds an
+    isotropic position variance ``d^2 (range^2 + bearing^2 + heading^2)`` (a heading error turns
+    the offset of length ``d``) and the heading variance; the ahead robot's heading variance turns
+    the offset too (first-order Jacobian)."""
+    pose = compose(ahead, inverse(rel))
+    t = inverse(rel)[:2]
+    c, s = math.cos(ahead[2]), math.sin(ahead[2])
+    jac = np.eye(3)
+    jac[0, 2], jac[1, 2] = -s * t[0] - c * t[1], c * t[0] - s * t[1]
+    d2 = float(rel[0] ** 2 + rel[1] ** 2)
+    noise = np.diag([d2 * (range_noise**2 + bearing_noise**2 + heading_noise**2)] * 2 + [heading_noise**2])
+    return pose, jac @ np.asarray(ahead_cov, dtype=float) @ jac.T + noise
+
+
+def fuse_pose(prior: np.ndarray, prior_cov: np.ndarray, measured: np.ndarray,
+              measured_cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Kalman update of a pose ``prior`` (covariance ``prior_cov``) with a direct measurement of the
+    pose ``measured`` (covariance ``measured_cov``): gain ``K = P (P + R)^-1``, the heading
+    innovation wrapped to (-pi, pi]. Returns (pose, covariance)."""
+    p = np.asarray(prior_cov, dtype=float)
+    gain = p @ np.linalg.pinv(p + np.asarray(measured_cov, dtype=float))
+    innovation = np.asarray(measured, dtype=float) - np.asarray(prior, dtype=float)
+    innovation[2] = wrap_angle(innovation[2])
+    post = np.asarray(prior, dtype=float) + gain @ innovation
+    post[2] = wrap_angle(post[2])
+    cov = (np.eye(3) - gain) @ p
+    return post, 0.5 * (cov + cov.T)
+
+
 @dataclass
 class _State:
     correction: np.ndarray
@@ -97,6 +131,8 @@ class _State:
     driven_since_scan: float = math.inf
     refused: np.ndarray | None = None
     """The correction a refused (outside the gate) but successful fix would have made, or None."""
+    retries: int = 0
+    """Scans in a row started at once after a refused fix (``refused_rescans``)."""
 
 
 class SonarFixer:
@@ -162,8 +198,10 @@ class SonarFixer:
         st.driven_since_scan += abs(speed) * self.dt
         if st.scan is None:
             rescan = self.cfg.final_rescan_distance if at_end else self.cfg.rescan_distance
-            if not (is_leader and fix_age > self.cfg.stale_after and st.driven_since_scan >= rescan):
+            retry = st.refused is not None and st.retries < self.cfg.refused_rescans
+            if not (is_leader and fix_age > self.cfg.stale_after and (retry or st.driven_since_scan >= rescan)):
                 return None
+            st.retries = st.retries + 1 if retry else 0
             st.scan = ScanCollector(self.beams, self.n_bins, self.sonar.range_max, float(odom[2]))
             st.scan_odom, st.scan_cov = odom.copy(), st.cov.copy()
             self.stats["sonar_scans"] += 1
@@ -172,6 +210,13 @@ class SonarFixer:
         self._localize(st, np.zeros((0, 2)) if others is None else np.asarray(others, dtype=float))
         st.scan, st.driven_since_scan = None, 0.0
         return None
+
+    def relative_update(self, agent: str, odom: np.ndarray, measured: np.ndarray, measured_cov: np.ndarray) -> None:
+        """Fuse a pose measured relative to a teammate (:func:`chain_pose`) into this robot's belief;
+        call after :meth:`step` of this step. A correction from it counts like a fix."""
+        st = self.states.setdefault(agent, _State(np.zeros(3), np.zeros((3, 3))))
+        pose, st.cov = fuse_pose(self.belief(agent, odom), st.cov, measured, measured_cov)
+        st.correction = compose(pose, inverse(odom))
 
     def accept(self, fix: np.ndarray, prior: np.ndarray, cov: np.ndarray) -> bool:
         """Whether the sonar ``fix`` (x, y, theta) is believable as a correction of ``prior`` whose

@@ -128,3 +128,81 @@ def test_a_refused_fix_is_accepted_when_the_next_scan_confirms_it():
     assert not fixer.confirms(carried + [0.3, 0.0, 0.0], refused, odom)
     assert not fixer.confirms(carried + [0.0, 0.0, np.radians(20)], refused, odom)
     assert not fixer.confirms(carried, None, odom)
+
+
+def test_chain_pose_places_the_follower_behind_the_robot_ahead_with_the_camera_noise():
+    from parcover_env.expert.sonar_fix import chain_pose
+
+    # robot ahead at (2, 1) facing +y; the follower sees it 0.5 m straight ahead, same heading
+    ahead, rel = np.array([2.0, 1.0, np.pi / 2]), np.array([0.5, 0.0, 0.0])
+    pose, cov = chain_pose(ahead, np.zeros((3, 3)), rel, range_noise=0.02, bearing_noise=0.01, heading_noise=0.03)
+    np.testing.assert_allclose(pose, [2.0, 0.5, np.pi / 2], atol=1e-12)
+    var = 0.25 * (0.02**2 + 0.01**2 + 0.03**2)
+    np.testing.assert_allclose(cov, np.diag([var, var, 0.03**2]), atol=1e-15)
+    # a heading uncertainty ahead swings the follower sideways (across the 0.5 m offset), not along it
+    _, cov = chain_pose(ahead, np.diag([0.0, 0.0, 0.1**2]), rel, 0.0, 0.0, 0.0)
+    np.testing.assert_allclose(cov[:2, :2], [[(0.5 * 0.1) ** 2, 0.0], [0.0, 0.0]], atol=1e-15)
+    assert cov[0, 2] == pytest.approx(0.5 * 0.1**2)
+    assert cov[2, 2] == pytest.approx(0.1**2)
+
+
+def test_fuse_pose_weights_by_the_covariances_and_wraps_the_heading():
+    from parcover_env.expert.sonar_fix import fuse_pose
+
+    prior, meas = np.array([0.0, 0.0, np.pi - 0.1]), np.array([1.0, 2.0, -np.pi + 0.1])
+    pose, cov = fuse_pose(prior, np.diag([0.03, 0.01, 0.01]), meas, np.diag([0.01, 0.03, 0.01]))
+    # x: prior var 3x the measurement's -> 3/4 of the way; y: 1/4; heading: half way across +-pi
+    np.testing.assert_allclose(pose, [0.75, 0.5, np.pi], atol=1e-12)
+    np.testing.assert_allclose(cov, np.diag([0.0075, 0.0075, 0.005]), atol=1e-15)
+    # an exact prior ignores the measurement
+    pose, _ = fuse_pose(prior, np.zeros((3, 3)), meas, np.zeros((3, 3)))
+    np.testing.assert_allclose(pose, prior)
+
+
+def test_a_follower_that_sees_its_leader_shares_the_leaders_accuracy():
+    # generated:59: robot_1 follows robot_0 for ~60 s through turns and contacts. With the camera
+    # chain its belief is never much worse than its leader's; on odometry alone it drifts ~0.5 m
+    env = parcover_env.parallel_env("generated:59")
+    excess = {}
+    for chain in (True, False):
+        expert = ScriptedExpert.for_env(env, config=_expert_cfg(env, follow_chain=chain))
+        obs, _ = env.reset(seed=59)
+        expert.reset(obs)
+        worst = 0.0
+        for _ in range(450):
+            obs, *_ = env.step(expert.act(obs))
+            if obs["robot_1"][env.layout.slices["leader"]][0] < 0.5:
+                err = np.hypot(*(expert.belief()[:2, :2] - env.true_poses()[:2, :2]).T)
+                worst = max(worst, float(err[1] - err[0]))
+        excess[chain] = worst
+    assert excess[True] < 0.2 < 0.35 < excess[False], excess
+
+
+def _expert_cfg(env, **sonar_fix):
+    from dataclasses import replace
+
+    cfg = env.scenario.expert
+    return replace(cfg, sonar_fix=replace(cfg.sonar_fix, **sonar_fix))
+
+
+def test_a_refused_fix_starts_the_next_scan_at_once_up_to_refused_rescans():
+    from parcover_env.config import SonarFixConfig
+    from parcover_env.expert.sonar_fix import _State
+
+    fixer = _fixer(SonarFixConfig(refused_rescans=2, rescan_distance=2.0))
+    odom, ranges = np.array([1.0, 1.0, 0.0]), np.full(len(fixer.beams), 1.0)
+
+    def starts_scan(state: _State) -> bool:
+        fixer.states["robot_0"] = state
+        state.last_odom = odom.copy()
+        out = fixer.step("robot_0", odom, fix_age=100.0, speed=0.0, ranges=ranges, is_leader=True)
+        return out is not None and state.scan is not None
+
+    refused = np.array([0.5, 0.0, 0.0])
+    # just scanned (driven 0 m): no new scan, unless the last fix was refused and retries remain
+    assert not starts_scan(_State(np.zeros(3), np.eye(3) * 1e-3, driven_since_scan=0.0))
+    assert starts_scan(_State(np.zeros(3), np.eye(3) * 1e-3, driven_since_scan=0.0, refused=refused, retries=1))
+    assert not starts_scan(_State(np.zeros(3), np.eye(3) * 1e-3, driven_since_scan=0.0, refused=refused, retries=2))
+    # driven far enough, a scan starts anyway and the retry count starts over
+    st = _State(np.zeros(3), np.eye(3) * 1e-3, driven_since_scan=2.5, refused=refused, retries=2)
+    assert starts_scan(st) and st.retries == 0
