@@ -402,6 +402,9 @@ class SonarNavigator:
         i = self.queue[0]
         odom = self.last_odom[i]
         if self.scan is None:
+            if abs(float(self.layout.get(observations[f"robot_{i}"], "v")[0])) > self.p.stop_speed:
+                cmd[i] = 0.0  # still rolling: a scan is taken standing still
+                return
             self.scan = {"robot": i, "start": odom.copy(),
                          "col": ScanCollector(self.beams, self.n_bins, self.sonar_cfg.range_max, float(odom[2]),
                                               self.p.bin_tol_deg)}

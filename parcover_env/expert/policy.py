@@ -71,6 +71,7 @@ class ScriptedExpert:
         self.track: RouteTracker | None = None
         self.estimators: dict[str, LeaderVelocityEstimator] = {}
         self.blocked: dict[str, int] = {}
+        self.unseen: dict[str, int] = {}  # steps since each follower last saw the robot ahead
         self.backing: dict[str, int] = {}
         self._last_odom = np.zeros((mission.n_robots, 3))
 
@@ -107,6 +108,7 @@ class ScriptedExpert:
         self.estimators.clear()
         self.blocked.clear()
         self.backing.clear()
+        self.unseen.clear()
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         g = self.layout.get
@@ -116,11 +118,12 @@ class ScriptedExpert:
         scans = {}
         for a in agents:
             self._last_odom[int(a.rsplit("_", 1)[1])] = self._odom(observations[a])
+        alone = self._alone(observations, agents, leaders)
         team = self._team_positions(observations, agents, leaders) if self.fixer is not None else None
         for a in agents:
             obs = observations[a]
             others = None if team is None else np.delete(team, int(a.rsplit("_", 1)[1]), axis=0)
-            scans[a] = self._sonar_fix(a, obs, leaders[a], others) if self.fixer is not None else None
+            scans[a] = self._sonar_fix(a, obs, leaders[a] or alone[a], others) if self.fixer is not None else None
         bel = None
         if self.fixer is not None:
             if self.cfg.sonar_fix.follow_chain:
@@ -200,6 +203,16 @@ class ScriptedExpert:
                             np.arctan2(g(obs, "pred_sin")[0], g(obs, "pred_cos")[0])], dtype=float)
             pose[i] = compose(pose[i - 1], inverse(rel))
         return pose[:, :2]
+
+    def _alone(self, observations: dict, agents: list[str], leaders: dict) -> dict[str, bool]:
+        """Which followers have not seen the robot ahead for ``alone_after`` seconds."""
+        limit = self.cfg.alone_after / self.dt
+        out = {}
+        for a in agents:
+            seen = leaders[a] or self.layout.get(observations[a], "pred_visible")[0] > 0.5
+            self.unseen[a] = 0 if seen else self.unseen.get(a, 0) + 1
+            out[a] = self.unseen[a] >= limit
+        return out
 
     def _chain_followers(self, observations: dict, agents: list[str], leaders: dict, scans: dict) -> None:
         """Fuse into each follower's belief the pose its camera implies relative to the robot ahead

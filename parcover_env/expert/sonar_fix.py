@@ -176,7 +176,8 @@ class SonarFixer:
     def step(self, agent: str, odom: np.ndarray, fix_age: float, speed: float, ranges: np.ndarray,
              is_leader: bool, at_end: bool = False, odom_cov: np.ndarray | None = None,
              others: np.ndarray | None = None) -> tuple[float, float] | None:
-        """Advance this robot's scan logic; returns a (v, w) command while it is scanning. ``at_end``:
+        """Advance this robot's scan logic; returns a (v, w) command while it is scanning. Only a robot
+        that navigates by itself (``is_leader``: a leader, or a follower gone alone) starts a scan. ``at_end``:
         the robot believes it is at its route's end, where it checks its pose with a scan sooner
         (``final_rescan_distance``), since nothing later would catch a drifted arrival. ``odom_cov``:
         the observed covariance (3, 3) of the odometry pose, if the observation has one; otherwise
@@ -201,6 +202,8 @@ class SonarFixer:
             retry = st.refused is not None and st.retries < self.cfg.refused_rescans
             if not (is_leader and fix_age > self.cfg.stale_after and (retry or st.driven_since_scan >= rescan)):
                 return None
+            if abs(speed) > self.cfg.stop_speed:
+                return 0.0, 0.0  # brake first: a scan is taken standing still
             st.retries = st.retries + 1 if retry else 0
             st.scan = ScanCollector(self.beams, self.n_bins, self.sonar.range_max, float(odom[2]))
             st.scan_odom, st.scan_cov = odom.copy(), st.cov.copy()
@@ -234,6 +237,9 @@ class SonarFixer:
         ell = Ellipse.from_covariance(prior[:2], pos, self.cfg.gate_sigmas)
         fix = self.team.localize(st.scan.ranges, ell, others, heading=float(prior[2]), heading_tol=turn)
         pose = fix.result.pose
+        if fix.ok and not self.pins_down(st.scan.ranges, pose, others):
+            self.stats["sonar_failed"] += 1
+            return
         if fix.ok and (self.accept(pose, prior, st.scan_cov) or self.confirms(pose, st.refused, st.scan_odom)):
             st.correction = compose(pose, inverse(st.scan_odom))
             st.cov, st.refused = self.fix_cov.copy(), None
@@ -242,6 +248,15 @@ class SonarFixer:
         if fix.ok and abs(wrap_angle(pose[2] - prior[2])) <= math.radians(self.cfg.gate_heading_max_deg):
             st.refused = compose(pose, inverse(st.scan_odom))
         self.stats["sonar_failed"] += 1
+
+    def pins_down(self, ranges: np.ndarray, pose: np.ndarray, others: np.ndarray) -> bool:
+        """Whether the binned scan ``ranges`` pins ``pose`` down (``shift_test``, ``min_shift_increase``)."""
+        from parcover_env.expert.team_localizer import shift_sensitivity
+
+        if self.cfg.shift_test <= 0:
+            return True
+        errors = self.team.shifted_errors(ranges, pose, others, self.cfg.shift_test)
+        return shift_sensitivity(errors) >= self.cfg.min_shift_increase
 
     def confirms(self, fix: np.ndarray, refused: np.ndarray | None, odom: np.ndarray) -> bool:
         """Whether ``fix`` agrees with an earlier refused fix carried to here by the odometry

@@ -22,7 +22,7 @@ from parcover_env.localization.sonar.params import SonarLocalizerParams
 from parcover_env.sensors.sonar import simulate_beams
 from parcover_env.world.map_model import MapModel
 
-__all__ = ["TeamFix", "TeamLocalizer", "teammate_mask"]
+__all__ = ["TeamFix", "TeamLocalizer", "shift_sensitivity", "teammate_mask"]
 
 
 @dataclass(frozen=True)
@@ -55,6 +55,19 @@ class TeamLocalizer:
         free = self.map.free.difference(discs)
         return self.map if free.is_empty else MapModel(free=free, bounds=self.map.bounds)
 
+    def shifted_errors(self, ranges: np.ndarray, pose: np.ndarray, others: np.ndarray, step: float,
+                       n_dirs: int = 8) -> np.ndarray:
+        """Scan errors ``(1 + n_dirs,)`` of the binned scan ``ranges`` against the known map's synthetic
+        scans (teammates at ``others``) from ``pose`` and from ``pose`` shifted by ``step`` (m) in
+        ``n_dirs`` directions, heading kept (see :func:`shift_sensitivity`)."""
+        ang = np.arange(n_dirs) * (2 * math.pi / n_dirs)
+        origins = np.vstack([pose[:2], pose[:2] + step * np.c_[np.cos(ang), np.sin(ang)]])
+        axes = np.broadcast_to(pose[2] + self.scan_angles, (len(origins), len(self.scan_angles)))
+        synth = simulate_beams(self.sonar, origins, np.ascontiguousarray(axes), self.map.segments,
+                               np.asarray(others, dtype=float).reshape(-1, 2), self.radius,
+                               np.full(len(origins), -1))
+        return scan_error(ranges, synth, self.loc.error_clip)
+
     def localize(self, ranges: np.ndarray, ellipse: Ellipse, others: np.ndarray,
                  heading: float | None = None, heading_tol: float | None = None,
                  others_sigma: np.ndarray | None = None) -> TeamFix:
@@ -82,6 +95,15 @@ class TeamLocalizer:
                 masked = float(scan_error(ranges[keep], synth[keep], self.loc.error_clip, self.loc.error_trim)[0])
                 ok = masked <= self.cfg.accept_error
         return TeamFix(res, team_error, bool(ok))
+
+
+def shift_sensitivity(errors: np.ndarray) -> float:
+    """How well a scan pins a pose down: ``errors`` ``(1 + K,)`` are the scan errors at the pose and
+    at K shifts of it by the same distance in K directions; returns the smallest increase (m). A
+    scan along a straight corridor matches almost as well shifted along it (small increase): such a
+    fix is not informative along the corridor, whatever its own error says."""
+    e = np.asarray(errors, dtype=float)
+    return float(np.min(e[1:]) - e[0])
 
 
 def teammate_mask(pose: np.ndarray, scan_angles: np.ndarray, ranges: np.ndarray, expected: np.ndarray,

@@ -135,3 +135,18 @@ def test_visible_goal_only_redirects_a_leader_off_its_route_with_a_wall_in_betwe
     expert.cfg = replace(expert.cfg, off_route_distance=0.7)
     np.testing.assert_allclose(steer([3.5, 0.5]), [2.0, 0.0], atol=1e-12)  # 1.5 m off: still redirected
     np.testing.assert_allclose(steer([2.6, 0.5]), goal, atol=1e-12)  # 0.6 m off < 0.7: unchanged
+
+
+def test_a_follower_out_of_sight_of_the_robot_ahead_for_alone_after_navigates_alone():
+    env = parcover_env.parallel_env("generated:18")
+    expert = ScriptedExpert.for_env(env, config=replace(env.scenario.expert, alone_after=0.3))  # 3 steps of 0.1 s
+    obs = {a: np.zeros(env.layout.size, dtype=np.float32) for a in ("robot_0", "robot_1", "robot_2")}
+    for o, lead in zip(obs.values(), (1.0, 0.0, 0.0), strict=True):
+        o[env.layout.slices["leader"]] = lead
+    obs["robot_2"][env.layout.slices["pred_visible"]] = 1.0
+    agents, leaders = list(obs), {"robot_0": True, "robot_1": False, "robot_2": False}
+    alone = [expert._alone(obs, agents, leaders) for _ in range(3)]
+    assert [a["robot_1"] for a in alone] == [False, False, True]
+    assert not any(a["robot_0"] or a["robot_2"] for a in alone)
+    obs["robot_1"][env.layout.slices["pred_visible"]] = 1.0  # seen again: back in formation
+    assert not expert._alone(obs, agents, leaders)["robot_1"]

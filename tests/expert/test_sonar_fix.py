@@ -206,3 +206,15 @@ def test_a_refused_fix_starts_the_next_scan_at_once_up_to_refused_rescans():
     # driven far enough, a scan starts anyway and the retry count starts over
     st = _State(np.zeros(3), np.eye(3) * 1e-3, driven_since_scan=2.5, refused=refused, retries=2)
     assert starts_scan(st) and st.retries == 0
+
+
+def test_a_leader_due_for_a_scan_brakes_until_it_stands_still():
+    from parcover_env.config import SonarFixConfig
+
+    fixer = _fixer(SonarFixConfig(stop_speed=0.005))
+    odom, ranges = np.array([1.0, 1.0, 0.0]), np.full(len(fixer.beams), 1.0)
+    due = {"fix_age": 100.0, "ranges": ranges, "is_leader": True}
+    assert fixer.step("robot_0", odom, speed=0.02, **due) == (0.0, 0.0)  # still rolling: brake
+    assert fixer.states["robot_0"].scan is None
+    assert fixer.step("robot_0", odom, speed=0.004, **due) == (0.0, fixer.scan_rate)  # standing: turn
+    np.testing.assert_array_equal(fixer.states["robot_0"].scan_odom, odom)
