@@ -30,7 +30,7 @@ from functools import lru_cache
 import numpy as np
 
 from parcover_env.config import SonarConfig
-from parcover_env.geometry import cast_rays, cast_rays_discs, segments_blocked, wrap_angle
+from parcover_env.geometry import cast_rays, cast_rays_discs, rays, segments_blocked, wrap_angle
 
 __all__ = ["SonarRing", "AMIGOBOT_ANGLES_DEG", "concave_corners", "simulate_beams", "crosstalk"]
 
@@ -102,21 +102,16 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     k = len(offsets)
     ang = (axes[:, :, None] + offsets[None, None, :]).reshape(n, b * k)
     dirs = np.stack([np.cos(ang), np.sin(ang)], axis=-1)  # a fan of b * k rays per origin
-    # one call for all rays of all robots; range-culled by the kernel where that pays
-    hits = cast_rays(origins, dirs, segments, rmax, with_cos=specular)
-    out = hits.distance.reshape(-1)
-    t_disc = cast_rays_discs(origins, dirs, centres, float(radius), owner, rmax).reshape(-1)
-    if specular and len(segments):
-        # an oblique wall reflects the sub-ray away; a disc in front of it still echoes
-        cos_min = math.cos(math.radians(cfg.incidence_max_deg)) - 1e-12
-        valid = hits.cos_incidence.reshape(-1) >= cos_min
-        wall = np.where(valid, out, np.inf)
-        if cfg.multipath:
-            wall = np.where(valid, wall, _second_bounce(cfg, origins, dirs, hits, segments, centres, radius,
-                                                        owner, cos_min))
-        out = np.where(t_disc < out, t_disc, wall)
-    else:
-        out = np.minimum(out, t_disc)
+    # one compiled pass over all sub-rays of all robots: walls, discs, incidence, second bounces
+    segments = np.ascontiguousarray(np.asarray(segments, dtype=float).reshape(-1, 4))
+    ox, oy, dx, dy, per = rays.ray_planes(origins, dirs)
+    cx, cy, r2, owner_ = rays.disc_planes(centres, float(radius), owner, n)
+    seg_len = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
+    specular = specular and len(segments) > 0
+    cos_min = math.cos(math.radians(cfg.incidence_max_deg)) - 1e-12
+    out = np.empty(len(dx))
+    rays.kernels().sonar_echoes(ox, oy, dx, dy, per, segments, seg_len, cx, cy, r2, owner_, rmax, specular,
+                                bool(cfg.multipath), cos_min, _NUDGE, rays.BOX_CULL, out)
     reading = out.reshape(n, b, k).min(axis=2)
     if specular and len(segments):
         pts, u1, u2 = concave_corners(segments)
@@ -124,33 +119,6 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
             reading = np.minimum(reading, _corner_echoes(cfg, origins, axes, segments, centres, radius,
                                                          owner, pts, u1, u2))
     return np.minimum(reading, rmax)
-
-
-def _second_bounce(cfg, origins, dirs, hits, segments, centres, radius, owner, cos_min) -> np.ndarray:
-    """Multipath, flat ``(N * M,)``: a sub-ray reflected away by an oblique wall travels on to the
-    next surface; if that one returns it (a wall within the incidence limit, or a robot), the echo
-    retraces the path and reads the two-bounce length ``t1 + t2`` (longer than the true range)."""
-    n, m = dirs.shape[:2]
-    t1 = hits.distance.reshape(-1)
-    cos1 = hits.cos_incidence.reshape(-1)
-    out = np.full(n * m, np.inf)
-    sel = np.flatnonzero(np.isfinite(t1) & (cos1 < cos_min))
-    if len(sel) == 0:
-        return out
-    d = dirs.reshape(-1, 2)[sel]
-    seg = segments[hits.index.reshape(-1)[sel]]
-    e = seg[:, 2:4] - seg[:, 0:2]
-    nrm = np.stack([-e[:, 1], e[:, 0]], axis=1) / np.linalg.norm(e, axis=1, keepdims=True)
-    d2 = d - 2.0 * np.sum(d * nrm, axis=1, keepdims=True) * nrm  # mirror the direction in the wall
-    p = np.repeat(origins, m, axis=0)[sel] + d * t1[sel, None] + d2 * _NUDGE  # leave the first wall
-    reach = cfg.range_max - t1[sel]
-    h2 = cast_rays(p, d2, segments, float(reach.max()), with_cos=True)
-    wall2 = np.where(h2.cos_incidence >= cos_min, h2.distance, np.inf)
-    src = sel // m  # the origin of each selected sub-ray
-    disc2 = cast_rays_discs(p, d2, centres[src] if centres.ndim == 3 else centres, float(radius), owner[src])
-    t2 = np.where(disc2 < h2.distance, disc2, wall2) + _NUDGE
-    out[sel] = np.where(t2 <= reach, t1[sel] + t2, np.inf)
-    return out
 
 
 def _corner_echoes(cfg, origins, axes, segments, centres, radius, owner, pts, u1, u2) -> np.ndarray:
