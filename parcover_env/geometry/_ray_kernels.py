@@ -210,3 +210,77 @@ def sonar_echoes(ox, oy, dx, dy, per, segs, seg_len, cx, cy, r2, owner, rmax, sp
         td2 = _disc_hit(px, py, d2x, d2y, cx, cy, o if per_origin else 0, r2, owner[o])
         t2 = (td2 if td2 < t2w else wall2) + nudge
         out[r] = t1 + t2 if t2 <= rmax - t1 else np.inf
+
+
+@njit(cache=True, inline="always")
+def _wrap(a):
+    """``a`` wrapped to (-pi, pi], as :func:`parcover_env.geometry.angles.wrap_angle`."""
+    return math.pi - ((math.pi - a) % (2.0 * math.pi))
+
+
+@njit(cache=True, nogil=True)
+def sonar_corner_echoes(ox, oy, axes, pts, u1, u2, segs, cx, cy, r2, owner, rmax, half, reading):
+    """Lower ``reading (N, B)`` to the distance of every concave corner ``pts (C, 2)`` (wall
+    directions ``u1, u2``) that origin ``n`` sees from inside the corner's wedge, within ``rmax``,
+    with no wall (nor disc) in between, and inside beam ``b``'s cone (``|bearing - axis| <= half``);
+    the concave-corner rule of :func:`parcover_env.sensors.sonar.simulate_beams`."""
+    has_discs = cx.shape[1] > 0
+    per_origin = cx.shape[0] > 1
+    for n in range(ox.shape[0]):
+        x0 = ox[n]
+        y0 = oy[n]
+        for c in range(pts.shape[0]):
+            vx = pts[c, 0] - x0
+            vy = pts[c, 1] - y0
+            dist = math.sqrt(vx * vx + vy * vy)
+            if not (dist <= rmax and dist > 1e-9):
+                continue
+            s = u1[c, 0] * u2[c, 1] - u1[c, 1] * u2[c, 0]
+            wx = x0 - pts[c, 0]
+            wy = y0 - pts[c, 1]
+            if not ((u1[c, 0] * wy - u1[c, 1] * wx) * s > 0 and (wx * u2[c, 1] - wy * u2[c, 0]) * s > 0):
+                continue  # not inside the corner's wedge
+            dx = vx / dist
+            dy = vy / dist
+            t, _, _ = _segment_hit(x0, y0, dx, dy, segs, np.inf, False, False)
+            if not t >= dist * (1.0 - 1e-7) - 1e-9:
+                continue  # a wall in between
+            if has_discs and not _disc_hit(x0, y0, dx, dy, cx, cy, n if per_origin else 0, r2, owner[n]) >= dist:
+                continue  # a robot in between
+            bearing = math.atan2(vy, vx)
+            for b in range(axes.shape[1]):
+                if abs(_wrap(bearing - axes[n, b])) <= half and dist < reading[n, b]:
+                    reading[n, b] = dist
+
+
+@njit(cache=True, nogil=True)
+def sonar_crosstalk(px, py, pth, beams, segs, half, rmax, out):
+    """Cross-talk readings ``out (K, N, B)`` (left inf where none) of robots ``(K, N)`` poses
+    ``px, py, pth``: beam ``b`` of robot ``i`` reads ``d / 2`` from the nearest robot ``j`` of its world
+    inside that beam's cone (``half``) with a beam of ``j`` pointing back at ``i``, ``0 < d / 2 <= rmax``
+    and no wall between them; the rules of :func:`parcover_env.sensors.sonar.crosstalk`."""
+    nb = beams.shape[0]
+    for k in range(px.shape[0]):
+        for i in range(px.shape[1]):
+            for j in range(px.shape[1]):
+                if i == j:
+                    continue
+                dx = px[k, j] - px[k, i]
+                dy = py[k, j] - py[k, i]
+                d = math.hypot(dx, dy)
+                if not (d / 2 <= rmax and d > 0):
+                    continue
+                bearing = math.atan2(dy, dx)
+                back = False
+                for c in range(nb):
+                    if abs(_wrap(bearing + math.pi - pth[k, j] - beams[c])) <= half:
+                        back = True
+                        break
+                if not back:
+                    continue
+                _, hit, _ = _segment_hit(px[k, i], py[k, i], dx, dy, segs, 1.0, True, True)
+                if hit >= 0:
+                    continue  # a wall between them
+                for b in range(nb):
+                    if abs(_wrap(bearing - pth[k, i] - beams[b])) <= half and d / 2 < out[k, i, b]:
+                        out[k, i, b] = d / 2

@@ -30,14 +30,13 @@ from functools import lru_cache
 import numpy as np
 
 from parcover_env.config import SonarConfig
-from parcover_env.geometry import cast_rays, cast_rays_discs, rays, segments_blocked, wrap_angle
+from parcover_env.geometry import rays
 
 __all__ = ["SonarRing", "AMIGOBOT_ANGLES_DEG", "concave_corners", "simulate_beams", "crosstalk"]
 
 AMIGOBOT_ANGLES_DEG = (90.0, 44.0, 12.0, -12.0, -44.0, -90.0, -144.0, 144.0)
 """AmigoBot sonar layout (robot frame, deg): six forward-facing transducers and two rear ones."""
 
-_EPS = 1e-9
 _NUDGE = 1e-7
 """A reflected ray starts this far off the wall it left, so that it does not hit that wall again (m)."""
 
@@ -73,20 +72,10 @@ def _corner_table(seg_bytes: bytes, n: int) -> tuple[np.ndarray, np.ndarray, np.
 def concave_corners(segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vertices shared by exactly two non-collinear segments: ``(points (C,2), u1 (C,2), u2 (C,2))``
     with ``u1, u2`` the unit wall directions leaving the vertex. Whether a vertex is concave depends
-    on the viewpoint; see :func:`_corner_faces`. Cached per segment array contents."""
+    on the viewpoint: an echo needs the sensor strictly inside the < 180 deg wedge the two walls
+    span (:func:`simulate_beams`). Cached per segment array contents."""
     seg = np.ascontiguousarray(segments, dtype=float)
     return _corner_table(seg.tobytes(), len(seg))
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-
-
-def _corner_faces(origins: np.ndarray, pts: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
-    """``(N, C)``: whether each origin lies strictly inside the < 180 deg wedge of each corner."""
-    v = origins[:, None, :] - pts[None, :, :]
-    s = _cross(u1, u2)[None, :]
-    return (_cross(u1[None], v) * s > 0) & (_cross(v, u2[None]) * s > 0)
 
 
 def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segments: np.ndarray,
@@ -113,38 +102,17 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     rays.kernels().sonar_echoes(ox, oy, dx, dy, per, segments, seg_len, cx, cy, r2, owner_, rmax, specular,
                                 bool(cfg.multipath), cos_min, _NUDGE, rays.BOX_CULL, out)
     reading = out.reshape(n, b, k).min(axis=2)
-    if specular and len(segments):
+    if specular:
         pts, u1, u2 = concave_corners(segments)
-        if len(pts):
-            reading = np.minimum(reading, _corner_echoes(cfg, origins, axes, segments, centres, radius,
-                                                         owner, pts, u1, u2))
+        if len(pts):  # concave corners inside a cone retro-reflect (lowers ``reading`` in place)
+            rays.kernels().sonar_corner_echoes(ox, oy, np.ascontiguousarray(axes, dtype=float), pts, u1, u2,
+                                               segments, cx, cy, r2, owner_, rmax, _half_cone(cfg), reading)
     return np.minimum(reading, rmax)
 
 
-def _corner_echoes(cfg, origins, axes, segments, centres, radius, owner, pts, u1, u2) -> np.ndarray:
-    """``(N, B)`` nearest concave-corner echo inside each beam's cone (inf if none)."""
-    vec = pts[None, :, :] - origins[:, None, :]
-    dist = np.linalg.norm(vec, axis=-1)
-    cand = (dist <= cfg.range_max) & (dist > _EPS) & _corner_faces(origins, pts, u1, u2)
-    if not cand.any():
-        return np.full(axes.shape, np.inf)
-    ni, ci = np.nonzero(cand)
-    d = vec[ni, ci] / dist[ni, ci, None]
-    t = cast_rays(origins[ni], d, segments).distance
-    visible = t >= dist[ni, ci] * (1.0 - 1e-7) - 1e-9
-    if centres.shape[-2]:
-        visible &= cast_rays_discs(origins[ni], d, centres[ni] if centres.ndim == 3 else centres, float(radius),
-                                   owner[ni]) >= dist[ni, ci]
-    vi, vc = ni[visible], ci[visible]
-    out = np.full(axes.shape, np.inf)
-    if len(vi) == 0:
-        return out
-    # only the visible (origin, corner) pairs: the bearing of each against every beam axis
-    bearing = np.arctan2(vec[vi, vc, 1], vec[vi, vc, 0])
-    diff = np.abs(wrap_angle(bearing[:, None] - axes[vi]))
-    in_cone = diff <= math.radians(cfg.cone_deg) / 2 + 1e-12
-    np.minimum.at(out, vi, np.where(in_cone, dist[vi, vc][:, None], np.inf))
-    return out
+def _half_cone(cfg: SonarConfig) -> float:
+    """Half the beam's cone (rad), with a rounding slack: a bearing this far off the axis is inside."""
+    return math.radians(cfg.cone_deg) / 2 + 1e-12
 
 
 class SonarRing:
@@ -254,19 +222,10 @@ def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segm
     out = np.full((k, n, nb), np.inf)
     if n < 2:
         return out
-    i, j = np.nonzero(~np.eye(n, dtype=bool))
-    pi_, pj = poses[:, i], poses[:, j]  # (K, P, 3)
-    delta = pj[..., :2] - pi_[..., :2]
-    d = np.hypot(delta[..., 0], delta[..., 1])
-    bearing = np.arctan2(delta[..., 1], delta[..., 0])
-    half = math.radians(cfg.cone_deg) / 2 + 1e-12
-    # (K, pairs, B): is j inside i's beam b?  does some beam of j point back at i?
-    rx_ok = np.abs(wrap_angle(bearing[..., None] - pi_[..., 2:3] - beam_angles)) <= half
-    tx_ok = (np.abs(wrap_angle(bearing[..., None] + math.pi - pj[..., 2:3] - beam_angles)) <= half).any(-1)
-    ok = tx_ok & (d / 2 <= cfg.range_max) & (d > 0)
-    ok &= ~segments_blocked(pi_[..., :2].reshape(-1, 2), pj[..., :2].reshape(-1, 2), segments).reshape(ok.shape)
-    val = np.where(rx_ok & ok[..., None], d[..., None] / 2, np.inf)
-    np.minimum.at(out, (np.arange(k)[:, None], i[None, :]), val)
+    segments = np.ascontiguousarray(np.asarray(segments, dtype=float).reshape(-1, 4))
+    px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
+    rays.kernels().sonar_crosstalk(px, py, pth, np.ascontiguousarray(beam_angles, dtype=float), segments,
+                                   _half_cone(cfg), float(cfg.range_max), out)
     return out
 
 
