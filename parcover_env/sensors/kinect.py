@@ -120,7 +120,7 @@ class KinectSensor:
         self.pattern = marker_pattern(robot_radius, marker_radius)
         w, h = self.camera.width, self.camera.height
         self.shape = (h, w)
-        self._lateral: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._lateral: np.ndarray | None = None
         self.fb = self.camera.focal * (NATIVE_WIDTH / w) * BASELINE
         self._view_of(self.true_camera)
         self.nominal_static_depth = self.static_depth
@@ -353,25 +353,21 @@ class KinectSensor:
             return depth
         h, w = depth.shape
         if self._lateral is None:
-            self._lateral = (rounded_normal_table(self.cfg.lateral_noise_px),
-                             np.arange(h, dtype=np.int32)[:, None], np.arange(w, dtype=np.int32)[None, :])
-        table, rows, cols = self._lateral
-        dv, du = table[rng.integers(0, 1 << 16, size=(2, h, w), dtype=np.uint16)]
-        flat = np.clip(rows + dv, 0, h - 1) * np.int32(w) + np.clip(cols + du, 0, w - 1)
-        return depth.reshape(-1)[flat]
+            self._lateral = rounded_normal_table(self.cfg.lateral_noise_px)
+        table = self._lateral
+        draws = rng.integers(0, 1 << 16, size=(2, h, w), dtype=np.uint16)
+        out = np.empty_like(depth)
+        _kernels().lateral_shift(np.ascontiguousarray(depth), draws, table, out)
+        return out
 
     def noisy_depth(self, depth: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Axial noise, 1/8-px disparity quantization and range limits applied to a clean depth."""
-        z = depth.astype(np.float32)
-        finite = np.isfinite(z)
-        z = np.where(finite, z, 0.0).astype(np.float32)
-        sig = (0.0012 + 0.0019 * (z - 0.4) ** 2).astype(np.float32)
-        z = z + sig * rng.standard_normal(z.shape, dtype=np.float32)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            disp = np.round(np.float32(self.fb) / z * 8.0) / 8.0
-            z = np.float32(self.fb) / disp
-        ok = finite & np.isfinite(z) & (z >= self.camera.range_min) & (z <= self.camera.range_max)
-        return np.where(ok, z, 0.0).astype(np.float32)
+        normal = rng.standard_normal(depth.shape, dtype=np.float32)
+        out = np.empty(depth.shape, dtype=np.float32)
+        cam = self.camera
+        _kernels().depth_noise(np.ascontiguousarray(depth, dtype=float), normal, np.float32(self.fb),
+                               _as_f32_bound(cam.range_min), _as_f32_bound(cam.range_max), out)
+        return out
 
     def render_ir(self, owner: np.ndarray, code: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """IR frame: dull surfaces with noise, projector speckle, saturated markers."""
@@ -407,6 +403,19 @@ class KinectSensor:
         z = self.lateral_jitter(z, rng)
         z[code > 0] = 0.0  # depth is missing exactly where the markers saturate the IR image
         return KinectFrame(self.name, z, ir, stamp, info={"n_robots": len(poses)})
+
+
+def _kernels():
+    """The compiled per-pixel loops (numba is imported on first use, not with the package)."""
+    from parcover_env.sensors import _kinect_kernels
+
+    return _kinect_kernels
+
+
+def _as_f32_bound(x) -> np.floating:
+    """A range limit in the precision numpy compares it with a float32 image: a Python number is
+    rounded to float32 (a weak scalar), a numpy float64 is kept (the image is promoted instead)."""
+    return np.result_type(np.float32, x).type(x)
 
 
 def rounded_normal_table(sigma: float, bits: int = 16) -> np.ndarray:

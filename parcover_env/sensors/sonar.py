@@ -30,14 +30,13 @@ from functools import lru_cache
 import numpy as np
 
 from parcover_env.config import SonarConfig
-from parcover_env.geometry import cast_rays, cast_rays_discs, segments_blocked, wrap_angle
+from parcover_env.geometry import rays
 
 __all__ = ["SonarRing", "AMIGOBOT_ANGLES_DEG", "concave_corners", "simulate_beams", "crosstalk"]
 
 AMIGOBOT_ANGLES_DEG = (90.0, 44.0, 12.0, -12.0, -44.0, -90.0, -144.0, 144.0)
 """AmigoBot sonar layout (robot frame, deg): six forward-facing transducers and two rear ones."""
 
-_EPS = 1e-9
 _NUDGE = 1e-7
 """A reflected ray starts this far off the wall it left, so that it does not hit that wall again (m)."""
 
@@ -73,20 +72,10 @@ def _corner_table(seg_bytes: bytes, n: int) -> tuple[np.ndarray, np.ndarray, np.
 def concave_corners(segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vertices shared by exactly two non-collinear segments: ``(points (C,2), u1 (C,2), u2 (C,2))``
     with ``u1, u2`` the unit wall directions leaving the vertex. Whether a vertex is concave depends
-    on the viewpoint; see :func:`_corner_faces`. Cached per segment array contents."""
+    on the viewpoint: an echo needs the sensor strictly inside the < 180 deg wedge the two walls
+    span (:func:`simulate_beams`). Cached per segment array contents."""
     seg = np.ascontiguousarray(segments, dtype=float)
     return _corner_table(seg.tobytes(), len(seg))
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-
-
-def _corner_faces(origins: np.ndarray, pts: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
-    """``(N, C)``: whether each origin lies strictly inside the < 180 deg wedge of each corner."""
-    v = origins[:, None, :] - pts[None, :, :]
-    s = _cross(u1, u2)[None, :]
-    return (_cross(u1[None], v) * s > 0) & (_cross(v, u2[None]) * s > 0)
 
 
 def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segments: np.ndarray,
@@ -102,81 +91,28 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     k = len(offsets)
     ang = (axes[:, :, None] + offsets[None, None, :]).reshape(n, b * k)
     dirs = np.stack([np.cos(ang), np.sin(ang)], axis=-1)  # a fan of b * k rays per origin
-    # one call for all rays of all robots; range-culled by the kernel where that pays
-    hits = cast_rays(origins, dirs, segments, rmax, with_cos=specular)
-    out = hits.distance.reshape(-1)
-    t_disc = cast_rays_discs(origins, dirs, centres, float(radius), owner, rmax).reshape(-1)
-    if specular and len(segments):
-        # an oblique wall reflects the sub-ray away; a disc in front of it still echoes
-        cos_min = math.cos(math.radians(cfg.incidence_max_deg)) - 1e-12
-        valid = hits.cos_incidence.reshape(-1) >= cos_min
-        wall = np.where(valid, out, np.inf)
-        if cfg.multipath:
-            wall = np.where(valid, wall, _second_bounce(cfg, origins, dirs, hits, segments, centres, radius,
-                                                        owner, cos_min))
-        out = np.where(t_disc < out, t_disc, wall)
-    else:
-        out = np.minimum(out, t_disc)
+    # one compiled pass over all sub-rays of all robots: walls, discs, incidence, second bounces
+    segments = np.ascontiguousarray(np.asarray(segments, dtype=float).reshape(-1, 4))
+    ox, oy, dx, dy, per = rays.ray_planes(origins, dirs)
+    cx, cy, r2, owner_ = rays.disc_planes(centres, float(radius), owner, n)
+    seg_len = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
+    specular = specular and len(segments) > 0
+    cos_min = math.cos(math.radians(cfg.incidence_max_deg)) - 1e-12
+    out = np.empty(len(dx))
+    rays.kernels().sonar_echoes(ox, oy, dx, dy, per, segments, seg_len, cx, cy, r2, owner_, rmax, specular,
+                                bool(cfg.multipath), cos_min, _NUDGE, rays.BOX_CULL, out)
     reading = out.reshape(n, b, k).min(axis=2)
-    if specular and len(segments):
+    if specular:
         pts, u1, u2 = concave_corners(segments)
-        if len(pts):
-            reading = np.minimum(reading, _corner_echoes(cfg, origins, axes, segments, centres, radius,
-                                                         owner, pts, u1, u2))
+        if len(pts):  # concave corners inside a cone retro-reflect (lowers ``reading`` in place)
+            rays.kernels().sonar_corner_echoes(ox, oy, np.ascontiguousarray(axes, dtype=float), pts, u1, u2,
+                                               segments, cx, cy, r2, owner_, rmax, _half_cone(cfg), reading)
     return np.minimum(reading, rmax)
 
 
-def _second_bounce(cfg, origins, dirs, hits, segments, centres, radius, owner, cos_min) -> np.ndarray:
-    """Multipath, flat ``(N * M,)``: a sub-ray reflected away by an oblique wall travels on to the
-    next surface; if that one returns it (a wall within the incidence limit, or a robot), the echo
-    retraces the path and reads the two-bounce length ``t1 + t2`` (longer than the true range)."""
-    n, m = dirs.shape[:2]
-    t1 = hits.distance.reshape(-1)
-    cos1 = hits.cos_incidence.reshape(-1)
-    out = np.full(n * m, np.inf)
-    sel = np.flatnonzero(np.isfinite(t1) & (cos1 < cos_min))
-    if len(sel) == 0:
-        return out
-    d = dirs.reshape(-1, 2)[sel]
-    seg = segments[hits.index.reshape(-1)[sel]]
-    e = seg[:, 2:4] - seg[:, 0:2]
-    nrm = np.stack([-e[:, 1], e[:, 0]], axis=1) / np.linalg.norm(e, axis=1, keepdims=True)
-    d2 = d - 2.0 * np.sum(d * nrm, axis=1, keepdims=True) * nrm  # mirror the direction in the wall
-    p = np.repeat(origins, m, axis=0)[sel] + d * t1[sel, None] + d2 * _NUDGE  # leave the first wall
-    reach = cfg.range_max - t1[sel]
-    h2 = cast_rays(p, d2, segments, float(reach.max()), with_cos=True)
-    wall2 = np.where(h2.cos_incidence >= cos_min, h2.distance, np.inf)
-    src = sel // m  # the origin of each selected sub-ray
-    disc2 = cast_rays_discs(p, d2, centres[src] if centres.ndim == 3 else centres, float(radius), owner[src])
-    t2 = np.where(disc2 < h2.distance, disc2, wall2) + _NUDGE
-    out[sel] = np.where(t2 <= reach, t1[sel] + t2, np.inf)
-    return out
-
-
-def _corner_echoes(cfg, origins, axes, segments, centres, radius, owner, pts, u1, u2) -> np.ndarray:
-    """``(N, B)`` nearest concave-corner echo inside each beam's cone (inf if none)."""
-    vec = pts[None, :, :] - origins[:, None, :]
-    dist = np.linalg.norm(vec, axis=-1)
-    cand = (dist <= cfg.range_max) & (dist > _EPS) & _corner_faces(origins, pts, u1, u2)
-    if not cand.any():
-        return np.full(axes.shape, np.inf)
-    ni, ci = np.nonzero(cand)
-    d = vec[ni, ci] / dist[ni, ci, None]
-    t = cast_rays(origins[ni], d, segments).distance
-    visible = t >= dist[ni, ci] * (1.0 - 1e-7) - 1e-9
-    if centres.shape[-2]:
-        visible &= cast_rays_discs(origins[ni], d, centres[ni] if centres.ndim == 3 else centres, float(radius),
-                                   owner[ni]) >= dist[ni, ci]
-    vi, vc = ni[visible], ci[visible]
-    out = np.full(axes.shape, np.inf)
-    if len(vi) == 0:
-        return out
-    # only the visible (origin, corner) pairs: the bearing of each against every beam axis
-    bearing = np.arctan2(vec[vi, vc, 1], vec[vi, vc, 0])
-    diff = np.abs(wrap_angle(bearing[:, None] - axes[vi]))
-    in_cone = diff <= math.radians(cfg.cone_deg) / 2 + 1e-12
-    np.minimum.at(out, vi, np.where(in_cone, dist[vi, vc][:, None], np.inf))
-    return out
+def _half_cone(cfg: SonarConfig) -> float:
+    """Half the beam's cone (rad), with a rounding slack: a bearing this far off the axis is inside."""
+    return math.radians(cfg.cone_deg) / 2 + 1e-12
 
 
 class SonarRing:
@@ -286,19 +222,10 @@ def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segm
     out = np.full((k, n, nb), np.inf)
     if n < 2:
         return out
-    i, j = np.nonzero(~np.eye(n, dtype=bool))
-    pi_, pj = poses[:, i], poses[:, j]  # (K, P, 3)
-    delta = pj[..., :2] - pi_[..., :2]
-    d = np.hypot(delta[..., 0], delta[..., 1])
-    bearing = np.arctan2(delta[..., 1], delta[..., 0])
-    half = math.radians(cfg.cone_deg) / 2 + 1e-12
-    # (K, pairs, B): is j inside i's beam b?  does some beam of j point back at i?
-    rx_ok = np.abs(wrap_angle(bearing[..., None] - pi_[..., 2:3] - beam_angles)) <= half
-    tx_ok = (np.abs(wrap_angle(bearing[..., None] + math.pi - pj[..., 2:3] - beam_angles)) <= half).any(-1)
-    ok = tx_ok & (d / 2 <= cfg.range_max) & (d > 0)
-    ok &= ~segments_blocked(pi_[..., :2].reshape(-1, 2), pj[..., :2].reshape(-1, 2), segments).reshape(ok.shape)
-    val = np.where(rx_ok & ok[..., None], d[..., None] / 2, np.inf)
-    np.minimum.at(out, (np.arange(k)[:, None], i[None, :]), val)
+    segments = np.ascontiguousarray(np.asarray(segments, dtype=float).reshape(-1, 4))
+    px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
+    rays.kernels().sonar_crosstalk(px, py, pth, np.ascontiguousarray(beam_angles, dtype=float), segments,
+                                   _half_cone(cfg), float(cfg.range_max), out)
     return out
 
 

@@ -110,12 +110,12 @@ def test_at_most_four_loose_modules():
 
 
 def test_package_import_is_light():
-    """``import parcover_env`` loads no room (the env, planner, scipy, networkx come on first use)."""
+    """``import parcover_env`` loads no room (the env, planner, scipy, networkx, numba come on first use)."""
     import subprocess
     import sys
 
     code = ("import sys, parcover_env; heavy = [m for m in sys.modules if m.startswith(('parcover_env.', 'scipy',"
-            " 'networkx', 'pymunk', 'cv2', 'torch'))]; print(sorted(heavy))")
+            " 'networkx', 'pymunk', 'cv2', 'torch', 'numba', 'llvmlite'))]; print(sorted(heavy))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert out == "['parcover_env.errors']"
 

@@ -52,9 +52,9 @@ def test_range_culled_sonar_matches_full_ray_casting(model, monkeypatch):
     # and the whole ring reads the same through either path
     cfg = SonarConfig(layout="ring", n_beams=72, range_max=reach, model=model)
     ring_axes = origins[:, :1] + np.arange(72) * (2 * np.pi / 72)
-    monkeypatch.setattr(rays, "CULL_MIN_WORK", 0)  # force the range-culled path
+    monkeypatch.setattr(rays, "BOX_CULL", True)  # the box-culled path
     fast = sn.simulate_beams(cfg, origins, ring_axes, seg, origins, 0.2, owner)
-    monkeypatch.setattr(rays, "CULL_MIN_RAYS", 10**9)  # force the plain path
+    monkeypatch.setattr(rays, "BOX_CULL", False)  # every segment
     plain = sn.simulate_beams(cfg, origins, ring_axes, seg, origins, 0.2, owner)
     np.testing.assert_array_equal(fast, plain)
     assert np.any(fast < reach)
@@ -164,8 +164,8 @@ def test_sonar_config_replace_keeps_fast_path_exact_on_a_scenario(monkeypatch):
     axes = poses[:, 2:3] + np.arange(72) * (2 * np.pi / 72)
     args = (cfg, poses[:, :2], axes, env.map.segments, poses[:, :2], env.scenario.robot.radius,
             np.arange(len(poses)))
-    assert 15 * 72 * 5 * len(env.map.segments) >= rays.CULL_MIN_WORK  # the culled path by default
+    assert rays.BOX_CULL  # the culled path by default
     fast = sn.simulate_beams(*args)
-    monkeypatch.setattr(rays, "CULL_MIN_RAYS", 10**9)
+    monkeypatch.setattr(rays, "BOX_CULL", False)
     plain = sn.simulate_beams(*args)
     np.testing.assert_array_equal(fast, plain)

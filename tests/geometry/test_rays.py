@@ -156,13 +156,56 @@ def test_discs_per_origin_sets_equal_separate_calls():
     assert other[0] == math.inf
 
 
-def test_segments_blocked_box_culled_equals_full_test():
-    from parcover_env.geometry import rays
+def _blocked_by_formula(a, b, walls) -> np.ndarray:
+    """The open-segment test written out per pair (module docstring formulas), as the reference."""
+    out = np.zeros(len(a), dtype=bool)
+    for r in range(len(a)):
+        d = b[r] - a[r]
+        for x1, y1, x2, y2 in walls:
+            e = np.array([x2 - x1, y2 - y1])
+            w = np.array([x1, y1]) - a[r]
+            den = d[0] * e[1] - d[1] * e[0]
+            if abs(den) <= 1e-12:
+                continue
+            t = (w[0] * e[1] - w[1] * e[0]) / den
+            u = (w[0] * d[1] - w[1] * d[0]) / den
+            out[r] |= bool(0.0 < t < 1.0 and -1e-12 <= u <= 1.0 + 1e-12)
+    return out
 
+
+def test_segments_blocked_equals_the_per_pair_formula():
     walls, a, _ = _random_walls_and_rays(3, 400)
     b = a + np.random.default_rng(5).uniform(-2, 2, (400, 2))
     b[:5] = walls[30:35, 2:]  # ends on a wall end: the open segment does not cross there
-    culled = segments_blocked(a, b, walls)  # 400 x 40 pairs: box-culled
-    assert len(a) * len(walls) >= rays.CULL_MIN_PAIRS
-    full = np.array([segments_blocked(a[i:i + 1], b[i:i + 1], walls)[0] for i in range(len(a))])
-    assert 50 < culled.sum() < 350 and np.array_equal(culled, full)
+    got = segments_blocked(a, b, walls)
+    assert 50 < got.sum() < 350 and np.array_equal(got, _blocked_by_formula(a, b, walls))
+
+
+def test_grazing_rays_on_walls_and_discs():
+    """A ray along a wall never hits it (parallel); a ray through a wall's end point hits at the end;
+    a ray tangent to a disc hits at the tangent point; one just outside misses."""
+    along = cast_rays(np.array([[0.0, 1.0]]), np.array([[1.0, 0.0]]), np.array([[1.0, 1.0, 3.0, 1.0]]))
+    assert along.index[0] == -1 and math.isinf(along.distance[0])
+    end = cast_rays(np.zeros((1, 2)), np.array([[1.0, 1.0]]) / math.sqrt(2), np.array([[1.0, 1.0, 1.0, 3.0]]),
+                    with_cos=True)
+    assert end.index[0] == 0 and end.distance[0] == pytest.approx(math.sqrt(2))
+    assert end.cos_incidence[0] == pytest.approx(math.cos(math.radians(45)))
+    tangent = cast_rays_discs(np.array([[0.0, 0.5]]), np.array([[1.0, 0.0]]), np.array([[2.0, 0.0]]), 0.5)
+    assert tangent[0] == pytest.approx(2.0)
+    outside = cast_rays_discs(np.array([[0.0, 0.5 + 1e-6]]), np.array([[1.0, 0.0]]), np.array([[2.0, 0.0]]), 0.5)
+    assert math.isinf(outside[0])
+    # a ray at 60 deg from (0, -3) meets x = 2 at t = 2 / cos 60 = 4, y = -3 + 4 sin 60 = 0.46 (on the wall,
+    # |cos| = cos 60); from (0, -2) it meets x = 2 at y = 1.46, past the wall's end
+    hit = cast_rays(np.array([[0.0, -3.0]]), _dir(60.0), WALL, with_cos=True)
+    assert hit.distance[0] == pytest.approx(4.0) and hit.cos_incidence[0] == pytest.approx(0.5)
+    assert cast_rays(np.array([[0.0, -2.0]]), _dir(60.0), WALL).index[0] == -1
+
+
+@pytest.mark.parametrize("cull", [False, True])
+def test_one_origin_shared_by_many_rays(cull):
+    """``origins (1, 2)`` with ``directions (R, 2)``: every ray starts at the one origin."""
+    dirs = np.vstack([_dir(0.0), _dir(25.0), _dir(180.0)])
+    h = cast_rays(np.zeros((1, 2)), dirs, WALL, 10.0, cull=cull)
+    np.testing.assert_allclose(h.distance, [2.0, 2.0 / math.cos(math.radians(25)), np.inf])
+    with pytest.raises(ValueError, match="do not match"):
+        cast_rays(np.zeros((2, 2)), dirs, WALL)

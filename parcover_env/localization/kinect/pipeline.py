@@ -333,7 +333,9 @@ def estimate_fast(sensor: KinectSensor, poses, marker_mask, rng: np.random.Gener
     if len(rows):  # hidden by a wall top (static depth nearer than a marker)?
         iu, iv = np.rint(uv[rows, :, 0]).astype(int), np.rint(uv[rows, :, 1]).astype(int)
         rows = rows[~np.any(sensor.nominal_static_depth[iv, iu] < z[rows] - 1e-6, axis=1)]
-    out = []
+    out: list[PoseEstimate] = []
+    if len(rows) == 0:
+        return out
     span = float(np.ptp(pat[:, 0])) or 0.1
     seen = _as_seen_by_nominal(sensor, poses) if sensor.true_camera is not sensor.camera else poses
     z_max, z_mean = z.max(axis=1).tolist(), z.mean(axis=1).tolist()
