@@ -64,14 +64,22 @@ class SonarFixConfig:
     directions, the scan must match the known map worse by at least ``min_shift_increase``. A scan
     of open space (mostly no echo) or along a straight corridor matches about as well shifted, and
     the localizer's pose is then a guess along the free direction. 0 switches the test off."""
-    min_shift_increase: float = 0.01
+    min_shift_increase: float = 0.003
     """Smallest increase of the mean clipped scan error under that shift (m). Measured on generated
-    maps 5, 117, 120 and 146: fixes 0.16-0.40 m off showed 0.000, good fixes mostly 0.01-0.09."""
+    maps 5, 24, 117, 120 and 146: fixes 0.16-0.40 m off showed 0.000 (+-0.002), good fixes mostly
+    0.01-0.09, a few 0.004."""
     refused_rescans: int = 2
-    """After a successful fix refused by the gate, the leader scans again at once (without driving
+    """After a successful fix refused by the gate, or at what it believes is its route's end after any
+    scan without an accepted fix, the leader scans again at once (without driving
     ``rescan_distance`` first), up to this many times in a row: a second scan can confirm the refused
-    fix (``confirm_distance``) while the robot is still where it doubted its belief, e.g. stuck at
-    what it wrongly believes is its route's end (-)."""
+    fix (``confirm_distance``), or search the wider region of ``miss_inflation``, while the robot is
+    still where it doubted its belief (-)."""
+    miss_inflation: float = 2.0
+    """Each scan without an accepted fix widens the next scan's gate and search region: its standard
+    deviations are multiplied by this (-), until a fix. Contacts push robots unseen by the encoders,
+    and a robot pushed outside its covariance is otherwise never found inside its search region."""
+    max_inflation: float = 8.0
+    """Largest total factor of ``miss_inflation`` (-): the search region stays bounded."""
     fix_sigma: float = 0.05
     """Position standard deviation of an accepted sonar fix along x and y (m): the covariance the
     expert propagates the corrected belief from."""
@@ -89,6 +97,8 @@ class SonarFixConfig:
                  "fix_sigma", "fix_sigma_heading_deg", "confirm_distance")
         check(self.shift_test >= 0, "shift_test", f"must be >= 0, got {self.shift_test}")
         check(self.min_shift_increase >= 0, "min_shift_increase", f"must be >= 0, got {self.min_shift_increase}")
+        check(self.miss_inflation >= 1, "miss_inflation", f"must be >= 1, got {self.miss_inflation}")
+        check(self.max_inflation >= 1, "max_inflation", f"must be >= 1, got {self.max_inflation}")
         check(self.refused_rescans >= 0, "refused_rescans", f"must be >= 0, got {self.refused_rescans}")
         check(self.rescan_distance >= 0, "rescan_distance", f"must be >= 0, got {self.rescan_distance}")
         check(self.final_rescan_distance >= 0, "final_rescan_distance",

@@ -133,6 +133,11 @@ class _State:
     """The correction a refused (outside the gate) but successful fix would have made, or None."""
     retries: int = 0
     """Scans in a row started at once after a refused fix (``refused_rescans``)."""
+    missed: bool = False
+    """The last scan gave no accepted fix."""
+    inflation: float = 1.0
+    """Factor on the standard deviations of the gate after scans in a row without an accepted fix
+    (``miss_inflation``); 1 after a fix."""
 
 
 class SonarFixer:
@@ -187,6 +192,7 @@ class SonarFixer:
         fresh = fix_age < 2 * self.dt  # a fresh Kinect fix: the odometry pose is absolute again
         if fresh:
             st.correction, st.scan, st.driven_since_scan, st.refused = np.zeros(3), None, math.inf, None
+            st.missed, st.inflation = False, 1.0
             st.cov = self.kinect_cov.copy() if odom_cov is None else odom_cov
         elif odom_cov is not None and not self.corrected(agent):
             st.cov = odom_cov
@@ -199,14 +205,14 @@ class SonarFixer:
         st.driven_since_scan += abs(speed) * self.dt
         if st.scan is None:
             rescan = self.cfg.final_rescan_distance if at_end else self.cfg.rescan_distance
-            retry = st.refused is not None and st.retries < self.cfg.refused_rescans
+            retry = (st.refused is not None or (at_end and st.missed)) and st.retries < self.cfg.refused_rescans
             if not (is_leader and fix_age > self.cfg.stale_after and (retry or st.driven_since_scan >= rescan)):
                 return None
             if abs(speed) > self.cfg.stop_speed:
                 return 0.0, 0.0  # brake first: a scan is taken standing still
             st.retries = st.retries + 1 if retry else 0
             st.scan = ScanCollector(self.beams, self.n_bins, self.sonar.range_max, float(odom[2]))
-            st.scan_odom, st.scan_cov = odom.copy(), st.cov.copy()
+            st.scan_odom, st.scan_cov = odom.copy(), st.cov * st.inflation**2
             self.stats["sonar_scans"] += 1
         if not st.scan.add(float(odom[2]), ranges):
             return 0.0, self.scan_rate
@@ -237,16 +243,19 @@ class SonarFixer:
         ell = Ellipse.from_covariance(prior[:2], pos, self.cfg.gate_sigmas)
         fix = self.team.localize(st.scan.ranges, ell, others, heading=float(prior[2]), heading_tol=turn)
         pose = fix.result.pose
-        if fix.ok and not self.pins_down(st.scan.ranges, pose, others):
-            self.stats["sonar_failed"] += 1
-            return
-        if fix.ok and (self.accept(pose, prior, st.scan_cov) or self.confirms(pose, st.refused, st.scan_odom)):
+        usable = fix.ok and self.pins_down(st.scan.ranges, pose, others)
+        if usable and (self.accept(pose, prior, st.scan_cov) or self.confirms(pose, st.refused, st.scan_odom)):
             st.correction = compose(pose, inverse(st.scan_odom))
             st.cov, st.refused = self.fix_cov.copy(), None
+            st.missed, st.inflation = False, 1.0
             self.stats["sonar_localized"] += 1
             return
-        if fix.ok and abs(wrap_angle(pose[2] - prior[2])) <= math.radians(self.cfg.gate_heading_max_deg):
+        if usable and abs(wrap_angle(pose[2] - prior[2])) <= math.radians(self.cfg.gate_heading_max_deg):
             st.refused = compose(pose, inverse(st.scan_odom))
+        # no fix: the belief may be further off than its covariance says (contacts push robots unseen
+        # by the encoders), so the next scan searches a wider region
+        st.missed = True
+        st.inflation = min(st.inflation * self.cfg.miss_inflation, self.cfg.max_inflation)
         self.stats["sonar_failed"] += 1
 
     def pins_down(self, ranges: np.ndarray, pose: np.ndarray, others: np.ndarray) -> bool:

@@ -218,3 +218,26 @@ def test_a_leader_due_for_a_scan_brakes_until_it_stands_still():
     assert fixer.states["robot_0"].scan is None
     assert fixer.step("robot_0", odom, speed=0.004, **due) == (0.0, fixer.scan_rate)  # standing: turn
     np.testing.assert_array_equal(fixer.states["robot_0"].scan_odom, odom)
+
+
+def test_scans_without_a_fix_widen_the_next_gate_until_a_fix():
+    from parcover_env.config import SonarFixConfig
+    from parcover_env.expert.sonar_fix import _State
+
+    fixer = _fixer(SonarFixConfig(miss_inflation=2.0, max_inflation=8.0, refused_rescans=2))
+    st = _State(np.zeros(3), np.diag([0.01, 0.04, 0.001]), scan_odom=np.array([1.0, 1.0, 0.0]))
+    st.scan = type("Scan", (), {"ranges": np.full(fixer.n_bins, fixer.sonar.range_max)})()  # no echo at all
+    for expected in (2.0, 4.0, 8.0, 8.0):
+        st.scan_cov = st.cov * st.inflation**2
+        fixer._localize(st, np.zeros((0, 2)))
+        assert st.missed and st.inflation == expected
+    # the gate of the next scan: standard deviations x 8
+    odom, ranges = np.array([1.0, 1.0, 0.0]), np.full(len(fixer.beams), 1.0)
+    fixer.states["robot_0"], st.scan, st.last_odom, st.driven_since_scan = st, None, odom, 5.0
+    fixer.step("robot_0", odom, fix_age=100.0, speed=0.0, ranges=ranges, is_leader=True)
+    np.testing.assert_allclose(np.sqrt(np.diag(st.scan_cov)), 8.0 * np.sqrt(np.diag(st.cov)))
+    # at what it believes is its route's end, a robot whose last scan missed scans again at once
+    st.scan, st.driven_since_scan, st.retries = None, 0.0, 0
+    assert fixer.step("robot_0", odom, fix_age=100.0, speed=0.0, ranges=ranges, is_leader=True, at_end=True)
+    st.scan, st.retries = None, 0
+    assert fixer.step("robot_0", odom, fix_age=100.0, speed=0.0, ranges=ranges, is_leader=True) is None
