@@ -241,3 +241,78 @@ def test_scans_without_a_fix_widen_the_next_gate_until_a_fix():
     assert fixer.step("robot_0", odom, fix_age=100.0, speed=0.0, ranges=ranges, is_leader=True, at_end=True)
     st.scan, st.retries = None, 0
     assert fixer.step("robot_0", odom, fix_age=100.0, speed=0.0, ranges=ranges, is_leader=True) is None
+
+
+def test_chain_pose_covariance_with_a_lateral_offset_turns_with_the_robot_ahead():
+    from parcover_env.expert.sonar_fix import chain_pose
+
+    ahead, rel = np.array([1.0, 2.0, 0.7]), np.array([0.4, 0.3, 0.2])  # 0.5 m away, to the left, turned
+    var_heading = 0.05**2
+    pose, cov = chain_pose(ahead, np.diag([0.0, 0.0, var_heading]), rel, 0.02, 0.01, 0.03)
+    np.testing.assert_allclose(compose(pose, rel), ahead, atol=1e-12)  # the camera would see `rel` from there
+    t = inverse(rel)[:2]
+    swing = np.array([[np.cos(ahead[2] + np.pi / 2), -np.sin(ahead[2] + np.pi / 2)],
+                      [np.sin(ahead[2] + np.pi / 2), np.cos(ahead[2] + np.pi / 2)]]) @ t  # d(position)/d(theta)
+    lateral = 0.25 * (0.02**2 + 0.01**2 + 0.03**2)  # d^2 = 0.4^2 + 0.3^2
+    np.testing.assert_allclose(cov[:2, :2], np.outer(swing, swing) * var_heading + lateral * np.eye(2), atol=1e-15)
+    np.testing.assert_allclose(cov[:2, 2], swing * var_heading, atol=1e-15)
+    assert cov[2, 2] == pytest.approx(var_heading + 0.03**2)
+
+
+def _scan_at(fixer, true):
+    from parcover_env.sensors.sonar import simulate_beams
+
+    ranges = simulate_beams(fixer.sonar, true[None, :2], (true[2] + fixer.team.scan_angles)[None, :],
+                            fixer.team.map.segments, np.zeros((0, 2)), fixer.team.radius, np.array([-1]))[0]
+    return type("Scan", (), {"ranges": ranges})()
+
+
+def test_localize_accepts_a_fix_in_the_gate_refuses_one_outside_until_confirmed():
+    from parcover_env.config import SonarFixConfig
+    from parcover_env.expert.sonar_fix import _State
+
+    fixer = _fixer(SonarFixConfig(miss_inflation=2.0))
+    true = np.array([1.0, 1.0, 0.3])  # a corner of the tree map: the scan localizes exactly
+    # odometry 11 cm off, covariance 10 cm: the fix is taken and replaces the belief
+    st = _State(np.zeros(3), np.diag([0.01, 0.01, 0.001]), scan_odom=true + [0.1, -0.05, 0.02])
+    st.scan, st.scan_cov, st.missed, st.inflation = _scan_at(fixer, true), st.cov.copy(), True, 4.0
+    fixer._localize(st, np.zeros((0, 2)))
+    np.testing.assert_allclose(compose(st.correction, st.scan_odom), true, atol=1e-3)
+    np.testing.assert_allclose(st.cov, fixer.fix_cov)
+    assert (st.missed, st.inflation, st.refused, fixer.stats["sonar_localized"]) == (False, 1.0, None, 1)
+    # odometry 0.45 m off with a 1 cm covariance (a push): the fix lies outside the gate and is
+    # refused but remembered; the next scan (gate twice as wide, or confirming it) takes it
+    odom = true + [0.45, 0.0, 0.0]
+    st = _State(np.zeros(3), np.diag([1e-4, 1e-4, 1e-4]), scan_odom=odom)
+    st.scan, st.scan_cov = _scan_at(fixer, true), st.cov.copy()
+    fixer._localize(st, np.zeros((0, 2)))
+    assert not np.any(st.correction) and st.missed and st.inflation == 2.0
+    np.testing.assert_allclose(compose(st.refused, odom), true, atol=1e-3)
+    st.scan_cov = st.cov * st.inflation**2
+    fixer._localize(st, np.zeros((0, 2)))
+    np.testing.assert_allclose(compose(st.correction, odom), true, atol=1e-3)
+    assert (st.missed, st.inflation, st.refused) == (False, 1.0, None)
+    # 0.6 m off: nothing in the first gates; each miss doubles its standard deviations until the
+    # true pose is inside (here at x8)
+    odom = true + [0.6, 0.0, 0.0]
+    st = _State(np.zeros(3), np.diag([1e-4, 1e-4, 1e-4]), scan_odom=odom)
+    st.scan, inflations = _scan_at(fixer, true), []
+    while not np.any(st.correction) and len(inflations) < 6:
+        st.scan_cov = st.cov * st.inflation**2
+        inflations.append(st.inflation)
+        fixer._localize(st, np.zeros((0, 2)))
+    assert inflations == [1.0, 2.0, 4.0, 8.0]
+    np.testing.assert_allclose(compose(st.correction, odom), true, atol=1e-3)
+
+
+def test_localize_does_not_use_a_fix_the_scan_does_not_pin_down():
+    from parcover_env.config import SonarFixConfig
+    from parcover_env.expert.sonar_fix import _State
+
+    true = np.array([1.0, 1.0, 0.3])
+    for threshold, used in ((0.003, True), (1.0, False)):  # no scan raises its error by 1 m when shifted
+        fixer = _fixer(SonarFixConfig(min_shift_increase=threshold))
+        st = _State(np.zeros(3), np.diag([0.01, 0.01, 0.001]), scan_odom=true + [0.1, -0.05, 0.02])
+        st.scan, st.scan_cov = _scan_at(fixer, true), st.cov.copy()
+        fixer._localize(st, np.zeros((0, 2)))
+        assert bool(np.any(st.correction)) is used and st.missed is not used and st.refused is None
