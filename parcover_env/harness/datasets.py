@@ -16,7 +16,8 @@ import numpy as np
 
 from parcover_env.errors import ParcoverError
 
-__all__ = ["AgentEpisode", "record_episodes", "save_minari", "load_minari", "collect"]
+__all__ = ["AgentEpisode", "record_episodes", "save_minari", "load_minari", "load_minari_many", "dataset_ids",
+           "collect"]
 
 
 class AgentEpisode(dict):
@@ -136,7 +137,7 @@ def _create(minari, dataset_id, buffers, algorithm, env, agent) -> None:
         author="parcover_env",
         observation_space=env.observation_space(agent),
         action_space=env.action_space(agent),
-        env_spec=_env_spec(env),
+        env=_env_spec(env),
         description=f"{algorithm} demonstrations on scenario '{env.scenario.name}', one episode per robot "
         "(parameter sharing view)",
         data_format="hdf5",
@@ -177,6 +178,41 @@ def load_minari(dataset_id: str, root: str | Path) -> list[AgentEpisode]:
         )
         for e in ds.iterate_episodes()
     ]
+
+
+def dataset_ids(spec: str, root: str | Path) -> list[str]:
+    """The dataset ids named by ``spec``: comma-separated ids, each may hold ``*``/``?`` wildcards
+    matched against the datasets under ``root`` (e.g. ``parcover/generated-*-expert-v0``), sorted."""
+    import fnmatch
+
+    root = Path(root)
+    ids: list[str] = []
+    for part in (p.strip() for p in spec.split(",")):
+        if not part:
+            continue
+        if any(c in part for c in "*?["):
+            found = sorted(
+                str(d.relative_to(root)) for d in root.glob(part) if d.is_dir() and (d / "data").is_dir()
+            )
+            found = [f for f in found if fnmatch.fnmatch(f, part)]
+            if not found:
+                raise ParcoverError(f"no Minari dataset under {root} matches '{part}'")
+            ids += found
+        else:
+            if not dataset_path(part, root).is_dir():
+                raise ParcoverError(f"no Minari dataset '{part}' under {root} (write one with parcover collect)")
+            ids.append(part)
+    if not ids:
+        raise ParcoverError(f"no dataset ids in '{spec}'")
+    return ids
+
+
+def load_minari_many(spec: str, root: str | Path) -> list[AgentEpisode]:
+    """Every agent-episode of the datasets :func:`dataset_ids` names, in id order."""
+    out: list[AgentEpisode] = []
+    for ds_id in dataset_ids(spec, root):
+        out += load_minari(ds_id, root)
+    return out
 
 
 def collect(
