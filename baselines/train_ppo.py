@@ -75,6 +75,9 @@ class Args:
     ent_coef: float = 0.0
     log_std_init: float = 0.0
     net_arch: str = "128,128"
+    drop_obs: str = ""
+    """Comma-separated observation fields the networks do not see (e.g. ``x,y,cos_theta,sin_theta``:
+    the world-frame pose, meaningless on unseen maps); see ``parcover_env.policies.sb3_features``."""
     max_steps: int = 0
     """Override episode.max_steps (0 = the scenario's)."""
     out: str = "runs/ppo"
@@ -509,13 +512,16 @@ def train(args: Args) -> Path:
         if prev_stats is not None:  # the normalization carries over from stage to stage
             venv.obs_rms, venv.ret_rms = prev_stats
         if model is None:
+            policy_kwargs: dict = {"net_arch": [int(h) for h in args.net_arch.split(",")],
+                                   "log_std_init": args.log_std_init}
+            if args.drop_obs:
+                policy_kwargs.update(obs_selection(args, scen[0]))
+                info["obs_kept"] = policy_kwargs["features_extractor_kwargs"]["keep"]
             model = PPO("MlpPolicy", venv, n_steps=args.n_steps, batch_size=args.batch_size,
                         n_epochs=args.n_epochs, learning_rate=args.learning_rate, gamma=args.gamma,
                         gae_lambda=args.gae_lambda, ent_coef=args.ent_coef, seed=args.seed, device=device,
                         clip_range=args.clip_range, target_kl=args.target_kl or None,
-                        verbose=0, tensorboard_log=tb_dir,
-                        policy_kwargs={"net_arch": [int(h) for h in args.net_arch.split(",")],
-                                       "log_std_init": args.log_std_init})
+                        verbose=0, tensorboard_log=tb_dir, policy_kwargs=policy_kwargs)
             if args.bc_episodes or args.bc_datasets:
                 demos, source = load_demos(args, args.bc_scenario or stage["scenario"])
                 info.update(source)
@@ -562,6 +568,17 @@ def train(args: Args) -> Path:
                                        "final_eval": evals[-args.eval_episodes * 2:] if evals else []})
     print(f"{model.num_timesteps} agent-steps in {wall:.0f} s")
     return out
+
+
+def obs_selection(args: Args, scenario: str) -> dict:
+    """``policy_kwargs`` entries that hide the fields ``args.drop_obs`` from the networks."""
+    from parcover_env.envs import ParallelCoverageEnv
+    from parcover_env.policies.sb3_features import SelectEntries, keep_indices
+
+    layout = ParallelCoverageEnv(scenario, preset=args.preset).layout
+    drop = [f.strip() for f in args.drop_obs.split(",") if f.strip()]
+    return {"features_extractor_class": SelectEntries,
+            "features_extractor_kwargs": {"keep": keep_indices(layout.names, layout.slices, drop)}}
 
 
 def _switch_env(model, venv) -> None:
