@@ -471,6 +471,7 @@ def train(args: Args) -> Path:
             venv.save(str(out / "best" / "vecnormalize.pkl"))
             write_sidecar(out / "best" / "model.json",
                           {**info, "timesteps": n, "wall_time_s": time.time() - t0, "selected_by": "validation",
+                           "selected_from_run": str(out),
                            "validation": rows, "validation_score": {"kpoi_fraction": score[0], "success": score[1]},
                            "eval_seeds": sorted({e["seed"] for e in evals}),
                            "validation_scenarios": sorted({e["scenario"] for e in evals})})
