@@ -3,6 +3,11 @@
     python baselines/train_ppo.py --scenario office --total-timesteps 600000 --out runs/ppo_office
     python baselines/train_ppo.py --curriculum configs/train/generated_to_tree.yaml --out runs/ppo_tree
     python baselines/train_ppo.py --scenario tree --bc-episodes 6 --out runs/bcppo_tree   # BC-initialized
+    # BC from Minari datasets (parcover collect), PPO held near it, best network by validation
+    python baselines/train_ppo.py --scenario generated:RANDOM --map-seed0 200 \
+        --bc-datasets 'parcover/generated-*-expert-v0' --drop-obs x,y,cos_theta,sin_theta \
+        --learning-rate 3e-5 --n-epochs 3 --target-kl 0.02 --bc-coef 0.5 \
+        --eval-scenarios generated:500,generated:501,generated:502 --eval-episodes 1 --out runs/ppo_generated
 
 Writes into ``OUT/``: ``model.zip`` + ``vecnormalize.pkl`` (read by
 ``parcover_env.policies.learned.PPOPolicy``, i.e. ``--policy ppo:OUT``), ``model.json`` (sidecar:
@@ -18,10 +23,15 @@ normalization carry over from stage to stage (the VecEnv is rebuilt, so team siz
 ``scenario: generated:RANDOM`` gives each ParallelEnv of the stage its own procedural map
 (``generated:<map_seed0 + k>``), ``generated:A,B,C`` cycles through the listed maps.
 
-BC initialization (``--bc-episodes N``): records N expert missions (seeds ``bc_seed0 ..``) on the
+BC initialization (``--bc-episodes N``, or ``--bc-datasets IDS`` to read the demonstrations from
+Minari datasets written by ``parcover collect``): records N expert missions (seeds ``bc_seed0 ..``) on the
 first stage's scenario, sets the observation/return normalization from them, regresses the actor's
 mean action onto the expert's and the critic onto the demonstrations' discounted returns, saves that
 network as ``OUT/bc_init/`` (evaluable as a policy by itself), then runs PPO from it.
+Keeping the PPO phase from wrecking it: ``--bc-coef`` adds a BC regularizer (Adam steps toward the
+expert's actions on the demonstrations after every rollout), ``--target-kl`` / ``--clip-range`` /
+small ``--learning-rate`` bound each update, and with ``--eval-freq`` the starting network and every
+periodic evaluation compete for ``OUT/best/`` (``--keep-best``): ship that one, not the last.
 
 Hardware: ``--device auto`` uses CUDA when torch sees a GPU. With these small MLPs (2 x 128) the
 simulation, not the network, is the bottleneck: a GPU mostly pays off with far larger batches

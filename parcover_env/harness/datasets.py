@@ -26,12 +26,20 @@ class AgentEpisode(dict):
 
 def record_episodes(
     scenario: Any, episodes: int, seed: int = 0, policy: str = "expert", max_steps: int | None = None,
-    preset: str = "realistic",
+    preset: str = "realistic", driver: str | None = None, driver_prob: float = 1.0,
 ) -> list[AgentEpisode]:
     """Run ``episodes`` episodes (seeds ``seed .. seed+episodes-1``) under ``preset``; one AgentEpisode
-    per robot."""
+    per robot. ``policy`` labels every step (the recorded actions); without ``driver`` it also acts.
+
+    With ``driver`` (a policy spec, e.g. ``ppo:runs/x/model.zip``) the team executes the driver's
+    actions on a fraction ``driver_prob`` of the steps (drawn per step from a generator seeded with
+    the episode seed) and the labeller's on the others, while the recorded actions stay the
+    labeller's: DAgger's data (Ross et al. 2011), the expert's answer in the states the learner
+    reaches. The labeller runs on every step, so a stateful expert tracks the real trajectory."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
+    if not 0.0 <= driver_prob <= 1.0:
+        raise ValueError(f"driver_prob must be in [0, 1], got {driver_prob}")
     from parcover_env.envs import ParallelCoverageEnv
     from parcover_env.policies.registry import make_policy
 
@@ -41,17 +49,25 @@ def record_episodes(
     for k in range(episodes):
         ep_seed = seed + k
         pol = make_policy(policy, env, ep_seed)
+        drv = make_policy(driver, env, ep_seed) if driver else None
+        coin = np.random.default_rng(ep_seed)
         obs, _ = env.reset(seed=ep_seed)
-        if hasattr(pol, "reset"):
-            pol.reset(obs)
+        for p in (pol, drv):
+            if p is not None and hasattr(p, "reset"):
+                p.reset(obs)
         traj = {
             a: {"observations": [obs[a]], "actions": [], "rewards": [], "terminations": [], "truncations": []}
             for a in env.possible_agents
         }
         while env.agents:
             actions = pol.act(obs)
+            executed = actions
+            if drv is not None:
+                driven = drv.act(obs)
+                if coin.random() < driver_prob:
+                    executed = driven
             live = list(env.agents)
-            obs, rew, term, trunc, _ = env.step(actions)
+            obs, rew, term, trunc, _ = env.step(executed)
             for a in live:
                 t = traj[a]
                 t["actions"].append(np.clip(np.asarray(actions[a], np.float32), -1, 1))
@@ -222,14 +238,19 @@ def collect(
     seed: int = 0,
     dataset_id: str | None = None,
     policy: str = "expert",
+    driver: str | None = None,
+    driver_prob: float = 1.0,
+    max_steps: int | None = None,
 ) -> tuple[str, int]:
-    """Record and save; returns (dataset id, number of agent-episodes)."""
+    """Record and save; returns (dataset id, number of agent-episodes). ``driver``/``driver_prob``:
+    see :func:`record_episodes` (default id then ``parcover/<scenario>-<policy>-dagger-v0``)."""
     name = str(scenario).replace(":", "-").replace("/", "-").removesuffix(".yaml")
-    dataset_id = dataset_id or f"parcover/{name}-{policy}-v0"
+    dataset_id = dataset_id or f"parcover/{name}-{policy}{'-dagger' if driver else ''}-v0"
     if dataset_path(dataset_id, out).exists():
         raise ParcoverError(f"dataset '{dataset_id}' already exists under {out}; choose another --dataset-id "
                             "or --out, or delete it")
     _minari()  # fail before recording, not after
-    eps = record_episodes(scenario, episodes, seed, policy)
-    save_minari(eps, dataset_id, out, scenario, algorithm=policy)
+    eps = record_episodes(scenario, episodes, seed, policy, max_steps=max_steps, driver=driver, driver_prob=driver_prob)
+    algorithm = f"{policy} labels, driven by {driver} on {driver_prob:.0%} of steps" if driver else policy
+    save_minari(eps, dataset_id, out, scenario, algorithm=algorithm)
     return dataset_id, len(eps)
