@@ -45,7 +45,8 @@ def check_record(model_zip: Path, scenario: str, preset: str, seed: int = 1000) 
 
 def sidecar_chain(model_zip: Path) -> list[dict]:
     """The sidecar of the run that wrote ``model_zip``, then those of the runs it resumed from and of
-    their BC initialization, newest first."""
+    their BC initialization, newest first; for a network kept by validation (``OUT/best/``), the
+run's final sidecar and its BC initialization follow."""
     chain, seen = [], set()
     todo = [model_zip.parent / "model.json"]
     while todo:
@@ -57,6 +58,9 @@ def sidecar_chain(model_zip: Path) -> list[dict]:
         chain.append({"file": side.name, **rec})
         if "resumed_from" in rec:
             todo.append(Path(rec["resumed_from"]["model"]).parent / "model.json")
+        if "selected_from_run" in rec:  # OUT/best/: the whole run (its final sidecar) and its BC init
+            run = Path(rec["selected_from_run"])
+            todo += [run / "model.json", run / "bc_init" / "model.json"]
         todo.append(side.parent / "bc_init" / "model.json")
     return chain
 

@@ -2,6 +2,7 @@
 
     python baselines/train_bc.py --scenario office --episodes 40 --epochs 30 --out runs/bc_office
     python baselines/train_bc.py --dataset-id parcover/office-expert-v0 --dataset-root runs/datasets
+    python baselines/train_bc.py --dataset-id 'parcover/generated-*-expert-v0' --out runs/bc_generated
 
 Demonstrations come from a Minari dataset written by ``parcover collect`` (``--dataset-id``) or,
 without one, are recorded on the fly from the scripted expert. The network regresses the expert's
@@ -22,7 +23,9 @@ class Args:
     episodes: int = 40
     """Expert missions to record when no dataset is given (seeds 1000..)."""
     dataset_id: str = ""
+    """Minari dataset id(s) written by ``parcover collect``: comma-separated, ``*`` wildcards allowed."""
     dataset_root: str = "runs/datasets"
+    """Root directory of the datasets (MINARI_DATASETS_PATH)."""
     epochs: int = 30
     batch_size: int = 512
     learning_rate: float = 1e-3
@@ -46,7 +49,7 @@ def load_demos(args: Args):
     from parcover_env.harness import datasets
 
     if args.dataset_id:
-        eps = datasets.load_minari(args.dataset_id, args.dataset_root)
+        eps = datasets.load_minari_many(args.dataset_id, args.dataset_root)
     else:  # seeds far from the benchmark's 0..N-1, so BC is not evaluated on its training episodes
         eps = datasets.record_episodes(args.scenario, args.episodes, seed=1000 + args.seed)
     obs = np.concatenate([e["observations"][:-1] for e in eps])

@@ -3,6 +3,11 @@
     python baselines/train_ppo.py --scenario office --total-timesteps 600000 --out runs/ppo_office
     python baselines/train_ppo.py --curriculum configs/train/generated_to_tree.yaml --out runs/ppo_tree
     python baselines/train_ppo.py --scenario tree --bc-episodes 6 --out runs/bcppo_tree   # BC-initialized
+    # BC from Minari datasets (parcover collect), PPO held near it, best network by validation
+    python baselines/train_ppo.py --scenario generated:RANDOM --map-seed0 200 \
+        --bc-datasets 'parcover/generated-*-expert-v0' --drop-obs x,y,cos_theta,sin_theta \
+        --learning-rate 3e-5 --n-epochs 3 --target-kl 0.02 --bc-coef 0.5 \
+        --eval-scenarios generated:500,generated:501,generated:502 --eval-episodes 1 --out runs/ppo_generated
 
 Writes into ``OUT/``: ``model.zip`` + ``vecnormalize.pkl`` (read by
 ``parcover_env.policies.learned.PPOPolicy``, i.e. ``--policy ppo:OUT``), ``model.json`` (sidecar:
@@ -18,10 +23,15 @@ normalization carry over from stage to stage (the VecEnv is rebuilt, so team siz
 ``scenario: generated:RANDOM`` gives each ParallelEnv of the stage its own procedural map
 (``generated:<map_seed0 + k>``), ``generated:A,B,C`` cycles through the listed maps.
 
-BC initialization (``--bc-episodes N``): records N expert missions (seeds ``bc_seed0 ..``) on the
+BC initialization (``--bc-episodes N``, or ``--bc-datasets IDS`` to read the demonstrations from
+Minari datasets written by ``parcover collect``): records N expert missions (seeds ``bc_seed0 ..``) on the
 first stage's scenario, sets the observation/return normalization from them, regresses the actor's
 mean action onto the expert's and the critic onto the demonstrations' discounted returns, saves that
 network as ``OUT/bc_init/`` (evaluable as a policy by itself), then runs PPO from it.
+Keeping the PPO phase from wrecking it: ``--bc-coef`` adds a BC regularizer (Adam steps toward the
+expert's actions on the demonstrations after every rollout), ``--target-kl`` / ``--clip-range`` /
+small ``--learning-rate`` bound each update, and with ``--eval-freq`` the starting network and every
+periodic evaluation compete for ``OUT/best/`` (``--keep-best``): ship that one, not the last.
 
 Hardware: ``--device auto`` uses CUDA when torch sees a GPU. With these small MLPs (2 x 128) the
 simulation, not the network, is the bottleneck: a GPU mostly pays off with far larger batches
@@ -75,6 +85,9 @@ class Args:
     ent_coef: float = 0.0
     log_std_init: float = 0.0
     net_arch: str = "128,128"
+    drop_obs: str = ""
+    """Comma-separated observation fields the networks do not see (e.g. ``x,y,cos_theta,sin_theta``:
+    the world-frame pose, meaningless on unseen maps); see ``parcover_env.policies.sb3_features``."""
     max_steps: int = 0
     """Override episode.max_steps (0 = the scenario's)."""
     out: str = "runs/ppo"
@@ -106,6 +119,26 @@ class Args:
     bc_epochs: int = 30
     bc_log_std: float = -1.0
     """Action log-std after BC initialization (small: act close to the cloned mean)."""
+    bc_datasets: str = ""
+    """Minari datasets of expert demonstrations (``parcover collect``) for BC initialization and the
+    BC regularizer instead of recording missions: comma-separated ids, ``*`` wildcards allowed
+    (``parcover/generated-*-expert-v0``); every episode of every dataset is used."""
+    bc_dataset_root: str = "runs/datasets"
+    """Root directory of the Minari datasets (MINARI_DATASETS_PATH)."""
+    bc_coef: float = 0.0
+    """Weight of the BC regularizer during PPO: after every rollout, ``bc_batches`` Adam steps on
+    ``bc_coef`` x the mean squared error between the actor's mean action and the expert's on the
+    demonstrations (0 = off). Keeps PPO near the cloned behaviour."""
+    bc_batches: int = 8
+    """Minibatches (of ``batch_size`` robot-steps) of the BC regularizer per rollout."""
+    clip_range: float = 0.2
+    """PPO ratio clipping."""
+    target_kl: float = 0.0
+    """Stop an update's epochs once the approximate KL to the rollout policy exceeds this (0 = off)."""
+    keep_best: bool = True
+    """With periodic evaluation: also evaluate the starting network (the BC init or the resumed
+    model) and keep the network with the best validation score (mean KPOI fraction, then mean
+    success; earlier wins ties) in ``OUT/best/`` (model.zip, vecnormalize.pkl, model.json)."""
 
 
 _ARGV: list[str] = []
@@ -261,18 +294,29 @@ def eval_scenarios_for(args: Args, stage: dict) -> list[str]:
 
 
 # ------------------------------------------------------------------------------ BC initialization
-def bc_initialize(model, venv, args: Args, scenario: str) -> dict:
-    """Clone the expert into the PPO actor (mean action, MSE) and fit the critic to the demos'
-    discounted returns; sets the VecNormalize statistics from the demonstrations."""
-    import numpy as np
-    import torch
+def load_demos(args: Args, scenario: str) -> tuple[list[dict], dict]:
+    """Expert demonstrations (one dict per robot-episode) and a description of where they came from:
+    the Minari datasets ``args.bc_datasets`` if given, else ``args.bc_episodes`` missions recorded now
+    on ``scenario`` (``generated:RANDOM``: maps ``map_seed0 + 50 + k``)."""
+    from parcover_env.harness.datasets import dataset_ids, load_minari_many, record_episodes
 
-    from parcover_env.harness.datasets import record_episodes
-
-    t0 = time.time()
+    if args.bc_datasets:
+        ids = dataset_ids(args.bc_datasets, args.bc_dataset_root)
+        eps = load_minari_many(args.bc_datasets, args.bc_dataset_root)
+        return eps, {"bc_datasets": ids, "bc_dataset_spec": args.bc_datasets}
     eps = []
     for k, sc in enumerate(stage_scenarios(scenario, args.bc_episodes, args.map_seed0 + 50)):
         eps += record_episodes(sc, 1, seed=args.bc_seed0 + k, max_steps=args.max_steps or None, preset=args.preset)
+    return eps, {"bc_missions": args.bc_episodes, "bc_seeds": [args.bc_seed0, args.bc_seed0 + args.bc_episodes - 1]}
+
+
+def bc_initialize(model, venv, args: Args, eps: list[dict]) -> dict:
+    """Clone the expert into the PPO actor (mean action, MSE) and fit the critic to the demos'
+    discounted returns; sets the VecNormalize statistics from the demonstrations ``eps``."""
+    import numpy as np
+    import torch
+
+    t0 = time.time()
     obs = np.concatenate([e["observations"][:-1] for e in eps]).astype(np.float64)
     act = np.clip(np.concatenate([e["actions"] for e in eps]), -1, 1)
     # discounted returns-to-go (MC value targets) and the running discounted return VecNormalize tracks
@@ -316,9 +360,40 @@ def bc_initialize(model, venv, args: Args, scenario: str) -> dict:
         losses.append((tot_a / len(x), tot_v / len(x)))
     with torch.no_grad():
         pol.log_std.fill_(args.bc_log_std)
-    return {"bc_samples": int(len(x)), "bc_missions": args.bc_episodes,
-            "bc_seeds": [args.bc_seed0, args.bc_seed0 + args.bc_episodes - 1], "bc_action_mse": losses[-1][0],
-            "bc_value_mse": losses[-1][1], "bc_wall_time_s": time.time() - t0}
+    return {"bc_samples": int(len(x)), "bc_robot_episodes": len(eps), "bc_action_mse": losses[-1][0],
+            "bc_value_mse": losses[-1][1], "bc_fit_wall_time_s": time.time() - t0}
+
+
+class BCRegularizer:
+    """The BC term of the PPO phase: Adam steps on ``coef`` x MSE(actor mean, expert action) over
+    random minibatches of the demonstrations, normalized with the env's current statistics."""
+
+    def __init__(self, eps: list[dict], coef: float, batches: int, batch_size: int, seed: int):
+        import numpy as np
+
+        self.obs = np.concatenate([e["observations"][:-1] for e in eps]).astype(np.float32)
+        self.act = np.clip(np.concatenate([e["actions"] for e in eps]), -1, 1).astype(np.float32)
+        self.coef, self.batches, self.batch_size = coef, batches, batch_size
+        self.rng = np.random.default_rng(seed)
+
+    def step(self, model, venv) -> float:
+        """Run the minibatches; returns the mean MSE before each step."""
+        import torch
+
+        if self.coef <= 0:  # off: no optimizer step at all (Adam's momentum would still move the weights)
+            return float("nan")
+        pol, total = model.policy, 0.0
+        for _ in range(self.batches):
+            idx = self.rng.integers(0, len(self.obs), size=min(self.batch_size, len(self.obs)))
+            x = torch.as_tensor(venv.normalize_obs(self.obs[idx]), dtype=torch.float32, device=model.device)
+            y = torch.as_tensor(self.act[idx], dtype=torch.float32, device=model.device)
+            loss = torch.nn.functional.mse_loss(pol.get_distribution(x).distribution.mean, y)
+            pol.optimizer.zero_grad()
+            (self.coef * loss).backward()
+            torch.nn.utils.clip_grad_norm_(pol.parameters(), model.max_grad_norm)
+            pol.optimizer.step()
+            total += loss.item()
+        return total / max(self.batches, 1)
 
 
 # ------------------------------------------------------------------------------ training
@@ -356,6 +431,11 @@ def train(args: Args) -> Path:
                               if args.checkpoint_freq else None)
             self.next_print = model.num_timesteps + 20_000
 
+        def _on_rollout_end(self) -> None:
+            if bc_reg is not None:
+                mse = bc_reg.step(model, venv)
+                self.logger.record("train/bc_regularizer_mse", mse)
+
         def _on_step(self) -> bool:
             for inf, done in zip(self.locals["infos"], self.locals["dones"], strict=False):
                 if done and "episode" in inf:
@@ -371,12 +451,7 @@ def train(args: Args) -> Path:
                 venv.save(str(out / "checkpoints" / f"step_{n}_vecnormalize.pkl"))
             if self.next_eval is not None and n >= self.next_eval:
                 self.next_eval += args.eval_freq
-                rows = evaluate(model, venv, eval_scenarios_for(args, self.stage), args)
-                for r in rows:
-                    evals.append({"timesteps": n, "wall_time": time.time() - t0, "stage": self.stage_idx, **r})
-                print(f"  eval @ {n}: success {np.mean([r['success'] for r in rows]):.2f}, KPOI fraction "
-                      f"{np.mean([r['kpoi_fraction'] for r in rows]):.2f}", flush=True)
-                write_csv(out / "eval.csv", evals)
+                run_eval(self.stage_idx, self.stage)
             if n >= self.next_print:
                 self.next_print = n + 20_000
                 recent = curve[-20:]
@@ -388,7 +463,32 @@ def train(args: Args) -> Path:
                 return False
             return not (self.stage["wall_time"] and now - self.stage_t0 > self.stage["wall_time"])
 
-    model, venv, prev_stats = None, None, None
+    best: dict = {}
+
+    def run_eval(stage_idx: int, stage: dict) -> None:
+        """Validation episodes now; the network is kept in OUT/best/ when its score is the best so far."""
+        n = int(model.num_timesteps)
+        rows = evaluate(model, venv, eval_scenarios_for(args, stage), args)
+        for r in rows:
+            evals.append({"timesteps": n, "wall_time": time.time() - t0, "stage": stage_idx, **r})
+        score = (float(np.mean([r["kpoi_fraction"] for r in rows])), float(np.mean([r["success"] for r in rows])))
+        print(f"  eval @ {n}: success {score[1]:.2f}, KPOI fraction {score[0]:.2f}", flush=True)
+        write_csv(out / "eval.csv", evals)
+        if args.keep_best and (not best or score > best["score"]):
+            best.update(score=score, timesteps=n)
+            (out / "best").mkdir(exist_ok=True)
+            model.save(out / "best" / "model.zip")
+            venv.save(str(out / "best" / "vecnormalize.pkl"))
+            write_sidecar(out / "best" / "model.json",
+                          {**info, "timesteps": n, "wall_time_s": time.time() - t0, "selected_by": "validation",
+                           "selected_from_run": str(out),
+                           "validation": rows, "validation_score": {"kpoi_fraction": score[0], "success": score[1]},
+                           "eval_seeds": sorted({e["seed"] for e in evals}),
+                           "validation_scenarios": sorted({e["scenario"] for e in evals})})
+            print(f"  new best @ {n}", flush=True)
+
+    model, venv, prev_stats, bc_reg = None, None, None, None
+    demos: list[dict] | None = None
     start_stage, into_stage = 0, 0
     if args.resume:
         import pickle
@@ -423,14 +523,20 @@ def train(args: Args) -> Path:
         if prev_stats is not None:  # the normalization carries over from stage to stage
             venv.obs_rms, venv.ret_rms = prev_stats
         if model is None:
+            policy_kwargs: dict = {"net_arch": [int(h) for h in args.net_arch.split(",")],
+                                   "log_std_init": args.log_std_init}
+            if args.drop_obs:
+                policy_kwargs.update(obs_selection(args, scen[0]))
+                info["obs_kept"] = policy_kwargs["features_extractor_kwargs"]["keep"]
             model = PPO("MlpPolicy", venv, n_steps=args.n_steps, batch_size=args.batch_size,
                         n_epochs=args.n_epochs, learning_rate=args.learning_rate, gamma=args.gamma,
                         gae_lambda=args.gae_lambda, ent_coef=args.ent_coef, seed=args.seed, device=device,
-                        verbose=0, tensorboard_log=tb_dir,
-                        policy_kwargs={"net_arch": [int(h) for h in args.net_arch.split(",")],
-                                       "log_std_init": args.log_std_init})
-            if args.bc_episodes:
-                info.update(bc_initialize(model, venv, args, args.bc_scenario or stage["scenario"]))
+                        clip_range=args.clip_range, target_kl=args.target_kl or None,
+                        verbose=0, tensorboard_log=tb_dir, policy_kwargs=policy_kwargs)
+            if args.bc_episodes or args.bc_datasets:
+                demos, source = load_demos(args, args.bc_scenario or stage["scenario"])
+                info.update(source)
+                info.update(bc_initialize(model, venv, args, demos))
                 (out / "bc_init").mkdir(exist_ok=True)
                 model.save(out / "bc_init" / "model.zip")
                 venv.save(str(out / "bc_init" / "vecnormalize.pkl"))
@@ -440,6 +546,13 @@ def train(args: Args) -> Path:
         else:
             model.set_random_seed(train_seed)
             _switch_env(model, venv)
+        if args.bc_coef and bc_reg is None:
+            if demos is None:
+                demos, source = load_demos(args, args.bc_scenario or stage["scenario"])
+                info.update(source)
+            bc_reg = BCRegularizer(demos, args.bc_coef, args.bc_batches, args.batch_size, args.seed)
+        if args.eval_freq and args.keep_best and not best:
+            run_eval(si, stage)  # the starting network competes for OUT/best/
         remaining = stage["steps"] - (into_stage if si == start_stage else 0)
         print(f"stage {si}: {stage['scenario']} ({len(scen)} envs, {venv.num_envs} slots), {remaining} steps",
               flush=True)
@@ -451,19 +564,32 @@ def train(args: Args) -> Path:
     model.save(out / "model.zip")
     venv.save(str(out / "vecnormalize.pkl"))
     if args.eval_freq and (not evals or evals[-1]["timesteps"] != model.num_timesteps):
-        rows = evaluate(model, venv, eval_scenarios_for(args, stages[-1]), args)
-        evals += [{"timesteps": model.num_timesteps, "wall_time": time.time() - t0, "stage": len(stages) - 1, **r}
-                  for r in rows]
+        run_eval(len(stages) - 1, stages[-1])
     venv.close()
     info["eval_seeds"] = sorted({e["seed"] for e in evals})
     write_csv(out / "eval.csv", evals)
     write_csv(out / "curve.csv", curve)
     plot_curve(out)
+    if best:
+        info["best"] = {"timesteps": best["timesteps"], "kpoi_fraction": best["score"][0], "success": best["score"][1]}
+        print(f"best validation score at {best['timesteps']} agent-steps: KPOI fraction {best['score'][0]:.2f}, "
+              f"success {best['score'][1]:.2f} (OUT/best/)")
     write_sidecar(out / "model.json", {**info, "timesteps": int(model.num_timesteps), "wall_time_s": wall,
                                        "training_episodes": len(curve),
                                        "final_eval": evals[-args.eval_episodes * 2:] if evals else []})
     print(f"{model.num_timesteps} agent-steps in {wall:.0f} s")
     return out
+
+
+def obs_selection(args: Args, scenario: str) -> dict:
+    """``policy_kwargs`` entries that hide the fields ``args.drop_obs`` from the networks."""
+    from parcover_env.envs import ParallelCoverageEnv
+    from parcover_env.policies.sb3_features import SelectEntries, keep_indices
+
+    layout = ParallelCoverageEnv(scenario, preset=args.preset).layout
+    drop = [f.strip() for f in args.drop_obs.split(",") if f.strip()]
+    return {"features_extractor_class": SelectEntries,
+            "features_extractor_kwargs": {"keep": keep_indices(layout.names, layout.slices, drop)}}
 
 
 def _switch_env(model, venv) -> None:

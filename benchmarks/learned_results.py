@@ -6,7 +6,8 @@
 Prints the Markdown table (success rate with a 95 % stratified-bootstrap CI and its Wilson interval,
 IQM [95 % CI] of the other metrics; a ``generated:*`` row aggregates the procedural maps, its bootstrap
 stratified by map) and writes ``OUT/table.md``, ``OUT/summary.png`` and ``OUT/curves_<run>.png``.
-``--rename old=new,...`` relabels policy specs (checkpoint paths) in the table.
+``--rename old=new,...`` relabels policy specs (checkpoint paths) in the table. ``FILE@P1,P2`` reads
+only the records of policies P1, P2 (their specs before renaming) from FILE.
 """
 
 from __future__ import annotations
@@ -20,12 +21,16 @@ from parcover_env.viz.curves import plot_learning_curves
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("episodes", nargs="+", help="bench --json files (or episodes.csv)")
+    p.add_argument("episodes", nargs="+", help="bench --json files (or episodes.csv); FILE@P1,P2 keeps policies P1, P2")
     p.add_argument("--out", default="runs/learned_results")
     p.add_argument("--curves", default="", help="comma-separated train_ppo.py run directories")
     p.add_argument("--rename", default="", help="policy relabels: spec=label,...")
     a = p.parse_args(argv)
-    rows = [r for f in a.episodes for r in read_episodes(f)]
+    rows = []
+    for spec in a.episodes:
+        path, _, keep = spec.partition("@")
+        wanted = {k for k in keep.split(",") if k}
+        rows += [r for r in read_episodes(path) if not wanted or r["policy"] in wanted]
     names = dict(kv.split("=", 1) for kv in a.rename.split(",") if kv)
     for r in rows:
         r["policy"] = names.get(r["policy"], r["policy"])

@@ -180,3 +180,105 @@ def test_mappo_actor_loads_as_a_policy(tmp_path):
     a1, a2 = pol.act(obs), pol.act(obs)
     assert set(a1) == set(obs) and all(np.array_equal(a1[k], a2[k]) for k in a1)
     assert all(np.all(np.abs(a) <= 1) for a in a1.values())
+
+
+@pytest.fixture(scope="module")
+def tiny_datasets(tmp_path_factory):
+    """Two Minari datasets of one short expert mission on office (as ``parcover collect`` writes)."""
+    pytest.importorskip("minari")
+    pytest.importorskip("h5py")
+    from parcover_env.harness.datasets import record_episodes, save_minari
+
+    root = tmp_path_factory.mktemp("datasets")
+    eps = record_episodes("office", 2, seed=7, max_steps=40)
+    save_minari(eps[:2], "parcover/tiny-a-expert-v0", root, "office")
+    save_minari(eps[2:], "parcover/tiny-b-expert-v0", root, "office")
+    obs = np.concatenate([e["observations"][:-1] for e in eps])
+    act = np.clip(np.concatenate([e["actions"] for e in eps]), -1, 1)
+    return root, obs, act
+
+
+def _policy_mse(policy, obs, act) -> float:
+    pred = policy.act({f"r{i:04d}": o for i, o in enumerate(obs)})
+    return float(np.mean((np.stack([pred[f"r{i:04d}"] for i in range(len(obs))]) - act) ** 2))
+
+
+def test_ppo_bc_init_from_minari_datasets_imitates_the_expert(tiny_datasets, tmp_path):
+    import json
+
+    from stable_baselines3 import PPO
+
+    from parcover_env.policies.learned import PPOPolicy
+
+    root, obs, act = tiny_datasets
+    train_ppo = _load("train_ppo")
+    args = train_ppo.parse_args(["--scenario", "office", "--n-envs", "1", "--total-timesteps", "256",
+                                 "--n-steps", "128", "--batch-size", "128", "--n-epochs", "1", "--max-steps", "40",
+                                 "--net-arch", "64,64", "--bc-datasets", "parcover/tiny-*-expert-v0",
+                                 "--bc-dataset-root", str(root), "--bc-epochs", "60", "--bc-coef", "1.0",
+                                 "--bc-batches", "2", "--eval-freq", "128", "--eval-episodes", "1",
+                                 "--eval-scenarios", "office", "--checkpoint-freq", "0", "--out", str(tmp_path)])
+    train_ppo.train(args)
+    side = json.loads((tmp_path / "model.json").read_text())
+    assert side["bc_datasets"] == ["parcover/tiny-a-expert-v0", "parcover/tiny-b-expert-v0"]
+    assert side["bc_robot_episodes"] == 4 and side["bc_samples"] == len(obs) == 160  # 2 missions x 2 robots x 40
+    cloned = PPOPolicy(tmp_path / "bc_init")
+    untrained = PPOPolicy(tmp_path / "bc_init")
+    fresh = PPO("MlpPolicy", untrained.model.env or train_ppo.make_venv(args, ["office"], 0), seed=1,
+                policy_kwargs={"net_arch": [64, 64]})
+    untrained.model.policy.load_state_dict(fresh.policy.state_dict())
+    mse_bc, mse_raw = _policy_mse(cloned, obs, act), _policy_mse(untrained, obs, act)
+    assert mse_bc < 0.3 * mse_raw and mse_bc < 0.05, (mse_bc, mse_raw)
+    # the kept network is the one with the best validation score (ties: the earlier one)
+    rows = [line.split(",") for line in (tmp_path / "eval.csv").read_text().splitlines()]
+    head = rows[0]
+    by_step: dict[int, list[float]] = {}
+    for r in rows[1:]:
+        by_step.setdefault(int(r[head.index("timesteps")]), []).append(float(r[head.index("kpoi_fraction")]))
+    assert min(by_step) == 0  # the BC start was evaluated too
+    best = json.loads((tmp_path / "best" / "model.json").read_text())
+    top = max(np.mean(v) for v in by_step.values())
+    assert best["timesteps"] == min(s for s, v in by_step.items() if np.mean(v) == top)
+    assert (tmp_path / "best" / "model.zip").is_file() and best["selected_by"] == "validation"
+
+
+def test_bc_regularizer_pulls_the_actor_to_the_expert(tiny_datasets):
+    import torch
+    from stable_baselines3 import PPO
+
+    root, obs, act = tiny_datasets
+    train_ppo = _load("train_ppo")
+    args = train_ppo.parse_args(["--n-envs", "1", "--max-steps", "40"])
+    venv = train_ppo.make_venv(args, ["office"], 0)
+    venv.obs_rms.mean, venv.obs_rms.var = obs.mean(0), obs.var(0)
+    model = PPO("MlpPolicy", venv, learning_rate=1e-3, seed=0, policy_kwargs={"net_arch": [64, 64]})
+    reg = train_ppo.BCRegularizer([{"observations": np.vstack([obs, obs[:1]]), "actions": act}], coef=1.0,
+                                  batches=100, batch_size=64, seed=0)
+
+    def mse() -> float:
+        with torch.no_grad():
+            x = torch.as_tensor(venv.normalize_obs(obs.astype(np.float32)))
+            return float(torch.mean((model.policy.get_distribution(x).distribution.mean - torch.as_tensor(act)) ** 2))
+
+    before = mse()
+    reg.step(model, venv)
+    assert mse() < 0.2 * before
+    reg.coef = 0.0  # a zero weight leaves the network alone
+    after = mse()
+    reg.step(model, venv)
+    assert mse() == pytest.approx(after)
+    venv.close()
+
+
+def test_train_bc_reads_datasets_by_pattern(tiny_datasets, tmp_path):
+    import torch
+
+    root, obs, act = tiny_datasets
+    train_bc = _load("train_bc")
+    out = train_bc.train(train_bc.parse_args(["--dataset-id", "parcover/tiny-*-expert-v0", "--dataset-root",
+                                              str(root), "--epochs", "200", "--hidden", "64,64",
+                                              "--out", str(tmp_path)]))
+    ck = torch.load(out / "bc.pt", weights_only=False)
+    assert ck["samples"] == len(obs) == 160
+    losses = [float(line.split(",")[1]) for line in (out / "bc_loss.csv").read_text().splitlines()[1:]]
+    assert losses[-1] < 0.2 * losses[0]

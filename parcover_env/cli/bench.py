@@ -88,7 +88,11 @@ def add_collect_parser(sub) -> None:
     c.add_argument("--seed", type=non_negative_int, default=0, help="first episode seed (default: 0)")
     c.add_argument("--out", default="runs/datasets", help="dataset root (MINARI_DATASETS_PATH)")
     c.add_argument("--dataset-id", default=None, help="default: parcover/<scenario>-expert-v0")
-    c.add_argument("--policy", default="expert", help="who drives (default: expert)")
+    c.add_argument("--policy", default="expert", help="who acts and labels (default: expert)")
+    c.add_argument("--driver", default=None, metavar="SPEC",
+                   help="DAgger: this policy (ppo:PATH ...) drives on --driver-prob of the steps, --policy only labels")
+    c.add_argument("--driver-prob", type=float, default=1.0, help="fraction of steps the driver acts (default: 1)")
+    c.add_argument("--max-steps", type=positive_int, default=None, help="override the scenario's step limit")
     c.set_defaults(func=cmd_collect)
 
 
@@ -96,8 +100,13 @@ def cmd_collect(args) -> int:
     from parcover_env.harness.datasets import collect
 
     check_policy_spec(args.policy)
+    if args.driver:
+        check_policy_spec(args.driver)
+    if not 0.0 <= args.driver_prob <= 1.0:
+        raise ParcoverError(f"--driver-prob must be in [0, 1], got {args.driver_prob}")
     check_writable_dir(args.out, "--out")
-    dataset_id, n = collect(args.scenario, args.episodes, args.out, args.seed, args.dataset_id, args.policy)
+    dataset_id, n = collect(args.scenario, args.episodes, args.out, args.seed, args.dataset_id, args.policy,
+                            driver=args.driver, driver_prob=args.driver_prob, max_steps=args.max_steps)
     print(
         f"wrote Minari dataset '{dataset_id}' ({n} robot episodes from {args.episodes} missions) under "
         f"{args.out}; load with MINARI_DATASETS_PATH={args.out} minari.load_dataset('{dataset_id}')"

@@ -16,7 +16,8 @@ import numpy as np
 
 from parcover_env.errors import ParcoverError
 
-__all__ = ["AgentEpisode", "record_episodes", "save_minari", "load_minari", "collect"]
+__all__ = ["AgentEpisode", "record_episodes", "save_minari", "load_minari", "load_minari_many", "dataset_ids",
+           "collect"]
 
 
 class AgentEpisode(dict):
@@ -25,12 +26,20 @@ class AgentEpisode(dict):
 
 def record_episodes(
     scenario: Any, episodes: int, seed: int = 0, policy: str = "expert", max_steps: int | None = None,
-    preset: str = "realistic",
+    preset: str = "realistic", driver: str | None = None, driver_prob: float = 1.0,
 ) -> list[AgentEpisode]:
     """Run ``episodes`` episodes (seeds ``seed .. seed+episodes-1``) under ``preset``; one AgentEpisode
-    per robot."""
+    per robot. ``policy`` labels every step (the recorded actions); without ``driver`` it also acts.
+
+    With ``driver`` (a policy spec, e.g. ``ppo:runs/x/model.zip``) the team executes the driver's
+    actions on a fraction ``driver_prob`` of the steps (drawn per step from a generator seeded with
+    the episode seed) and the labeller's on the others, while the recorded actions stay the
+    labeller's: DAgger's data (Ross et al. 2011), the expert's answer in the states the learner
+    reaches. The labeller runs on every step, so a stateful expert tracks the real trajectory."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
+    if not 0.0 <= driver_prob <= 1.0:
+        raise ValueError(f"driver_prob must be in [0, 1], got {driver_prob}")
     from parcover_env.envs import ParallelCoverageEnv
     from parcover_env.policies.registry import make_policy
 
@@ -40,17 +49,25 @@ def record_episodes(
     for k in range(episodes):
         ep_seed = seed + k
         pol = make_policy(policy, env, ep_seed)
+        drv = make_policy(driver, env, ep_seed) if driver else None
+        coin = np.random.default_rng(ep_seed)
         obs, _ = env.reset(seed=ep_seed)
-        if hasattr(pol, "reset"):
-            pol.reset(obs)
+        for p in (pol, drv):
+            if p is not None and hasattr(p, "reset"):
+                p.reset(obs)
         traj = {
             a: {"observations": [obs[a]], "actions": [], "rewards": [], "terminations": [], "truncations": []}
             for a in env.possible_agents
         }
         while env.agents:
             actions = pol.act(obs)
+            executed = actions
+            if drv is not None:
+                driven = drv.act(obs)
+                if coin.random() < driver_prob:
+                    executed = driven
             live = list(env.agents)
-            obs, rew, term, trunc, _ = env.step(actions)
+            obs, rew, term, trunc, _ = env.step(executed)
             for a in live:
                 t = traj[a]
                 t["actions"].append(np.clip(np.asarray(actions[a], np.float32), -1, 1))
@@ -136,7 +153,7 @@ def _create(minari, dataset_id, buffers, algorithm, env, agent) -> None:
         author="parcover_env",
         observation_space=env.observation_space(agent),
         action_space=env.action_space(agent),
-        env_spec=_env_spec(env),
+        env=_env_spec(env),
         description=f"{algorithm} demonstrations on scenario '{env.scenario.name}', one episode per robot "
         "(parameter sharing view)",
         data_format="hdf5",
@@ -179,6 +196,41 @@ def load_minari(dataset_id: str, root: str | Path) -> list[AgentEpisode]:
     ]
 
 
+def dataset_ids(spec: str, root: str | Path) -> list[str]:
+    """The dataset ids named by ``spec``: comma-separated ids, each may hold ``*``/``?`` wildcards
+    matched against the datasets under ``root`` (e.g. ``parcover/generated-*-expert-v0``), sorted."""
+    import fnmatch
+
+    root = Path(root)
+    ids: list[str] = []
+    for part in (p.strip() for p in spec.split(",")):
+        if not part:
+            continue
+        if any(c in part for c in "*?["):
+            found = sorted(
+                str(d.relative_to(root)) for d in root.glob(part) if d.is_dir() and (d / "data").is_dir()
+            )
+            found = [f for f in found if fnmatch.fnmatch(f, part)]
+            if not found:
+                raise ParcoverError(f"no Minari dataset under {root} matches '{part}'")
+            ids += found
+        else:
+            if not dataset_path(part, root).is_dir():
+                raise ParcoverError(f"no Minari dataset '{part}' under {root} (write one with parcover collect)")
+            ids.append(part)
+    if not ids:
+        raise ParcoverError(f"no dataset ids in '{spec}'")
+    return ids
+
+
+def load_minari_many(spec: str, root: str | Path) -> list[AgentEpisode]:
+    """Every agent-episode of the datasets :func:`dataset_ids` names, in id order."""
+    out: list[AgentEpisode] = []
+    for ds_id in dataset_ids(spec, root):
+        out += load_minari(ds_id, root)
+    return out
+
+
 def collect(
     scenario: str,
     episodes: int,
@@ -186,14 +238,19 @@ def collect(
     seed: int = 0,
     dataset_id: str | None = None,
     policy: str = "expert",
+    driver: str | None = None,
+    driver_prob: float = 1.0,
+    max_steps: int | None = None,
 ) -> tuple[str, int]:
-    """Record and save; returns (dataset id, number of agent-episodes)."""
+    """Record and save; returns (dataset id, number of agent-episodes). ``driver``/``driver_prob``:
+    see :func:`record_episodes` (default id then ``parcover/<scenario>-<policy>-dagger-v0``)."""
     name = str(scenario).replace(":", "-").replace("/", "-").removesuffix(".yaml")
-    dataset_id = dataset_id or f"parcover/{name}-{policy}-v0"
+    dataset_id = dataset_id or f"parcover/{name}-{policy}{'-dagger' if driver else ''}-v0"
     if dataset_path(dataset_id, out).exists():
         raise ParcoverError(f"dataset '{dataset_id}' already exists under {out}; choose another --dataset-id "
                             "or --out, or delete it")
     _minari()  # fail before recording, not after
-    eps = record_episodes(scenario, episodes, seed, policy)
-    save_minari(eps, dataset_id, out, scenario, algorithm=policy)
+    eps = record_episodes(scenario, episodes, seed, policy, max_steps=max_steps, driver=driver, driver_prob=driver_prob)
+    algorithm = f"{policy} labels, driven by {driver} on {driver_prob:.0%} of steps" if driver else policy
+    save_minari(eps, dataset_id, out, scenario, algorithm=algorithm)
     return dataset_id, len(eps)
