@@ -188,6 +188,12 @@ class ScriptedExpert:
         g = self.layout.get
         return np.array([g(obs, "x")[0], g(obs, "y")[0], np.arctan2(g(obs, "sin_theta")[0], g(obs, "cos_theta")[0])])
 
+    def _ahead(self, obs: np.ndarray) -> np.ndarray:
+        """The follower camera's measurement of the robot ahead, in the follower's frame: (dx, dy, heading)."""
+        g = self.layout.get
+        return np.array([g(obs, "pred_dx")[0], g(obs, "pred_dy")[0],
+                         np.arctan2(g(obs, "pred_sin")[0], g(obs, "pred_cos")[0])], dtype=float)
+
     def _team_positions(self, observations: dict, agents: list[str], leaders: dict) -> np.ndarray:
         """``(N, 2)`` where the expert believes the robots are: a follower that sees the robot ahead
         is placed by its camera measurement relative to that robot (chained along the column from the
@@ -199,8 +205,7 @@ class ScriptedExpert:
             obs = observations[a]
             if i == 0 or leaders[a] or g(obs, "pred_visible")[0] <= 0.5 or f"robot_{i - 1}" not in observations:
                 continue
-            rel = np.array([g(obs, "pred_dx")[0], g(obs, "pred_dy")[0],
-                            np.arctan2(g(obs, "pred_sin")[0], g(obs, "pred_cos")[0])], dtype=float)
+            rel = self._ahead(obs)
             pose[i] = compose(pose[i - 1], inverse(rel))
         return pose[:, :2]
 
@@ -225,8 +230,7 @@ class ScriptedExpert:
                     or f"robot_{i - 1}" not in observations):
                 continue
             ahead = f"robot_{i - 1}"
-            rel = np.array([g(obs, "pred_dx")[0], g(obs, "pred_dy")[0],
-                            np.arctan2(g(obs, "pred_sin")[0], g(obs, "pred_cos")[0])], dtype=float)
+            rel = self._ahead(obs)
             pose, cov = chain_pose(self.fixer.belief(ahead, self._last_odom[i - 1]), self.fixer.covariance(ahead), rel,
                                    f.camera_range_noise, f.camera_bearing_noise, f.camera_heading_noise)
             self.fixer.relative_update(a, self._last_odom[i], pose, cov)
