@@ -361,7 +361,7 @@ class SonarNavigator:
             look = p.point(self.progress[i] + math.copysign(min(self.p.lookahead, abs(ahead)), ahead))
             if np.hypot(*(goal_pt - bel[i, :2])) < self.p.lookahead or (off_path and abs(ahead) < self.p.lookahead):
                 look = goal_pt
-            d = look - bel[i, :2]
+            d = self._bypass(i, bel, look - bel[i, :2])
             c, s = math.cos(bel[i, 2]), math.sin(bel[i, 2])
             v, w = go_to_goal(np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]]), self.v_max, self.w_max)
             if v > 0:
@@ -373,17 +373,43 @@ class SonarNavigator:
             self.phase = "scan"
             cmd[:] = 0.0
 
-    def _team_brake(self, i: int, bel: np.ndarray) -> float:
-        """Slow down for teammates ahead (within 90 deg of the heading) by their believed positions."""
+    def _lane(self, i: int, bel: np.ndarray, heading: float) -> tuple[float, int]:
+        """``(gap, j)``: free distance between robot ``i`` and the nearest teammate ``j`` in the lane it
+        sweeps driving straight along ``heading`` (in front, and closer to the heading line than two
+        radii + ``stop_margin``), by their believed positions; ``(inf, -1)`` if the lane is free."""
         d = bel[:, :2] - bel[i, :2]
-        dist = np.hypot(d[:, 0], d[:, 1])
-        ahead = (d[:, 0] * math.cos(bel[i, 2]) + d[:, 1] * math.sin(bel[i, 2])) > 0
+        c, s = math.cos(heading), math.sin(heading)
+        lane = 2 * self.radius + self.p.stop_margin
+        ahead = ((d[:, 0] * c + d[:, 1] * s) > 0) & (np.abs(d[:, 1] * c - d[:, 0] * s) < lane)
         ahead[i] = False
         if not ahead.any():
-            return 1.0
-        gap = float(dist[ahead].min()) - 2 * self.radius
+            return math.inf, -1
+        dist = np.where(ahead, np.hypot(d[:, 0], d[:, 1]), np.inf)
+        j = int(np.argmin(dist))
+        return float(dist[j]) - 2 * self.radius, j
+
+    def _team_brake(self, i: int, bel: np.ndarray) -> float:
+        """Slow down for a teammate in robot ``i``'s lane (:meth:`_lane`). A teammate beside the lane is
+        no obstacle: braking for it would deadlock two robots that pass each other."""
+        gap, _ = self._lane(i, bel, float(bel[i, 2]))
         span = self.p.slow_margin - self.p.stop_margin
         return float(np.clip((gap - self.p.stop_margin) / span, 0.0, 1.0))
+
+    def _bypass(self, i: int, bel: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """The direction robot ``i`` drives instead of ``d`` (its way to the look-ahead point) when a
+        teammate ``j`` stands in that lane at the stop distance and will not move out of it: ``j`` has
+        arrived at its subgoal (or is done), or ``i`` stands in ``j``'s lane too (each would wait for
+        the other forever). ``i`` then steps sideways (perpendicular to the line between the two
+        beliefs) on the side nearer to ``d``, until its lane gap exceeds the stop distance."""
+        gap, j = self._lane(i, bel, math.atan2(d[1], d[0]))
+        if j < 0 or gap > self.p.stop_margin:
+            return d
+        if not (self.arrived[j] or self.done[j] or self._lane(j, bel, float(bel[j, 2]))[1] == i):
+            return d
+        rel = bel[j, :2] - bel[i, :2]
+        phi, want = math.atan2(rel[1], rel[0]), math.atan2(d[1], d[0])
+        side = min((phi + math.pi / 2, phi - math.pi / 2), key=lambda a: abs(wrap_angle(a - want)))
+        return math.hypot(d[0], d[1]) * np.array([math.cos(side), math.sin(side)])
 
     def _brake(self, obs: np.ndarray) -> float:
         if len(self.front) == 0:

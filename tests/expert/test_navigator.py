@@ -10,6 +10,7 @@ import pytest
 import parcover_env
 from parcover_env.config import NavigatorConfig
 from parcover_env.expert.navigator import SonarNavigator, _compose, _inverse
+from parcover_env.geometry import wrap_angle as wrap
 from parcover_env.harness.rollout import run_episode
 
 
@@ -148,3 +149,91 @@ def test_localization_region_holds_the_seed_b_circle_and_the_covariance_ellipse(
         obs, *_ = env.step({a: np.array([1.0, 0.0], dtype=np.float32) for a in env.agents})
         nav._ingest(obs)
     assert nav.cov[0, 0, 0] > start[0, 0] and nav.cov[0, 2, 2] > start[2, 2]
+
+
+def _hallway_nav():
+    env = parcover_env.parallel_env("hallway", preset="ideal")
+    nav = SonarNavigator.for_env(env)
+    obs, _ = env.reset(seed=0)
+    nav.reset(obs)
+    return nav
+
+
+def test_lane_holds_teammates_ahead_within_two_radii_plus_the_stop_margin():
+    nav = _hallway_nav()
+    r, lane = nav.radius, 2 * nav.radius + nav.p.stop_margin  # 0.165 m, 0.38 m
+    bel = np.array([[0.0, 0.0, 0.0], [1.0, 0.3, 0.0]])
+    gap, j = nav._lane(0, bel, 0.0)
+    assert j == 1 and gap == pytest.approx(math.hypot(1.0, 0.3) - 2 * r)
+    assert nav._lane(0, bel, math.pi) == (math.inf, -1)  # behind
+    bel[1] = [1.0, lane + 0.01, 0.0]
+    assert nav._lane(0, bel, 0.0) == (math.inf, -1)  # beside the lane
+    assert nav._lane(0, bel, math.atan2(lane + 0.01, 1.0))[1] == 1  # heading at it
+    bel[1] = [0.0, -0.5, 0.0]
+    assert nav._lane(0, bel, -math.pi / 2)[0] == pytest.approx(0.5 - 2 * r)
+
+
+def test_team_brake_slows_for_the_lane_only():
+    nav = _hallway_nav()
+    r, stop, slow = nav.radius, nav.p.stop_margin, nav.p.slow_margin
+    ahead = 2 * r + stop + 0.5 * (slow - stop)  # halfway between the stop and slow distances
+    bel = np.array([[0.0, 0.0, 0.0], [ahead, 0.0, math.pi]])
+    assert nav._team_brake(0, bel) == pytest.approx(0.5)
+    assert nav._team_brake(1, bel) == pytest.approx(0.5)
+    bel[1] = [2 * r + stop - 0.01, 0.0, 0.0]
+    assert nav._team_brake(0, bel) == 0.0
+    bel[1] = [2 * r + slow + 0.01, 0.0, 0.0]
+    assert nav._team_brake(0, bel) == 1.0
+    bel[1] = [0.3, 2 * r + stop + 0.01, 0.0]  # close, but beside the lane
+    assert nav._team_brake(0, bel) == 1.0
+
+
+def test_bypass_passes_a_teammate_that_will_not_move():
+    nav = _hallway_nav()
+    r = nav.radius
+    # hallway seed 49: robot 0 is done at its KPOI, robot 1 stands south of it and must go east past it
+    bel = np.array([[9.96, 6.92, 0.0], [9.88, 6.56, 0.38]])
+    d = np.array([10.675, 6.875]) - bel[1, :2]
+    assert nav._lane(1, bel, math.atan2(d[1], d[0]))[1] == 0
+    assert np.array_equal(nav._bypass(1, bel, d), d)  # robot 0 still driving: wait behind it
+    nav.done[0] = True
+    out = nav._bypass(1, bel, d)
+    phi = math.atan2(0.36, 0.08)
+    assert math.atan2(out[1], out[0]) == pytest.approx(phi - math.pi / 2)  # sideways, on d's side
+    assert np.hypot(*out) == pytest.approx(np.hypot(*d))
+    assert nav._lane(1, bel, math.atan2(out[1], out[0])) == (math.inf, -1)
+    # an arrived teammate farther than the stop distance: brake, no bypass; on the other side of d,
+    # the other side
+    nav.done[0], nav.arrived[0] = False, True
+    bel = np.array([[0.0, 0.0, 0.0], [-(2 * r + nav.p.stop_margin + 0.01), 0.0, 0.0]])
+    d = np.array([2.0, 0.1])
+    assert np.array_equal(nav._bypass(1, bel, d), d)
+    bel[1, 0] += 0.02
+    assert math.atan2(*nav._bypass(1, bel, d)[::-1]) == pytest.approx(math.pi / 2)
+    assert math.atan2(*nav._bypass(1, bel, np.array([2.0, -0.1]))[::-1]) == pytest.approx(-math.pi / 2)
+
+
+def test_bypass_breaks_a_mutual_block():
+    """Hallway seed 47: at the routes' ends robot 1 stands 0.34 m beside robot 0's westward heading
+    (inside its lane of 0.38 m) and robot 0 stands in robot 1's lane: each brakes for the other, and
+    each heads sideways, away from the other, on the side nearer to its way."""
+    nav = _hallway_nav()
+    bel = np.array([[10.26, 6.83, 3.06], [10.10, 6.50, 0.56]])
+    assert nav._team_brake(0, bel) == 0.0 and nav._team_brake(1, bel) == 0.0
+    d0, d1 = np.array([9.875, 6.875]) - bel[0, :2], np.array([10.675, 6.875]) - bel[1, :2]
+    rel = bel[1, :2] - bel[0, :2]
+    phi = math.atan2(rel[1], rel[0])
+    out0, out1 = nav._bypass(0, bel, d0), nav._bypass(1, bel, d1)
+    assert math.atan2(out0[1], out0[0]) == pytest.approx(wrap(phi - math.pi / 2))
+    assert math.atan2(out1[1], out1[0]) == pytest.approx(wrap(phi + math.pi - math.pi / 2))
+    bel[0, 2] = 0.0  # robot 0 heads away from robot 1: robot 1 waits behind it, no bypass
+    assert np.array_equal(nav._bypass(1, bel, d1), d1)
+
+
+@pytest.mark.parametrize("seed", [11, 49])
+def test_hallway_crossings_at_the_routes_ends_complete(seed):
+    """Seed 11: the two robots stood in each other's lanes at the routes' ends; seed 49: robot 1 had to
+    pass robot 0 that was done at its KPOI. Both stalled before the lane and the bypass."""
+    env = parcover_env.parallel_env("hallway")
+    m = run_episode(env, SonarNavigator.for_env(env), seed=seed)
+    assert m["success"] and m["kpois_visited"] == 2
