@@ -167,6 +167,9 @@ class NavigatorConfig:
     """... and slows down linearly from radius + this (m)."""
     front_sector_deg: float = 25.0
     """Sonar beams within this of straight ahead are the front beams used for braking (deg)."""
+    side_sector_deg: float = 30.0
+    """Sonar beams within this of +-90 deg are the side beams: a side echo closer than radius +
+    ``slow_margin`` turns a driving robot away from it, at omega_max at radius + ``stop_margin`` (deg)."""
     sector_rule: int = 2
     """Visibility sector merge rule of the localizer's sectors (0 = none, 1 or 2, seed B)."""
     teammates_in_map: bool = True
@@ -209,6 +212,7 @@ class NavigatorConfig:
         check(self.slow_margin > self.stop_margin, "slow_margin",
               f"must be > stop_margin ({self.stop_margin} m), got {self.slow_margin}")
         check(self.front_sector_deg <= 180, "front_sector_deg", f"must be <= 180, got {self.front_sector_deg}")
+        check(0 <= self.side_sector_deg <= 90, "side_sector_deg", f"must be in [0, 90], got {self.side_sector_deg}")
 
 
 @dataclass(frozen=True)

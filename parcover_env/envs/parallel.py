@@ -16,7 +16,7 @@ from parcover_env.envs.observations import MAX_FIX_AGE, ObservationLayout, ellip
 from parcover_env.envs.rewards import REWARD_KEYS, TERMS, reward_terms
 from parcover_env.envs.team import Team
 from parcover_env.geometry import rotate, wrap_angle
-from parcover_env.localization.kinect.system import KinectSystem
+from parcover_env.localization.kinect.system import KinectSystem, handover_poses
 from parcover_env.scenarios import load_scenario, mission_for
 from parcover_env.sensors.odometry import Odometry
 from parcover_env.sensors.relative import RelativeCamera
@@ -201,6 +201,7 @@ class ParallelCoverageEnv(ParallelEnv):
         self.fix_age = np.zeros(self.n_robots)
         if self.kinects is not None:
             self.kinects.reset(self._rng)
+        self._view = None
         self.progress = self.mission.tracker()
         self.team = Team(self.plan, s.formation.mode, reach_tol=self.mission.reach_tol)
         self.commands = np.zeros((self.n_robots, 2))
@@ -269,12 +270,19 @@ class ParallelCoverageEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ step parts
     def _update_team(self) -> None:
-        """Alg. 1: splits on the Kinect system's detections of leaders (estimates out of view)."""
+        """Alg. 1: splits on the Kinect system's detections of leaders (estimates out of view); the
+        Kinect system locates the promoted followers by the formation (``KinectSystem.hand_over``)."""
         est = self.estimate[:, :2]
         if self.kinects is None:
             self.team.update(est, self.progress.plan_progress)
-        else:
-            self.team.update(est, self.progress.plan_progress, self.kinects.last_fixes, self.kinects.in_view(est))
+            return
+        before = self.team.leader
+        if self.team.update(est, self.progress.plan_progress, self.kinects.last_fixes, self.kinects.in_view(est)) \
+                and self._view is not None:
+            predecessor, rel, estimates = self._view  # the cameras' last measurements, before the split
+            promoted = self.team.leader & ~before
+            self.kinects.hand_over(handover_poses(promoted, predecessor, rel.rel_xy, rel.rel_heading, rel.visible,
+                                                  estimates), estimates)
 
     def _sense(self, true: np.ndarray) -> None:
         """Pose estimates: odometry dead reckoning, corrected by Kinect fixes of the leaders."""
@@ -363,6 +371,7 @@ class ParallelCoverageEnv(ParallelEnv):
         obs[:, L["goal_dx"]] = goal[:, 0:1]
         obs[:, L["goal_dy"]] = goal[:, 1:2]
         rel = self.camera.measure(true, self.team.predecessor, self.map.segments, self._rng, camera_blocked)
+        self._view = (self.team.predecessor, rel, est.copy())
         obs[:, L["pred_dx"]] = rel.rel_xy[:, 0:1]
         obs[:, L["pred_dy"]] = rel.rel_xy[:, 1:2]
         obs[:, L["pred_cos"]] = np.where(rel.visible, np.cos(rel.rel_heading), 0.0)[:, None]

@@ -93,6 +93,8 @@ class SonarNavigator:
         self.incidence = math.radians(r.sonar.incidence_max_deg) if self.specular else math.pi / 2
         self.cone = math.radians(r.sonar.cone_deg) if self.specular else 0.0
         self.front = np.flatnonzero(np.abs(wrap_angle(self.beams)) <= math.radians(self.p.front_sector_deg))
+        self.side = np.flatnonzero(np.abs(np.abs(wrap_angle(self.beams)) - math.pi / 2)
+                                   <= math.radians(self.p.side_sector_deg))
         self.odometry, self.wheel_base = r.odometry, r.drive.wheel_base
         fx = scenario.expert.sonar_fix
         self.fix_cov = np.diag([fx.fix_sigma**2, fx.fix_sigma**2, math.radians(fx.fix_sigma_heading_deg) ** 2])
@@ -366,6 +368,7 @@ class SonarNavigator:
             v, w = go_to_goal(np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]]), self.v_max, self.w_max)
             if v > 0:
                 v *= min(self._brake(observations[f"robot_{i}"]), self._team_brake(i, bel))
+                w = float(np.clip(w + self._side_turn(observations[f"robot_{i}"]), -self.w_max, self.w_max))
             cmd[i] = [v, w]
         if self.arrived.all() or self.drive_steps > self.drive_limit:
             self.arrived[:] = True
@@ -410,6 +413,19 @@ class SonarNavigator:
         phi, want = math.atan2(rel[1], rel[0]), math.atan2(d[1], d[0])
         side = min((phi + math.pi / 2, phi - math.pi / 2), key=lambda a: abs(wrap_angle(a - want)))
         return math.hypot(d[0], d[1]) * np.array([math.cos(side), math.sin(side)])
+
+    def _side_turn(self, obs: np.ndarray) -> float:
+        """Turn rate (rad/s) away from the nearest side echo (beams within ``side_sector_deg`` of
+        +-90 deg): 0 beyond radius + ``slow_margin``, rising linearly to omega_max at radius +
+        ``stop_margin``. A heading error of a few degrees takes a robot into a corridor wall that its
+        front beams, meeting the wall at grazing incidence, never see."""
+        if len(self.side) == 0:
+            return 0.0
+        ranges = self.layout.get(obs, "sonar")[self.side]
+        k = int(np.argmin(ranges))
+        stop, slow = self.radius + self.p.stop_margin, self.radius + self.p.slow_margin
+        push = float(np.clip((slow - float(ranges[k])) / (slow - stop), 0.0, 1.0))
+        return -math.copysign(push * self.w_max, float(wrap_angle(self.beams[self.side[k]])))
 
     def _brake(self, obs: np.ndarray) -> float:
         if len(self.front) == 0:

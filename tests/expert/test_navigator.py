@@ -237,3 +237,26 @@ def test_hallway_crossings_at_the_routes_ends_complete(seed):
     env = parcover_env.parallel_env("hallway")
     m = run_episode(env, SonarNavigator.for_env(env), seed=seed)
     assert m["success"] and m["kpois_visited"] == 2
+
+
+def test_side_turn_steers_away_from_a_close_side_echo():
+    nav = _hallway_nav()  # AmigoBot ring: side beams at +-90 deg only (the +-44 deg beams are 46 deg off)
+    assert np.degrees(nav.beams[nav.side]).round().tolist() == [90.0, -90.0]
+    stop, slow = nav.radius + nav.p.stop_margin, nav.radius + nav.p.slow_margin
+    obs = np.zeros(nav.layout.size, dtype=np.float32)
+    sonar = nav.layout.slices["sonar"]
+
+    def turn(left, right, front=2.54):
+        ranges = np.full(len(nav.beams), front)
+        ranges[0], ranges[5] = left, right  # +90 deg, -90 deg
+        obs[sonar] = ranges
+        return nav._side_turn(obs)
+
+    assert turn(2.54, 2.54) == 0.0
+    assert turn(slow + 0.01, 2.54) == 0.0
+    mid = 0.5 * (stop + slow)
+    assert turn(mid, 2.54) == pytest.approx(-0.5 * nav.w_max, rel=1e-5)  # wall on the left: turn right
+    assert turn(2.54, mid) == pytest.approx(0.5 * nav.w_max, rel=1e-5)
+    assert turn(2.54, stop - 0.02) == pytest.approx(nav.w_max)
+    assert turn(mid, stop) == pytest.approx(nav.w_max)  # the nearer echo wins
+    assert turn(2.54, 2.54, front=0.1) == 0.0  # front beams are the brake's business

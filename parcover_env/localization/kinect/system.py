@@ -7,6 +7,14 @@ matched leaders receive a pose fix. ``kinect: estimate`` samples the pipeline's 
 model (fast); ``kinect: frames`` renders depth + IR frames and runs the full pipeline, for the
 Kinects whose view can hold a leader (``KinectSensor.may_see``): a Kinect with no leader near its
 view renders nothing at that tick, which changes no detection since only markers are detected.
+
+Hand-over (Alg. 1, "change the robot located at P to the leader"): a follower promoted at a split
+has driven on odometry alone and its estimate may be tens of centimetres off, along the column,
+where the next robots stand; matched by that estimate, two promoted robots can swap identities and
+then each receive the other's fixes for the rest of the episode. The system therefore locates a
+promoted robot where the formation puts it: the pose of the robot ahead composed with the
+follower camera's last measurement of it (:func:`handover_poses`, chained down the column), and
+matches it by that pose until its first detection.
 """
 
 from __future__ import annotations
@@ -15,12 +23,32 @@ import numpy as np
 import shapely
 
 from parcover_env.config import Scenario
+from parcover_env.geometry.poses import compose, inverse
 from parcover_env.localization.kinect.pipeline import PipelineParams, estimate_fast, estimate_poses
 from parcover_env.localization.kinect.tracker import KinectTracker
 from parcover_env.sensors.kinect import KinectFrame, KinectSensor
 from parcover_env.world.map_model import MapModel
 
-__all__ = ["KinectSystem"]
+__all__ = ["KinectSystem", "handover_poses"]
+
+
+def handover_poses(promoted: np.ndarray, predecessor: np.ndarray, rel_xy: np.ndarray, rel_heading: np.ndarray,
+                   visible: np.ndarray, reference: np.ndarray) -> dict[int, np.ndarray]:
+    """Where the formation puts the ``promoted`` robots ``(N,)`` bool: robot ``i`` at the pose of its
+    ``predecessor[i]`` composed with the inverse of its camera measurement of it (``rel_xy[i]``, m, in
+    ``i``'s frame; ``rel_heading[i]``, rad), if it saw it (``visible[i]``). The predecessor's pose is
+    its own hand-over pose when it is promoted too (robots are handled in index order, the column's
+    order), else ``reference[p]`` (``(N, 3)``: the poses the system holds, e.g. Kinect-fixed
+    estimates). Returns ``{robot: (x, y, theta)}`` for the promoted robots that saw the robot ahead."""
+    out: dict[int, np.ndarray] = {}
+    for i in np.flatnonzero(promoted):
+        p = int(predecessor[i])
+        if p < 0 or not visible[i]:
+            continue
+        ahead = out.get(p, reference[p])
+        rel = np.array([rel_xy[i, 0], rel_xy[i, 1], rel_heading[i]], dtype=float)
+        out[int(i)] = compose(ahead, inverse(rel))
+    return out
 
 
 class KinectSystem:
@@ -54,6 +82,15 @@ class KinectSystem:
         self.next_tick = np.zeros(len(self.sensors))
         self.frames: dict[str, KinectFrame] = {}
         self.last_fixes = {}
+        self.handover: dict[int, np.ndarray] = {}
+        """Promoted robots not detected since: the correction (a pose composed on the robot's estimate)
+        that puts its estimate where the formation placed it at the hand-over."""
+
+    def hand_over(self, poses: dict[int, np.ndarray], estimates: np.ndarray) -> None:
+        """Promoted robots located by the formation (:func:`handover_poses`) when their estimates were
+        ``estimates`` ``(N, 3)``: matched by those poses (moved on with their odometry) until detected."""
+        for i, pose in poses.items():
+            self.handover[int(i)] = compose(np.asarray(pose, dtype=float), inverse(estimates[i]))
 
     def update(self, time: float, true_poses: np.ndarray, markers: np.ndarray, predicted: np.ndarray,
                rng: np.random.Generator) -> dict[int, np.ndarray]:
@@ -77,7 +114,11 @@ class KinectSystem:
                 per_kinect.append(estimate_fast(sensor, true_poses, markers, rng, stamp=time))
         self.next_tick[due] = time + self.periods[due]
         ids = np.flatnonzero(markers)
-        self.last_fixes = self.tracker.update(per_kinect, {int(i): predicted[i] for i in ids}, stamp=time)
+        ref = {int(i): compose(self.handover[i], predicted[i]) if i in self.handover else predicted[i] for i in ids}
+        self.last_fixes = self.tracker.update(per_kinect, ref, stamp=time)
+        for i in list(self.handover):
+            if i in self.last_fixes or not markers[i]:
+                del self.handover[i]
         return self.last_fixes
 
     def render_frames(self, true_poses: np.ndarray, markers: np.ndarray, seed: int) -> dict[str, KinectFrame]:
