@@ -260,3 +260,5 @@ def test_side_turn_steers_away_from_a_close_side_echo():
     assert turn(2.54, stop - 0.02) == pytest.approx(nav.w_max)
     assert turn(mid, stop) == pytest.approx(nav.w_max)  # the nearer echo wins
     assert turn(2.54, 2.54, front=0.1) == 0.0  # front beams are the brake's business
+    nav.side = np.zeros(0, dtype=int)  # a ring without side beams never turns
+    assert turn(0.1, 0.1) == 0.0

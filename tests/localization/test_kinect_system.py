@@ -30,6 +30,11 @@ def test_handover_poses_chain_down_the_column():
     assert out[2][2] == pytest.approx(math.pi / 2 - 0.2)
     c, s = math.cos(0.2), math.sin(0.2)  # robot 1 heads north: robot 2's frame is turned by -0.2 rad
     assert np.allclose(out[2][:2], [5.6 - 0.5 * s + 0.1 * c, 8.7 - 0.5 * c - 0.1 * s])
+    # robot 1 did not see robot 0: robot 2 is placed from the pose the system holds for robot 1
+    visible[1] = False
+    out = handover_poses(promoted, predecessor, rel_xy, rel_heading, visible, reference)
+    assert sorted(out) == [2]
+    assert np.allclose(compose(out[2], [0.5, 0.1, 0.2]), reference[1])
     # not promoted, or no robot ahead: nothing
     assert handover_poses(np.zeros(n, bool), predecessor, rel_xy, rel_heading, visible, reference) == {}
     assert handover_poses(promoted, np.full(n, -1), rel_xy, rel_heading, visible, reference) == {}
