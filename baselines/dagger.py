@@ -184,11 +184,12 @@ def run(args: Args) -> Path:
                       "driver_prob": prob, "args": asdict(args), "preset": args.preset,
                       "train_maps": [args.map_seed0, args.map_seed0 + args.n_maps - 1],
                       "episode_seeds": [args.seed0 + 100 * r for r in range(rnd + 1)],
-                      "robot_episodes": len(data), "record_wall_time_s": t_rec}
+                      "seed": args.seed, "robot_episodes": len(data), "record_wall_time_s": t_rec}
         model_zip = fit(args, data, rdir, info)
         rows = validate(args, model_zip)
         score = (float(np.mean([r["kpoi_fraction"] for r in rows])), float(np.mean([r["success"] for r in rows])))
-        info.update(validation=rows, validation_score={"kpoi_fraction": score[0], "success": score[1]},
+        info.update(validation=rows, eval_seeds=sorted({r["seed"] for r in rows}),
+                    validation_score={"kpoi_fraction": score[0], "success": score[1]},
                     timesteps=0, wall_time_s=time.time() - t0, round_wall_time_s=time.time() - t_round)
         train_ppo.write_sidecar(rdir / "model.json", info, script=__file__)
         history.append({"round": rnd, "driver_prob": prob, "samples": info["bc_samples"],
