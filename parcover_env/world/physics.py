@@ -198,9 +198,10 @@ class World:
         else:
             d = self.drive.cfg
             targets = wheel_targets(self._cmd, d.wheel_base, d.wheel_speed_max)
-        for _ in range(self.physics.substeps):
+            velocities = self.drive.advance_steps(targets, dt, self.physics.substeps)
+        for k in range(self.physics.substeps):
             if self.drive is not None:
-                self._rows.values[:] = self.drive.advance(targets, dt)
+                self._rows.values[:] = velocities[k]
             self.space.step(dt)
             if self._suppress:  # only the first step of a rebuilt space re-reports contacts in progress
                 self._suppress = set()
