@@ -26,7 +26,7 @@ Sections (``--sections``, comma separated; default all):
   CPU) for the K = 64 ratio.
 * ``memory``  - peak RSS, and RSS sampled over ``--soak`` env-steps on ``office`` (one ParallelEnv) and
   over ``--soak`` world-steps of the batched backend (``office``, K = 16); ``--soak 1000000`` for
-  the 10^6-step soak.
+  the 10^6-step soak (``--soak-batched-only``: the batched one alone).
 
     .venv/bin/python benchmarks/throughput.py                 # everything (~5 min on 2 cores)
     .venv/bin/python benchmarks/throughput.py --quick         # short chunks, a smoke run
@@ -487,10 +487,12 @@ def _soak(step: Callable[[int], None], total: int) -> dict:
 
 
 def section_memory(args, results: dict) -> None:
-    run = ParallelRunner(our_env("office", {}), np.random.default_rng(1))
-    r = _soak(run, args.soak)
-    print(f"  office soak {r['soak_steps']} steps: RSS {r['rss_start_mb']:.1f} -> {r['rss_end_mb']:.1f} MiB "
-          f"(fit {r['slope_mb_per_1e6_steps']:+.2f} MiB per 10^6 steps)", flush=True)
+    r: dict = {}
+    if not args.soak_batched_only:
+        run = ParallelRunner(our_env("office", {}), np.random.default_rng(1))
+        r = _soak(run, args.soak)
+        print(f"  office soak {r['soak_steps']} steps: RSS {r['rss_start_mb']:.1f} -> {r['rss_end_mb']:.1f} MiB "
+              f"(fit {r['slope_mb_per_1e6_steps']:+.2f} MiB per 10^6 steps)", flush=True)
     from parcover_env.envs.vec_env import make_vec_env
 
     k = 16
@@ -536,7 +538,8 @@ def summary(results: dict) -> None:
               f"{'MET' if v >= BATCHED_TARGET_VMAS else 'NOT MET'}")
     if "memory" in results:
         m = results["memory"]
-        print(f"  memory: {m['slope_mb_per_1e6_steps']:+.2f} MiB per 10^6 steps over {m['soak_steps']} steps")
+        if "soak_steps" in m:
+            print(f"  memory: {m['slope_mb_per_1e6_steps']:+.2f} MiB per 10^6 steps over {m['soak_steps']} steps")
         if "batched" in m:
             mb = m["batched"]
             print(f"  memory, batched K={mb['K']}: {mb['slope_mb_per_1e6_steps'] / mb['K']:+.2f} MiB per 10^6 "
@@ -550,6 +553,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--sections", default=",".join(SECTIONS), help=f"comma separated of {', '.join(SECTIONS)}")
     p.add_argument("--soak", type=int, default=20000,
                    help="env-steps of the memory soaks (default 20000; 1000000 for the 10^6-step soak)")
+    p.add_argument("--soak-batched-only", action="store_true",
+                   help="memory section: only the batched soak (the long batched soak without the single-env one)")
     p.add_argument("--quick", action="store_true", help="short chunks (smoke run)")
     p.add_argument("--json", help="also write the figures to this JSON file")
     p.add_argument("--torch-threads", type=int, default=1,

@@ -119,8 +119,9 @@ class ParallelCoverageEnv(ParallelEnv):
       ``fix_age``, ``info[agent]`` pose errors, ``true_poses()`` / ``pose_estimates()`` /
       ``pose_covariances()``; realistic Kinect mounting errors and sonar (multipath, cross-talk,
       dropouts); the Kinect system matches a promoted follower by the pose its formation gives it
-      (robot ahead composed with its camera's last measurement) until first detected. Episode metrics moved from ``info[agent]["episode"]`` (which Gymnasium's
-      ``RecordEpisodeStatistics`` and SB3's ``Monitor`` own) to flat ``info[agent]["metrics/<name>"]``
+      (robot ahead composed with its camera's last measurement) until first detected. Episode
+      metrics moved from ``info[agent]["episode"]`` (which Gymnasium's ``RecordEpisodeStatistics``
+      and SB3's ``Monitor`` own) to flat ``info[agent]["metrics/<name>"]``
       entries; reward terms moved from ``info[agent]["reward_terms"]`` to flat
       ``info[agent]["reward_<term>"]``; the reset info no longer carries the plan (``env.plan``);
       ``human`` render mode; ``max_cycles``; finite ``state_space`` bounds; ``env.np_random``.

@@ -96,7 +96,18 @@ class RouteTracker:
         return int(new.sum())
 
     def _advance_all(self, p: np.ndarray) -> None:
-        """Advance every robot's progress from its estimate ``p (N, 2)`` (see the class docstring)."""
+        """Advance every robot's progress from its estimate ``p (N, 2)`` (see the class docstring):
+        a compiled loop over robots, the same floats as :meth:`_advance_all_numpy`."""
+        if len(self.routes) == 0:
+            return
+        from parcover_env.scenarios._progress_kernel import advance_all
+
+        self.progress, self.waypoint = advance_all(
+            np.ascontiguousarray(p, dtype=float), self.progress, self.waypoint, self._len, self._arcp, self._mustp,
+            self._pts, self._e, self._ee, self._seg_len, self.window, self.tol, self.max_offset)
+
+    def _advance_all_numpy(self, p: np.ndarray) -> None:
+        """:meth:`_advance_all` as vectorized numpy over robots (the reference of the compiled loop)."""
         n = len(self.routes)
         if n == 0:
             return

@@ -128,12 +128,21 @@ class KinectSensor:
         wall-occlusion test uses it: a mounting error moves it by a pixel or two)."""
 
     def _view_of(self, camera: CameraModel) -> None:
-        """Pixel rays of ``camera`` (the true one); its static scene is rendered when first needed."""
-        h, w = self.shape
-        uu, vv = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
-        self.rays = camera.pixel_rays(np.stack([uu.ravel(), vv.ravel()], axis=1)).reshape(h, w, 3)
+        """Look through ``camera`` (the true one): its pixel rays and static scene are computed when
+        first needed (the estimate model needs neither, so a reset's mounting allocates nothing)."""
+        self._ray_camera = camera
+        self._rays: np.ndarray | None = None
         self._cull = None
         self._static = None
+
+    @property
+    def rays(self) -> np.ndarray:
+        """World-frame ray direction ``(H, W, 3)`` of every pixel of the true camera."""
+        if self._rays is None:
+            h, w = self.shape
+            uu, vv = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
+            self._rays = self._ray_camera.pixel_rays(np.stack([uu.ravel(), vv.ravel()], axis=1)).reshape(h, w, 3)
+        return self._rays
 
     def _static_scene(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if self._static is None:

@@ -68,6 +68,20 @@ class DiffDrive:
         self.wheels = new
         return body_velocity(new, c.wheel_base)
 
+    def advance_steps(self, targets: np.ndarray, dt: float, steps: int) -> np.ndarray:
+        """``steps`` calls of :meth:`advance` towards the same ``targets`` in one compiled loop (the
+        same floats); returns the body velocities ``(steps, n, 2)`` of each call."""
+        from parcover_env.world._drive_kernels import lag_steps
+
+        c = self.cfg
+        gain = -math.expm1(-dt / c.tau)
+        wheels = self.wheels.copy()
+        out = np.empty((steps, len(wheels), 2))
+        lag_steps(wheels, self.travel, self.speed_change, np.ascontiguousarray(targets, dtype=float), gain,
+                  c.accel_max * dt, dt, c.wheel_base, out)
+        self.wheels = wheels
+        return out
+
     def take_travel(self) -> tuple[np.ndarray, np.ndarray]:
         """Wheel distances (m) and summed |speed changes| (m/s), each ``(n, 2)``, since the last call;
         resets both (the odometry reads them once per control step)."""

@@ -5,7 +5,9 @@ commanded unicycle velocities ``(v, omega)`` inside ``body.velocity_func``, so c
 and other robots are resolved by pymunk while the robots follow their commands in free space.
 (Kinematic bodies would pass through walls.) pymunk moves bodies before it calls
 ``velocity_func``, so a new command takes effect after one physics step (``physics.dt``), like
-an actuator delay; the velocity the contact solver corrected is what moves the body.
+an actuator delay; the velocity the contact solver corrected is what moves the body. The
+``velocity_func`` is a compiled C callback (:mod:`parcover_env.world._body_kernels`) reading the
+commands from one array; where that is not available, a Python callable computing the same floats.
 
 With a ``DriveConfig`` of ``model: wheels`` the commands are wheel-speed targets for a
 :class:`~parcover_env.world.drive.DiffDrive` (limits, lag, bounded acceleration) advanced once per
@@ -21,9 +23,10 @@ import numpy as np
 import pymunk
 
 try:  # the C setters without pymunk's Python property layers: the callback runs N x substeps times a step
+    from pymunk._chipmunk import ffi as _ffi
     from pymunk._chipmunk import lib as _cp
 except ImportError:  # pragma: no cover - other pymunk builds: the public properties
-    _cp = None
+    _ffi = _cp = None
 
 from parcover_env.config import DriveConfig, PhysicsConfig
 from parcover_env.geometry import wrap_angle
@@ -32,13 +35,35 @@ from parcover_env.world.map_model import MapModel
 
 __all__ = ["World"]
 
+_COMPILED: dict = {}
+
+
+def _kernels():
+    """The compiled body access (:mod:`parcover_env.world._body_kernels`), or ``None`` if this pymunk
+    build's body layout is not the one it expects (then the Python callbacks run)."""
+    if "k" not in _COMPILED:
+        kernels = None
+        if _cp is not None:
+            from parcover_env.world import _body_kernels
+
+            if _body_kernels.layout_matches(_ffi, _cp):
+                kernels = _body_kernels
+                _COMPILED["fn"] = _ffi.cast("cpBodyVelocityFunc", kernels.velocity_update.address)
+        _COMPILED["k"] = kernels
+    return _COMPILED["k"]
+
 ROBOT, WALL = 1, 2
-_REBUILT = ("space", "bodies", "_rows", "_suppress")  # World attributes rebuilt from a snapshot, never copied
+# World attributes rebuilt from a snapshot, never copied
+_REBUILT = ("space", "bodies", "_rows", "_suppress", "_addresses")
 _WALL_RADIUS = 0.005  # m, collision skin of the static boundary segments
 
 
 class World:
     """Physics of one episode. Build a new one at every reset (pymunk caches contact state)."""
+
+    compiled = True
+    """Set the robots' velocities with the compiled callback (``False``: pymunk's Python callbacks,
+    the same floats; the compiled one is used only where the body layout check passes)."""
 
     def __init__(self, map_model: MapModel, radius: float, physics: PhysicsConfig, poses: np.ndarray,
                  drive: DriveConfig | None = None):
@@ -62,8 +87,9 @@ class World:
         fresh space reports them as beginning)."""
         physics = self.physics
         self._rows = _CommandRows(self.n)
-        self._rows.values = self._cmd.tolist()
+        self._rows.values[:] = self._cmd
         self._suppress = set(touching)
+        kernels = self.compiled and _kernels()
         space = pymunk.Space()
         space.gravity = (0.0, 0.0)
         space.collision_slop = physics.collision_slop
@@ -80,7 +106,8 @@ class World:
             body.angle = theta
             body.velocity = (vx, vy)
             body.angular_velocity = w
-            body.velocity_func = self._velocity_func(i)
+            if not kernels:
+                body.velocity_func = self._velocity_func(i)
             shape = pymunk.Circle(body, self.radius)
             shape.collision_type = ROBOT
             shape.friction = 0.0
@@ -88,6 +115,12 @@ class World:
             shape.robot_index = i
             space.add(body, shape)
             self.bodies.append(body)
+        self._addresses = np.array([int(_ffi.cast("intptr_t", b._body)) for b in self.bodies], dtype=np.int64) \
+            if kernels else None
+        if kernels:
+            kernels.bind_commands(self._addresses, self._rows.values.ctypes.data)
+            for body in self.bodies:
+                _cp.cpBodySetVelocityUpdateFunc(body._body, _COMPILED["fn"])
         space.on_collision(ROBOT, WALL, begin=self._on_wall)
         space.on_collision(ROBOT, ROBOT, begin=self._on_robot)
         self.space = space
@@ -161,13 +194,14 @@ class World:
         self._cmd[:] = commands
         dt = self.physics.dt
         if self.drive is None:
-            self._rows.values = self._cmd.tolist()
+            self._rows.values[:] = self._cmd
         else:
             d = self.drive.cfg
             targets = wheel_targets(self._cmd, d.wheel_base, d.wheel_speed_max)
-        for _ in range(self.physics.substeps):
+            velocities = self.drive.advance_steps(targets, dt, self.physics.substeps)
+        for k in range(self.physics.substeps):
             if self.drive is not None:
-                self._rows.values = self.drive.advance(targets, dt).tolist()
+                self._rows.values[:] = velocities[k]
             self.space.step(dt)
             if self._suppress:  # only the first step of a rebuilt space re-reports contacts in progress
                 self._suppress = set()
@@ -176,6 +210,10 @@ class World:
     def poses(self) -> np.ndarray:
         """Ground-truth poses ``(N, 3)``: x, y (m), theta (rad, wrapped to (-pi, pi])."""
         out = np.empty((self.n, 3))
+        if self._addresses is not None:
+            _kernels().read_poses(self._addresses, out)
+            out[:, 2] = wrap_angle(out[:, 2])
+            return out
         for i, b in enumerate(self.bodies):
             out[i, 0], out[i, 1] = b.position
             out[i, 2] = b.angle
@@ -184,12 +222,14 @@ class World:
 
 
 class _CommandRows:
-    """The commands ``[[v, omega], ...]`` as Python floats, shared by the world and its callbacks."""
+    """The body velocity commands ``(n, 2)`` (v m/s, omega rad/s) applied at the next physics
+    substep, shared by the world and its callbacks. Written in place: the compiled callback holds
+    the address of each row."""
 
     __slots__ = ("values",)
 
     def __init__(self, n: int):
-        self.values = [[0.0, 0.0] for _ in range(n)]
+        self.values = np.zeros((n, 2))
 
     def __getstate__(self):
         return self.values
@@ -217,7 +257,7 @@ class _UnicycleVelocity:
         self.cmd, self.i = state
 
     def __call__(self, body: pymunk.Body, gravity, damping, dt) -> None:
-        v, w = self.cmd.values[self.i]
+        v, w = self.cmd.values[self.i].tolist()
         if _cp is None:  # pragma: no cover
             a = body.angle
             body.velocity = (v * math.cos(a), v * math.sin(a))

@@ -34,3 +34,36 @@ def test_remaining_decreases_along_the_route():
         m.update(np.array([[x, y]]), np.array([[x, y]]), 0.0)
         rem.append(m.remaining(np.array([[x, y]]))[0])
     assert all(a > b for a, b in zip(rem, rem[1:])) and rem[0] > 5.9
+
+
+def test_compiled_progress_is_the_same_floats_as_the_numpy_reference():
+    """Robots walking their routes with noisy, sometimes lost estimates, plus a one-vertex route and
+    an out-and-back spur: the compiled update equals the vectorized numpy one, float for float."""
+    route = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.5], [2.0, 0.0], [4.0, 0.0], [4.0, 2.0]])
+    kpois = np.array([[2.0, 1.5], [4.0, 0.0], [4.0, 2.0]])
+    routes = [route, route[::-1].copy(), route[:3] + 0.05, np.array([[1.0, 1.0]])]
+    fast = Mission(kpois, 0.2, routes, waypoint_tol=0.15, lookahead=0.4)
+    ref = Mission(kpois, 0.2, routes, waypoint_tol=0.15, lookahead=0.4)
+    ref._advance_all = ref._advance_all_numpy
+    rng = np.random.default_rng(2)
+    arc = [np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(r, axis=0).T))]) for r in routes[:3]]
+    moved = 0
+    for t in range(300):
+        s = t * 0.035  # walk along each route by arc length, with estimate noise and jumps
+        est = []
+        for r, a in zip(routes[:3], arc, strict=True):
+            k = min(np.searchsorted(a, s, side="right") - 1, len(r) - 2)
+            u = min((s - a[k]) / (a[k + 1] - a[k]), 1.0)
+            est.append(r[k] + u * (r[k + 1] - r[k]))
+        est.append([1.0, 1.0])
+        est = np.array(est) + rng.normal(0.0, 0.05, (4, 2))
+        if t % 37 == 0:
+            est[t % 3] += 3.0  # a lost estimate: no progress
+        n1 = fast.update(est, est, 0.1 * t)
+        n2 = ref.update(est, est, 0.1 * t)
+        assert n1 == n2
+        assert fast.progress.tobytes() == ref.progress.tobytes()
+        assert fast.waypoint.tolist() == ref.waypoint.tolist() and fast.advanced.tolist() == ref.advanced.tolist()
+        moved += int(fast.advanced.sum())
+    assert moved >= 10 and fast.visited.all()  # the walk crossed vertices and reached every KPOI
+    assert fast.waypoint[3] == 0 and fast.progress[3] == 0.0

@@ -98,3 +98,18 @@ def test_drive_config_rejects_limits_that_stop_the_robot(field, value):
 
     with pytest.raises(ConfigError, match=field):
         DriveConfig(**{field: value})
+
+
+def test_advance_steps_is_the_same_floats_as_repeated_advance():
+    rng = np.random.default_rng(4)
+    one, many = DiffDrive(CFG, 5), DiffDrive(CFG, 5)
+    for _ in range(6):  # targets far (acceleration bound) and near (exponential lag) the wheels
+        targets = wheel_targets(np.column_stack([rng.uniform(-0.5, 0.5, 5), rng.uniform(-3, 3, 5)]), 0.18, 1.0)
+        singles = np.stack([one.advance(targets, 0.02) for _ in range(5)])
+        batch = many.advance_steps(targets, 0.02, 5)
+        assert batch.tobytes() == singles.tobytes()
+        assert many.wheels.tobytes() == one.wheels.tobytes()
+        t1, c1 = one.take_travel()
+        t2, c2 = many.take_travel()
+        assert t2.tobytes() == t1.tobytes() and c2.tobytes() == c1.tobytes()
+        assert np.all(c1 > 0)

@@ -46,3 +46,43 @@ def test_robot_robot_contacts_are_counted_for_both():
     assert w.robot_contacts.tolist() == [1, 1]
     gap = np.hypot(*(w.poses()[0, :2] - w.poses()[1, :2]))
     assert gap > 0.29  # discs do not overlap (beyond the collision slop)
+
+
+def _crowded_run(compiled: bool, drive) -> tuple[np.ndarray, list, list]:
+    """Six robots pushed into the walls and each other for 60 steps; poses after every step."""
+    poses = np.array([[0.5, 0.5, 0.3], [0.9, 0.6, 2.9], [1.6, 1.5, 0.1], [2.0, 1.5, 3.0], [3.4, 2.5, 0.8],
+                      [3.0, 2.2, -2.6]])
+    w = World(BOX, 0.15, PhysicsConfig(), poses, drive)
+    w.compiled = compiled
+    w._build_space(poses, np.zeros((6, 3)))
+    rng = np.random.default_rng(3)
+    trace = []
+    for _ in range(60):
+        w.step(np.column_stack([rng.uniform(0.1, 0.6, 6), rng.uniform(-1.5, 1.5, 6)]))
+        trace.append(w.poses())
+    return np.array(trace), w.wall_contacts.tolist(), w.robot_contacts.tolist()
+
+
+def test_compiled_velocity_callback_is_bit_identical_to_the_python_one():
+    from parcover_env.config import DriveConfig
+    from parcover_env.world import physics
+
+    assert physics._kernels() is not None  # this pymunk build takes the compiled path
+    for drive in (None, DriveConfig()):
+        fast, slow = _crowded_run(True, drive), _crowded_run(False, drive)
+        assert fast[0].tobytes() == slow[0].tobytes()
+        assert fast[1:] == slow[1:]
+        assert sum(fast[1]) > 0 and sum(fast[2]) > 0  # the run does press robots into walls and each other
+        assert np.ptp(fast[0][:, :, 2]) > 1.0  # and turns them
+
+
+def test_compiled_callback_follows_the_command_of_its_own_robot():
+    poses = np.array([[1.0, 1.0, 0.0], [2.0, 2.0, math.pi / 2]])
+    w = World(BOX, 0.15, PhysicsConfig(dt=0.02, substeps=5), poses)
+    assert w._addresses is not None
+    w.step(np.array([[0.5, 0.0], [0.0, 1.0]]))
+    w.step(np.array([[0.5, 0.0], [0.0, 1.0]]))  # 9 substeps of motion after the one-substep delay
+    p = w.poses()
+    assert math.isclose(p[0, 0], 1.0 + 0.5 * 0.18, abs_tol=1e-12) and math.isclose(p[0, 1], 1.0, abs_tol=1e-12)
+    assert math.isclose(p[1, 2], math.pi / 2 + 0.18, abs_tol=1e-12)
+    assert math.isclose(p[1, 0], 2.0, abs_tol=1e-12) and math.isclose(p[1, 1], 2.0, abs_tol=1e-12)

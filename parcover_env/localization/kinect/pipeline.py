@@ -297,8 +297,24 @@ def estimate_fast(sensor: KinectSensor, poses, marker_mask, rng: np.random.Gener
     dropped at ``drop_rate``. The estimate is the true pose plus Gaussian noise whose scale
     (``noise``, in pixels) was measured on the full pipeline, so both paths agree statistically.
     """
-    nz = noise or FastNoise()
     poses, mask = sensor._check_inputs(poses, marker_mask)
+    return _estimate_checked(sensor, poses, mask, rng, noise or FastNoise(), stamp)
+
+
+def estimate_fast_all(sensors: list[KinectSensor], poses, marker_mask, rng: np.random.Generator,
+                      noise: FastNoise | None = None, stamp: float = 0.0) -> list[list[PoseEstimate]]:
+    """:func:`estimate_fast` of each sensor in turn, the inputs checked once: the same estimates
+    from the same random draws in the same order as one call per sensor."""
+    if not sensors:
+        return []
+    poses, mask = sensors[0]._check_inputs(poses, marker_mask)
+    nz = noise or FastNoise()
+    return [_estimate_checked(sensor, poses, mask, rng, nz, stamp) for sensor in sensors]
+
+
+def _estimate_checked(sensor: KinectSensor, poses: np.ndarray, mask: np.ndarray, rng: np.random.Generator,
+                      nz: FastNoise, stamp: float) -> list[PoseEstimate]:
+    """Body of :func:`estimate_fast` on checked inputs."""
     if sensor.cfg.drop_rate > 0 and rng.random() < sensor.cfg.drop_rate:
         return []
     idx = np.flatnonzero(mask)
@@ -358,12 +374,15 @@ def _as_seen_by_nominal(sensor: KinectSensor, poses: np.ndarray) -> np.ndarray:
     """Poses ``(N, 3)`` as the pipeline reconstructs them: the robot's top centre and a point ahead
     imaged by the true (mis-mounted) camera, back-projected onto the marker plane with the nominal
     camera the pipeline believes in. Carries the mounting error into the fast path."""
-    h = sensor.robot_height
-    ahead = poses[:, :2] + 0.1 * np.stack([np.cos(poses[:, 2]), np.sin(poses[:, 2])], axis=1)
-    pts = np.concatenate([poses[:, :2], ahead])
-    uv, _ = sensor.true_camera.project(np.c_[pts, np.full(len(pts), h)])
-    back, _ = sensor.camera.intersect_plane(uv, h)
-    c, a = back[: len(poses), :2], back[len(poses):, :2]
+    n = len(poses)
+    pts = np.empty((2 * n, 3))  # centres, then the points 0.1 m ahead, at the markers' height
+    pts[:n, :2] = poses[:, :2]
+    pts[n:, 0] = poses[:, 0] + 0.1 * np.cos(poses[:, 2])
+    pts[n:, 1] = poses[:, 1] + 0.1 * np.sin(poses[:, 2])
+    pts[:, 2] = sensor.robot_height
+    uv, _ = sensor.true_camera.project(pts)
+    back, _ = sensor.camera.intersect_plane(uv, sensor.robot_height)
+    c, a = back[:n, :2], back[n:, :2]
     return np.column_stack([c, np.arctan2(a[:, 1] - c[:, 1], a[:, 0] - c[:, 0])])
 
 

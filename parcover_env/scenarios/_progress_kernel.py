@@ -1,0 +1,84 @@
+"""Compiled (numba) body of :meth:`parcover_env.scenarios.progress.RouteTracker._advance_all`; import
+only through that method. Robot by robot, the same IEEE operations in the same order as the
+vectorized numpy version it replaces (kept as ``RouteTracker._advance_all_numpy``; a test compares
+them), no fast-math: the same floats.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def advance_all(p, progress, waypoint, length, arc, must, pts, e, ee, seg_len, window, tol, max_offset):
+    """New ``(progress, waypoint)`` of every robot from its estimate ``p (N, 2)``; see
+    :class:`~parcover_env.scenarios.progress.RouteTracker` for the rule."""
+    n, m = arc.shape
+    new_progress = progress.copy()
+    new_waypoint = waypoint.copy()
+    cand = np.empty(m, dtype=np.bool_)
+    for i in range(n):
+        short = length[i] < 2
+        if short:
+            new_waypoint[i] = 0
+        s0 = progress[i]
+        limit = s0 + window
+        for j in range(m):
+            cand[j] = must[i, j] and arc[i, j] > s0 + 1e-9
+        active = not short
+        while active:  # the first must-reach vertex ahead bounds the search unless the robot is at it
+            j = -1
+            for jj in range(m):
+                if cand[jj]:
+                    j = jj
+                    break
+            if j < 0:
+                break
+            aj = arc[i, j]
+            if aj > limit:
+                break
+            if np.hypot(pts[i, j, 0] - p[i, 0], pts[i, j, 1] - p[i, 1]) <= tol:
+                s0 = aj  # reached: progress moves past it
+                limit = s0 + window
+                cand[j] = False
+            else:
+                limit = aj
+                break
+        if short:
+            continue
+        back = s0 - 0.2
+        lo = 0
+        hi = 0
+        for j in range(m):
+            if arc[i, j] <= back:
+                lo += 1
+            if arc[i, j] < limit:
+                hi += 1
+        lo = max(lo - 1, 0)
+        hi = min(hi, length[i] - 1)
+        best = math.inf
+        bj = 0
+        bu = 0.0
+        bdist = 0.0
+        for k in range(m - 1):
+            qx = p[i, 0] - pts[i, k, 0]
+            qy = p[i, 1] - pts[i, k, 1]
+            u = min(max((qx * e[i, k, 0] + qy * e[i, k, 1]) / ee[i, k], 0.0), 1.0)
+            dist = np.hypot(pts[i, k, 0] + u * e[i, k, 0] - p[i, 0], pts[i, k, 1] + u * e[i, k, 1] - p[i, 1])
+            score = dist - 1e-6 * (k - lo) if lo <= k < hi else math.inf  # ties: the later segment
+            if k == 0 or score < best:
+                best, bj, bu, bdist = score, k, u, dist
+        new_progress[i] = s0
+        if bdist <= max_offset:  # far off the route (lost estimate): no progress
+            s = min(arc[i, bj] + bu * seg_len[i, bj], limit)
+            s = max(s0, s)
+            new_progress[i] = s
+            count = 0
+            for j in range(m):
+                if arc[i, j] <= s + 1e-9:
+                    count += 1
+            new_waypoint[i] = min(count, length[i] - 1)
+    return new_progress, new_waypoint

@@ -1,0 +1,89 @@
+"""Compiled (numba) access to the robots' chipmunk bodies; import only through
+:mod:`parcover_env.world.physics`, which falls back to pymunk's Python callbacks when
+:func:`layout_matches` is false.
+
+pymunk calls a Python ``velocity_func`` once per body per physics substep, after it has moved the
+bodies and before the contact solver. :func:`velocity_update` is the same unicycle update as a C
+callback: ``v = (v_cmd cos a, v_cmd sin a)``, ``omega = omega_cmd`` with ``a`` the body angle
+after the position update, the same IEEE operations as the Python callback (``math.cos``/``sin``
+of the C library, no fast-math), so trajectories are bit-identical. Each body finds its command row
+``(v_cmd, omega_cmd)`` through an address kept in its torque slot (a body of infinite moment,
+whose velocity update is this callback, never reads its torque).
+
+chipmunk's ``cpBody`` is opaque to pymunk's cffi layer; the slots used here follow the field order
+of chipmunk's ``cpBody`` (function pointers, mass, moment, centre of gravity, position, velocity,
+force, angle, angular velocity, torque). :func:`layout_matches` checks them against pymunk's own
+getters before the world relies on them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import carray, cfunc, njit, types
+from numba.extending import intrinsic
+
+__all__ = ["N_SLOTS", "layout_matches", "velocity_update", "bind_commands", "read_poses"]
+
+N_SLOTS = 17
+"""8-byte slots of ``cpBody`` read or written here (up to the torque)."""
+_PX, _PY, _VX, _VY, _A, _W, _T = 8, 9, 10, 11, 14, 15, 16
+"""Slot indices: position, velocity, angle, angular velocity, torque (holds the command address)."""
+
+
+@intrinsic
+def _pointer(typingctx, address):
+    """An integer address as a ``void*``."""
+    sig = types.voidptr(types.int64)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(types.voidptr))
+
+    return sig, codegen
+
+
+@cfunc(types.void(types.voidptr), cache=True)
+def velocity_update(body):
+    """``cpBodyVelocityFunc`` (only the body argument is read): velocity from the body's command row."""
+    b = carray(body, N_SLOTS, dtype=np.float64)
+    row = carray(_pointer(carray(body, N_SLOTS, dtype=np.int64)[_T]), 2, dtype=np.float64)
+    v = row[0]
+    a = b[_A]
+    b[_VX] = v * math.cos(a)
+    b[_VY] = v * math.sin(a)
+    b[_W] = row[1]
+
+
+@njit(cache=True)
+def bind_commands(bodies, commands_address):
+    """Point body ``i`` (addresses ``bodies``) at row ``i`` of the C-contiguous ``(n, 2)`` float64
+    command array starting at ``commands_address``."""
+    for i in range(bodies.shape[0]):
+        carray(_pointer(bodies[i]), N_SLOTS, dtype=np.int64)[_T] = commands_address + 16 * i
+
+
+@njit(cache=True)
+def read_poses(bodies, out):
+    """Write ``x, y, angle`` (unwrapped) of the bodies at addresses ``bodies`` into ``out`` ``(n, 3)``."""
+    for i in range(bodies.shape[0]):
+        b = carray(_pointer(bodies[i]), N_SLOTS, dtype=np.float64)
+        out[i, 0] = b[_PX]
+        out[i, 1] = b[_PY]
+        out[i, 2] = b[_A]
+
+
+def layout_matches(ffi, lib) -> bool:
+    """True if a pymunk body's memory holds position, velocity, angle and angular velocity in the
+    slots this module uses (values set and read through chipmunk's own accessors)."""
+    body = lib.cpBodyNew(1.0, math.inf)
+    try:
+        lib.cpBodySetPosition(body, (1.25, -2.5))
+        lib.cpBodySetVelocity(body, (3.75, -4.5))
+        lib.cpBodySetAngle(body, 0.625)
+        lib.cpBodySetAngularVelocity(body, -5.25)
+        slots = np.frombuffer(ffi.buffer(body, N_SLOTS * 8), dtype=np.float64)
+        return bool(slots[_PX] == 1.25 and slots[_PY] == -2.5 and slots[_VX] == 3.75 and slots[_VY] == -4.5
+                    and slots[_A] == 0.625 and slots[_W] == -5.25)
+    finally:
+        lib.cpBodyFree(body)
