@@ -17,7 +17,7 @@ from parcover_env.expert.policy import ScriptedExpert
 PINNED = {  # scenario: (random actions, seed 3), (expert, seed 5)
     "office": ("d98e2b74c17d449f", "669718af5c066b7b"),
     "tree": ("393320070f84a3c7", "d20fa0acd925bd90"),
-    "hallway": ("628ea18c8d4b84ab", "6e1f02386ccf5fb0"),  # expert: navigator lane brake (2026-11-23)
+    "hallway": ("628ea18c8d4b84ab", "7e508009e30c9035"),  # expert: navigator lane brake, side turn (2026-11-23)
     "t_room": ("c95573cf86299f95", "1593c2a3bc997382"),
     "triangle_room": ("29e01fb9157c0abe", "e1c678c3c5f7fc33"),
 }
