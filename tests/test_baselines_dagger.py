@@ -2,27 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("torch")
-
-ROOT = Path(__file__).resolve().parents[1] / "baselines"
-
-
-def _load(name: str):
-    spec = importlib.util.spec_from_file_location(f"baseline_{name}", ROOT / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
 
 def _waypoint_labels(env, obs: np.ndarray) -> np.ndarray:
     from parcover_env.policies.simple import WaypointPolicy
@@ -31,8 +17,8 @@ def _waypoint_labels(env, obs: np.ndarray) -> np.ndarray:
     return np.stack([pol.act({"r": o})["r"] for o in obs])
 
 
-def test_driver_schedule_needs_round_zero_without_a_network():
-    dagger = _load("dagger")
+def test_driver_schedule_needs_round_zero_without_a_network(load_baseline):
+    dagger = load_baseline("dagger")
     assert dagger.driver_schedule("0,0.5,1") == [0.0, 0.5, 1.0]
     for bad in ("0.5,1", "0,1.5", "0,-0.1", ""):
         with pytest.raises(ValueError, match="driver_probs"):
@@ -40,8 +26,8 @@ def test_driver_schedule_needs_round_zero_without_a_network():
 
 
 @pytest.fixture(scope="module")
-def dagger_run(tmp_path_factory):
-    dagger = _load("dagger")
+def dagger_run(tmp_path_factory, load_baseline):
+    dagger = load_baseline("dagger")
     out = tmp_path_factory.mktemp("dagger")
     args = dagger.parse_args(["--n-maps", "1", "--map-seed0", "3", "--driver-probs", "0,1", "--max-steps", "60",
                               "--workers", "1", "--bc-epochs", "2", "--net-arch", "16",

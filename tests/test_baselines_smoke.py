@@ -2,30 +2,15 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("torch")
 
-ROOT = Path(__file__).resolve().parents[1] / "baselines"
-
-
-def _load(name: str):
-    spec = importlib.util.spec_from_file_location(f"baseline_{name}", ROOT / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
 @pytest.fixture(scope="module")
-def ppo_dir(tmp_path_factory):
-    train_ppo = _load("train_ppo")
+def ppo_dir(tmp_path_factory, load_baseline):
+    train_ppo = load_baseline("train_ppo")
     out = tmp_path_factory.mktemp("ppo")
     args = train_ppo.parse_args(
         [
@@ -68,9 +53,9 @@ def test_ppo_policy_acts_in_the_box(ppo_dir):
     assert all(a.shape == (2,) and np.all(np.abs(a) <= 1) for a in acts.values())
 
 
-def test_bc_one_epoch_then_evaluate(tmp_path):
-    train_bc = _load("train_bc")
-    evaluate = _load("evaluate")
+def test_bc_one_epoch_then_evaluate(tmp_path, load_baseline):
+    train_bc = load_baseline("train_bc")
+    evaluate = load_baseline("evaluate")
     out = tmp_path / "bc"
     train_bc.train(
         train_bc.parse_args(["--episodes", "1", "--epochs", "1", "--hidden", "32", "--out", str(out)])
@@ -102,17 +87,17 @@ def test_bc_imitates_a_known_linear_expert():
     assert loss.item() < 0.01
 
 
-def test_evaluate_random_runs(capsys):
-    evaluate = _load("evaluate")
+def test_evaluate_random_runs(capsys, load_baseline):
+    evaluate = load_baseline("evaluate")
     assert evaluate.main(["--policy", "random", "--seeds", "2", "--max-steps", "20"]) == 0
     out = capsys.readouterr().out
     assert "random on office (realistic), 2 episodes" in out and "| office | random | 2 | 0.00 [" in out
 
 
 @pytest.fixture(scope="module")
-def curriculum_dir(tmp_path_factory):
+def curriculum_dir(tmp_path_factory, load_baseline):
     """Two stages with different team sizes (office: 2 robots, generated:3: 3 robots), BC init."""
-    train_ppo = _load("train_ppo")
+    train_ppo = load_baseline("train_ppo")
     out = tmp_path_factory.mktemp("cur")
     cfg = out / "cur.yaml"
     cfg.write_text("stages:\n  - {scenario: office, steps: 600, n_envs: 1}\n"
@@ -162,13 +147,13 @@ def test_resume_continues_the_step_count(curriculum_dir, tmp_path):
     assert side["resumed_from"]["num_timesteps"] == 500 and side["timesteps"] == 1012
 
 
-def test_mappo_actor_loads_as_a_policy(tmp_path):
+def test_mappo_actor_loads_as_a_policy(tmp_path, load_baseline):
     import torch
 
     from parcover_env import parallel_env
     from parcover_env.policies.registry import make_policy
 
-    train_mappo = _load("train_mappo")
+    train_mappo = load_baseline("train_mappo")
     out = train_mappo.train(train_mappo.parse_args(["--total-timesteps", "256", "--n-envs", "1", "--n-steps", "64",
                                                     "--max-steps", "50", "--hidden", "16",
                                                     "--out", str(tmp_path)]))
@@ -203,7 +188,7 @@ def _policy_mse(policy, obs, act) -> float:
     return float(np.mean((np.stack([pred[f"r{i:04d}"] for i in range(len(obs))]) - act) ** 2))
 
 
-def test_ppo_bc_init_from_minari_datasets_imitates_the_expert(tiny_datasets, tmp_path):
+def test_ppo_bc_init_from_minari_datasets_imitates_the_expert(tiny_datasets, tmp_path, load_baseline):
     import json
 
     from stable_baselines3 import PPO
@@ -211,7 +196,7 @@ def test_ppo_bc_init_from_minari_datasets_imitates_the_expert(tiny_datasets, tmp
     from parcover_env.policies.learned import PPOPolicy
 
     root, obs, act = tiny_datasets
-    train_ppo = _load("train_ppo")
+    train_ppo = load_baseline("train_ppo")
     args = train_ppo.parse_args(["--scenario", "office", "--n-envs", "1", "--total-timesteps", "256",
                                  "--n-steps", "128", "--batch-size", "128", "--n-epochs", "1", "--max-steps", "40",
                                  "--net-arch", "64,64", "--bc-datasets", "parcover/tiny-*-expert-v0",
@@ -242,12 +227,12 @@ def test_ppo_bc_init_from_minari_datasets_imitates_the_expert(tiny_datasets, tmp
     assert (tmp_path / "best" / "model.zip").is_file() and best["selected_by"] == "validation"
 
 
-def test_bc_regularizer_pulls_the_actor_to_the_expert(tiny_datasets):
+def test_bc_regularizer_pulls_the_actor_to_the_expert(tiny_datasets, load_baseline):
     import torch
     from stable_baselines3 import PPO
 
     root, obs, act = tiny_datasets
-    train_ppo = _load("train_ppo")
+    train_ppo = load_baseline("train_ppo")
     args = train_ppo.parse_args(["--n-envs", "1", "--max-steps", "40"])
     venv = train_ppo.make_venv(args, ["office"], 0)
     venv.obs_rms.mean, venv.obs_rms.var = obs.mean(0), obs.var(0)
@@ -270,11 +255,11 @@ def test_bc_regularizer_pulls_the_actor_to_the_expert(tiny_datasets):
     venv.close()
 
 
-def test_train_bc_reads_datasets_by_pattern(tiny_datasets, tmp_path):
+def test_train_bc_reads_datasets_by_pattern(tiny_datasets, tmp_path, load_baseline):
     import torch
 
     root, obs, act = tiny_datasets
-    train_bc = _load("train_bc")
+    train_bc = load_baseline("train_bc")
     out = train_bc.train(train_bc.parse_args(["--dataset-id", "parcover/tiny-*-expert-v0", "--dataset-root",
                                               str(root), "--epochs", "200", "--hidden", "64,64",
                                               "--out", str(tmp_path)]))
