@@ -39,6 +39,7 @@ import shapely
 from parcover_env.config import NavigatorConfig, Scenario
 from parcover_env.control.leader import go_to_goal
 from parcover_env.envs.observations import ObservationLayout
+from parcover_env.expert.avoidance import brake_factor, lane_gap, sidestep, turn_away
 from parcover_env.expert.sonar_fix import belief_covariance_step
 from parcover_env.expert.team_localizer import TeamLocalizer
 from parcover_env.geometry import wrap_angle
@@ -377,62 +378,42 @@ class SonarNavigator:
             cmd[:] = 0.0
 
     def _lane(self, i: int, bel: np.ndarray, heading: float) -> tuple[float, int]:
-        """``(gap, j)``: free distance between robot ``i`` and the nearest teammate ``j`` in the lane it
-        sweeps driving straight along ``heading`` (in front, and closer to the heading line than two
-        radii + ``stop_margin``), by their believed positions; ``(inf, -1)`` if the lane is free."""
-        d = bel[:, :2] - bel[i, :2]
-        c, s = math.cos(heading), math.sin(heading)
-        lane = 2 * self.radius + self.p.stop_margin
-        ahead = ((d[:, 0] * c + d[:, 1] * s) > 0) & (np.abs(d[:, 1] * c - d[:, 0] * s) < lane)
-        ahead[i] = False
-        if not ahead.any():
-            return math.inf, -1
-        dist = np.where(ahead, np.hypot(d[:, 0], d[:, 1]), np.inf)
-        j = int(np.argmin(dist))
-        return float(dist[j]) - 2 * self.radius, j
+        """``(gap, j)``: the nearest teammate ``j`` in the lane robot ``i`` sweeps along ``heading``
+        (two radii + ``stop_margin`` wide; :func:`lane_gap`), by the believed positions."""
+        return lane_gap(bel[:, :2], i, heading, 2 * self.radius + self.p.stop_margin, 2 * self.radius)
 
     def _team_brake(self, i: int, bel: np.ndarray) -> float:
         """Slow down for a teammate in robot ``i``'s lane (:meth:`_lane`). A teammate beside the lane is
         no obstacle: braking for it would deadlock two robots that pass each other."""
         gap, _ = self._lane(i, bel, float(bel[i, 2]))
-        span = self.p.slow_margin - self.p.stop_margin
-        return float(np.clip((gap - self.p.stop_margin) / span, 0.0, 1.0))
+        return brake_factor(gap, self.p.stop_margin, self.p.slow_margin)
 
     def _bypass(self, i: int, bel: np.ndarray, d: np.ndarray) -> np.ndarray:
         """The direction robot ``i`` drives instead of ``d`` (its way to the look-ahead point) when a
         teammate ``j`` stands in that lane at the stop distance and will not move out of it: ``j`` has
         arrived at its subgoal (or is done), or ``i`` stands in ``j``'s lane too (each would wait for
-        the other forever). ``i`` then steps sideways (perpendicular to the line between the two
-        beliefs) on the side nearer to ``d``, until its lane gap exceeds the stop distance."""
+        the other forever). ``i`` then steps sideways (:func:`sidestep`) until its lane gap exceeds
+        the stop distance."""
         gap, j = self._lane(i, bel, math.atan2(d[1], d[0]))
         if j < 0 or gap > self.p.stop_margin:
             return d
         if not (self.arrived[j] or self.done[j] or self._lane(j, bel, float(bel[j, 2]))[1] == i):
             return d
-        rel = bel[j, :2] - bel[i, :2]
-        phi, want = math.atan2(rel[1], rel[0]), math.atan2(d[1], d[0])
-        side = min((phi + math.pi / 2, phi - math.pi / 2), key=lambda a: abs(wrap_angle(a - want)))
-        return math.hypot(d[0], d[1]) * np.array([math.cos(side), math.sin(side)])
+        return sidestep(bel[i, :2], bel[j, :2], d)
 
     def _side_turn(self, obs: np.ndarray) -> float:
         """Turn rate (rad/s) away from the nearest side echo (beams within ``side_sector_deg`` of
-        +-90 deg): 0 beyond radius + ``slow_margin``, rising linearly to omega_max at radius +
-        ``stop_margin``. A heading error of a few degrees takes a robot into a corridor wall that its
-        front beams, meeting the wall at grazing incidence, never see."""
-        if len(self.side) == 0:
-            return 0.0
-        ranges = self.layout.get(obs, "sonar")[self.side]
-        k = int(np.argmin(ranges))
-        stop, slow = self.radius + self.p.stop_margin, self.radius + self.p.slow_margin
-        push = float(np.clip((slow - float(ranges[k])) / (slow - stop), 0.0, 1.0))
-        return -math.copysign(push * self.w_max, float(wrap_angle(self.beams[self.side[k]])))
+        +-90 deg; :func:`turn_away` between radius + ``stop_margin`` and radius + ``slow_margin``). A
+        heading error of a few degrees takes a robot into a corridor wall that its front beams,
+        meeting the wall at grazing incidence, never see."""
+        return turn_away(self.layout.get(obs, "sonar")[self.side], self.beams[self.side],
+                         self.radius + self.p.stop_margin, self.radius + self.p.slow_margin, self.w_max)
 
     def _brake(self, obs: np.ndarray) -> float:
         if len(self.front) == 0:
             return 1.0
         front = float(np.min(self.layout.get(obs, "sonar")[self.front]))
-        stop, slow = self.radius + self.p.stop_margin, self.radius + self.p.slow_margin
-        return float(np.clip((front - stop) / (slow - stop), 0.0, 1.0))
+        return brake_factor(front, self.radius + self.p.stop_margin, self.radius + self.p.slow_margin)
 
     # ------------------------------------------------------------------ Fig. 1 line 8
     def _scan_step(self, observations, cmd: np.ndarray) -> None:

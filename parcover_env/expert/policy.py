@@ -29,6 +29,7 @@ from parcover_env.config import ExpertConfig
 from parcover_env.control.follower import LeaderVelocityEstimator, l_psi_control, relative_l_psi
 from parcover_env.control.leader import go_to_goal
 from parcover_env.envs.observations import ObservationLayout
+from parcover_env.expert.avoidance import brake_factor
 from parcover_env.expert.sonar_fix import chain_pose, covariance_from_entries
 from parcover_env.geometry import rotate, segments_blocked, wrap_angle
 from parcover_env.geometry.poses import compose, inverse
@@ -268,7 +269,7 @@ class ScriptedExpert:
             self.blocked[agent] = 0
             return v, w
         front = float(np.min(self.layout.get(obs, "sonar")[self.sonar_front]))
-        factor = float(np.clip((front - self.stop) / (self.slow - self.stop), 0.0, 1.0))
+        factor = brake_factor(front, self.stop, self.slow)
         self.blocked[agent] = self.blocked.get(agent, 0) + 1 if factor < 0.2 else 0
         limit = (self.cfg.patience + self.cfg.patience_stagger * int(agent.rsplit("_", 1)[1])) / self.dt
         if self.blocked[agent] > limit:
