@@ -30,6 +30,7 @@ Model (seed A section III-A/IV, ALGORITHMS.md "Kinect v1 model"):
 
 from __future__ import annotations
 
+import functools
 import math
 import weakref
 from dataclasses import dataclass, field
@@ -286,56 +287,22 @@ class KinectSensor:
         owner = np.full(self.shape, -1, dtype=np.int32)
         top = np.zeros(self.shape, dtype=bool)
         C = self.true_camera.C
-        r2 = self.robot_radius ** 2
         cx0, cy0, cx1, cy1 = self._cull_box()
         seen = np.flatnonzero((poses[:, 0] >= cx0) & (poses[:, 0] <= cx1) & (poses[:, 1] >= cy0)
                               & (poses[:, 1] <= cy1))
-        boxes: list[tuple[int, int, int, int] | None] = [None] * len(poses)
+        boxes = np.full((len(poses), 4), -1, dtype=np.int64)  # u0 < 0: not drawn
         for i, box in zip(seen.tolist(), self._robot_boxes(poses[seen, :2]), strict=True):
-            boxes[i] = box
-        for i, (x, y, _) in enumerate(poses):
-            box = boxes[i]
-            if box is None:
-                continue
-            u0, v0, u1, v1 = box
-            D = self.rays[v0:v1, u0:u1]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t_top = (self.robot_height - C[2]) / D[..., 2]
-            px = C[0] + D[..., 0] * t_top - x
-            py = C[1] + D[..., 1] * t_top - y
-            on_top = (t_top > 0) & (px * px + py * py <= r2)
-            ox, oy = C[0] - x, C[1] - y
-            a = D[..., 0] ** 2 + D[..., 1] ** 2
-            b = ox * D[..., 0] + oy * D[..., 1]
-            disc = b * b - a * (ox * ox + oy * oy - r2)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t_side = (-b - np.sqrt(np.maximum(disc, 0.0))) / a
-            z_side = C[2] + t_side * D[..., 2]
-            on_side = (disc > 0) & (t_side > 0) & (z_side >= 0) & (z_side <= self.robot_height)
-            t = np.minimum(np.where(on_top, t_top, np.inf), np.where(on_side, t_side, np.inf))
-            sub = depth[v0:v1, u0:u1]
-            closer = t < sub
-            sub[closer] = t[closer]
-            owner[v0:v1, u0:u1][closer] = i
-            top[v0:v1, u0:u1][closer] = on_top[closer] & (t_top[closer] <= t[closer])
+            if box is not None:
+                boxes[i] = box
+        k = _kernels()
+        k.draw_robots(depth, owner, top, self.rays, C, boxes, np.ascontiguousarray(poses[:, :2]),
+                      self.robot_radius ** 2, self.robot_height)
         code = np.zeros(self.shape, dtype=np.uint8)
-        rm2 = self.marker_radius ** 2
-        rh2 = (self.marker_radius * self.missing_factor) ** 2
-        for i, (x, y, th) in enumerate(poses):
-            if not marker_mask[i] or boxes[i] is None:
-                continue
-            u0, v0, u1, v1 = boxes[i]
-            mine = (owner[v0:v1, u0:u1] == i) & top[v0:v1, u0:u1]
-            if not np.any(mine):
-                continue
-            t = depth[v0:v1, u0:u1][mine]
-            D = self.rays[v0:v1, u0:u1][mine]
-            p = C[:2] + D[:, :2] * t[:, None] - (x, y)
-            c, s = math.cos(th), math.sin(th)
-            q = np.stack([c * p[:, 0] + s * p[:, 1], -s * p[:, 0] + c * p[:, 1]], axis=1)
-            d2 = ((q[:, None, :] - self.pattern[None]) ** 2).sum(-1).min(axis=1)
-            sub = code[v0:v1, u0:u1]
-            sub[mine] = np.where(d2 <= rm2, 1, np.where(d2 <= rh2, 2, 0)).astype(np.uint8)
+        carriers = np.flatnonzero(marker_mask & (boxes[:, 0] >= 0))
+        if len(carriers):
+            cos_sin = np.array([(math.cos(th), math.sin(th)) for th in poses[:, 2].tolist()])
+            k.marker_codes(code, depth, owner, top, self.rays, C, boxes, poses, cos_sin, carriers,
+                           self.pattern, self.marker_radius ** 2, (self.marker_radius * self.missing_factor) ** 2)
         return depth, owner, code
 
     def _check_inputs(self, poses, marker_mask) -> tuple[np.ndarray, np.ndarray]:
@@ -361,8 +328,8 @@ class KinectSensor:
         if self.cfg.lateral_noise_px <= 0:
             return depth
         h, w = depth.shape
-        if self._lateral is None:
-            self._lateral = rounded_normal_table(self.cfg.lateral_noise_px)
+        if self._lateral is None:  # offsets of at most 8 sigma + 1 <= 41 px: int8 keeps the table in cache
+            self._lateral = rounded_normal_table(self.cfg.lateral_noise_px).astype(np.int8)
         table = self._lateral
         draws = rng.integers(0, 1 << 16, size=(2, h, w), dtype=np.uint16)
         out = np.empty_like(depth)
@@ -370,11 +337,15 @@ class KinectSensor:
         return out
 
     def noisy_depth(self, depth: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Axial noise, 1/8-px disparity quantization and range limits applied to a clean depth."""
-        normal = rng.standard_normal(depth.shape, dtype=np.float32)
+        """Axial noise, 1/8-px disparity quantization and range limits applied to a clean depth.
+
+        The standard-normal draw of each pixel is a 16-bit uniform integer through the normal's
+        inverse CDF (:func:`normal_table`): a normal quantized to 2**16 equally likely values
+        (``|Z| <= 4.3``), at a fraction of the cost of a float draw per pixel."""
+        draws = rng.integers(0, 1 << 16, size=depth.shape, dtype=np.uint16)
         out = np.empty(depth.shape, dtype=np.float32)
         cam = self.camera
-        _kernels().depth_noise(np.ascontiguousarray(depth, dtype=float), normal, np.float32(self.fb),
+        _kernels().depth_noise(np.ascontiguousarray(depth, dtype=float), draws, normal_table(), np.float32(self.fb),
                                _as_f32_bound(cam.range_min), _as_f32_bound(cam.range_max), out)
         return out
 
@@ -425,6 +396,18 @@ def _as_f32_bound(x) -> np.floating:
     """A range limit in the precision numpy compares it with a float32 image: a Python number is
     rounded to float32 (a weak scalar), a numpy float64 is kept (the image is promoted instead)."""
     return np.result_type(np.float32, x).type(x)
+
+
+@functools.cache
+def normal_table(bits: int = 16) -> np.ndarray:
+    """Inverse-CDF table of the standard normal, float32, read-only: entry ``u`` of ``2**bits`` is
+    the value drawn by the uniform integer ``u``, the quantile at the middle of its probability bin
+    (``ndtri((u + 0.5) / 2**bits)``). Symmetric, zero mean, variance 1 to within 1e-3 for 16 bits."""
+    from scipy.special import ndtri
+
+    table = ndtri((np.arange(1 << bits) + 0.5) / (1 << bits)).astype(np.float32)
+    table.setflags(write=False)
+    return table
 
 
 def rounded_normal_table(sigma: float, bits: int = 16) -> np.ndarray:

@@ -19,6 +19,8 @@ identities across frames.
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import itertools
 import math
 import weakref
@@ -116,33 +118,87 @@ def pipeline_stages(ir, params: PipelineParams | None = None) -> dict[str, np.nd
     """The four images of Fig. 7: ``raw``, ``median``, ``threshold``, ``morphology`` (uint8)."""
     p = params or PipelineParams()
     ir = _check_ir(ir)
-    med = cv2.medianBlur(ir, p.median_ksize) if p.median_ksize > 1 else ir.copy()
-    if p.otsu:
-        otsu, _ = cv2.threshold(med, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
-        thr = max(float(otsu), float(p.otsu_floor))
-    else:
-        thr = float(p.threshold)
-    binary = np.where(med > thr, 255, 0).astype(np.uint8)
-    opened = cv2.morphologyEx(binary, cv2.MORPH_OPEN, np.ones((p.open_ksize, p.open_ksize), np.uint8))
-    closed = cv2.morphologyEx(opened, cv2.MORPH_CLOSE, np.ones((p.close_ksize, p.close_ksize), np.uint8))
+    with _one_cv_thread():
+        med = cv2.medianBlur(ir, p.median_ksize) if p.median_ksize > 1 else ir.copy()
+        if p.otsu:
+            otsu, _ = cv2.threshold(med, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+            thr = max(float(otsu), float(p.otsu_floor))
+        else:
+            thr = float(p.threshold)
+        _, binary = cv2.threshold(med, thr, 255, cv2.THRESH_BINARY)  # 255 where med > thr
+        opened = cv2.morphologyEx(binary, cv2.MORPH_OPEN, np.ones((p.open_ksize, p.open_ksize), np.uint8))
+        closed = cv2.morphologyEx(opened, cv2.MORPH_CLOSE, np.ones((p.close_ksize, p.close_ksize), np.uint8))
     return {"raw": ir, "median": med, "threshold": binary, "morphology": closed}
 
 
+@contextlib.contextmanager
+def _one_cv_thread():
+    """OpenCV on one thread for the block: on a 320 x 240 frame its thread pool costs more than it
+    gains (wall and CPU time of :func:`estimate_poses` both drop); the caller's setting is restored."""
+    n = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(n)
+
+
 def find_blobs(ir, params: PipelineParams | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Marker blobs: centroids ``(M, 2)`` (u, v px), pixel-label image, and the blobs' labels ``(M,)``.
+    """Marker blobs: centroids ``(M, 2)`` (u, v px), pixel-label image, and the blobs' labels ``(M,)``,
+    in raster order of the centroids (row ``v``, then column ``u``).
 
     Blobs touching the image border (cut markers, biased centroids) and blobs outside the area
     limits are discarded.
     """
-    p = params or PipelineParams()
+    blobs = _blobs(ir, params or PipelineParams())
+    labels = np.zeros(np.shape(ir), np.int32)
+    (u0, v0), win = blobs.origin, blobs.labels
+    labels[v0:v0 + win.shape[0], u0:u0 + win.shape[1]] = win
+    return blobs.centroids, labels, blobs.ids
+
+
+@dataclass(frozen=True)
+class _Blobs:
+    """Blobs of one IR frame, labelled on the smallest window holding every marker pixel."""
+
+    centroids: np.ndarray
+    """``(M, 2)`` image px (u, v) of the kept blobs."""
+    labels: np.ndarray
+    """Pixel labels of the window (0 = background)."""
+    origin: tuple[int, int]
+    """Image px (u0, v0) of the window's top-left pixel."""
+    ids: np.ndarray
+    """``(M,)`` labels of the kept blobs."""
+    boxes: np.ndarray
+    """``(M, 4)`` window px (u0, v0, u1, v1) of the kept blobs (exclusive ends)."""
+
+
+def _blobs(ir, p: PipelineParams) -> _Blobs:
+    """:func:`find_blobs` on the window: the same blobs, stats and centroids as on the whole image
+    (the label numbers may differ: OpenCV numbers them in the order of its block scan, which depends
+    on the window and on its thread count, hence the blobs are sorted by centroid). The centroids are
+    shifted through their exact integer pixel sums (OpenCV divides the sum of the coordinates by
+    the area), so they too equal the whole image's bit for bit."""
     mask = pipeline_stages(ir, p)["morphology"]
-    n, labels, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
     h, w = mask.shape
+    rows = np.flatnonzero(mask.any(axis=1))
+    if len(rows) == 0:
+        return _Blobs(np.zeros((0, 2)), np.zeros((0, 0), np.int32), (0, 0), np.zeros(0, int), np.zeros((0, 4), int))
+    cols = np.flatnonzero(mask.any(axis=0))
+    u0, v0 = int(cols[0]), int(rows[0])
+    with _one_cv_thread():
+        _, labels, stats, cents = cv2.connectedComponentsWithStats(
+            mask[v0:int(rows[-1]) + 1, u0:int(cols[-1]) + 1], connectivity=8)
     x, y, bw, bh, area = (stats[1:, k] for k in range(5))
     keep = (area >= p.min_area) & (area <= p.max_area_frac * h * w)
-    keep &= (x > 0) & (y > 0) & (x + bw < w) & (y + bh < h)
+    keep &= (x + u0 > 0) & (y + v0 > 0) & (x + u0 + bw < w) & (y + v0 + bh < h)
     ids = np.flatnonzero(keep) + 1
-    return cents[ids].astype(float), labels, ids
+    a = stats[ids, cv2.CC_STAT_AREA].astype(float)
+    sums = np.rint(cents[ids] * a[:, None]) + a[:, None] * (u0, v0)
+    boxes = np.column_stack([x, y, x + bw, y + bh])[ids - 1]
+    cents = sums / a[:, None]
+    order = np.lexsort((cents[:, 0], cents[:, 1]))  # OpenCV's label order depends on its block scan and threads
+    return _Blobs(cents[order], labels, (u0, v0), ids[order], boxes[order])
 
 
 def detect_markers(ir, params: PipelineParams | None = None) -> np.ndarray:
@@ -150,8 +206,12 @@ def detect_markers(ir, params: PipelineParams | None = None) -> np.ndarray:
     return find_blobs(ir, params)[0]
 
 
+@functools.cache
 def _assignments(n: int, m: int) -> np.ndarray:
-    return np.array(list(itertools.permutations(range(m), n)), dtype=int).reshape(-1, n)
+    """Every injective assignment of ``n`` points to ``m`` markers, ``(P, n)`` (read-only, cached)."""
+    out = np.array(list(itertools.permutations(range(m), n)), dtype=int).reshape(-1, n)
+    out.setflags(write=False)
+    return out
 
 
 def fit_pattern(points, pattern) -> tuple[np.ndarray, float, np.ndarray]:
@@ -220,9 +280,23 @@ def group_blobs(points, params: PipelineParams | None = None) -> list[np.ndarray
 
 
 def _components(adj: np.ndarray) -> tuple[int, np.ndarray]:
-    from scipy.sparse.csgraph import connected_components
-
-    return connected_components(adj, directed=False)
+    """Connected components of the undirected graph ``adj (M, M) bool``: their number and each
+    node's component, numbered in the order of their lowest node (as scipy's ``connected_components``
+    numbers them; a search over a few blobs costs microseconds instead of scipy's input checks)."""
+    m = len(adj)
+    comp = np.full(m, -1, dtype=np.int32)
+    n = 0
+    for start in range(m):
+        if comp[start] >= 0:
+            continue
+        comp[start] = n
+        todo = [start]
+        while todo:
+            for j in np.flatnonzero(adj[todo.pop()] & (comp < 0)).tolist():
+                comp[j] = n
+                todo.append(j)
+        n += 1
+    return n, comp
 
 
 def estimate_poses(frame: KinectFrame, camera: CameraModel,
@@ -235,20 +309,24 @@ def estimate_poses(frame: KinectFrame, camera: CameraModel,
     if depth.shape != (camera.height, camera.width) or np.asarray(frame.ir).shape != depth.shape:
         raise ValueError(f"frame shape {depth.shape} does not match the camera "
                          f"({camera.height}, {camera.width})")
-    cents, labels, ids = find_blobs(frame.ir, p)
+    blobs = _blobs(frame.ir, p)
+    cents, ids, boxes = blobs.centroids, blobs.ids, blobs.boxes
     if len(cents) < p.min_markers:
         return []
     approx, _ = camera.intersect_plane(cents, p.marker_height)
     ok = np.all(np.isfinite(approx), axis=1)
-    cents, ids, approx = cents[ok], ids[ok], approx[ok]
+    cents, ids, boxes, approx = cents[ok], ids[ok], boxes[ok], approx[ok]
     out = []
     for g in group_blobs(approx[:, :2], p):
-        mask = np.isin(labels, ids[g])
-        pix = cv2.findNonZero(mask.astype(np.uint8))
-        hull = cv2.convexHull(pix)
-        hull_mask = np.zeros(depth.shape, np.uint8)
+        # the hull of the group's marker pixels, drawn in the box around its blobs (window px)
+        bu0, bv0 = boxes[g, :2].min(axis=0)
+        bu1, bv1 = boxes[g, 2:].max(axis=0)
+        mask = np.isin(blobs.labels[bv0:bv1, bu0:bu1], ids[g])
+        hull = cv2.convexHull(cv2.findNonZero(mask.astype(np.uint8)))
+        hull_mask = np.zeros(mask.shape, np.uint8)
         cv2.fillConvexPoly(hull_mask, hull, 1)
         vv, uu = np.nonzero(hull_mask)
+        vv, uu = vv + (bv0 + blobs.origin[1]), uu + (bu0 + blobs.origin[0])
         z = depth[vv, uu]
         valid = z > 0
         if not np.any(valid):
