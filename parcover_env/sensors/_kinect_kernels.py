@@ -113,3 +113,13 @@ def marker_codes(code, depth, owner, top, rays, C, boxes, poses, cos_sin, carrie
                     e0, e1 = q0 - pattern[k, 0], q1 - pattern[k, 1]
                     d2 = min(d2, e0 * e0 + e1 * e1)
                 code[v, u] = 1 if d2 <= rm2 else (2 if d2 <= rh2 else 0)
+
+
+@njit(cache=True, nogil=True)
+def ir_levels(static_ir, owner, noise, robot_level, out):
+    """``out (H, W) uint8``: the dull IR level of each pixel (``robot_level`` where a robot is seen,
+    ``owner >= 0``, else the static scene's) plus its ``noise`` (both small: no overflow)."""
+    h, w = out.shape
+    for i in range(h):
+        for j in range(w):
+            out[i, j] = (robot_level if owner[i, j] >= 0 else static_ir[i, j]) + noise[i, j]

@@ -114,3 +114,12 @@ def test_robot_drawing_equals_the_numpy_reference_bit_for_bit(seed):
     np.testing.assert_array_equal(owner, want[1])
     np.testing.assert_array_equal(code, want[2])
     assert (code == 1).sum() > 0 and (code == 2).sum() > 0 and len(np.unique(owner)) > 6
+
+
+def test_ir_levels_put_the_robot_level_where_a_robot_is_seen_plus_the_noise():
+    static = np.array([[40, 55, 55]], dtype=np.int16)
+    owner = np.array([[-1, 3, -1]], dtype=np.int32)
+    noise = np.array([[23, 0, 7]], dtype=np.int16)
+    out = np.empty((1, 3), dtype=np.uint8)
+    kk.ir_levels(static, owner, noise, 75, out)
+    assert out.tolist() == [[63, 75, 62]]
