@@ -20,10 +20,10 @@ _F32_ZERO = np.float32(0.0)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def depth_noise(depth, draws, normal, fb, z_min, z_max, out):
+def depth_noise(depth, draws, normal, shift, fb, z_min, z_max, out):
     """``out (H, W) float32``: ``depth (H, W)`` (inf = no surface) with axial noise
-    ``(0.0012 + 0.0019 (z - 0.4)^2) * normal[draws]`` (``normal``: float32 standard-normal values
-    indexed by the integer ``draws (H, W)``), 1/8-px disparity quantization
+    ``(0.0012 + 0.0019 (z - 0.4)^2) * normal[draws >> shift]`` (``normal``: float32 standard-normal
+    values indexed by the top bits of the integer ``draws (H, W)``), 1/8-px disparity quantization
     ``fb / (rint(8 fb / z) / 8)`` and the range ``[z_min, z_max]`` (0 outside, or where there was
     no surface). All float32."""
     h, w = depth.shape
@@ -34,7 +34,7 @@ def depth_noise(depth, draws, normal, fb, z_min, z_max, out):
                 out[i, j] = _F32_ZERO
                 continue
             dz = z - _F32_Z0
-            z = z + (_F32_SIGMA0 + _F32_SIGMA2 * (dz * dz)) * normal[draws[i, j]]
+            z = z + (_F32_SIGMA0 + _F32_SIGMA2 * (dz * dz)) * normal[draws[i, j] >> shift]
             disp = np.rint(fb / z * _F32_EIGHT) / _F32_EIGHT
             z = fb / disp
             out[i, j] = z if (math.isfinite(z) and z >= z_min and z <= z_max) else _F32_ZERO
@@ -118,8 +118,9 @@ def marker_codes(code, depth, owner, top, rays, C, boxes, poses, cos_sin, carrie
 @njit(cache=True, nogil=True)
 def ir_levels(static_ir, owner, noise, robot_level, out):
     """``out (H, W) uint8``: the dull IR level of each pixel (``robot_level`` where a robot is seen,
-    ``owner >= 0``, else the static scene's) plus its ``noise`` (both small: no overflow)."""
+    ``owner >= 0``, else the static scene's) plus ``noise >> 3`` (uniform 0-31 from uniform bytes;
+    the levels are small: no overflow)."""
     h, w = out.shape
     for i in range(h):
         for j in range(w):
-            out[i, j] = (robot_level if owner[i, j] >= 0 else static_ir[i, j]) + noise[i, j]
+            out[i, j] = (robot_level if owner[i, j] >= 0 else static_ir[i, j]) + (noise[i, j] >> 3)

@@ -16,8 +16,9 @@ Model (seed A section III-A/IV, ALGORITHMS.md "Kinect v1 model"):
   (Nguyen et al. 2012), then disparity d = f b / z rounded to 1/8 px (f of the native 640-wide
   sensor, b = 0.075 m), then the range limits (outside [range_min, range_max] -> 0). Depth is
   missing (0) where the markers saturate the IR image (plus ``missing_factor`` margin).
-* IR: uint8. Dull floor/walls/robot levels with noise, projector speckle (isolated bright pixels
-  and a few small bright clusters), saturated (255) marker blobs.
+* IR: uint8. Dull floor (55), wall (40) and robot (75) levels plus uniform noise (0-31),
+  projector speckle (isolated bright pixels and a few small bright clusters), saturated (255)
+  marker blobs.
 
 * Lateral noise: each depth pixel reads the depth ``N(0, lateral_noise_px)`` pixels away
   (rounded, per axis), which frays depth edges and the marker holes (Nguyen et al.: ~0.8 px).
@@ -45,7 +46,8 @@ if TYPE_CHECKING:
     from parcover_env.config import KinectConfig
     from parcover_env.world.map_model import MapModel
 
-__all__ = ["KinectFrame", "KinectSensor", "marker_pattern", "axial_sigma", "BASELINE", "NATIVE_WIDTH"]
+__all__ = ["KinectFrame", "KinectSensor", "marker_pattern", "axial_sigma", "may_see_all", "normal_table",
+           "BASELINE", "NATIVE_WIDTH"]
 
 BASELINE = 0.075
 """Projector-camera baseline b of the Kinect v1 (m)."""
@@ -273,10 +275,7 @@ class KinectSensor:
     def may_see(self, poses: np.ndarray, marker_mask: np.ndarray) -> bool:
         """Whether some marker carrier stands inside :meth:`_cull_box` (cheap and conservative: a
         ``False`` means no frame of this camera can show a marker, so none needs rendering)."""
-        poses, mask = self._check_inputs(poses, marker_mask)
-        x0, y0, x1, y1 = self._cull_box()
-        x, y = poses[mask, 0], poses[mask, 1]
-        return bool(np.any((x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)))
+        return bool(may_see_all([self], poses, marker_mask)[0])
 
     def render_clean(self, poses: np.ndarray,
                      marker_mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -341,15 +340,16 @@ class KinectSensor:
     def noisy_depth(self, depth: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Axial noise, 1/8-px disparity quantization and range limits applied to a clean depth.
 
-        The standard-normal draw of each pixel is a 12-bit uniform integer through the normal's
-        inverse CDF (:func:`normal_table`): a normal quantized to 4096 equally likely values
-        (``|Z| <= 3.67``, variance 0.9997), at a fraction of the cost of a float draw per pixel
-        (the 16 kB table stays in the processor's first-level cache)."""
-        draws = rng.integers(0, 1 << _NORMAL_BITS, size=depth.shape, dtype=np.uint16)
+        The standard-normal draw of each pixel is the top 12 bits of a 16-bit uniform integer
+        through the normal's inverse CDF (:func:`normal_table`): a normal quantized to 4096 equally
+        likely values (``|Z| <= 3.67``, variance 0.9997), at a fraction of the cost of a float draw
+        per pixel (the 16 kB table stays in the processor's first-level cache; numpy draws whole
+        16-bit words faster than 12-bit ones)."""
+        draws = rng.integers(0, 1 << 16, size=depth.shape, dtype=np.uint16)
         out = np.empty(depth.shape, dtype=np.float32)
         cam = self.camera
         _kernels().depth_noise(np.ascontiguousarray(depth, dtype=float), draws, normal_table(_NORMAL_BITS),
-                               np.float32(self.fb),
+                               16 - _NORMAL_BITS, np.float32(self.fb),
                                _as_f32_bound(cam.range_min), _as_f32_bound(cam.range_max), out)
         return out
 
@@ -357,8 +357,8 @@ class KinectSensor:
         """IR frame: dull surfaces with noise, projector speckle, saturated markers."""
         h, w = self.shape
         ir = np.empty((h, w), dtype=np.uint8)
-        noise = rng.integers(0, 24, size=(h, w), dtype=np.int16)
-        _kernels().ir_levels(self._static_ir, owner, noise, 75, ir)  # at most 75 + 23: no overflow
+        noise = rng.integers(0, 256, size=(h, w), dtype=np.uint8)
+        _kernels().ir_levels(self._static_ir, owner, noise, 75, ir)  # at most 75 + 31: no overflow
         n = int(self.speckle_density * h * w)
         if n:
             idx = rng.integers(0, h * w, size=n)
@@ -387,6 +387,18 @@ class KinectSensor:
         z = self.lateral_jitter(z, rng)
         z[code > 0] = 0.0  # depth is missing exactly where the markers saturate the IR image
         return KinectFrame(self.name, z, ir, stamp, info={"n_robots": len(poses)})
+
+
+def may_see_all(sensors: list[KinectSensor], poses, marker_mask) -> np.ndarray:
+    """:meth:`KinectSensor.may_see` of each sensor ``(K,) bool``, the inputs checked once."""
+    if not sensors:
+        return np.zeros(0, dtype=bool)
+    poses, mask = sensors[0]._check_inputs(poses, marker_mask)
+    box = np.array([s._cull_box() for s in sensors])
+    xy = poses[mask, :2]
+    inside = (xy[None, :, 0] >= box[:, None, 0]) & (xy[None, :, 0] <= box[:, None, 2]) \
+        & (xy[None, :, 1] >= box[:, None, 1]) & (xy[None, :, 1] <= box[:, None, 3])
+    return inside.any(axis=1)
 
 
 def _kernels():

@@ -20,14 +20,14 @@ def test_depth_noise_quantizes_disparity_and_applies_the_range():
     table = np.array([0.0, 1.0, -1.0], dtype=np.float32)  # draw -> standard-normal value
     draws = np.zeros((1, 4), dtype=np.uint16)
     out = np.empty((1, 4), dtype=np.float32)
-    kk.depth_noise(depth, draws, table, fb, np.float32(0.8), np.float32(4.0), out)
+    kk.depth_noise(depth, draws, table, 0, fb, np.float32(0.8), np.float32(4.0), out)
     # 2 m: disparity 43.5 / 2 = 21.75 px = 174 / 8 exactly: no quantization error
     assert out[0, 0] == np.float32(2.0)
     assert out[0, 1] == 0.0  # no surface
     assert out[0, 2] == 0.0 and out[0, 3] == 0.0  # nearer than 0.8 m, farther than 4 m
     # one sigma of noise at 2 m: sigma = 0.0012 + 0.0019 (2 - 0.4)^2 = 0.006064 m, then quantized
     for draw, sign in ((1, 1.0), (2, -1.0)):
-        kk.depth_noise(depth[:, :1], np.full((1, 1), draw, np.uint16), table, fb, np.float32(0.8),
+        kk.depth_noise(depth[:, :1], np.full((1, 1), draw << 4, np.uint16), table, 4, fb, np.float32(0.8),
                        np.float32(4.0), out[:, :1])
         z = 2.0 + sign * 0.006064
         want = float(fb) / (np.rint(float(fb) / z * 8.0) / 8.0)
@@ -119,7 +119,7 @@ def test_robot_drawing_equals_the_numpy_reference_bit_for_bit(seed):
 def test_ir_levels_put_the_robot_level_where_a_robot_is_seen_plus_the_noise():
     static = np.array([[40, 55, 55]], dtype=np.int16)
     owner = np.array([[-1, 3, -1]], dtype=np.int32)
-    noise = np.array([[23, 0, 7]], dtype=np.int16)
+    noise = np.array([[255, 7, 64]], dtype=np.uint8)  # uniform bytes -> 0-31: 31, 0, 8
     out = np.empty((1, 3), dtype=np.uint8)
     kk.ir_levels(static, owner, noise, 75, out)
-    assert out.tolist() == [[63, 75, 62]]
+    assert out.tolist() == [[71, 75, 63]]

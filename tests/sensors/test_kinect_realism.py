@@ -139,6 +139,24 @@ def test_may_see_only_marker_carriers_inside_the_view_box():
     assert s.may_see(np.array([outside, inside]), [False, True])
 
 
+def test_may_see_all_answers_for_each_sensor_in_one_call():
+    from parcover_env.sensors.kinect import may_see_all
+
+    a = KinectSensor(KinectConfig(name="a", position=(2.0, 3.0), height=2.8), 0.15, 0.3, OPEN)
+    b = KinectSensor(KinectConfig(name="b", position=(7.0, 3.0), height=2.8), 0.15, 0.3, OPEN)
+    ax1, bx0 = a._cull_box()[2], b._cull_box()[0]
+    assert ax1 < bx0  # two separate views
+    poses = np.array([[2.0, 3.0, 0.0], [7.0, 3.0, 0.0]])
+    assert may_see_all([a, b], poses, [True, False]).tolist() == [True, False]
+    assert may_see_all([a, b], poses, [False, True]).tolist() == [False, True]
+    assert may_see_all([b, a], poses, [True, True]).tolist() == [True, True]
+    edge = np.array([[ax1, 3.0, 0.0]])  # on the box's edge: inside (the boxes are closed)
+    assert may_see_all([a, b], edge, [True]).tolist() == [True, False]
+    assert may_see_all([], poses, [True, True]).shape == (0,)
+    with pytest.raises(ValueError, match="marker_mask"):
+        may_see_all([a], poses, [True])
+
+
 def test_frames_mode_renders_only_kinects_that_may_see_a_leader():
     import parcover_env
 

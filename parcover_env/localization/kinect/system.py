@@ -26,7 +26,7 @@ from parcover_env.config import Scenario
 from parcover_env.geometry.poses import compose, inverse
 from parcover_env.localization.kinect.pipeline import PipelineParams, estimate_fast_all, estimate_poses
 from parcover_env.localization.kinect.tracker import KinectTracker
-from parcover_env.sensors.kinect import KinectFrame, KinectSensor
+from parcover_env.sensors.kinect import KinectFrame, KinectSensor, may_see_all
 from parcover_env.world.map_model import MapModel
 
 __all__ = ["KinectSystem", "handover_poses"]
@@ -100,17 +100,19 @@ class KinectSystem:
         if len(due) == 0 or not markers.any():
             self.next_tick[due] = time + self.periods[due]
             return {}
-        per_kinect = []
+        due_sensors = [self.sensors[k] for k in due]
         if self.mode != "frames":
-            per_kinect = estimate_fast_all([self.sensors[k] for k in due], true_poses, markers, rng, stamp=time)
-        for k in due if self.mode == "frames" else ():
-            sensor = self.sensors[k]
-            if not sensor.may_see(true_poses, markers):  # no marker can be in this image: no frame
-                self.frames.pop(sensor.name, None)
-                continue
-            frame = sensor.measure(true_poses, markers, rng, stamp=time)
-            self.frames[sensor.name] = frame
-            per_kinect.append(estimate_poses(frame, sensor.camera, self.params))
+            per_kinect = estimate_fast_all(due_sensors, true_poses, markers, rng, stamp=time)
+        else:
+            per_kinect = []
+            for sensor, seeing in zip(due_sensors, may_see_all(due_sensors, true_poses, markers).tolist(),
+                                      strict=True):
+                if not seeing:  # no marker can be in this image: no frame
+                    self.frames.pop(sensor.name, None)
+                    continue
+                frame = sensor.measure(true_poses, markers, rng, stamp=time)
+                self.frames[sensor.name] = frame
+                per_kinect.append(estimate_poses(frame, sensor.camera, self.params))
         self.next_tick[due] = time + self.periods[due]
         ids = np.flatnonzero(markers)
         ref = {int(i): compose(self.handover[i], predicted[i]) if i in self.handover else predicted[i] for i in ids}
