@@ -126,6 +126,7 @@ class KinectSensor:
         w, h = self.camera.width, self.camera.height
         self.shape = (h, w)
         self._lateral: np.ndarray | None = None
+        self._box_ring: np.ndarray | None = None
         self.fb = self.camera.focal * (NATIVE_WIDTH / w) * BASELINE
         self._view_of(self.true_camera)
         self.nominal_static_depth = self.static_depth
@@ -235,26 +236,31 @@ class KinectSensor:
         return depth.reshape(h, w), cls.reshape(h, w)
 
     # ------------------------------------------------------------------ robots
-    def _robot_boxes(self, centres: np.ndarray) -> list[tuple[int, int, int, int] | None]:
-        """Pixel boxes (u0, v0, u1, v1) (exclusive ends) covering each robot's cylinder, or None
-        (behind the camera or outside the image); all robots projected in one call."""
+    def _robot_boxes(self, centres: np.ndarray) -> np.ndarray:
+        """Pixel boxes ``(N, 4)`` int (u0, v0, u1, v1; exclusive ends) covering each robot's
+        cylinder, a row of -1 where it is behind the camera or outside the image; all robots
+        projected in one call."""
         n = len(centres)
+        boxes = np.full((n, 4), -1, dtype=np.int64)
         if n == 0:
-            return []
-        ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
-        ring = np.stack([np.cos(ang), np.sin(ang)], axis=1) * (self.robot_radius * 1.05)
+            return boxes
+        if self._box_ring is None:  # 16 points around the bottom and the top rim, a little outside
+            ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+            ring = np.stack([np.cos(ang), np.sin(ang)], axis=1) * (self.robot_radius * 1.05)
+            self._box_ring = np.zeros((2, 16, 3))
+            self._box_ring[..., :2] = ring
+            self._box_ring[1, :, 2] = self.robot_height
         pts = np.empty((n, 2, 16, 3))
-        pts[..., :2] = centres[:, None, None, :] + ring[None, None]
-        pts[:, 0, :, 2], pts[:, 1, :, 2] = 0.0, self.robot_height
+        pts[...] = self._box_ring
+        pts[..., :2] += centres[:, None, None, :]
         uv, z = self.true_camera.project(pts.reshape(-1, 3))
         uv, z = uv.reshape(n, 32, 2), z.reshape(n, 32)
         h, w = self.shape
-        lo = np.floor(uv.min(axis=1)).astype(int) - 1
-        hi = np.ceil(uv.max(axis=1)).astype(int) + 2
-        lo, hi = np.maximum(lo, 0), np.minimum(hi, (w, h))
+        lo = np.maximum(np.floor(uv.min(axis=1)).astype(np.int64) - 1, 0)
+        hi = np.minimum(np.ceil(uv.max(axis=1)).astype(np.int64) + 2, (w, h))
         ok = np.all(z > 1e-6, axis=1) & np.all(lo < hi, axis=1)
-        return [(int(lo[i, 0]), int(lo[i, 1]), int(hi[i, 0]), int(hi[i, 1])) if ok[i] else None
-                for i in range(n)]
+        boxes[ok, :2], boxes[ok, 2:] = lo[ok], hi[ok]
+        return boxes
 
     def _cull_box(self) -> tuple[float, float, float, float]:
         """Floor box outside which no robot cylinder can appear in the image (cached): the image
@@ -292,9 +298,7 @@ class KinectSensor:
         seen = np.flatnonzero((poses[:, 0] >= cx0) & (poses[:, 0] <= cx1) & (poses[:, 1] >= cy0)
                               & (poses[:, 1] <= cy1))
         boxes = np.full((len(poses), 4), -1, dtype=np.int64)  # u0 < 0: not drawn
-        for i, box in zip(seen.tolist(), self._robot_boxes(poses[seen, :2]), strict=True):
-            if box is not None:
-                boxes[i] = box
+        boxes[seen] = self._robot_boxes(poses[seen, :2])
         k = _kernels()
         k.draw_robots(depth, owner, top, self.rays, C, boxes, np.ascontiguousarray(poses[:, :2]),
                       self.robot_radius ** 2, self.robot_height)

@@ -57,7 +57,7 @@ def _render_reference(s: KinectSensor, poses: np.ndarray, marker_mask: np.ndarra
     C, r2 = s.true_camera.C, s.robot_radius ** 2
     boxes = s._robot_boxes(poses[:, :2])
     for i, (x, y, _) in enumerate(poses):
-        if boxes[i] is None:
+        if boxes[i, 0] < 0:
             continue
         u0, v0, u1, v1 = boxes[i]
         D = s.rays[v0:v1, u0:u1]
@@ -80,7 +80,7 @@ def _render_reference(s: KinectSensor, poses: np.ndarray, marker_mask: np.ndarra
         top[v0:v1, u0:u1][closer] = on_top[closer] & (t_top[closer] <= t[closer])
     code = np.zeros(s.shape, dtype=np.uint8)
     for i, (x, y, th) in enumerate(poses):
-        if not marker_mask[i] or boxes[i] is None:
+        if not marker_mask[i] or boxes[i, 0] < 0:
             continue
         u0, v0, u1, v1 = boxes[i]
         mine = (owner[v0:v1, u0:u1] == i) & top[v0:v1, u0:u1]
