@@ -341,3 +341,28 @@ def test_opencv_runs_on_one_thread_in_the_pipeline_and_the_setting_is_restored()
         assert cv2.getNumThreads() == 2
     finally:
         cv2.setNumThreads(before)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_fit_residual_is_the_rms_distance_of_the_fitted_pattern(seed):
+    """The closed-form residual equals the RMS distance between the observed points and the
+    assigned markers placed by the returned pose; no other assignment fits better."""
+    import itertools
+
+    pat = marker_pattern()
+    rng = np.random.default_rng(seed)
+    th = rng.uniform(-np.pi, np.pi)
+    rot = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+    idx = rng.permutation(4)[:3 + seed % 2]
+    pts = pat[idx] @ rot.T + (2.0, -1.0) + rng.normal(0, 0.004, (len(idx), 2))
+    pose, rms, assign = fit_pattern(pts, pat)
+    c, s = np.cos(pose[2]), np.sin(pose[2])
+    placed = pat[assign] @ np.array([[c, -s], [s, c]]).T + pose[:2]
+    assert rms == pytest.approx(np.sqrt(((placed - pts) ** 2).sum(-1).mean()), abs=1e-12)
+    assert np.array_equal(assign, idx) and abs(wrap_angle(pose[2] - th)) < 0.1
+    for other in itertools.permutations(range(4), len(idx)):  # brute force: the best assignment
+        m = pat[list(other)]
+        a, b = m - m.mean(0), pts - pts.mean(0)
+        ang = np.arctan2((a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum(), (a * b).sum())
+        r = np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
+        assert np.sqrt((((a @ r.T) - b) ** 2).sum(-1).mean()) >= rms - 1e-12

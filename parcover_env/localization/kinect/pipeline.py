@@ -224,21 +224,34 @@ def fit_pattern(points, pattern) -> tuple[np.ndarray, float, np.ndarray]:
     pat = np.asarray(pattern, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 2 or not 2 <= len(pts) <= len(pat):
         raise ValueError(f"fit_pattern needs 2..{len(pat)} points of shape (n, 2), got {pts.shape}")
-    perms = _assignments(len(pts), len(pat))
-    model = pat[perms]  # (P, n, 2)
-    mc = model.mean(axis=1, keepdims=True)
+    perms, mc, a, aa = _centred_models(pat.tobytes(), len(pat), len(pts))
+    n = len(pts)
     oc = pts.mean(axis=0)
-    a, b = model - mc, pts - oc
-    cross = (a[..., 0] * b[None, :, 1] - a[..., 1] * b[None, :, 0]).sum(axis=1)
-    dot = (a * b[None]).sum(axis=(1, 2))
-    th = np.arctan2(cross, dot)
-    c, s = np.cos(th)[:, None], np.sin(th)[:, None]
-    ra = np.stack([c * a[..., 0] - s * a[..., 1], s * a[..., 0] + c * a[..., 1]], axis=-1)
-    rms = np.sqrt(((ra - b[None]) ** 2).sum(-1).mean(axis=1))
+    b = pts - oc
+    cross = a[..., 0] @ b[:, 1] - a[..., 1] @ b[:, 0]
+    dot = a[..., 0] @ b[:, 0] + a[..., 1] @ b[:, 1]
+    # best rotation of each assignment: the angle of (dot, cross); its residual sum of squares is
+    # |a|^2 + |b|^2 - 2 |(dot, cross)| (the rotated model's cross term at its maximum)
+    rss = aa + float((b * b).sum()) - 2.0 * np.hypot(cross, dot)
+    rms = np.sqrt(np.maximum(rss, 0.0) / n)
     k = int(np.argmin(rms))
-    ck, sk, (mx, my) = c[k, 0], s[k, 0], mc[k, 0]
+    th = math.atan2(cross[k], dot[k])
+    ck, sk, (mx, my) = math.cos(th), math.sin(th), mc[k]
     t = oc - np.array([ck * mx - sk * my, sk * mx + ck * my])
-    return np.array([t[0], t[1], float(wrap_angle(th[k]))]), float(rms[k]), perms[k]
+    return np.array([t[0], t[1], float(wrap_angle(th))]), float(rms[k]), perms[k]
+
+
+@functools.lru_cache(maxsize=64)
+def _centred_models(pattern: bytes, m: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For every assignment of ``n`` points to the ``m`` markers of ``pattern`` (float64 bytes):
+    the assignments ``(P, n)``, the assigned markers' centroid ``(P, 2)``, the markers about it
+    ``(P, n, 2)`` and their sum of squares ``(P,)`` (cached: the pattern is fixed)."""
+    pat = np.frombuffer(pattern, dtype=float).reshape(m, 2)
+    perms = _assignments(n, m)
+    model = pat[perms]
+    mc = model.mean(axis=1)
+    a = model - mc[:, None]
+    return perms, mc, a, (a * a).sum(axis=(1, 2))
 
 
 def group_blobs(points, params: PipelineParams | None = None) -> list[np.ndarray]:
