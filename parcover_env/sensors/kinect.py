@@ -127,11 +127,26 @@ class KinectSensor:
         self.shape = (h, w)
         self._lateral: np.ndarray | None = None
         self._box_ring: np.ndarray | None = None
+        self._buffers: dict[str, np.ndarray] = {}
+        """Work images of :meth:`measure` that never leave it, kept from frame to frame: a fresh
+        image of this size costs its page faults again at every frame."""
         self.fb = self.camera.focal * (NATIVE_WIDTH / w) * BASELINE
         self._view_of(self.true_camera)
         self.nominal_static_depth = self.static_depth
         """Depth of the empty scene through the nominal camera (rendered once; the fast path's
         wall-occlusion test uses it: a mounting error moves it by a pixel or two)."""
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_buffers"] = {}  # work images: not part of the state
+        return state
+
+    def _buffer(self, name: str, dtype) -> np.ndarray:
+        """The work image ``name`` (frame-sized, uninitialized)."""
+        buf = self._buffers.get(name)
+        if buf is None or buf.shape != self.shape or buf.dtype != dtype:
+            buf = self._buffers[name] = np.empty(self.shape, dtype=dtype)
+        return buf
 
     def _view_of(self, camera: CameraModel) -> None:
         """Look through ``camera`` (the true one): its pixel rays and static scene are computed when
@@ -290,9 +305,17 @@ class KinectSensor:
         Marker code per pixel: 0 none, 1 saturated marker, 2 depth-missing halo only.
         """
         poses, marker_mask = self._check_inputs(poses, marker_mask)
-        depth = self.static_depth.copy()
-        owner = np.full(self.shape, -1, dtype=np.int32)
-        top = np.zeros(self.shape, dtype=bool)
+        return tuple(a.copy() for a in self._render_clean(poses, marker_mask))
+
+    def _render_clean(self, poses: np.ndarray, marker_mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`render_clean` of checked inputs into the sensor's work images (valid until the
+        next call)."""
+        depth = self._buffer("depth", float)
+        np.copyto(depth, self.static_depth)
+        owner = self._buffer("owner", np.int32)
+        owner.fill(-1)
+        top = self._buffer("top", bool)
+        top.fill(False)
         C = self.true_camera.C
         cx0, cy0, cx1, cy1 = self._cull_box()
         seen = np.flatnonzero((poses[:, 0] >= cx0) & (poses[:, 0] <= cx1) & (poses[:, 1] >= cy0)
@@ -302,7 +325,8 @@ class KinectSensor:
         k = _kernels()
         k.draw_robots(depth, owner, top, self.rays, C, boxes, np.ascontiguousarray(poses[:, :2]),
                       self.robot_radius ** 2, self.robot_height)
-        code = np.zeros(self.shape, dtype=np.uint8)
+        code = self._buffer("code", np.uint8)
+        code.fill(0)
         carriers = np.flatnonzero(marker_mask & (boxes[:, 0] >= 0))
         if len(carriers):
             cos_sin = np.array([(math.cos(th), math.sin(th)) for th in poses[:, 2].tolist()])
@@ -325,7 +349,7 @@ class KinectSensor:
     def lateral_jitter(self, depth: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Lateral noise: each pixel reads the depth ``round(N(0, lateral_noise_px))`` pixels away (per
         axis, clamped to the image). Applied to the noisy depth, which has the same distribution
-        as noising the displaced clean depth; drawn after the IR frame so the IR noise is unchanged.
+        as noising the displaced clean depth; drawn after the IR frame.
 
         The offsets come from 16-bit uniform draws through the inverse CDF of the rounded normal
         (:func:`rounded_normal_table`): the same distribution up to 2**-16 per offset, at a
@@ -341,7 +365,7 @@ class KinectSensor:
         _kernels().lateral_shift(np.ascontiguousarray(depth), draws, table, out)
         return out
 
-    def noisy_depth(self, depth: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    def noisy_depth(self, depth: np.ndarray, rng: np.random.Generator, out: np.ndarray | None = None) -> np.ndarray:
         """Axial noise, 1/8-px disparity quantization and range limits applied to a clean depth.
 
         The standard-normal draw of each pixel is the top 12 bits of a 16-bit uniform integer
@@ -350,7 +374,7 @@ class KinectSensor:
         per pixel (the 16 kB table stays in the processor's first-level cache; numpy draws whole
         16-bit words faster than 12-bit ones)."""
         draws = rng.integers(0, 1 << 16, size=depth.shape, dtype=np.uint16)
-        out = np.empty(depth.shape, dtype=np.float32)
+        out = np.empty(depth.shape, dtype=np.float32) if out is None else out
         cam = self.camera
         _kernels().depth_noise(np.ascontiguousarray(depth, dtype=float), draws, normal_table(_NORMAL_BITS),
                                16 - _NORMAL_BITS, np.float32(self.fb),
@@ -385,10 +409,12 @@ class KinectSensor:
         if self.cfg.drop_rate > 0 and rng.random() < self.cfg.drop_rate:
             return KinectFrame(self.name, np.zeros(self.shape, np.float32), np.zeros(self.shape, np.uint8),
                                stamp, dropped=True)
-        depth, owner, code = self.render_clean(poses, marker_mask)
-        z = self.noisy_depth(depth, rng)
+        depth, owner, code = self._render_clean(poses, marker_mask)
+        noisy = self.noisy_depth(depth, rng, out=self._buffer("noisy", np.float32))
         ir = self.render_ir(owner, code, rng)
-        z = self.lateral_jitter(z, rng)
+        z = self.lateral_jitter(noisy, rng)
+        if z is noisy:  # no lateral noise: the frame gets its own image, not the work image
+            z = noisy.copy()
         z[code > 0] = 0.0  # depth is missing exactly where the markers saturate the IR image
         return KinectFrame(self.name, z, ir, stamp, info={"n_robots": len(poses)})
 

@@ -188,3 +188,24 @@ def test_normal_table_is_a_standard_normal_to_within_its_quantization(bits, var,
         assert abs(np.mean(t <= z) - ndtr(z)) <= 2.0 ** -bits + 1e-12
     assert normal_table(bits) is normal_table(bits) and not normal_table(bits).flags.writeable
     assert np.array_equal(normal_table(), normal_table(12))  # the default resolution
+
+
+@pytest.mark.parametrize("lateral", [0.8, 0.0])
+def test_frames_own_their_images_and_render_clean_returns_copies(lateral):
+    """measure() keeps work images from frame to frame: no frame may share them, with or without
+    lateral noise, and a pickled sensor leaves them behind."""
+    import pickle
+
+    s = sensor(lateral_noise_px=lateral)
+    rng = np.random.default_rng(0)
+    a = s.measure(np.array([[3.0, 3.0, 0.0]]), [True], rng)
+    a_depth, a_ir = a.depth.copy(), a.ir.copy()
+    b = s.measure(np.array([[3.4, 2.8, 1.0]]), [True], rng)
+    np.testing.assert_array_equal(a.depth, a_depth)  # the second frame did not draw into the first
+    np.testing.assert_array_equal(a.ir, a_ir)
+    assert not np.array_equal(a.depth, b.depth)
+    d1, o1, c1 = s.render_clean(np.array([[3.0, 3.0, 0.0]]), [True])
+    d2, o2, c2 = s.render_clean(np.array([[2.6, 3.2, 0.0]]), [True])
+    assert not np.array_equal(o1, o2) and not np.array_equal(c1, c2)  # copies, not the work images
+    assert s._buffers and not pickle.loads(pickle.dumps(s))._buffers
+    np.testing.assert_array_equal(pickle.loads(pickle.dumps(s)).render_clean(np.array([[3.0, 3.0, 0.0]]), [True])[0], d1)
