@@ -208,4 +208,5 @@ def test_frames_own_their_images_and_render_clean_returns_copies(lateral):
     d2, o2, c2 = s.render_clean(np.array([[2.6, 3.2, 0.0]]), [True])
     assert not np.array_equal(o1, o2) and not np.array_equal(c1, c2)  # copies, not the work images
     assert s._buffers and not pickle.loads(pickle.dumps(s))._buffers
-    np.testing.assert_array_equal(pickle.loads(pickle.dumps(s)).render_clean(np.array([[3.0, 3.0, 0.0]]), [True])[0], d1)
+    copy = pickle.loads(pickle.dumps(s))
+    np.testing.assert_array_equal(copy.render_clean(np.array([[3.0, 3.0, 0.0]]), [True])[0], d1)
