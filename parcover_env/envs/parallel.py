@@ -126,6 +126,8 @@ class ParallelCoverageEnv(ParallelEnv):
       ``info[agent]["reward_<term>"]``; the reset info no longer carries the plan (``env.plan``);
       ``human`` render mode; ``max_cycles``; finite ``state_space`` bounds; ``env.np_random``.
       ``preset="ideal"`` keeps v0's motion, odometry, sensors and observation layout.
+      Kinect ``frames`` mode draws its depth and IR noise from fewer random bits (12-bit normal
+      table, IR noise 0-31): other frames from the same seed, same error statistics.
     * v0 (0.1.0): initial release.
     """
 
