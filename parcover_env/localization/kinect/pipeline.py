@@ -334,8 +334,11 @@ def estimate_poses(frame: KinectFrame, camera: CameraModel,
         # the hull of the group's marker pixels, drawn in the box around its blobs (window px)
         bu0, bv0 = boxes[g, :2].min(axis=0)
         bu1, bv1 = boxes[g, 2:].max(axis=0)
-        mask = np.isin(blobs.labels[bv0:bv1, bu0:bu1], ids[g])
-        hull = cv2.convexHull(cv2.findNonZero(mask.astype(np.uint8)))
+        window = blobs.labels[bv0:bv1, bu0:bu1]
+        mask = np.zeros(window.shape, np.uint8)
+        for i in ids[g].tolist():  # a few blobs: cheaper than np.isin's set machinery
+            mask[window == i] = 1
+        hull = cv2.convexHull(cv2.findNonZero(mask))
         hull_mask = np.zeros(mask.shape, np.uint8)
         cv2.fillConvexPoly(hull_mask, hull, 1)
         vv, uu = np.nonzero(hull_mask)
