@@ -366,3 +366,88 @@ def test_fit_residual_is_the_rms_distance_of_the_fitted_pattern(seed):
         ang = np.arctan2((a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum(), (a * b).sum())
         r = np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
         assert np.sqrt((((a @ r.T) - b) ** 2).sum(-1).mean()) >= rms - 1e-12
+
+
+def test_blobs_on_the_border_or_outside_the_area_limits_are_dropped():
+    """Hand-built mask through a one-stage pipeline (no median or morphology): 3 x 3 blobs touching
+    each border, one pixel off each border, at the area limits."""
+    from parcover_env.localization.kinect.pipeline import _blobs, find_blobs
+
+    p = PipelineParams(median_ksize=1, open_ksize=1, close_ksize=1, min_area=9, max_area_frac=16 / (60 * 80))
+    ir = np.zeros((60, 80), np.uint8)
+    touching = [(0, 30), (57, 30), (20, 0), (20, 77)]  # (v, u) of the top-left pixel
+    inside = [(1, 10), (56, 10), (30, 1), (30, 76)]
+    for v, u in touching + inside:
+        ir[v:v + 3, u:u + 3] = 255
+    ir[40:42, 40:44] = 255  # 8 px: under min_area
+    ir[10:14, 40:45] = 255  # 20 px: over max_area_frac * h * w = 16
+    ir[45:49, 50:54] = 255  # 16 px: at the upper limit, kept
+    ir[10:13, 60:63] = 255  # 9 px: at the lower limit, kept
+    b = _blobs(ir, p)
+    want = sorted([(v + 1.0, u + 1.0) for v, u in inside] + [(46.5, 51.5), (11.0, 61.0)])
+    assert [(c[1], c[0]) for c in b.centroids] == want  # (v, u) raster order
+    c, _, _ = find_blobs(ir, p)
+    np.testing.assert_array_equal(c, b.centroids)
+    p9 = PipelineParams(median_ksize=1, open_ksize=1, close_ksize=1, min_area=10, max_area_frac=0.5)
+    assert find_blobs(ir, p9)[0].tolist() == [[42.0, 11.5], [51.5, 46.5]]  # the params reach find_blobs
+
+
+def test_blobs_on_one_row_come_left_to_right():
+    from parcover_env.localization.kinect.pipeline import find_blobs
+
+    p = PipelineParams(median_ksize=1, open_ksize=1, close_ksize=1)
+    ir = np.zeros((40, 60), np.uint8)
+    ir[10:13, 40:43] = 255  # starts on row 10, right
+    ir[9:14, 9:12] = 255  # starts a row earlier, left: OpenCV labels it first; same centroid row 11
+    cents, labels, ids = find_blobs(ir, p)
+    assert cents.tolist() == [[10.0, 11.0], [41.0, 11.0]]
+    assert all(np.isclose(np.nonzero(labels == i)[1].mean(), c[0]) for i, c in zip(ids, cents, strict=True))
+
+
+def test_may_see_all_edges_are_inside_on_every_side():
+    from parcover_env.sensors.kinect import may_see_all
+
+    s = sensor(res=(320, 240))
+    x0, y0, x1, y1 = s._cull_box()
+    for x, y in ((x0, 3.0), (x1, 3.0), (3.0, y0), (3.0, y1)):
+        assert may_see_all([s], np.array([[x, y, 0.0]]), [True]).tolist() == [True]
+        dx, dy = np.sign(x - 3.0) * 1e-9, np.sign(y - 3.0) * 1e-9
+        assert may_see_all([s], np.array([[x + dx, y + dy, 0.0]]), [True]).tolist() == [False]
+
+
+def test_fit_pattern_takes_two_to_four_points_of_shape_n_by_2():
+    pat = marker_pattern()
+    pose, rms, assign = fit_pattern(pat[[0, 2]] + (1.0, 2.0), pat)
+    # the closed-form residual loses digits near 0 (a difference of squares): 1e-8 m here
+    assert rms < 1e-7 and np.allclose(pose, [1.0, 2.0, 0.0], atol=1e-12) and sorted(assign) == [0, 2]
+    for bad in (pat[:1], pat[:, :1], np.zeros((5, 2)), pat.reshape(-1)):
+        with pytest.raises(ValueError, match="2..4 points"):
+            fit_pattern(bad, pat)
+
+
+def test_estimates_carry_the_frame_name_stamp_depth_and_residual():
+    s = sensor(res=(640, 480))
+    f = s.measure(np.array([[3.0, 3.0, 0.3]]), [True], np.random.default_rng(0), stamp=4.5)
+    (e,) = estimate_poses(f, s.camera, PARAMS)
+    assert (e.kinect, e.stamp, e.n_markers, e.truth_index) == ("k", 4.5, 4, None)
+    assert 0 < e.residual <= PARAMS.max_residual and abs(e.depth - 2.5) < 0.02
+    strict = PipelineParams(max_residual=e.residual * 0.999)
+    assert estimate_poses(f, s.camera, strict) == []  # a fit above max_residual is rejected
+    assert len(estimate_poses(f, s.camera, PipelineParams(max_residual=e.residual))) == 1  # at it: kept
+
+
+def test_pipeline_stage_options():
+    ir = np.full((40, 50), 60, np.uint8)
+    ir[10:16, 10:16] = 250  # a marker blob
+    ir[30, 30] = 255  # a speckle pixel: the median removes it
+    st = pipeline_stages(ir, PARAMS)
+    assert st["median"][30, 30] == 60 and st["threshold"][12, 12] == 255 and st["threshold"][30, 30] == 0
+    raw = pipeline_stages(ir, PipelineParams(median_ksize=1, open_ksize=1, close_ksize=1))
+    assert raw["median"][30, 30] == 255 and raw["morphology"][30, 30] == 255  # no median, no opening
+    assert set(np.unique(st["morphology"])) == {0, 255} and st["morphology"][12, 12] == 255
+    ir2 = ir.copy()
+    ir2[10:16, 10:16] = 190  # under the fixed threshold 200 ...
+    assert not pipeline_stages(ir2, PARAMS)["threshold"].any()
+    otsu = pipeline_stages(ir2, PipelineParams(otsu=True, otsu_floor=150))["threshold"]
+    assert otsu[12, 12] == 255 and otsu[0, 0] == 0  # ... Otsu splits 60 from 190 (raised to the 150 floor)
+    assert not pipeline_stages(ir2, PipelineParams(otsu=True, otsu_floor=195))["threshold"].any()

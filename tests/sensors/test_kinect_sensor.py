@@ -210,3 +210,74 @@ def test_frames_own_their_images_and_render_clean_returns_copies(lateral):
     assert s._buffers and not pickle.loads(pickle.dumps(s))._buffers
     copy = pickle.loads(pickle.dumps(s))
     np.testing.assert_array_equal(copy.render_clean(np.array([[3.0, 3.0, 0.0]]), [True])[0], d1)
+
+
+def test_frame_metadata_and_dropped_frames():
+    s = sensor()
+    poses = np.array([[3.0, 3.0, 0.0], [2.6, 3.1, 1.0]])
+    rng = np.random.default_rng(0)
+    f = s.measure(poses, [True, False], rng, stamp=1.25)
+    assert (f.name, f.stamp, f.dropped, f.info) == ("k", 1.25, False, {"n_robots": 2})
+    before = rng.bit_generator.state
+    s.measure(poses, [True, False], rng)  # drop_rate 0: no drop draw (the frame's draws only)
+    d = sensor(drop_rate=1.0).measure(poses, [True, False], np.random.default_rng(0), stamp=2.5)
+    assert (d.name, d.stamp, d.dropped) == ("k", 2.5, True)
+    assert d.depth.dtype == np.float32 and d.ir.dtype == np.uint8 and d.depth.shape == s.shape
+    assert not d.depth.any() and not d.ir.any()
+    r0, r1 = np.random.default_rng(5), np.random.default_rng(5)
+    sensor().measure(poses, [True, False], r0)
+    sensor(drop_rate=1e-9).measure(poses, [True, False], r1)  # a drop rate draws once more
+    assert r0.bit_generator.state != r1.bit_generator.state and before != rng.bit_generator.state
+
+
+def test_ir_levels_speckle_and_clusters():
+    """Floor 55 and robot 75 plus uniform 0-31, speckle at ``speckle_density`` in 170-255, 2 x 3
+    clusters at 255, markers at 255."""
+    s = KinectSensor(KinectConfig(name="k", position=(3.0, 3.0), height=2.8, resolution=(320, 240)), 0.15, 0.3,
+                     OPEN, speckle_density=0.0, speckle_clusters=0)
+    poses = np.array([[3.0, 3.0, 0.0]])
+    _, owner, code = s.render_clean(poses, [True])
+    ir = s.render_ir(owner, code, np.random.default_rng(1)).astype(int)
+    floor, robot = ir[owner < 0], ir[(owner >= 0) & (code != 1)]
+    assert floor.min() == 55 and floor.max() == 86 and abs(floor.mean() - 70.5) < 0.2
+    assert robot.min() == 75 and robot.max() == 106
+    assert np.all(ir[code == 1] == 255) and (code == 1).sum() > 0
+    dense = KinectSensor(s.cfg, 0.15, 0.3, OPEN, speckle_density=0.03, speckle_clusters=0)
+    bright = dense.render_ir(owner, np.zeros_like(code), np.random.default_rng(2)) >= 170
+    n = int(0.03 * 240 * 320)
+    assert 0.95 * n < bright.sum() <= n  # some draws hit the same pixel
+    spots = KinectSensor(s.cfg, 0.15, 0.3, OPEN, speckle_density=0.0, speckle_clusters=40)
+    sat = spots.render_ir(owner, np.zeros_like(code), np.random.default_rng(3)) == 255
+    assert 200 <= sat.sum() <= 240  # 40 clusters of 2 x 3 px, some overlapping
+    import cv2
+
+    _, _, st, _ = cv2.connectedComponentsWithStats(sat.astype(np.uint8), connectivity=8)
+    assert np.any((st[1:, 2] == 3) & (st[1:, 3] == 2))  # a lone cluster is 3 wide, 2 high
+
+
+def test_robot_boxes_hold_every_pixel_of_the_robot():
+    """Drawing each robot over the whole image gives the same frame as over its box."""
+    s = sensor()
+    rng = np.random.default_rng(4)
+    poses = np.column_stack([rng.uniform(2.0, 4.0, 6), rng.uniform(2.3, 3.7, 6), rng.uniform(-3, 3, 6)])
+    boxes = s._robot_boxes(poses[:, :2])
+    assert np.all(boxes[:, 0] >= 0) and np.all(boxes[:, 2] <= 320) and np.all(boxes[:, 3] <= 240)
+    from parcover_env.sensors import _kinect_kernels as kk
+
+    out = []
+    for bx in (boxes, np.tile([0, 0, 320, 240], (6, 1))):
+        depth, owner, top = s.static_depth.copy(), np.full(s.shape, -1, np.int32), np.zeros(s.shape, bool)
+        kk.draw_robots(depth, owner, top, s.rays, s.true_camera.C, bx.astype(np.int64), poses[:, :2].copy(),
+                       0.15 ** 2, 0.3)
+        out.append((depth, owner))
+    np.testing.assert_array_equal(out[0][0], out[1][0])
+    np.testing.assert_array_equal(out[0][1], out[1][1])
+    for i, (u0, v0, u1, v1) in enumerate(boxes):  # tight: a robot alone reaches within 3-4 px of each side
+        depth, owner, top = s.static_depth.copy(), np.full(s.shape, -1, np.int32), np.zeros(s.shape, bool)
+        kk.draw_robots(depth, owner, top, s.rays, s.true_camera.C, np.array([[0, 0, 320, 240]]), poses[i:i + 1, :2].copy(),
+                       0.15 ** 2, 0.3)
+        vv, uu = np.nonzero(owner == 0)
+        assert 0 < uu.min() - u0 <= 3 and 0 < vv.min() - v0 <= 3 and 0 < u1 - uu.max() <= 4 and 0 < v1 - vv.max() <= 4
+    behind = s._robot_boxes(np.array([[30.0, 3.0]]))  # far outside the view
+    assert behind.tolist() == [[-1, -1, -1, -1]]
+    assert s._robot_boxes(np.zeros((0, 2))).shape == (0, 4)
