@@ -274,8 +274,8 @@ def test_robot_boxes_hold_every_pixel_of_the_robot():
     np.testing.assert_array_equal(out[0][1], out[1][1])
     for i, (u0, v0, u1, v1) in enumerate(boxes):  # tight: a robot alone reaches within 3-4 px of each side
         depth, owner, top = s.static_depth.copy(), np.full(s.shape, -1, np.int32), np.zeros(s.shape, bool)
-        kk.draw_robots(depth, owner, top, s.rays, s.true_camera.C, np.array([[0, 0, 320, 240]]), poses[i:i + 1, :2].copy(),
-                       0.15 ** 2, 0.3)
+        kk.draw_robots(depth, owner, top, s.rays, s.true_camera.C, np.array([[0, 0, 320, 240]]),
+                       poses[i:i + 1, :2].copy(), 0.15 ** 2, 0.3)
         vv, uu = np.nonzero(owner == 0)
         assert 0 < uu.min() - u0 <= 3 and 0 < vv.min() - v0 <= 3 and 0 < u1 - uu.max() <= 4 and 0 < v1 - vv.max() <= 4
     behind = s._robot_boxes(np.array([[30.0, 3.0]]))  # far outside the view
