@@ -109,6 +109,15 @@ class Args:
     """Save ``checkpoints/step_<N>.zip`` every this many agent-steps (0 = never)."""
     resume: str = ""
     """A model.zip (or its directory) to continue from; its vecnormalize.pkl is loaded too."""
+    init: str = ""
+    """A model.zip to start from (its ``*vecnormalize.pkl`` beside it is loaded too): its networks,
+    with this run's PPO settings (learning_rate, n_steps, batch_size, n_epochs, clip_range,
+    target_kl, ent_coef, gamma) and steps counted from 0. Fine-tunes an imitation network with PPO,
+    e.g. the DAgger network of ``baselines/dagger.py``."""
+    vf_warmup: int = 0
+    """Agent-steps at the start during which only the value network learns (the actor is frozen):
+    a network from imitation has no trained critic, and PPO on its random values first un-learns
+    the actor."""
     bc_episodes: int = 0
     """Expert missions for BC initialization (0 = PPO from scratch)."""
     bc_scenario: str = ""
@@ -403,6 +412,8 @@ def train(args: Args) -> Path:
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
 
+    if args.init and args.resume:
+        raise SystemExit("--init and --resume exclude each other: start from a network, or continue a run")
     global _START_COMMIT
     _START_COMMIT = git_commit()
     torch.set_num_threads(args.threads)
@@ -430,6 +441,12 @@ def train(args: Args) -> Path:
             self.next_ckpt = ((model.num_timesteps // args.checkpoint_freq + 1) * args.checkpoint_freq
                               if args.checkpoint_freq else None)
             self.next_print = model.num_timesteps + 20_000
+
+        def _on_rollout_start(self) -> None:
+            if frozen and model.num_timesteps >= args.vf_warmup:
+                set_actor_trainable(model, True)
+                frozen.clear()
+                print(f"value warm-up over at {model.num_timesteps} agent-steps: the actor learns", flush=True)
 
         def _on_rollout_end(self) -> None:
             if bc_reg is not None:
@@ -488,6 +505,7 @@ def train(args: Args) -> Path:
             print(f"  new best @ {n}", flush=True)
 
     model, venv, prev_stats, bc_reg = None, None, None, None
+    frozen: list[bool] = []
     demos: list[dict] | None = None
     start_stage, into_stage = 0, 0
     if args.resume:
@@ -522,6 +540,13 @@ def train(args: Args) -> Path:
         info["train_seeds"].append({"stage": si, "scenarios": scen, "episode_seeds_from": train_seed})
         if prev_stats is not None:  # the normalization carries over from stage to stage
             venv.obs_rms, venv.ret_rms = prev_stats
+        if model is None and args.init:
+            model, stats = load_init(args, venv, device, tb_dir)
+            venv.obs_rms, venv.ret_rms = stats
+            info["init_from"] = args.init
+            if args.vf_warmup:
+                set_actor_trainable(model, False)
+                frozen.append(True)
         if model is None:
             policy_kwargs: dict = {"net_arch": [int(h) for h in args.net_arch.split(",")],
                                    "log_std_init": args.log_std_init}
@@ -579,6 +604,41 @@ def train(args: Args) -> Path:
                                        "final_eval": evals[-args.eval_episodes * 2:] if evals else []})
     print(f"{model.num_timesteps} agent-steps in {wall:.0f} s")
     return out
+
+
+def load_init(args: Args, venv, device: str, tb_dir: str | None):
+    """The ``args.init`` network on ``venv`` with this run's PPO settings, and its normalization
+    statistics ``(obs_rms, ret_rms)``."""
+    import pickle
+
+    from stable_baselines3 import PPO
+
+    mz = Path(args.init)
+    mz = mz / "model.zip" if mz.is_dir() else mz
+    stats = mz.with_name("vecnormalize.pkl" if mz.stem == "model" else mz.stem + "_vecnormalize.pkl")
+    # the observation bounds depend on the map (its size): the network does not, so take venv's space
+    model = PPO.load(str(mz), env=venv, device=device, custom_objects={"observation_space": venv.observation_space},
+                     learning_rate=args.learning_rate, n_steps=args.n_steps,
+                     batch_size=args.batch_size, n_epochs=args.n_epochs, clip_range=args.clip_range,
+                     target_kl=args.target_kl or None, ent_coef=args.ent_coef, gamma=args.gamma,
+                     gae_lambda=args.gae_lambda, seed=args.seed, tensorboard_log=tb_dir)
+    model.num_timesteps = 0
+    with open(stats, "rb") as fh:
+        old = pickle.load(fh)
+    return model, (old.obs_rms, old.ret_rms)
+
+
+def set_actor_trainable(model, on: bool) -> None:
+    """Freeze (``on=False``) or unfreeze the actor of an SB3 actor-critic policy: its hidden layers,
+    action head and log-std; the value network always learns."""
+    import torch
+
+    pol = model.policy
+    params = [*pol.mlp_extractor.policy_net.parameters(), *pol.action_net.parameters()]
+    if isinstance(getattr(pol, "log_std", None), torch.nn.Parameter):
+        params.append(pol.log_std)
+    for prm in params:
+        prm.requires_grad_(on)
 
 
 def obs_selection(args: Args, scenario: str) -> dict:

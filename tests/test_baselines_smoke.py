@@ -267,3 +267,37 @@ def test_train_bc_reads_datasets_by_pattern(tiny_datasets, tmp_path, load_baseli
     assert ck["samples"] == len(obs) == 160
     losses = [float(line.split(",")[1]) for line in (out / "bc_loss.csv").read_text().splitlines()[1:]]
     assert losses[-1] < 0.2 * losses[0]
+
+
+def test_init_fine_tunes_a_network_with_this_runs_settings_and_a_value_warm_up(ppo_dir, tmp_path, load_baseline):
+    """--init starts from a network (steps from 0, this run's learning rate and clipping); during
+    --vf-warmup only the critic learns, afterwards the actor too."""
+    import json
+
+    import torch
+    from stable_baselines3 import PPO
+
+    train_ppo = load_baseline("train_ppo")
+    start = PPO.load(str(ppo_dir / "model.zip"))
+    base = ["--scenario", "office", "--n-envs", "1", "--n-steps", "128", "--batch-size", "128", "--n-epochs", "2",
+            "--max-steps", "60", "--learning-rate", "1e-3", "--clip-range", "0.15", "--vf-warmup", "500",
+            "--eval-freq", "0", "--checkpoint-freq", "0", "--init", str(ppo_dir / "model.zip")]
+
+    def run(steps: str, name: str):
+        out = train_ppo.train(train_ppo.parse_args([*base, "--total-timesteps", steps, "--out", str(tmp_path / name)]))
+        return out, PPO.load(str(out / "model.zip"))
+
+    def same(a, b) -> bool:
+        return all(torch.equal(x, y) for x, y in zip(a.parameters(), b.parameters(), strict=True))
+
+    out, tuned = run("1000", "warm")
+    side = json.loads((out / "model.json").read_text())
+    assert side["init_from"] == str(ppo_dir / "model.zip") and side["timesteps"] == 1024  # 4 rollouts x 2 x 128
+    assert tuned.learning_rate == 1e-3 and tuned.clip_range(1.0) == 0.15
+    assert not same(start.policy.action_net, tuned.policy.action_net)  # the actor learned after the warm-up
+    _, cold = run("500", "cold")  # the whole run inside the warm-up
+    assert same(start.policy.action_net, cold.policy.action_net)  # the actor did not move ...
+    assert same(start.policy.mlp_extractor.policy_net, cold.policy.mlp_extractor.policy_net)
+    assert not same(start.policy.value_net, cold.policy.value_net)  # ... the critic did
+    with pytest.raises(SystemExit, match="exclude each other"):
+        train_ppo.train(train_ppo.parse_args(["--init", "a.zip", "--resume", "b.zip", "--out", str(tmp_path / "x")]))
