@@ -397,8 +397,8 @@ def test_blobs_on_one_row_come_left_to_right():
 
     p = PipelineParams(median_ksize=1, open_ksize=1, close_ksize=1)
     ir = np.zeros((40, 60), np.uint8)
-    ir[10:13, 40:43] = 255  # starts on row 10, right
-    ir[9:14, 9:12] = 255  # starts a row earlier, left: OpenCV labels it first; same centroid row 11
+    ir[9:14, 40:43] = 255  # right, starts on row 9: OpenCV labels it first
+    ir[10:13, 9:12] = 255  # left, starts a row later; the same centroid row 11: sorted first by column
     cents, labels, ids = find_blobs(ir, p)
     assert cents.tolist() == [[10.0, 11.0], [41.0, 11.0]]
     assert all(np.isclose(np.nonzero(labels == i)[1].mean(), c[0]) for i, c in zip(ids, cents, strict=True))
