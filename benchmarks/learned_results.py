@@ -40,8 +40,8 @@ def main(argv=None) -> int:
     summary = sorted(summarize(rows), key=lambda s: (order.get(s["scenario"], len(order)), s["scenario"]))
     # the generated:* aggregates, and a single map's row for a policy that ran on one map only
     aggregated = {(s["scenario"], s["policy"]) for s in summary if s["scenario"].startswith("generated:*")}
-    summary = [s for s in summary if not s["scenario"].startswith("generated:") or s["scenario"].startswith("generated:*")
-               or (family(s["scenario"]), s["policy"]) not in aggregated]
+    summary = [s for s in summary if not s["scenario"].startswith("generated:")
+               or s["scenario"].startswith("generated:*") or (family(s["scenario"]), s["policy"]) not in aggregated]
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     table = markdown_table(summary)
