@@ -15,7 +15,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from parcover_env.harness.bench import markdown_table, plot_summary, read_episodes, summarize
+from parcover_env.harness.bench import family, markdown_table, plot_summary, read_episodes, summarize
 from parcover_env.viz.curves import plot_learning_curves
 
 
@@ -38,7 +38,10 @@ def main(argv=None) -> int:
         r["scenario"] = str(r["scenario"]) + ("" if preset == "realistic" else f" ({preset})")
     order = {s: i for i, s in enumerate(dict.fromkeys(r["scenario"] for r in rows))}
     summary = sorted(summarize(rows), key=lambda s: (order.get(s["scenario"], len(order)), s["scenario"]))
-    summary = [s for s in summary if not s["scenario"].startswith("generated:") or s["scenario"] == "generated:*"]
+    # the generated:* aggregates, and a single map's row for a policy that ran on one map only
+    aggregated = {(s["scenario"], s["policy"]) for s in summary if s["scenario"].startswith("generated:*")}
+    summary = [s for s in summary if not s["scenario"].startswith("generated:")
+               or s["scenario"].startswith("generated:*") or (family(s["scenario"]), s["policy"]) not in aggregated]
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     table = markdown_table(summary)

@@ -230,8 +230,13 @@ def wilson_ci(k: float, n: int, level: float = 0.95) -> tuple[float, float]:
 
 
 def family(scenario: str) -> str:
-    """``generated:17`` -> ``generated:*``; other scenarios are their own family."""
-    return "generated:*" if scenario.startswith("generated:") else scenario
+    """``generated:17`` -> ``generated:*`` (a label after the map number stays: ``generated:17 (ideal)``
+    -> ``generated:* (ideal)``); other scenarios are their own family."""
+    if not scenario.startswith("generated:"):
+        return scenario
+    rest = scenario.removeprefix("generated:")
+    digits = len(rest) - len(rest.lstrip("0123456789"))
+    return "generated:*" + rest[digits:]
 
 
 def _summary_row(scenario: str, policy: str, strata: list[list[dict]]) -> dict:

@@ -126,3 +126,16 @@ def test_one_episode_per_map_resamples_the_maps():
     assert agg["success"] == 0.5 and agg["success_lo"] < 0.5 < agg["success_hi"]
     assert agg["kpoi_fraction"] == pytest.approx(np.mean([0.2, 0.3, 0.4, 0.5, 0.6, 0.7]))  # IQM: 2 cut each side
     assert agg["kpoi_fraction_lo"] < agg["kpoi_fraction"] < agg["kpoi_fraction_hi"]
+
+
+def test_generated_maps_aggregate_per_preset_label():
+    from parcover_env.harness.bench import family, summarize
+
+    assert family("generated:17") == "generated:*" and family("generated:17 (ideal)") == "generated:* (ideal)"
+    assert family("tree (ideal)") == "tree" + " (ideal)" and family("office") == "office"
+    rows = [{"scenario": sc, "policy": "p", "seed": 0, "success": s, "kpoi_fraction": s, "makespan_ratio": 1.0,
+             "collisions": 0.0, "messages": 1.0, "wall_time": 1.0}
+            for sc, s in (("generated:1", 1.0), ("generated:2", 1.0), ("generated:1 (ideal)", 0.0),
+                          ("generated:2 (ideal)", 0.0))]
+    agg = {s["scenario"]: s["success"] for s in summarize(rows) if s["scenario"].startswith("generated:*")}
+    assert agg == {"generated:*": 1.0, "generated:* (ideal)": 0.0}  # the presets are not pooled
