@@ -476,14 +476,31 @@ def _soak(step: Callable[[int], None], total: int) -> dict:
     gc.collect()
     samples = []
     chunk = max(total // 10, 1)
+    t0 = time.perf_counter()
     for i in range(10):
         for k in range(chunk):
             step(i * chunk + k)
         samples.append(rss_mb())
+        print(f"    soak sample {i + 1}/10 after {(i + 1) * chunk} calls: RSS {samples[-1]:.1f} MiB "
+              f"({time.perf_counter() - t0:.0f} s)", flush=True)
     x = np.arange(len(samples)) * chunk
     slope = float(np.polyfit(x, samples, 1)[0]) * 1e6 if len(samples) > 1 else 0.0
+    gc.collect()
     return {"soak_steps": chunk * 10, "rss_start_mb": samples[0], "rss_end_mb": samples[-1],
-            "slope_mb_per_1e6_steps": slope}
+            "slope_mb_per_1e6_steps": slope, "rss_trimmed_mb": _trimmed_rss()}
+
+
+def _trimmed_rss() -> float:
+    """RSS (MiB) after glibc's ``malloc_trim(0)`` returned the allocator's free pages (NaN elsewhere):
+    what is left is memory in use, the rest of a growth was allocator slack."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        return float("nan")
+    return rss_mb()
 
 
 def section_memory(args, results: dict) -> None:
@@ -501,8 +518,8 @@ def section_memory(args, results: dict) -> None:
     b["K"], b["world_steps"] = k, b["soak_steps"] * k
     venv.close()
     print(f"  office batched K={k} soak {b['world_steps']} world-steps: RSS {b['rss_start_mb']:.1f} -> "
-          f"{b['rss_end_mb']:.1f} MiB (fit {b['slope_mb_per_1e6_steps'] / k:+.2f} MiB per 10^6 world-steps)",
-          flush=True)
+          f"{b['rss_end_mb']:.1f} MiB (fit {b['slope_mb_per_1e6_steps'] / k:+.2f} MiB per 10^6 world-steps), "
+          f"{b['rss_trimmed_mb']:.1f} MiB after malloc_trim", flush=True)
     r["batched"] = b
     r["peak_rss_mb"] = peak_rss_mb()
     print(f"  peak RSS of this whole run {r['peak_rss_mb']:.0f} MiB", flush=True)
