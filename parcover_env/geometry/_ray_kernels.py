@@ -23,8 +23,9 @@ _COS_FLOOR = 1e-9
 
 
 @njit(cache=True, inline="always")
-def _segment_hit(x0, y0, ddx, ddy, segs, reach, cull, open_end):
-    """Nearest segment hit of one ray: ``(t, index, d x e)``; ``(inf, -1, 0)`` if none.
+def _segment_hit(x0, y0, ddx, ddy, segs, idx, reach, cull, open_end):
+    """Nearest hit of one ray on the segments ``idx`` (ascending indices into ``segs``):
+    ``(t, index, d x e)``; ``(inf, -1, 0)`` if none.
 
     ``cull``: skip segments whose bounding box misses the box of ``[o, o + reach d]``.
     ``open_end``: stop at the first hit with ``0 < t < 1`` (blocking test) instead."""
@@ -39,7 +40,8 @@ def _segment_hit(x0, y0, ddx, ddy, segs, reach, cull, open_end):
     best = np.inf
     best_i = -1
     best_den = 0.0
-    for s in range(segs.shape[0]):
+    for j in range(idx.shape[0]):
+        s = idx[j]
         ax = segs[s, 0]
         ay = segs[s, 1]
         sx = segs[s, 2]
@@ -102,9 +104,10 @@ def first_segment_hits(ox, oy, dx, dy, per, segs, seg_len, reach, box_cull, t_ou
     none), ``i_out`` (-1 if none), ``c_out`` (``|cos|`` of incidence, 0 if none). Ties go to the
     lowest segment index. ``box_cull`` (only for a finite ``reach``) never changes a result."""
     cull = box_cull and math.isfinite(reach)
+    every = np.arange(segs.shape[0])
     for r in range(dx.shape[0]):
         o = r // per
-        t, i, den = _segment_hit(ox[o], oy[o], dx[r], dy[r], segs, reach, cull, False)
+        t, i, den = _segment_hit(ox[o], oy[o], dx[r], dy[r], segs, every, reach, cull, False)
         if i >= 0 and t <= reach:
             t_out[r] = t
             i_out[r] = i
@@ -131,85 +134,115 @@ def first_disc_hits(ox, oy, dx, dy, per, cx, cy, r2, owner, reach, t_out):
 @njit(cache=True, nogil=True)
 def open_segments_blocked(ax, ay, bx, by, segs, out):
     """Whether the open segment ``a -> b`` (ray parameter ``0 < t < 1``) crosses one of ``segs``."""
+    every = np.arange(segs.shape[0])
     for r in range(ax.shape[0]):
-        _, i, _ = _segment_hit(ax[r], ay[r], bx[r] - ax[r], by[r] - ay[r], segs, 1.0, True, True)
+        _, i, _ = _segment_hit(ax[r], ay[r], bx[r] - ax[r], by[r] - ay[r], segs, every, 1.0, True, True)
         out[r] = i >= 0
 
 
 @njit(cache=True, nogil=True)
-def sonar_echoes(ox, oy, dx, dy, per, segs, seg_len, cx, cy, r2, owner, rmax, specular, multipath,
-                 cos_min, nudge, box_cull, out):
-    """Echo distance of every sonar sub-ray ``r`` (origin ``r // per``), inf if none (the rules of
-    :func:`parcover_env.sensors.sonar.simulate_beams`).
+def near_segments(ox, oy, segs, reach, idx, cnt):
+    """Per origin ``o``, the indices (ascending) of the segments within ``reach`` of it by
+    point-to-segment distance: ``idx[o, :cnt[o]]``. A path of rays leaving ``o`` meets no other
+    segment within that length, so restricting its casts to the list changes no result."""
+    for o in range(ox.shape[0]):
+        c = 0
+        for s in range(segs.shape[0]):
+            ax = segs[s, 0]
+            ay = segs[s, 1]
+            ex = segs[s, 2] - ax
+            ey = segs[s, 3] - ay
+            wx = ox[o] - ax
+            wy = oy[o] - ay
+            ll = ex * ex + ey * ey
+            u = min(max((wx * ex + wy * ey) / ll, 0.0), 1.0) if ll > 0.0 else 0.0
+            px = wx - u * ex
+            py = wy - u * ey
+            if px * px + py * py <= reach * reach:
+                idx[o, c] = s
+                c += 1
+        cnt[o] = c
 
-    First hit within ``rmax`` on the walls ``t1`` (incidence ``|cos| c1``) and on the discs ``td``.
-    ``specular``: a wall echoes only if ``c1 >= cos_min``; with ``multipath`` an oblique wall
-    mirrors the sub-ray, which starts again ``nudge`` off the wall and reads ``t1 + t2 + nudge``
-    if its next surface (a normal-enough wall, or a disc; unlimited range for discs) lies within
-    ``rmax - t1`` (``t2 + nudge`` compared). The walls of all second rays are cast with the same
-    reach, the largest ``rmax - t1``. A disc nearer than the wall echoes (``td``)."""
-    n_rays = dx.shape[0]
+
+@njit(cache=True, inline="always")
+def _incidence(den, seg_len, i):
+    """``|cos|`` of the incidence of a hit on segment ``i`` (``den = d x e``; 0 if no hit)."""
+    return abs(den) / max(seg_len[i], _COS_FLOOR) if i >= 0 else 0.0
+
+
+@njit(cache=True, nogil=True)
+def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, owner, rmax,
+                 specular, multipath, cos_min, nudge, box_cull, reading):
+    """Nearest echo ``reading (N, B)`` over the sub-rays of every beam, inf if none (the rules of
+    :func:`parcover_env.sensors.sonar.simulate_beams`). Beam ``b`` of origin ``n`` has the sub-rays
+    at angles ``axes[n, b] + offsets[j]``.
+
+    A sub-ray's first hit within ``rmax`` on the walls is ``t1`` (incidence ``|cos| c1``), on the
+    discs ``td``. ``specular``: a wall echoes only if ``c1 >= cos_min``; with ``multipath`` an
+    oblique wall mirrors the sub-ray, which starts again ``nudge`` off the wall and reads
+    ``t1 + t2 + nudge`` if its next surface (a normal-enough wall, or a disc) lies within
+    ``rmax - t1`` (``t2 + nudge`` compared). A disc nearer than the wall echoes (``td``). Walls
+    are looked up in the origin's list ``idx`` of those within ``rmax`` (plus the nudge;
+    :func:`near_segments`): a two-leg path of length <= ``rmax`` stays within it."""
     cull = box_cull and math.isfinite(rmax)
     per_origin = cx.shape[0] > 1
-    t1s = np.empty(n_rays)
-    i1s = np.empty(n_rays, dtype=np.int64)
-    reach2 = -np.inf
-    for r in range(n_rays):
-        o = r // per
-        x0 = ox[o]
-        y0 = oy[o]
-        t1, i1, den = _segment_hit(x0, y0, dx[r], dy[r], segs, rmax, cull, False)
-        td = _disc_hit(x0, y0, dx[r], dy[r], cx, cy, o if per_origin else 0, r2, owner[o])
-        if not td <= rmax:
-            td = np.inf
-        if not (i1 >= 0 and t1 <= rmax):
-            t1 = np.inf
-            i1 = -1
-        i1s[r] = -1
-        if not specular:
-            out[r] = min(t1, td)
-            continue
-        c1 = abs(den) / max(seg_len[i1], _COS_FLOOR) if i1 >= 0 else 0.0
-        wall = np.inf
-        if c1 >= cos_min:
-            wall = t1
-        elif multipath and i1 >= 0:
-            i1s[r] = i1  # a second bounce, cast below
-            reach2 = max(reach2, rmax - t1)
-        t1s[r] = t1
-        out[r] = td if td < t1 else wall
-    if not specular or reach2 == -np.inf:
-        return
-    cull2 = box_cull and math.isfinite(reach2)
-    for r in range(n_rays):
-        i1 = i1s[r]
-        if i1 < 0:
-            continue
-        t1 = t1s[r]
-        if out[r] < t1:
-            continue  # a disc in front of the wall
-        o = r // per
-        ddx = dx[r]
-        ddy = dy[r]
-        ex = segs[i1, 2] - segs[i1, 0]
-        ey = segs[i1, 3] - segs[i1, 1]
-        norm = math.sqrt(ex * ex + ey * ey)
-        nx = -ey / norm
-        ny = ex / norm
-        f = 2.0 * (ddx * nx + ddy * ny)
-        d2x = ddx - f * nx
-        d2y = ddy - f * ny
-        px = (ox[o] + ddx * t1) + d2x * nudge
-        py = (oy[o] + ddy * t1) + d2y * nudge
-        t2w, i2, den2 = _segment_hit(px, py, d2x, d2y, segs, reach2, cull2, False)
-        if not (i2 >= 0 and t2w <= reach2):
-            t2w = np.inf
-            i2 = -1
-        c2 = abs(den2) / max(seg_len[i2], _COS_FLOOR) if i2 >= 0 else 0.0
-        wall2 = t2w if c2 >= cos_min else np.inf
-        td2 = _disc_hit(px, py, d2x, d2y, cx, cy, o if per_origin else 0, r2, owner[o])
-        t2 = (td2 if td2 < t2w else wall2) + nudge
-        out[r] = t1 + t2 if t2 <= rmax - t1 else np.inf
+    for n in range(ox.shape[0]):
+        x0 = ox[n]
+        y0 = oy[n]
+        row = n if per_origin else 0
+        near = idx[n, :cnt[n]]
+        for b in range(axes.shape[1]):
+            best = np.inf
+            for j in range(offsets.shape[0]):
+                ang = axes[n, b] + offsets[j]
+                ddx = math.cos(ang)
+                ddy = math.sin(ang)
+                t1, i1, den = _segment_hit(x0, y0, ddx, ddy, segs, near, rmax, cull, False)
+                td = _disc_hit(x0, y0, ddx, ddy, cx, cy, row, r2, owner[n])
+                if not td <= rmax:
+                    td = np.inf
+                if not (i1 >= 0 and t1 <= rmax):
+                    t1 = np.inf
+                    i1 = -1
+                if not specular:
+                    echo = min(t1, td)
+                elif td < t1:
+                    echo = td
+                elif _incidence(den, seg_len, i1) >= cos_min:
+                    echo = t1
+                elif multipath and i1 >= 0:  # mirrored by an oblique wall: the second leg
+                    echo = _second_leg(x0, y0, ddx, ddy, t1, i1, segs, seg_len, near, cx, cy, row, r2,
+                                       owner[n], rmax, cos_min, nudge, box_cull)
+                else:
+                    echo = np.inf
+                best = min(best, echo)
+            reading[n, b] = best
+
+
+@njit(cache=True, inline="always")
+def _second_leg(x0, y0, ddx, ddy, t1, i1, segs, seg_len, near, cx, cy, row, r2, mine, rmax, cos_min, nudge,
+                box_cull):
+    """Echo length ``t1 + t2`` of a sub-ray mirrored at ``t1`` by segment ``i1``, inf if its second
+    leg finds no echoing surface within ``rmax - t1``."""
+    ex = segs[i1, 2] - segs[i1, 0]
+    ey = segs[i1, 3] - segs[i1, 1]
+    norm = math.sqrt(ex * ex + ey * ey)
+    nx = -ey / norm
+    ny = ex / norm
+    f = 2.0 * (ddx * nx + ddy * ny)
+    d2x = ddx - f * nx
+    d2y = ddy - f * ny
+    px = (x0 + ddx * t1) + d2x * nudge
+    py = (y0 + ddy * t1) + d2y * nudge
+    reach = rmax - t1
+    t2w, i2, den2 = _segment_hit(px, py, d2x, d2y, segs, near, reach, box_cull and math.isfinite(reach), False)
+    if not (i2 >= 0 and t2w <= reach):
+        t2w = np.inf
+        i2 = -1
+    wall2 = t2w if _incidence(den2, seg_len, i2) >= cos_min else np.inf
+    td2 = _disc_hit(px, py, d2x, d2y, cx, cy, row, r2, mine)
+    t2 = (td2 if td2 < t2w else wall2) + nudge
+    return t1 + t2 if t2 <= rmax - t1 else np.inf
 
 
 @njit(cache=True, inline="always")
@@ -218,17 +251,28 @@ def _wrap(a):
     return math.pi - ((math.pi - a) % (2.0 * math.pi))
 
 
+@njit(cache=True, inline="always")
+def _in_cone(a, half):
+    """``|wrap(a)| <= half``, exactly; a cheap rounding-based wrap first rejects angles clearly
+    outside (it agrees with :func:`_wrap` to ~1e-15 rad, far below the 1e-9 rad margin)."""
+    if abs(a - 2.0 * math.pi * round(a / (2.0 * math.pi))) > half + 1e-9:
+        return False
+    return abs(_wrap(a)) <= half
+
+
 @njit(cache=True, nogil=True)
-def sonar_corner_echoes(ox, oy, axes, pts, u1, u2, segs, cx, cy, r2, owner, rmax, half, reading):
+def sonar_corner_echoes(ox, oy, axes, pts, u1, u2, segs, idx, cnt, cx, cy, r2, owner, rmax, half, reading):
     """Lower ``reading (N, B)`` to the distance of every concave corner ``pts (C, 2)`` (wall
     directions ``u1, u2``) that origin ``n`` sees from inside the corner's wedge, within ``rmax``,
     with no wall (nor disc) in between, and inside beam ``b``'s cone (``|bearing - axis| <= half``);
-    the concave-corner rule of :func:`parcover_env.sensors.sonar.simulate_beams`."""
+    the concave-corner rule of :func:`parcover_env.sensors.sonar.simulate_beams`. Walls are looked
+    up in the origin's list ``idx`` of those within ``rmax`` (:func:`near_segments`)."""
     has_discs = cx.shape[1] > 0
     per_origin = cx.shape[0] > 1
     for n in range(ox.shape[0]):
         x0 = ox[n]
         y0 = oy[n]
+        near = idx[n, :cnt[n]]
         for c in range(pts.shape[0]):
             vx = pts[c, 0] - x0
             vy = pts[c, 1] - y0
@@ -240,29 +284,36 @@ def sonar_corner_echoes(ox, oy, axes, pts, u1, u2, segs, cx, cy, r2, owner, rmax
             wy = y0 - pts[c, 1]
             if not ((u1[c, 0] * wy - u1[c, 1] * wx) * s > 0 and (wx * u2[c, 1] - wy * u2[c, 0]) * s > 0):
                 continue  # not inside the corner's wedge
-            dx = vx / dist
-            dy = vy / dist
-            t, _, _ = _segment_hit(x0, y0, dx, dy, segs, np.inf, False, False)
-            if not t >= dist * (1.0 - 1e-7) - 1e-9:
-                continue  # a wall in between
-            if has_discs and not _disc_hit(x0, y0, dx, dy, cx, cy, n if per_origin else 0, r2, owner[n]) >= dist:
-                continue  # a robot in between
             bearing = math.atan2(vy, vx)
+            seen = -1  # line of sight: unknown until a beam's cone holds the corner
             for b in range(axes.shape[1]):
-                if abs(_wrap(bearing - axes[n, b])) <= half and dist < reading[n, b]:
+                if not (dist < reading[n, b] and _in_cone(bearing - axes[n, b], half)):
+                    continue
+                if seen < 0:
+                    dx = vx / dist
+                    dy = vy / dist
+                    t, _, _ = _segment_hit(x0, y0, dx, dy, segs, near, np.inf, False, False)
+                    seen = 1 if t >= dist * (1.0 - 1e-7) - 1e-9 else 0  # else a wall in between
+                    if seen and has_discs and not _disc_hit(x0, y0, dx, dy, cx, cy, n if per_origin else 0, r2,
+                                                            owner[n]) >= dist:
+                        seen = 0  # a robot in between
+                if seen:
                     reading[n, b] = dist
 
 
 @njit(cache=True, nogil=True)
-def sonar_crosstalk(px, py, pth, beams, segs, half, rmax, out):
+def sonar_crosstalk(px, py, pth, beams, segs, idx, cnt, half, rmax, out):
     """Cross-talk readings ``out (K, N, B)`` (left inf where none) of robots ``(K, N)`` poses
     ``px, py, pth``: beam ``b`` of robot ``i`` reads ``d / 2`` from the nearest robot ``j`` of its world
     inside that beam's cone (``half``) with a beam of ``j`` pointing back at ``i``, ``0 < d / 2 <= rmax``
-    and no wall between them; the rules of :func:`parcover_env.sensors.sonar.crosstalk`."""
+    and no wall between them; the rules of :func:`parcover_env.sensors.sonar.crosstalk`. Walls are
+    looked up in robot ``k * N + i``'s list ``idx`` of those within ``2 rmax`` (:func:`near_segments`)."""
     nb = beams.shape[0]
+    n_robots = px.shape[1]
     for k in range(px.shape[0]):
-        for i in range(px.shape[1]):
-            for j in range(px.shape[1]):
+        for i in range(n_robots):
+            near = idx[k * n_robots + i, :cnt[k * n_robots + i]]
+            for j in range(n_robots):
                 if i == j:
                     continue
                 dx = px[k, j] - px[k, i]
@@ -273,14 +324,14 @@ def sonar_crosstalk(px, py, pth, beams, segs, half, rmax, out):
                 bearing = math.atan2(dy, dx)
                 back = False
                 for c in range(nb):
-                    if abs(_wrap(bearing + math.pi - pth[k, j] - beams[c])) <= half:
+                    if _in_cone(bearing + math.pi - pth[k, j] - beams[c], half):
                         back = True
                         break
                 if not back:
                     continue
-                _, hit, _ = _segment_hit(px[k, i], py[k, i], dx, dy, segs, 1.0, True, True)
+                _, hit, _ = _segment_hit(px[k, i], py[k, i], dx, dy, segs, near, 1.0, True, True)
                 if hit >= 0:
                     continue  # a wall between them
                 for b in range(nb):
-                    if abs(_wrap(bearing - pth[k, i] - beams[b])) <= half and d / 2 < out[k, i, b]:
+                    if d / 2 < out[k, i, b] and _in_cone(bearing - pth[k, i] - beams[b], half):
                         out[k, i, b] = d / 2

@@ -20,7 +20,9 @@ segment index; ``|cos|`` of incidence is ``|d x e| / |e|``. Per (ray, disc) pair
 
 Culling: with a finite ``max_range``, a ray is tested only against the segments whose bounding box
 meets the box of its reach ``[o, o + max_range d]`` (grown by 1e-9 m); a hit within range lies in
-both boxes, so culled and full tests give the same numbers bit for bit. The loops are compiled
+both boxes, so culled and full tests give the same numbers bit for bit. Casts whose paths from an
+origin are at most ``L`` long (the sonar) look up the walls in the origin's list of segments within
+``L`` (:func:`near_segments`), which changes no result either. The loops are compiled
 with numba (:mod:`parcover_env.geometry._ray_kernels`, imported on the first cast).
 
 A hit farther than ``max_range`` is reported as no hit: distance ``inf``, segment index ``-1``.
@@ -118,6 +120,20 @@ def segments_blocked(a, b, segments) -> np.ndarray:
         return out
     kernels().open_segments_blocked(_plane(a, 0), _plane(a, 1), _plane(b, 0), _plane(b, 1), segments, out)
     return out
+
+
+NEAR_SLACK = 1e-6
+"""Margin (m) of :func:`near_segments`: a hit point lies up to the kernels' segment-end slack and
+the sonar's restart nudge (1e-7 m) beyond a path's length; this margin covers both."""
+
+
+def near_segments(ox: np.ndarray, oy: np.ndarray, segments: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per origin ``(ox[o], oy[o])``, the indices of the ``segments (S, 4)`` (C-contiguous) within
+    ``reach`` (+ :data:`NEAR_SLACK`) by point-to-segment distance: ``idx[o, :cnt[o]]``, ascending."""
+    idx = np.empty((len(ox), len(segments)), dtype=np.int64)
+    cnt = np.empty(len(ox), dtype=np.int64)
+    kernels().near_segments(ox, oy, segments, float(reach) + NEAR_SLACK, idx, cnt)
+    return idx, cnt
 
 
 def disc_planes(centres, radii, owner, n_origins: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

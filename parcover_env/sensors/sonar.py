@@ -25,6 +25,7 @@ Geometry and conventions
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -41,9 +42,22 @@ _NUDGE = 1e-7
 """A reflected ray starts this far off the wall it left, so that it does not hit that wall again (m)."""
 
 
+@dataclass(frozen=True, eq=False)
+class _Walls:
+    """What the sonar kernels need of a wall set, derived once per set (read-only arrays)."""
+
+    segments: np.ndarray
+    """``(S, 4)`` C-contiguous."""
+    lengths: np.ndarray
+    """``(S,)`` length of each segment (m)."""
+    corners: tuple[np.ndarray, np.ndarray, np.ndarray]
+    """Corner vertices and their wall directions (:func:`concave_corners`)."""
+
+
 @lru_cache(maxsize=32)
-def _corner_table(seg_bytes: bytes, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _walls_of(seg_bytes: bytes, n: int) -> _Walls:
     segs = np.frombuffer(seg_bytes, dtype=float).reshape(n, 4)
+    lengths = np.hypot(segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1])
     ends: dict[tuple[float, float], list[np.ndarray]] = {}
     for x1, y1, x2, y2 in segs:
         a, b = (round(x1, 9), round(y1, 9)), (round(x2, 9), round(y2, 9))
@@ -63,19 +77,31 @@ def _corner_table(seg_bytes: bytes, n: int) -> tuple[np.ndarray, np.ndarray, np.
         pts.append(vv)
         u1s.append(u1)
         u2s.append(u2)
-    if not pts:
-        z = np.zeros((0, 2))
-        return z, z, z
-    return np.array(pts), np.array(u1s), np.array(u2s)
+    corners = (np.array(pts), np.array(u1s), np.array(u2s)) if pts else (np.zeros((0, 2)),) * 3
+    for a in (lengths, *corners):
+        a.setflags(write=False)
+    return _Walls(segs, lengths, corners)
+
+
+def _walls(segments: np.ndarray) -> _Walls:
+    seg = np.ascontiguousarray(np.asarray(segments, dtype=float).reshape(-1, 4))
+    return _walls_of(seg.tobytes(), len(seg))
 
 
 def concave_corners(segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vertices shared by exactly two non-collinear segments: ``(points (C,2), u1 (C,2), u2 (C,2))``
     with ``u1, u2`` the unit wall directions leaving the vertex. Whether a vertex is concave depends
     on the viewpoint: an echo needs the sensor strictly inside the < 180 deg wedge the two walls
-    span (:func:`simulate_beams`). Cached per segment array contents."""
-    seg = np.ascontiguousarray(segments, dtype=float)
-    return _corner_table(seg.tobytes(), len(seg))
+    span (:func:`simulate_beams`). Cached per segment array contents (read-only arrays)."""
+    return _walls(segments).corners
+
+
+@lru_cache(maxsize=32)
+def _subray_offsets(cone_deg: float, n_subrays: int) -> np.ndarray:
+    """Angles (rad) of a cone's sub-rays about its axis: ``n_subrays`` spread evenly over the cone."""
+    offsets = np.linspace(-0.5, 0.5, n_subrays) * math.radians(cone_deg)
+    offsets.setflags(write=False)
+    return offsets
 
 
 def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segments: np.ndarray,
@@ -86,28 +112,29 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     ``range_max`` (no echo) read ``range_max``."""
     n, b = axes.shape
     rmax = float(cfg.range_max)
-    specular = cfg.model == "specular"
-    offsets = (np.linspace(-0.5, 0.5, n_subrays) * math.radians(cfg.cone_deg)) if specular else np.zeros(1)
-    k = len(offsets)
-    ang = (axes[:, :, None] + offsets[None, None, :]).reshape(n, b * k)
-    dirs = np.stack([np.cos(ang), np.sin(ang)], axis=-1)  # a fan of b * k rays per origin
-    # one compiled pass over all sub-rays of all robots: walls, discs, incidence, second bounces
-    segments = np.ascontiguousarray(np.asarray(segments, dtype=float).reshape(-1, 4))
-    ox, oy, dx, dy, per = rays.ray_planes(origins, dirs)
-    cx, cy, r2, owner_ = rays.disc_planes(centres, float(radius), owner, n)
-    seg_len = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
-    specular = specular and len(segments) > 0
+    walls = _walls(segments)
+    offsets = _subray_offsets(float(cfg.cone_deg), n_subrays) if cfg.model == "specular" else _AXIS_ONLY
+    specular = cfg.model == "specular" and len(walls.segments) > 0
     cos_min = math.cos(math.radians(cfg.incidence_max_deg)) - 1e-12
-    out = np.empty(len(dx))
-    rays.kernels().sonar_echoes(ox, oy, dx, dy, per, segments, seg_len, cx, cy, r2, owner_, rmax, specular,
-                                bool(cfg.multipath), cos_min, _NUDGE, rays.BOX_CULL, out)
-    reading = out.reshape(n, b, k).min(axis=2)
-    if specular:
-        pts, u1, u2 = concave_corners(segments)
-        if len(pts):  # concave corners inside a cone retro-reflect (lowers ``reading`` in place)
-            rays.kernels().sonar_corner_echoes(ox, oy, np.ascontiguousarray(axes, dtype=float), pts, u1, u2,
-                                               segments, cx, cy, r2, owner_, rmax, _half_cone(cfg), reading)
-    return np.minimum(reading, rmax)
+    # one compiled pass over all sub-rays of all robots: walls, discs, incidence, second bounces
+    origins = np.asarray(origins, dtype=float).reshape(-1, 2)
+    ox, oy = np.ascontiguousarray(origins[:, 0]), np.ascontiguousarray(origins[:, 1])
+    axes = np.ascontiguousarray(axes, dtype=float)
+    cx, cy, r2, owner_ = rays.disc_planes(centres, float(radius), owner, n)
+    idx, cnt = rays.near_segments(ox, oy, walls.segments, rmax)
+    reading = np.empty((n, b))
+    kern = rays.kernels()
+    kern.sonar_echoes(ox, oy, axes, offsets, walls.segments, walls.lengths, idx, cnt, cx, cy, r2, owner_, rmax,
+                      specular, bool(cfg.multipath), cos_min, _NUDGE, rays.BOX_CULL, reading)
+    pts, u1, u2 = walls.corners
+    if specular and len(pts):  # concave corners inside a cone retro-reflect (lowers ``reading`` in place)
+        kern.sonar_corner_echoes(ox, oy, axes, pts, u1, u2, walls.segments, idx, cnt, cx, cy, r2, owner_, rmax,
+                                 _half_cone(cfg), reading)
+    return np.minimum(reading, rmax, out=reading)
+
+
+_AXIS_ONLY = np.zeros(1)
+"""Sub-ray offsets of the ``ray`` model: the beam axis alone."""
 
 
 def _half_cone(cfg: SonarConfig) -> float:
@@ -222,9 +249,10 @@ def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segm
     out = np.full((k, n, nb), np.inf)
     if n < 2:
         return out
-    segments = np.ascontiguousarray(np.asarray(segments, dtype=float).reshape(-1, 4))
+    segments = _walls(segments).segments
     px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
-    rays.kernels().sonar_crosstalk(px, py, pth, np.ascontiguousarray(beam_angles, dtype=float), segments,
+    idx, cnt = rays.near_segments(px.reshape(-1), py.reshape(-1), segments, 2 * float(cfg.range_max))
+    rays.kernels().sonar_crosstalk(px, py, pth, np.ascontiguousarray(beam_angles, dtype=float), segments, idx, cnt,
                                    _half_cone(cfg), float(cfg.range_max), out)
     return out
 

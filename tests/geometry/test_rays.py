@@ -209,3 +209,38 @@ def test_one_origin_shared_by_many_rays(cull):
     np.testing.assert_allclose(h.distance, [2.0, 2.0 / math.cos(math.radians(25)), np.inf])
     with pytest.raises(ValueError, match="do not match"):
         cast_rays(np.zeros((2, 2)), dirs, WALL)
+
+
+def test_near_segments_lists_the_segments_within_reach_by_point_to_segment_distance():
+    from parcover_env.geometry.rays import NEAR_SLACK, near_segments
+
+    segs = np.array([
+        [5.0, -1.0, 5.0, 1.0],    # 0: foot of the perpendicular inside, 5 m from the origin
+        [-1.0, 1.0, 1.0, 1.0],    # 1: 1 m above
+        [3.0, 4.0, 6.0, 8.0],     # 2: nearest point its end (3, 4): 5 m
+        [0.5, 0.0, 0.5, 0.0],     # 3: a point 0.5 m away
+        [-2.0, -2.0, 2.0, -2.0],  # 4: 2 m below
+    ])
+    idx, cnt = near_segments(np.array([0.0, 5.0]), np.array([0.0, 0.5]), segs, 2.0)
+    assert list(idx[0, :cnt[0]]) == [1, 3, 4]
+    assert list(idx[1, :cnt[1]]) == [0]  # (5, 0.5) lies on segment 0; (3, 4) is sqrt(16.25) away
+    idx, cnt = near_segments(np.array([0.0]), np.array([0.0]), segs, 5.0)
+    assert list(idx[0, :cnt[0]]) == [0, 1, 2, 3, 4]  # 5 m exactly is within
+    idx, cnt = near_segments(np.array([0.0]), np.array([0.0]), segs, 2.0 - 2 * NEAR_SLACK)
+    assert list(idx[0, :cnt[0]]) == [1, 3]  # segment 4 at 2 m is beyond
+    idx, cnt = near_segments(np.array([0.0]), np.array([0.0]), segs, math.inf)
+    assert cnt[0] == 5
+
+
+def test_in_cone_equals_the_wrapped_angle_test():
+    from parcover_env.geometry._ray_kernels import _in_cone
+    from parcover_env.geometry.angles import wrap_angle
+
+    rng = np.random.default_rng(0)
+    halves = [0.0, 1e-12, 0.26, math.pi / 2, math.pi - 1e-12, math.pi, 4.0]
+    edges = [h + s for h in halves for s in (-1e-15, 0.0, 1e-15)]
+    angles = np.concatenate([rng.uniform(-25, 25, 4000), edges, [e + 2 * math.pi * k for e in edges for k in (-3, 1, 2)],
+                             [-e for e in edges]])
+    for half in halves:
+        want = [bool(abs(wrap_angle(a)) <= half) for a in angles]
+        assert [bool(_in_cone(a, half)) for a in angles] == want

@@ -220,3 +220,33 @@ def test_crosstalk_batched_over_worlds_equals_each_world_alone():
     assert np.isinf(got[0, 0, 8])  # the beam pointing away hears nothing
     blocked = crosstalk(cfg, face, ring.beam_angles, np.array([[1.0, -1.0, 1.0, 1.0]]))
     assert np.isinf(blocked).all()
+
+
+@pytest.mark.parametrize("range_max", [0.8, 1.5, 3.0, 50.0])
+def test_near_wall_lists_change_no_reading(monkeypatch, range_max):
+    """The sonar kernels look walls up in each robot's list of those within reach; with every wall
+    listed instead, readings and cross-talk are the same bit for bit (also short ranges, where the
+    lists leave most walls out)."""
+    from parcover_env.geometry import rays
+    from parcover_env.sensors.sonar import crosstalk
+
+    cfg = SonarConfig(range_max=range_max, crosstalk_prob=0.5)
+    ring = SonarRing(cfg)
+    m = MapModel.from_config(T_ROOM)
+    rng = np.random.default_rng(5)
+    poses = np.concatenate([rng.uniform(0.2, 3.8, (3, 12, 2)), rng.uniform(-3, 3, (3, 12, 1))], axis=2)
+    ideal, heard = ring.ideal_batch(poses, m.segments, 0.1), crosstalk(cfg, poses, ring.beam_angles, m.segments)
+    scan = ring.scan(poses[0, 0], m.segments, poses[0, 1:, :2], 0.1, None)
+    counts = rays.near_segments(poses[..., 0].ravel(), poses[..., 1].ravel(), np.ascontiguousarray(m.segments),
+                                range_max)[1]
+
+    def every(ox, oy, segments, reach):
+        return np.tile(np.arange(len(segments)), (len(ox), 1)), np.full(len(ox), len(segments))
+
+    monkeypatch.setattr(rays, "near_segments", every)
+    assert np.array_equal(ring.ideal_batch(poses, m.segments, 0.1), ideal)
+    assert np.array_equal(crosstalk(cfg, poses, ring.beam_angles, m.segments), heard)
+    assert np.array_equal(ring.scan(poses[0, 0], m.segments, poses[0, 1:, :2], 0.1, None), scan)
+    if range_max < 1:
+        assert counts.mean() < 0.5 * len(m.segments)  # the lists do leave walls out
+    assert (ideal < range_max).any()
