@@ -82,6 +82,32 @@ def _disc_hit(x0, y0, ddx, ddy, cx, cy, row, r2, mine):
         ocy = y0 - cy[row, d]
         c = (ocx * ocx + ocy * ocy) - r2[d]
         b = ocx * ddx + ocy * ddy
+        if c > 0.0 and b >= 0.0:
+            continue  # starts outside, points away: -b - sqrt(b^2 - c) < 0
+        disc = b * b - c
+        if not disc >= 0.0:
+            continue
+        if c <= 0.0:
+            t = 0.0
+        else:
+            t = -b - math.sqrt(disc)
+            if not t >= 0.0:
+                continue
+        if t < best:
+            best = t
+    return best
+
+
+@njit(cache=True, inline="always")
+def _disc_hit_from(ddx, ddy, ocx, ocy, cc):
+    """:func:`_disc_hit` with the origin's disc terms ``oc = o - c`` and ``|oc|^2 - r^2`` computed
+    once for many rays (``cc`` = inf for a disc to skip); the same numbers."""
+    best = np.inf
+    for d in range(ocx.shape[0]):
+        c = cc[d]
+        b = ocx[d] * ddx + ocy[d] * ddy
+        if c > 0.0 and b >= 0.0:
+            continue  # starts outside, points away: -b - sqrt(b^2 - c) < 0
         disc = b * b - c
         if not disc >= 0.0:
             continue
@@ -191,6 +217,14 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
         y0 = oy[n]
         row = n if per_origin else 0
         near = idx[n, :cnt[n]]
+        n_discs = cx.shape[1]
+        ocx = np.empty(n_discs)
+        ocy = np.empty(n_discs)
+        cc = np.empty(n_discs)
+        for d in range(n_discs):
+            ocx[d] = x0 - cx[row, d]
+            ocy[d] = y0 - cy[row, d]
+            cc[d] = np.inf if d == owner[n] else (ocx[d] * ocx[d] + ocy[d] * ocy[d]) - r2[d]
         for b in range(axes.shape[1]):
             best = np.inf
             for j in range(offsets.shape[0]):
@@ -198,7 +232,7 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
                 ddx = math.cos(ang)
                 ddy = math.sin(ang)
                 t1, i1, den = _segment_hit(x0, y0, ddx, ddy, segs, near, rmax, cull, False)
-                td = _disc_hit(x0, y0, ddx, ddy, cx, cy, row, r2, owner[n])
+                td = _disc_hit_from(ddx, ddy, ocx, ocy, cc)
                 if not td <= rmax:
                     td = np.inf
                 if not (i1 >= 0 and t1 <= rmax):

@@ -181,11 +181,10 @@ class SonarRing:
             owner = np.arange(n) if include_robots else np.full(n, -1)
             ideal = simulate_beams(self.cfg, poses[:, :2], axes, segments, centres, robot_radius, owner,
                                    self.n_subrays)
-        if rng is not None and include_robots and n > 1 and self.cfg.crosstalk_prob > 0:
-            if heard is None:
-                heard = crosstalk(self.cfg, poses, self.beam_angles, segments)
-            ideal = np.where(rng.random(ideal.shape) < self.cfg.crosstalk_prob, np.minimum(ideal, heard), ideal)
-        return self.corrupt(ideal, rng).astype(np.float32)
+        talk = rng is not None and include_robots and n > 1 and self.cfg.crosstalk_prob > 0
+        if talk and heard is None:
+            heard = crosstalk(self.cfg, poses, self.beam_angles, segments)
+        return self._noisy(ideal, heard if talk else None, rng, np.float32)
 
     def ideal_batch(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float) -> np.ndarray:
         """Noise-free readings ``(K, N, B)`` of ``K`` worlds sharing the walls ``segments``, robots
@@ -217,22 +216,30 @@ class SonarRing:
 
     def corrupt(self, ideal: np.ndarray, rng: np.random.Generator | None) -> np.ndarray:
         """Dropouts below ``range_min``, noise, quantization, clamping and garbage readings applied
-        to noise-free ranges."""
+        to noise-free ranges (float64, shaped like ``ideal``)."""
+        return self._noisy(ideal, None, rng, np.float64)
+
+    def _noisy(self, ideal, heard: np.ndarray | None, rng: np.random.Generator | None, dtype) -> np.ndarray:
+        """Readings from noise-free ranges: cross-talk with ``heard`` (if given, at ``crosstalk_prob``),
+        then :meth:`corrupt`'s steps; one compiled pass drawing from ``rng``
+        (:func:`~parcover_env.sensors._sonar_kernels.ring_noise`)."""
+        from parcover_env.sensors import _sonar_kernels
+
         cfg = self.cfg
-        r = np.asarray(ideal, dtype=float)
-        if cfg.below_min == "drop":
-            r = np.where(r < cfg.range_min, cfg.range_max, r)
-        echo = r < cfg.range_max
-        if rng is not None and (cfg.noise_std > 0 or cfg.noise_rel > 0):
-            sigma = cfg.noise_std + cfg.noise_rel * r
-            r = np.where(echo, r + sigma * rng.standard_normal(r.shape), r)
-        if cfg.quantization > 0:
-            r = np.where(echo, np.round(r / cfg.quantization) * cfg.quantization, r)
-        r = np.clip(r, cfg.range_min, cfg.range_max)
-        if rng is not None and cfg.garbage_rate > 0:
-            bad = rng.random(r.shape) < cfg.garbage_rate
-            r = np.where(bad, rng.uniform(cfg.range_min, cfg.range_max, r.shape), r)
-        return r
+        ideal = np.asarray(ideal, dtype=float)
+        rows = np.ascontiguousarray(ideal.reshape(-1, ideal.shape[-1]) if ideal.ndim else ideal.reshape(1, 1))
+        out = np.empty(rows.shape, dtype=dtype)
+        talk = heard is not None
+        heard = np.ascontiguousarray(heard, dtype=float).reshape(rows.shape) if talk else rows
+        _sonar_kernels.ring_noise(rows, heard, float(cfg.crosstalk_prob) if talk else 0.0,
+                                  rng if rng is not None else _IDLE_RNG, rng is not None, float(cfg.range_min),
+                                  float(cfg.range_max), cfg.below_min == "drop", float(cfg.noise_std),
+                                  float(cfg.noise_rel), float(cfg.quantization), float(cfg.garbage_rate), out)
+        return out.reshape(ideal.shape)
+
+
+_IDLE_RNG = np.random.default_rng(0)
+"""Stands in for a missing generator in the noise kernel, which then draws nothing."""
 
 
 def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segments: np.ndarray) -> np.ndarray:

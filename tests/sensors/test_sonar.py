@@ -250,3 +250,44 @@ def test_near_wall_lists_change_no_reading(monkeypatch, range_max):
     if range_max < 1:
         assert counts.mean() < 0.5 * len(m.segments)  # the lists do leave walls out
     assert (ideal < range_max).any()
+
+
+def _numpy_noise(cfg, ideal, heard, rng):
+    """The ring's noise as numpy formulas (the reference of the compiled kernel): cross-talk, drop
+    or clip below range_min, Gaussian noise on echoes, quantization, clamping, garbage."""
+    r = np.asarray(ideal, dtype=float)
+    if heard is not None:
+        r = np.where(rng.random(r.shape) < cfg.crosstalk_prob, np.minimum(r, heard), r)
+    if cfg.below_min == "drop":
+        r = np.where(r < cfg.range_min, cfg.range_max, r)
+    echo = r < cfg.range_max
+    if rng is not None and (cfg.noise_std > 0 or cfg.noise_rel > 0):
+        r = np.where(echo, r + (cfg.noise_std + cfg.noise_rel * r) * rng.standard_normal(r.shape), r)
+    if cfg.quantization > 0:
+        r = np.where(echo, np.round(r / cfg.quantization) * cfg.quantization, r)
+    r = np.clip(r, cfg.range_min, cfg.range_max)
+    if rng is not None and cfg.garbage_rate > 0:
+        bad = rng.random(r.shape) < cfg.garbage_rate
+        r = np.where(bad, rng.uniform(cfg.range_min, cfg.range_max, r.shape), r)
+    return r
+
+
+@pytest.mark.parametrize("change", [{}, {"below_min": "clip"}, {"garbage_rate": 0.2}, {"quantization": 0.0},
+                                    {"noise_std": 0.0, "noise_rel": 0.0}, {"crosstalk_prob": 0.0}])
+def test_compiled_noise_equals_the_numpy_formulas_bit_for_bit(change):
+    cfg = replace(SonarConfig(crosstalk_prob=0.3, noise_std=0.02, noise_rel=0.03, quantization=0.005), **change)
+    ring = SonarRing(cfg)
+    draw = np.random.default_rng(4)
+    ideal = draw.uniform(0.0, cfg.range_max * 1.2, (9, ring.n_beams))
+    ideal[0, :3] = [cfg.range_min / 2, cfg.range_max, 0.0]
+    heard = np.where(draw.random(ideal.shape) < 0.5, draw.uniform(0.0, 2.0, ideal.shape), np.inf)
+    poses = np.zeros((9, 3))
+    talk = cfg.crosstalk_prob > 0
+    got = ring.measure(poses, np.zeros((0, 4)), 0.1, np.random.default_rng(8), ideal=ideal, heard=heard)
+    want = _numpy_noise(cfg, ideal, heard if talk else None, np.random.default_rng(8))
+    assert got.dtype == np.float32 and np.array_equal(got, want.astype(np.float32))
+    rng_a, rng_b = np.random.default_rng(1), np.random.default_rng(1)
+    scan = ring.corrupt(ideal[0], rng_a)  # 1-D, float64
+    assert scan.dtype == np.float64 and np.array_equal(scan, _numpy_noise(cfg, ideal[0], None, rng_b))
+    assert rng_a.random() == rng_b.random()  # the same number of draws
+    assert np.array_equal(ring.corrupt(ideal, None), _numpy_noise(cfg, ideal, None, None))
