@@ -7,11 +7,12 @@ of sight. No Kinect and no messages are involved.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from parcover_env.geometry import segments_blocked, wrap_angle
+from parcover_env.geometry import segments_blocked
 
 __all__ = ["RelativeCamera", "RelativeReading", "lines_of_sight_blocked"]
 
@@ -43,28 +44,22 @@ class RelativeCamera:
         """``poses (N, 3)`` true poses; ``predecessor (N,)`` index of the robot each one follows, -1 none.
         ``blocked (N,)``: whether a wall cuts each robot's line of sight to its predecessor, if
         already computed (:func:`lines_of_sight_blocked` over batched worlds)."""
-        n = len(poses)
-        rel_xy = np.zeros((n, 2))
-        rel_heading = np.zeros(n)
-        visible = np.zeros(n, dtype=bool)
-        f = np.flatnonzero(predecessor >= 0)
-        if len(f) == 0:
-            return RelativeReading(rel_xy, rel_heading, visible)
-        me, other = poses[f], poses[predecessor[f]]
-        delta = other[:, :2] - me[:, :2]
-        rng_true = np.hypot(delta[:, 0], delta[:, 1])
-        bearing = wrap_angle(np.arctan2(delta[:, 1], delta[:, 0]) - me[:, 2])
-        seen = (rng_true <= self.max_range) & (np.abs(bearing) <= np.radians(self.fov_deg) / 2)
-        seen &= ~(segments_blocked(me[:, :2], other[:, :2], segments) if blocked is None else blocked[f])
-        r = rng_true * (1.0 + self.range_noise * rng.standard_normal(len(f)))
-        b = bearing + self.bearing_noise * rng.standard_normal(len(f))
-        h = wrap_angle(other[:, 2] - me[:, 2] + self.heading_noise * rng.standard_normal(len(f)))
-        meas = np.stack([r * np.cos(b), r * np.sin(b)], axis=1)
-        rel_xy[f] = np.where(seen[:, None], meas, 0.0)
-        rel_heading[f] = np.where(seen, h, 0.0)
-        visible[f] = seen
-        return RelativeReading(rel_xy, rel_heading, visible)
+        from parcover_env.sensors import _onboard_kernels
 
+        poses = np.asarray(poses, dtype=float)
+        predecessor = np.ascontiguousarray(predecessor, dtype=np.int64)
+        n = len(poses)
+        if blocked is None:
+            blocked = np.zeros(n, dtype=bool)
+            f = np.flatnonzero(predecessor >= 0)
+            if len(f):
+                blocked[f] = segments_blocked(poses[f, :2], poses[predecessor[f], :2], segments)
+        rel_xy, rel_heading, visible = np.empty((n, 2)), np.empty(n), np.empty(n, dtype=bool)
+        px, py, pth = (np.ascontiguousarray(poses[:, c]) for c in range(3))
+        _onboard_kernels.camera_view(px, py, pth, predecessor, np.ascontiguousarray(blocked, dtype=bool), rng,
+                                     float(self.max_range), math.radians(self.fov_deg) / 2, float(self.range_noise),
+                                     float(self.bearing_noise), float(self.heading_noise), rel_xy, rel_heading, visible)
+        return RelativeReading(rel_xy, rel_heading, visible)
 
 
 def lines_of_sight_blocked(poses: np.ndarray, predecessor: np.ndarray, segments: np.ndarray) -> np.ndarray:

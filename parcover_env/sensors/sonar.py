@@ -222,8 +222,8 @@ class SonarRing:
     def _noisy(self, ideal, heard: np.ndarray | None, rng: np.random.Generator | None, dtype) -> np.ndarray:
         """Readings from noise-free ranges: cross-talk with ``heard`` (if given, at ``crosstalk_prob``),
         then :meth:`corrupt`'s steps; one compiled pass drawing from ``rng``
-        (:func:`~parcover_env.sensors._sonar_kernels.ring_noise`)."""
-        from parcover_env.sensors import _sonar_kernels
+        (:func:`~parcover_env.sensors._onboard_kernels.ring_noise`)."""
+        from parcover_env.sensors import _onboard_kernels
 
         cfg = self.cfg
         ideal = np.asarray(ideal, dtype=float)
@@ -231,7 +231,7 @@ class SonarRing:
         out = np.empty(rows.shape, dtype=dtype)
         talk = heard is not None
         heard = np.ascontiguousarray(heard, dtype=float).reshape(rows.shape) if talk else rows
-        _sonar_kernels.ring_noise(rows, heard, float(cfg.crosstalk_prob) if talk else 0.0,
+        _onboard_kernels.ring_noise(rows, heard, float(cfg.crosstalk_prob) if talk else 0.0,
                                   rng if rng is not None else _IDLE_RNG, rng is not None, float(cfg.range_min),
                                   float(cfg.range_max), cfg.below_min == "drop", float(cfg.noise_std),
                                   float(cfg.noise_rel), float(cfg.quantization), float(cfg.garbage_rate), out)

@@ -45,20 +45,15 @@ def test_negative_camera_noise_names_the_key(key):
         parcover_env.parallel_env("office", overrides={"formation": {key: -0.01}})
 
 
-class _Ones:
-    """A generator whose every standard normal is +1: pins the sign of each noise term."""
-
-    def standard_normal(self, n):
-        return np.ones(n)
-
-
 def test_each_noise_term_enters_with_its_sign_and_scale():
     poses = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.5]])
     cam = RelativeCamera(120.0, 2.5, range_noise=0.1, bearing_noise=0.05, heading_noise=0.2)
-    r = cam.measure(poses, np.array([1, -1]), NO_WALLS, _Ones())
-    dist = 2.0 * (1.0 + 0.1)  # sigma per metre, relative to the true range
-    np.testing.assert_allclose(r.rel_xy[0], [dist * np.cos(0.05), dist * np.sin(0.05)], atol=1e-12)
-    assert r.rel_heading[0] == pytest.approx(0.5 + 0.2)
+    seed = next(s for s in range(100) if (np.random.default_rng(s).standard_normal(3) > 0.5).all())
+    z1, z2, z3 = np.random.default_rng(seed).standard_normal(3)  # range, bearing, heading: all positive
+    r = cam.measure(poses, np.array([1, -1]), NO_WALLS, np.random.default_rng(seed))
+    dist = 2.0 * (1.0 + 0.1 * z1)  # sigma per metre, relative to the true range
+    np.testing.assert_allclose(r.rel_xy[0], [dist * np.cos(0.05 * z2), dist * np.sin(0.05 * z2)], atol=1e-12)
+    assert r.rel_heading[0] == pytest.approx(0.5 + 0.2 * z3)
 
 
 @pytest.mark.parametrize("ahead, walls, seen", [
@@ -86,3 +81,40 @@ def test_without_followers_the_reading_is_zeros_of_the_right_shape():
     r = RelativeCamera().measure(np.zeros((3, 3)), -np.ones(3, int), NO_WALLS, np.random.default_rng(0))
     assert r.rel_xy.shape == (3, 2) and r.rel_heading.shape == (3,) and r.visible.dtype == bool
     assert not r.rel_xy.any() and not r.rel_heading.any() and not r.visible.any()
+
+
+def _numpy_camera(cam, poses, predecessor, segments, rng):
+    """The camera as numpy formulas (the reference of the compiled kernel)."""
+    from parcover_env.geometry import segments_blocked, wrap_angle
+
+    n = len(poses)
+    rel_xy, rel_heading, visible = np.zeros((n, 2)), np.zeros(n), np.zeros(n, dtype=bool)
+    f = np.flatnonzero(predecessor >= 0)
+    me, other = poses[f], poses[predecessor[f]]
+    delta = other[:, :2] - me[:, :2]
+    dist = np.hypot(delta[:, 0], delta[:, 1])
+    bearing = wrap_angle(np.arctan2(delta[:, 1], delta[:, 0]) - me[:, 2])
+    seen = (dist <= cam.max_range) & (np.abs(bearing) <= np.radians(cam.fov_deg) / 2)
+    seen &= ~segments_blocked(me[:, :2], other[:, :2], segments)
+    r = dist * (1.0 + cam.range_noise * rng.standard_normal(len(f)))
+    b = bearing + cam.bearing_noise * rng.standard_normal(len(f))
+    h = wrap_angle(other[:, 2] - me[:, 2] + cam.heading_noise * rng.standard_normal(len(f)))
+    rel_xy[f] = np.where(seen[:, None], np.stack([r * np.cos(b), r * np.sin(b)], axis=1), 0.0)
+    rel_heading[f] = np.where(seen, h, 0.0)
+    visible[f] = seen
+    return rel_xy, rel_heading, visible
+
+
+def test_compiled_camera_equals_the_numpy_formulas_bit_for_bit():
+    cam = RelativeCamera(fov_deg=300.0, max_range=1.0, range_noise=0.05, bearing_noise=0.04, heading_noise=0.1)
+    draw = np.random.default_rng(3)
+    poses = np.concatenate([draw.uniform(0, 1.2, (40, 2)), draw.uniform(-4, 4, (40, 1))], axis=1)
+    predecessor = np.where(draw.random(40) < 0.8, draw.integers(0, 40, 40), -1)
+    walls = np.array([[0.6, 0.0, 0.6, 0.6]])
+    a, b = np.random.default_rng(6), np.random.default_rng(6)
+    got = cam.measure(poses, predecessor, walls, a)
+    want = _numpy_camera(cam, poses, predecessor, walls, b)
+    assert 5 < got.visible.sum() < 30  # some seen, some not
+    for g, w in zip((got.rel_xy, got.rel_heading, got.visible), want, strict=True):
+        assert np.array_equal(g, w)
+    assert a.random() == b.random()  # the same number of draws
