@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from parcover_env.geometry import wrap_angle
+from parcover_env.geometry import atan2, wrap_angle
 
 __all__ = ["LPsi", "relative_l_psi", "l_psi_control", "LeaderVelocityEstimator"]
 
@@ -37,7 +37,7 @@ def relative_l_psi(rel_xy, rel_heading: float, offset: float) -> LPsi:
     """l, psi, gamma from the leader's position ``rel_xy`` and heading in the follower's frame."""
     qx, qy = offset - rel_xy[0], -rel_xy[1]  # q - p_L, with q = (d, 0) in the follower frame
     l = float(np.hypot(qx, qy))
-    psi = float(wrap_angle(np.arctan2(qy, qx) - rel_heading))
+    psi = float(wrap_angle(atan2(qy, qx) - rel_heading))
     return LPsi(l, psi, float(wrap_angle(rel_heading + psi)))
 
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from parcover_env.geometry import atan2
+
 __all__ = ["go_to_goal"]
 
 
@@ -15,7 +17,7 @@ def go_to_goal(goal_xy: np.ndarray, max_speed: float, max_turn_rate: float, k_rh
     (turn in place toward goals behind), omega = k_alpha * alpha; both saturated.
     """
     rho = float(np.hypot(goal_xy[0], goal_xy[1]))
-    alpha = float(np.arctan2(goal_xy[1], goal_xy[0]))
+    alpha = float(atan2(goal_xy[1], goal_xy[0]))
     v = min(speed_scale * max_speed, k_rho * rho) * max(np.cos(alpha), 0.0) ** 2
     w = float(np.clip(k_alpha * alpha, -max_turn_rate, max_turn_rate))
     return float(np.clip(v, -max_speed, max_speed)), w

@@ -13,7 +13,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from parcover_env.geometry import wrap_angle
+from parcover_env.geometry import atan2, wrap_angle
 
 __all__ = ["EpisodeMetrics", "formation_errors", "MESSAGE_KINDS", "METRICS_PREFIX", "episode_metrics"]
 
@@ -30,7 +30,7 @@ def formation_errors(poses: np.ndarray, predecessor: np.ndarray, offset: float, 
     q = me[:, :2] + offset * np.stack([np.cos(me[:, 2]), np.sin(me[:, 2])], axis=1)
     d = q - lead[:, :2]
     l = np.hypot(d[:, 0], d[:, 1])
-    psi = np.arctan2(d[:, 1], d[:, 0]) - lead[:, 2]
+    psi = atan2(d[:, 1], d[:, 0]) - lead[:, 2]
     return l - l_d, wrap_angle(psi - psi_d)
 
 

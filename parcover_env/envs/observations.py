@@ -7,6 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 from gymnasium import spaces
 
+from parcover_env.geometry import atan2
+
 __all__ = ["ObservationLayout", "MAX_FIX_AGE", "ellipse_entries"]
 
 MAX_FIX_AGE = 60.0
@@ -19,7 +21,7 @@ def ellipse_entries(cov: np.ndarray, heading: np.ndarray) -> np.ndarray:
     circle), and the heading sigma (rad). ``heading``: the estimated headings ``(N,)``."""
     a, b, c = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
     mean, half = 0.5 * (a + c), np.hypot(0.5 * (a - c), b)
-    two_a = np.where(half <= 1e-9 * mean, 0.0, np.arctan2(2.0 * b, a - c) - 2.0 * heading)
+    two_a = np.where(half <= 1e-9 * mean, 0.0, atan2(2.0 * b, a - c) - 2.0 * heading)
     return np.stack([np.sqrt(np.maximum(mean + half, 0.0)), np.sqrt(np.maximum(mean - half, 0.0)),
                      np.cos(two_a), np.sin(two_a), np.sqrt(np.maximum(cov[:, 2, 2], 0.0))], axis=1)
 

@@ -31,7 +31,7 @@ from parcover_env.control.leader import go_to_goal
 from parcover_env.envs.observations import ObservationLayout
 from parcover_env.expert.avoidance import brake_factor
 from parcover_env.expert.sonar_fix import chain_pose, covariance_from_entries
-from parcover_env.geometry import rotate, segments_blocked, wrap_angle
+from parcover_env.geometry import atan2, rotate, segments_blocked, wrap_angle
 from parcover_env.geometry.poses import compose, inverse
 from parcover_env.geometry.rays import point_segment_distance
 from parcover_env.scenarios import Mission, RouteTracker
@@ -187,13 +187,13 @@ class ScriptedExpert:
 
     def _odom(self, obs: np.ndarray) -> np.ndarray:
         g = self.layout.get
-        return np.array([g(obs, "x")[0], g(obs, "y")[0], np.arctan2(g(obs, "sin_theta")[0], g(obs, "cos_theta")[0])])
+        return np.array([g(obs, "x")[0], g(obs, "y")[0], atan2(g(obs, "sin_theta")[0], g(obs, "cos_theta")[0])])
 
     def _ahead(self, obs: np.ndarray) -> np.ndarray:
         """The follower camera's measurement of the robot ahead, in the follower's frame: (dx, dy, heading)."""
         g = self.layout.get
         return np.array([g(obs, "pred_dx")[0], g(obs, "pred_dy")[0],
-                         np.arctan2(g(obs, "pred_sin")[0], g(obs, "pred_cos")[0])], dtype=float)
+                         atan2(g(obs, "pred_sin")[0], g(obs, "pred_cos")[0])], dtype=float)
 
     def _team_positions(self, observations: dict, agents: list[str], leaders: dict) -> np.ndarray:
         """``(N, 2)`` where the expert believes the robots are: a follower that sees the robot ahead
@@ -253,7 +253,7 @@ class ScriptedExpert:
     def _follow(self, agent: str, obs: np.ndarray) -> tuple[float, float]:
         g, f = self.layout.get, self.scenario.formation
         rel = np.array([g(obs, "pred_dx")[0], g(obs, "pred_dy")[0]])
-        heading = float(np.arctan2(g(obs, "pred_sin")[0], g(obs, "pred_cos")[0]))
+        heading = float(atan2(g(obs, "pred_sin")[0], g(obs, "pred_cos")[0]))
         est = self.estimators.setdefault(agent, LeaderVelocityEstimator(self.dt))
         v_l, w_l = est.update(rel, heading, float(g(obs, "v")[0]), float(g(obs, "omega")[0]))
         m = relative_l_psi(rel, heading, f.offset)

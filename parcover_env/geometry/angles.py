@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-__all__ = ["wrap_angle", "rotate"]
+__all__ = ["wrap_angle", "rotate", "atan2"]
 
 
 def wrap_angle(a):
@@ -17,3 +19,20 @@ def rotate(v: np.ndarray, theta) -> np.ndarray:
     c, s = np.cos(theta), np.sin(theta)
     x, y = v[..., 0], v[..., 1]
     return np.stack([c * x - s * y, s * x + c * y], axis=-1)
+
+
+def atan2(y, x):
+    """``arctan2(y, x)`` (rad, broadcast) with the same bits on every CPU.
+
+    numpy's ``arctan2`` takes a SIMD path on CPUs with AVX-512 whose last bits differ from libm's,
+    which it uses on other CPUs; a rollout must not depend on the CPU it ran on, so scalars go to
+    ``math.atan2`` and arrays to a compiled loop over it (libm either way)."""
+    if np.ndim(y) == 0 and np.ndim(x) == 0:
+        return np.float64(math.atan2(float(y), float(x)))
+    from parcover_env.geometry import _libm_kernels
+
+    yy, xx = np.broadcast_arrays(np.asarray(y, dtype=float), np.asarray(x, dtype=float))
+    out = np.empty(yy.shape)
+    _libm_kernels.atan2_into(np.ascontiguousarray(yy).reshape(-1), np.ascontiguousarray(xx).reshape(-1),
+                             out.reshape(-1))
+    return out

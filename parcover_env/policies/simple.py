@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from parcover_env.envs.observations import ObservationLayout
+from parcover_env.geometry import atan2
 
 __all__ = ["RandomPolicy", "WaypointPolicy"]
 
@@ -34,7 +35,7 @@ class WaypointPolicy:
         for agent, obs in observations.items():
             dx = float(self.layout.get(obs, "goal_dx")[0])
             dy = float(self.layout.get(obs, "goal_dy")[0])
-            bearing = np.arctan2(dy, dx)
+            bearing = atan2(dy, dx)
             dist = np.hypot(dx, dy)
             v = np.clip(self.k_v * dist, 0.0, 1.0) * max(np.cos(bearing), 0.0) ** 2
             w = np.clip(self.k_w * bearing, -1.0, 1.0)

@@ -8,6 +8,7 @@ import numpy as np
 import shapely
 
 from parcover_env.errors import ConfigError
+from parcover_env.geometry import atan2
 from parcover_env.world.map_model import MapModel
 
 __all__ = ["start_poses", "queue_poses"]
@@ -28,7 +29,7 @@ def queue_poses(map_model: MapModel, queue, n: int, radius: float, spacing: floa
     k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1)
     u = (s - cum[k]) / np.where(seg_len[k] > 0, seg_len[k], 1.0)
     xy = pts[k] + u[:, None] * seg[k]
-    heading = np.arctan2(-seg[k, 1], -seg[k, 0])  # facing back up the queue, toward the start
+    heading = atan2(-seg[k, 1], -seg[k, 0])  # facing back up the queue, toward the start
     ok = map_model.contains(xy, margin=radius)
     if not ok.all():
         i = int(np.flatnonzero(~ok)[0])

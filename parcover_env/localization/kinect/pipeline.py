@@ -391,8 +391,7 @@ def estimate_fast(sensor: KinectSensor, poses, marker_mask, rng: np.random.Gener
     dropped at ``drop_rate``. The estimate is the true pose plus Gaussian noise whose scale
     (``noise``, in pixels) was measured on the full pipeline, so both paths agree statistically.
     """
-    poses, mask = sensor._check_inputs(poses, marker_mask)
-    return _estimate_checked(sensor, poses, mask, rng, noise or FastNoise(), stamp)
+    return estimate_fast_all([sensor], poses, marker_mask, rng, noise, stamp)[0]
 
 
 def estimate_fast_all(sensors: list[KinectSensor], poses, marker_mask, rng: np.random.Generator,
@@ -402,92 +401,74 @@ def estimate_fast_all(sensors: list[KinectSensor], poses, marker_mask, rng: np.r
     if not sensors:
         return []
     poses, mask = sensors[0]._check_inputs(poses, marker_mask)
-    nz = noise or FastNoise()
-    return [_estimate_checked(sensor, poses, mask, rng, nz, stamp) for sensor in sensors]
+    return FastModel(sensors, noise).estimate(range(len(sensors)), poses, mask, rng, stamp)
 
 
-def _estimate_checked(sensor: KinectSensor, poses: np.ndarray, mask: np.ndarray, rng: np.random.Generator,
-                      nz: FastNoise, stamp: float) -> list[PoseEstimate]:
-    """Body of :func:`estimate_fast` on checked inputs."""
-    if sensor.cfg.drop_rate > 0 and rng.random() < sensor.cfg.drop_rate:
-        return []
-    idx = np.flatnonzero(mask)
-    box = _view_box(sensor)
-    if box is not None and len(idx):  # cheap, conservative reject of carriers far outside the view
-        px, py = poses[idx, 0], poses[idx, 1]
-        idx = idx[(px >= box[0]) & (px <= box[2]) & (py >= box[1]) & (py <= box[3])]
-    if len(idx) == 0:
-        return []
-    cam = sensor.true_camera  # what the mounted camera really sees
-    pat = sensor.pattern
-    m, k = len(idx), len(pat)
-    # every marker of every carrier projected at once (geometry first, then the random draws in
-    # robot order, exactly as a per-robot loop would draw them)
-    cs = np.array([(math.cos(th), math.sin(th)) for th in poses[idx, 2].tolist()]).reshape(m, 2)
-    c, s = cs[:, 0:1], cs[:, 1:2]
-    x, y = poses[idx, 0:1], poses[idx, 1:2]
-    world = np.empty((m, k, 3))
-    world[..., 0] = x + c * pat[:, 0] - s * pat[:, 1]
-    world[..., 1] = y + s * pat[:, 0] + c * pat[:, 1]
-    world[..., 2] = sensor.robot_height
-    uv, z = cam.project(world.reshape(-1, 3))
-    uv, z = uv.reshape(m, k, 2), z.reshape(m, k)
-    h, w = sensor.shape
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r_px = sensor.marker_radius * cam.focal / z + nz.margin_px
-        ok = np.all(z > 0, axis=1)
-        ok &= np.all((uv[..., 0] - r_px >= 0) & (uv[..., 0] + r_px <= w - 1)
-                     & (uv[..., 1] - r_px >= 0) & (uv[..., 1] + r_px <= h - 1), axis=1)
-        ok &= np.all((z >= cam.range_min) & (z <= cam.range_max), axis=1)
-    rows = np.flatnonzero(ok)
-    if len(rows):  # hidden by a wall top (static depth nearer than a marker)?
-        iu, iv = np.rint(uv[rows, :, 0]).astype(int), np.rint(uv[rows, :, 1]).astype(int)
-        rows = rows[~np.any(sensor.nominal_static_depth[iv, iu] < z[rows] - 1e-6, axis=1)]
-    out: list[PoseEstimate] = []
-    if len(rows) == 0:
-        return out
-    span = float(np.ptp(pat[:, 0])) or 0.1
-    seen = _as_seen_by_nominal(sensor, poses) if sensor.true_camera is not sensor.camera else poses
-    z_max, z_mean = z.max(axis=1).tolist(), z.mean(axis=1).tolist()
-    for r in rows.tolist():
-        r_marker = sensor.marker_radius * cam.focal / z_max[r]
-        p_det = min(max((r_marker - nz.r_px_min) / (nz.r_px_full - nz.r_px_min), 0.0), 1.0)
-        if not _resolvable(sensor, z_max[r]) or rng.random() >= p_det:
-            continue
-        mpp = z_mean[r] / cam.focal * (NATIVE_WIDTH / w) ** nz.res_exponent
-        ex, ey = rng.normal(0.0, nz.pos_px * mpp, size=2)
-        eth = rng.normal(0.0, nz.heading_px * mpp / span)
-        i = int(idx[r])
-        xi, yi, th = seen[i]
-        out.append(PoseEstimate(float(xi + ex), float(yi + ey), float(wrap_angle(th + eth)), k,
-                                kinect=sensor.name, stamp=stamp, truth_index=i))
-    return out
+class FastModel:
+    """The estimate model (:func:`estimate_fast`) of a set of Kinects: their constants stacked once
+    for one compiled call per step (:func:`~parcover_env.localization.kinect._estimate_kernel.
+    estimate`). Build it again after a sensor is remounted."""
+
+    def __init__(self, sensors: list[KinectSensor], noise: FastNoise | None = None):
+        self.sensors = list(sensors)
+        nz = noise or FastNoise()
+        boxes = [_view_box(s) for s in self.sensors]
+        self.box = np.array([b if b is not None else (0.0,) * 4 for b in boxes], dtype=float).reshape(-1, 4)
+        self.use_box = np.array([b is not None for b in boxes], dtype=bool)
+        self.pattern = np.stack([np.asarray(s.pattern, dtype=float) for s in self.sensors])
+        true_cams, nominal = [s.true_camera for s in self.sensors], [s.camera for s in self.sensors]
+        self.true_R, self.true_C, self.true_K = _stacked(true_cams)
+        self.nom_R, self.nom_C, self.nom_K = _stacked(nominal)
+        self.remounted = np.array([t is not c for t, c in zip(true_cams, nominal, strict=True)], dtype=bool)
+        self.depths = tuple(np.ascontiguousarray(s.nominal_static_depth, dtype=float) for s in self.sensors)
+        self.size = np.array([(s.shape[1], s.shape[0]) for s in self.sensors], dtype=np.int64)
+        self.scal = np.array([(s.marker_radius, s.robot_height, s.true_camera.range_min, s.true_camera.range_max,
+                               s.cfg.drop_rate, _pattern_gap(s), (NATIVE_WIDTH / s.shape[1]) ** nz.res_exponent,
+                               float(np.ptp(s.pattern[:, 0])) or 0.1) for s in self.sensors], dtype=float)
+        self.noise = np.array([nz.margin_px, _CLOSE_KSIZE - 2, nz.r_px_min, nz.r_px_full, nz.pos_px, nz.heading_px])
+
+    def estimate(self, due, poses: np.ndarray, mask: np.ndarray, rng: np.random.Generator,
+                 stamp: float = 0.0) -> list[list[PoseEstimate]]:
+        """Estimates of the Kinects ``due`` (indices into ``sensors``, in that order) of the
+        marker carriers ``mask`` among the checked true ``poses (N, 3)``: one list per Kinect."""
+        from parcover_env.localization.kinect import _estimate_kernel
+
+        due = np.asarray(due, dtype=np.int64).reshape(-1)
+        carriers = np.flatnonzero(mask)
+        cap = len(due) * len(carriers)
+        out_sensor, out_index, out_pose = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((cap, 3))
+        n = _estimate_kernel.estimate(due, np.ascontiguousarray(poses, dtype=float), carriers, self.box,
+                                      self.use_box, self.pattern, self.true_R, self.true_C, self.true_K, self.nom_R,
+                                      self.nom_C, self.nom_K, self.remounted, self.depths, self.size, self.scal,
+                                      self.noise, rng, out_sensor, out_index, out_pose)
+        per: list[list[PoseEstimate]] = [[] for _ in due]
+        k = self.pattern.shape[1]
+        for p, i, (x, y, th) in zip(out_sensor[:n].tolist(), out_index[:n].tolist(), out_pose[:n].tolist(),
+                                    strict=True):
+            per[p].append(PoseEstimate(x, y, th, k, kinect=self.sensors[due[p]].name, stamp=stamp, truth_index=i))
+        return per
 
 
-def _as_seen_by_nominal(sensor: KinectSensor, poses: np.ndarray) -> np.ndarray:
-    """Poses ``(N, 3)`` as the pipeline reconstructs them: the robot's top centre and a point ahead
-    imaged by the true (mis-mounted) camera, back-projected onto the marker plane with the nominal
-    camera the pipeline believes in. Carries the mounting error into the fast path."""
-    n = len(poses)
-    pts = np.empty((2 * n, 3))  # centres, then the points 0.1 m ahead, at the markers' height
-    pts[:n, :2] = poses[:, :2]
-    pts[n:, 0] = poses[:, 0] + 0.1 * np.cos(poses[:, 2])
-    pts[n:, 1] = poses[:, 1] + 0.1 * np.sin(poses[:, 2])
-    pts[:, 2] = sensor.robot_height
-    uv, _ = sensor.true_camera.project(pts)
-    back, _ = sensor.camera.intersect_plane(uv, sensor.robot_height)
-    c, a = back[:n, :2], back[n:, :2]
-    return np.column_stack([c, np.arctan2(a[:, 1] - c[:, 1], a[:, 0] - c[:, 0])])
+_CLOSE_KSIZE = 5
+"""The pipeline's closing kernel (px): markers whose gap is under ``_CLOSE_KSIZE - 2`` px merge
+(gaps of >= 3 px keep at least 3 markers apart in the full pipeline: checked on ``tree``)."""
+
+
+def _stacked(cams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rotations ``(S, 3, 3)``, centres ``(S, 3)`` and intrinsics ``(S, 4)`` (fu, fv, cu, cv) of cameras."""
+    return (np.stack([np.asarray(c.R, dtype=float) for c in cams]),
+            np.stack([np.asarray(c.C, dtype=float) for c in cams]),
+            np.array([(c.K[0, 0], c.K[1, 1], c.K[0, 2], c.K[1, 2]) for c in cams], dtype=float))
 
 
 def _sensor_cache(sensor: KinectSensor) -> dict:
     """Per-sensor cache of static quantities, dropped if the camera, pattern or height change."""
-    key = (id(sensor.true_camera), sensor.pattern.tobytes(), sensor.marker_radius, sensor.robot_height)
+    cam, key = sensor.true_camera, (sensor.pattern.tobytes(), sensor.marker_radius, sensor.robot_height)
     entry = _STATIC.get(sensor)
-    if entry is None or entry[0] != key:
-        entry = (key, {})
+    if entry is None or entry[0] is not cam or entry[1] != key:  # the camera itself, not its id (reused)
+        entry = (cam, key, {})
         _STATIC[sensor] = entry
-    return entry[1]
+    return entry[2]
 
 
 def _pattern_gap(sensor: KinectSensor) -> float:
@@ -519,11 +500,3 @@ def _view_box(sensor: KinectSensor) -> tuple[float, float, float, float] | None:
             box = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
         cache["box"] = box
     return cache["box"]
-
-
-def _resolvable(sensor: KinectSensor, z: float, close_ksize: int = 5) -> bool:
-    """Whether markers at depth ``z`` stay apart enough for the pattern fit after the 5x5 closing
-    (gaps of >= 3 px keep at least 3 markers apart in the full pipeline: checked on ``tree``)."""
-    ppm = sensor.camera.focal / z
-    gap_px = _pattern_gap(sensor) * ppm
-    return gap_px >= close_ksize - 2

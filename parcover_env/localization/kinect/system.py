@@ -24,7 +24,7 @@ import shapely
 
 from parcover_env.config import Scenario
 from parcover_env.geometry.poses import compose, inverse
-from parcover_env.localization.kinect.pipeline import PipelineParams, estimate_fast_all, estimate_poses
+from parcover_env.localization.kinect.pipeline import FastModel, PipelineParams, estimate_poses
 from parcover_env.localization.kinect.tracker import KinectTracker
 from parcover_env.sensors.kinect import KinectFrame, KinectSensor, may_see_all
 from parcover_env.world.map_model import MapModel
@@ -77,6 +77,8 @@ class KinectSystem:
         if rng is not None:
             for sensor in self.sensors:
                 sensor.mount(rng)
+        self.fast = FastModel(self.sensors) if self.mode != "frames" and self.sensors else None
+        """The estimate model of the Kinects as mounted (rebuilt at every remount)."""
         t = self.tracking
         self.tracker = KinectTracker(gate=t.gate, fuse_radius=t.fuse_radius)
         self.next_tick = np.zeros(len(self.sensors))
@@ -100,10 +102,11 @@ class KinectSystem:
         if len(due) == 0 or not markers.any():
             self.next_tick[due] = time + self.periods[due]
             return {}
-        due_sensors = [self.sensors[k] for k in due]
-        if self.mode != "frames":
-            per_kinect = estimate_fast_all(due_sensors, true_poses, markers, rng, stamp=time)
+        if self.fast is not None:
+            poses, mask = self.sensors[0]._check_inputs(true_poses, markers)
+            per_kinect = self.fast.estimate(due, poses, mask, rng, stamp=time)
         else:
+            due_sensors = [self.sensors[k] for k in due]
             per_kinect = []
             for sensor, seeing in zip(due_sensors, may_see_all(due_sensors, true_poses, markers).tolist(),
                                       strict=True):

@@ -15,7 +15,7 @@ import numpy as np
 from shapely.geometry import Polygon
 from shapely.geometry.polygon import orient
 
-from parcover_env.geometry import wrap_angle
+from parcover_env.geometry import atan2, wrap_angle
 from parcover_env.localization.sonar.params import SonarLocalizerParams
 
 __all__ = ["MapFeature", "map_features", "ScanPoints", "WallObservation", "CornerObservation",
@@ -175,7 +175,7 @@ def _plateau(r, far, i, tol) -> list[int]:
 
 
 def _circular_mean(angles) -> float:
-    return float(np.arctan2(np.mean(np.sin(angles)), np.mean(np.cos(angles))))
+    return float(atan2(np.mean(np.sin(angles)), np.mean(np.cos(angles))))
 
 
 def _plateau_bearing(r, a, far, i, tol) -> float:
@@ -197,7 +197,7 @@ def _wall_observation(r, a, far, i, p: SonarLocalizerParams) -> WallObservation:
         if normal @ centre < 0:
             normal = -normal
         rms = s[1] / np.sqrt(len(idx))
-        if rms < p.line_tol and abs(wrap_angle(np.arctan2(normal[1], normal[0]) - bearing)) \
+        if rms < p.line_tol and abs(wrap_angle(atan2(normal[1], normal[0]) - bearing)) \
                 < np.radians(20.0):
-            bearing = float(np.arctan2(normal[1], normal[0]))
+            bearing = float(atan2(normal[1], normal[0]))
     return WallObservation(bearing, float(r[i]), int(i))

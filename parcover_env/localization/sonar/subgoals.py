@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from parcover_env.geometry import wrap_angle
+from parcover_env.geometry import atan2, wrap_angle
 from parcover_env.localization.sonar.features import MapFeature
 from parcover_env.localization.sonar.sectors import visible_features
 
@@ -92,8 +92,8 @@ def scan_bias(nodes, features: list[MapFeature]) -> np.ndarray:
     c = np.stack([f.point for f in features])
     w = np.stack([f.walls for f in features])  # (F, 2, 2)
     v = xy[:, None, :] - c[None, :, :]
-    phi = np.arctan2(v[..., 1], v[..., 0])
-    a1, a2 = np.arctan2(w[:, 0, 1], w[:, 0, 0]), np.arctan2(w[:, 1, 1], w[:, 1, 0])
+    phi = atan2(v[..., 1], v[..., 0])
+    a1, a2 = atan2(w[:, 0, 1], w[:, 0, 0]), atan2(w[:, 1, 1], w[:, 1, 0])
     t1 = np.abs(wrap_angle(phi - a1[None, :]))
     t2 = np.abs(wrap_angle(phi - a2[None, :]))
     return np.abs(t1 - t2)
@@ -123,8 +123,8 @@ def wall_readings(nodes, feature: MapFeature, range_max: float, step: float,
         lo, hi, ok = _echo_span(xy, feature, k, range_max, incidence_max)
         p_lo = feature.point + lo[:, None] * feature.walls[k]
         p_hi = feature.point + hi[:, None] * feature.walls[k]
-        a_lo = np.arctan2(*(p_lo - xy)[:, ::-1].T)
-        a_hi = np.arctan2(*(p_hi - xy)[:, ::-1].T)
+        a_lo = atan2(*(p_lo - xy)[:, ::-1].T)
+        a_hi = atan2(*(p_hi - xy)[:, ::-1].T)
         span = np.abs(wrap_angle(a_hi - a_lo))
         out[:, k] = np.where(ok, np.floor(span / step) + 1.0, 0.0)
     return out
