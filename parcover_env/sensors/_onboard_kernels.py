@@ -102,3 +102,63 @@ def camera_view(px, py, pth, predecessor, blocked, rng, max_range, half_fov, ran
             rel_heading[i] = _wrap(pth[j] - pth[i] + heading_noise * z3[k])
             visible[i] = True
         k += 1
+
+
+@njit(cache=True, nogil=True)
+def wheel_odometry(est, cov, travelled, turned, travel, speed_change, dt, rng, factors, believed_base, wheel_base,
+                   slip_accel, slip_turn, wheel_variance, cov_wheel_variance):
+    """One control step of the ``wheels`` odometry
+    (:meth:`parcover_env.sensors.odometry.Odometry.measure_wheels`), in place on the estimates
+    ``est (N, 3)``, covariances ``cov (N, 3, 3)`` and the ``travelled``/``turned`` sums. Draws one
+    ``(2, N, 2)`` array of standard normals: the slip factors, then the random wheel errors."""
+    n = est.shape[0]
+    z = rng.standard_normal(4 * n)
+    for i in range(n):
+        d0 = travel[i, 0]
+        d1 = travel[i, 1]
+        turn_rate = abs(d1 - d0) / (wheel_base * dt)
+        read0 = 0.0
+        read1 = 0.0
+        for w in range(2):
+            d = travel[i, w]
+            slip = abs(z[2 * i + w]) * (slip_accel * speed_change[i, w] / dt + slip_turn * turn_rate)
+            read = d * factors[i, w] * (1.0 + slip) + math.sqrt(wheel_variance * abs(d)) * z[2 * n + 2 * i + w]
+            if w == 0:
+                read0 = read
+            else:
+                read1 = read
+        base = believed_base[i]
+        ds = 0.5 * (read0 + read1)
+        dth = (read1 - read0) / base
+        var_l = cov_wheel_variance * abs(read0)
+        var_r = cov_wheel_variance * abs(read1)
+        q00 = 0.25 * (var_l + var_r)
+        q11 = (var_l + var_r) / (base * base)
+        q01 = 0.5 * (var_r - var_l) / base
+        mid = est[i, 2] + 0.5 * dth
+        c = math.cos(mid)
+        s = math.sin(mid)
+        _propagate(cov[i], -ds * s, ds * c, c, -0.5 * ds * s, s, 0.5 * ds * c, q00, q01, q11)
+        est[i, 0] += ds * c
+        est[i, 1] += ds * s
+        est[i, 2] = _wrap(est[i, 2] + dth)
+        travelled[i] += abs(ds)
+        turned[i] += abs(dth)
+
+
+@njit(cache=True, inline="always")
+def _propagate(p, a, b, g00, g01, g10, g11, q00, q01, q11):
+    """``p := F p F^T + G Q G^T`` for ``F = [[1, 0, a], [0, 1, b], [0, 0, 1]]``,
+    ``G = [[g00, g01], [g10, g11], [0, 1]]`` and the symmetric ``Q = [[q00, q01], [q01, q11]]``."""
+    fp = np.empty((3, 3))
+    for j in range(3):
+        fp[0, j] = p[0, j] + a * p[2, j]
+        fp[1, j] = p[1, j] + b * p[2, j]
+        fp[2, j] = p[2, j]
+    g = ((g00, g01), (g10, g11), (0.0, 1.0))
+    for i in range(3):
+        gq0 = g[i][0] * q00 + g[i][1] * q01
+        gq1 = g[i][0] * q01 + g[i][1] * q11
+        row = (fp[i, 0] + a * fp[i, 2], fp[i, 1] + b * fp[i, 2], fp[i, 2])
+        for j in range(3):
+            p[i, j] = row[j] + (gq0 * g[j][0] + gq1 * g[j][1])

@@ -138,18 +138,14 @@ class Odometry:
         ``travel`` ``(N, 2)``: each wheel's true ground distance (m) over the step of ``dt`` s;
         ``speed_change`` ``(N, 2)``: the summed |speed changes| of each wheel (m/s) over it.
         """
+        from parcover_env.sensors import _onboard_kernels
+
         c = self.cfg
-        d = np.asarray(travel, dtype=float)
-        z = rng.standard_normal((2,) + d.shape)
-        turn_rate = np.abs(d[:, 1] - d[:, 0]) / (self.wheel_base * dt)
-        slip = np.abs(z[0]) * (c.slip_accel * np.asarray(speed_change) / dt + c.slip_turn * turn_rate[:, None])
-        dist = np.abs(d)
-        read = d * self.factors * (1.0 + slip) + np.sqrt(c.wheel_variance * dist) * z[1]
-        base = self.believed_base
-        ds = 0.5 * (read[:, 0] + read[:, 1])
-        dth = (read[:, 1] - read[:, 0]) / base
-        var = c.covariance_wheel_variance * np.abs(read)
-        self._advance(ds, dth, wheel_increment_cov(var[:, 0], var[:, 1], base))
+        _onboard_kernels.wheel_odometry(self.estimate, self.covariance, self.travelled, self.turned,
+                                        np.ascontiguousarray(travel, dtype=float),
+                                        np.ascontiguousarray(speed_change, dtype=float), float(dt), rng, self.factors,
+                                        self.believed_base, self.wheel_base, float(c.slip_accel), float(c.slip_turn),
+                                        float(c.wheel_variance), float(c.covariance_wheel_variance))
         return self.estimate
 
     def _advance(self, ds: np.ndarray, dth: np.ndarray, q: np.ndarray) -> None:
