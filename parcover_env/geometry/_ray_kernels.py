@@ -231,7 +231,9 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
                 ang = axes[n, b] + offsets[j]
                 ddx = math.cos(ang)
                 ddy = math.sin(ang)
-                t1, i1, den = _segment_hit(x0, y0, ddx, ddy, segs, near, rmax, cull, False)
+                # an echo is never nearer than the sub-ray's first wall or disc, so walls beyond the
+                # cone's nearest echo so far (``best``) are culled and mirrored legs from there skipped
+                t1, i1, den = _segment_hit(x0, y0, ddx, ddy, segs, near, min(rmax, best), cull, False)
                 td = _disc_hit_from(ddx, ddy, ocx, ocy, cc)
                 if not td <= rmax:
                     td = np.inf
@@ -244,7 +246,7 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
                     echo = td
                 elif _incidence(den, seg_len, i1) >= cos_min:
                     echo = t1
-                elif multipath and i1 >= 0:  # mirrored by an oblique wall: the second leg
+                elif multipath and i1 >= 0 and t1 < best:  # mirrored by an oblique wall: the second leg
                     echo = _second_leg(x0, y0, ddx, ddy, t1, i1, segs, seg_len, near, cx, cy, row, r2,
                                        owner[n], rmax, cos_min, nudge, box_cull)
                 else:
