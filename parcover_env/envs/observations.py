@@ -9,10 +9,16 @@ from gymnasium import spaces
 
 from parcover_env.geometry import atan2
 
-__all__ = ["ObservationLayout", "MAX_FIX_AGE", "ellipse_entries"]
+__all__ = ["ObservationLayout", "MAX_FIX_AGE", "SCALAR_ENTRIES", "ellipse_entries"]
 
 MAX_FIX_AGE = 60.0
 """Seconds since the last absolute pose fix are reported capped at this value."""
+
+
+SCALAR_ENTRIES = ("x", "y", "cos_theta", "sin_theta", "v", "omega", "leader", "slot", "fix_age", "sigma_major",
+                  "sigma_minor", "sigma_axis_cos2", "sigma_axis_sin2", "sigma_heading", "goal_dx", "goal_dy",
+                  "pred_dx", "pred_dy", "pred_cos", "pred_sin", "pred_visible", "kpois_visited", "time")
+"""The one-column entries :meth:`ObservationLayout.fill_scalars` writes (all but the sonar)."""
 
 
 def ellipse_entries(cov: np.ndarray, heading: np.ndarray) -> np.ndarray:
@@ -78,6 +84,29 @@ class ObservationLayout:
         """Clip ``(N, D)`` observations into the bounds in place."""
         np.clip(obs, self.low, self.high, out=obs)
         return obs
+
+    def fill_scalars(self, obs: np.ndarray, est: np.ndarray, velocity: np.ndarray, leader: np.ndarray,
+                     slot: np.ndarray, fix_age: np.ndarray, covariance: np.ndarray, goals: np.ndarray,
+                     rel_xy: np.ndarray, rel_heading: np.ndarray, visible: np.ndarray, kpois_visited: float,
+                     time: float) -> None:
+        """Write the :data:`SCALAR_ENTRIES` of every robot's row of ``obs (N, D)`` in one compiled
+        pass: pose estimate ``est (N, 3)``, ``velocity (N, 2)`` (v, omega), leader flags, formation
+        slots (scaled by ``N - 1``), seconds since the last fix (capped at :data:`MAX_FIX_AGE`), the
+        ellipse of ``covariance (N, 3, 3)`` (:func:`ellipse_entries`), the lookahead ``goals (N, 2)``
+        in the robot frame, the follower camera's reading, and two team-wide fractions."""
+        from parcover_env.envs import _observation_kernel
+
+        n = len(obs)
+        _observation_kernel.scalar_entries(obs, self._columns(), est, velocity, leader, slot, max(n - 1, 1), fix_age,
+                                           MAX_FIX_AGE, covariance, goals, rel_xy, rel_heading, visible,
+                                           float(kpois_visited), float(time))
+
+    def _columns(self) -> np.ndarray:
+        cols = self.__dict__.get("_cols")
+        if cols is None:  # frozen dataclass: cache by the back door
+            cols = np.array([self.slices[k].start if k in self.slices else -1 for k in SCALAR_ENTRIES], np.int64)
+            object.__setattr__(self, "_cols", cols)
+        return cols
 
     def get(self, obs: np.ndarray, name: str) -> np.ndarray:
         """The entry ``name`` of one observation ``(D,)`` or a batch ``(N, D)``."""

@@ -12,10 +12,10 @@ from pettingzoo import ParallelEnv
 from parcover_env.config import Scenario, deep_merge
 from parcover_env.envs.actions import to_commands
 from parcover_env.envs.metrics import EpisodeMetrics, formation_errors
-from parcover_env.envs.observations import MAX_FIX_AGE, ObservationLayout, ellipse_entries
+from parcover_env.envs.observations import ObservationLayout
 from parcover_env.envs.rewards import REWARD_KEYS, TERMS, reward_terms
 from parcover_env.envs.team import Team
-from parcover_env.geometry import rotate, wrap_angle
+from parcover_env.geometry import wrap_angle
 from parcover_env.localization.kinect.system import KinectSystem, handover_poses
 from parcover_env.scenarios import load_scenario, mission_for
 from parcover_env.sensors.odometry import Odometry
@@ -359,30 +359,12 @@ class ParallelCoverageEnv(ParallelEnv):
         world in one call each); the random draws are the same either way."""
         L, est, n = self.layout.slices, self.estimate, self.n_robots
         obs = np.zeros((n, self.layout.size), dtype=np.float32)
-        obs[:, L["x"]] = est[:, 0:1]
-        obs[:, L["y"]] = est[:, 1:2]
-        obs[:, L["cos_theta"]] = np.cos(est[:, 2:3])
-        obs[:, L["sin_theta"]] = np.sin(est[:, 2:3])
-        obs[:, L["v"]] = self.velocity[:, 0:1]
-        obs[:, L["omega"]] = self.velocity[:, 1:2]
-        obs[:, L["leader"]] = self.team.leader[:, None]
-        obs[:, L["slot"]] = self.team.slot[:, None] / max(n - 1, 1)
-        obs[:, L["fix_age"]] = np.minimum(self.fix_age, MAX_FIX_AGE)[:, None]
-        if "sigma_major" in L:
-            cov = ellipse_entries(self.odometry.covariance, est[:, 2])
-            obs[:, L["sigma_major"].start:L["sigma_heading"].stop] = cov
-        goal = rotate(self.progress.goals() - est[:, :2], -est[:, 2])
-        obs[:, L["goal_dx"]] = goal[:, 0:1]
-        obs[:, L["goal_dy"]] = goal[:, 1:2]
         rel = self.camera.measure(true, self.team.predecessor, self.map.segments, self._rng, camera_blocked)
         self._view = (self.team.predecessor, rel, est.copy())
-        obs[:, L["pred_dx"]] = rel.rel_xy[:, 0:1]
-        obs[:, L["pred_dy"]] = rel.rel_xy[:, 1:2]
-        obs[:, L["pred_cos"]] = np.where(rel.visible, np.cos(rel.rel_heading), 0.0)[:, None]
-        obs[:, L["pred_sin"]] = np.where(rel.visible, np.sin(rel.rel_heading), 0.0)[:, None]
-        obs[:, L["pred_visible"]] = rel.visible[:, None]
-        obs[:, L["kpois_visited"]] = self.progress.visited.mean()
-        obs[:, L["time"]] = self.steps / self.scenario.episode.max_steps
+        time = self.steps / self.scenario.episode.max_steps
+        self.layout.fill_scalars(obs, est, self.velocity, self.team.leader, self.team.slot, self.fix_age,
+                                 self.odometry.covariance, self.progress.goals(), rel.rel_xy, rel.rel_heading,
+                                 rel.visible, self.progress.visited.mean(), time)
         if self.sonar is not None:
             obs[:, L["sonar"]] = self.sonar.measure(true, self.map.segments, self.scenario.robot.radius, self._rng,
                                                      ideal=sonar_ideal, heard=sonar_heard)
