@@ -1,10 +1,11 @@
-"""Compiled (numba) loops of the onboard sensors: the sonar ring's noise and the follower camera.
-Import only through :mod:`parcover_env.sensors.sonar` and :mod:`parcover_env.sensors.relative`.
+"""Compiled (numba) loops of the onboard sensors: the sonar ring's noise, the follower camera and
+the wheel odometry. Import only through :mod:`parcover_env.sensors.sonar`,
+:mod:`parcover_env.sensors.relative` and :mod:`parcover_env.sensors.odometry`.
 
-The kernels draw from the episode's ``numpy.random.Generator`` itself: numba's generator methods
-advance the same state and return the same numbers as numpy's, so drawing whole arrays here, in
-the order the numpy formulas of the sensors drew them, gives the same readings bit for bit
-(``tests/sensors/test_sonar.py`` and ``tests/sensors/test_relative.py`` keep the numpy references).
+The callers draw the random numbers (numpy, the episode's generator, whole arrays in the order the
+numpy formulas drew them) and hand them in: passing a ``Generator`` to a compiled function costs
+about 5 us per call. ``tests/sensors/test_sonar.py``, ``test_relative_camera.py`` and
+``test_odometry.py`` keep the numpy references.
 """
 
 from __future__ import annotations
@@ -16,18 +17,19 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def ring_noise(ideal, heard, talk_prob, rng, noisy, range_min, range_max, drop_below, noise_std, noise_rel,
+def ring_noise(ideal, heard, talk_prob, talk, z, bad, junk, range_min, range_max, drop_below, noise_std, noise_rel,
                quantization, garbage_rate, out):
     """``out (N, B) float32`` from the noise-free ``ideal (N, B)``: cross-talk (``talk_prob > 0``:
     a beam reads ``min(ideal, heard)`` with that probability, ``heard (N, B)``), readings below
     ``range_min`` lost (``drop_below``), Gaussian noise ``noise_std + noise_rel * r`` on echoes,
     quantization of echoes, clamping to ``[range_min, range_max]``, garbage readings uniform in that
-    range. Random draws only if ``noisy``; each is one ``(N, B)`` array, in that order."""
+    range. The draws, flat ``(N * B,)`` arrays or empty where a step is off: ``talk`` uniform
+    (cross-talk), ``z`` standard normal (noise), ``bad`` uniform and ``junk`` uniform in the range
+    (garbage)."""
     n, b = ideal.shape
     size = n * b
     r = ideal.copy().reshape(size)
-    if noisy and talk_prob > 0.0:
-        talk = rng.random(size)
+    if talk.shape[0]:
         hv = heard.reshape(size)
         for i in range(size):
             if talk[i] < talk_prob:
@@ -37,8 +39,7 @@ def ring_noise(ideal, heard, talk_prob, rng, noisy, range_min, range_max, drop_b
         if drop_below and r[i] < range_min:
             r[i] = range_max
         echo[i] = r[i] < range_max
-    if noisy and (noise_std > 0.0 or noise_rel > 0.0):
-        z = rng.standard_normal(size)
+    if z.shape[0]:
         for i in range(size):
             if echo[i]:
                 r[i] = r[i] + (noise_std + noise_rel * r[i]) * z[i]
@@ -46,9 +47,7 @@ def ring_noise(ideal, heard, talk_prob, rng, noisy, range_min, range_max, drop_b
         if quantization > 0.0 and echo[i]:
             r[i] = np.rint(r[i] / quantization) * quantization
         r[i] = min(max(r[i], range_min), range_max)
-    if noisy and garbage_rate > 0.0:
-        bad = rng.random(size)
-        junk = rng.uniform(range_min, range_max, size)
+    if bad.shape[0]:
         for i in range(size):
             if bad[i] < garbage_rate:
                 r[i] = junk[i]
@@ -64,27 +63,21 @@ def _wrap(a):
 
 
 @njit(cache=True, nogil=True)
-def camera_view(px, py, pth, predecessor, blocked, rng, max_range, half_fov, range_noise, bearing_noise,
+def camera_view(px, py, pth, predecessor, blocked, z, max_range, half_fov, range_noise, bearing_noise,
                 heading_noise, rel_xy, rel_heading, visible):
     """The follower camera (:meth:`parcover_env.sensors.relative.RelativeCamera.measure`) of robots
     ``px, py, pth (N,)``: for each follower ``i`` (``predecessor[i] >= 0``, F of them) of its
     predecessor ``j``: range ``r (1 + range_noise z1)``, bearing ``+ bearing_noise z2`` and relative
     heading ``wrap(th_j - th_i + heading_noise z3)``, written where seen (within ``max_range`` and
-    ``half_fov``, ``blocked[i]`` False), zeros elsewhere. Draws three (F,) standard normals, z1 then
-    z2 then z3."""
+    ``half_fov``, ``blocked[i]`` False), zeros elsewhere. ``z (3, F)``: the standard normals z1, z2,
+    z3 of the F followers, in robot order."""
     n = px.shape[0]
-    f = 0
-    for i in range(n):
-        if predecessor[i] >= 0:
-            f += 1
     rel_xy[:] = 0.0
     rel_heading[:] = 0.0
     visible[:] = False
-    if f == 0:
-        return
-    z1 = rng.standard_normal(f)
-    z2 = rng.standard_normal(f)
-    z3 = rng.standard_normal(f)
+    z1 = z[0]
+    z2 = z[1]
+    z3 = z[2]
     k = 0
     for i in range(n):
         j = predecessor[i]
@@ -105,14 +98,13 @@ def camera_view(px, py, pth, predecessor, blocked, rng, max_range, half_fov, ran
 
 
 @njit(cache=True, nogil=True)
-def wheel_odometry(est, cov, travelled, turned, travel, speed_change, dt, rng, factors, believed_base, wheel_base,
+def wheel_odometry(est, cov, travelled, turned, travel, speed_change, dt, z, factors, believed_base, wheel_base,
                    slip_accel, slip_turn, wheel_variance, cov_wheel_variance):
     """One control step of the ``wheels`` odometry
     (:meth:`parcover_env.sensors.odometry.Odometry.measure_wheels`), in place on the estimates
-    ``est (N, 3)``, covariances ``cov (N, 3, 3)`` and the ``travelled``/``turned`` sums. Draws one
-    ``(2, N, 2)`` array of standard normals: the slip factors, then the random wheel errors."""
+    ``est (N, 3)``, covariances ``cov (N, 3, 3)`` and the ``travelled``/``turned`` sums. ``z``: the
+    standard normals, flat ``(2, N, 2)``: the slip factors, then the random wheel errors."""
     n = est.shape[0]
-    z = rng.standard_normal(4 * n)
     for i in range(n):
         d0 = travel[i, 0]
         d1 = travel[i, 1]

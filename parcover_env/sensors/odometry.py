@@ -143,7 +143,8 @@ class Odometry:
         c = self.cfg
         _onboard_kernels.wheel_odometry(self.estimate, self.covariance, self.travelled, self.turned,
                                         np.ascontiguousarray(travel, dtype=float),
-                                        np.ascontiguousarray(speed_change, dtype=float), float(dt), rng, self.factors,
+                                        np.ascontiguousarray(speed_change, dtype=float), float(dt),
+                                        rng.standard_normal(4 * len(self.estimate)), self.factors,
                                         self.believed_base, self.wheel_base, float(c.slip_accel), float(c.slip_turn),
                                         float(c.wheel_variance), float(c.covariance_wheel_variance))
         return self.estimate

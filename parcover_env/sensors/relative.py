@@ -56,7 +56,8 @@ class RelativeCamera:
                 blocked[f] = segments_blocked(poses[f, :2], poses[predecessor[f], :2], segments)
         rel_xy, rel_heading, visible = np.empty((n, 2)), np.empty(n), np.empty(n, dtype=bool)
         px, py, pth = (np.ascontiguousarray(poses[:, c]) for c in range(3))
-        _onboard_kernels.camera_view(px, py, pth, predecessor, np.ascontiguousarray(blocked, dtype=bool), rng,
+        z = rng.standard_normal((3, int(np.count_nonzero(predecessor >= 0))))  # range, bearing, heading
+        _onboard_kernels.camera_view(px, py, pth, predecessor, np.ascontiguousarray(blocked, dtype=bool), z,
                                      float(self.max_range), math.radians(self.fov_deg) / 2, float(self.range_noise),
                                      float(self.bearing_noise), float(self.heading_noise), rel_xy, rel_heading, visible)
         return RelativeReading(rel_xy, rel_heading, visible)

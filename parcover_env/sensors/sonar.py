@@ -229,17 +229,19 @@ class SonarRing:
         ideal = np.asarray(ideal, dtype=float)
         rows = np.ascontiguousarray(ideal.reshape(-1, ideal.shape[-1]) if ideal.ndim else ideal.reshape(1, 1))
         out = np.empty(rows.shape, dtype=dtype)
+        size, none = rows.size, np.empty(0)
         talk = heard is not None
         heard = np.ascontiguousarray(heard, dtype=float).reshape(rows.shape) if talk else rows
-        _onboard_kernels.ring_noise(rows, heard, float(cfg.crosstalk_prob) if talk else 0.0,
-                                  rng if rng is not None else _IDLE_RNG, rng is not None, float(cfg.range_min),
-                                  float(cfg.range_max), cfg.below_min == "drop", float(cfg.noise_std),
-                                  float(cfg.noise_rel), float(cfg.quantization), float(cfg.garbage_rate), out)
+        noisy = rng is not None
+        draws = [rng.random(size) if noisy and talk and cfg.crosstalk_prob > 0 else none,
+                 rng.standard_normal(size) if noisy and (cfg.noise_std > 0 or cfg.noise_rel > 0) else none]
+        bad = rng.random(size) if noisy and cfg.garbage_rate > 0 else none
+        junk = rng.uniform(cfg.range_min, cfg.range_max, size) if len(bad) else none
+        _onboard_kernels.ring_noise(rows, heard, float(cfg.crosstalk_prob) if talk else 0.0, *draws, bad, junk,
+                                    float(cfg.range_min), float(cfg.range_max), cfg.below_min == "drop",
+                                    float(cfg.noise_std), float(cfg.noise_rel), float(cfg.quantization),
+                                    float(cfg.garbage_rate), out)
         return out.reshape(ideal.shape)
-
-
-_IDLE_RNG = np.random.default_rng(0)
-"""Stands in for a missing generator in the noise kernel, which then draws nothing."""
 
 
 def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segments: np.ndarray) -> np.ndarray:
