@@ -338,12 +338,13 @@ def sonar_corner_echoes(ox, oy, axes, pts, u1, u2, segs, idx, cnt, cx, cy, r2, o
 
 
 @njit(cache=True, nogil=True)
-def sonar_crosstalk(px, py, pth, beams, segs, idx, cnt, half, rmax, out):
+def sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, half, rmax, out):
     """Cross-talk readings ``out (K, N, B)`` (left inf where none) of robots ``(K, N)`` poses
     ``px, py, pth``: beam ``b`` of robot ``i`` reads ``d / 2`` from the nearest robot ``j`` of its world
     inside that beam's cone (``half``) with a beam of ``j`` pointing back at ``i``, ``0 < d / 2 <= rmax``
-    and no wall between them; the rules of :func:`parcover_env.sensors.sonar.crosstalk`. Walls are
-    looked up in robot ``k * N + i``'s list ``idx`` of those within ``2 rmax`` (:func:`near_segments`)."""
+    and no wall between them; the rules of :func:`parcover_env.sensors.sonar.crosstalk`.
+    ``all_round``: the cones cover every direction (a beam always points back). Walls are looked up
+    in robot ``k * N + i``'s list ``idx`` of those within ``2 rmax`` (:func:`near_segments`)."""
     nb = beams.shape[0]
     n_robots = px.shape[1]
     for k in range(px.shape[0]):
@@ -358,8 +359,15 @@ def sonar_crosstalk(px, py, pth, beams, segs, idx, cnt, half, rmax, out):
                 if not (d / 2 <= rmax and d > 0):
                     continue
                 bearing = math.atan2(dy, dx)
-                back = False
-                for c in range(nb):
+                gain = False  # does a beam of i hold j nearer than what it heard so far?
+                for b in range(nb):
+                    if d / 2 < out[k, i, b] and _in_cone(bearing - pth[k, i] - beams[b], half):
+                        gain = True
+                        break
+                if not gain:
+                    continue
+                back = all_round
+                for c in range(0 if all_round else nb):
                     if _in_cone(bearing + math.pi - pth[k, j] - beams[c], half):
                         back = True
                         break

@@ -261,9 +261,24 @@ def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segm
     segments = _walls(segments).segments
     px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
     idx, cnt = rays.near_segments(px.reshape(-1), py.reshape(-1), segments, 2 * float(cfg.range_max))
-    rays.kernels().sonar_crosstalk(px, py, pth, np.ascontiguousarray(beam_angles, dtype=float), segments, idx, cnt,
+    beams = np.ascontiguousarray(beam_angles, dtype=float)
+    rays.kernels().sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments,
+                                   idx, cnt,
                                    _half_cone(cfg), float(cfg.range_max), out)
     return out
+
+
+@lru_cache(maxsize=32)
+def _covers_circle(beam_bytes: bytes, half: float) -> bool:
+    """Whether cones of half-angle ``half`` about the beam axes (rad, float64 bytes) cover every
+    direction, with a 1e-6 rad margin: the largest circular gap between neighbouring axes is below
+    ``2 half``."""
+    beams = np.frombuffer(beam_bytes, dtype=float)
+    if len(beams) == 0:
+        return False
+    axes = np.sort(np.mod(beams, 2 * math.pi))
+    gaps = np.diff(np.append(axes, axes[0] + 2 * math.pi))
+    return bool(gaps.max() < 2 * half - 1e-6)
 
 
 def _as_array(x, name: str, shape: tuple[int, ...]) -> np.ndarray:

@@ -291,3 +291,29 @@ def test_compiled_noise_equals_the_numpy_formulas_bit_for_bit(change):
     assert scan.dtype == np.float64 and np.array_equal(scan, _numpy_noise(cfg, ideal[0], None, rng_b))
     assert rng_a.random() == rng_b.random()  # the same number of draws
     assert np.array_equal(ring.corrupt(ideal, None), _numpy_noise(cfg, ideal, None, None))
+
+
+def test_ring_cones_cover_the_circle_only_when_the_gaps_are_narrower_than_a_cone():
+    from parcover_env.sensors.sonar import _covers_circle
+
+    ring16 = np.arange(16) * (2 * math.pi / 16)  # 22.5 deg apart
+    assert _covers_circle(ring16.tobytes(), math.radians(15))
+    assert not _covers_circle(ring16.tobytes(), math.radians(11.25))  # cones just touch: not covered
+    amigo = np.radians(np.array([90.0, 44.0, 12.0, -12.0, -44.0, -90.0, -144.0, 144.0]))
+    assert not _covers_circle(amigo.tobytes(), math.radians(35))  # 72 deg gap at the back
+    assert _covers_circle(amigo.tobytes(), math.radians(37))
+    assert not _covers_circle(np.zeros(0).tobytes(), math.pi)
+
+
+def test_crosstalk_needs_a_beam_pointing_back_when_the_cones_leave_gaps():
+    """AmigoBot layout, 30 deg cones: the robot ahead faces away, its rear beams (+-144 deg) leave
+    the direction straight back uncovered, so it cannot ping back; turned around, it can."""
+    from parcover_env.sensors.sonar import AMIGOBOT_ANGLES_DEG, crosstalk
+
+    cfg = SonarConfig(layout="amigobot", crosstalk_prob=1.0)
+    beams = np.radians(np.array(AMIGOBOT_ANGLES_DEG))
+    away = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    facing = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, math.pi]])
+    assert np.isinf(crosstalk(cfg, away, beams, np.zeros((0, 4)))[0]).all()
+    heard = crosstalk(cfg, facing, beams, np.zeros((0, 4)))[0]
+    assert heard[2] == heard[3] == 0.5 and np.isinf(heard[[0, 1, 4, 5, 6, 7]]).all()  # +-12 deg beams
