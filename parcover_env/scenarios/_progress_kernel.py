@@ -82,3 +82,33 @@ def advance_all(p, progress, waypoint, length, arc, must, pts, e, ee, seg_len, w
                     count += 1
             new_waypoint[i] = min(count, length[i] - 1)
     return new_progress, new_waypoint
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def goals(progress, lookahead, length, arc, must, arc_end, pts, goal, s_out):
+    """Lookahead goal points ``goal (N, 2)`` and their arc positions ``s_out (N,)`` (the rule of
+    :meth:`~parcover_env.scenarios.progress.RouteTracker._goals`, robot by robot)."""
+    n, m = arc.shape
+    for i in range(n):
+        prog = progress[i]
+        s = prog + lookahead
+        for j in range(m):  # the first must-reach vertex ahead bounds the lookahead
+            if must[i, j] and arc[i, j] > prog + 1e-9:
+                s = min(s, arc[i, j])
+                break
+        s = min(s, arc_end[i])
+        count = 0
+        for j in range(m):
+            if arc[i, j] <= s:
+                count += 1
+        k = max(min(count - 1, length[i] - 2), 0)
+        if length[i] == 1:
+            goal[i, 0] = pts[i, 0, 0]
+            goal[i, 1] = pts[i, 0, 1]
+            s_out[i] = 0.0
+            continue
+        seg = arc[i, k + 1] - arc[i, k]
+        u = 0.0 if seg <= 0 else (s - arc[i, k]) / seg
+        for c in range(2):
+            goal[i, c] = pts[i, k, c] + u * (pts[i, k + 1, c] - pts[i, k, c])
+        s_out[i] = s

@@ -152,19 +152,28 @@ class RouteTracker:
         self.waypoint = np.where(ok, wp, self.waypoint)
 
     def _goals(self) -> tuple[np.ndarray, np.ndarray]:
-        """Lookahead goal points ``(N, 2)`` and their arc positions ``(N,)``; cached per progress."""
+        """Lookahead goal points ``(N, 2)`` and their arc positions ``(N,)``; cached per progress.
+        A compiled loop over robots, the same floats as :meth:`_goals_numpy`."""
         c = self._goal_cache
         if c is not None and np.array_equal(c[0], self.progress):
             return c[1], c[2]
+        from parcover_env.scenarios._progress_kernel import goals
+
         n = len(self.routes)
+        goal, s = np.empty((n, 2)), np.empty(n)
+        goals(self.progress, self.lookahead, self._len, self._arcp, self._mustp, self._arc_end, self._pts, goal, s)
+        self._goal_cache = (self.progress.copy(), goal, s)
+        return goal, s
+
+    def _goals_numpy(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_goals` as vectorized numpy over robots, uncached (the reference of the compiled loop)."""
         rows, arc, prog = self._rows, self._arcp, self.progress
         s = prog + self.lookahead
         ahead = self._mustp & (arc > prog[:, None] + 1e-9)
         first = np.argmax(ahead, axis=1)
         s = np.where(ahead.any(axis=1), np.minimum(s, arc[rows, first]), s)
         s = np.minimum(s, self._arc_end)
-        k = np.minimum(np.sum(arc <= s[:, None], axis=1) - 1, self._len - 2)
-        k = np.maximum(k, 0)
+        k = np.maximum(np.minimum(np.sum(arc <= s[:, None], axis=1) - 1, self._len - 2), 0)
         seg = arc[rows, k + 1] - arc[rows, k]
         with np.errstate(invalid="ignore", divide="ignore"):
             u = np.where(seg <= 0, 0.0, (s - arc[rows, k]) / np.where(seg <= 0, 1.0, seg))
@@ -173,8 +182,6 @@ class RouteTracker:
         single = self._len == 1
         goal[single] = self._pts[single, 0]
         s[single] = 0.0
-        goal, s = goal.reshape(n, 2), s
-        self._goal_cache = (prog.copy(), goal, s)
         return goal, s
 
     def goal(self, i: int) -> np.ndarray:

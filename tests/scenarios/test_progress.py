@@ -64,6 +64,8 @@ def test_compiled_progress_is_the_same_floats_as_the_numpy_reference():
         assert n1 == n2
         assert fast.progress.tobytes() == ref.progress.tobytes()
         assert fast.waypoint.tolist() == ref.waypoint.tolist() and fast.advanced.tolist() == ref.advanced.tolist()
+        goal, s_goal = ref._goals_numpy()
+        assert fast.goals().tobytes() == goal.tobytes() and fast._goals()[1].tobytes() == s_goal.tobytes()
         moved += int(fast.advanced.sum())
     assert moved >= 10 and fast.visited.all()  # the walk crossed vertices and reached every KPOI
     assert fast.waypoint[3] == 0 and fast.progress[3] == 0.0
