@@ -39,14 +39,24 @@ def test_numpy_arctan2_is_cpu_dependent_but_ours_is_not():
     assert atan2(1.0, -1.0) == math.atan2(1.0, -1.0) == pytest.approx(3 * math.pi / 4)
 
 
+def _hashes_in_a_process(env: dict[str, str]) -> list[str]:
+    code = (f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); "
+            "from test_pinned_rollouts import rollout_hash; "
+            "print(' '.join(rollout_hash(s, 5, expert=True, steps=80) for s in ('office', 'tree')))")
+    out = subprocess.run([sys.executable, "-c", code], env={**os.environ, **env}, capture_output=True, text=True,
+                         check=True)
+    return out.stdout.split()
+
+
 def test_rollouts_equal_with_numpy_avx512_paths_switched_off():
     targets = _avx512_dispatch()
     if not targets:
         pytest.skip("numpy takes no AVX-512 paths on this CPU")
     here = [rollout_hash(s, 5, expert=True, steps=80) for s in ("office", "tree")]
-    code = (f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); "
-            "from test_pinned_rollouts import rollout_hash; "
-            "print(' '.join(rollout_hash(s, 5, expert=True, steps=80) for s in ('office', 'tree')))")
-    env = {**os.environ, "NPY_DISABLE_CPU_FEATURES": " ".join(targets)}
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
-    assert out.stdout.split() == here
+    assert _hashes_in_a_process({"NPY_DISABLE_CPU_FEATURES": " ".join(targets)}) == here
+
+
+def test_rollouts_equal_with_another_blas_kernel():
+    """OpenBLAS picks its kernels by CPU too; an older CPU's kernels must give the same rollouts."""
+    here = [rollout_hash(s, 5, expert=True, steps=80) for s in ("office", "tree")]
+    assert _hashes_in_a_process({"OPENBLAS_CORETYPE": "Sandybridge"}) == here
