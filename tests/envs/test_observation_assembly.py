@@ -31,11 +31,10 @@ def _numpy_rows(layout, est, vel, leader, slot, fix_age, cov, goals, rel_xy, rel
     return obs
 
 
-@pytest.mark.parametrize("covariance", [True, False])
-def test_compiled_scalar_entries_equal_the_numpy_formulas(covariance):
+@pytest.mark.parametrize("covariance, n", [(True, 9), (False, 9), (True, 2)])
+def test_compiled_scalar_entries_equal_the_numpy_formulas(covariance, n):
     layout = ObservationLayout.build((0, 0, 10, 8), 0.5, 1.5, 16, 3.0, 2.5, covariance=covariance)
     g = np.random.default_rng(0)
-    n = 9
     est = np.column_stack([g.uniform(0, 10, (n, 2)), g.uniform(-4, 4, n)])
     m = g.normal(size=(n, 3, 3)) * 0.1
     cov = m @ m.transpose(0, 2, 1)
@@ -53,4 +52,5 @@ def test_compiled_scalar_entries_equal_the_numpy_formulas(covariance):
                                                        {"sigma_major", "sigma_minor", "sigma_axis_cos2",
                                                         "sigma_axis_sin2", "sigma_heading"})
     assert not got[:, layout.slices["sonar"]].any()  # the sonar columns are left alone
-    assert got[3, layout.slices["fix_age"]][0] == min(args[4][3], MAX_FIX_AGE)
+    assert got[1, layout.slices["fix_age"]][0] == np.float32(min(args[4][1], MAX_FIX_AGE))
+    assert sorted(got[:, layout.slices["slot"]].ravel().tolist()) == pytest.approx(np.arange(n) / (n - 1))

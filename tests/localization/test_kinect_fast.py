@@ -114,3 +114,49 @@ def test_frame_drops_and_several_kinects_in_one_call():
     assert len(per) == 3 and len(per[0]) > 0 and len(per[2]) > 0
     for q, lst in zip(due, per, strict=True):
         assert all(e.kinect == sensors[q].name for e in lst)
+
+
+def _seen_pose(sensors):
+    """A robot pose under the first Kinect's camera centre (markers well inside the image)."""
+    c = sensors[0].camera.C
+    return np.array([[c[0], c[1], 0.3]])
+
+
+def test_noise_scale_stamp_and_closing_limit():
+    env = parcover_env.parallel_env("tree").unwrapped
+    env.reset(seed=2)
+    s = env.kinects.sensors[0]
+    s.true_camera = s.camera
+    pose = _seen_pose([s])
+    quiet = FastNoise(pos_px=0.0, heading_px=0.0)
+    est = estimate_fast_all([s], pose, [True], np.random.default_rng(0), noise=quiet, stamp=2.5)[0]
+    assert len(est) == 1 and (est[0].x, est[0].y) == tuple(pose[0, :2])  # no noise: the true pose
+    assert est[0].theta == pytest.approx(pose[0, 2], abs=1e-15)
+    assert est[0].stamp == 2.5 and est[0].truth_index == 0
+    loud = estimate_fast_all([s], pose, [True], np.random.default_rng(0), noise=FastNoise(pos_px=5.0))[0][0]
+    assert 1e-4 < abs(loud.x - pose[0, 0]) < 0.2 and loud.stamp == 0.0
+    from parcover_env.localization.kinect.pipeline import estimate_fast
+
+    assert estimate_fast(s, pose, [True], np.random.default_rng(0), noise=quiet, stamp=1.0)[0].stamp == 1.0
+    # markers merge in the closing when their gap is under 3 px at the robot's depth
+    model = FastModel([s])
+    z = s.camera.C[2] - s.robot_height
+    px_per_m = s.camera.focal / z
+    for gap_px, seen in ((2.6, False), (3.2, True)):
+        model.scal[0, 5] = gap_px / px_per_m
+        assert bool(model.estimate([0], pose, np.array([True]), np.random.default_rng(0))[0]) == seen
+
+
+def test_a_remounted_camera_is_not_served_from_the_old_cache():
+    from parcover_env.localization.kinect.pipeline import _view_box
+
+    env = parcover_env.parallel_env("tree").unwrapped
+    env.reset(seed=2)
+    s = env.kinects.sensors[0]
+    s.true_camera = s.camera
+    before = _view_box(s)
+    s.true_camera = s.camera.perturbed(0.0, 0.0, 0.0, 0.5)  # raised 0.5 m: a wider view
+    after = _view_box(s)
+    assert after[0] < before[0] - 0.1 and after[2] > before[2] + 0.1
+    s.true_camera = s.camera
+    assert _view_box(s) == before

@@ -37,6 +37,9 @@ def test_numpy_arctan2_is_cpu_dependent_but_ours_is_not():
     assert np.array_equal(atan2(y, x), libm)
     assert atan2(y[:, None], x[None, :3]).shape == (4000, 3)
     assert atan2(1.0, -1.0) == math.atan2(1.0, -1.0) == pytest.approx(3 * math.pi / 4)
+    assert atan2(y[:5], 0.5).tolist() == [math.atan2(v, 0.5) for v in y[:5].tolist()]  # one scalar, one array
+    assert atan2(-2.0, x[:5]).tolist() == [math.atan2(-2.0, v) for v in x[:5].tolist()]
+    assert atan2([1, 2], [2, 1]).tolist() == [math.atan2(1, 2), math.atan2(2, 1)]
 
 
 def _hashes_in_a_process(env: dict[str, str]) -> list[str]:

@@ -273,7 +273,8 @@ def _numpy_noise(cfg, ideal, heard, rng):
 
 
 @pytest.mark.parametrize("change", [{}, {"below_min": "clip"}, {"garbage_rate": 0.2}, {"quantization": 0.0},
-                                    {"noise_std": 0.0, "noise_rel": 0.0}, {"crosstalk_prob": 0.0}])
+                                    {"noise_std": 0.0, "noise_rel": 0.0}, {"noise_std": 0.0}, {"noise_rel": 0.0},
+                                    {"crosstalk_prob": 0.0}])
 def test_compiled_noise_equals_the_numpy_formulas_bit_for_bit(change):
     cfg = replace(SonarConfig(crosstalk_prob=0.3, noise_std=0.02, noise_rel=0.03, quantization=0.005), **change)
     ring = SonarRing(cfg)
@@ -317,3 +318,61 @@ def test_crosstalk_needs_a_beam_pointing_back_when_the_cones_leave_gaps():
     assert np.isinf(crosstalk(cfg, away, beams, np.zeros((0, 4)))[0]).all()
     heard = crosstalk(cfg, facing, beams, np.zeros((0, 4)))[0]
     assert heard[2] == heard[3] == 0.5 and np.isinf(heard[[0, 1, 4, 5, 6, 7]]).all()  # +-12 deg beams
+
+
+def test_a_mirrored_sub_ray_reads_its_two_leg_path_only_with_multipath():
+    """A 45 deg wall 1 m ahead mirrors the beam up to a wall 0.8 m above the bounce: with multipath
+    the cone's nearest echo is a two-leg path of about 1.8 m; without it, or with the second wall
+    gone, nothing echoes (the oblique wall alone is too oblique)."""
+    from parcover_env.sensors.sonar import simulate_beams
+
+    oblique = [0.5, -0.5, 1.5, 0.5]
+    above = [0.5, 0.8, 1.5, 0.8]
+    origin, axes, none = np.zeros((1, 2)), np.zeros((1, 1)), np.zeros((0, 2))
+
+    def read(walls, multipath):
+        cfg = SonarConfig(multipath=multipath, crosstalk_prob=0.0, range_max=3.0)
+        return simulate_beams(cfg, origin, axes, np.array(walls, dtype=float), none, 0.1, np.array([-1]), 5)[0, 0]
+
+    two_legs = read([oblique, above], True)
+    assert 1.6 < two_legs <= 1.8 + 1e-6
+    assert read([oblique, above], False) == 3.0
+    assert read([oblique], True) == 3.0  # one wall, oblique: no echo
+    cfg = SonarConfig(multipath=True, crosstalk_prob=0.0, range_max=3.0)  # 5 sub-rays by default
+    assert simulate_beams(cfg, origin, axes, np.array([oblique, above]), none, 0.1, np.array([-1]))[0, 0] == two_legs
+
+
+def test_measure_hears_the_facing_robot_and_draws_only_what_it_needs():
+    """Two robots 2 m apart facing each other, cross-talk certain, no noise: each front beam reads
+    the other's ping at d / 2 = 1 m (nearer than the 1.9 m echo off its body). One robot alone, or
+    no generator, draws no cross-talk number."""
+    cfg = SonarConfig(crosstalk_prob=1.0, noise_std=0.0, noise_rel=0.0, quantization=0.0)
+    ring = SonarRing(cfg)
+    face = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, math.pi]])
+    walls = np.zeros((0, 4))
+    got = ring.measure(face, walls, 0.1, np.random.default_rng(0))
+    assert got[0, 0] == pytest.approx(1.0) and got[1, 0] == pytest.approx(1.0)
+    quiet = ring.measure(face, walls, 0.1, None)
+    assert quiet[0, 0] == pytest.approx(1.9) and quiet[1, 0] == pytest.approx(1.9)
+    rng, ref = np.random.default_rng(3), np.random.default_rng(3)
+    ring.measure(face[:1], walls, 0.1, rng)
+    assert rng.random() == ref.random()  # one robot: no cross-talk draws (and no noise here)
+    ring.measure(face, walls, 0.1, rng, include_robots=False)
+    assert rng.random() == ref.random()
+
+
+def test_crosstalk_of_k_worlds_has_k_rows():
+    from parcover_env.sensors.sonar import crosstalk
+
+    ring = SonarRing(SonarConfig(crosstalk_prob=0.5))
+    poses = np.zeros((3, 5, 3))
+    poses[..., 0] = np.arange(5)
+    assert crosstalk(ring.cfg, poses, ring.beam_angles, np.zeros((0, 4))).shape == (3, 5, ring.n_beams)
+
+
+def test_corrupt_keeps_the_shape_of_a_scalar():
+    ring = SonarRing(SonarConfig(noise_std=0.0, noise_rel=0.0, quantization=0.1))
+    one = ring.corrupt(1.26, None)
+    assert one.shape == () and one == pytest.approx(1.3)
+    lost = ring.cfg.range_max  # below range_min: lost, reads "too far"
+    assert ring.corrupt(np.array([1.26, 0.05]), None).tolist() == pytest.approx([1.3, lost])
