@@ -72,6 +72,21 @@ def _segment_hit(x0, y0, ddx, ddy, segs, idx, reach, cull, open_end):
 
 
 @njit(cache=True, inline="always")
+def _disc_t(b, c):
+    """Distance to a disc along a unit ray from ``b = oc . d`` and ``c = |oc|^2 - r^2``
+    (``oc`` = origin - centre): 0 if the ray starts inside, inf if it misses."""
+    if c > 0.0 and b >= 0.0:
+        return np.inf  # starts outside, points away: -b - sqrt(b^2 - c) < 0
+    disc = b * b - c
+    if not disc >= 0.0:
+        return np.inf
+    if c <= 0.0:
+        return 0.0
+    t = -b - math.sqrt(disc)
+    return t if t >= 0.0 else np.inf
+
+
+@njit(cache=True, inline="always")
 def _disc_hit(x0, y0, ddx, ddy, cx, cy, row, r2, mine):
     """Nearest disc hit of one ray (inf if none) among discs ``cx[row], cy[row]`` but ``mine``."""
     best = np.inf
@@ -82,19 +97,7 @@ def _disc_hit(x0, y0, ddx, ddy, cx, cy, row, r2, mine):
         ocy = y0 - cy[row, d]
         c = (ocx * ocx + ocy * ocy) - r2[d]
         b = ocx * ddx + ocy * ddy
-        if c > 0.0 and b >= 0.0:
-            continue  # starts outside, points away: -b - sqrt(b^2 - c) < 0
-        disc = b * b - c
-        if not disc >= 0.0:
-            continue
-        if c <= 0.0:
-            t = 0.0
-        else:
-            t = -b - math.sqrt(disc)
-            if not t >= 0.0:
-                continue
-        if t < best:
-            best = t
+        best = min(best, _disc_t(b, c))
     return best
 
 
@@ -106,19 +109,7 @@ def _disc_hit_from(ddx, ddy, ocx, ocy, cc):
     for d in range(ocx.shape[0]):
         c = cc[d]
         b = ocx[d] * ddx + ocy[d] * ddy
-        if c > 0.0 and b >= 0.0:
-            continue  # starts outside, points away: -b - sqrt(b^2 - c) < 0
-        disc = b * b - c
-        if not disc >= 0.0:
-            continue
-        if c <= 0.0:
-            t = 0.0
-        else:
-            t = -b - math.sqrt(disc)
-            if not t >= 0.0:
-                continue
-        if t < best:
-            best = t
+        best = min(best, _disc_t(b, c))
     return best
 
 
