@@ -41,22 +41,23 @@ def test_compiled_progress_is_the_same_floats_as_the_numpy_reference():
     an out-and-back spur: the compiled update equals the vectorized numpy one, float for float."""
     route = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.5], [2.0, 0.0], [4.0, 0.0], [4.0, 2.0]])
     kpois = np.array([[2.0, 1.5], [4.0, 0.0], [4.0, 2.0]])
-    routes = [route, route[::-1].copy(), route[:3] + 0.05, np.array([[1.0, 1.0]])]
+    short = np.array([[0.0, 3.0], [0.3, 3.0], [0.3, 3.0], [0.45, 3.2], [2.0, 3.2]])  # 0.3 m, 0 m, 0.25 m legs
+    routes = [route, route[::-1].copy(), route[:3] + 0.05, short, np.array([[1.0, 1.0]])]
     fast = Mission(kpois, 0.2, routes, waypoint_tol=0.15, lookahead=0.4)
     ref = Mission(kpois, 0.2, routes, waypoint_tol=0.15, lookahead=0.4)
     ref._advance_all = ref._advance_all_numpy
     rng = np.random.default_rng(2)
-    arc = [np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(r, axis=0).T))]) for r in routes[:3]]
+    arc = [np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(r, axis=0).T))]) for r in routes[:4]]
     moved = 0
     for t in range(300):
         s = t * 0.035  # walk along each route by arc length, with estimate noise and jumps
         est = []
-        for r, a in zip(routes[:3], arc, strict=True):
+        for r, a in zip(routes[:4], arc, strict=True):
             k = min(np.searchsorted(a, s, side="right") - 1, len(r) - 2)
-            u = min((s - a[k]) / (a[k + 1] - a[k]), 1.0)
+            u = min((s - a[k]) / (a[k + 1] - a[k]), 1.0) if a[k + 1] > a[k] else 0.0
             est.append(r[k] + u * (r[k + 1] - r[k]))
         est.append([1.0, 1.0])
-        est = np.array(est) + rng.normal(0.0, 0.05, (4, 2))
+        est = np.array(est) + rng.normal(0.0, 0.05, (5, 2))
         if t % 37 == 0:
             est[t % 3] += 3.0  # a lost estimate: no progress
         n1 = fast.update(est, est, 0.1 * t)
@@ -68,4 +69,4 @@ def test_compiled_progress_is_the_same_floats_as_the_numpy_reference():
         assert fast.goals().tobytes() == goal.tobytes() and fast._goals()[1].tobytes() == s_goal.tobytes()
         moved += int(fast.advanced.sum())
     assert moved >= 10 and fast.visited.all()  # the walk crossed vertices and reached every KPOI
-    assert fast.waypoint[3] == 0 and fast.progress[3] == 0.0
+    assert fast.waypoint[4] == 0 and fast.progress[4] == 0.0

@@ -168,9 +168,9 @@ def test_layouts_and_bad_input():
     assert SonarRing(SonarConfig(n_beams=16)).beam_angles.shape == (16,)
     ring = SonarRing(SonarConfig())
     segs = _box_room().segments
-    with pytest.raises(ValueError, match="poses"):
+    with pytest.raises(ValueError, match=r"^poses must have shape \(N, 3\), got \(2, 2\)$"):
         ring.measure(np.zeros((2, 2)), segs, 0.1, None)
-    with pytest.raises(ValueError, match="segments"):
+    with pytest.raises(ValueError, match=r"^segments must have shape \(N, 4\), got \(3, 3\)$"):
         ring.measure(np.zeros((1, 3)), np.zeros((3, 3)), 0.1, None)
     with pytest.raises(ValueError, match="NaN"):
         ring.scan([np.nan, 0, 0], segs, None, 0.1, None)
