@@ -13,8 +13,6 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from parcover_env.geometry import atan2, wrap_angle
-
 __all__ = ["EpisodeMetrics", "formation_errors", "MESSAGE_KINDS", "METRICS_PREFIX", "episode_metrics"]
 
 MESSAGE_KINDS = ("split", "promotion", "waypoint", "pose")
@@ -25,13 +23,14 @@ METRICS_PREFIX = "metrics/"
 def formation_errors(poses: np.ndarray, predecessor: np.ndarray, offset: float, l_d: float,
                      psi_d: float) -> tuple[np.ndarray, np.ndarray]:
     """(l - l_d, wrap(psi - psi_d)) of every follower from true poses (seed A / Das et al. l-psi)."""
-    f = np.flatnonzero(predecessor >= 0)
-    me, lead = poses[f], poses[predecessor[f]]
-    q = me[:, :2] + offset * np.stack([np.cos(me[:, 2]), np.sin(me[:, 2])], axis=1)
-    d = q - lead[:, :2]
-    l = np.hypot(d[:, 0], d[:, 1])
-    psi = atan2(d[:, 1], d[:, 0]) - lead[:, 2]
-    return l - l_d, wrap_angle(psi - psi_d)
+    from parcover_env.envs import _step_kernels
+
+    predecessor = np.ascontiguousarray(predecessor, dtype=np.int64)
+    n = int(np.count_nonzero(predecessor >= 0))
+    dl, dpsi = np.empty(n), np.empty(n)
+    _step_kernels.formation_errors(np.ascontiguousarray(poses, dtype=float), predecessor, float(offset), float(l_d),
+                                   float(psi_d), dl, dpsi)
+    return dl, dpsi
 
 
 @dataclass

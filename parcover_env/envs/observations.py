@@ -94,12 +94,12 @@ class ObservationLayout:
         slots (scaled by ``N - 1``), seconds since the last fix (capped at :data:`MAX_FIX_AGE`), the
         ellipse of ``covariance (N, 3, 3)`` (:func:`ellipse_entries`), the lookahead ``goals (N, 2)``
         in the robot frame, the follower camera's reading, and two team-wide fractions."""
-        from parcover_env.envs import _observation_kernel
+        from parcover_env.envs import _step_kernels
 
         n = len(obs)
-        _observation_kernel.scalar_entries(obs, self._columns(), est, velocity, leader, slot, max(n - 1, 1), fix_age,
-                                           MAX_FIX_AGE, covariance, goals, rel_xy, rel_heading, visible,
-                                           float(kpois_visited), float(time))
+        _step_kernels.scalar_entries(obs, self._columns(), est, velocity, leader, slot, max(n - 1, 1), fix_age,
+                                     MAX_FIX_AGE, covariance, goals, rel_xy, rel_heading, visible, float(kpois_visited),
+                                     float(time))
 
     def _columns(self) -> np.ndarray:
         cols = self.__dict__.get("_cols")

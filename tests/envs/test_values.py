@@ -216,6 +216,21 @@ def test_formation_errors_on_a_hand_built_column():
     np.testing.assert_allclose(dpsi, [math.pi / 2], atol=1e-12)  # psi = -pi/2: wrap(-pi/2 - pi) = pi/2
 
 
+def test_compiled_formation_errors_equal_the_numpy_formulas():
+    from parcover_env.geometry import atan2, wrap_angle
+
+    g = np.random.default_rng(4)
+    poses = np.column_stack([g.uniform(-3, 3, (12, 2)), g.uniform(-4, 4, 12)])
+    pred = np.where(g.random(12) < 0.7, g.integers(0, 12, 12), -1)
+    f = np.flatnonzero(pred >= 0)
+    me, lead = poses[f], poses[pred[f]]
+    d = me[:, :2] + 0.12 * np.stack([np.cos(me[:, 2]), np.sin(me[:, 2])], axis=1) - lead[:, :2]
+    dl, dpsi = formation_errors(poses, pred, 0.12, 0.5, 2.5)
+    assert dl.tobytes() == (np.hypot(d[:, 0], d[:, 1]) - 0.5).tobytes()
+    assert dpsi.tobytes() == wrap_angle(atan2(d[:, 1], d[:, 0]) - lead[:, 2] - 2.5).tobytes()
+    assert formation_errors(poses, np.full(12, -1), 0.1, 0.5, 0.0)[0].shape == (0,)
+
+
 def test_episode_metrics_accumulate():
     m = EpisodeMetrics(n_kpois=2, n_robots=2, c_max=10.0, max_speed=0.5, path_lengths=[0.0, 0.0])
     true = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 0.0]])

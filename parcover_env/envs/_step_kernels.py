@@ -1,6 +1,7 @@
-"""Compiled (numba) assembly of the observation's scalar entries; import only through
-:mod:`parcover_env.envs.observations`. The same float operations, in the same order, as the numpy
-formulas they replace (``tests/envs/test_observation_assembly.py`` keeps them as the reference)."""
+"""Compiled (numba) loops of an env step: the observation's scalar entries and the formation errors;
+import only through :mod:`parcover_env.envs.observations` and :mod:`parcover_env.envs.metrics`. The
+same float operations, in the same order, as the numpy formulas they replace
+(``tests/envs/test_observation_assembly.py`` and ``tests/envs/test_values.py`` keep references)."""
 
 from __future__ import annotations
 
@@ -35,3 +36,24 @@ def scalar_entries(out, cols, est, vel, leader, slot, slot_div, fix_age, max_fix
         for k in range(len(values)):
             if cols[k] >= 0:
                 out[i, cols[k]] = values[k]
+
+
+@njit(cache=True, nogil=True)
+def formation_errors(poses, predecessor, offset, l_d, psi_d, dl, dpsi):
+    """``dl[k], dpsi[k]`` of the ``k``-th follower (robot order): ``l - l_d`` and
+    ``wrap(psi - psi_d)`` with ``l, psi`` the distance and bearing (in the predecessor's frame) of the
+    follower's point ``offset`` ahead of its centre, seen from the predecessor; returns the count."""
+    k = 0
+    for i in range(poses.shape[0]):
+        j = predecessor[i]
+        if j < 0:
+            continue
+        qx = poses[i, 0] + offset * math.cos(poses[i, 2])
+        qy = poses[i, 1] + offset * math.sin(poses[i, 2])
+        dx = qx - poses[j, 0]
+        dy = qy - poses[j, 1]
+        dl[k] = math.hypot(dx, dy) - l_d
+        psi = math.atan2(dy, dx) - poses[j, 2]
+        dpsi[k] = math.pi - ((math.pi - (psi - psi_d)) % (2.0 * math.pi))
+        k += 1
+    return k
