@@ -203,20 +203,38 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
     :func:`near_segments`): a two-leg path of length <= ``rmax`` stays within it."""
     cull = box_cull and math.isfinite(rmax)
     per_origin = cx.shape[0] > 1
+    n_discs = cx.shape[1]
+    spread = 0.0  # the sub-rays' largest angle off the beam axis (< pi / 2: cones are < 180 deg)
+    for j in range(offsets.shape[0]):
+        spread = max(spread, abs(offsets[j]))
+    cos_spread = math.cos(spread)
+    sin_spread = math.sin(spread)
+    ocx = np.empty(n_discs)  # per origin: the terms of the discs a sub-ray within rmax can hit
+    ocy = np.empty(n_discs)
+    cc = np.empty(n_discs)
+    ux = np.empty(n_discs)
+    uy = np.empty(n_discs)
+    cos_w = np.empty(n_discs)
+    bx = np.empty(n_discs)  # per beam: those a sub-ray of its cone can hit
+    by = np.empty(n_discs)
+    bc = np.empty(n_discs)
     for n in range(ox.shape[0]):
         x0 = ox[n]
         y0 = oy[n]
         row = n if per_origin else 0
         near = idx[n, :cnt[n]]
-        n_discs = cx.shape[1]
-        ocx = np.empty(n_discs)
-        ocy = np.empty(n_discs)
-        cc = np.empty(n_discs)
-        for d in range(n_discs):
-            ocx[d] = x0 - cx[row, d]
-            ocy[d] = y0 - cy[row, d]
-            cc[d] = np.inf if d == owner[n] else (ocx[d] * ocx[d] + ocy[d] * ocy[d]) - r2[d]
+        m = _near_discs(x0, y0, cx[row], cy[row], r2, owner[n], rmax, cos_spread, sin_spread, ocx, ocy, cc, ux, uy,
+                        cos_w)
         for b in range(axes.shape[1]):
+            ax = math.cos(axes[n, b])
+            ay = math.sin(axes[n, b])
+            nb = 0
+            for d in range(m):
+                if ax * ux[d] + ay * uy[d] >= cos_w[d]:
+                    bx[nb] = ocx[d]
+                    by[nb] = ocy[d]
+                    bc[nb] = cc[d]
+                    nb += 1
             best = np.inf
             for j in range(offsets.shape[0]):
                 ang = axes[n, b] + offsets[j]
@@ -225,7 +243,7 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
                 # an echo is never nearer than the sub-ray's first wall or disc, so walls beyond the
                 # cone's nearest echo so far (``best``) are culled and mirrored legs from there skipped
                 t1, i1, den = _segment_hit(x0, y0, ddx, ddy, segs, near, min(rmax, best), cull, False)
-                td = _disc_hit_from(ddx, ddy, ocx, ocy, cc)
+                td = _disc_hit_from(ddx, ddy, bx[:nb], by[:nb], bc[:nb])
                 if not td <= rmax:
                     td = np.inf
                 if not (i1 >= 0 and t1 <= rmax):
@@ -244,6 +262,46 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
                     echo = np.inf
                 best = min(best, echo)
             reading[n, b] = best
+
+
+_DISC_SLACK = 1e-6
+"""Margin (m, rad) of the disc culls of :func:`sonar_echoes`: rounding never culls a disc a sub-ray hits."""
+
+
+@njit(cache=True, inline="always")
+def _near_discs(x0, y0, cx, cy, r2, mine, rmax, cos_spread, sin_spread, ocx, ocy, cc, ux, uy, cos_w):
+    """The discs ``cx, cy`` (squared radii ``r2``) but ``mine`` that a ray from ``(x0, y0)`` can hit
+    within ``rmax``, compacted into the first ``m`` entries of the outputs (``m`` returned): the
+    terms ``oc = o - c`` and ``|oc|^2 - r^2`` of :func:`_disc_hit_from`, the unit vector ``u`` to the
+    centre and the cosine of ``spread`` (< pi / 2; given as its cosine and sine) plus the half-angle
+    the disc spans (-2 if the origin is inside it: every ray hits). A ray hits a disc outside it only
+    within that half-angle of ``u`` (at a distance >= ``|oc| - r``), so a cone of half-angle
+    ``spread`` about a unit axis ``a`` can hit it only if ``a . u >= cos_w``."""
+    m = 0
+    for d in range(cx.shape[0]):
+        if d == mine:
+            continue
+        dx = x0 - cx[d]
+        dy = y0 - cy[d]
+        c = (dx * dx + dy * dy) - r2[d]
+        if c > 0.0:
+            dist = math.sqrt(dx * dx + dy * dy)
+            r = math.sqrt(r2[d])
+            if dist - r > rmax + _DISC_SLACK:
+                continue
+            ux[m] = -dx / dist
+            uy[m] = -dy / dist
+            sin_w = min(r / dist, 1.0)  # cos(spread + w), w the disc's half-angle, minus a rounding margin
+            cos_w[m] = cos_spread * math.sqrt(1.0 - sin_w * sin_w) - sin_spread * sin_w - _DISC_SLACK
+        else:
+            ux[m] = 0.0
+            uy[m] = 0.0
+            cos_w[m] = -2.0
+        ocx[m] = dx
+        ocy[m] = dy
+        cc[m] = c
+        m += 1
+    return m
 
 
 @njit(cache=True, inline="always")
@@ -329,17 +387,23 @@ def sonar_corner_echoes(ox, oy, axes, pts, u1, u2, segs, idx, cnt, cx, cy, r2, o
 
 
 @njit(cache=True, nogil=True)
-def sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, half, rmax, out):
+def sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, half, rmax, want, out):
     """Cross-talk readings ``out (K, N, B)`` (left inf where none) of robots ``(K, N)`` poses
     ``px, py, pth``: beam ``b`` of robot ``i`` reads ``d / 2`` from the nearest robot ``j`` of its world
     inside that beam's cone (``half``) with a beam of ``j`` pointing back at ``i``, ``0 < d / 2 <= rmax``
     and no wall between them; the rules of :func:`parcover_env.sensors.sonar.crosstalk`.
     ``all_round``: the cones cover every direction (a beam always points back). Walls are looked up
-    in robot ``k * N + i``'s list ``idx`` of those within ``2 rmax`` (:func:`near_segments`)."""
+    in robot ``k * N + i``'s list ``idx`` of those within ``2 rmax`` (:func:`near_segments`).
+    Only the beams ``want (K, N, B)`` are computed (the others stay inf)."""
     nb = beams.shape[0]
     n_robots = px.shape[1]
     for k in range(px.shape[0]):
         for i in range(n_robots):
+            wanted = False
+            for b in range(nb):
+                wanted = wanted or want[k, i, b]
+            if not wanted:
+                continue
             near = idx[k * n_robots + i, :cnt[k * n_robots + i]]
             for j in range(n_robots):
                 if i == j:
@@ -352,7 +416,7 @@ def sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, half, rmax, o
                 bearing = math.atan2(dy, dx)
                 gain = False  # does a beam of i hold j nearer than what it heard so far?
                 for b in range(nb):
-                    if d / 2 < out[k, i, b] and _in_cone(bearing - pth[k, i] - beams[b], half):
+                    if want[k, i, b] and d / 2 < out[k, i, b] and _in_cone(bearing - pth[k, i] - beams[b], half):
                         gain = True
                         break
                 if not gain:
@@ -368,5 +432,5 @@ def sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, half, rmax, o
                 if hit >= 0:
                     continue  # a wall between them
                 for b in range(nb):
-                    if d / 2 < out[k, i, b] and _in_cone(bearing - pth[k, i] - beams[b], half):
+                    if want[k, i, b] and d / 2 < out[k, i, b] and _in_cone(bearing - pth[k, i] - beams[b], half):
                         out[k, i, b] = d / 2

@@ -182,9 +182,12 @@ class SonarRing:
             ideal = simulate_beams(self.cfg, poses[:, :2], axes, segments, centres, robot_radius, owner,
                                    self.n_subrays)
         talk = rng is not None and include_robots and n > 1 and self.cfg.crosstalk_prob > 0
-        if talk and heard is None:
-            heard = crosstalk(self.cfg, poses, self.beam_angles, segments)
-        return self._noisy(ideal, heard if talk else None, rng, np.float32)
+        draw = None
+        if talk and heard is None:  # the beams that cross-talk are drawn first: only those are cast
+            draw = rng.random(ideal.size)
+            want = (draw < self.cfg.crosstalk_prob).reshape(ideal.shape)
+            heard = crosstalk(self.cfg, poses, self.beam_angles, segments, want)
+        return self._noisy(ideal, heard if talk else None, rng, np.float32, draw)
 
     def ideal_batch(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float) -> np.ndarray:
         """Noise-free readings ``(K, N, B)`` of ``K`` worlds sharing the walls ``segments``, robots
@@ -219,10 +222,12 @@ class SonarRing:
         to noise-free ranges (float64, shaped like ``ideal``)."""
         return self._noisy(ideal, None, rng, np.float64)
 
-    def _noisy(self, ideal, heard: np.ndarray | None, rng: np.random.Generator | None, dtype) -> np.ndarray:
+    def _noisy(self, ideal, heard: np.ndarray | None, rng: np.random.Generator | None, dtype,
+               talk_draw: np.ndarray | None = None) -> np.ndarray:
         """Readings from noise-free ranges: cross-talk with ``heard`` (if given, at ``crosstalk_prob``),
         then :meth:`corrupt`'s steps; one compiled pass drawing from ``rng``
-        (:func:`~parcover_env.sensors._onboard_kernels.ring_noise`)."""
+        (:func:`~parcover_env.sensors._onboard_kernels.ring_noise`). ``talk_draw``: the cross-talk
+        uniforms if already drawn from ``rng`` (the first draw of this pass)."""
         from parcover_env.sensors import _onboard_kernels
 
         cfg = self.cfg
@@ -233,7 +238,9 @@ class SonarRing:
         talk = heard is not None
         heard = np.ascontiguousarray(heard, dtype=float).reshape(rows.shape) if talk else rows
         noisy = rng is not None
-        draws = [rng.random(size) if noisy and talk and cfg.crosstalk_prob > 0 else none,
+        if talk_draw is None:
+            talk_draw = rng.random(size) if noisy and talk and cfg.crosstalk_prob > 0 else none
+        draws = [talk_draw,
                  rng.standard_normal(size) if noisy and (cfg.noise_std > 0 or cfg.noise_rel > 0) else none]
         bad = rng.random(size) if noisy and cfg.garbage_rate > 0 else none
         junk = rng.uniform(cfg.range_min, cfg.range_max, size) if len(bad) else none
@@ -244,27 +251,30 @@ class SonarRing:
         return out.reshape(ideal.shape)
 
 
-def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segments: np.ndarray) -> np.ndarray:
+def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segments: np.ndarray,
+              want: np.ndarray | None = None) -> np.ndarray:
     """``(N, B)`` reading each beam gets from another robot's ring (``inf`` if none): beam ``b`` of
     robot ``i`` hears beam ``c`` of robot ``j`` when each robot lies inside the other beam's cone and
     no wall is between them; the ping travels ``d`` one way, read as ``d / 2`` (range = c t / 2).
     The nearest such robot counts. Transducers sit at the robot centres (see the module notes).
     ``poses (K, N, 3)``: K worlds sharing the walls in one call (robots hear their own world only),
-    ``(K, N, B)`` out, each world's rows equal to its own call bit for bit."""
+    ``(K, N, B)`` out, each world's rows equal to its own call bit for bit. ``want`` (bool, shaped
+    like the output): compute only those beams, the others read inf (default: all)."""
     poses = np.asarray(poses, dtype=float)
     if poses.ndim == 2:
-        return crosstalk(cfg, poses[None], beam_angles, segments)[0]
+        return crosstalk(cfg, poses[None], beam_angles, segments, None if want is None else want[None])[0]
     k, n, nb = poses.shape[0], poses.shape[1], len(beam_angles)
     out = np.full((k, n, nb), np.inf)
     if n < 2:
         return out
+    want = np.ones((k, n, nb), dtype=bool) if want is None else np.ascontiguousarray(want, dtype=bool)
     segments = _walls(segments).segments
     px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
     idx, cnt = rays.near_segments(px.reshape(-1), py.reshape(-1), segments, 2 * float(cfg.range_max))
     beams = np.ascontiguousarray(beam_angles, dtype=float)
     rays.kernels().sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments,
                                    idx, cnt,
-                                   _half_cone(cfg), float(cfg.range_max), out)
+                                   _half_cone(cfg), float(cfg.range_max), want, out)
     return out
 
 

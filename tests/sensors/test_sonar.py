@@ -376,3 +376,84 @@ def test_corrupt_keeps_the_shape_of_a_scalar():
     assert one.shape == () and one == pytest.approx(1.3)
     lost = ring.cfg.range_max  # below range_min: lost, reads "too far"
     assert ring.corrupt(np.array([1.26, 0.05]), None).tolist() == pytest.approx([1.3, lost])
+
+
+def _disc_echo_reference(origins, axes, offsets, centres, r, owner, rmax):
+    """Nearest disc echo of every beam (no walls): each sub-ray against every disc with the
+    kernels' float operations in plain Python (the reference of the compiled cone and range culls)."""
+    out = np.full(axes.shape, math.inf)
+    for n, (x0, y0) in enumerate(origins):
+        for b in range(axes.shape[1]):
+            for off in offsets:
+                ang = axes[n, b] + off
+                ddx, ddy = math.cos(ang), math.sin(ang)
+                for d, (cx, cy) in enumerate(centres):
+                    if d == owner[n]:
+                        continue
+                    ocx, ocy = x0 - cx, y0 - cy
+                    c = (ocx * ocx + ocy * ocy) - r * r
+                    bb = ocx * ddx + ocy * ddy
+                    if c > 0 and bb >= 0:
+                        continue
+                    disc = bb * bb - c
+                    if not disc >= 0:
+                        continue
+                    t = 0.0 if c <= 0 else -bb - math.sqrt(disc)
+                    if 0 <= t <= rmax:
+                        out[n, b] = min(out[n, b], t)
+    return np.minimum(out, rmax)
+
+
+def test_disc_culls_change_no_reading():
+    """The sonar kernel tests only the discs within range of a robot and inside a beam's cone: bit
+    for bit the readings of every sub-ray against every disc, on random crowds and on discs just
+    inside and just outside a cone's edge ray and the range."""
+    from parcover_env.sensors.sonar import _subray_offsets, simulate_beams
+
+    cfg = SonarConfig(crosstalk_prob=0.0)
+    ring = SonarRing(cfg)
+    offsets = _subray_offsets(cfg.cone_deg, 5)
+    none = np.zeros((0, 4))
+    rng = np.random.default_rng(11)
+    for _ in range(4):
+        xy = rng.uniform(0, 4, (12, 2))
+        axes = rng.uniform(-4, 4, (12, 1)) + ring.beam_angles[None, :]
+        got = simulate_beams(cfg, xy, axes, none, xy, 0.12, np.arange(12))
+        want = _disc_echo_reference(xy, axes, offsets, xy, 0.12, np.arange(12), cfg.range_max)
+        assert np.array_equal(got, want) and (got < cfg.range_max).sum() > 20
+    # one robot, beam 0 along +x: discs tangent to the cone's edge ray (just hit / just missed), just
+    # within / beyond the range, and one the robot stands in
+    r, rmax, edge = 0.1, cfg.range_max, offsets[-1]
+    dist = 1.5
+    cases = []
+    for tilt in (-1e-12, 1e-12, -1e-9, 1e-9):
+        bearing = edge + math.asin(r / dist) + tilt
+        cases.append((dist * math.cos(bearing), dist * math.sin(bearing)))
+    cases += [(rmax + r - 1e-9, 0.0), (rmax + r + 1e-9, 0.0), (0.05, 0.0)]
+    axes = np.zeros((1, 1))
+    for c in cases:
+        centres = np.array([[0.0, 0.0], c])
+        got = simulate_beams(cfg, np.zeros((1, 2)), axes, none, centres, r, np.array([0]))
+        want = _disc_echo_reference(np.zeros((1, 2)), axes, offsets, centres, r, [0], rmax)
+        assert got[0, 0] == want[0, 0], c
+    hits = [simulate_beams(cfg, np.zeros((1, 2)), axes, none, np.array([[0.0, 0.0], c]), r, np.array([0]))[0, 0]
+            for c in cases]
+    assert [h < rmax for h in hits] == [True, False, True, False, True, False, True]
+    assert hits[-1] == 0.0  # inside a disc: an echo at once
+
+
+def test_crosstalk_of_wanted_beams_only():
+    """``want`` computes only those beams: the same values there, inf elsewhere."""
+    from parcover_env.sensors.sonar import crosstalk
+
+    cfg = SonarConfig(crosstalk_prob=0.5)
+    ring = SonarRing(cfg)
+    walls = np.array([[3.0, -5.0, 3.0, 0.5]])
+    rng = np.random.default_rng(4)
+    poses = np.concatenate([rng.uniform(0, 6, (3, 9, 2)), rng.uniform(-3, 3, (3, 9, 1))], axis=2)
+    full = crosstalk(cfg, poses, ring.beam_angles, walls)
+    want = rng.random(full.shape) < 0.3
+    got = crosstalk(cfg, poses, ring.beam_angles, walls, want)
+    assert np.array_equal(got, np.where(want, full, np.inf)) and np.isfinite(got).sum() > 5
+    assert np.array_equal(crosstalk(cfg, poses[1], ring.beam_angles, walls, want[1]), got[1])
+    assert np.isinf(crosstalk(cfg, poses, ring.beam_angles, walls, np.zeros_like(want))).all()
