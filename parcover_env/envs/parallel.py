@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -212,7 +213,8 @@ class ParallelCoverageEnv(ParallelEnv):
         self.team = Team(self.plan, s.formation.mode, reach_tol=self.mission.reach_tol)
         self.commands = np.zeros((self.n_robots, 2))
         self.steps = 0
-        self._contacts = np.zeros((2, self.n_robots), dtype=np.int64)
+        self._contacts = (np.zeros(self.n_robots, dtype=np.int64),) * 2
+        """Wall and robot contacts of each robot counted so far (``World.wall_contacts`` etc.)."""
         self._remaining = self.progress.remaining(true[:, :2])
         self.metrics = EpisodeMetrics(len(s.kpois), self.n_robots, self.plan.c_max, s.robot.max_speed,
                                       path_lengths=[0.0] * self.n_robots)
@@ -220,13 +222,8 @@ class ParallelCoverageEnv(ParallelEnv):
         self.progress.update(true[:, :2], self.estimate[:, :2], 0.0)
         self._update_team()
         obs = self._observe(true)
-        zeros = dict.fromkeys(REWARD_KEYS, 0.0)
-        metrics = self.metrics.flat(ended=False)
-        pos_err = np.hypot(*(self.estimate[:, :2] - true[:, :2]).T).tolist()
-        head_err = np.abs(wrap_angle(self.estimate[:, 2] - true[:, 2])).tolist()
-        infos = {a: {**zeros, **metrics, "pose_error": pe, "heading_error": he}
-                 for a, pe, he in zip(self.agents, pos_err, head_err, strict=True)}
-        return obs, infos
+        zeros = np.zeros(self.n_robots).tolist()
+        return obs, self._infos(true, [zeros] * len(TERMS), self.metrics.flat(ended=False))
 
     def step(self, actions: dict[str, Any]):
         true = self._advance(actions)
@@ -262,17 +259,28 @@ class ParallelCoverageEnv(ParallelEnv):
         for t in TERMS:  # summed in TERMS order, as sum() over the terms of each agent would
             total = total + terms[t]
         rewards = dict(zip(self.agents, total.tolist(), strict=True))
-        metrics = self.metrics.flat(ended=done or truncated)
-        per_agent = zip(*(terms[t].tolist() for t in TERMS), strict=True)
-        pos_err = np.hypot(*(self.estimate[:, :2] - true[:, :2]).T).tolist()
-        head_err = np.abs(wrap_angle(self.estimate[:, 2] - true[:, 2])).tolist()
-        infos = {a: {**dict(zip(REWARD_KEYS, vals, strict=True)), **metrics, "pose_error": pe, "heading_error": he}
-                 for a, vals, pe, he in zip(self.agents, per_agent, pos_err, head_err, strict=True)}
+        infos = self._infos(true, [terms[t].tolist() for t in TERMS], self.metrics.flat(ended=done or truncated))
         terminations = {a: done for a in self.agents}
         truncations = {a: truncated for a in self.agents}
         if done or truncated:
             self.agents = []
         return obs, rewards, terminations, truncations, infos
+
+    def _infos(self, true: np.ndarray, terms: list[list[float]], metrics: dict) -> dict[str, dict]:
+        """``info[agent]``: the reward terms (one list per :data:`TERMS` entry), the episode
+        ``metrics`` entries and the estimate errors, in that key order (each agent's dict a copy of
+        one template, then its own values)."""
+        pos_err = np.hypot(*(self.estimate[:, :2] - true[:, :2]).T).tolist()
+        head_err = np.abs(wrap_angle(self.estimate[:, 2] - true[:, 2])).tolist()
+        template = dict.fromkeys(REWARD_KEYS, 0.0)
+        template.update(metrics)
+        template["pose_error"] = template["heading_error"] = 0.0
+        keys = (*REWARD_KEYS, "pose_error", "heading_error")
+        infos = {}
+        for a, *vals in zip(self.agents, *terms, pos_err, head_err, strict=True):
+            info = infos[a] = template.copy()
+            info.update(zip(keys, vals))
+        return infos
 
     # ------------------------------------------------------------------ step parts
     def _update_team(self) -> None:
@@ -323,10 +331,9 @@ class ParallelCoverageEnv(ParallelEnv):
     def _rewards(self, true: np.ndarray, n_new: int) -> dict[str, np.ndarray]:
         remaining = self.progress.remaining(true[:, :2])
         progress, self._remaining = self._remaining - remaining, remaining
-        contacts = np.stack([self.world.wall_contacts, self.world.robot_contacts])
-        new_contacts = (contacts - self._contacts).sum(axis=0)
-        self._new_contacts, self._contacts = contacts - self._contacts, contacts
-        return reward_terms(self.scenario.rewards, n_new, progress, new_contacts)
+        (wall0, robot0), wall, robot = self._contacts, self.world.wall_contacts, self.world.robot_contacts
+        self._new_contacts, self._contacts = (wall - wall0, robot - robot0), (wall.copy(), robot.copy())
+        return reward_terms(self.scenario.rewards, n_new, progress, self._new_contacts[0] + self._new_contacts[1])
 
     def _record(self, before: np.ndarray, true: np.ndarray) -> None:
         m = self.metrics
@@ -334,12 +341,13 @@ class ParallelCoverageEnv(ParallelEnv):
         m.record_step(self.world.time, int(self.progress.visited.sum()), true, self.estimate,
                       int(self._new_contacts[0].sum()), int(self._new_contacts[1].sum()) // 2)
         f = self.scenario.formation
-        dl, dpsi = formation_errors(true, self.team.predecessor, f.offset, f.spacing, np.radians(f.bearing_deg))
+        dl, dpsi = formation_errors(true, self.team.predecessor, f.offset, f.spacing, math.radians(f.bearing_deg))
         m.record_formation(dl, dpsi)
         m.messages = dict(sorted(self.team.messages.items()))
         m.kinect_splits, m.odometry_splits = self.team.splits["kinect"], self.team.splits["odometry"]
-        seen = self.kinects.in_view(true[:, :2]) if self.kinects is not None else np.zeros(self.n_robots, bool)
-        m.unseen_leader_time += self.scenario.physics.control_dt * int(np.count_nonzero(self.team.leader & ~seen))
+        leaders = true[self.team.leader, :2]
+        seen = self.kinects.in_view(leaders) if self.kinects is not None else np.zeros(len(leaders), bool)
+        m.unseen_leader_time += self.scenario.physics.control_dt * int(np.count_nonzero(~seen))
         if self.progress.done and m.makespan is None:
             m.makespan = float(np.nanmax(self.progress.visit_time))
         if self.render_mode is not None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -226,6 +228,23 @@ def test_tracker_fuses_kinects_and_keeps_identities():
             assert abs(nxt[k][0] - ids[k][0] - 0.05 * step) < 1e-9
     with pytest.raises(ValueError):
         KinectTracker(gate=0)
+
+
+def test_tracker_single_estimate_is_the_weighted_formula_bit_for_bit():
+    """One estimate (one leader seen by one Kinect): the fused pose is the marker-weighted mean and
+    circular mean of the general formula, bit for bit; with one prediction it is matched inside
+    the gate only."""
+    rng = np.random.default_rng(6)
+    for x, y, th, n in zip(rng.uniform(-9, 9, 50), rng.uniform(-9, 9, 50), rng.uniform(-4, 4, 50),
+                           rng.integers(1, 9, 50), strict=True):
+        w, xy = np.array([float(n)]), np.array([[x, y]])
+        want = np.array([*(w @ xy / w.sum()), math.atan2(float(w @ np.sin([th])), float(w @ np.cos([th])))])
+        got = KinectTracker().fuse([est(float(x), float(y), float(th), int(n))])
+        assert len(got) == 1 and got[0].tobytes() == want.tobytes()
+    tr = KinectTracker(gate=0.3)
+    assert set(tr.update([[est(1.0, 1.29)]], {4: (1.0, 1.0, 0.0)})) == {4} and tr.unassigned == []
+    assert tr.update([[est(1.0, 1.31)]], {4: (1.0, 1.0, 0.0)}) == {} and len(tr.unassigned) == 1
+    assert KinectTracker().update([[est(1.0, 1.0)]], {}) == {}
 
 
 def test_write_kinect_views(tmp_path):

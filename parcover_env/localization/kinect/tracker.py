@@ -44,6 +44,11 @@ class KinectTracker:
                 clusters.append([e])
         fused = []
         for cl in clusters:
+            if len(cl) == 1:  # the formulas below for one estimate, in floats (the same operations)
+                e, w1 = cl[0], float(cl[0].n_markers)
+                ang = math.atan2(w1 * math.sin(e.theta), w1 * math.cos(e.theta))
+                fused.append(np.array([(w1 * e.x) / w1, (w1 * e.y) / w1, ang]))
+                continue
             w = np.array([e.n_markers for e in cl], dtype=float)
             xy = np.array([[e.x, e.y] for e in cl])
             th = np.array([e.theta for e in cl])
@@ -61,7 +66,11 @@ class KinectTracker:
         ids = list(ref)
         out: dict[int, np.ndarray] = {}
         used = set()
-        if fused and ids:
+        if len(fused) == 1 and len(ids) == 1:  # one candidate each (one leader): no assignment to solve
+            if np.hypot(*(fused[0][:2] - ref[ids[0]][:2])) <= self.gate:
+                out[ids[0]] = fused[0]
+                used.add(0)
+        elif fused and ids:
             cost = np.array([[np.hypot(*(f[:2] - ref[k][:2])) for k in ids] for f in fused])
             rows, cols = linear_sum_assignment(np.where(cost <= self.gate, cost, 1e6))
             for r, c in zip(rows, cols, strict=True):
