@@ -144,11 +144,17 @@ def disc_planes(centres, radii, owner, n_origins: int) -> tuple[np.ndarray, np.n
         centres = centres.reshape(1, -1, 2)
     elif centres.shape[0] == 1 and n_origins > 1:
         centres = np.broadcast_to(centres, (n_origins,) + centres.shape[1:])
-    rad = np.broadcast_to(np.asarray(radii, dtype=float), (centres.shape[1],))
-    owner = np.full(n_origins, -1, dtype=np.int64) if owner is None else \
-        np.ascontiguousarray(np.broadcast_to(np.asarray(owner, dtype=np.int64), (n_origins,)))
-    return (np.ascontiguousarray(centres[..., 0]), np.ascontiguousarray(centres[..., 1]),
-            np.ascontiguousarray(rad * rad), owner)
+    if np.ndim(radii) == 0:  # one radius for all discs (the common case, without broadcasting)
+        r2 = np.full(centres.shape[1], float(radii) * float(radii))
+    else:
+        rad = np.broadcast_to(np.asarray(radii, dtype=float), (centres.shape[1],))
+        r2 = np.ascontiguousarray(rad * rad)
+    if owner is None:
+        owner = np.full(n_origins, -1, dtype=np.int64)
+    elif not (type(owner) is np.ndarray and owner.dtype == np.int64 and owner.shape == (n_origins,)
+              and owner.flags.c_contiguous):
+        owner = np.ascontiguousarray(np.broadcast_to(np.asarray(owner, dtype=np.int64), (n_origins,)))
+    return np.ascontiguousarray(centres[..., 0]), np.ascontiguousarray(centres[..., 1]), r2, owner
 
 
 def cast_rays_discs(origins, directions, centres, radii, owner=None, max_range: float = math.inf, *,

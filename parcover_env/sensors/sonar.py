@@ -84,8 +84,24 @@ def _walls_of(seg_bytes: bytes, n: int) -> _Walls:
 
 
 def _walls(segments: np.ndarray) -> _Walls:
+    if _frozen(segments) and segments is _last_walls[0]:
+        return _last_walls[1]
     seg = np.ascontiguousarray(np.asarray(segments, dtype=float).reshape(-1, 4))
-    return _walls_of(seg.tobytes(), len(seg))
+    walls = _walls_of(seg.tobytes(), len(seg))
+    if _frozen(segments):
+        _last_walls[:] = [segments, walls]
+    return walls
+
+
+_last_walls: list = [None, None]
+"""The last frozen wall array :func:`_walls` saw and its ``_Walls`` (a map's walls, every step)."""
+
+
+def _frozen(a) -> bool:
+    """A read-only float64 ``(S, 4)`` C-contiguous array that owns its data (e.g. ``MapModel.segments``):
+    its contents cannot change, so what is derived from it is kept by identity, unchecked."""
+    return (type(a) is np.ndarray and a.base is None and not a.flags.writeable and a.dtype == np.float64
+            and a.ndim == 2 and a.shape[1] == 4 and a.flags.c_contiguous)
 
 
 def concave_corners(segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -159,6 +175,8 @@ class SonarRing:
         n_scan = round(360.0 / cfg.scan_step_deg)
         self.scan_angles = np.radians(np.arange(n_scan) * cfg.scan_step_deg)
         """Robot-frame angles of the 360-degree scan (72 readings at 5 deg)."""
+        self._checked: np.ndarray | None = None
+        """The last wall array :meth:`measure` checked, if frozen (:func:`_frozen`)."""
 
     @property
     def n_beams(self) -> int:
@@ -173,7 +191,9 @@ class SonarRing:
         readings of these poses if already cast (:meth:`ideal_batch`), ``heard`` their cross-talk
         readings (:func:`crosstalk`, batched); the random draws are the same either way."""
         poses = _as_array(poses, "poses", (-1, 3))
-        segments = _as_array(segments, "segments", (-1, 4))
+        if segments is not self._checked:  # a frozen wall array is checked once
+            segments = _as_array(segments, "segments", (-1, 4))
+            self._checked = segments if _frozen(segments) else None
         n = len(poses)
         if ideal is None:
             axes = poses[:, 2:3] + self.beam_angles[None, :]

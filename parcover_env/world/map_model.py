@@ -38,6 +38,11 @@ class MapModel:
     free: Polygon | MultiPolygon
     bounds: tuple[float, float, float, float]
 
+    def __getstate__(self) -> dict:
+        """Copies and pickles carry the geometry only; the cached ``segments`` (read-only) and the
+        prepared polygon are derived again on first use."""
+        return {"free": self.free, "bounds": self.bounds}
+
     @classmethod
     def from_config(cls, cfg: MapConfig, include_unknown: bool = True) -> MapModel:
         """Build the map; ``include_unknown`` adds the obstacles missing from the known map."""
@@ -60,7 +65,9 @@ class MapModel:
         for poly in getattr(self.free, "geoms", [self.free]):
             rings.append(poly.exterior.coords)
             rings.extend(i.coords for i in poly.interiors)
-        return np.concatenate([polygon_edges(r) for r in rings]).astype(float)
+        segments = np.concatenate([polygon_edges(r) for r in rings]).astype(float)
+        segments.setflags(write=False)  # shared by every sensor; they key caches on it
+        return segments
 
     @cached_property
     def _prepared(self):

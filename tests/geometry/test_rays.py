@@ -244,3 +244,17 @@ def test_in_cone_equals_the_wrapped_angle_test():
     for half in halves:
         want = [bool(abs(wrap_angle(a)) <= half) for a in angles]
         assert [bool(_in_cone(a, half)) for a in angles] == want
+
+
+def test_disc_planes_with_one_radius_equal_the_broadcast_radii():
+    """One radius for every disc, and an owner array already in kernel form, give the arrays of the
+    general path (radii per disc, owner as a list)."""
+    from parcover_env.geometry.rays import disc_planes
+
+    centres = np.array([[0.0, 1.0], [2.0, -1.5], [0.3, 0.4]])
+    one = disc_planes(centres, 0.17, np.array([2, -1], dtype=np.int64), 2)
+    each = disc_planes(centres, np.full(3, 0.17), [2, -1], 2)
+    for a, b in zip(one, each, strict=True):
+        assert a.dtype == b.dtype and np.array_equal(a, b)
+    assert one[2].tolist() == [0.17 * 0.17] * 3 and one[3].tolist() == [2, -1]
+    assert disc_planes(centres, 0.1, None, 4)[3].tolist() == [-1] * 4

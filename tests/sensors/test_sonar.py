@@ -457,3 +457,26 @@ def test_crosstalk_of_wanted_beams_only():
     assert np.array_equal(got, np.where(want, full, np.inf)) and np.isfinite(got).sum() > 5
     assert np.array_equal(crosstalk(cfg, poses[1], ring.beam_angles, walls, want[1]), got[1])
     assert np.isinf(crosstalk(cfg, poses, ring.beam_angles, walls, np.zeros_like(want))).all()
+
+
+def test_a_read_only_wall_array_is_checked_once_a_writable_one_every_call():
+    """A map's walls are a read-only array: the ring checks them the first time only and keys its
+    wall data on the array; walls in a writable array are checked at every call."""
+    from parcover_env.sensors import sonar
+
+    ring = SonarRing(SonarConfig())
+    pose = np.array([[1.0, 1.0, 0.0]])
+    walls = np.array([[3.0, -1.0, 3.0, 3.0], [0.0, 0.0, 0.0, 2.0]])
+    frozen = walls.copy()
+    frozen.setflags(write=False)
+    want = ring.measure(pose, walls, 0.1, None)
+    assert np.array_equal(ring.measure(pose, frozen, 0.1, None), want)
+    assert ring._checked is frozen and sonar._walls(frozen) is sonar._walls(frozen)
+    walls[0, 0] = np.nan
+    with pytest.raises(ValueError, match="segments contains NaN"):
+        ring.measure(pose, walls, 0.1, None)
+    bad = walls.copy()
+    bad.setflags(write=False)
+    with pytest.raises(ValueError, match="segments contains NaN"):  # a new read-only array: checked
+        ring.measure(pose, bad, 0.1, None)
+    assert ring._checked is frozen

@@ -44,3 +44,19 @@ def test_start_poses_form_a_column_in_a_corridor_and_a_block_in_a_room():
     assert np.all(p[:, 0] <= 3.0 + 1e-9)  # nobody ahead of the leader
     with pytest.raises(ConfigError, match="only 11 of 12 robots fit"):
         start_poses(corridor, (5.5, 0.25, 0.0), 12, 0.15, 0.5)
+
+
+def test_segments_are_read_only_also_after_copy_and_pickle():
+    """The wall segments are one read-only array (sensors key their caches on it), also in a copy
+    or an unpickled map, with the same values."""
+    import copy
+    import pickle
+
+    m = MapModel.from_config(MapConfig(size=(3.0, 2.0), walls=(((1.5, 0.0), (1.5, 1.2)),)))
+    seg = m.segments
+    assert m.segments is seg and not seg.flags.writeable and seg.flags.c_contiguous and seg.base is None
+    with pytest.raises(ValueError):
+        seg[0, 0] = 1.0
+    for other in (copy.deepcopy(m), pickle.loads(pickle.dumps(m))):
+        assert not other.segments.flags.writeable and np.array_equal(other.segments, seg)
+        assert other.free.equals(m.free) and other.bounds == m.bounds
