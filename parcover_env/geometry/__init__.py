@@ -12,7 +12,8 @@ from parcover_env.geometry.rays import (
     point_segment_distance,
     polygon_edges,
     segments_blocked,
+    sight_lines_blocked,
 )
 
 __all__ = ["wrap_angle", "rotate", "atan2", "polygon_edges", "RayHits", "cast_rays", "cast_rays_discs",
-           "segments_blocked", "point_segment_distance"]
+           "segments_blocked", "sight_lines_blocked", "point_segment_distance"]

@@ -158,6 +158,19 @@ def open_segments_blocked(ax, ay, bx, by, segs, out):
 
 
 @njit(cache=True, nogil=True)
+def sight_lines_blocked(px, py, target, segs, out):
+    """Whether the open segment from point ``i`` to point ``target[i]`` crosses one of ``segs``
+    (:func:`open_segments_blocked` of that pair); False where ``target[i] < 0``."""
+    every = np.arange(segs.shape[0])
+    for i in range(px.shape[0]):
+        j = target[i]
+        out[i] = False
+        if j >= 0:
+            _, hit, _ = _segment_hit(px[i], py[i], px[j] - px[i], py[j] - py[i], segs, every, 1.0, True, True)
+            out[i] = hit >= 0
+
+
+@njit(cache=True, nogil=True)
 def near_segments(ox, oy, segs, reach, idx, cnt):
     """Per origin ``o``, the indices (ascending) of the segments within ``reach`` of it by
     point-to-segment distance: ``idx[o, :cnt[o]]``. A path of rays leaving ``o`` meets no other

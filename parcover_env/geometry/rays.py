@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RayHits", "polygon_edges", "cast_rays", "cast_rays_discs", "segments_blocked",
+__all__ = ["RayHits", "polygon_edges", "cast_rays", "cast_rays_discs", "segments_blocked", "sight_lines_blocked",
            "point_segment_distance"]
 
 _EPS = 1e-12
@@ -119,6 +119,15 @@ def segments_blocked(a, b, segments) -> np.ndarray:
     if len(a) == 0 or len(segments) == 0:
         return out
     kernels().open_segments_blocked(_plane(a, 0), _plane(a, 1), _plane(b, 0), _plane(b, 1), segments, out)
+    return out
+
+
+def sight_lines_blocked(px: np.ndarray, py: np.ndarray, target: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """Per point ``i`` of ``px, py (P,)``: whether the open segment to point ``target[i]`` crosses any
+    of ``segments (S, 4)`` (:func:`segments_blocked` of that pair, the same floats); False where
+    ``target[i] < 0``. ``px, py`` float64, ``target`` int64, ``segments`` float64, all C-contiguous."""
+    out = np.empty(len(px), dtype=bool)
+    kernels().sight_lines_blocked(px, py, target, segments, out)
     return out
 
 

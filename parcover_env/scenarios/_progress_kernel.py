@@ -1,5 +1,5 @@
-"""Compiled (numba) body of :meth:`parcover_env.scenarios.progress.RouteTracker._advance_all`; import
-only through that method. Robot by robot, the same IEEE operations in the same order as the
+"""Compiled (numba) bodies of :class:`parcover_env.scenarios.progress.RouteTracker` (KPOI visits,
+progress, goals); import only through its methods. Robot by robot, the same IEEE operations in the same order as the
 vectorized numpy version it replaces (kept as ``RouteTracker._advance_all_numpy``; a test compares
 them), no fast-math: the same floats.
 """
@@ -112,3 +112,29 @@ def goals(progress, lookahead, length, arc, must, arc_end, pts, goal, s_out):
         for c in range(2):
             goal[i, c] = pts[i, k, c] + u * (pts[i, k + 1, c] - pts[i, k, c])
         s_out[i] = s
+
+
+@njit(cache=True, nogil=True)
+def visits(kpois, xy, radius, time, visited, visit_time, visitor):
+    """Mark the KPOIs ``kpois (K, 2)`` not yet ``visited`` that a point of ``xy (N, 2)`` is within
+    ``radius`` of (Euclidean distance ``sqrt(dx^2 + dy^2)``): ``visit_time = time`` and ``visitor`` =
+    the nearest such point (the lowest index on ties). Returns how many were newly visited."""
+    n_new = 0
+    for k in range(kpois.shape[0]):
+        if visited[k]:
+            continue
+        best = np.inf
+        who = -1
+        for i in range(xy.shape[0]):
+            dx = kpois[k, 0] - xy[i, 0]
+            dy = kpois[k, 1] - xy[i, 1]
+            d = math.sqrt(dx * dx + dy * dy)
+            if d <= radius and d < best:
+                best = d
+                who = i
+        if who >= 0:
+            visited[k] = True
+            visit_time[k] = time
+            visitor[k] = who
+            n_new += 1
+    return n_new

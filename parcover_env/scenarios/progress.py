@@ -83,17 +83,14 @@ class RouteTracker:
 
     def update(self, true_xy: np.ndarray, est_xy: np.ndarray, time: float) -> int:
         """Mark KPOIs visited and advance progress; returns how many KPOIs were newly visited."""
-        d = np.linalg.norm(self.kpois[:, None, :] - true_xy[None, :, :], axis=-1)
-        near = d <= self.kpoi_radius
-        new = near.any(axis=1) & ~self.visited
-        if new.any():
-            self.visited |= new
-            self.visit_time[new] = time
-            self.visitor[new] = np.argmin(np.where(near, d, np.inf), axis=1)[new]
+        from parcover_env.scenarios._progress_kernel import visits
+
+        n_new = visits(self.kpois, np.ascontiguousarray(true_xy, dtype=float), self.kpoi_radius, float(time),
+                       self.visited, self.visit_time, self.visitor)
         before = self.waypoint.copy()
         self._advance_all(np.asarray(est_xy, dtype=float))
         self.advanced = self.waypoint != before
-        return int(new.sum())
+        return n_new
 
     def _advance_all(self, p: np.ndarray) -> None:
         """Advance every robot's progress from its estimate ``p (N, 2)`` (see the class docstring):

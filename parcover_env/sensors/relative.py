@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from parcover_env.geometry import segments_blocked
+from parcover_env.geometry import sight_lines_blocked
 
 __all__ = ["RelativeCamera", "RelativeReading", "lines_of_sight_blocked"]
 
@@ -49,13 +49,11 @@ class RelativeCamera:
         poses = np.asarray(poses, dtype=float)
         predecessor = np.ascontiguousarray(predecessor, dtype=np.int64)
         n = len(poses)
-        if blocked is None:
-            blocked = np.zeros(n, dtype=bool)
-            f = np.flatnonzero(predecessor >= 0)
-            if len(f):
-                blocked[f] = segments_blocked(poses[f, :2], poses[predecessor[f], :2], segments)
-        rel_xy, rel_heading, visible = np.empty((n, 2)), np.empty(n), np.empty(n, dtype=bool)
         px, py, pth = (np.ascontiguousarray(poses[:, c]) for c in range(3))
+        if blocked is None:
+            walls = np.ascontiguousarray(segments, dtype=float).reshape(-1, 4)
+            blocked = sight_lines_blocked(px, py, predecessor, walls)
+        rel_xy, rel_heading, visible = np.empty((n, 2)), np.empty(n), np.empty(n, dtype=bool)
         z = rng.standard_normal((3, int(np.count_nonzero(predecessor >= 0))))  # range, bearing, heading
         _onboard_kernels.camera_view(px, py, pth, predecessor, np.ascontiguousarray(blocked, dtype=bool), z,
                                      float(self.max_range), math.radians(self.fov_deg) / 2, float(self.range_noise),
@@ -68,9 +66,8 @@ def lines_of_sight_blocked(poses: np.ndarray, predecessor: np.ndarray, segments:
     sharing the walls (``poses (K, N, 3)``, ``predecessor (K, N)`` indices within the world, -1 none:
     False) in one call; equal to what :meth:`RelativeCamera.measure` tests for each world alone."""
     poses = np.asarray(poses, dtype=float)
-    predecessor = np.asarray(predecessor)
-    out = np.zeros(predecessor.shape, dtype=bool)
-    kk, ii = np.nonzero(predecessor >= 0)
-    if len(kk):
-        out[kk, ii] = segments_blocked(poses[kk, ii, :2], poses[kk, predecessor[kk, ii], :2], segments)
-    return out
+    predecessor = np.asarray(predecessor, dtype=np.int64)
+    k, n = predecessor.shape
+    target = np.where(predecessor >= 0, predecessor + n * np.arange(k)[:, None], -1).ravel()  # into the flat worlds
+    px, py = (np.ascontiguousarray(poses[..., c].ravel()) for c in range(2))
+    return sight_lines_blocked(px, py, target, np.ascontiguousarray(segments, dtype=float).reshape(-1, 4)).reshape(k, n)

@@ -258,3 +258,21 @@ def test_disc_planes_with_one_radius_equal_the_broadcast_radii():
         assert a.dtype == b.dtype and np.array_equal(a, b)
     assert one[2].tolist() == [0.17 * 0.17] * 3 and one[3].tolist() == [2, -1]
     assert disc_planes(centres, 0.1, None, 4)[3].tolist() == [-1] * 4
+
+
+def test_sight_lines_blocked_equals_the_open_segment_test_per_pair():
+    """Point ``i`` to point ``target[i]``: the open-segment test of that pair; False for -1 targets."""
+    from parcover_env.geometry import segments_blocked, sight_lines_blocked
+
+    rng = np.random.default_rng(9)
+    walls = np.ascontiguousarray(rng.uniform(0, 5, (12, 4)))
+    px, py = rng.uniform(0, 5, 40), rng.uniform(0, 5, 40)
+    target = rng.integers(-1, 40, 40)
+    got = sight_lines_blocked(px, py, target, walls)
+    pts = np.column_stack([px, py])
+    want = np.where(target >= 0, segments_blocked(pts, pts[np.maximum(target, 0)], walls), False)
+    assert np.array_equal(got, want) and 5 < want.sum() < 35
+    assert not sight_lines_blocked(px, py, target, np.zeros((0, 4))).any()
+    one_wall = np.array([[1.0, -1.0, 1.0, 1.0]])
+    assert sight_lines_blocked(np.array([0.0, 2.0, 0.5]), np.zeros(3), np.array([1, -1, 0]), one_wall).tolist() == [
+        True, False, False]

@@ -70,3 +70,36 @@ def test_compiled_progress_is_the_same_floats_as_the_numpy_reference():
         moved += int(fast.advanced.sum())
     assert moved >= 10 and fast.visited.all()  # the walk crossed vertices and reached every KPOI
     assert fast.waypoint[4] == 0 and fast.progress[4] == 0.0
+
+
+def _numpy_visits(kpois, radius, visited, xy):
+    """The visit rule as numpy formulas (the reference of the compiled loop): newly visited KPOIs and
+    their visitors, the nearest robot within the radius (lowest index on ties)."""
+    d = np.linalg.norm(kpois[:, None, :] - xy[None, :, :], axis=-1)
+    near = d <= radius
+    new = near.any(axis=1) & ~visited
+    return new, np.argmin(np.where(near, d, np.inf), axis=1)
+
+
+def test_kpoi_visits_are_the_numpy_rule():
+    """Random crowds: the same KPOIs newly visited, at the step's time, by the same robots; a robot
+    exactly on the radius visits, one just beyond does not; equidistant robots: the lower index."""
+    rng = np.random.default_rng(4)
+    kpois = rng.uniform(0, 6, (25, 2))
+    route = np.array([[0.0, 0.0], [1.0, 0.0]])
+    m = Mission(kpois, 0.3, [route] * 6, waypoint_tol=0.15)
+    visited = m.visited.copy()
+    for t in range(40):
+        xy = rng.uniform(0, 6, (6, 2))
+        new, who = _numpy_visits(kpois, 0.3, visited, xy)
+        assert m.update(xy, xy, 0.1 * t) == new.sum()
+        assert m.visited.tolist() == (visited | new).tolist()
+        assert np.array_equal(m.visit_time[new], np.full(new.sum(), 0.1 * t)) and (m.visitor[new] == who[new]).all()
+        visited = m.visited.copy()
+    assert 5 < visited.sum() < 25
+    edge = Mission(np.array([[0.0, 0.0], [5.0, 0.0]]), 0.25, [route] * 3, waypoint_tol=0.15)
+    xy = np.array([[0.0, 0.5], [0.0, 0.25], [0.0, -0.25]])  # the last two on the radius, equidistant
+    assert edge.update(xy, xy, 2.0) == 1 and edge.visitor.tolist() == [1, -1] and edge.visit_time[0] == 2.0
+    beyond = np.array([[5.0, 0.2500001], [5.0, -0.2500001], [9.0, 0.0]])
+    assert edge.update(beyond, xy, 3.0) == 0 and not edge.visited[1]
+    assert edge.update(xy, xy, 4.0) == 0 and edge.visit_time[0] == 2.0  # visited once, at the first time
