@@ -12,7 +12,10 @@ Prints the minimum over chunks (the least disturbed) of the process CPU time per
 from __future__ import annotations
 
 import argparse
+import os
 import time
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy: an idle BLAS thread's spinning is process time
 
 import numpy as np
 

@@ -22,8 +22,9 @@ def to_commands(actions: Mapping, agents: Sequence[str], max_speed: float,
     out = _common_case(actions, agents)
     if out is None:
         out = _validated(actions, agents)
-    np.clip(out, -1.0, 1.0, out=out)
-    out *= (max_speed, max_turn_rate)
+    np.minimum(np.maximum(out, -1.0, out=out), 1.0, out=out)  # clip (the values are finite here)
+    out[:, 0] *= max_speed
+    out[:, 1] *= max_turn_rate
     return out
 
 

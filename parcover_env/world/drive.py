@@ -23,10 +23,13 @@ def wheel_targets(commands: np.ndarray, wheel_base: float, wheel_speed_max: floa
     """
     c = np.asarray(commands, dtype=float)
     half = 0.5 * wheel_base * c[:, 1]
-    out = np.stack([c[:, 0] - half, c[:, 0] + half], axis=1)
-    peak = np.abs(out).max(axis=1)
+    out = np.empty((len(c), 2))
+    np.subtract(c[:, 0], half, out=out[:, 0])
+    np.add(c[:, 0], half, out=out[:, 1])
+    peak = np.maximum(np.abs(out[:, 0]), np.abs(out[:, 1]))
     scale = np.minimum(1.0, wheel_speed_max / np.maximum(peak, 1e-300))
-    return out * scale[:, None]
+    out *= scale[:, None]
+    return out
 
 
 def lag_step(wheels: np.ndarray, targets: np.ndarray, tau: float, accel_max: float, dt: float) -> np.ndarray:
