@@ -310,8 +310,12 @@ class ParallelCoverageEnv(ParallelEnv):
                 change = np.zeros_like(travel)
             before = self.odometry.estimate.copy()
             est = self.odometry.measure_wheels(travel, change, dt, self._rng)
-            ds = np.hypot(*(est[:, :2] - before[:, :2]).T) * np.sign(travel.sum(axis=1))
-            self.velocity = np.stack([ds, wrap_angle(est[:, 2] - before[:, 2])], axis=1) / dt
+            velocity = np.empty((len(est), 2))  # (signed distance, heading change) over the step / dt
+            np.multiply(np.hypot(est[:, 0] - before[:, 0], est[:, 1] - before[:, 1]),
+                        np.sign(travel[:, 0] + travel[:, 1]), out=velocity[:, 0])
+            velocity[:, 1] = wrap_angle(est[:, 2] - before[:, 2])
+            velocity /= dt
+            self.velocity = velocity
         else:
             est = self.odometry.measure(true, self._rng)
             self.velocity = self.commands
@@ -374,7 +378,8 @@ class ParallelCoverageEnv(ParallelEnv):
         time = self.steps / self.scenario.episode.max_steps
         self.layout.fill_scalars(obs, est, self.velocity, self.team.leader, self.team.slot, self.fix_age,
                                  self.odometry.covariance, self.progress.goals(), rel.rel_xy, rel.rel_heading,
-                                 rel.visible, self.progress.visited.mean(), time)
+                                 rel.visible, np.count_nonzero(self.progress.visited) / len(self.progress.visited),
+                                 time)
         if self.sonar is not None:
             obs[:, L["sonar"]] = self.sonar.measure(true, self.map.segments, self.scenario.robot.radius, self._rng,
                                                      ideal=sonar_ideal, heard=sonar_heard)
