@@ -220,6 +220,10 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
     spread = 0.0  # the sub-rays' largest angle off the beam axis (< pi / 2: cones are < 180 deg)
     for j in range(offsets.shape[0]):
         spread = max(spread, abs(offsets[j]))
+    leg_t = np.empty(offsets.shape[0])  # per beam: the sub-rays an oblique wall mirrored
+    leg_i = np.empty(offsets.shape[0], dtype=np.int64)
+    leg_x = np.empty(offsets.shape[0])
+    leg_y = np.empty(offsets.shape[0])
     cos_spread = math.cos(spread)
     sin_spread = math.sin(spread)
     ocx = np.empty(n_discs)  # per origin: the terms of the discs a sub-ray within rmax can hit
@@ -249,7 +253,8 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
                     bc[nb] = cc[d]
                     nb += 1
             best = np.inf
-            for j in range(offsets.shape[0]):
+            n_legs = 0
+            for j in range(offsets.shape[0]):  # first legs: direct echoes (walls near the normal, discs)
                 ang = axes[n, b] + offsets[j]
                 ddx = math.cos(ang)
                 ddy = math.sin(ang)
@@ -268,12 +273,20 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
                     echo = td
                 elif _incidence(den, seg_len, i1) >= cos_min:
                     echo = t1
-                elif multipath and i1 >= 0 and t1 < best:  # mirrored by an oblique wall: the second leg
-                    echo = _second_leg(x0, y0, ddx, ddy, t1, i1, segs, seg_len, near, cx, cy, row, r2,
-                                       owner[n], rmax, cos_min, nudge, box_cull)
                 else:
                     echo = np.inf
+                    if multipath and i1 >= 0:  # mirrored by an oblique wall: its second leg comes after
+                        leg_t[n_legs] = t1
+                        leg_i[n_legs] = i1
+                        leg_x[n_legs] = ddx
+                        leg_y[n_legs] = ddy
+                        n_legs += 1
                 best = min(best, echo)
+            for k in range(n_legs):  # second legs, once the cone's direct echoes bound what can be nearer
+                if leg_t[k] < best:
+                    echo = _second_leg(x0, y0, leg_x[k], leg_y[k], leg_t[k], leg_i[k], segs, seg_len, near, cx, cy,
+                                       row, r2, owner[n], rmax, cos_min, nudge, box_cull)
+                    best = min(best, echo)
             reading[n, b] = best
 
 
