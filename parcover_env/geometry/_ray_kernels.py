@@ -1,5 +1,6 @@
 """Compiled (numba) loops behind :mod:`parcover_env.geometry.rays`; import only through that module
-(and :mod:`parcover_env.sensors.sonar` for :func:`sonar_echoes`).
+(and the sonar's compiled ring, :mod:`parcover_env.sensors._onboard_kernels`, which calls the sonar
+loops from compiled code).
 
 Each (ray, segment) and (ray, disc) pair goes through the same IEEE float operations, in the same
 order, as the formulas in the docstring of :mod:`~parcover_env.geometry.rays` (no fast-math, so no

@@ -177,6 +177,12 @@ class SonarRing:
         """Robot-frame angles of the 360-degree scan (72 readings at 5 deg)."""
         self._checked: np.ndarray | None = None
         """The last wall array :meth:`measure` checked, if frozen (:func:`_frozen`)."""
+        self._beams = np.ascontiguousarray(self.beam_angles, dtype=float)
+        self._all_round = _covers_circle(self._beams.tobytes(), _half_cone(cfg))
+        self._par = np.array([cfg.range_max, math.cos(math.radians(cfg.incidence_max_deg)) - 1e-12, _NUDGE,
+                              rays.NEAR_SLACK, _half_cone(cfg), cfg.crosstalk_prob, cfg.range_min, cfg.noise_std,
+                              cfg.noise_rel, cfg.quantization, cfg.garbage_rate], dtype=float)
+        """The constants of :func:`~parcover_env.sensors._onboard_kernels.ring_readings`."""
 
     @property
     def n_beams(self) -> int:
@@ -195,6 +201,8 @@ class SonarRing:
             segments = _as_array(segments, "segments", (-1, 4))
             self._checked = segments if _frozen(segments) else None
         n = len(poses)
+        if ideal is None and heard is None and include_robots and rng is not None:
+            return self._readings(poses, segments, float(robot_radius), rng)
         if ideal is None:
             axes = poses[:, 2:3] + self.beam_angles[None, :]
             centres = poses[:, :2] if include_robots else np.zeros((0, 2))
@@ -208,6 +216,28 @@ class SonarRing:
             want = (draw < self.cfg.crosstalk_prob).reshape(ideal.shape)
             heard = crosstalk(self.cfg, poses, self.beam_angles, segments, want)
         return self._noisy(ideal, heard if talk else None, rng, np.float32, draw)
+
+    def _readings(self, poses: np.ndarray, segments: np.ndarray, radius: float, rng: np.random.Generator) -> np.ndarray:
+        """:meth:`measure` of robots that see each other, with noise: the same draws and numbers as its
+        parts (:func:`simulate_beams`, :func:`crosstalk`, :meth:`_noisy`) in one compiled call."""
+        from parcover_env.sensors import _onboard_kernels
+
+        cfg, walls = self.cfg, _walls(segments)
+        n, nb = len(poses), self.n_beams
+        size, none = n * nb, np.empty(0)
+        talk = rng.random(size) if n > 1 and cfg.crosstalk_prob > 0 else none
+        z = rng.standard_normal(size) if cfg.noise_std > 0 or cfg.noise_rel > 0 else none
+        bad = rng.random(size) if cfg.garbage_rate > 0 else none
+        junk = rng.uniform(cfg.range_min, cfg.range_max, size) if len(bad) else none
+        offsets = _subray_offsets(float(cfg.cone_deg), self.n_subrays) if cfg.model == "specular" else _AXIS_ONLY
+        pts, u1, u2 = walls.corners
+        out = np.empty((n, nb), dtype=np.float32)
+        px, py, pth = (np.ascontiguousarray(poses[:, c]) for c in range(3))
+        specular = cfg.model == "specular" and len(walls.segments) > 0
+        _onboard_kernels.ring_readings(px, py, pth, radius * radius, self._beams, offsets, walls.segments,
+                                       walls.lengths, pts, u1, u2, specular, bool(cfg.multipath), self._all_round,
+                                       cfg.below_min == "drop", self._par, talk, z, bad, junk, out)
+        return out
 
     def ideal_batch(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float) -> np.ndarray:
         """Noise-free readings ``(K, N, B)`` of ``K`` worlds sharing the walls ``segments``, robots

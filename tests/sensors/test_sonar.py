@@ -588,3 +588,44 @@ def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit():
             assert got[n].tobytes() == np.array(want).tobytes(), n
         n_mirrored += int(((got > 2.0) & np.isfinite(got)).sum())
     assert n_mirrored > 0  # some readings are two-leg paths
+
+
+@pytest.mark.parametrize("change", [{}, {"model": "ray"}, {"multipath": False}, {"crosstalk_prob": 0.0},
+                                    {"layout": "amigobot", "crosstalk_prob": 0.7}, {"garbage_rate": 0.2},
+                                    {"below_min": "clip", "noise_std": 0.0, "noise_rel": 0.0, "quantization": 0.0}])
+def test_one_pass_ring_equals_its_parts_bit_for_bit(change):
+    """``measure`` with a generator casts, cross-talks and adds noise in one compiled call: the same
+    readings and the same draws as the noise-free cast, the cross-talk and the noise step by step
+    (the path batched worlds take)."""
+    from parcover_env.sensors.sonar import crosstalk
+
+    ring = SonarRing(replace(SonarConfig(crosstalk_prob=0.5), **change))
+    m = MapModel.from_config(T_ROOM)
+    rng = np.random.default_rng(7)
+    for n in (1, 2, 9):
+        pts = rng.uniform(0.2, 3.8, (200, 2))
+        pts = pts[m.contains(pts, margin=0.2)][:n]
+        poses = np.column_stack([pts, rng.uniform(-3, 3, n)])
+        seed = int(rng.integers(1 << 30))
+        one, a = ring.measure(poses, m.segments, 0.15, np.random.default_rng(seed)), None
+        ideal = ring.ideal_batch(poses[None], m.segments, 0.15)[0]
+        heard = crosstalk(ring.cfg, poses, ring.beam_angles, m.segments)
+        b = np.random.default_rng(seed)
+        parts = ring.measure(poses, m.segments, 0.15, b, ideal=ideal, heard=heard)
+        assert one.dtype == np.float32 and one.tobytes() == parts.tobytes(), n
+        a = np.random.default_rng(seed)
+        ring.measure(poses, m.segments, 0.15, a)
+        assert a.random() == b.random()  # the same number of draws
+
+
+def test_one_pass_ring_blocks_cross_talk_by_walls_beyond_the_range():
+    """Cross-talk travels up to twice the range: robots 4 m apart facing each other with a wall 3 m
+    from the first (beyond its 2.54 m range, 1 m from the second) do not hear each other."""
+    cfg = SonarConfig(crosstalk_prob=1.0, noise_std=0.0, noise_rel=0.0, quantization=0.0)
+    ring = SonarRing(cfg)
+    face = np.array([[0.0, 0.0, 0.0], [4.0, 0.0, math.pi]])
+    wall = np.array([[3.0, -1.0, 3.0, 1.0]])
+    got = ring.measure(face, wall, 0.1, np.random.default_rng(0))
+    assert got[0, 0] == np.float32(cfg.range_max) and got[1, 0] == pytest.approx(1.0)  # a wall, no ping
+    free = ring.measure(face, np.zeros((0, 4)), 0.1, np.random.default_rng(0))
+    assert free[0, 0] == pytest.approx(2.0) and free[1, 0] == pytest.approx(2.0)  # d / 2
