@@ -8,14 +8,14 @@ policy trained on one trains on the other. What differs is how a step runs:
 
 * each world advances its own pymunk space, odometry, Kinect system, mission and team (one
   Python call per world, none per robot);
-* the sonar rings of **all robots of all worlds** are cast in one vectorized call
-  (:meth:`SonarRing.ideal_batch`): the worlds share the static walls, each robot's beams see
-  the robots of its own world (a disc set per origin); the rings' cross-talk geometry too
-  (:func:`~parcover_env.sensors.sonar.crosstalk` over ``(K, N, 3)`` poses), and the follower
-  cameras' lines of sight (:func:`~parcover_env.sensors.relative.lines_of_sight_blocked`);
-* each world then draws its own noise from its own generator, in the same order as the
-  ParallelEnv does, so world ``k`` is bit for bit the ParallelEnv made with the same scenario,
-  seed and actions (``tests/envs/test_batched.py``).
+* the follower cameras' lines of sight of all worlds are tested in one call
+  (:func:`~parcover_env.sensors.relative.lines_of_sight_blocked`);
+* each world draws its own random numbers from its own generator, in the same order as the
+  ParallelEnv does (camera, then its sonar ring's :meth:`SonarRing.draw`), and the sonar rings of
+  **all robots of all worlds** are then cast, cross-talked and made noisy in one compiled call
+  (:meth:`SonarRing.readings`: the worlds share the static walls, each robot's beams see the
+  robots of its own world), so world ``k`` is bit for bit the ParallelEnv made with the same
+  scenario, seed and actions (``tests/envs/test_batched.py``).
 
 Seeding: ``seed(s)`` makes world ``k`` reset with seed ``s + k`` at the next ``reset()``; automatic
 resets after an episode ends use no seed (the world continues its own generator) - exactly as K
@@ -37,7 +37,6 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 from parcover_env.envs.metrics import episode_metrics
 from parcover_env.envs.parallel import ParallelCoverageEnv
 from parcover_env.sensors.relative import lines_of_sight_blocked
-from parcover_env.sensors.sonar import crosstalk
 
 __all__ = ["BatchedVecEnv"]
 
@@ -125,18 +124,18 @@ class BatchedVecEnv(VecEnv):
         poses, segments = np.stack(trues), first.map.segments
         # the followers' lines of sight to their predecessors, every world in one test
         blocked = lines_of_sight_blocked(poses, np.stack([w.team.predecessor for w in self.worlds]), segments)
-        ideal: Any = [None] * self.n_worlds
-        heard: Any = [None] * self.n_worlds
-        if first.sonar is not None:  # every robot of every world in one cast
-            ideal = first.sonar.ideal_batch(poses, segments, first.scenario.robot.radius)
-            if first.sonar.cfg.crosstalk_prob > 0 and n > 1:
-                heard = crosstalk(first.sonar.cfg, poses, first.sonar.beam_angles, segments)
+        world_obs = [w._observe_scalars(trues[k], blocked[k]) for k, w in enumerate(self.worlds)]
+        if first.sonar is not None:  # each world draws its ring's numbers, then every ring in one call
+            draws = [w.sonar.draw(n, w._rng) for w in self.worlds]
+            rings = first.sonar.readings(poses, segments, first.scenario.robot.radius, draws)
+            for o, ring in zip(world_obs, rings, strict=True):
+                o[:, first.layout.slices["sonar"]] = ring
         obs = np.empty((self.num_envs, *self._zero.shape), dtype=self._zero.dtype)
         rewards = np.empty(self.num_envs, dtype=np.float32)
         dones = np.zeros(self.num_envs, dtype=bool)
         infos: list[dict] = []
         for k, w in enumerate(self.worlds):
-            o = w._observe_array(trues[k], ideal[k], heard[k], blocked[k])
+            o = w.layout.clip(world_obs[k])
             _, rew, term, trunc, inf = w._outputs(trues[k], {})
             rows = slice(k * n, (k + 1) * n)
             rewards[rows] = [rew[a] for a in names]

@@ -81,9 +81,8 @@ class ObservationLayout:
         return spaces.Box(self.low, self.high, dtype=np.float32)
 
     def clip(self, obs: np.ndarray) -> np.ndarray:
-        """Clip ``(N, D)`` observations into the bounds in place."""
-        np.clip(obs, self.low, self.high, out=obs)
-        return obs
+        """Clip ``(N, D)`` observations into the bounds in place (NaN stays NaN, as with ``np.clip``)."""
+        return np.minimum(np.maximum(obs, self.low, out=obs), self.high, out=obs)
 
     def fill_scalars(self, obs: np.ndarray, est: np.ndarray, velocity: np.ndarray, leader: np.ndarray,
                      slot: np.ndarray, fix_age: np.ndarray, covariance: np.ndarray, goals: np.ndarray,

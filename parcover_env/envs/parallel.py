@@ -365,14 +365,21 @@ class ParallelCoverageEnv(ParallelEnv):
         active = set(self.agents)
         return {a: obs[i] for i, a in enumerate(self.possible_agents) if a in active}
 
-    def _observe_array(self, true: np.ndarray, sonar_ideal: np.ndarray | None = None,
-                       sonar_heard: np.ndarray | None = None, camera_blocked: np.ndarray | None = None) -> np.ndarray:
-        """Observations ``(n_robots, size)`` float32 of every robot; ``sonar_ideal``, ``sonar_heard``,
-        ``camera_blocked``: the noise-free sonar and cross-talk readings and the follower cameras'
-        blocked lines of sight of this state if already cast (the batched VecEnv casts those of every
-        world in one call each); the random draws are the same either way."""
-        L, est, n = self.layout.slices, self.estimate, self.n_robots
-        obs = np.zeros((n, self.layout.size), dtype=np.float32)
+    def _observe_array(self, true: np.ndarray) -> np.ndarray:
+        """Observations ``(n_robots, size)`` float32 of every robot."""
+        obs = self._observe_scalars(true)
+        if self.sonar is not None:
+            obs[:, self.layout.slices["sonar"]] = self.sonar.measure(true, self.map.segments,
+                                                                     self.scenario.robot.radius, self._rng)
+        return self.layout.clip(obs)
+
+    def _observe_scalars(self, true: np.ndarray, camera_blocked: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`_observe_array` without the sonar entries (left 0) and unclipped: the follower
+        camera (its draws) and the scalar entries. ``camera_blocked``: the cameras' blocked lines of
+        sight if already cast (the batched VecEnv casts those of every world in one call, then the
+        sonar rings of every world in one call)."""
+        est = self.estimate
+        obs = np.zeros((self.n_robots, self.layout.size), dtype=np.float32)
         rel = self.camera.measure(true, self.team.predecessor, self.map.segments, self._rng, camera_blocked)
         self._view = (self.team.predecessor, rel, est.copy())
         time = self.steps / self.scenario.episode.max_steps
@@ -380,10 +387,6 @@ class ParallelCoverageEnv(ParallelEnv):
                                  self.odometry.covariance, self.progress.goals(), rel.rel_xy, rel.rel_heading,
                                  rel.visible, np.count_nonzero(self.progress.visited) / len(self.progress.visited),
                                  time)
-        if self.sonar is not None:
-            obs[:, L["sonar"]] = self.sonar.measure(true, self.map.segments, self.scenario.robot.radius, self._rng,
-                                                     ideal=sonar_ideal, heard=sonar_heard)
-        self.layout.clip(obs)
         return obs
 
     # ------------------------------------------------------------------ extras

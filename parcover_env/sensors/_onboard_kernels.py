@@ -61,44 +61,53 @@ def ring_noise(ideal, heard, talk_prob, talk, z, bad, junk, range_min, range_max
 @njit(cache=True, nogil=True)
 def ring_readings(px, py, pth, radius2, beams, offsets, segs, seg_len, pts, u1, u2, specular, multipath, all_round,
                   drop_below, par, talk, z, bad, junk, out):
-    """The ring of every robot ``px, py, pth (N,)`` in one pass, what
-    :meth:`parcover_env.sensors.sonar.SonarRing.measure` composes from its parts: the noise-free
-    echoes (:func:`~parcover_env.geometry._ray_kernels.sonar_echoes`, concave corners), the
+    """The rings of every robot of ``K`` worlds sharing the walls, ``px, py, pth (K, N)``, in one pass:
+    what :meth:`parcover_env.sensors.sonar.SonarRing.measure` composes from its parts for each world
+    alone. The noise-free echoes (:func:`~parcover_env.geometry._ray_kernels.sonar_echoes`, concave
+    corners; the discs are the other robots of the robot's world, of squared radius ``radius2``), the
     cross-talk of the beams whose uniform ``talk`` draw is below its probability (``talk`` empty:
-    none), then :func:`ring_noise` into ``out (N, B) float32``. The other robots are the discs (of
-    squared radius ``radius2``); ``par`` = range max, incidence cosine bound, restart nudge, near-list slack, half cone,
-    cross-talk probability, range min, noise sigma, relative noise, quantization, garbage rate."""
+    none), then :func:`ring_noise` into ``out (K * N, B) float32``. The draws are flat, world after
+    world, robot after robot, beam after beam. ``par`` = range max, incidence cosine bound, restart
+    nudge, near-list slack, half cone, cross-talk probability, range min, noise sigma, relative
+    noise, quantization, garbage rate."""
     rmax, cos_min, nudge, slack, half = par[0], par[1], par[2], par[3], par[4]
-    n = px.shape[0]
+    k, n = px.shape
     nb = beams.shape[0]
-    axes = np.empty((n, nb))
-    cx = np.empty((1, n))
-    cy = np.empty((1, n))
-    for i in range(n):
+    ox = px.reshape(k * n)
+    oy = py.reshape(k * n)
+    axes = np.empty((k * n, nb))
+    for r in range(k * n):
         for b in range(nb):
-            axes[i, b] = pth[i] + beams[b]
-        cx[0, i] = px[i]
-        cy[0, i] = py[i]
+            axes[r, b] = pth[r // n, r % n] + beams[b]
+    rows = 1 if k == 1 else k * n  # one disc set for all origins of one world, else a set per origin
+    cx = np.empty((rows, n))
+    cy = np.empty((rows, n))
+    for r in range(rows):
+        for d in range(n):
+            cx[r, d] = px[r // n, d]
+            cy[r, d] = py[r // n, d]
     r2 = np.full(n, radius2)
-    owner = np.arange(n)
-    idx = np.empty((n, segs.shape[0]), dtype=np.int64)
-    cnt = np.empty(n, dtype=np.int64)
-    near_segments(px, py, segs, rmax + slack, idx, cnt)
-    ideal = np.empty((n, nb))
-    sonar_echoes(px, py, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, owner, rmax, specular, multipath,
+    owner = np.empty(k * n, dtype=np.int64)
+    for r in range(k * n):
+        owner[r] = r % n
+    idx = np.empty((k * n, segs.shape[0]), dtype=np.int64)
+    cnt = np.empty(k * n, dtype=np.int64)
+    near_segments(ox, oy, segs, rmax + slack, idx, cnt)
+    ideal = np.empty((k * n, nb))
+    sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, owner, rmax, specular, multipath,
                  cos_min, nudge, True, ideal)
     if specular and pts.shape[0] > 0:
-        sonar_corner_echoes(px, py, axes, pts, u1, u2, segs, idx, cnt, cx, cy, r2, owner, rmax, half, ideal)
+        sonar_corner_echoes(ox, oy, axes, pts, u1, u2, segs, idx, cnt, cx, cy, r2, owner, rmax, half, ideal)
     heard = ideal  # (no echo reads inf here, range max in the parts: ring_noise treats both alike)
     if talk.shape[0]:
-        want = np.empty((1, n, nb), dtype=np.bool_)
-        for i in range(n):
+        want = np.empty((k, n, nb), dtype=np.bool_)
+        for r in range(k * n):
             for b in range(nb):
-                want[0, i, b] = talk[i * nb + b] < par[5]
-        near_segments(px, py, segs, 2.0 * rmax + slack, idx, cnt)
-        heard3 = np.full((1, n, nb), np.inf)
-        sonar_crosstalk(cx, cy, pth.reshape(1, n), beams, all_round, segs, idx, cnt, half, rmax, want, heard3)
-        heard = heard3.reshape(n, nb)
+                want[r // n, r % n, b] = talk[r * nb + b] < par[5]
+        near_segments(ox, oy, segs, 2.0 * rmax + slack, idx, cnt)
+        heard3 = np.full((k, n, nb), np.inf)
+        sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, half, rmax, want, heard3)
+        heard = heard3.reshape(k * n, nb)
     ring_noise(ideal, heard, par[5] if talk.shape[0] else 0.0, talk, z, bad, junk, par[6], rmax, drop_below, par[7],
                par[8], par[9], par[10], out)
 

@@ -202,7 +202,7 @@ class SonarRing:
             self._checked = segments if _frozen(segments) else None
         n = len(poses)
         if ideal is None and heard is None and include_robots and rng is not None:
-            return self._readings(poses, segments, float(robot_radius), rng)
+            return self.readings(poses[None], segments, robot_radius, [self.draw(n, rng)])[0]
         if ideal is None:
             axes = poses[:, 2:3] + self.beam_angles[None, :]
             centres = poses[:, :2] if include_robots else np.zeros((0, 2))
@@ -217,27 +217,38 @@ class SonarRing:
             heard = crosstalk(self.cfg, poses, self.beam_angles, segments, want)
         return self._noisy(ideal, heard if talk else None, rng, np.float32, draw)
 
-    def _readings(self, poses: np.ndarray, segments: np.ndarray, radius: float, rng: np.random.Generator) -> np.ndarray:
-        """:meth:`measure` of robots that see each other, with noise: the same draws and numbers as its
-        parts (:func:`simulate_beams`, :func:`crosstalk`, :meth:`_noisy`) in one compiled call."""
-        from parcover_env.sensors import _onboard_kernels
-
-        cfg, walls = self.cfg, _walls(segments)
-        n, nb = len(poses), self.n_beams
-        size, none = n * nb, np.empty(0)
+    def draw(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
+        """The random numbers :meth:`measure` draws for ``n`` robots that see each other, in its order:
+        cross-talk uniforms, noise normals, garbage uniforms and ranges (each ``(n * B,)``, empty
+        where that step is off); for :meth:`readings`."""
+        cfg, size, none = self.cfg, n * self.n_beams, np.empty(0)
         talk = rng.random(size) if n > 1 and cfg.crosstalk_prob > 0 else none
         z = rng.standard_normal(size) if cfg.noise_std > 0 or cfg.noise_rel > 0 else none
         bad = rng.random(size) if cfg.garbage_rate > 0 else none
         junk = rng.uniform(cfg.range_min, cfg.range_max, size) if len(bad) else none
+        return talk, z, bad, junk
+
+    def readings(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float,
+                 draws: list[tuple[np.ndarray, ...]]) -> np.ndarray:
+        """Readings ``(K, N, B)`` float32 of ``K`` worlds sharing the walls ``segments``, robots ``poses
+        (K, N, 3)`` that see the robots of their own world, with each world's :meth:`draw`: one
+        compiled call (:func:`~parcover_env.sensors._onboard_kernels.ring_readings`). World ``k``
+        reads what :meth:`measure` reads for it alone with a generator that gives those draws."""
+        from parcover_env.sensors import _onboard_kernels
+
+        cfg, walls = self.cfg, _walls(segments)
+        poses = np.asarray(poses, dtype=float)
+        k, n, nb = poses.shape[0], poses.shape[1], self.n_beams
+        talk, z, bad, junk = (np.concatenate(parts) if k > 1 else parts[0] for parts in zip(*draws, strict=True))
         offsets = _subray_offsets(float(cfg.cone_deg), self.n_subrays) if cfg.model == "specular" else _AXIS_ONLY
         pts, u1, u2 = walls.corners
-        out = np.empty((n, nb), dtype=np.float32)
-        px, py, pth = (np.ascontiguousarray(poses[:, c]) for c in range(3))
-        specular = cfg.model == "specular" and len(walls.segments) > 0
-        _onboard_kernels.ring_readings(px, py, pth, radius * radius, self._beams, offsets, walls.segments,
+        out = np.empty((k * n, nb), dtype=np.float32)
+        px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
+        specular, r = cfg.model == "specular" and len(walls.segments) > 0, float(robot_radius)
+        _onboard_kernels.ring_readings(px, py, pth, r * r, self._beams, offsets, walls.segments,
                                        walls.lengths, pts, u1, u2, specular, bool(cfg.multipath), self._all_round,
                                        cfg.below_min == "drop", self._par, talk, z, bad, junk, out)
-        return out
+        return out.reshape(k, n, nb)
 
     def ideal_batch(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float) -> np.ndarray:
         """Noise-free readings ``(K, N, B)`` of ``K`` worlds sharing the walls ``segments``, robots

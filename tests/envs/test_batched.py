@@ -174,12 +174,12 @@ def test_sonar_cast_is_batched_once_per_step(monkeypatch):
     venv.reset()
     sonar = venv.worlds[0].sonar
     calls = []
-    orig = type(sonar).ideal_batch
+    orig = type(sonar).readings
 
     def spy(self, poses, *a, **kw):
         calls.append(np.shape(poses))
         return orig(self, poses, *a, **kw)
 
-    monkeypatch.setattr(type(sonar), "ideal_batch", spy)
+    monkeypatch.setattr(type(sonar), "readings", spy)
     venv.step(np.zeros((venv.num_envs, 2), np.float32))
     assert calls == [(3, venv.n_robots, 3)]

@@ -629,3 +629,21 @@ def test_one_pass_ring_blocks_cross_talk_by_walls_beyond_the_range():
     assert got[0, 0] == np.float32(cfg.range_max) and got[1, 0] == pytest.approx(1.0)  # a wall, no ping
     free = ring.measure(face, np.zeros((0, 4)), 0.1, np.random.default_rng(0))
     assert free[0, 0] == pytest.approx(2.0) and free[1, 0] == pytest.approx(2.0)  # d / 2
+
+
+def test_readings_of_k_worlds_equal_each_world_measured_alone():
+    """K worlds in one compiled call, each with its own draws: world k reads what ``measure`` reads
+    for it alone with a generator in the same state (bit for bit); robots hear their own world only."""
+    ring = SonarRing(SonarConfig(crosstalk_prob=0.5))
+    m = MapModel.from_config(T_ROOM)
+    rng = np.random.default_rng(21)
+    pts = rng.uniform(0.2, 3.8, (400, 2))
+    pts = pts[m.contains(pts, margin=0.2)][:24].reshape(3, 8, 2)
+    poses = np.concatenate([pts, rng.uniform(-3, 3, (3, 8, 1))], axis=2)
+    gens = [np.random.default_rng(s) for s in (1, 2, 3)]
+    got = ring.readings(poses, m.segments, 0.15, [ring.draw(8, g) for g in gens])
+    assert got.shape == (3, 8, ring.n_beams) and got.dtype == np.float32
+    for k, seed in enumerate((1, 2, 3)):
+        alone = ring.measure(poses[k], m.segments, 0.15, np.random.default_rng(seed))
+        assert got[k].tobytes() == alone.tobytes()
+    assert not np.array_equal(got[0], got[1])
