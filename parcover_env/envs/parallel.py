@@ -290,9 +290,12 @@ class ParallelCoverageEnv(ParallelEnv):
         if self.kinects is None:
             self.team.update(est, self.progress.plan_progress)
             return
-        before = self.team.leader
-        if self.team.update(est, self.progress.plan_progress, self.kinects.last_fixes, self.kinects.in_view(est)) \
-                and self._view is not None:
+        before, fixes = self.team.leader, self.kinects.last_fixes
+        in_view = np.zeros(self.n_robots, dtype=bool)  # read for leaders without a fix only
+        unfixed = [i for i in np.flatnonzero(before).tolist() if i not in fixes]
+        if unfixed:
+            in_view[unfixed] = self.kinects.in_view(est[unfixed])
+        if self.team.update(est, self.progress.plan_progress, fixes, in_view) and self._view is not None:
             predecessor, rel, estimates = self._view  # the cameras' last measurements, before the split
             promoted = self.team.leader & ~before
             self.kinects.hand_over(handover_poses(promoted, predecessor, rel.rel_xy, rel.rel_heading, rel.visible,
