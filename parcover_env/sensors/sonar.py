@@ -189,33 +189,24 @@ class SonarRing:
         return len(self.beam_angles)
 
     def measure(self, poses, segments, robot_radius: float, rng: np.random.Generator | None,
-                include_robots: bool = True, ideal: np.ndarray | None = None,
-                heard: np.ndarray | None = None) -> np.ndarray:
+                include_robots: bool = True) -> np.ndarray:
         """Ring readings ``(N, B)`` float32 for all robots ``poses (N, 3)`` at once. Other robots are
         discs of ``robot_radius`` that block and echo, and whose rings may cross-talk
-        (``include_robots``). ``rng=None``: noise-free and no cross-talk. ``ideal``: the noise-free
-        readings of these poses if already cast (:meth:`ideal_batch`), ``heard`` their cross-talk
-        readings (:func:`crosstalk`, batched); the random draws are the same either way."""
+        (``include_robots``). ``rng=None``: noise-free and no cross-talk. With a generator and other
+        robots, one compiled call (:meth:`draw`, then :meth:`readings`); the same numbers as its
+        parts (:func:`simulate_beams`, :func:`crosstalk`, :meth:`corrupt`'s noise)."""
         poses = _as_array(poses, "poses", (-1, 3))
         if segments is not self._checked:  # a frozen wall array is checked once
             segments = _as_array(segments, "segments", (-1, 4))
             self._checked = segments if _frozen(segments) else None
         n = len(poses)
-        if ideal is None and heard is None and include_robots and rng is not None:
+        if include_robots and rng is not None:
             return self.readings(poses[None], segments, robot_radius, [self.draw(n, rng)])[0]
-        if ideal is None:
-            axes = poses[:, 2:3] + self.beam_angles[None, :]
-            centres = poses[:, :2] if include_robots else np.zeros((0, 2))
-            owner = np.arange(n) if include_robots else np.full(n, -1)
-            ideal = simulate_beams(self.cfg, poses[:, :2], axes, segments, centres, robot_radius, owner,
-                                   self.n_subrays)
-        talk = rng is not None and include_robots and n > 1 and self.cfg.crosstalk_prob > 0
-        draw = None
-        if talk and heard is None:  # the beams that cross-talk are drawn first: only those are cast
-            draw = rng.random(ideal.size)
-            want = (draw < self.cfg.crosstalk_prob).reshape(ideal.shape)
-            heard = crosstalk(self.cfg, poses, self.beam_angles, segments, want)
-        return self._noisy(ideal, heard if talk else None, rng, np.float32, draw)
+        axes = poses[:, 2:3] + self.beam_angles[None, :]
+        centres = poses[:, :2] if include_robots else np.zeros((0, 2))
+        owner = np.arange(n) if include_robots else np.full(n, -1)
+        ideal = simulate_beams(self.cfg, poses[:, :2], axes, segments, centres, robot_radius, owner, self.n_subrays)
+        return self._noisy(ideal, None, rng, np.float32)
 
     def draw(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
         """The random numbers :meth:`measure` draws for ``n`` robots that see each other, in its order:
@@ -253,8 +244,8 @@ class SonarRing:
     def ideal_batch(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float) -> np.ndarray:
         """Noise-free readings ``(K, N, B)`` of ``K`` worlds sharing the walls ``segments``, robots
         ``poses (K, N, 3)``, in one cast: each robot's beams see the walls and the other robots of
-        its own world. Row ``k`` equals the readings :meth:`measure` computes for world ``k`` alone
-        (bit for bit); pass it there as ``ideal`` to add that world's noise."""
+        its own world. Row ``k`` equals the noise-free readings :meth:`measure` computes for world
+        ``k`` alone (``rng=None``; bit for bit)."""
         poses = np.asarray(poses, dtype=float)
         k, n = poses.shape[:2]
         flat = poses.reshape(k * n, 3)
@@ -283,12 +274,10 @@ class SonarRing:
         to noise-free ranges (float64, shaped like ``ideal``)."""
         return self._noisy(ideal, None, rng, np.float64)
 
-    def _noisy(self, ideal, heard: np.ndarray | None, rng: np.random.Generator | None, dtype,
-               talk_draw: np.ndarray | None = None) -> np.ndarray:
+    def _noisy(self, ideal, heard: np.ndarray | None, rng: np.random.Generator | None, dtype) -> np.ndarray:
         """Readings from noise-free ranges: cross-talk with ``heard`` (if given, at ``crosstalk_prob``),
         then :meth:`corrupt`'s steps; one compiled pass drawing from ``rng``
-        (:func:`~parcover_env.sensors._onboard_kernels.ring_noise`). ``talk_draw``: the cross-talk
-        uniforms if already drawn from ``rng`` (the first draw of this pass)."""
+        (:func:`~parcover_env.sensors._onboard_kernels.ring_noise`)."""
         from parcover_env.sensors import _onboard_kernels
 
         cfg = self.cfg
@@ -299,9 +288,7 @@ class SonarRing:
         talk = heard is not None
         heard = np.ascontiguousarray(heard, dtype=float).reshape(rows.shape) if talk else rows
         noisy = rng is not None
-        if talk_draw is None:
-            talk_draw = rng.random(size) if noisy and talk and cfg.crosstalk_prob > 0 else none
-        draws = [talk_draw,
+        draws = [rng.random(size) if noisy and talk and cfg.crosstalk_prob > 0 else none,
                  rng.standard_normal(size) if noisy and (cfg.noise_std > 0 or cfg.noise_rel > 0) else none]
         bad = rng.random(size) if noisy and cfg.garbage_rate > 0 else none
         junk = rng.uniform(cfg.range_min, cfg.range_max, size) if len(bad) else none

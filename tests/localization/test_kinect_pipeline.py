@@ -241,9 +241,10 @@ def test_tracker_single_estimate_is_the_weighted_formula_bit_for_bit():
         want = np.array([*(w @ xy / w.sum()), math.atan2(float(w @ np.sin([th])), float(w @ np.cos([th])))])
         got = KinectTracker().fuse([est(float(x), float(y), float(th), int(n))])
         assert len(got) == 1 and got[0].tobytes() == want.tobytes()
-    tr = KinectTracker(gate=0.3)
-    assert set(tr.update([[est(1.0, 1.29)]], {4: (1.0, 1.0, 0.0)})) == {4} and tr.unassigned == []
-    assert tr.update([[est(1.0, 1.31)]], {4: (1.0, 1.0, 0.0)}) == {} and len(tr.unassigned) == 1
+    tr = KinectTracker(gate=0.25)
+    out = tr.update([[est(1.0, 1.25, 0.5)]], {4: (1.0, 1.0, 0.0)})  # exactly at the gate: matched
+    assert list(out) == [4] and out[4].tolist() == [1.0, 1.25, 0.5] and tr.unassigned == []
+    assert tr.update([[est(1.0, 1.2500001)]], {4: (1.0, 1.0, 0.0)}) == {} and len(tr.unassigned) == 1
     assert KinectTracker().update([[est(1.0, 1.0)]], {}) == {}
 
 

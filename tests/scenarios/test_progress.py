@@ -103,3 +103,17 @@ def test_kpoi_visits_are_the_numpy_rule():
     beyond = np.array([[5.0, 0.2500001], [5.0, -0.2500001], [9.0, 0.0]])
     assert edge.update(beyond, xy, 3.0) == 0 and not edge.visited[1]
     assert edge.update(xy, xy, 4.0) == 0 and edge.visit_time[0] == 2.0  # visited once, at the first time
+
+
+def test_advanced_flags_the_robots_whose_waypoint_moved_this_update():
+    """``advanced``: True for the robots that passed a route vertex in this update, else False."""
+    route = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    m = Mission(np.array([[2.0, 0.0]]), 0.2, [route, route + [0.0, 1.0]], waypoint_tol=0.15)
+    still = np.array([[0.0, 0.0], [0.0, 1.0]])
+    m.update(still, still, 0.0)
+    assert m.advanced.tolist() == [False, False]
+    moved = np.array([[1.2, 0.0], [0.0, 1.0]])
+    m.update(moved, moved, 0.1)
+    assert m.advanced.tolist() == [True, False] and m.waypoint.tolist() == [2, 1]
+    m.update(moved, moved, 0.2)
+    assert m.advanced.tolist() == [False, False]

@@ -16,6 +16,8 @@ def test_lines_of_sight_blocked_per_world_by_hand():
     pred = np.array([[-1, 0, 0], [-1, 0, 1]])
     got = lines_of_sight_blocked(poses, pred, wall)
     assert got.tolist() == [[False, True, False], [False, False, False]]
+    swapped = lines_of_sight_blocked(poses[::-1], pred[::-1], wall)  # the same worlds, in the other order
+    assert swapped.tolist() == [[False, False, False], [False, True, False]]
 
 
 def test_precomputed_lines_of_sight_give_the_same_reading_and_draws():

@@ -192,8 +192,7 @@ def test_ideal_batch_equals_measure_per_world_bit_for_bit(model):
     for k in range(4):
         one = ring.measure(poses[k], walls, 0.2, None)
         assert np.array_equal(ring.corrupt(batch[k], None).astype(np.float32), one)
-        ideal = ring.measure(poses[k], walls, 0.2, None, ideal=batch[k])
-        assert np.array_equal(ideal, one)
+        assert np.array_equal(ring._noisy(batch[k], None, None, np.float32), one)
     # robots of world 1 are not in world 0: moving them leaves world 0's readings unchanged
     moved = poses.copy()
     moved[1, :, :2] = poses[0, :, :2] + 0.05
@@ -282,9 +281,8 @@ def test_compiled_noise_equals_the_numpy_formulas_bit_for_bit(change):
     ideal = draw.uniform(0.0, cfg.range_max * 1.2, (9, ring.n_beams))
     ideal[0, :3] = [cfg.range_min / 2, cfg.range_max, 0.0]
     heard = np.where(draw.random(ideal.shape) < 0.5, draw.uniform(0.0, 2.0, ideal.shape), np.inf)
-    poses = np.zeros((9, 3))
     talk = cfg.crosstalk_prob > 0
-    got = ring.measure(poses, np.zeros((0, 4)), 0.1, np.random.default_rng(8), ideal=ideal, heard=heard)
+    got = ring._noisy(ideal, heard if talk else None, np.random.default_rng(8), np.float32)
     want = _numpy_noise(cfg, ideal, heard if talk else None, np.random.default_rng(8))
     assert got.dtype == np.float32 and np.array_equal(got, want.astype(np.float32))
     rng_a, rng_b = np.random.default_rng(1), np.random.default_rng(1)
@@ -472,6 +470,9 @@ def test_a_read_only_wall_array_is_checked_once_a_writable_one_every_call():
     want = ring.measure(pose, walls, 0.1, None)
     assert np.array_equal(ring.measure(pose, frozen, 0.1, None), want)
     assert ring._checked is frozen and sonar._walls(frozen) is sonar._walls(frozen)
+    moved = ring.measure(pose, walls, 0.1, None)
+    walls[0, [0, 2]] = 2.0  # moved in place, 1 m nearer: a writable array is read afresh
+    assert moved[0, 0] == pytest.approx(2.0) and ring.measure(pose, walls, 0.1, None)[0, 0] == pytest.approx(1.0)
     walls[0, 0] = np.nan
     with pytest.raises(ValueError, match="segments contains NaN"):
         ring.measure(pose, walls, 0.1, None)
@@ -479,7 +480,7 @@ def test_a_read_only_wall_array_is_checked_once_a_writable_one_every_call():
     bad.setflags(write=False)
     with pytest.raises(ValueError, match="segments contains NaN"):  # a new read-only array: checked
         ring.measure(pose, bad, 0.1, None)
-    assert ring._checked is frozen
+    assert ring._checked is None  # the last array checked was writable; the failed one is not kept
 
 
 def _first_hit(x0, y0, dx, dy, segs):
@@ -592,30 +593,34 @@ def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit():
 
 @pytest.mark.parametrize("change", [{}, {"model": "ray"}, {"multipath": False}, {"crosstalk_prob": 0.0},
                                     {"layout": "amigobot", "crosstalk_prob": 0.7}, {"garbage_rate": 0.2},
-                                    {"below_min": "clip", "noise_std": 0.0, "noise_rel": 0.0, "quantization": 0.0}])
+                                    {"below_min": "clip", "noise_std": 0.0, "noise_rel": 0.0, "quantization": 0.0},
+                                    {"noise_rel": 0.0}, {"noise_std": 0.0}, {"subrays": 3}, {"walls": 1}])
 def test_one_pass_ring_equals_its_parts_bit_for_bit(change):
     """``measure`` with a generator casts, cross-talks and adds noise in one compiled call: the same
-    readings and the same draws as the noise-free cast, the cross-talk and the noise step by step
-    (the path batched worlds take)."""
-    from parcover_env.sensors.sonar import crosstalk
+    readings and the same draws as the noise-free cast, the cross-talk and the noise step by step."""
+    from parcover_env.sensors.sonar import crosstalk, simulate_beams
 
-    ring = SonarRing(replace(SonarConfig(crosstalk_prob=0.5), **change))
+    change = dict(change)
+    subrays, n_walls = change.pop("subrays", 5), change.pop("walls", None)
+    ring = SonarRing(replace(SonarConfig(crosstalk_prob=0.5), **change), n_subrays=subrays)
     m = MapModel.from_config(T_ROOM)
+    walls = m.segments if n_walls is None else m.segments[:n_walls]  # one wall: still specular
     rng = np.random.default_rng(7)
     for n in (1, 2, 9):
         pts = rng.uniform(0.2, 3.8, (200, 2))
         pts = pts[m.contains(pts, margin=0.2)][:n]
         poses = np.column_stack([pts, rng.uniform(-3, 3, n)])
         seed = int(rng.integers(1 << 30))
-        one, a = ring.measure(poses, m.segments, 0.15, np.random.default_rng(seed)), None
-        ideal = ring.ideal_batch(poses[None], m.segments, 0.15)[0]
-        heard = crosstalk(ring.cfg, poses, ring.beam_angles, m.segments)
-        b = np.random.default_rng(seed)
-        parts = ring.measure(poses, m.segments, 0.15, b, ideal=ideal, heard=heard)
+        a, b = np.random.default_rng(seed), np.random.default_rng(seed)
+        one = ring.measure(poses, walls, 0.15, a)
+        ideal = simulate_beams(ring.cfg, poses[:, :2], poses[:, 2:3] + ring.beam_angles, walls, poses[:, :2], 0.15,
+                               np.arange(n), subrays)
+        heard = crosstalk(ring.cfg, poses, ring.beam_angles, walls) if n > 1 else None
+        parts = ring._noisy(ideal, heard, b, np.float32)
         assert one.dtype == np.float32 and one.tobytes() == parts.tobytes(), n
-        a = np.random.default_rng(seed)
-        ring.measure(poses, m.segments, 0.15, a)
         assert a.random() == b.random()  # the same number of draws
+        quiet = ring.measure(poses, walls, 0.15, None)  # no generator: the noise-free parts
+        assert quiet.tobytes() == ring._noisy(ideal, None, None, np.float32).tobytes()
 
 
 def test_one_pass_ring_blocks_cross_talk_by_walls_beyond_the_range():
@@ -640,10 +645,34 @@ def test_readings_of_k_worlds_equal_each_world_measured_alone():
     pts = rng.uniform(0.2, 3.8, (400, 2))
     pts = pts[m.contains(pts, margin=0.2)][:24].reshape(3, 8, 2)
     poses = np.concatenate([pts, rng.uniform(-3, 3, (3, 8, 1))], axis=2)
-    gens = [np.random.default_rng(s) for s in (1, 2, 3)]
-    got = ring.readings(poses, m.segments, 0.15, [ring.draw(8, g) for g in gens])
-    assert got.shape == (3, 8, ring.n_beams) and got.dtype == np.float32
-    for k, seed in enumerate((1, 2, 3)):
-        alone = ring.measure(poses[k], m.segments, 0.15, np.random.default_rng(seed))
-        assert got[k].tobytes() == alone.tobytes()
-    assert not np.array_equal(got[0], got[1])
+    for k_worlds in (2, 3):
+        gens = [np.random.default_rng(s) for s in range(k_worlds)]
+        got = ring.readings(poses[:k_worlds], m.segments, 0.15, [ring.draw(8, g) for g in gens])
+        assert got.shape == (k_worlds, 8, ring.n_beams) and got.dtype == np.float32
+        for k in range(k_worlds):
+            alone = ring.measure(poses[k], m.segments, 0.15, np.random.default_rng(k))
+            assert got[k].tobytes() == alone.tobytes()
+        assert not np.array_equal(got[0], got[1])
+
+
+def test_ring_layout_angles_and_subray_count():
+    """An evenly spaced ring starts at the heading and steps 360 / n_beams degrees; the scan has one
+    reading per ``scan_step_deg``; a ring needs at least one sub-ray."""
+    ring = SonarRing(SonarConfig(n_beams=8, scan_step_deg=10.0))
+    np.testing.assert_allclose(np.degrees(ring.beam_angles), np.arange(8) * 45.0, atol=1e-12)
+    assert len(ring.scan_angles) == 36 and np.degrees(ring.scan_angles[1]) == pytest.approx(10.0)
+    assert SonarRing(SonarConfig(), n_subrays=1).n_subrays == 1
+    with pytest.raises(ValueError, match="n_subrays must be >= 1, got 0"):
+        SonarRing(SonarConfig(), n_subrays=0)
+
+
+def test_a_ring_that_ignores_robots_sees_only_walls():
+    """``include_robots=False``: no robot blocks or echoes, with or without a generator."""
+    cfg = SonarConfig(noise_std=0.0, noise_rel=0.0, quantization=0.0, crosstalk_prob=1.0)
+    ring = SonarRing(cfg)
+    wall = np.array([[2.0, -2.0, 2.0, 2.0]])
+    poses = np.array([[1.0, 0.0, math.pi], [0.3, 0.0, 0.0], [0.0, 0.0, 0.0]])  # robot 0 faces the others
+    for rng in (None, np.random.default_rng(0)):
+        got = ring.measure(poses, wall, 0.1, rng, include_robots=False)
+        assert got[0, 0] == np.float32(cfg.range_max) and got[1, 0] == pytest.approx(1.7)
+    assert ring.measure(poses, wall, 0.1, None)[0, 0] == pytest.approx(0.6)  # robots seen

@@ -24,9 +24,9 @@ def test_wheel_targets_split_v_and_omega_over_the_wheel_base():
 
 
 def test_wheel_limit_scales_both_wheels_and_keeps_the_curvature():
-    t = wheel_targets(np.array([[0.9, 2.0], [-0.9, 0.0]]), 0.18, 1.0)
-    # unclipped (0.72, 1.08): scaled by 1 / 1.08; (-0.9, -0.9) is within the limit
-    np.testing.assert_allclose(t, [[0.72 / 1.08, 1.0], [-0.9, -0.9]], atol=1e-15)
+    t = wheel_targets(np.array([[0.9, 2.0], [-0.9, 0.0], [0.9, -2.0]]), 0.18, 1.0)
+    # unclipped (0.72, 1.08) and (1.08, 0.72): scaled by 1 / 1.08; (-0.9, -0.9) is within the limit
+    np.testing.assert_allclose(t, [[0.72 / 1.08, 1.0], [-0.9, -0.9], [1.0, 0.72 / 1.08]], atol=1e-15)
     v, w = body_velocity(t[:1], 0.18)[0]
     assert math.isclose(w / v, 2.0 / 0.9, rel_tol=1e-12)
 
