@@ -378,27 +378,17 @@ def test_corrupt_keeps_the_shape_of_a_scalar():
 
 def _disc_echo_reference(origins, axes, offsets, centres, r, owner, rmax):
     """Nearest disc echo of every beam (no walls): each sub-ray against every disc with the
-    kernels' float operations in plain Python (the reference of the compiled cone and range culls)."""
+    kernels' float operations in plain Python (:func:`_disc_t`; the reference of the compiled cone
+    and range culls)."""
     out = np.full(axes.shape, math.inf)
     for n, (x0, y0) in enumerate(origins):
+        others = [c for d, c in enumerate(centres) if d != owner[n]]
         for b in range(axes.shape[1]):
             for off in offsets:
                 ang = axes[n, b] + off
-                ddx, ddy = math.cos(ang), math.sin(ang)
-                for d, (cx, cy) in enumerate(centres):
-                    if d == owner[n]:
-                        continue
-                    ocx, ocy = x0 - cx, y0 - cy
-                    c = (ocx * ocx + ocy * ocy) - r * r
-                    bb = ocx * ddx + ocy * ddy
-                    if c > 0 and bb >= 0:
-                        continue
-                    disc = bb * bb - c
-                    if not disc >= 0:
-                        continue
-                    t = 0.0 if c <= 0 else -bb - math.sqrt(disc)
-                    if 0 <= t <= rmax:
-                        out[n, b] = min(out[n, b], t)
+                t = _disc_t(x0, y0, math.cos(ang), math.sin(ang), others, r * r)
+                if t <= rmax:
+                    out[n, b] = min(out[n, b], t)
     return np.minimum(out, rmax)
 
 
