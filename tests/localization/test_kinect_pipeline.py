@@ -471,3 +471,38 @@ def test_pipeline_stage_options():
     otsu = pipeline_stages(ir2, PipelineParams(otsu=True, otsu_floor=150))["threshold"]
     assert otsu[12, 12] == 255 and otsu[0, 0] == 0  # ... Otsu splits 60 from 190 (raised to the 150 floor)
     assert not pipeline_stages(ir2, PipelineParams(otsu=True, otsu_floor=195))["threshold"].any()
+
+
+def test_tracker_clusters_from_the_estimate_with_most_markers():
+    """Fusion anchors each cluster on the estimate with the most markers: within ``fuse_radius`` of
+    the anchor (distance equal to the radius included) joins it, the others start a cluster."""
+    tr = KinectTracker(fuse_radius=0.125)
+    chain = [est(0.0, 0.0, n=4), est(0.1, 0.0, n=2), est(0.2, 0.0, n=2)]  # the third is 0.2 from the anchor
+    fused = tr.fuse(chain[::-1])
+    assert len(fused) == 2 and fused[1].tolist() == [0.2, 0.0, 0.0]
+    assert fused[0][0] == pytest.approx((4 * 0.0 + 2 * 0.1) / 6)  # marker-weighted
+    assert len(tr.fuse([est(0.0, 0.0), est(0.125, 0.0)])) == 1  # exactly at the radius: one robot
+    with pytest.raises(ValueError, match="gate and fuse_radius must be > 0, got 0.3, 0"):
+        KinectTracker(gate=0.3, fuse_radius=0)
+
+
+def test_tracker_without_predictions_numbers_new_tracks_from_zero():
+    """No predictions: unmatched estimates open tracks 0, 1, ... (skipping ids in use); tracks are
+    then followed by their last poses; ``unassigned`` is emptied; the stamp defaults to 0."""
+    tr = KinectTracker(gate=0.3)
+    assert tr.unassigned == [] and tr.poses == {}
+    first = tr.update([[est(1.0, 1.0), est(3.0, 1.0)]])
+    assert sorted(first) == [0, 1] and tr.unassigned == [] and tr.age(0, 0.5) == 0.5
+    again = tr.update([[est(1.1, 1.0), est(3.1, 1.0), est(6.0, 6.0)]], stamp=2.0)
+    assert again[0].tolist()[:2] == [1.1, 1.0] and again[1].tolist()[:2] == [3.1, 1.0] and sorted(again) == [0, 1, 2]
+    tr.poses[3] = np.array([9.0, 9.0, 0.0])  # an id in use is skipped
+    assert sorted(tr.update([[est(0.0, 5.0)]], stamp=3.0)) == [4]
+
+
+def test_tracker_assignment_gate_is_inclusive_with_several_robots():
+    """Several estimates and predictions: minimum-cost matching, each within the gate (equal to the
+    gate included); an estimate beyond it is left unassigned."""
+    tr = KinectTracker(gate=0.25)
+    pred = {7: (1.0, 1.0, 0.0), 9: (2.0, 1.0, 0.0)}
+    out = tr.update([[est(1.0, 1.25), est(2.0, 1.2500001)]], pred)
+    assert list(out) == [7] and out[7].tolist()[:2] == [1.0, 1.25] and len(tr.unassigned) == 1
