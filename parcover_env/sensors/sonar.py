@@ -129,9 +129,7 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     n, b = axes.shape
     rmax = float(cfg.range_max)
     walls = _walls(segments)
-    offsets = _subray_offsets(float(cfg.cone_deg), n_subrays) if cfg.model == "specular" else _AXIS_ONLY
-    specular = cfg.model == "specular" and len(walls.segments) > 0
-    cos_min = math.cos(math.radians(cfg.incidence_max_deg)) - 1e-12
+    offsets, specular = _cone(cfg, n_subrays, walls)
     # one compiled pass over all sub-rays of all robots: walls, discs, incidence, second bounces
     origins = np.asarray(origins, dtype=float).reshape(-1, 2)
     ox, oy = np.ascontiguousarray(origins[:, 0]), np.ascontiguousarray(origins[:, 1])
@@ -141,7 +139,7 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     reading = np.empty((n, b))
     kern = rays.kernels()
     kern.sonar_echoes(ox, oy, axes, offsets, walls.segments, walls.lengths, idx, cnt, cx, cy, r2, owner_, rmax,
-                      specular, bool(cfg.multipath), cos_min, _NUDGE, rays.BOX_CULL, reading)
+                      specular, bool(cfg.multipath), _cos_min(cfg), _NUDGE, rays.BOX_CULL, reading)
     pts, u1, u2 = walls.corners
     if specular and len(pts):  # concave corners inside a cone retro-reflect (lowers ``reading`` in place)
         kern.sonar_corner_echoes(ox, oy, axes, pts, u1, u2, walls.segments, idx, cnt, cx, cy, r2, owner_, rmax,
@@ -151,6 +149,18 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
 
 _AXIS_ONLY = np.zeros(1)
 """Sub-ray offsets of the ``ray`` model: the beam axis alone."""
+
+
+def _cone(cfg: SonarConfig, n_subrays: int, walls: _Walls) -> tuple[np.ndarray, bool]:
+    """A beam's sub-ray offsets (rad) and whether the specular rules apply (the model, and walls to
+    apply them to)."""
+    offsets = _subray_offsets(float(cfg.cone_deg), n_subrays) if cfg.model == "specular" else _AXIS_ONLY
+    return offsets, cfg.model == "specular" and len(walls.segments) > 0
+
+
+def _cos_min(cfg: SonarConfig) -> float:
+    """The smallest ``|cos|`` of incidence at which a wall echoes, with a rounding slack."""
+    return math.cos(math.radians(cfg.incidence_max_deg)) - 1e-12
 
 
 def _half_cone(cfg: SonarConfig) -> float:
@@ -179,7 +189,7 @@ class SonarRing:
         """The last wall array :meth:`measure` checked, if frozen (:func:`_frozen`)."""
         self._beams = np.ascontiguousarray(self.beam_angles, dtype=float)
         self._all_round = _covers_circle(self._beams.tobytes(), _half_cone(cfg))
-        self._par = np.array([cfg.range_max, math.cos(math.radians(cfg.incidence_max_deg)) - 1e-12, _NUDGE,
+        self._par = np.array([cfg.range_max, _cos_min(cfg), _NUDGE,
                               rays.NEAR_SLACK, _half_cone(cfg), cfg.crosstalk_prob, cfg.range_min, cfg.noise_std,
                               cfg.noise_rel, cfg.quantization, cfg.garbage_rate], dtype=float)
         """The constants of :func:`~parcover_env.sensors._onboard_kernels.ring_readings`."""
@@ -212,12 +222,19 @@ class SonarRing:
         """The random numbers :meth:`measure` draws for ``n`` robots that see each other, in its order:
         cross-talk uniforms, noise normals, garbage uniforms and ranges (each ``(n * B,)``, empty
         where that step is off); for :meth:`readings`."""
-        cfg, size, none = self.cfg, n * self.n_beams, np.empty(0)
-        talk = rng.random(size) if n > 1 and cfg.crosstalk_prob > 0 else none
+        return self._draws(n * self.n_beams, rng, n > 1)
+
+    def _draws(self, size: int, rng: np.random.Generator | None, talk: bool) -> tuple[np.ndarray, ...]:
+        """``size`` of each of :meth:`draw`'s numbers (cross-talk ones only if ``talk``); all empty
+        without a generator."""
+        cfg, none = self.cfg, np.empty(0)
+        if rng is None:
+            return none, none, none, none
+        talk_u = rng.random(size) if talk and cfg.crosstalk_prob > 0 else none
         z = rng.standard_normal(size) if cfg.noise_std > 0 or cfg.noise_rel > 0 else none
         bad = rng.random(size) if cfg.garbage_rate > 0 else none
         junk = rng.uniform(cfg.range_min, cfg.range_max, size) if len(bad) else none
-        return talk, z, bad, junk
+        return talk_u, z, bad, junk
 
     def readings(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float,
                  draws: list[tuple[np.ndarray, ...]]) -> np.ndarray:
@@ -231,11 +248,11 @@ class SonarRing:
         poses = np.asarray(poses, dtype=float)
         k, n, nb = poses.shape[0], poses.shape[1], self.n_beams
         talk, z, bad, junk = (np.concatenate(parts) if k > 1 else parts[0] for parts in zip(*draws, strict=True))
-        offsets = _subray_offsets(float(cfg.cone_deg), self.n_subrays) if cfg.model == "specular" else _AXIS_ONLY
+        offsets, specular = _cone(cfg, self.n_subrays, walls)
         pts, u1, u2 = walls.corners
         out = np.empty((k * n, nb), dtype=np.float32)
         px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
-        specular, r = cfg.model == "specular" and len(walls.segments) > 0, float(robot_radius)
+        r = float(robot_radius)
         _onboard_kernels.ring_readings(px, py, pth, r * r, self._beams, offsets, walls.segments,
                                        walls.lengths, pts, u1, u2, specular, bool(cfg.multipath), self._all_round,
                                        cfg.below_min == "drop", self._par, talk, z, bad, junk, out)
@@ -284,15 +301,10 @@ class SonarRing:
         ideal = np.asarray(ideal, dtype=float)
         rows = np.ascontiguousarray(ideal.reshape(-1, ideal.shape[-1]) if ideal.ndim else ideal.reshape(1, 1))
         out = np.empty(rows.shape, dtype=dtype)
-        size, none = rows.size, np.empty(0)
         talk = heard is not None
         heard = np.ascontiguousarray(heard, dtype=float).reshape(rows.shape) if talk else rows
-        noisy = rng is not None
-        draws = [rng.random(size) if noisy and talk and cfg.crosstalk_prob > 0 else none,
-                 rng.standard_normal(size) if noisy and (cfg.noise_std > 0 or cfg.noise_rel > 0) else none]
-        bad = rng.random(size) if noisy and cfg.garbage_rate > 0 else none
-        junk = rng.uniform(cfg.range_min, cfg.range_max, size) if len(bad) else none
-        _onboard_kernels.ring_noise(rows, heard, float(cfg.crosstalk_prob) if talk else 0.0, *draws, bad, junk,
+        _onboard_kernels.ring_noise(rows, heard, float(cfg.crosstalk_prob) if talk else 0.0,
+                                    *self._draws(rows.size, rng, talk),
                                     float(cfg.range_min), float(cfg.range_max), cfg.below_min == "drop",
                                     float(cfg.noise_std), float(cfg.noise_rel), float(cfg.quantization),
                                     float(cfg.garbage_rate), out)
