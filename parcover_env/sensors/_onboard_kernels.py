@@ -1,11 +1,11 @@
-"""Compiled (numba) loops of the onboard sensors: the sonar ring (its noise, and the whole ring in
-one pass), the follower camera and the wheel odometry. Import only through :mod:`parcover_env.sensors.sonar`,
+"""Compiled (numba) loops of the onboard sensors: the follower camera and the wheel odometry (the
+sonar's are in :mod:`parcover_env.sensors._sonar_kernels`). Import only through
 :mod:`parcover_env.sensors.relative` and :mod:`parcover_env.sensors.odometry`.
 
 The callers draw the random numbers (numpy, the episode's generator, whole arrays in the order the
 numpy formulas drew them) and hand them in: passing a ``Generator`` to a compiled function costs
-about 5 us per call. ``tests/sensors/test_sonar.py``, ``test_relative_camera.py`` and
-``test_odometry.py`` keep the numpy references.
+about 5 us per call. ``tests/sensors/test_relative_camera.py`` and ``test_odometry.py`` keep the
+numpy references.
 """
 
 from __future__ import annotations
@@ -15,107 +15,7 @@ import math
 import numpy as np
 from numba import njit
 
-from parcover_env.geometry._ray_kernels import near_segments, sonar_corner_echoes, sonar_crosstalk, sonar_echoes
-
-
-@njit(cache=True, nogil=True)
-def ring_noise(ideal, heard, talk_prob, talk, z, bad, junk, range_min, range_max, drop_below, noise_std, noise_rel,
-               quantization, garbage_rate, out):
-    """``out (N, B) float32`` from the noise-free ``ideal (N, B)``: cross-talk (``talk_prob > 0``:
-    a beam reads ``min(ideal, heard)`` with that probability, ``heard (N, B)``), readings below
-    ``range_min`` lost (``drop_below``), Gaussian noise ``noise_std + noise_rel * r`` on echoes,
-    quantization of echoes, clamping to ``[range_min, range_max]``, garbage readings uniform in that
-    range. The draws, flat ``(N * B,)`` arrays or empty where a step is off: ``talk`` uniform
-    (cross-talk), ``z`` standard normal (noise), ``bad`` uniform and ``junk`` uniform in the range
-    (garbage)."""
-    n, b = ideal.shape
-    size = n * b
-    r = ideal.copy().reshape(size)
-    if talk.shape[0]:
-        hv = heard.reshape(size)
-        for i in range(size):
-            if talk[i] < talk_prob:
-                r[i] = min(r[i], hv[i])
-    echo = np.empty(size, dtype=np.bool_)
-    for i in range(size):
-        if drop_below and r[i] < range_min:
-            r[i] = range_max
-        echo[i] = r[i] < range_max
-    if z.shape[0]:
-        for i in range(size):
-            if echo[i]:
-                r[i] = r[i] + (noise_std + noise_rel * r[i]) * z[i]
-    for i in range(size):
-        if quantization > 0.0 and echo[i]:
-            r[i] = np.rint(r[i] / quantization) * quantization
-        r[i] = min(max(r[i], range_min), range_max)
-    if bad.shape[0]:
-        for i in range(size):
-            if bad[i] < garbage_rate:
-                r[i] = junk[i]
-    flat = out.reshape(size)
-    for i in range(size):
-        flat[i] = r[i]
-
-
-@njit(cache=True, nogil=True)
-def ring_readings(px, py, pth, radius2, beams, offsets, segs, seg_len, pts, u1, u2, specular, multipath, all_round,
-                  drop_below, par, talk, z, bad, junk, out):
-    """The rings of every robot of ``K`` worlds sharing the walls, ``px, py, pth (K, N)``, in one pass:
-    what :meth:`parcover_env.sensors.sonar.SonarRing.measure` composes from its parts for each world
-    alone. The noise-free echoes (:func:`~parcover_env.geometry._ray_kernels.sonar_echoes`, concave
-    corners; the discs are the other robots of the robot's world, of squared radius ``radius2``), the
-    cross-talk of the beams whose uniform ``talk`` draw is below its probability (``talk`` empty:
-    none), then :func:`ring_noise` into ``out (K * N, B) float32``. The draws are flat, world after
-    world, robot after robot, beam after beam. ``par`` = range max, incidence cosine bound, restart
-    nudge, near-list slack, half cone, cross-talk probability, range min, noise sigma, relative
-    noise, quantization, garbage rate."""
-    rmax, cos_min, nudge, slack, half = par[0], par[1], par[2], par[3], par[4]
-    k, n = px.shape
-    nb = beams.shape[0]
-    ox = px.reshape(k * n)
-    oy = py.reshape(k * n)
-    axes = np.empty((k * n, nb))
-    for r in range(k * n):
-        for b in range(nb):
-            axes[r, b] = pth[r // n, r % n] + beams[b]
-    rows = 1 if k == 1 else k * n  # one disc set for all origins of one world, else a set per origin
-    cx = np.empty((rows, n))
-    cy = np.empty((rows, n))
-    for r in range(rows):
-        for d in range(n):
-            cx[r, d] = px[r // n, d]
-            cy[r, d] = py[r // n, d]
-    r2 = np.full(n, radius2)
-    owner = np.empty(k * n, dtype=np.int64)
-    for r in range(k * n):
-        owner[r] = r % n
-    idx = np.empty((k * n, segs.shape[0]), dtype=np.int64)
-    cnt = np.empty(k * n, dtype=np.int64)
-    near_segments(ox, oy, segs, rmax + slack, idx, cnt)
-    ideal = np.empty((k * n, nb))
-    sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, owner, rmax, specular, multipath,
-                 cos_min, nudge, True, ideal)
-    if specular and pts.shape[0] > 0:
-        sonar_corner_echoes(ox, oy, axes, pts, u1, u2, segs, idx, cnt, cx, cy, r2, owner, rmax, half, ideal)
-    heard = ideal  # (no echo reads inf here, range max in the parts: ring_noise treats both alike)
-    if talk.shape[0]:
-        want = np.empty((k, n, nb), dtype=np.bool_)
-        for r in range(k * n):
-            for b in range(nb):
-                want[r // n, r % n, b] = talk[r * nb + b] < par[5]
-        near_segments(ox, oy, segs, 2.0 * rmax + slack, idx, cnt)
-        heard3 = np.full((k, n, nb), np.inf)
-        sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, half, rmax, want, heard3)
-        heard = heard3.reshape(k * n, nb)
-    ring_noise(ideal, heard, par[5] if talk.shape[0] else 0.0, talk, z, bad, junk, par[6], rmax, drop_below, par[7],
-               par[8], par[9], par[10], out)
-
-
-@njit(cache=True, inline="always")
-def _wrap(a):
-    """``a`` wrapped to (-pi, pi], as :func:`parcover_env.geometry.angles.wrap_angle`."""
-    return math.pi - ((math.pi - a) % (2.0 * math.pi))
+from parcover_env.geometry._ray_kernels import _wrap
 
 
 @njit(cache=True, nogil=True)

@@ -3,7 +3,8 @@
 Geometry and conventions
 - The transducers sit at the robot centre (a documented simplification: ranges are measured from
   the centre, so a wall touching the robot reads ``robot_radius``). Beam angles are in the robot
-  frame, counter-clockwise from the heading. All rays go through :mod:`parcover_env.geometry.rays`.
+  frame, counter-clockwise from the heading. All rays are cast with the formulas of
+  :mod:`parcover_env.geometry.rays` (its compiled per-ray helpers, in :mod:`._sonar_kernels`).
 - ``model: ray`` — one ideal ray along each beam axis; reading = first hit (walls or other robots).
 - ``model: specular`` (default) — each beam is a cone of ``cone_deg`` sampled by ``n_subrays`` rays.
   A sub-ray echoes from a wall only when it meets the wall within ``incidence_max_deg`` of the
@@ -137,7 +138,8 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     cx, cy, r2, owner_ = rays.disc_planes(centres, float(radius), owner, n)
     idx, cnt = rays.near_segments(ox, oy, walls.segments, rmax)
     reading = np.empty((n, b))
-    kern = rays.kernels()
+    from parcover_env.sensors import _sonar_kernels as kern
+
     kern.sonar_echoes(ox, oy, axes, offsets, walls.segments, walls.lengths, idx, cnt, cx, cy, r2, owner_, rmax,
                       specular, bool(cfg.multipath), _cos_min(cfg), _NUDGE, rays.BOX_CULL, reading)
     pts, u1, u2 = walls.corners
@@ -192,7 +194,7 @@ class SonarRing:
         self._par = np.array([cfg.range_max, _cos_min(cfg), _NUDGE,
                               rays.NEAR_SLACK, _half_cone(cfg), cfg.crosstalk_prob, cfg.range_min, cfg.noise_std,
                               cfg.noise_rel, cfg.quantization, cfg.garbage_rate], dtype=float)
-        """The constants of :func:`~parcover_env.sensors._onboard_kernels.ring_readings`."""
+        """The constants of :func:`~parcover_env.sensors._sonar_kernels.ring_readings`."""
 
     @property
     def n_beams(self) -> int:
@@ -240,9 +242,9 @@ class SonarRing:
                  draws: list[tuple[np.ndarray, ...]]) -> np.ndarray:
         """Readings ``(K, N, B)`` float32 of ``K`` worlds sharing the walls ``segments``, robots ``poses
         (K, N, 3)`` that see the robots of their own world, with each world's :meth:`draw`: one
-        compiled call (:func:`~parcover_env.sensors._onboard_kernels.ring_readings`). World ``k``
+        compiled call (:func:`~parcover_env.sensors._sonar_kernels.ring_readings`). World ``k``
         reads what :meth:`measure` reads for it alone with a generator that gives those draws."""
-        from parcover_env.sensors import _onboard_kernels
+        from parcover_env.sensors import _sonar_kernels
 
         cfg, walls = self.cfg, _walls(segments)
         poses = np.asarray(poses, dtype=float)
@@ -253,7 +255,7 @@ class SonarRing:
         out = np.empty((k * n, nb), dtype=np.float32)
         px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
         r = float(robot_radius)
-        _onboard_kernels.ring_readings(px, py, pth, r * r, self._beams, offsets, walls.segments,
+        _sonar_kernels.ring_readings(px, py, pth, r * r, self._beams, offsets, walls.segments,
                                        walls.lengths, pts, u1, u2, specular, bool(cfg.multipath), self._all_round,
                                        cfg.below_min == "drop", self._par, talk, z, bad, junk, out)
         return out.reshape(k, n, nb)
@@ -294,8 +296,8 @@ class SonarRing:
     def _noisy(self, ideal, heard: np.ndarray | None, rng: np.random.Generator | None, dtype) -> np.ndarray:
         """Readings from noise-free ranges: cross-talk with ``heard`` (if given, at ``crosstalk_prob``),
         then :meth:`corrupt`'s steps; one compiled pass drawing from ``rng``
-        (:func:`~parcover_env.sensors._onboard_kernels.ring_noise`)."""
-        from parcover_env.sensors import _onboard_kernels
+        (:func:`~parcover_env.sensors._sonar_kernels.ring_noise`)."""
+        from parcover_env.sensors import _sonar_kernels
 
         cfg = self.cfg
         ideal = np.asarray(ideal, dtype=float)
@@ -303,7 +305,7 @@ class SonarRing:
         out = np.empty(rows.shape, dtype=dtype)
         talk = heard is not None
         heard = np.ascontiguousarray(heard, dtype=float).reshape(rows.shape) if talk else rows
-        _onboard_kernels.ring_noise(rows, heard, float(cfg.crosstalk_prob) if talk else 0.0,
+        _sonar_kernels.ring_noise(rows, heard, float(cfg.crosstalk_prob) if talk else 0.0,
                                     *self._draws(rows.size, rng, talk),
                                     float(cfg.range_min), float(cfg.range_max), cfg.below_min == "drop",
                                     float(cfg.noise_std), float(cfg.noise_rel), float(cfg.quantization),
@@ -332,7 +334,9 @@ def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segm
     px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
     idx, cnt = rays.near_segments(px.reshape(-1), py.reshape(-1), segments, 2 * float(cfg.range_max))
     beams = np.ascontiguousarray(beam_angles, dtype=float)
-    rays.kernels().sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments,
+    from parcover_env.sensors import _sonar_kernels
+
+    _sonar_kernels.sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments,
                                    idx, cnt,
                                    _half_cone(cfg), float(cfg.range_max), want, out)
     return out

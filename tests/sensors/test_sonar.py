@@ -551,6 +551,7 @@ def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit():
     legs, disc culls) reads bit for bit what tracing every sub-ray's two legs against every wall and
     robot reads, in a room of oblique walls with a crowd of robots."""
     from parcover_env.geometry import rays
+    from parcover_env.sensors import _sonar_kernels
     from parcover_env.sensors.sonar import _NUDGE, _subray_offsets, _walls
 
     cfg = SonarConfig()
@@ -570,7 +571,7 @@ def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit():
         cx, cy, r2, owner = rays.disc_planes(xy, 0.15, np.arange(10), 10)
         idx, cnt = rays.near_segments(ox, oy, walls.segments, cfg.range_max)
         got = np.empty((10, ring.n_beams))
-        rays.kernels().sonar_echoes(ox, oy, axes, offsets, walls.segments, walls.lengths, idx, cnt, cx, cy, r2, owner,
+        _sonar_kernels.sonar_echoes(ox, oy, axes, offsets, walls.segments, walls.lengths, idx, cnt, cx, cy, r2, owner,
                                     cfg.range_max, True, True, cos_min, _NUDGE, True, got)
         for n in range(10):
             others = [tuple(p) for i, p in enumerate(xy) if i != n]

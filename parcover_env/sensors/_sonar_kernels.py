@@ -1,0 +1,372 @@
+"""Compiled (numba) loops of the sonar ring (:mod:`parcover_env.sensors.sonar`; import only through
+it): the specular cone with its second legs and concave corners, cross-talk, noise, and the whole
+ring of every robot of K worlds in one call. They cast rays with the per-ray helpers of
+:mod:`parcover_env.geometry._ray_kernels` (same float operations, no fast-math).
+
+The caller draws the random numbers (numpy, the episode's generator, whole arrays in the order the
+numpy formulas drew them) and hands them in: passing a ``Generator`` to a compiled function costs
+about 5 us per call. ``tests/sensors/test_sonar.py`` keeps plain-Python and numpy references.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from parcover_env.geometry._ray_kernels import (
+    _COS_FLOOR,
+    _disc_hit,
+    _disc_hit_from,
+    _in_cone,
+    _segment_hit,
+    near_segments,
+)
+
+
+@njit(cache=True, inline="always")
+def _incidence(den, seg_len, i):
+    """``|cos|`` of the incidence of a hit on segment ``i`` (``den = d x e``; 0 if no hit)."""
+    return abs(den) / max(seg_len[i], _COS_FLOOR) if i >= 0 else 0.0
+
+
+@njit(cache=True, nogil=True)
+def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, owner, rmax,
+                 specular, multipath, cos_min, nudge, box_cull, reading):
+    """Nearest echo ``reading (N, B)`` over the sub-rays of every beam, inf if none (the rules of
+    :func:`parcover_env.sensors.sonar.simulate_beams`). Beam ``b`` of origin ``n`` has the sub-rays
+    at angles ``axes[n, b] + offsets[j]``.
+
+    A sub-ray's first hit within ``rmax`` on the walls is ``t1`` (incidence ``|cos| c1``), on the
+    discs ``td``. ``specular``: a wall echoes only if ``c1 >= cos_min``; with ``multipath`` an
+    oblique wall mirrors the sub-ray, which starts again ``nudge`` off the wall and reads
+    ``t1 + t2 + nudge`` if its next surface (a normal-enough wall, or a disc) lies within
+    ``rmax - t1`` (``t2 + nudge`` compared). A disc nearer than the wall echoes (``td``). Walls
+    are looked up in the origin's list ``idx`` of those within ``rmax`` (plus the nudge;
+    :func:`near_segments`): a two-leg path of length <= ``rmax`` stays within it."""
+    cull = box_cull and math.isfinite(rmax)
+    per_origin = cx.shape[0] > 1
+    n_discs = cx.shape[1]
+    spread = 0.0  # the sub-rays' largest angle off the beam axis (< pi / 2: cones are < 180 deg)
+    for j in range(offsets.shape[0]):
+        spread = max(spread, abs(offsets[j]))
+    leg_t = np.empty(offsets.shape[0])  # per beam: the sub-rays an oblique wall mirrored
+    leg_i = np.empty(offsets.shape[0], dtype=np.int64)
+    leg_x = np.empty(offsets.shape[0])
+    leg_y = np.empty(offsets.shape[0])
+    cos_spread = math.cos(spread)
+    sin_spread = math.sin(spread)
+    ocx = np.empty(n_discs)  # per origin: the terms of the discs a sub-ray within rmax can hit
+    ocy = np.empty(n_discs)
+    cc = np.empty(n_discs)
+    ux = np.empty(n_discs)
+    uy = np.empty(n_discs)
+    cos_w = np.empty(n_discs)
+    bx = np.empty(n_discs)  # per beam: those a sub-ray of its cone can hit
+    by = np.empty(n_discs)
+    bc = np.empty(n_discs)
+    for n in range(ox.shape[0]):
+        x0 = ox[n]
+        y0 = oy[n]
+        row = n if per_origin else 0
+        near = idx[n, :cnt[n]]
+        m = _near_discs(x0, y0, cx[row], cy[row], r2, owner[n], rmax, cos_spread, sin_spread, ocx, ocy, cc, ux, uy,
+                        cos_w)
+        for b in range(axes.shape[1]):
+            ax = math.cos(axes[n, b])
+            ay = math.sin(axes[n, b])
+            nb = 0
+            for d in range(m):
+                if ax * ux[d] + ay * uy[d] >= cos_w[d]:
+                    bx[nb] = ocx[d]
+                    by[nb] = ocy[d]
+                    bc[nb] = cc[d]
+                    nb += 1
+            best = np.inf
+            n_legs = 0
+            for j in range(offsets.shape[0]):  # first legs: direct echoes (walls near the normal, discs)
+                ang = axes[n, b] + offsets[j]
+                ddx = math.cos(ang)
+                ddy = math.sin(ang)
+                # an echo is never nearer than the sub-ray's first wall or disc, so walls beyond the
+                # cone's nearest echo so far (``best``) are culled and mirrored legs from there skipped
+                t1, i1, den = _segment_hit(x0, y0, ddx, ddy, segs, near, min(rmax, best), cull, False)
+                td = _disc_hit_from(ddx, ddy, bx[:nb], by[:nb], bc[:nb])
+                if not td <= rmax:
+                    td = np.inf
+                if not (i1 >= 0 and t1 <= rmax):
+                    t1 = np.inf
+                    i1 = -1
+                if not specular:
+                    echo = min(t1, td)
+                elif td < t1:
+                    echo = td
+                elif _incidence(den, seg_len, i1) >= cos_min:
+                    echo = t1
+                else:
+                    echo = np.inf
+                    if multipath and i1 >= 0:  # mirrored by an oblique wall: its second leg comes after
+                        leg_t[n_legs] = t1
+                        leg_i[n_legs] = i1
+                        leg_x[n_legs] = ddx
+                        leg_y[n_legs] = ddy
+                        n_legs += 1
+                best = min(best, echo)
+            for k in range(n_legs):  # second legs, once the cone's direct echoes bound what can be nearer
+                if leg_t[k] < best:
+                    echo = _second_leg(x0, y0, leg_x[k], leg_y[k], leg_t[k], leg_i[k], segs, seg_len, near, cx, cy,
+                                       row, r2, owner[n], rmax, cos_min, nudge, box_cull)
+                    best = min(best, echo)
+            reading[n, b] = best
+
+
+_DISC_SLACK = 1e-6
+"""Margin (m, rad) of the disc culls of :func:`sonar_echoes`: rounding never culls a disc a sub-ray hits."""
+
+
+@njit(cache=True, inline="always")
+def _near_discs(x0, y0, cx, cy, r2, mine, rmax, cos_spread, sin_spread, ocx, ocy, cc, ux, uy, cos_w):
+    """The discs ``cx, cy`` (squared radii ``r2``) but ``mine`` that a ray from ``(x0, y0)`` can hit
+    within ``rmax``, compacted into the first ``m`` entries of the outputs (``m`` returned): the
+    terms ``oc = o - c`` and ``|oc|^2 - r^2`` of :func:`_disc_hit_from`, the unit vector ``u`` to the
+    centre and the cosine of ``spread`` (< pi / 2; given as its cosine and sine) plus the half-angle
+    the disc spans (-2 if the origin is inside it: every ray hits). A ray hits a disc outside it only
+    within that half-angle of ``u`` (at a distance >= ``|oc| - r``), so a cone of half-angle
+    ``spread`` about a unit axis ``a`` can hit it only if ``a . u >= cos_w``."""
+    m = 0
+    for d in range(cx.shape[0]):
+        if d == mine:
+            continue
+        dx = x0 - cx[d]
+        dy = y0 - cy[d]
+        c = (dx * dx + dy * dy) - r2[d]
+        if c > 0.0:
+            dist = math.sqrt(dx * dx + dy * dy)
+            r = math.sqrt(r2[d])
+            if dist - r > rmax + _DISC_SLACK:
+                continue
+            ux[m] = -dx / dist
+            uy[m] = -dy / dist
+            sin_w = min(r / dist, 1.0)  # cos(spread + w), w the disc's half-angle, minus a rounding margin
+            cos_w[m] = cos_spread * math.sqrt(1.0 - sin_w * sin_w) - sin_spread * sin_w - _DISC_SLACK
+        else:
+            ux[m] = 0.0
+            uy[m] = 0.0
+            cos_w[m] = -2.0
+        ocx[m] = dx
+        ocy[m] = dy
+        cc[m] = c
+        m += 1
+    return m
+
+
+@njit(cache=True, inline="always")
+def _second_leg(x0, y0, ddx, ddy, t1, i1, segs, seg_len, near, cx, cy, row, r2, mine, rmax, cos_min, nudge,
+                box_cull):
+    """Echo length ``t1 + t2`` of a sub-ray mirrored at ``t1`` by segment ``i1``, inf if its second
+    leg finds no echoing surface within ``rmax - t1``."""
+    ex = segs[i1, 2] - segs[i1, 0]
+    ey = segs[i1, 3] - segs[i1, 1]
+    norm = math.sqrt(ex * ex + ey * ey)
+    nx = -ey / norm
+    ny = ex / norm
+    f = 2.0 * (ddx * nx + ddy * ny)
+    d2x = ddx - f * nx
+    d2y = ddy - f * ny
+    px = (x0 + ddx * t1) + d2x * nudge
+    py = (y0 + ddy * t1) + d2y * nudge
+    reach = rmax - t1
+    t2w, i2, den2 = _segment_hit(px, py, d2x, d2y, segs, near, reach, box_cull and math.isfinite(reach), False)
+    if not (i2 >= 0 and t2w <= reach):
+        t2w = np.inf
+        i2 = -1
+    wall2 = t2w if _incidence(den2, seg_len, i2) >= cos_min else np.inf
+    td2 = _disc_hit(px, py, d2x, d2y, cx, cy, row, r2, mine)
+    t2 = (td2 if td2 < t2w else wall2) + nudge
+    return t1 + t2 if t2 <= rmax - t1 else np.inf
+
+
+@njit(cache=True, nogil=True)
+def sonar_corner_echoes(ox, oy, axes, pts, u1, u2, segs, idx, cnt, cx, cy, r2, owner, rmax, half, reading):
+    """Lower ``reading (N, B)`` to the distance of every concave corner ``pts (C, 2)`` (wall
+    directions ``u1, u2``) that origin ``n`` sees from inside the corner's wedge, within ``rmax``,
+    with no wall (nor disc) in between, and inside beam ``b``'s cone (``|bearing - axis| <= half``);
+    the concave-corner rule of :func:`parcover_env.sensors.sonar.simulate_beams`. Walls are looked
+    up in the origin's list ``idx`` of those within ``rmax`` (:func:`near_segments`)."""
+    has_discs = cx.shape[1] > 0
+    per_origin = cx.shape[0] > 1
+    for n in range(ox.shape[0]):
+        x0 = ox[n]
+        y0 = oy[n]
+        near = idx[n, :cnt[n]]
+        for c in range(pts.shape[0]):
+            vx = pts[c, 0] - x0
+            vy = pts[c, 1] - y0
+            dist = math.sqrt(vx * vx + vy * vy)
+            if not (dist <= rmax and dist > 1e-9):
+                continue
+            s = u1[c, 0] * u2[c, 1] - u1[c, 1] * u2[c, 0]
+            wx = x0 - pts[c, 0]
+            wy = y0 - pts[c, 1]
+            if not ((u1[c, 0] * wy - u1[c, 1] * wx) * s > 0 and (wx * u2[c, 1] - wy * u2[c, 0]) * s > 0):
+                continue  # not inside the corner's wedge
+            bearing = math.atan2(vy, vx)
+            seen = -1  # line of sight: unknown until a beam's cone holds the corner
+            for b in range(axes.shape[1]):
+                if not (dist < reading[n, b] and _in_cone(bearing - axes[n, b], half)):
+                    continue
+                if seen < 0:
+                    dx = vx / dist
+                    dy = vy / dist
+                    t, _, _ = _segment_hit(x0, y0, dx, dy, segs, near, np.inf, False, False)
+                    seen = 1 if t >= dist * (1.0 - 1e-7) - 1e-9 else 0  # else a wall in between
+                    if seen and has_discs and not _disc_hit(x0, y0, dx, dy, cx, cy, n if per_origin else 0, r2,
+                                                            owner[n]) >= dist:
+                        seen = 0  # a robot in between
+                if seen:
+                    reading[n, b] = dist
+
+
+@njit(cache=True, nogil=True)
+def sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, half, rmax, want, out):
+    """Cross-talk readings ``out (K, N, B)`` (left inf where none) of robots ``(K, N)`` poses
+    ``px, py, pth``: beam ``b`` of robot ``i`` reads ``d / 2`` from the nearest robot ``j`` of its world
+    inside that beam's cone (``half``) with a beam of ``j`` pointing back at ``i``, ``0 < d / 2 <= rmax``
+    and no wall between them; the rules of :func:`parcover_env.sensors.sonar.crosstalk`.
+    ``all_round``: the cones cover every direction (a beam always points back). Walls are looked up
+    in robot ``k * N + i``'s list ``idx`` of those within ``2 rmax`` (:func:`near_segments`).
+    Only the beams ``want (K, N, B)`` are computed (the others stay inf)."""
+    nb = beams.shape[0]
+    n_robots = px.shape[1]
+    for k in range(px.shape[0]):
+        for i in range(n_robots):
+            wanted = False
+            for b in range(nb):
+                wanted = wanted or want[k, i, b]
+            if not wanted:
+                continue
+            near = idx[k * n_robots + i, :cnt[k * n_robots + i]]
+            for j in range(n_robots):
+                if i == j:
+                    continue
+                dx = px[k, j] - px[k, i]
+                dy = py[k, j] - py[k, i]
+                d = math.hypot(dx, dy)
+                if not (d / 2 <= rmax and d > 0):
+                    continue
+                bearing = math.atan2(dy, dx)
+                gain = False  # does a beam of i hold j nearer than what it heard so far?
+                for b in range(nb):
+                    if want[k, i, b] and d / 2 < out[k, i, b] and _in_cone(bearing - pth[k, i] - beams[b], half):
+                        gain = True
+                        break
+                if not gain:
+                    continue
+                back = all_round
+                for c in range(0 if all_round else nb):
+                    if _in_cone(bearing + math.pi - pth[k, j] - beams[c], half):
+                        back = True
+                        break
+                if not back:
+                    continue
+                _, hit, _ = _segment_hit(px[k, i], py[k, i], dx, dy, segs, near, 1.0, True, True)
+                if hit >= 0:
+                    continue  # a wall between them
+                for b in range(nb):
+                    if want[k, i, b] and d / 2 < out[k, i, b] and _in_cone(bearing - pth[k, i] - beams[b], half):
+                        out[k, i, b] = d / 2
+
+
+@njit(cache=True, nogil=True)
+def ring_noise(ideal, heard, talk_prob, talk, z, bad, junk, range_min, range_max, drop_below, noise_std, noise_rel,
+               quantization, garbage_rate, out):
+    """``out (N, B) float32`` from the noise-free ``ideal (N, B)``: cross-talk (``talk_prob > 0``:
+    a beam reads ``min(ideal, heard)`` with that probability, ``heard (N, B)``), readings below
+    ``range_min`` lost (``drop_below``), Gaussian noise ``noise_std + noise_rel * r`` on echoes,
+    quantization of echoes, clamping to ``[range_min, range_max]``, garbage readings uniform in that
+    range. The draws, flat ``(N * B,)`` arrays or empty where a step is off: ``talk`` uniform
+    (cross-talk), ``z`` standard normal (noise), ``bad`` uniform and ``junk`` uniform in the range
+    (garbage)."""
+    n, b = ideal.shape
+    size = n * b
+    r = ideal.copy().reshape(size)
+    if talk.shape[0]:
+        hv = heard.reshape(size)
+        for i in range(size):
+            if talk[i] < talk_prob:
+                r[i] = min(r[i], hv[i])
+    echo = np.empty(size, dtype=np.bool_)
+    for i in range(size):
+        if drop_below and r[i] < range_min:
+            r[i] = range_max
+        echo[i] = r[i] < range_max
+    if z.shape[0]:
+        for i in range(size):
+            if echo[i]:
+                r[i] = r[i] + (noise_std + noise_rel * r[i]) * z[i]
+    for i in range(size):
+        if quantization > 0.0 and echo[i]:
+            r[i] = np.rint(r[i] / quantization) * quantization
+        r[i] = min(max(r[i], range_min), range_max)
+    if bad.shape[0]:
+        for i in range(size):
+            if bad[i] < garbage_rate:
+                r[i] = junk[i]
+    flat = out.reshape(size)
+    for i in range(size):
+        flat[i] = r[i]
+
+
+@njit(cache=True, nogil=True)
+def ring_readings(px, py, pth, radius2, beams, offsets, segs, seg_len, pts, u1, u2, specular, multipath, all_round,
+                  drop_below, par, talk, z, bad, junk, out):
+    """The rings of every robot of ``K`` worlds sharing the walls, ``px, py, pth (K, N)``, in one pass:
+    what :meth:`parcover_env.sensors.sonar.SonarRing.measure` composes from its parts for each world
+    alone. The noise-free echoes (:func:`~parcover_env.geometry._ray_kernels.sonar_echoes`, concave
+    corners; the discs are the other robots of the robot's world, of squared radius ``radius2``), the
+    cross-talk of the beams whose uniform ``talk`` draw is below its probability (``talk`` empty:
+    none), then :func:`ring_noise` into ``out (K * N, B) float32``. The draws are flat, world after
+    world, robot after robot, beam after beam. ``par`` = range max, incidence cosine bound, restart
+    nudge, near-list slack, half cone, cross-talk probability, range min, noise sigma, relative
+    noise, quantization, garbage rate."""
+    rmax, cos_min, nudge, slack, half = par[0], par[1], par[2], par[3], par[4]
+    k, n = px.shape
+    nb = beams.shape[0]
+    ox = px.reshape(k * n)
+    oy = py.reshape(k * n)
+    axes = np.empty((k * n, nb))
+    for r in range(k * n):
+        for b in range(nb):
+            axes[r, b] = pth[r // n, r % n] + beams[b]
+    rows = 1 if k == 1 else k * n  # one disc set for all origins of one world, else a set per origin
+    cx = np.empty((rows, n))
+    cy = np.empty((rows, n))
+    for r in range(rows):
+        for d in range(n):
+            cx[r, d] = px[r // n, d]
+            cy[r, d] = py[r // n, d]
+    r2 = np.full(n, radius2)
+    owner = np.empty(k * n, dtype=np.int64)
+    for r in range(k * n):
+        owner[r] = r % n
+    idx = np.empty((k * n, segs.shape[0]), dtype=np.int64)
+    cnt = np.empty(k * n, dtype=np.int64)
+    near_segments(ox, oy, segs, rmax + slack, idx, cnt)
+    ideal = np.empty((k * n, nb))
+    sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, owner, rmax, specular, multipath,
+                 cos_min, nudge, True, ideal)
+    if specular and pts.shape[0] > 0:
+        sonar_corner_echoes(ox, oy, axes, pts, u1, u2, segs, idx, cnt, cx, cy, r2, owner, rmax, half, ideal)
+    heard = ideal  # (no echo reads inf here, range max in the parts: ring_noise treats both alike)
+    if talk.shape[0]:
+        want = np.empty((k, n, nb), dtype=np.bool_)
+        for r in range(k * n):
+            for b in range(nb):
+                want[r // n, r % n, b] = talk[r * nb + b] < par[5]
+        near_segments(ox, oy, segs, 2.0 * rmax + slack, idx, cnt)
+        heard3 = np.full((k, n, nb), np.inf)
+        sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, half, rmax, want, heard3)
+        heard = heard3.reshape(k * n, nb)
+    ring_noise(ideal, heard, par[5] if talk.shape[0] else 0.0, talk, z, bad, junk, par[6], rmax, drop_below, par[7],
+               par[8], par[9], par[10], out)
