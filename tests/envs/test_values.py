@@ -304,3 +304,26 @@ def test_localization_error_of_a_single_robot_step():
 def test_non_dict_actions_name_their_type():
     with pytest.raises(ActionError, match="got list"):
         to_commands([np.zeros(2)], ["a"], 1.0, 1.0)
+
+
+def test_unseen_leader_time_counts_leaders_outside_every_footprint_only():
+    """``unseen_leader_time`` grows by one control step per leader whose true centre lies outside
+    every Kinect footprint; followers out of view and leaders in view add nothing."""
+    env = parcover_env.parallel_env("tree")
+    env.reset(seed=0)
+    dt, system = env.scenario.physics.control_dt, env.kinects
+    still = {a: np.zeros(2, np.float32) for a in env.agents}
+    leader_xy = [tuple(p) for p in env.true_poses()[env.team.leader, :2]]
+
+    def outside_but_leaders(xy):  # every follower out of view, every leader in view
+        return np.array([tuple(p) in leader_xy for p in np.atleast_2d(xy)], dtype=bool)
+
+    system.in_view = outside_but_leaders
+    env.step(still)
+    leader_xy[:] = [tuple(p) for p in env.true_poses()[env.team.leader, :2]]
+    assert env.metrics.unseen_leader_time == 0.0
+    system.in_view = lambda xy: np.zeros(len(np.atleast_2d(xy)), dtype=bool)  # nothing in view
+    for _ in range(3):
+        env.step(still)
+    n_leaders = int(env.team.leader.sum())
+    assert n_leaders >= 1 and env.metrics.unseen_leader_time == pytest.approx(3 * dt * n_leaders)
