@@ -66,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
         step_ms = min(step_ms, (time.process_time() - t0) / args.steps * 1e3)
     print(f"{parcover_env.__file__}")
     label = args.scenario + (" frames" if args.frames else "")
-    print(f"{label}: step {step_ms:.2f} ms CPU, sonar ring (noise-free, all robots) {ring_ms:.3f} ms, "
+    print(f"{label}: step {step_ms:.3f} ms CPU, sonar ring (noise-free, all robots) {ring_ms:.3f} ms, "
           f"cross-talk {talk_ms:.3f} ms")
     return 0
 

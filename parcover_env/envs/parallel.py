@@ -371,9 +371,10 @@ class ParallelCoverageEnv(ParallelEnv):
     def _observe_array(self, true: np.ndarray) -> np.ndarray:
         """Observations ``(n_robots, size)`` float32 of every robot."""
         obs = self._observe_scalars(true)
-        if self.sonar is not None:
-            obs[:, self.layout.slices["sonar"]] = self.sonar.measure(true, self.map.segments,
-                                                                     self.scenario.robot.radius, self._rng)
+        if self.sonar is not None:  # what ``sonar.measure`` reads, without checking the physics' poses again
+            draws = [self.sonar.draw(self.n_robots, self._rng)]
+            obs[:, self.layout.slices["sonar"]] = self.sonar.readings(true[None], self.map.segments,
+                                                                      self.scenario.robot.radius, draws)[0]
         return self.layout.clip(obs)
 
     def _observe_scalars(self, true: np.ndarray, camera_blocked: np.ndarray | None = None) -> np.ndarray:

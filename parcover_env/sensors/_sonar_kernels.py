@@ -36,7 +36,8 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
                  specular, multipath, cos_min, nudge, box_cull, reading):
     """Nearest echo ``reading (N, B)`` over the sub-rays of every beam, inf if none (the rules of
     :func:`parcover_env.sensors.sonar.simulate_beams`). Beam ``b`` of origin ``n`` has the sub-rays
-    at angles ``axes[n, b] + offsets[j]``.
+    at angles ``axes[n, b] + offsets[j]``: the axis's unit vector ``(cos, sin)(axes[n, b])`` rotated by
+    ``offsets[j]`` (two sines and cosines per beam, not per sub-ray).
 
     A sub-ray's first hit within ``rmax`` on the walls is ``t1`` (incidence ``|cos| c1``), on the
     discs ``td``. ``specular``: a wall echoes only if ``c1 >= cos_min``; with ``multipath`` an
@@ -56,6 +57,8 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
     leg_x = np.empty(offsets.shape[0])
     leg_y = np.empty(offsets.shape[0])
     cos_spread = math.cos(spread)
+    co = np.cos(offsets)
+    so = np.sin(offsets)
     sin_spread = math.sin(spread)
     ocx = np.empty(n_discs)  # per origin: the terms of the discs a sub-ray within rmax can hit
     ocy = np.empty(n_discs)
@@ -86,9 +89,8 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
             best = np.inf
             n_legs = 0
             for j in range(offsets.shape[0]):  # first legs: direct echoes (walls near the normal, discs)
-                ang = axes[n, b] + offsets[j]
-                ddx = math.cos(ang)
-                ddy = math.sin(ang)
+                ddx = ax * co[j] - ay * so[j]
+                ddy = ay * co[j] + ax * so[j]
                 # an echo is never nearer than the sub-ray's first wall or disc, so walls beyond the
                 # cone's nearest echo so far (``best``) are culled and mirrored legs from there skipped
                 t1, i1, den = _segment_hit(x0, y0, ddx, ddy, segs, near, min(rmax, best), cull, False)
@@ -123,6 +125,9 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
 
 _DISC_SLACK = 1e-6
 """Margin (m, rad) of the disc culls of :func:`sonar_echoes`: rounding never culls a disc a sub-ray hits."""
+_CONE_SLACK = 1e-6
+"""Margin (rad) of the cross-talk's cone pre-test (:func:`sonar_crosstalk`): a robot more than this
+outside every wanted cone skips the exact bearing test, which rounding never makes pass."""
 
 
 @njit(cache=True, inline="always")
@@ -236,15 +241,25 @@ def sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, half, rmax, w
     and no wall between them; the rules of :func:`parcover_env.sensors.sonar.crosstalk`.
     ``all_round``: the cones cover every direction (a beam always points back). Walls are looked up
     in robot ``k * N + i``'s list ``idx`` of those within ``2 rmax`` (:func:`near_segments`).
-    Only the beams ``want (K, N, B)`` are computed (the others stay inf)."""
+    Only the beams ``want (K, N, B)`` are computed (the others stay inf). A robot ``j`` more than
+    ``_CONE_SLACK`` outside every wanted cone of ``i`` (a dot product with the axes) skips the exact
+    bearing test."""
     nb = beams.shape[0]
     n_robots = px.shape[1]
+    cos_lim = math.cos(min(half + _CONE_SLACK, math.pi))
+    wb = np.empty(nb, dtype=np.int64)  # per robot: its wanted beams and their unit axes
+    wx = np.empty(nb)
+    wy = np.empty(nb)
     for k in range(px.shape[0]):
         for i in range(n_robots):
-            wanted = False
+            nw = 0
             for b in range(nb):
-                wanted = wanted or want[k, i, b]
-            if not wanted:
+                if want[k, i, b]:
+                    wb[nw] = b
+                    wx[nw] = math.cos(pth[k, i] + beams[b])
+                    wy[nw] = math.sin(pth[k, i] + beams[b])
+                    nw += 1
+            if nw == 0:
                 continue
             near = idx[k * n_robots + i, :cnt[k * n_robots + i]]
             for j in range(n_robots):
@@ -254,6 +269,13 @@ def sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, half, rmax, w
                 dy = py[k, j] - py[k, i]
                 d = math.hypot(dx, dy)
                 if not (d / 2 <= rmax and d > 0):
+                    continue
+                near_axis = False  # a wanted beam whose axis is within the cone (plus a slack) of j
+                for q in range(nw):
+                    if d / 2 < out[k, i, wb[q]] and dx * wx[q] + dy * wy[q] >= cos_lim * d:
+                        near_axis = True
+                        break
+                if not near_axis:
                     continue
                 bearing = math.atan2(dy, dx)
                 gain = False  # does a beam of i hold j nearer than what it heard so far?

@@ -6,7 +6,8 @@ Geometry and conventions
   frame, counter-clockwise from the heading. All rays are cast with the formulas of
   :mod:`parcover_env.geometry.rays` (its compiled per-ray helpers, in :mod:`._sonar_kernels`).
 - ``model: ray`` — one ideal ray along each beam axis; reading = first hit (walls or other robots).
-- ``model: specular`` (default) — each beam is a cone of ``cone_deg`` sampled by ``n_subrays`` rays.
+- ``model: specular`` (default) — each beam is a cone of ``cone_deg`` sampled by ``n_subrays`` rays (the
+  axis direction rotated by each sub-ray's offset).
   A sub-ray echoes from a wall only when it meets the wall within ``incidence_max_deg`` of the
   normal; otherwise it is mirrored away and, with ``multipath``, followed to the next surface: if
   that one returns it (normal enough, or a robot) the echo retraces the path and reads the

@@ -17,6 +17,13 @@ T_ROOM = MapConfig(size=(4.0, 4.0), boundary=((1.2, 0.0), (2.8, 0.0), (2.8, 2.4)
                    obstacles=(((2.9, 3.0), (3.3, 3.0), (3.3, 3.3), (2.9, 3.3)),))
 
 
+def _subray(axis: float, offset: float) -> tuple[float, float]:
+    """A sub-ray's unit direction: the beam axis's ``(cos, sin)`` rotated by the offset (the kernels' float
+    operations)."""
+    ax, ay, co, so = math.cos(axis), math.sin(axis), math.cos(offset), math.sin(offset)
+    return ax * co - ay * so, ay * co + ax * so
+
+
 def _ref_ray(o, ang, segs, discs, radius, cos_min):
     """Brute force: nearest hit, whether it echoes (specular), plain Python loops."""
     d = (math.cos(ang), math.sin(ang))
@@ -385,8 +392,7 @@ def _disc_echo_reference(origins, axes, offsets, centres, r, owner, rmax):
         others = [c for d, c in enumerate(centres) if d != owner[n]]
         for b in range(axes.shape[1]):
             for off in offsets:
-                ang = axes[n, b] + off
-                t = _disc_t(x0, y0, math.cos(ang), math.sin(ang), others, r * r)
+                t = _disc_t(x0, y0, *_subray(axes[n, b], off), others, r * r)
                 if t <= rmax:
                     out[n, b] = min(out[n, b], t)
     return np.minimum(out, rmax)
@@ -513,8 +519,7 @@ def _specular_reference(x0, y0, axes, offsets, segs, lengths, discs, r2, rmax, c
     for axis in axes:
         best = math.inf
         for off in offsets:
-            ang = axis + off
-            dx, dy = math.cos(ang), math.sin(ang)
+            dx, dy = _subray(axis, off)
             t1, i1, den = _first_hit(x0, y0, dx, dy, segs)
             td = _disc_t(x0, y0, dx, dy, discs, r2)
             td = td if td <= rmax else math.inf
@@ -667,3 +672,74 @@ def test_a_ring_that_ignores_robots_sees_only_walls():
         got = ring.measure(poses, wall, 0.1, rng, include_robots=False)
         assert got[0, 0] == np.float32(cfg.range_max) and got[1, 0] == pytest.approx(1.7)
     assert ring.measure(poses, wall, 0.1, None)[0, 0] == pytest.approx(0.6)  # robots seen
+
+
+def _crosstalk_reference(cfg, poses, beams, segs):
+    """Cross-talk ``(N, B)`` in plain Python, every pair and beam, no pre-test: beam ``b`` of ``i`` hears
+    the nearest ``j`` whose bearing is within the half cone of that beam's axis, with a beam of ``j``
+    pointing back at ``i``, ``0 < d / 2 <= range_max`` and no wall strictly between them."""
+    from parcover_env.sensors.sonar import _half_cone
+
+    half, rmax = _half_cone(cfg), cfg.range_max
+
+    def in_cone(a):
+        return abs(math.pi - ((math.pi - a) % (2 * math.pi))) <= half
+
+    def blocked(x0, y0, dx, dy):
+        for x1, y1, x2, y2 in segs:
+            ex, ey = x2 - x1, y2 - y1
+            den = dx * ey - dy * ex
+            if abs(den) > 1e-12:
+                wx, wy = x1 - x0, y1 - y0
+                t, u = (wx * ey - wy * ex) / den, (wx * dy - wy * dx) / den
+                if 0 < t < 1 and -1e-12 <= u <= 1 + 1e-12:
+                    return True
+        return False
+
+    out = np.full((len(poses), len(beams)), math.inf)
+    for i, (xi, yi, ti) in enumerate(poses):
+        for j, (xj, yj, tj) in enumerate(poses):
+            dx, dy = xj - xi, yj - yi
+            d = float(np.hypot(dx, dy))  # libm's hypot, as compiled code calls it (not Python's own)
+            if i == j or not (d > 0 and d / 2 <= rmax) or blocked(xi, yi, dx, dy):
+                continue
+            bearing = math.atan2(dy, dx)
+            if not any(in_cone(bearing + math.pi - tj - c) for c in beams):
+                continue
+            for b, beam in enumerate(beams):
+                if in_cone(bearing - ti - beam):
+                    out[i, b] = min(out[i, b], d / 2)
+    return out
+
+
+@pytest.mark.parametrize("layout", ["ring", "amigobot"])
+def test_crosstalk_equals_a_plain_reference_at_the_cone_edges(layout):
+    """Robots at bearings just inside and just outside a beam's cone edge (1e-12 to 1e-5 rad), and
+    random robots among walls: the compiled cross-talk (with its cone pre-test) hears exactly what
+    every-pair plain Python hears."""
+    from parcover_env.sensors.sonar import _half_cone, crosstalk
+
+    cfg = SonarConfig(layout=layout, crosstalk_prob=1.0)
+    beams = SonarRing(cfg).beam_angles
+    half = _half_cone(cfg)
+    none = np.zeros((0, 4))
+    inside = outside = 0
+    for eps in (1e-12, 1e-9, 1e-7, 1e-5):
+        for sign in (-1.0, 1.0):
+            for heading in (0.3, -2.0):
+                edge = heading + beams[1] + sign * (half + eps)
+                for off, j_heading in ((eps, edge + math.pi), (-eps, edge + math.pi - beams[2])):
+                    bearing = heading + beams[1] + sign * (half + off)
+                    poses = np.array([[0.5, -0.2, heading], [0.5 + 1.2 * math.cos(bearing),
+                                                             -0.2 + 1.2 * math.sin(bearing), j_heading]])
+                    got = crosstalk(cfg, poses, beams, none)
+                    assert np.array_equal(got, _crosstalk_reference(cfg, poses, beams, none)), (eps, sign, off)
+                    inside += np.isfinite(got[0, 1])
+                    outside += np.isinf(got[0, 1])
+    assert inside > 4 and outside > 4
+    walls = MapModel.from_config(T_ROOM).segments
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        poses = np.column_stack([rng.uniform(0, 4, (10, 2)), rng.uniform(-4, 4, 10)])
+        got = crosstalk(cfg, poses, beams, walls)
+        assert np.array_equal(got, _crosstalk_reference(cfg, poses, beams, walls)) and np.isfinite(got).any()
