@@ -32,12 +32,14 @@ def _incidence(den, seg_len, i):
 
 
 @njit(cache=True, nogil=True)
-def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, owner, rmax,
+def sonar_echoes(ox, oy, axes, offsets, share, segs, seg_len, idx, cnt, cx, cy, r2, owner, rmax,
                  specular, multipath, cos_min, nudge, box_cull, reading):
     """Nearest echo ``reading (N, B)`` over the sub-rays of every beam, inf if none (the rules of
     :func:`parcover_env.sensors.sonar.simulate_beams`). Beam ``b`` of origin ``n`` has the sub-rays
     at angles ``axes[n, b] + offsets[j]``: the axis's unit vector ``(cos, sin)(axes[n, b])`` rotated by
-    ``offsets[j]`` (two sines and cosines per beam, not per sub-ray).
+    ``offsets[j]`` (two sines and cosines per beam, not per sub-ray). Overlapping cones share
+    sub-rays: ``share[b, j]`` is the flat index ``b' * J + j'`` (``b' * J + j' <= b * J + j``) of the
+    sub-ray traced for that pair, its own index the first time a direction comes up.
 
     A sub-ray's first hit within ``rmax`` on the walls is ``t1`` (incidence ``|cos| c1``), on the
     discs ``td``. ``specular``: a wall echoes only if ``c1 >= cos_min``; with ``multipath`` an
@@ -49,17 +51,26 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
     cull = box_cull and math.isfinite(rmax)
     per_origin = cx.shape[0] > 1
     n_discs = cx.shape[1]
+    n_sub = offsets.shape[0]
     spread = 0.0  # the sub-rays' largest angle off the beam axis (< pi / 2: cones are < 180 deg)
-    for j in range(offsets.shape[0]):
+    for j in range(n_sub):
         spread = max(spread, abs(offsets[j]))
-    leg_t = np.empty(offsets.shape[0])  # per beam: the sub-rays an oblique wall mirrored
-    leg_i = np.empty(offsets.shape[0], dtype=np.int64)
-    leg_x = np.empty(offsets.shape[0])
-    leg_y = np.empty(offsets.shape[0])
     cos_spread = math.cos(spread)
+    sin_spread = math.sin(spread)
     co = np.cos(offsets)
     so = np.sin(offsets)
-    sin_spread = math.sin(spread)
+    n_pairs = share.shape[0] * n_sub
+    again = np.zeros(n_pairs, dtype=np.bool_)  # sub-rays a later beam reads too
+    for b in range(share.shape[0]):
+        for j in range(n_sub):
+            if share[b, j] != b * n_sub + j:
+                again[share[b, j]] = True
+    direct = np.empty(n_pairs)  # per origin, per sub-ray traced: its direct echo (inf if none)
+    leg_t = np.empty(n_pairs)  # where an oblique wall mirrored it (inf: not mirrored)
+    leg_i = np.empty(n_pairs, dtype=np.int64)
+    leg_x = np.empty(n_pairs)
+    leg_y = np.empty(n_pairs)
+    leg_echo = np.empty(n_pairs)  # its two-leg echo, once traced (nan: not yet)
     ocx = np.empty(n_discs)  # per origin: the terms of the discs a sub-ray within rmax can hit
     ocy = np.empty(n_discs)
     cc = np.empty(n_discs)
@@ -87,39 +98,45 @@ def sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, own
                     bc[nb] = cc[d]
                     nb += 1
             best = np.inf
-            n_legs = 0
-            for j in range(offsets.shape[0]):  # first legs: direct echoes (walls near the normal, discs)
-                ddx = ax * co[j] - ay * so[j]
-                ddy = ay * co[j] + ax * so[j]
-                # an echo is never nearer than the sub-ray's first wall or disc, so walls beyond the
-                # cone's nearest echo so far (``best``) are culled and mirrored legs from there skipped
-                t1, i1, den = _segment_hit(x0, y0, ddx, ddy, segs, near, min(rmax, best), cull, False)
-                td = _disc_hit_from(ddx, ddy, bx[:nb], by[:nb], bc[:nb])
-                if not td <= rmax:
-                    td = np.inf
-                if not (i1 >= 0 and t1 <= rmax):
-                    t1 = np.inf
-                    i1 = -1
-                if not specular:
-                    echo = min(t1, td)
-                elif td < t1:
-                    echo = td
-                elif _incidence(den, seg_len, i1) >= cos_min:
-                    echo = t1
-                else:
-                    echo = np.inf
-                    if multipath and i1 >= 0:  # mirrored by an oblique wall: its second leg comes after
-                        leg_t[n_legs] = t1
-                        leg_i[n_legs] = i1
-                        leg_x[n_legs] = ddx
-                        leg_y[n_legs] = ddy
-                        n_legs += 1
-                best = min(best, echo)
-            for k in range(n_legs):  # second legs, once the cone's direct echoes bound what can be nearer
-                if leg_t[k] < best:
-                    echo = _second_leg(x0, y0, leg_x[k], leg_y[k], leg_t[k], leg_i[k], segs, seg_len, near, cx, cy,
-                                       row, r2, owner[n], rmax, cos_min, nudge, box_cull)
-                    best = min(best, echo)
+            for j in range(n_sub):  # first legs: direct echoes (walls near the normal, discs)
+                u = share[b, j]
+                if u == b * n_sub + j:  # a direction not traced yet
+                    ddx = ax * co[j] - ay * so[j]
+                    ddy = ay * co[j] + ax * so[j]
+                    # an echo is never nearer than the sub-ray's first wall or disc, so walls beyond the
+                    # cone's nearest echo so far (``best``) are culled, unless another cone reads it too
+                    reach = rmax if again[u] else min(rmax, best)
+                    t1, i1, den = _segment_hit(x0, y0, ddx, ddy, segs, near, reach, cull, False)
+                    td = _disc_hit_from(ddx, ddy, bx[:nb], by[:nb], bc[:nb])
+                    if not td <= rmax:
+                        td = np.inf
+                    if not (i1 >= 0 and t1 <= rmax):
+                        t1 = np.inf
+                        i1 = -1
+                    leg_t[u] = np.inf
+                    leg_echo[u] = np.nan
+                    if not specular:
+                        echo = min(t1, td)
+                    elif td < t1:
+                        echo = td
+                    elif _incidence(den, seg_len, i1) >= cos_min:
+                        echo = t1
+                    else:
+                        echo = np.inf
+                        if multipath and i1 >= 0:  # mirrored by an oblique wall: its second leg comes after
+                            leg_t[u] = t1
+                            leg_i[u] = i1
+                            leg_x[u] = ddx
+                            leg_y[u] = ddy
+                    direct[u] = echo
+                best = min(best, direct[u])
+            for j in range(n_sub):  # second legs, once the cone's direct echoes bound what can be nearer
+                u = share[b, j]
+                if leg_t[u] < best:
+                    if math.isnan(leg_echo[u]):
+                        leg_echo[u] = _second_leg(x0, y0, leg_x[u], leg_y[u], leg_t[u], leg_i[u], segs, seg_len,
+                                                  near, cx, cy, row, r2, owner[n], rmax, cos_min, nudge, box_cull)
+                    best = min(best, leg_echo[u])
             reading[n, b] = best
 
 
@@ -341,11 +358,11 @@ def ring_noise(ideal, heard, talk_prob, talk, z, bad, junk, range_min, range_max
 
 
 @njit(cache=True, nogil=True)
-def ring_readings(px, py, pth, radius2, beams, offsets, segs, seg_len, pts, u1, u2, specular, multipath, all_round,
-                  drop_below, par, talk, z, bad, junk, out):
+def ring_readings(px, py, pth, radius2, beams, offsets, share, segs, seg_len, pts, u1, u2, specular, multipath,
+                  all_round, drop_below, par, talk, z, bad, junk, out):
     """The rings of every robot of ``K`` worlds sharing the walls, ``px, py, pth (K, N)``, in one pass:
     what :meth:`parcover_env.sensors.sonar.SonarRing.measure` composes from its parts for each world
-    alone. The noise-free echoes (:func:`~parcover_env.geometry._ray_kernels.sonar_echoes`, concave
+    alone. The noise-free echoes (:func:`sonar_echoes`, the sub-rays shared as ``share`` says; concave
     corners; the discs are the other robots of the robot's world, of squared radius ``radius2``), the
     cross-talk of the beams whose uniform ``talk`` draw is below its probability (``talk`` empty:
     none), then :func:`ring_noise` into ``out (K * N, B) float32``. The draws are flat, world after
@@ -376,8 +393,8 @@ def ring_readings(px, py, pth, radius2, beams, offsets, segs, seg_len, pts, u1, 
     cnt = np.empty(k * n, dtype=np.int64)
     near_segments(ox, oy, segs, rmax + slack, idx, cnt)
     ideal = np.empty((k * n, nb))
-    sonar_echoes(ox, oy, axes, offsets, segs, seg_len, idx, cnt, cx, cy, r2, owner, rmax, specular, multipath,
-                 cos_min, nudge, True, ideal)
+    sonar_echoes(ox, oy, axes, offsets, share, segs, seg_len, idx, cnt, cx, cy, r2, owner, rmax, specular,
+                 multipath, cos_min, nudge, True, ideal)
     if specular and pts.shape[0] > 0:
         sonar_corner_echoes(ox, oy, axes, pts, u1, u2, segs, idx, cnt, cx, cy, r2, owner, rmax, half, ideal)
     heard = ideal  # (no echo reads inf here, range max in the parts: ring_noise treats both alike)

@@ -24,6 +24,18 @@ def _subray(axis: float, offset: float) -> tuple[float, float]:
     return ax * co - ay * so, ay * co + ax * so
 
 
+def _fan(axes, offsets) -> list[list[tuple[float, float]]]:
+    """The sub-ray directions of beams ``axes`` (one origin): sub-ray ``j`` of beam ``b`` is the first
+    pair ``(b', j')`` in that order whose angle is within 1e-9 rad of ``axes[b] + offsets[j]`` (the
+    same ray of overlapping cones), pointing as :func:`_subray` of ``axes[b'], offsets[j']``."""
+    pairs = [(axis, off) for axis in axes for off in offsets]
+    dirs = []
+    for axis, off in pairs:
+        first = next(p for p in pairs if abs(math.remainder(p[0] + p[1] - (axis + off), 2 * math.pi)) < 1e-9)
+        dirs.append(_subray(*first))
+    return [dirs[b * len(offsets):(b + 1) * len(offsets)] for b in range(len(axes))]
+
+
 def _ref_ray(o, ang, segs, discs, radius, cos_min):
     """Brute force: nearest hit, whether it echoes (specular), plain Python loops."""
     d = (math.cos(ang), math.sin(ang))
@@ -390,9 +402,9 @@ def _disc_echo_reference(origins, axes, offsets, centres, r, owner, rmax):
     out = np.full(axes.shape, math.inf)
     for n, (x0, y0) in enumerate(origins):
         others = [c for d, c in enumerate(centres) if d != owner[n]]
-        for b in range(axes.shape[1]):
-            for off in offsets:
-                t = _disc_t(x0, y0, *_subray(axes[n, b], off), others, r * r)
+        for b, dirs in enumerate(_fan(axes[n], offsets)):
+            for dx, dy in dirs:
+                t = _disc_t(x0, y0, dx, dy, others, r * r)
                 if t <= rmax:
                     out[n, b] = min(out[n, b], t)
     return np.minimum(out, rmax)
@@ -516,10 +528,9 @@ def _specular_reference(x0, y0, axes, offsets, segs, lengths, discs, r2, rmax, c
     """Every sub-ray of every beam, both legs, every wall and disc, no culling (plain Python): the
     nearest echo per beam (inf if none), the specular multipath rule of ``sonar_echoes``."""
     out = []
-    for axis in axes:
+    for dirs in _fan(axes, offsets):
         best = math.inf
-        for off in offsets:
-            dx, dy = _subray(axis, off)
+        for dx, dy in dirs:
             t1, i1, den = _first_hit(x0, y0, dx, dy, segs)
             td = _disc_t(x0, y0, dx, dy, discs, r2)
             td = td if td <= rmax else math.inf
@@ -557,7 +568,7 @@ def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit():
     robot reads, in a room of oblique walls with a crowd of robots."""
     from parcover_env.geometry import rays
     from parcover_env.sensors import _sonar_kernels
-    from parcover_env.sensors.sonar import _NUDGE, _subray_offsets, _walls
+    from parcover_env.sensors.sonar import _NUDGE, _share, _subray_offsets, _walls
 
     cfg = SonarConfig()
     ring = SonarRing(cfg)
@@ -576,8 +587,9 @@ def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit():
         cx, cy, r2, owner = rays.disc_planes(xy, 0.15, np.arange(10), 10)
         idx, cnt = rays.near_segments(ox, oy, walls.segments, cfg.range_max)
         got = np.empty((10, ring.n_beams))
-        _sonar_kernels.sonar_echoes(ox, oy, axes, offsets, walls.segments, walls.lengths, idx, cnt, cx, cy, r2, owner,
-                                    cfg.range_max, True, True, cos_min, _NUDGE, True, got)
+        share = _share(axes, offsets)
+        _sonar_kernels.sonar_echoes(ox, oy, axes, offsets, share, walls.segments, walls.lengths, idx, cnt, cx, cy, r2,
+                                    owner, cfg.range_max, True, True, cos_min, _NUDGE, True, got)
         for n in range(10):
             others = [tuple(p) for i, p in enumerate(xy) if i != n]
             want = _specular_reference(ox[n], oy[n], axes[n], offsets, walls.segments, walls.lengths, others,
@@ -743,3 +755,25 @@ def test_crosstalk_equals_a_plain_reference_at_the_cone_edges(layout):
         poses = np.column_stack([rng.uniform(0, 4, (10, 2)), rng.uniform(-4, 4, 10)])
         got = crosstalk(cfg, poses, beams, walls)
         assert np.array_equal(got, _crosstalk_reference(cfg, poses, beams, walls)) and np.isfinite(got).any()
+
+
+def test_overlapping_cones_share_their_common_sub_rays():
+    """16 beams 22.5 deg apart with 30 deg cones of 5 sub-rays (7.5 deg apart): a beam's two sub-rays
+    on its left are the next beam's two on its right, so 48 rays are traced, not 80; the 72-beam
+    scan traces 144 of 360. Beams at other angles, or rows of other patterns, share none."""
+    from parcover_env.sensors.sonar import _share, _subray_offsets
+
+    offsets = _subray_offsets(30.0, 5)
+    ring = SonarRing(SonarConfig())
+    share = _share(ring.beam_angles[None], offsets)
+    assert share.shape == (16, 5) and len(np.unique(share)) == 48
+    assert share[0].tolist() == [0, 1, 2, 3, 4] and share[1].tolist() == [3, 4, 7, 8, 9]
+    assert share[15].tolist() == [73, 74, 77, 0, 1]  # beam 14 on its right, beam 0 (wrapped) on its left
+    turned = _share(np.array([[3.0], [-1.0]]) + ring.beam_angles, offsets)  # any heading, same pattern
+    assert np.array_equal(turned, share)
+    assert len(np.unique(_share(ring.scan_angles[None], offsets))) == 144
+    identity = np.arange(40).reshape(8, 5)
+    amigo = SonarRing(SonarConfig(layout="amigobot"))
+    assert np.array_equal(_share(amigo.beam_angles[None], offsets), identity)
+    mixed = np.stack([amigo.beam_angles, amigo.beam_angles[::-1]])  # rows of different patterns
+    assert np.array_equal(_share(mixed, offsets), identity)
