@@ -101,7 +101,7 @@ class EpisodeMetrics:
         identical runs); at the end, undefined values (makespan of a failed mission) are NaN."""
         p = METRICS_PREFIX
         if not ended:
-            out = dict.fromkeys((p + k for k in _FLAT_SCALARS), 0.0)
+            out = dict.fromkeys(_FLAT_KEYS, 0.0)
             out[p + "path_lengths"] = np.zeros(self.n_robots)
             return out
         s = self.summary()
@@ -121,6 +121,7 @@ _SCALARS = ("n_kpois", "n_robots", "c_max", "max_speed", "steps", "time", "kpois
 _INTS = ("n_kpois", "n_robots", "steps", "kpois_visited", "wall_collisions", "robot_collisions", "collisions",
          "kinect_splits", "odometry_splits")
 _FLAT_SCALARS = (*_SCALARS, *(f"messages_{k}" for k in MESSAGE_KINDS), "messages", "ended")
+_FLAT_KEYS = tuple(METRICS_PREFIX + k for k in _FLAT_SCALARS)
 
 
 def episode_metrics(info: dict) -> dict | None:

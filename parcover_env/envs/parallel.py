@@ -344,7 +344,8 @@ class ParallelCoverageEnv(ParallelEnv):
 
     def _record(self, before: np.ndarray, true: np.ndarray) -> None:
         m = self.metrics
-        m.path_lengths = (np.asarray(m.path_lengths) + np.hypot(*(true[:, :2] - before[:, :2]).T)).tolist()
+        step = np.hypot(true[:, 0] - before[:, 0], true[:, 1] - before[:, 1]).tolist()
+        m.path_lengths = [total + d for total, d in zip(m.path_lengths, step, strict=True)]
         m.record_step(self.world.time, int(self.progress.visited.sum()), true, self.estimate,
                       int(self._new_contacts[0].sum()), int(self._new_contacts[1].sum()) // 2)
         f = self.scenario.formation
