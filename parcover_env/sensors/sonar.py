@@ -192,11 +192,15 @@ _AXIS_ONLY = np.zeros(1)
 """Sub-ray offsets of the ``ray`` model: the beam axis alone."""
 
 
+def _offsets(cfg: SonarConfig, n_subrays: int) -> np.ndarray:
+    """A beam's sub-ray offsets (rad): the cone's, or the axis alone (``model: ray``)."""
+    return _subray_offsets(float(cfg.cone_deg), n_subrays) if cfg.model == "specular" else _AXIS_ONLY
+
+
 def _cone(cfg: SonarConfig, n_subrays: int, walls: _Walls) -> tuple[np.ndarray, bool]:
     """A beam's sub-ray offsets (rad) and whether the specular rules apply (the model, and walls to
     apply them to)."""
-    offsets = _subray_offsets(float(cfg.cone_deg), n_subrays) if cfg.model == "specular" else _AXIS_ONLY
-    return offsets, cfg.model == "specular" and len(walls.segments) > 0
+    return _offsets(cfg, n_subrays), cfg.model == "specular" and len(walls.segments) > 0
 
 
 def _cos_min(cfg: SonarConfig) -> float:
@@ -229,8 +233,8 @@ class SonarRing:
         self._checked: np.ndarray | None = None
         """The last wall array :meth:`measure` checked, if frozen (:func:`_frozen`)."""
         self._beams = np.ascontiguousarray(self.beam_angles, dtype=float)
-        self._shared: tuple[np.ndarray, np.ndarray] | None = None
-        """The sub-ray offsets of the last :meth:`readings` and the ring's shared sub-rays (:func:`_share`)."""
+        self._share = _share(self._beams[None], _offsets(cfg, self.n_subrays))
+        """The ring's shared sub-rays (:func:`_share`)."""
         self._all_round = _covers_circle(self._beams.tobytes(), _half_cone(cfg))
         self._par = np.array([cfg.range_max, _cos_min(cfg), _NUDGE,
                               rays.NEAR_SLACK, _half_cone(cfg), cfg.crosstalk_prob, cfg.range_min, cfg.noise_std,
@@ -296,10 +300,7 @@ class SonarRing:
         out = np.empty((k * n, nb), dtype=np.float32)
         px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
         r = float(robot_radius)
-        if self._shared is None or self._shared[0] is not offsets:
-            self._shared = offsets, _share(self._beams[None], offsets)
-        share = self._shared[1]
-        _sonar_kernels.ring_readings(px, py, pth, r * r, self._beams, offsets, share, walls.segments,
+        _sonar_kernels.ring_readings(px, py, pth, r * r, self._beams, offsets, self._share, walls.segments,
                                        walls.lengths, pts, u1, u2, specular, bool(cfg.multipath), self._all_round,
                                        cfg.below_min == "drop", self._par, talk, z, bad, junk, out)
         return out.reshape(k, n, nb)

@@ -771,9 +771,42 @@ def test_overlapping_cones_share_their_common_sub_rays():
     assert share[15].tolist() == [73, 74, 77, 0, 1]  # beam 14 on its right, beam 0 (wrapped) on its left
     turned = _share(np.array([[3.0], [-1.0]]) + ring.beam_angles, offsets)  # any heading, same pattern
     assert np.array_equal(turned, share)
+    from parcover_env.geometry.angles import wrap_angle
+
+    wrapped = wrap_angle(np.array([[3.0], [-1.0]]) + ring.beam_angles)  # the pattern up to whole turns
+    assert np.array_equal(_share(wrapped, offsets), share)
     assert len(np.unique(_share(ring.scan_angles[None], offsets))) == 144
     identity = np.arange(40).reshape(8, 5)
     amigo = SonarRing(SonarConfig(layout="amigobot"))
     assert np.array_equal(_share(amigo.beam_angles[None], offsets), identity)
     mixed = np.stack([amigo.beam_angles, amigo.beam_angles[::-1]])  # rows of different patterns
     assert np.array_equal(_share(mixed, offsets), identity)
+
+
+def test_no_robots_or_no_beams_read_empty_arrays():
+    from parcover_env.sensors.sonar import simulate_beams
+
+    cfg, wall = SonarConfig(), np.array([[1.0, -1.0, 1.0, 1.0]])
+    assert simulate_beams(cfg, np.zeros((0, 2)), np.zeros((0, 16)), wall, np.zeros((0, 2)), 0.1,
+                          np.zeros(0, dtype=int)).shape == (0, 16)
+    assert simulate_beams(cfg, np.zeros((2, 2)), np.zeros((2, 0)), wall, np.zeros((2, 2)), 0.1,
+                          np.arange(2)).shape == (2, 0)
+    assert SonarRing(cfg).measure(np.zeros((0, 3)), wall, 0.1, np.random.default_rng(0)).shape == (0, 16)
+
+
+def test_a_ring_reads_walls_and_then_no_walls_as_fresh_rings_do():
+    """One ring casts on walls, on none (no specular rules then) and on walls again: each time the
+    readings of a new ring."""
+    walls = MapModel.from_config(T_ROOM).segments
+    poses = np.array([[1.0, 3.0, 0.3], [2.0, 1.0, -1.2], [3.5, 3.2, 2.0]])
+    ring = SonarRing(SonarConfig())
+    for segs in (walls, np.zeros((0, 4)), walls):
+        got = ring.measure(poses, segs, 0.15, np.random.default_rng(5))
+        assert np.array_equal(got, SonarRing(SonarConfig()).measure(poses, segs, 0.15, np.random.default_rng(5)))
+
+
+def test_ring_arguments_are_named_in_errors_and_the_scan_covers_a_turn():
+    with pytest.raises(ValueError, match="needs a SonarConfig, got str"):
+        SonarRing("specular")
+    scan = SonarRing(SonarConfig(scan_step_deg=0.5)).scan_angles
+    assert len(scan) == 720 and scan[-1] == pytest.approx(math.radians(359.5))
