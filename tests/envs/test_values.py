@@ -327,3 +327,18 @@ def test_unseen_leader_time_counts_leaders_outside_every_footprint_only():
         env.step(still)
     n_leaders = int(env.team.leader.sum())
     assert n_leaders >= 1 and env.metrics.unseen_leader_time == pytest.approx(3 * dt * n_leaders)
+
+
+def test_env_path_lengths_add_the_distance_each_robot_travels():
+    """``metrics.path_lengths`` grows by each robot's straight-line displacement per step (true poses,
+    m): driving forward it equals the sum of those steps, and the episode-end info carries it."""
+    env = _env()
+    env.reset(seed=0)
+    before, travelled = env.true_poses()[:, :2], np.zeros(env.n_robots)
+    for _ in range(8):
+        env.step({a: np.array([1.0, 0.1], dtype=np.float32) for a in env.agents})
+        now = env.true_poses()[:, :2]
+        travelled += np.hypot(*(now - before).T)
+        before = now
+    assert env.metrics.path_lengths == pytest.approx(travelled.tolist(), abs=1e-12)
+    assert min(env.metrics.path_lengths) > 0.9 * 8 * 0.1 * env.scenario.robot.max_speed  # near full speed ahead
