@@ -10,12 +10,13 @@ sector with the empty set.
 Relaxed sectors: rule #1 ("merge adjacent sectors which can see the same closest feature") merges
 edge-adjacent original sectors whose closest feature is the same, the closest feature of a
 sector being the one of its features nearest (Euclidean) to the sector's area centroid. Distances
-within a relative 1e-9 of the nearest tie (a centroid on a symmetry axis); a tied sector takes the
+within a relative ``TIE`` (1e-6) of the nearest tie (a centroid on a symmetry axis); a tied sector takes the
 lowest-index tied feature that is the untied closest feature of an adjacent sector, else its
 lowest-index tied feature. (Without that tie rule the T room of Fig. 3 gives 7, not 6.) Rule #2
 ("merge adjacent sectors which share some common visible feature") greedily merges adjacent
 sectors while some feature stays visible from every original sector of the merged group (the pair
-sharing most features first, then the larger pair). A merged sector stores the union of its
+sharing most features first, then the larger pair, areas within ``TIE`` of the room's being equal,
+then a fixed order of the pairs' feature sets). A merged sector stores the union of its
 original sectors' features, as the paper does, and ``common``, the features seen from all of it.
 """
 
@@ -33,6 +34,9 @@ from parcover_env.localization.sonar.visibility import visibility_arrangement
 __all__ = ["Sector", "compute_sectors", "visible_features", "sectors_summary", "RULE_NAMES"]
 
 RULE_NAMES = {0: "original", 1: "rule #1", 2: "rule #2"}
+TIE = 1e-6
+"""Relative difference under which two distances (rule #1) or two areas (rule #2) are equal: far
+above the arrangement's snap-rounding grid (``visibility.PRECISION``, 1e-9 of the diagonal)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,20 +157,21 @@ def compute_sectors(map_model, range_max: float, rule: int = 0,
 
 
 def _closest(common: frozenset[int], centroid: np.ndarray, points: np.ndarray) -> list[int]:
-    """Features of ``common`` nearest ``centroid``, ties within a relative 1e-9 (sorted; [] if none)."""
+    """Features of ``common`` nearest ``centroid``, ties within a relative ``TIE`` (sorted; [] if none)."""
     if not common:
         return []
     idx = np.array(sorted(common))
     d = np.linalg.norm(points[idx] - centroid, axis=1)
-    return idx[d <= d.min() * (1.0 + 1e-9)].tolist()
+    return idx[d <= d.min() * (1.0 + TIE)].tolist()
 
 
 def _merge_rule1(groups: _Groups, adj, centroids: np.ndarray, points: np.ndarray) -> None:
     near = [_closest(groups.common[k], centroids[k], points) for k in range(len(centroids))]
-    closest = [c[0] if len(c) == 1 else -1 for c in near]
+    untied = [c[0] if len(c) == 1 else -1 for c in near]
+    closest = list(untied)
     for k, c in enumerate(near):
-        if len(c) > 1:  # a tie (a symmetry axis): take a neighbour's own closest feature if tied
-            nbrs = {closest[b if a == k else a] for a, b in adj if k in (a, b)}
+        if len(c) > 1:  # a tie (a symmetry axis): take a neighbour's untied closest feature if tied
+            nbrs = {untied[b if a == k else a] for a, b in adj if k in (a, b)}
             shared = sorted(nbrs & set(c))
             closest[k] = shared[0] if shared else c[0]
     for a, b in sorted(adj):
@@ -175,25 +180,22 @@ def _merge_rule1(groups: _Groups, adj, centroids: np.ndarray, points: np.ndarray
 
 
 def _merge_rule2(groups: _Groups, adj, total_area: float) -> None:
-    def rounded(x: float) -> float:  # areas equal up to rounding tie, whatever the map's scale
-        return round(x / total_area, 9)
-
     while True:
-        best, best_key = None, None
+        cands = []
         for a, b in adj:
             ra, rb = groups.find(a), groups.find(b)
-            if ra == rb:
-                continue
             shared = groups.common[ra] & groups.common[rb]
-            if not shared:
-                continue
-            pair = sorted((tuple(sorted(groups.union[ra])), tuple(sorted(groups.union[rb]))))
-            key = (len(shared), rounded(groups.area[ra] + groups.area[rb]), pair)
-            if best_key is None or key > best_key:
-                best, best_key = (ra, rb), key
-        if best is None:
+            if ra != rb and shared:
+                cands.append((len(shared), groups.area[ra] + groups.area[rb], ra, rb))
+        if not cands:
             return
-        groups.merge(*best)
+        most = max(c[0] for c in cands)
+        cands = [c for c in cands if c[0] == most]
+        # areas equal up to TIE count as equal, whatever the map's scale; then a fixed order
+        big = max(c[1] for c in cands) - TIE * total_area
+        best = max((c for c in cands if c[1] >= big), key=lambda c: sorted(
+            (tuple(sorted(groups.union[c[2]])), tuple(sorted(groups.union[c[3]])))))
+        groups.merge(best[2], best[3])
 
 
 def sectors_summary(map_model, range_max: float, rule: int, features: list[MapFeature] | None = None,

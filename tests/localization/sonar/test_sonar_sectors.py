@@ -120,12 +120,15 @@ def test_visibility_region_of_a_corner(room):
 @pytest.mark.parametrize("scale", [0.5, 1.37, 3.0])
 @pytest.mark.parametrize("deg", [0.0, 30.0, 90.0])
 def test_counts_invariant_to_scale_rotation_translation(room, scale, deg):
+    """Counts of t_room, triangle_room and hallway (whose rule #1 has near-ties on symmetry axes)
+    do not move when the map is scaled (with the range), turned and translated."""
     m, _ = room
     from parcover_env.scenarios import load_scenario
     from parcover_env.world.map_model import map_model
 
-    tri = map_model(load_scenario("triangle_room").map, include_unknown=False)
-    for base, expect_inf, expect_r in ((m, (9, 6, 2), (25, 9, 4)), (tri, (11, 4, 2), (10, 6, 6))):
+    tri, hall = (map_model(load_scenario(n).map, include_unknown=False) for n in ("triangle_room", "hallway"))
+    for base, expect_inf, expect_r in ((m, (9, 6, 2), (25, 9, 4)), (tri, (11, 4, 2), (10, 6, 6)),
+                                       (hall, (38, 14, 4), (35, 19, 15))):
         copy = moved(base, scale, deg, shift=(-7.3, 12.1))
         assert counts(copy) == expect_inf
         assert counts(copy, 2.54 * scale) == expect_r
