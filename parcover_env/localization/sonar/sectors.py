@@ -10,9 +10,10 @@ sector with the empty set.
 Relaxed sectors: rule #1 ("merge adjacent sectors which can see the same closest feature") merges
 edge-adjacent original sectors whose closest feature is the same, the closest feature of a
 sector being the one of its features nearest (Euclidean) to the sector's area centroid. Distances
-within a relative ``TIE`` (1e-6) of the nearest tie (a centroid on a symmetry axis); a tied sector takes the
-lowest-index tied feature that is the untied closest feature of an adjacent sector, else its
-lowest-index tied feature. (Without that tie rule the T room of Fig. 3 gives 7, not 6.) Rule #2
+within a relative ``TIE`` (1e-6) of the nearest tie (a centroid on a symmetry axis); a tied
+sector takes the lowest-index tied feature that is the untied closest feature of an adjacent
+sector, else its lowest-index tied feature. (With the lowest index alone, the T room of Fig. 3
+gives 7 sectors, not 6.) Rule #2
 ("merge adjacent sectors which share some common visible feature") greedily merges adjacent
 sectors while some feature stays visible from every original sector of the merged group (the pair
 sharing most features first, then the larger pair, areas within ``TIE`` of the room's being equal,
