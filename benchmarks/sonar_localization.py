@@ -68,8 +68,7 @@ def run(name: str, unknown: bool, n: int, model: str | None, seed: int, params: 
     ring = SonarRing(sonar)
     feats = map_features(known)
     t0 = time.perf_counter()
-    sectors = compute_sectors(known, sonar.range_max, rule=2, features=feats,
-                              resolution=params.sector_resolution)
+    sectors = compute_sectors(known, sonar.range_max, rule=2, features=feats)
     t_sec = time.perf_counter() - t0
     rng = np.random.default_rng(seed)
     region = shapely.union_all([s.polygon for s in sectors]) if where == "sector" else None

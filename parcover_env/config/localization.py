@@ -44,8 +44,6 @@ class SonarLocalizerConfig:
     """Polish the best pose by local minimization of the scan error (the paper's suggested least squares)."""
     refine_iters: int = 120
     """Iterations of that polish (Nelder-Mead)."""
-    sector_resolution: float = 0.05
-    """Grid cell size for computing visibility sectors (m)."""
     max_candidates: int = 400
     """Upper bound on synthetic scans per localization."""
     filter: bool = True
@@ -75,7 +73,7 @@ class SonarLocalizerConfig:
 
     def __post_init__(self) -> None:
         for name in ("jump_threshold", "far_margin", "line_tol", "plateau_tol", "heading_tol_deg",
-                     "ellipse_distance", "error_clip", "success_error", "sector_resolution",
+                     "ellipse_distance", "error_clip", "success_error",
                      "filter_line_tol", "covariance_sigmas", "heading_prior_tol_deg"):
             _check(getattr(self, name) > 0, name, f"must be > 0, got {getattr(self, name)}")
         _check(self.prominence >= 0, "prominence", f"must be >= 0, got {self.prominence}")

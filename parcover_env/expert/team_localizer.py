@@ -43,7 +43,7 @@ class TeamLocalizer:
         self.sonar = scenario.robot.sonar
         self.radius = scenario.robot.radius
         self.map, self.features, self.sectors = known_map_features(
-            scenario.map, self.sonar.range_max, cfg.sector_rule, localizer.sector_resolution)
+            scenario.map, self.sonar.range_max, cfg.sector_rule)
         self.n_bins = round(360.0 / self.sonar.scan_step_deg)
         self.scan_angles = np.radians(np.arange(self.n_bins) * self.sonar.scan_step_deg)
 

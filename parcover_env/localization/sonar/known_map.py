@@ -13,17 +13,17 @@ __all__ = ["known_map_features"]
 
 
 @lru_cache(maxsize=8)
-def _cached_map(map_cfg: MapConfig, range_max: float, rule: int, resolution: float):
+def _cached_map(map_cfg: MapConfig, range_max: float, rule: int):
     known = map_model(map_cfg, include_unknown=False)
     feats = map_features(known)
-    sectors = compute_sectors(known, range_max, rule=rule, features=feats, resolution=resolution)
+    sectors = compute_sectors(known, range_max, rule=rule, features=feats)
     return known, feats, sectors
 
 
-def known_map_features(map_cfg: MapConfig, range_max: float, rule: int = 2, resolution: float = 0.05
+def known_map_features(map_cfg: MapConfig, range_max: float, rule: int = 2
                        ) -> tuple[MapModel, list[MapFeature], list[Sector]]:
     """Known map (no unknown obstacles), its features and relaxed sectors; cached per map config."""
     try:
-        return _cached_map(map_cfg, float(range_max), int(rule), float(resolution))
+        return _cached_map(map_cfg, float(range_max), int(rule))
     except TypeError:  # unhashable config: compute without the cache
-        return _cached_map.__wrapped__(map_cfg, float(range_max), int(rule), float(resolution))
+        return _cached_map.__wrapped__(map_cfg, float(range_max), int(rule))

@@ -1,17 +1,24 @@
-"""Visibility sectors of a polygonal map for a range-limited sonar (seed B §2.1-2.2).
+"""Visibility sectors of a polygonal map for a range-limited sonar (Kim, Pearce & Amato §2.1-2.2).
 
-Method (grid sampling, documented choice): the bounding box of the free space is cut into square
-cells of ``resolution``; at each cell centre inside free space we compute which features (concave
-corners) are visible — in line of sight and within ``range_max``. Original sectors (rule 0) are the
-4-connected components of cells with the same visible set (components under ``min_cells`` cells,
-discretization slivers along visibility lines, join their neighbour sharing most features). Cells
-whose centre is outside free space take the label of the nearest inside cell, and every sector
-polygon is the union of its cells clipped to the free space, so the sectors cover the free space.
+Method (exact geometry, no sampling): the visibility region of every feature (concave corner, see
+``features.py``) is a polygon, cut by the range disc when ``range_max`` is finite; their
+arrangement over the free space is polygonized (``visibility.py``). Original sectors (rule 0) are
+the maximal edge-connected unions of faces seeing the same set of features (faces that touch at a
+point only are not adjacent). Sectors cover the free space; a region seeing no feature is a
+sector with the empty set.
 
-Relaxed sectors: rule 1 merges adjacent sectors with the same closest visible feature (measured
-from the sector's cell centroid); rule 2 greedily merges adjacent sectors while some feature stays
-visible from every original sector of the merged group (the pair sharing most features first). A
-merged sector stores the union of its original sectors' features, as the paper does.
+Relaxed sectors: rule #1 ("merge adjacent sectors which can see the same closest feature") merges
+edge-adjacent original sectors whose closest feature is the same, the closest feature of a
+sector being the one of its features nearest (Euclidean) to the sector's area centroid. Distances
+within a relative ``TIE`` (1e-6) of the nearest tie (a centroid on a symmetry axis); a tied
+sector takes the lowest-index tied feature that is the untied closest feature of an adjacent
+sector, else its lowest-index tied feature. (With the lowest index alone, the T room of Fig. 3
+gives 7 sectors, not 6.) Rule #2
+("merge adjacent sectors which share some common visible feature") greedily merges adjacent
+sectors while some feature stays visible from every original sector of the merged group (the pair
+sharing most features first, then the larger pair, areas within ``TIE`` of the room's being equal,
+then a fixed order of the pairs' feature sets). A merged sector stores the union of its
+original sectors' features, as the paper does, and ``common``, the features seen from all of it.
 """
 
 from __future__ import annotations
@@ -20,14 +27,17 @@ from dataclasses import dataclass
 
 import numpy as np
 import shapely
-from scipy import ndimage
 
 from parcover_env.geometry import cast_rays
 from parcover_env.localization.sonar.features import MapFeature, map_features
+from parcover_env.localization.sonar.visibility import visibility_arrangement
 
 __all__ = ["Sector", "compute_sectors", "visible_features", "sectors_summary", "RULE_NAMES"]
 
 RULE_NAMES = {0: "original", 1: "rule #1", 2: "rule #2"}
+TIE = 1e-6
+"""Relative difference under which two distances (rule #1) or two areas (rule #2) are equal: far
+above the arrangement's snap-rounding grid (``visibility.PRECISION``, 1e-9 of the diagonal)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,34 +75,14 @@ def visible_features(points, map_model, features: list[MapFeature], range_max: f
     return out
 
 
-def _components(sig_grid: np.ndarray) -> tuple[np.ndarray, int]:
-    labels = np.full(sig_grid.shape, -1, dtype=np.int64)
-    count = 0
-    for s in np.unique(sig_grid[sig_grid >= 0]):
-        lab, n = ndimage.label(sig_grid == s)
-        mask = lab > 0
-        labels[mask] = lab[mask] - 1 + count
-        count += n
-    return labels, count
-
-
-def _adjacency(labels: np.ndarray) -> set[tuple[int, int]]:
-    pairs = set()
-    for a, b in ((labels[:, :-1], labels[:, 1:]), (labels[:-1, :], labels[1:, :])):
-        m = (a >= 0) & (b >= 0) & (a != b)
-        for x, y in zip(a[m].tolist(), b[m].tolist(), strict=True):
-            pairs.add((min(x, y), max(x, y)))
-    return pairs
-
-
 class _Groups:
-    """Union-find over original sectors with per-group feature union / intersection."""
+    """Union-find over original sectors with per-group feature union / intersection and area."""
 
-    def __init__(self, feats: list[frozenset[int]], sizes: np.ndarray):
+    def __init__(self, feats: list[frozenset[int]], areas: list[float]):
         self.parent = list(range(len(feats)))
-        self.union = {i: f for i, f in enumerate(feats)}
-        self.common = {i: f for i, f in enumerate(feats)}
-        self.size = {i: int(s) for i, s in enumerate(sizes)}
+        self.union = dict(enumerate(feats))
+        self.common = dict(enumerate(feats))
+        self.area = dict(enumerate(areas))
 
     def find(self, i: int) -> int:
         while self.parent[i] != i:
@@ -104,130 +94,109 @@ class _Groups:
         a, b = self.find(a), self.find(b)
         if a == b:
             return
-        if self.size[a] < self.size[b]:
+        if (self.area[a], -a) < (self.area[b], -b):
             a, b = b, a
         self.parent[b] = a
         self.union[a] = self.union[a] | self.union.pop(b)
         self.common[a] = self.common[a] & self.common.pop(b)
-        self.size[a] += self.size.pop(b)
+        self.area[a] += self.area.pop(b)
 
 
-def compute_sectors(map_model, range_max: float, rule: int = 0, features: list[MapFeature] | None = None,
-                    resolution: float = 0.05, min_cells: int = 4) -> list[Sector]:
-    """Sectors of ``map_model`` for a sonar of ``range_max``: rule 0 original, 1 or 2 relaxed."""
+def _original_sectors(arr) -> tuple[list[list[int]], set[tuple[int, int]]]:
+    """Faces grouped into original sectors (edge-connected, same visible set) and their adjacency."""
+    n = len(arr.faces)
+    parent = list(range(n))
+
+    def find(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    labels = [arr.visible[i].tobytes() for i in range(n)]
+    for (i, j), length in arr.shared.items():
+        if length > 0 and labels[i] == labels[j]:
+            parent[find(i)] = find(j)
+    roots = sorted({find(i) for i in range(n)})
+    index = {r: k for k, r in enumerate(roots)}
+    members = [[] for _ in roots]
+    for i in range(n):
+        members[index[find(i)]].append(i)
+    adj = {tuple(sorted((index[find(i)], index[find(j)]))) for (i, j), length in arr.shared.items()
+           if length > 0 and find(i) != find(j)}
+    return members, adj
+
+
+def compute_sectors(map_model, range_max: float, rule: int = 0,
+                    features: list[MapFeature] | None = None) -> list[Sector]:
+    """Sectors of ``map_model`` for a sonar of ``range_max`` (``inf`` = visibility only): rule 0
+    original, 1 or 2 relaxed. Exact geometry (module docstring); sorted by decreasing area."""
     if rule not in (0, 1, 2):
         raise ValueError(f"rule must be 0 (original), 1 or 2, got {rule!r}")
-    if not (range_max > 0 and resolution > 0):
-        raise ValueError(f"range_max and resolution must be > 0, got {range_max}, {resolution}")
+    if not range_max > 0:
+        raise ValueError(f"range_max must be > 0, got {range_max}")
     feats = map_features(map_model) if features is None else features
-    x0, y0, x1, y1 = map_model.free.bounds
-    nx, ny = int(np.ceil((x1 - x0) / resolution)), int(np.ceil((y1 - y0) / resolution))
-    if nx * ny > 4_000_000:
-        raise ValueError(f"sector grid of {nx}x{ny} cells is too fine; raise resolution ({resolution} m)")
-    xs = x0 + (np.arange(nx) + 0.5) * resolution
-    ys = y0 + (np.arange(ny) + 0.5) * resolution
-    gx, gy = np.meshgrid(xs, ys)
-    centres = np.stack([gx.ravel(), gy.ravel()], axis=1)
-    inside = map_model.contains(centres)
-    vis = visible_features(centres[inside], map_model, feats, range_max)
-    _, sig = np.unique(np.packbits(vis, axis=1), axis=0, return_inverse=True)
-    sig_grid = np.full(nx * ny, -1, dtype=np.int64)
-    sig_grid[inside] = sig.ravel()
-    labels, n_comp = _components(sig_grid.reshape(ny, nx))
-    flat = labels.ravel()
-    comp_feats = [frozenset()] * n_comp
-    inside_idx = np.nonzero(inside)[0]
-    first = {}
-    for k, lab in enumerate(flat[inside_idx].tolist()):
-        first.setdefault(lab, k)
-    for lab, k in first.items():
-        comp_feats[lab] = frozenset(np.nonzero(vis[k])[0].tolist())
-    sizes = np.bincount(flat[flat >= 0], minlength=n_comp)
-    adj = _adjacency(labels)
-    groups = _Groups(comp_feats, sizes)
-    _absorb_slivers(groups, adj, sizes, min_cells)
+    points = np.array([f.point for f in feats], dtype=float).reshape(-1, 2)
+    arr = visibility_arrangement(map_model, points, range_max)
+    members, adj = _original_sectors(arr)
+    face_area = np.array([f.area for f in arr.faces])
+    face_centroid = np.array([f.centroid.coords[0] for f in arr.faces]).reshape(-1, 2)
+    areas = [float(face_area[m].sum()) for m in members]
+    centroids = np.array([face_area[m] @ face_centroid[m] / face_area[m].sum() for m in members]).reshape(-1, 2)
+    sets = [frozenset(np.nonzero(arr.visible[m[0]])[0].tolist()) for m in members]
+    groups = _Groups(sets, areas)
     if rule == 1:
-        _merge_rule1(groups, adj, flat, centres, feats, n_comp)
+        _merge_rule1(groups, adj, centroids, points)
     elif rule == 2:
-        _merge_rule2(groups, adj)
-    root = np.array([groups.find(i) for i in range(n_comp)], dtype=np.int64)
-    # cells outside free space take the nearest inside cell's group, so sectors cover free space
-    grid = np.where(flat >= 0, root[np.maximum(flat, 0)], -1).reshape(ny, nx)
-    if (grid < 0).any():
-        _, (iy, ix) = ndimage.distance_transform_edt(grid < 0, return_indices=True)
-        grid = grid[iy, ix]
-    sectors = []
-    for g in sorted(set(root.tolist())):
-        poly = _cells_polygon(grid == g, x0, y0, resolution).intersection(map_model.free)
-        if poly.is_empty:
-            continue
-        sectors.append(Sector(poly, groups.union[g], groups.common[g]))
-    return sectors
+        _merge_rule2(groups, adj, total_area=float(face_area.sum()))
+    by_root: dict[int, list[int]] = {}
+    for k, m in enumerate(members):
+        by_root.setdefault(groups.find(k), []).extend(m)
+    sectors = [Sector(shapely.union_all([arr.faces[i] for i in faces]), groups.union[r], groups.common[r])
+               for r, faces in by_root.items()]
+    return sorted(sectors, key=lambda s: -s.polygon.area)
 
 
-def _absorb_slivers(groups: _Groups, adj, sizes, min_cells: int) -> None:
-    for i in np.argsort(sizes):
-        if sizes[i] >= min_cells:
-            break
-        nbrs = [b if a == i else a for a, b in adj if i in (a, b)]
-        if not nbrs:
-            continue
-        best = max(nbrs, key=lambda j: (len(groups.union[groups.find(j)] & groups.union[groups.find(i)]),
-                                        groups.size[groups.find(j)]))
-        keep = groups.union[groups.find(best)], groups.common[groups.find(best)]
-        groups.merge(i, best)
-        r = groups.find(i)
-        groups.union[r], groups.common[r] = keep  # a sliver is a discretization artifact
+def _closest(common: frozenset[int], centroid: np.ndarray, points: np.ndarray) -> list[int]:
+    """Features of ``common`` nearest ``centroid``, ties within a relative ``TIE`` (sorted; [] if none)."""
+    if not common:
+        return []
+    idx = np.array(sorted(common))
+    d = np.linalg.norm(points[idx] - centroid, axis=1)
+    return idx[d <= d.min() * (1.0 + TIE)].tolist()
 
 
-def _merge_rule1(groups: _Groups, adj, flat, centres, feats, n_comp) -> None:
-    closest = {}
-    sums = np.zeros((n_comp, 2))
-    np.add.at(sums, flat[flat >= 0], centres[flat >= 0])
-    counts = np.maximum(np.bincount(flat[flat >= 0], minlength=n_comp), 1)
-    for r in {groups.find(i) for i in range(n_comp)}:
-        members = [i for i in range(n_comp) if groups.find(i) == r]
-        c = sums[members].sum(axis=0) / counts[members].sum()
-        vis = sorted(groups.common[r])
-        closest[r] = min(vis, key=lambda f: float(np.linalg.norm(feats[f].point - c))) if vis else -1
+def _merge_rule1(groups: _Groups, adj, centroids: np.ndarray, points: np.ndarray) -> None:
+    near = [_closest(groups.common[k], centroids[k], points) for k in range(len(centroids))]
+    untied = [c[0] if len(c) == 1 else -1 for c in near]
+    closest = list(untied)
+    for k, c in enumerate(near):
+        if len(c) > 1:  # a tie (a symmetry axis): take a neighbour's untied closest feature if tied
+            nbrs = {untied[b if a == k else a] for a, b in adj if k in (a, b)}
+            shared = sorted(nbrs & set(c))
+            closest[k] = shared[0] if shared else c[0]
     for a, b in sorted(adj):
-        ra, rb = groups.find(a), groups.find(b)
-        if ra != rb and closest[ra] == closest[rb]:
-            groups.merge(ra, rb)
-            closest[groups.find(ra)] = closest[ra]
+        if closest[a] == closest[b]:
+            groups.merge(a, b)
 
 
-def _merge_rule2(groups: _Groups, adj) -> None:
+def _merge_rule2(groups: _Groups, adj, total_area: float) -> None:
     while True:
-        best, best_key = None, None
+        cands = []
         for a, b in adj:
             ra, rb = groups.find(a), groups.find(b)
-            if ra == rb:
-                continue
             shared = groups.common[ra] & groups.common[rb]
-            if not shared:
-                continue
-            key = (len(shared), groups.size[ra] + groups.size[rb], -min(ra, rb), -max(ra, rb))
-            if best_key is None or key > best_key:
-                best, best_key = (ra, rb), key
-        if best is None:
+            if ra != rb and shared:
+                cands.append((len(shared), groups.area[ra] + groups.area[rb], ra, rb))
+        if not cands:
             return
-        groups.merge(*best)
-
-
-def _cells_polygon(mask: np.ndarray, x0: float, y0: float, res: float):
-    """Union of the cells of ``mask (ny, nx)`` as boxes of row runs."""
-    boxes = []
-    for iy in np.nonzero(mask.any(axis=1))[0]:
-        row = np.concatenate([[False], mask[iy], [False]]).astype(np.int8)
-        d = np.diff(row)
-        starts, ends = np.nonzero(d == 1)[0], np.nonzero(d == -1)[0]
-        boxes.append(np.stack([x0 + starts * res, np.full(len(starts), y0 + iy * res),
-                               x0 + ends * res, np.full(len(starts), y0 + (iy + 1) * res)], axis=1))
-    if not boxes:
-        return shapely.Polygon()
-    b = np.concatenate(boxes)
-    return shapely.union_all(shapely.box(b[:, 0], b[:, 1], b[:, 2], b[:, 3]))
+        most = max(c[0] for c in cands)
+        cands = [c for c in cands if c[0] == most]
+        # areas equal up to TIE count as equal, whatever the map's scale; then a fixed order
+        big = max(c[1] for c in cands) - TIE * total_area
+        best = max((c for c in cands if c[1] >= big), key=lambda c: sorted(
+            (tuple(sorted(groups.union[c[2]])), tuple(sorted(groups.union[c[3]])))))
+        groups.merge(best[2], best[3])
 
 
 def sectors_summary(map_model, range_max: float, rule: int, features: list[MapFeature] | None = None,
