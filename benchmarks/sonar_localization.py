@@ -24,9 +24,9 @@ One trial, on a known map (``--unknown``: with obstacles in the world that the m
 
 Rows (the same trials, priors and scans for every row): the paper's localizer alone (features of
 the relaxed sectors x features of the raw and Fig. 11 filtered scan, poses near the ellipse,
-synthetic-scan confirmation), then each extension added alone (``polish``, ``arc_fallback``,
-``grid_fallback``), then all of them (the default config, what the navigator uses); then the
-paper's method and all extensions against the mismatched sonar.
+synthetic-scan confirmation); the same without the Fig. 11 filter; each extension added alone
+(``polish``, ``arc_fallback``, ``grid_fallback``); all of them (the default config, what the
+navigator uses); then the paper's method and all extensions against the mismatched sonar.
 
 Columns: ``fix`` = share of trials where the localizer accepts a pose (mean clipped scan error
 <= ``success_error``); ``success`` = share of trials with an accepted pose within
@@ -211,6 +211,7 @@ def rows(loc: SonarLocalizerConfig) -> list[tuple[str, SonarLocalizerConfig, boo
     """(label, localizer config, mismatched sonar) of each row, the paper's method first."""
     paper = loc.paper_method()
     return [("paper (Fig. 6 + Fig. 11 filter)", paper, False),
+            ("paper without the Fig. 11 filter", dataclasses.replace(paper, filter=False), False),
             ("paper + polish", dataclasses.replace(paper, polish=True), False),
             ("paper + arc fallback", dataclasses.replace(paper, arc_fallback=True), False),
             ("paper + grid fallback", dataclasses.replace(paper, grid_fallback=True), False),
