@@ -4,9 +4,9 @@ One trial, on a known map (``--unknown``: with obstacles in the world that the m
 
 1. A route: a subgoal drawn uniformly inside the relaxed sectors that see a feature (where the paper's
    robots localize), a via point and a start pose in free space such that both straight legs keep
-   ``CLEARANCE`` from the walls and the route is ``ROUTE_LENGTH`` m long (the navigator's ellipse
-   reaches its ``max_axis`` of 0.35 m after about 6 m). The robot's estimate starts at the truth with
-   zero covariance (right after a fix).
+   the robot radius + ``CLEARANCE_MARGIN`` from the walls and the route is ``ROUTE_LENGTH`` m long
+   (the navigator's ellipse reaches its ``max_axis`` of 0.35 m after about 6 m). The robot's
+   estimate starts at the truth with zero covariance (right after a fix).
 2. The drive: the robot steers to the via point and the subgoal *by its odometry estimate*
    (``control.leader.go_to_goal``), through the scenario's wheel dynamics (``world.drive``); the true
    pose integrates the wheels' true motion, the estimate comes from ``sensors.odometry`` with the
