@@ -114,17 +114,24 @@ def main() -> None:
     if kinect:
         print("\nMessages per episode, leader-only formations vs every robot localized (no formations):\n")
         print("| scenario | formation: total (pose / waypoint / split / promotion) "
-              "| individual: total (pose / waypoint) |")
-        print("|---|---|---|")
+              "| individual: total (pose / waypoint) | makespan (s) formation / individual, same seeds "
+              "| success formation / individual |")
+        print("|---|---|---|---|---|")
         for name in kinect:
             f, i = rows[(name, "formation")], rows[(name, "individual")]
 
             def avg(ms, key):
                 return np.mean([m["messages"].get(key, 0) for m in ms])
 
+            f = f[:len(i)]  # the seeds both modes ran
+            both = [(a["makespan"], b["makespan"]) for a, b in zip(f, i, strict=True)
+                    if a.get("makespan") is not None and b.get("makespan") is not None]
+            span = np.mean(both, axis=0) if both else (float("nan"),) * 2
             print(f"| {name} | {np.mean([m['n_messages'] for m in f]):.0f} ({avg(f, 'pose'):.0f} / "
                   f"{avg(f, 'waypoint'):.0f} / {avg(f, 'split'):.0f} / {avg(f, 'promotion'):.0f}) "
-                  f"| {np.mean([m['n_messages'] for m in i]):.0f} ({avg(i, 'pose'):.0f} / {avg(i, 'waypoint'):.0f}) |")
+                  f"| {np.mean([m['n_messages'] for m in i]):.0f} ({avg(i, 'pose'):.0f} / {avg(i, 'waypoint'):.0f}) "
+                  f"| {span[0]:.1f} / {span[1]:.1f} ({len(both)} seeds) "
+                  f"| {np.mean([m['success'] for m in f]):.0%} / {np.mean([m['success'] for m in i]):.0%} |")
 
 
 if __name__ == "__main__":

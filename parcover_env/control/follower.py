@@ -1,18 +1,23 @@
-"""Follower control (seed A eq. 3, Das et al. l-psi law) from onboard relative measurements.
+"""Follower control (Min et al. eq. 3, implemented as Das et al.'s l-psi law) from onboard measurements.
 
 Geometry (ALGORITHMS.md): the follower's control point q = p_F + d (cos th_F, sin th_F);
 l = |q - p_L|; psi = atan2(q - p_L) - th_L (psi = pi: directly behind); gamma = th_L + psi - th_F.
 Feedback linearization with gains a1, a2 gives
     A = a1 (l_d - l) + v_L cos psi,   B = a2 l wrap(psi_d - psi) - v_L sin psi + l w_L,
     v_F = A cos gamma - B sin gamma,  w_F = (A sin gamma + B cos gamma) / d,
-Seed A's printed eq. 3 is garbled (its input matrix has a zero second column, so the angle error
-would never reach the wheels); we read it as the l-psi law of its ref. [8] (Das et al. 2002), in
-the coordinates above. What we rely on is tested: l -> l_d and psi -> psi_d from perturbed starts
-while the leader drives and turns (``tests/control/test_follower.py``).
+Min et al.'s printed eq. 3 is garbled (its input matrix has a zero second column, so the angle
+error would never reach the wheels). The paper says its follower law "is based upon the techniques
+in [8]" and refers to [8] for details; its ref. [8] is H. J. Min, A. Drenner and N. Papanikolopoulos,
+"Vision-based leader-follower formations with limited information", ICRA 2009. The paper does not
+cite Das et al. The law above is the l-psi law of A. K. Das, R. Fierro, V. Kumar et al., "A
+vision-based formation control framework", IEEE T-RA 18(5), 2002: our choice of a law of the same
+(l, angle) form, in the coordinates above, not a law the paper prints. What we rely on is tested:
+l -> l_d and psi -> psi_d from perturbed starts while the leader drives and turns
+(``tests/control/test_follower.py``).
 
-Limited information (seed A ref. [8]): the follower does not receive the leader's velocities. It
-estimates them from successive camera measurements and its own motion (:class:`LeaderVelocityEstimator`);
-with no history yet they are treated as a disturbance (u_L = 0).
+Limited information (the setting of ref. [8]'s title): the follower does not receive the leader's
+velocities. It estimates them from successive camera measurements and its own motion
+(:class:`LeaderVelocityEstimator`); with no history yet they are treated as a disturbance (u_L = 0).
 """
 
 from __future__ import annotations

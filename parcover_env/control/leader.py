@@ -1,4 +1,10 @@
-"""Leader control (seed A eq. 2): unicycle go-to-goal toward the next waypoint, saturated."""
+"""Leader control: a go-to-goal law of our choosing on the unicycle kinematics of Min et al.'s eq. 2.
+
+Min, Fehr & Papanikolopoulos's eq. 2 gives only the leader's discrete unicycle kinematics
+(x += v cos(theta) dt, y += v sin(theta) dt, theta += omega dt) and says the control velocities are
+found "using the position information"; it gives no control law. :func:`go_to_goal` is ours: a
+saturated polar go-to-goal law toward the next waypoint (``tests/control/test_leader.py``).
+"""
 
 from __future__ import annotations
 

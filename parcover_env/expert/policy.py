@@ -5,10 +5,11 @@ explicitly: the scenario (map, robot model, formation parameters) and the PPCP p
 env internals. Roles (leader/follower), splits at TPs, and waypoints come from the observations
 (the env runs the Kinect system's Alg. 1); each robot then runs its own controller:
 
-* leader: go-to-goal toward its next waypoint (eq. 2), slowed to ``expert.leader_speed`` of v_max while it
-  has followers so they can close gaps;
-* follower: the l-psi law (eq. 3, corrected) on its onboard camera's measurement of the robot ahead,
-  the leader's velocity estimated from successive measurements (limited information, ref. [8]);
+* leader: go-to-goal toward its next waypoint (our law on eq. 2's unicycle kinematics), slowed to
+  ``expert.leader_speed`` of v_max while it has followers so they can close gaps;
+* follower: Das et al.'s l-psi law (in place of the garbled eq. 3) on its onboard camera's
+  measurement of the robot ahead, the leader's velocity estimated from successive measurements
+  (limited information, ref. [8]);
   if the robot ahead is out of sight, it drives along its own route (same path up to its split);
 * with ``localization: both``, a leader out of Kinect view for a while stops, turns and localizes
   with its sonar (seed B's localizer, :mod:`parcover_env.expert.sonar_fix`) and steers by the

@@ -1,4 +1,4 @@
-"""Leader go-to-goal (eq. 2): reaches goals from any heading, respects saturation."""
+"""Leader go-to-goal (our law on eq. 2's unicycle kinematics): reaches goals from any heading, respects saturation."""
 
 from __future__ import annotations
 

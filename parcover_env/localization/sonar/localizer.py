@@ -1,15 +1,27 @@
-"""Feature-based sonar localizer (seed B Fig. 6) and the uncertainty ellipse.
+"""Feature-based sonar localizer (Kim, Pearce & Amato, Fig. 6) and the uncertainty ellipse.
 
-LOCALIZER: sectors meeting the uncertainty ellipse -> their features F1; scan features F2 -> for each
-pair a pose from the map corner and its two adjacent walls -> keep poses within ``ellipse_distance``
-of the ellipse (and in free space) -> synthetic scan of the known map from each -> smallest error.
+LOCALIZER (the paper's Fig. 6): sectors meeting the uncertainty ellipse -> their features F1; scan
+features F2 (of the raw and, with ``filter``, the Fig. 11 filtered scan) -> for each pair a pose from
+the map corner and its two adjacent walls -> keep poses within ``ellipse_distance`` of the ellipse
+(and in free space) -> synthetic scan of the known map from each -> smallest error.
 
-Pose from a (map corner, scan) pair: the scan's wall observations (local minima: the foot of a wall's
-perpendicular, bearing and distance) matched to the corner's two walls give the heading (map normal
-angle minus measured bearing) and the position from the two wall-distance equations
-``n_i . (p - c) = d_i``. With only one wall matched, the corner's measured range/bearing (an M point)
-gives the position. The best pose is then polished by minimizing the clipped scan error (Nelder-Mead),
-the least-squares step the paper proposes to cut its 13 cm error.
+Pose from a (map corner, scan) pair (the paper does not say how; our choice): the scan's wall
+observations (local minima: the foot of a wall's perpendicular, bearing and distance) matched to the
+corner's two walls give the heading (map normal angle minus measured bearing) and the position from
+the two wall-distance equations ``n_i . (p - c) = d_i``. With only one wall matched, the corner's
+measured range/bearing (an M point) gives the position.
+
+Extensions beyond the paper, each a switch of :class:`~parcover_env.config.SonarLocalizerConfig`
+(all on by default; ``SonarLocalizerConfig.paper_method()`` turns them off):
+
+* ``arc_fallback``: a pair whose walls give no pose near the ellipse tries poses on the circle of
+  the corner's measured range (:func:`arc_candidates`);
+* ``grid_fallback``: when no feature pose explains the scan, scan matching over a grid of poses in
+  the ellipse around the heading estimate;
+* ``polish``: the best pose is polished by minimizing the clipped scan error (Nelder-Mead); the
+  paper only suggests least squares to cut its 13 cm error.
+
+``benchmarks/sonar_localization.py`` measures each of them against the paper's method alone.
 """
 
 from __future__ import annotations
@@ -161,9 +173,10 @@ def pose_candidates(feature: MapFeature, scan: ScanPoints, params: SonarLocalize
 
 def arc_candidates(feature: MapFeature, scan: ScanPoints, region: shapely.Geometry,
                    step: float = 0.03) -> list[np.ndarray]:
-    """Fallback when no wall of the corner shows its perpendicular foot: poses on the circle of the
-    measured corner range around the corner, inside the corner's wedge and ``region`` (the grown
-    ellipse), every ``step`` metres of arc; heading from the corner's measured bearing."""
+    """Fallback beyond the paper (``arc_fallback``) when no wall of the corner shows its perpendicular
+    foot: poses on the circle of the measured corner range around the corner, inside the corner's
+    wedge and ``region`` (the grown ellipse), every ``step`` metres of arc; heading from the corner's
+    measured bearing."""
     c, out = feature.point, []
     a1 = math.atan2(feature.walls[0][1], feature.walls[0][0])
     span = float(wrap_angle(math.atan2(feature.walls[1][1], feature.walls[1][0]) - a1))
@@ -178,8 +191,9 @@ def arc_candidates(feature: MapFeature, scan: ScanPoints, region: shapely.Geomet
 
 
 def _grid_candidates(ellipse: Ellipse, heading: float, map_model, p: SonarLocalizerParams) -> np.ndarray:
-    """Poses every ``grid_step`` m inside the uncertainty ellipse and in free space, at the heading
-    estimate and ``grid_heading_step_deg`` either side of it."""
+    """Grid fallback beyond the paper (``grid_fallback``): poses every ``grid_step`` m inside the
+    uncertainty ellipse and in free space, at the heading estimate and ``grid_heading_step_deg``
+    either side of it."""
     c, s = math.cos(ellipse.angle), math.sin(ellipse.angle)
     a, b = max(ellipse.axes[0], p.grid_step), max(ellipse.axes[1], p.grid_step)
     u, v = np.meshgrid(np.arange(-a, a + 1e-9, p.grid_step), np.arange(-b, b + 1e-9, p.grid_step))
@@ -197,7 +211,8 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
              params: SonarLocalizerParams | None = None, *, sonar: SonarConfig | None = None,
              features: list[MapFeature] | None = None, heading: float | None = None,
              heading_tol: float | None = None) -> LocalizationResult:
-    """Localize from a 360-degree scan with the known map (seed B Fig. 6). ``ellipse``: the
+    """Localize from a 360-degree scan with the known map (Kim, Pearce & Amato Fig. 6, plus the
+    extensions ``params`` switches on: see the module docstring). ``ellipse``: the
     uncertainty region, an :class:`Ellipse` or ``(center (2,), position covariance (2, 2))`` (e.g.
     propagated odometry), whose ``params.covariance_sigmas`` ellipse is used. ``sonar`` is the
     sensor model used for synthetic scans (default: ideal ray model); ``features`` as used for
@@ -232,7 +247,7 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
         for scan in scans:
             qs = [q for q in pose_candidates(feats[fi], scan, p)
                   if ellipse.distance(q[None, :2])[0] < p.ellipse_distance]
-            if not qs:
+            if not qs and p.arc_fallback:
                 qs = arc_candidates(feats[fi], scan, region)
             cands.extend(qs)
             owners.extend([fi] * len(qs))
@@ -249,7 +264,7 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
     poses, owners = poses[uniq], owners[uniq]
     err = scan_error(r, synthetic_scans(poses, a, segs, sonar), p.error_clip, p.error_trim) if len(poses) \
         else np.zeros(0)
-    if heading is not None and p.grid_step > 0 and (len(err) == 0 or err.min() > p.success_error):
+    if heading is not None and p.grid_fallback and (len(err) == 0 or err.min() > p.success_error):
         # no feature pose explains the scan: scan matching over the uncertainty region instead
         grid = _grid_candidates(ellipse, float(heading), map_model, p)
         poses = np.concatenate([poses, grid])
@@ -259,7 +274,7 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
         return LocalizationResult(None, math.inf, 0, False)
     best = int(np.argmin(err))
     pose, e = poses[best].copy(), float(err[best])
-    if p.refine:
+    if p.polish:
         def cost(x):
             if not map_model.contains(x[None, :2])[0] or \
                     ellipse.distance(x[None, :2])[0] >= p.ellipse_distance:
@@ -267,7 +282,7 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
             return float(scan_error(r, synthetic_scans(x[None], a, segs, sonar), p.error_clip, p.error_trim)[0])
 
         res = minimize(cost, pose, method="Nelder-Mead",
-                       options={"maxiter": p.refine_iters, "xatol": 1e-3, "fatol": 1e-5,
+                       options={"maxiter": p.polish_iters, "xatol": 1e-3, "fatol": 1e-5,
                                 "initial_simplex": pose + np.array([[0, 0, 0], [0.03, 0, 0], [0, 0.03, 0],
                                                                     [0, 0, 0.03]])})
         if res.fun < e:

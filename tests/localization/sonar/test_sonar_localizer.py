@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
 from parcover_env.config import MapConfig, SonarConfig, SonarLocalizerConfig
+from parcover_env.errors import ConfigError
 from parcover_env.localization.sonar.features import map_features
 from parcover_env.localization.sonar.localizer import Ellipse, localize
 from parcover_env.localization.sonar.sectors import compute_sectors
@@ -107,7 +109,7 @@ def test_heading_tolerance_argument_replaces_the_configured_one():
     pose = (2.0, 1.0, 0.4)
     scan = ring.scan(pose, m.segments, None, 0.165, None)
     ell = Ellipse((2.1, 0.95), (0.3, 0.3))
-    p = SonarLocalizerConfig(grid_step=0.0)
+    p = SonarLocalizerConfig(grid_fallback=False)
     # odometry heading 20 deg off: the default 30 deg tolerance keeps the true pose, 10 deg drops it
     head = 0.4 + math.radians(20)
     assert localize(scan, ring.scan_angles, m, sectors, ell, p, features=feats, heading=head).success
@@ -117,3 +119,74 @@ def test_heading_tolerance_argument_replaces_the_configured_one():
     assert not narrow.success or np.hypot(*(narrow.pose[:2] - pose[:2])) > 0.05
     with pytest.raises(ValueError, match="heading_tol"):
         localize(scan, ring.scan_angles, m, sectors, ell, p, features=feats, heading=head, heading_tol=0.0)
+
+
+def test_paper_method_switches_off_the_three_extensions_only():
+    cfg = SonarLocalizerConfig(filter_repeats=5, error_trim=0.2)
+    paper = cfg.paper_method()
+    assert (cfg.polish, cfg.arc_fallback, cfg.grid_fallback) == (True, True, True)  # the defaults
+    assert (paper.polish, paper.arc_fallback, paper.grid_fallback) == (False, False, False)
+    assert dataclasses.replace(paper, polish=True, arc_fallback=True, grid_fallback=True) == cfg
+    with pytest.raises(ConfigError, match="grid_step"):
+        SonarLocalizerConfig(grid_step=0.0)
+
+
+def _t_room():
+    m = MapModel.from_config(T_ROOM)
+    feats = map_features(m)
+    return m, feats, compute_sectors(m, 2.54, 2, feats)
+
+
+def test_arc_fallback_finds_the_pose_when_no_corner_wall_shows_its_foot():
+    # close under the top wall of the bar, facing +x: no (corner, two walls) pair lands near the
+    # ellipse, so the paper's method has no candidate; the arc of the corner's measured range does
+    m, feats, sectors = _t_room()
+    ring = SonarRing(SonarConfig(model="ray"))
+    pose = np.array([1.8, 3.7, 0.0])
+    scan = ring.scan(pose, m.segments, None, 0.165, None)
+    ell = Ellipse((1.9, 3.65), (0.25, 0.25))
+    paper = SonarLocalizerConfig().paper_method()
+    alone = localize(scan, ring.scan_angles, m, sectors, ell, paper, features=feats, heading=0.0)
+    assert alone.pose is None and alone.candidates_tried == 0 and not alone.success
+    arc = localize(scan, ring.scan_angles, m, sectors, ell, dataclasses.replace(paper, arc_fallback=True),
+                   features=feats, heading=0.0)
+    assert arc.success and arc.candidates_tried > 10
+    assert np.hypot(*(arc.pose[:2] - pose[:2])) < 0.03 and abs(arc.pose[2]) < math.radians(2)
+
+
+def test_grid_fallback_scan_matches_where_no_feature_is_in_range():
+    # the middle of an 8 m corridor: its four corners are beyond the 2.54 m range, no feature to
+    # pair; the grid fallback finds a pose that explains the scan (across the corridor exactly; along
+    # it the scan cannot tell, so within the ellipse) with the heading estimate's help
+    m = MapModel.from_config(MapConfig(size=(8.0, 1.2)))
+    feats = map_features(m)
+    sectors = compute_sectors(m, 2.54, 2, feats)
+    ring = SonarRing(SonarConfig(model="ray"))
+    pose = np.array([4.0, 0.5, 0.3])
+    scan = ring.scan(pose, m.segments, None, 0.165, None)
+    ell = Ellipse((4.1, 0.55), (0.2, 0.2))
+    paper = SonarLocalizerConfig().paper_method()
+    assert localize(scan, ring.scan_angles, m, sectors, ell, paper, features=feats, heading=0.3).pose is None
+    grid = dataclasses.replace(paper, grid_fallback=True)
+    res = localize(scan, ring.scan_angles, m, sectors, ell, grid, features=feats, heading=0.3)
+    assert res.success and abs(res.pose[1] - 0.5) < 0.03 and abs(res.pose[2] - 0.3) < 0.02
+    assert ell.distance(res.pose[None, :2])[0] == 0.0
+    # without a heading estimate the fallback does not run
+    assert localize(scan, ring.scan_angles, m, sectors, ell, grid, features=feats).pose is None
+
+
+def test_polish_cuts_the_error_of_the_feature_pose():
+    # a noisy scan (1 cm quantized walls): the pose from the walls' feet is off by 1.4 cm; the
+    # polish's local minimization of the scan error brings it within 0.5 cm
+    m, feats, sectors = _t_room()
+    ring = SonarRing(SonarConfig(model="ray"))
+    pose = np.array([2.0, 1.0, 0.4])
+    scan = ring.scan(pose, m.segments, None, 0.165, np.random.default_rng(1))
+    ell = Ellipse((2.1, 0.9), (0.3, 0.3))
+    paper = SonarLocalizerConfig().paper_method()
+    a = localize(scan, ring.scan_angles, m, sectors, ell, paper, features=feats, heading=0.4)
+    b = localize(scan, ring.scan_angles, m, sectors, ell, dataclasses.replace(paper, polish=True), features=feats,
+                 heading=0.4)
+    err_a, err_b = np.hypot(*(a.pose[:2] - pose[:2])), np.hypot(*(b.pose[:2] - pose[:2]))
+    assert a.success and b.success and b.error < a.error
+    assert err_a > 0.01 and err_b < 0.005
