@@ -139,13 +139,14 @@ class SonarNavigator:
         self.scan: dict | None = None
         self.fixes: list[dict] = []
         self._stats = {"scans": 0, "localized": 0, "failed": 0, "corrections": [], "scan_steps": 0,
-                       "rearranged": 0, "iterations": 0, "bias": [], "lateral": []}
+                       "rearranged": 0, "iterations": 0, "bias": [], "lateral": [], "apart": 0}
         if observations:
             self._ingest(observations)
 
     def stats(self) -> dict:
         """Counters for the episode summary (prefixed ``sonar_``). ``sonar_rearranged``: robot pairs
-        whose subgoals were rearranged (§3.2). ``sonar_bias_before_deg`` / ``_after_deg``: mean eq. 1
+        whose subgoals were rearranged (§3.2); ``sonar_separate_sectors``: pairs whose subgoals lay in
+        different relaxed sectors (Fig. 10: no rearrangement). ``sonar_bias_before_deg`` / ``_after_deg``: mean eq. 1
         bias (deg) over the robots' subgoals chosen by the scan-angle optimization, at the node the
         original algorithm takes (the last within the horizon) and at the optimized one (before any
         rearrangement); subgoals without an available feature at either node are left out
@@ -155,7 +156,8 @@ class SonarNavigator:
         return {"sonar_scans": st["scans"], "sonar_localized": st["localized"], "sonar_failed": st["failed"],
                 "sonar_mean_correction": float(np.mean(c)) if c else 0.0,
                 "sonar_scan_time": st["scan_steps"] * self.dt,
-                "sonar_rearranged": st["rearranged"], "sonar_iterations": st["iterations"],
+                "sonar_rearranged": st["rearranged"], "sonar_separate_sectors": st["apart"],
+                "sonar_iterations": st["iterations"],
                 "sonar_bias_before_deg": float(np.degrees(b[:, 0].mean())) if len(b) else math.nan,
                 "sonar_bias_after_deg": float(np.degrees(b[:, 1].mean())) if len(b) else math.nan,
                 "sonar_bias_subgoals": len(b),
@@ -281,6 +283,7 @@ class SonarNavigator:
         self.targets = targets if res is None else res.targets
         self.goal_xy = np.full((self.n, 2), np.nan) if res is None else res.goals
         self._stats["rearranged"] += 0 if res is None else res.pairs
+        self._stats["apart"] += 0 if res is None else res.apart
         self.phase, self.arrived = "drive", self.done.copy()
         self.drive_steps = 0
         dist = np.abs(self.targets - self.progress).max()

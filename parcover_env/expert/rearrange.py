@@ -37,12 +37,14 @@ RESOLUTION = math.radians(0.5)
 
 @dataclass(frozen=True)
 class Rearranged:
-    """Targets (arclength labels, ``(N,)``), off-path subgoals (``(N, 2)``, NaN: on the path) and the
-    number of robot pairs whose subgoals moved."""
+    """Targets (arclength labels, ``(N,)``), off-path subgoals (``(N, 2)``, NaN: on the path), the
+    number of robot pairs whose subgoals moved, and of pairs whose subgoals lie in different relaxed
+    sectors (each robot keeps its own feature: Fig. 10)."""
 
     targets: np.ndarray
     goals: np.ndarray
     pairs: int
+    apart: int = 0
 
 
 class SubgoalRearranger:
@@ -97,7 +99,8 @@ class SubgoalRearranger:
             if new is not None:
                 (out[i], out[j]), goals[[i, j]] = new
                 moved[[i, j]], pairs = True, pairs + 1
-        return Rearranged(out, goals, pairs)
+        apart = sum(sector[i] != sector[j] for a, i in enumerate(active) for j in active[a + 1:])
+        return Rearranged(out, goals, pairs, int(apart))
 
     def _worst(self, pts: np.ndarray, f) -> float:
         return min(unblocked_scan_angle(pts[a], f, pts[[1 - a]], *self.args) for a in range(2))
