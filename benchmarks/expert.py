@@ -114,9 +114,9 @@ def main() -> None:
         print("\nSonar navigator (Kim, Pearce & Amato §3): rearranged subgoal pairs per episode, eq. 1 bias at the "
               "original algorithm's subgoal vs the optimized one (mean over subgoals), median lateral offset "
               "between the robots while both drive (per episode, then median over episodes):\n")
-        print("| scenario | rearranged / episode (mean, min-max) | episodes with >= 1 | bias before / after (deg) "
-              "| lateral offset (m) |")
-        print("|---|---|---|---|---|")
+        print("| scenario | rearranged / episode (mean, min-max) | episodes with >= 1 | pairs in different sectors "
+              "| bias before / after (deg) | lateral offset (m) |")
+        print("|---|---|---|---|---|---|")
     for name in sonar:
         ms = [m for m in rows[(name, "formation")] if "sonar_rearranged" in m]
         n_re = np.array([m["sonar_rearranged"] for m in ms])
@@ -128,6 +128,7 @@ def main() -> None:
 
         lat = np.array([m["sonar_lateral_offset"] for m in ms])
         print(f"| {name} | {n_re.mean():.2f} ({n_re.min()}-{n_re.max()}) | {(n_re > 0).sum()} / {len(ms)} "
+              f"| {sum(m['sonar_separate_sectors'] for m in ms)} "
               f"| {biased('sonar_bias_before_deg'):.1f} / {biased('sonar_bias_after_deg'):.1f} "
               f"| {np.nanmedian(lat):.2f} (min {np.nanmin(lat):.2f}) |")
         print(f"\n{name}: rearranged pairs by seed: " + " ".join(f"{m['seed']}:{m['sonar_rearranged']}" for m in ms))
