@@ -1,7 +1,7 @@
 """SonarNavigator: seed B's NAVIGATOR loop (Fig. 1) as a policy over the env's observations.
 
     while goal not reached:  optimize the subgoal on the path (scan angle, eq. 1) -> replicate it for
-    the team (parallel paths) -> rearrange subgoals (§4 bisector construction) -> drive all robots
+    the team (parallel paths) -> rearrange subgoals (§3.2, §4) -> drive all robots
     to their subgoals and stop -> scan and localize one by one -> restart from the corrected poses.
 
 Inputs, all explicit (never env internals): the scenario (the *known* map, robot and sonar models,
@@ -20,8 +20,9 @@ Design choices (documented deviations):
   robot i trails ``i * formation.spacing`` there. All robots share the route's arclength labels, so
   one team label ``sigma`` puts them abreast. ``sigma`` minimizes the worst robot's bias (§3
   "optimizes the scan angle for all robots") within the horizon where every robot's ellipse stays
-  below ``max_axis``; subgoals of robots that block each other are then rearranged
-  (:mod:`~parcover_env.expert.rearrange`).
+  below ``max_axis`` and its predicted uncertainty region does not hit a wall (§3.1's original rule,
+  :mod:`~parcover_env.expert.horizon`); subgoals of robots that block each other are then
+  rearranged (:mod:`~parcover_env.expert.rearrange`).
 * Scan: the robot turns in place; every control step each ring beam's reading is binned by the
   odometry heading into the 72 bins of 5 deg (the reading nearest each bin centre is kept). The turn
   stops once every bin holds a reading within ``bin_tol_deg`` of its centre (with 8 beams this takes
@@ -44,6 +45,7 @@ from parcover_env.config import NavigatorConfig, Scenario
 from parcover_env.control.leader import go_to_goal
 from parcover_env.envs.observations import ObservationLayout
 from parcover_env.expert.avoidance import brake_factor, lane_gap, sidestep, turn_away
+from parcover_env.expert.horizon import RegionModel, collision_horizon
 from parcover_env.expert.rearrange import SubgoalRearranger
 from parcover_env.expert.sonar_fix import belief_covariance_step
 from parcover_env.expert.team_localizer import TeamLocalizer
@@ -103,6 +105,7 @@ class SonarNavigator:
         """Distance between neighbouring lanes of the parallel paths (m)."""
         self.lane_clearance = self.radius + self.p.slow_margin
         """A lane keeps this from the known map's walls, else it merges onto the route (m)."""
+        self.region_model = RegionModel(self.p, self.fix_cov, self.odometry, self.wheel_base, self.map, self.radius)
         self.rearranger = SubgoalRearranger(self.features, self.team_loc.sectors, self.map, self.radius,
                                             r.sonar.range_max, self.incidence, self.cone, self.p)
         self.reset()
@@ -120,6 +123,7 @@ class SonarNavigator:
         n = self.n
         self.correction = np.zeros((n, 3))
         self.last_odom: np.ndarray | None = None
+        self.raw, self.offset = np.zeros((n, 3)), np.zeros((n, 2))  # last observed poses; clipping offsets
         self.travelled = np.zeros(n)
         self.turned = np.zeros(n)
         self.axis0 = np.full(n, self.p.initial_axis)
@@ -205,13 +209,25 @@ class SonarNavigator:
         return out
 
     def _ingest(self, observations: dict[str, np.ndarray]) -> None:
-        g = self.layout.get
+        """Odometry poses from the observations. The observed x, y are clipped to the map box +- 1 m
+        and a long mission's odometry drifts beyond it: a step whose x or y reading is (or was) at
+        that bound moves by the encoder speed ``v`` along the mid-step heading instead."""
+        g, lay = self.layout.get, self.layout
+        lo, hi = (np.array([b[lay.slices[k]][0] for k in ("x", "y")]) for b in (lay.low, lay.high))
         odom = np.zeros((self.n, 3)) if self.last_odom is None else self.last_odom.copy()
         for a, o in observations.items():
             i = int(a.rsplit("_", 1)[1])
             if not 0 <= i < self.n:
                 raise ValueError(f"observation for unknown agent {a!r} ({self.n} routes)")
-            odom[i] = [g(o, "x")[0], g(o, "y")[0], math.atan2(g(o, "sin_theta")[0], g(o, "cos_theta")[0])]
+            raw = np.array([g(o, "x")[0], g(o, "y")[0], math.atan2(g(o, "sin_theta")[0], g(o, "cos_theta")[0])])
+            if self.last_odom is not None and np.any((raw[:2] <= lo) | (raw[:2] >= hi)
+                                                     | (self.raw[i, :2] <= lo) | (self.raw[i, :2] >= hi)):
+                mid = self.raw[i, 2] + 0.5 * float(wrap_angle(raw[2] - self.raw[i, 2]))
+                odom[i, :2] += float(g(o, "v")[0]) * self.dt * np.array([math.cos(mid), math.sin(mid)])
+                self.offset[i] = odom[i, :2] - raw[:2]  # odometry pose = observed + offset from now on
+            else:
+                odom[i, :2] = raw[:2] + self.offset[i]
+            odom[i, 2], self.raw[i] = raw[2], raw
         if self.last_odom is not None:
             heading = self.last_odom[:, 2] + self.correction[:, 2]
             self.cov = belief_covariance_step(self.cov, self.last_odom, odom, heading, self.odometry, self.wheel_base)
@@ -260,6 +276,10 @@ class SonarNavigator:
             self._update_progress(i, bel[i, :2])
         axes = np.array([max(self.ellipse(i).axes) for i in range(self.n)])
         horizon = np.maximum(self.p.min_advance, (self.p.max_axis - axes) / self.p.rate_distance)
+        for i in active:  # §3.1's original rule: stop before the uncertainty region would hit a wall
+            reach = collision_horizon(self.paths[i], self.progress[i], self.progress[i] + horizon[i], self.cov[i],
+                                      self.travelled[i], self.turned[i], self.axis0[i], self.region_model)
+            horizon[i] = max(self.p.min_advance, reach - self.progress[i])
         ends = np.array([p.s[-1] for p in self.paths])
         sigma_end = float(np.max(ends + self.lags))
         sigma_hi = float(np.min(self.progress[active] + horizon[active] + self.lags[active]))

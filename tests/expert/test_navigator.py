@@ -278,3 +278,33 @@ def test_side_turn_steers_away_from_a_close_side_echo():
     assert turn(2.54, 2.54, front=0.1) == 0.0  # front beams are the brake's business
     nav.side = np.zeros(0, dtype=int)  # a ring without side beams never turns
     assert turn(0.1, 0.1) == 0.0
+
+
+def test_odometry_beyond_the_observation_bounds_is_dead_reckoned_from_the_encoder_speed():
+    """The observed x, y are clipped to the map box +- 1 m; a drifted odometry pose beyond it moves by
+    v dt along the mid-step heading (0.3 m/s x 0.1 s along +x, then at 45 deg during a quarter turn),
+    and keeps its offset to the reading once the reading is inside again."""
+    env = parcover_env.parallel_env("hallway", preset="ideal")
+    nav = SonarNavigator.for_env(env)
+    obs, _ = env.reset(seed=0)
+    nav.reset(obs)
+    lay, o, dt = nav.layout, obs["robot_0"], nav.dt
+    hi_x = float(lay.high[lay.slices["x"]][0])
+    o[lay.slices["x"]], o[lay.slices["v"]] = hi_x, 0.3
+    o[lay.slices["cos_theta"]], o[lay.slices["sin_theta"]] = 1.0, 0.0
+    nav._ingest(obs)
+    x0, y0 = nav.last_odom[0, :2]
+    nav._ingest(obs)
+    assert nav.last_odom[0, :2] == pytest.approx([x0 + 0.3 * dt, y0])
+    o[lay.slices["cos_theta"]], o[lay.slices["sin_theta"]] = 0.0, 1.0
+    nav._ingest(obs)
+    step = 0.3 * dt / math.sqrt(2)
+    assert nav.last_odom[0, :2] == pytest.approx([x0 + 0.3 * dt + step, y0 + step])
+    o[lay.slices["x"]] = hi_x - 0.5
+    nav._ingest(obs)  # the step off the bound is still dead-reckoned (the last reading was clipped)
+    after = nav.last_odom[0, :2].copy()
+    assert after == pytest.approx([x0 + 0.3 * dt + step, y0 + step + 0.3 * dt])
+    o[lay.slices["x"]] += 0.01
+    o[lay.slices["y"]] += 0.02
+    nav._ingest(obs)  # inside: the observed motion
+    assert nav.last_odom[0, :2] == pytest.approx(after + [0.01, 0.02], abs=1e-6)
