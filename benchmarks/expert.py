@@ -7,8 +7,9 @@
 
 ``generated`` stands for the maps ``generated:SEED`` with SEED = the episode seed (one map per
 seed). Prints one Markdown table (makespan ratio = makespan / (c_max / v_max): min / mean / p95 /
-max), failures by cause (``parcover_env.harness.failures``) with their seeds, and, for the Kinect
-scenarios, the messages of formation mode vs every-robot-localized mode (``--messages``).
+max), failures by cause (``parcover_env.harness.failures``) with their seeds, for the sonar
+navigator its rearrangements, scan-angle bias and lateral offset, and, for the Kinect scenarios,
+the messages of formation mode vs every-robot-localized mode (``--messages``).
 """
 
 from __future__ import annotations
@@ -108,6 +109,29 @@ def main() -> None:
             shown = ", ".join(map(str, seeds_c[:12])) + (", ..." if len(seeds_c) > 12 else "")
             cells.append(f"{count[c]} ({shown})" if count[c] else "0")
         print(f"| {name} | " + " | ".join(cells) + " |")
+    sonar = [name for name in args.scenarios if any("sonar_rearranged" in m for m in rows[(name, "formation")])]
+    if sonar:
+        print("\nSonar navigator (Kim, Pearce & Amato §3): rearranged subgoal pairs per episode, eq. 1 bias at the "
+              "original algorithm's subgoal vs the optimized one (mean over subgoals), median lateral offset "
+              "between the robots while both drive (per episode, then median over episodes):\n")
+        print("| scenario | rearranged / episode (mean, min-max) | episodes with >= 1 | pairs in different sectors "
+              "| bias before / after (deg) | lateral offset (m) |")
+        print("|---|---|---|---|---|---|")
+    for name in sonar:
+        ms = [m for m in rows[(name, "formation")] if "sonar_rearranged" in m]
+        n_re = np.array([m["sonar_rearranged"] for m in ms])
+        counted = [m for m in ms if m["sonar_bias_subgoals"] > 0]
+
+        def biased(key, counted=counted):  # mean over all subgoals: episode means weighted by their count
+            total = sum(m["sonar_bias_subgoals"] for m in counted)
+            return sum(m[key] * m["sonar_bias_subgoals"] for m in counted) / total if total else float("nan")
+
+        lat = np.array([m["sonar_lateral_offset"] for m in ms])
+        print(f"| {name} | {n_re.mean():.2f} ({n_re.min()}-{n_re.max()}) | {(n_re > 0).sum()} / {len(ms)} "
+              f"| {sum(m['sonar_separate_sectors'] for m in ms)} "
+              f"| {biased('sonar_bias_before_deg'):.1f} / {biased('sonar_bias_after_deg'):.1f} "
+              f"| {np.nanmedian(lat):.2f} (min {np.nanmin(lat):.2f}) |")
+        print(f"\n{name}: rearranged pairs by seed: " + " ".join(f"{m['seed']}:{m['sonar_rearranged']}" for m in ms))
     errors = [(m["seed"], m["error"]) for (n, _), ms in rows.items() for m in ms if m.get("error")]
     for seed, err in errors[:10]:
         print(f"\nseed {seed}: {err}")

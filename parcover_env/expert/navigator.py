@@ -1,7 +1,7 @@
 """SonarNavigator: seed B's NAVIGATOR loop (Fig. 1) as a policy over the env's observations.
 
     while goal not reached:  optimize the subgoal on the path (scan angle, eq. 1) -> replicate it for
-    the team (parallel paths) -> rearrange subgoals (§4 bisector construction) -> drive all robots
+    the team (parallel paths) -> rearrange subgoals (§3.2, §4) -> drive all robots
     to their subgoals and stop -> scan and localize one by one -> restart from the corrected poses.
 
 Inputs, all explicit (never env internals): the scenario (the *known* map, robot and sonar models,
@@ -12,10 +12,17 @@ Design choices (documented deviations):
 * Pose belief = a per-robot rigid correction on top of the odometry pose. A fix ``f`` at odometry
   pose ``o`` sets the correction to ``f o^-1``; the uncertainty ellipse (``Ellipse.grow``) grows with
   the odometry distance and rotation since the last fix.
-* Parallel paths: robot i follows its own plan route and trails robot 0 by ``i * formation.spacing``
-  of arclength (a column along the shared route; after a split each robot simply follows its own
-  route). The team subgoal sigma minimizes the worst robot's bias (§3 "optimizes the scan angle for
-  all robots") within the horizon where every robot's ellipse stays below ``max_axis``.
+* Parallel paths (§2, :mod:`~parcover_env.localization.sonar.parallel_paths`): robot i's path is its
+  route translated sideways by its lane offset, lanes ``2 radius + slow_margin`` apart (a teammate
+  beside a robot stays just outside the distance, radius + ``slow_margin``, at which the side beams
+  turn it away) where the lane keeps radius + ``slow_margin`` from the walls; elsewhere the lanes
+  merge onto the route over a ramp of twice the larger of the lane spacing and the column lag, and
+  robot i trails ``i * formation.spacing`` there. All robots share the route's arclength labels, so
+  one team label ``sigma`` puts them abreast. ``sigma`` minimizes the worst robot's bias (§3
+  "optimizes the scan angle for all robots") within the horizon where every robot's ellipse stays
+  below ``max_axis`` and its predicted uncertainty region does not hit a wall (§3.1's original rule,
+  :mod:`~parcover_env.expert.horizon`); subgoals of robots that block each other are then
+  rearranged (:mod:`~parcover_env.expert.rearrange`).
 * Scan: the robot turns in place; every control step each ring beam's reading is binned by the
   odometry heading into the 72 bins of 5 deg (the reading nearest each bin centre is kept). The turn
   stops once every bin holds a reading within ``bin_tol_deg`` of its centre (with 8 beams this takes
@@ -31,32 +38,25 @@ Design choices (documented deviations):
 from __future__ import annotations
 
 import math
-from functools import cached_property
 
 import numpy as np
-import shapely
 
 from parcover_env.config import NavigatorConfig, Scenario
 from parcover_env.control.leader import go_to_goal
 from parcover_env.envs.observations import ObservationLayout
 from parcover_env.expert.avoidance import brake_factor, lane_gap, sidestep, turn_away
+from parcover_env.expert.horizon import RegionModel, collision_horizon
+from parcover_env.expert.rearrange import SubgoalRearranger
 from parcover_env.expert.sonar_fix import belief_covariance_step
 from parcover_env.expert.team_localizer import TeamLocalizer
 from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.poses import compose as _compose
 from parcover_env.geometry.poses import inverse as _inverse
-from parcover_env.localization.sonar.features import MapFeature
 from parcover_env.localization.sonar.localizer import Ellipse
+from parcover_env.localization.sonar.parallel_paths import lane_offsets, lateral_offset, parallel_path, with_start
 from parcover_env.localization.sonar.params import SonarLocalizerParams
 from parcover_env.localization.sonar.scan import ScanCollector
-from parcover_env.localization.sonar.subgoals import (
-    PathNodes,
-    bisector_rearrangement,
-    densify,
-    score_nodes,
-    team_subgoal,
-    unblocked_scan_angle,
-)
+from parcover_env.localization.sonar.subgoals import PathNodes, densify, score_nodes, team_subgoal
 
 NavigatorParams = NavigatorConfig
 """Former name of :class:`~parcover_env.config.NavigatorConfig` (the scenario's ``expert.navigator``)."""
@@ -101,6 +101,13 @@ class SonarNavigator:
         self.fix_cov = np.diag([fx.fix_sigma**2, fx.fix_sigma**2, math.radians(fx.fix_sigma_heading_deg) ** 2])
         self.routes = [np.asarray(p, dtype=float) for p in paths]
         self.n = len(self.routes)
+        self.lane_spacing = 2 * self.radius + self.p.slow_margin
+        """Distance between neighbouring lanes of the parallel paths (m)."""
+        self.lane_clearance = self.radius + self.p.slow_margin
+        """A lane keeps this from the known map's walls, else it merges onto the route (m)."""
+        self.region_model = RegionModel(self.p, self.fix_cov, self.odometry, self.wheel_base, self.map, self.radius)
+        self.rearranger = SubgoalRearranger(self.features, self.team_loc.sectors, self.map, self.radius,
+                                            r.sonar.range_max, self.incidence, self.cone, self.p)
         self.reset()
 
     @classmethod
@@ -116,6 +123,7 @@ class SonarNavigator:
         n = self.n
         self.correction = np.zeros((n, 3))
         self.last_odom: np.ndarray | None = None
+        self.raw, self.offset = np.zeros((n, 3)), np.zeros((n, 2))  # last observed poses; clipping offsets
         self.travelled = np.zeros(n)
         self.turned = np.zeros(n)
         self.axis0 = np.full(n, self.p.initial_axis)
@@ -135,18 +143,29 @@ class SonarNavigator:
         self.scan: dict | None = None
         self.fixes: list[dict] = []
         self._stats = {"scans": 0, "localized": 0, "failed": 0, "corrections": [], "scan_steps": 0,
-                       "rearranged": 0, "iterations": 0}
+                       "rearranged": 0, "iterations": 0, "bias": [], "lateral": [], "apart": 0}
         if observations:
             self._ingest(observations)
 
     def stats(self) -> dict:
-        """Counters for the episode summary (prefixed ``sonar_``)."""
-        c = self._stats["corrections"]
-        return {"sonar_scans": self._stats["scans"], "sonar_localized": self._stats["localized"],
-                "sonar_failed": self._stats["failed"],
+        """Counters for the episode summary (prefixed ``sonar_``). ``sonar_rearranged``: robot pairs
+        whose subgoals were rearranged (§3.2); ``sonar_separate_sectors``: pairs whose subgoals lay in
+        different relaxed sectors (Fig. 10: no rearrangement). ``sonar_bias_before_deg`` / ``_after_deg``: mean eq. 1
+        bias (deg) over the robots' subgoals chosen by the scan-angle optimization, at the node the
+        original algorithm takes (the last within the horizon) and at the optimized one (before any
+        rearrangement); subgoals without an available feature at either node are left out
+        (``sonar_bias_subgoals`` counts the rest). ``sonar_lateral_offset``: median distance (m)
+        between robots 0 and 1 across their mean heading, by belief, over the steps both drive."""
+        st, c, b = self._stats, self._stats["corrections"], np.array(self._stats["bias"]).reshape(-1, 2)
+        return {"sonar_scans": st["scans"], "sonar_localized": st["localized"], "sonar_failed": st["failed"],
                 "sonar_mean_correction": float(np.mean(c)) if c else 0.0,
-                "sonar_scan_time": self._stats["scan_steps"] * self.dt,
-                "sonar_rearranged": self._stats["rearranged"], "sonar_iterations": self._stats["iterations"]}
+                "sonar_scan_time": st["scan_steps"] * self.dt,
+                "sonar_rearranged": st["rearranged"], "sonar_separate_sectors": st["apart"],
+                "sonar_iterations": st["iterations"],
+                "sonar_bias_before_deg": float(np.degrees(b[:, 0].mean())) if len(b) else math.nan,
+                "sonar_bias_after_deg": float(np.degrees(b[:, 1].mean())) if len(b) else math.nan,
+                "sonar_bias_subgoals": len(b),
+                "sonar_lateral_offset": float(np.median(st["lateral"])) if st["lateral"] else math.nan}
 
     def belief(self) -> np.ndarray:
         """``(N, 3)`` current pose beliefs (correction applied to the last odometry poses)."""
@@ -190,35 +209,54 @@ class SonarNavigator:
         return out
 
     def _ingest(self, observations: dict[str, np.ndarray]) -> None:
-        g = self.layout.get
+        """Odometry poses from the observations. The observed x, y are clipped to the map box +- 1 m
+        and a long mission's odometry drifts beyond it: a step whose x or y reading is (or was) at
+        that bound moves by the encoder speed ``v`` along the mid-step heading instead."""
+        g, lay = self.layout.get, self.layout
+        lo, hi = (np.array([b[lay.slices[k]][0] for k in ("x", "y")]) for b in (lay.low, lay.high))
         odom = np.zeros((self.n, 3)) if self.last_odom is None else self.last_odom.copy()
         for a, o in observations.items():
             i = int(a.rsplit("_", 1)[1])
             if not 0 <= i < self.n:
                 raise ValueError(f"observation for unknown agent {a!r} ({self.n} routes)")
-            odom[i] = [g(o, "x")[0], g(o, "y")[0], math.atan2(g(o, "sin_theta")[0], g(o, "cos_theta")[0])]
+            raw = np.array([g(o, "x")[0], g(o, "y")[0], math.atan2(g(o, "sin_theta")[0], g(o, "cos_theta")[0])])
+            if self.last_odom is not None and np.any((raw[:2] <= lo) | (raw[:2] >= hi)
+                                                     | (self.raw[i, :2] <= lo) | (self.raw[i, :2] >= hi)):
+                mid = self.raw[i, 2] + 0.5 * float(wrap_angle(raw[2] - self.raw[i, 2]))
+                odom[i, :2] += float(g(o, "v")[0]) * self.dt * np.array([math.cos(mid), math.sin(mid)])
+                self.offset[i] = odom[i, :2] - raw[:2]  # odometry pose = observed + offset from now on
+            else:
+                odom[i, :2] = raw[:2] + self.offset[i]
+            odom[i, 2], self.raw[i] = raw[2], raw
         if self.last_odom is not None:
             heading = self.last_odom[:, 2] + self.correction[:, 2]
             self.cov = belief_covariance_step(self.cov, self.last_odom, odom, heading, self.odometry, self.wheel_base)
             self.travelled += np.hypot(*(odom[:, :2] - self.last_odom[:, :2]).T)
             self.turned += np.abs(wrap_angle(odom[:, 2] - self.last_odom[:, 2]))
         self.last_odom = odom
+        moving = [f"robot_{i}" in observations and not self.arrived[i]
+                  and abs(float(g(observations[f"robot_{i}"], "v")[0])) > self.p.stop_speed
+                  for i in range(min(self.n, 2))]
+        if self.phase == "drive" and len(moving) == 2 and all(moving):
+            bel = self.belief()
+            self._stats["lateral"].append(lateral_offset(bel[:2, :2], bel[:2, 2]))
         if self.paths is None:
             self._build_paths()
 
     def _build_paths(self) -> None:
-        """Robot i's path: its start (if off the route) then its route; arclength 0 at the route start."""
-        self.paths = []
-        for i, route in enumerate(self.routes):
-            start = self.last_odom[i, :2]
-            lead = float(np.hypot(*(start - route[0])))
-            pts = np.vstack([start, route]) if lead > 1e-3 else route
-            self.paths.append(densify(pts, self.p.node_step, s0=-lead if lead > 1e-3 else 0.0))
+        """Robot i's path: its start (if off its lane) then its lane, the parallel path of its route;
+        arclength label 0 at the route start."""
+        lags = np.arange(self.n) * self.spacing
+        ramp = 2 * max(self.lane_spacing, float(lags.max()))
+        offsets = lane_offsets(self.n, self.lane_spacing)
+        self.paths = [with_start(parallel_path(densify(route, self.p.node_step), offsets[i], self.map,
+                                               self.lane_clearance, ramp, lag=lags[i]),
+                                 self.last_odom[i, :2], self.p.node_step) for i, route in enumerate(self.routes)]
         self.scores = [score_nodes(p.xy, self.map, self.features, self.sonar_cfg.range_min,
                                    self.sonar_cfg.range_max, self.step_rad, self.incidence,
                                    self.p.min_wall_length, self.p.min_readings, self.p.min_walls_seen,
                                    self.p.range_margin) for p in self.paths]
-        self.lags = np.arange(self.n) * self.spacing
+        self.lags = np.zeros(self.n)  # the lanes' labels hold the lags where lanes merge
         self.progress = np.array([p.s[0] for p in self.paths])
         self.targets = self.progress.copy()
 
@@ -238,6 +276,10 @@ class SonarNavigator:
             self._update_progress(i, bel[i, :2])
         axes = np.array([max(self.ellipse(i).axes) for i in range(self.n)])
         horizon = np.maximum(self.p.min_advance, (self.p.max_axis - axes) / self.p.rate_distance)
+        for i in active:  # §3.1's original rule: stop before the uncertainty region would hit a wall
+            reach = collision_horizon(self.paths[i], self.progress[i], self.progress[i] + horizon[i], self.cov[i],
+                                      self.travelled[i], self.turned[i], self.axis0[i], self.region_model)
+            horizon[i] = max(self.p.min_advance, reach - self.progress[i])
         ends = np.array([p.s[-1] for p in self.paths])
         sigma_end = float(np.max(ends + self.lags))
         sigma_hi = float(np.min(self.progress[active] + horizon[active] + self.lags[active]))
@@ -248,103 +290,25 @@ class SonarNavigator:
             sigma = team_subgoal([self.paths[i] for i in active], [self.scores[i].bias for i in active],
                                  self.lags[active], sigma_lo, sigma_hi, self.p.node_step,
                                  math.radians(self.p.tie_tol_deg))
+            for i in active:  # §3.1: the original algorithm's node (the last within the horizon) vs eq. 1's
+                b = [self.scores[i].bias[self.paths[i].index(t)] for t in (sigma_hi, sigma)]
+                if np.all(np.isfinite(b)):
+                    self._stats["bias"].append(b)
         self.sigma = sigma
         starts = np.array([p.s[0] for p in self.paths])
         targets = np.clip(sigma - self.lags, starts, ends)
         targets[self.done] = ends[self.done]
-        self.targets = self._rearrange(targets, active, ends, horizon)
+        windows = np.stack([self.progress, np.minimum(self.progress + horizon, ends)], axis=1)
+        res = self.rearranger.rearrange(self.paths, self.scores, targets, windows, active) if self.n > 1 else None
+        self.targets = targets if res is None else res.targets
+        self.goal_xy = np.full((self.n, 2), np.nan) if res is None else res.goals
+        self._stats["rearranged"] += 0 if res is None else res.pairs
+        self._stats["apart"] += 0 if res is None else res.apart
         self.phase, self.arrived = "drive", self.done.copy()
         self.drive_steps = 0
         dist = np.abs(self.targets - self.progress).max()
         self.drive_limit = int((dist / (0.5 * self.v_max) + self.p.drive_timeout) / self.dt)
         self._stats["iterations"] += 1
-
-    def _features_at(self, i: int, k: int) -> list[MapFeature]:
-        return [self.features[j] for j in np.nonzero(self.scores[i].available[k])[0]]
-
-    def _rearrange(self, targets: np.ndarray, active: np.ndarray, ends: np.ndarray,
-                   horizon: np.ndarray) -> np.ndarray:
-        """§4 (Fig. 9(a) -> (b)): when a teammate blocks robot i's scan of the feature F selected at its
-        subgoal by eq. 1 (or stands closer than 2 radius + ``separation_margin``), the pair's subgoals
-        move onto the perpendicular bisector of (their centre, F) (:func:`bisector_rearrangement`).
-        A robot whose path crosses it within its horizon stops at the crossing; the other stops at the
-        bisector point off its path (``goal_xy``), at most ``max_shift`` from its path and in the free
-        space eroded by radius + ``stop_margin``. Kept only when it raises the pair's worst unblocked
-        scan angle (§3.2), or keeps it while separating a pair that stood too close."""
-        self.goal_xy[:] = np.nan
-        if self.n < 2:
-            return targets
-        idx = [self.paths[i].index(targets[i]) for i in range(self.n)]
-        pts = np.array([self.paths[i].xy[k] for i, k in enumerate(idx)])
-        args = (self.radius, self.sonar_cfg.range_max, self.incidence, self.cone)
-        min_sep = 2 * self.radius + self.p.separation_margin
-        out, moved = targets.copy(), np.zeros(self.n, dtype=bool)
-        for i in active:
-            fi = int(self.scores[i].feature[idx[i]])  # the feature eq. 1 selected at the subgoal
-            if moved[i] or fi < 0:
-                continue
-            f = self.features[fi]
-            a_free = unblocked_scan_angle(pts[i], f, np.zeros((0, 2)), *args)
-            for j in active:
-                if j == i or moved[j]:
-                    continue
-                pair = pts[[i, j]]
-                if (unblocked_scan_angle(pts[i], f, pts[[j]], *args) >= a_free - 1e-9
-                        and np.hypot(*(pts[i] - pts[j])) >= min_sep):
-                    continue
-                new = self._bisector_pair((i, j), pair, targets, f, horizon, ends, min_sep, args)
-                if new is not None:
-                    (out[i], out[j]), moved[[i, j]] = new, True
-                    break
-        if moved.any():
-            self._stats["rearranged"] += 1
-        return out
-
-    def _bisector_pair(self, pair, pts, targets, f: MapFeature, horizon, ends, min_sep, args):
-        """New arclength targets of ``pair`` (setting ``goal_xy`` for an off-path robot), or None."""
-        windows = [(float(self.progress[k]), float(min(self.progress[k] + horizon[k], ends[k]))) for k in pair]
-        res = bisector_rearrangement(pts, [self.paths[k] for k in pair], targets[list(pair)], f.point, min_sep,
-                                     free=self._free_test, max_slide=self.p.max_shift,
-                                     slide_step=self.p.shift_step, windows=windows)
-        sub = res.subgoals
-        def worst(q):
-            return min(unblocked_scan_angle(q[a], f, q[[1 - a]], *args) for a in range(2))
-        apart = np.hypot(*(pts[0] - pts[1])) >= min_sep
-        if np.hypot(*(sub[0] - sub[1])) < min_sep - 1e-9 or worst(sub) < worst(pts) + (1e-9 if apart else -1e-9):
-            return None
-        new, goals = [], []
-        for a, k in enumerate(pair):
-            p = self.paths[k]
-            win = np.nonzero((p.s >= windows[a][0]) & (p.s <= windows[a][1]))[0]
-            if len(win) == 0:
-                return None
-            d = np.hypot(*(p.xy[win] - sub[a]).T)
-            node = win[int(np.argmin(d))]
-            if res.on_path[a] and d.min() <= self.p.node_step:
-                new.append(float(p.s[node]))
-                goals.append(None)
-                continue
-            # off the path: reachable straight from the nearest path node of the window
-            seg = shapely.LineString([p.xy[node], sub[a]])
-            if d.min() > self.p.max_shift or not self._free_region.covers(seg):
-                return None
-            new.append(float(p.s[node]))
-            goals.append(sub[a])
-        for k, g in zip(pair, goals, strict=True):
-            if g is not None:
-                self.goal_xy[k] = g
-        return new
-
-    @cached_property
-    def _free_region(self):
-        """Known free space eroded by radius + ``stop_margin`` (where a robot may stand off its path)."""
-        region = self.map.free.buffer(-(self.radius + self.p.stop_margin))
-        shapely.prepare(region)
-        return region
-
-    def _free_test(self, points) -> np.ndarray:
-        pts = np.atleast_2d(points)
-        return shapely.contains_xy(self._free_region, pts[:, 0], pts[:, 1])
 
     # ------------------------------------------------------------------ Fig. 1 line 7
     def _drive(self, observations, cmd: np.ndarray) -> None:

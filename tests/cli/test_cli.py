@@ -120,3 +120,16 @@ def test_sectors_draws_fig9_rearrangement(tmp_path, capsys):
     assert main(["sectors", "hallway", "--rearrangement", str(png)]) == 0
     out = capsys.readouterr().out
     assert "Fig. 9 subgoals" in out and png.stat().st_size > 1000
+
+
+def test_run_json_reports_the_sonar_navigators_figures(capsys):
+    """``run hallway --json``: rearranged subgoal pairs, the scan-angle bias before/after eq. 1 and the
+    robots' lateral offset while both drive (side by side on parallel paths, lanes 0.58 m apart)."""
+    import json
+
+    assert main(["run", "hallway", "--json", "--steps", "400", "--allow-failure", "--quiet"]) == 0
+    m = json.loads(capsys.readouterr().out)
+    assert {"sonar_rearranged", "sonar_separate_sectors", "sonar_bias_before_deg", "sonar_bias_after_deg",
+            "sonar_bias_subgoals", "sonar_lateral_offset"} <= set(m)
+    assert m["sonar_lateral_offset"] >= 0.3 and m["sonar_rearranged"] >= 0
+    assert m["sonar_bias_subgoals"] >= 1 and m["sonar_bias_after_deg"] <= m["sonar_bias_before_deg"]

@@ -12,6 +12,7 @@ from parcover_env.config import NavigatorConfig
 from parcover_env.expert.navigator import SonarNavigator, _compose, _inverse
 from parcover_env.geometry import wrap_angle as wrap
 from parcover_env.harness.rollout import run_episode
+from parcover_env.localization.sonar.parallel_paths import lateral_offset
 
 
 def test_pose_algebra_roundtrip():
@@ -72,13 +73,30 @@ def test_scan_in_place_localizes_and_corrects_the_belief():
 
 
 def test_hallway_mission_completes_with_sonar_navigator():
+    """Seed B's two-robot mechanism in a real mission: the robots drive side by side on parallel paths
+    (lanes 2 r + slow_margin = 0.58 m apart in the 2 m corridors), and subgoals of robots that block
+    each other's scans are rearranged; the lateral offset is checked against the true poses too."""
     env = parcover_env.parallel_env("hallway")
     nav = SonarNavigator.for_env(env)
-    m = run_episode(env, nav, seed=0)
+    obs, _ = env.reset(seed=0)
+    nav.reset(obs)
+    lateral = []
+    while env.agents:
+        obs, *_ = env.step(nav.act(obs))
+        v = [abs(float(nav.layout.get(o, "v")[0])) for o in obs.values()]
+        if nav.phase == "drive" and len(v) == 2 and min(v) > nav.p.stop_speed and not nav.arrived.any():
+            true = env.world.poses()
+            lateral.append(lateral_offset(true[:, :2], true[:, 2]))
+    m = env.metrics.summary()
+    m.update(nav.stats())
     assert m["success"] and m["kpois_visited"] == 2
     assert m["sonar_scans"] >= 4 and m["sonar_localized"] >= 2
     bel, true = nav.belief(), env.world.poses()
     assert np.hypot(*(bel[:, :2] - true[:, :2]).T).max() < 0.15
+    assert m["sonar_rearranged"] > 0
+    assert np.median(lateral) >= 0.3 and m["sonar_lateral_offset"] >= 0.3
+    assert abs(np.median(lateral) - m["sonar_lateral_offset"]) < 0.05
+    assert m["sonar_bias_subgoals"] > 0 and m["sonar_bias_after_deg"] <= m["sonar_bias_before_deg"]
 
 
 def test_navigator_takes_its_tunables_from_the_scenario():
@@ -89,10 +107,11 @@ def test_navigator_takes_its_tunables_from_the_scenario():
     assert 0 < len(default.front) < len(nav.front)
 
 
-def test_navigator_rearranges_a_blocked_pair_on_the_bisector():
-    """§4 in the navigator: at the hallway's far end robot 0 stands between robot 1 and the corner eq. 1
-    chose for it; the pair moves onto the perpendicular bisector of (their centre, that corner), off
-    their paths where the paths do not cross it, apart, in free space, and neither blocks the other."""
+def test_navigator_rearranges_a_blocked_pair_at_the_hallways_far_end():
+    """§3.2 in the navigator: near the hallway's far end, on their parallel paths, robot 0 stands in
+    the angle robot 1 needs to scan the corner eq. 1 chose for it (both in one relaxed sector); the
+    pair's subgoals move so that the worse of their unblocked scan angles of that corner grows, they
+    stay apart and inside their windows. A pair far apart keeps its subgoals."""
     from parcover_env.localization.sonar.subgoals import unblocked_scan_angle
 
     env = parcover_env.parallel_env("hallway", preset="ideal")
@@ -100,33 +119,30 @@ def test_navigator_rearranges_a_blocked_pair_on_the_bisector():
     obs, _ = env.reset(seed=0)
     nav.reset(obs)
     targets = np.array([14.5, 14.0])
-    nav.progress = targets - 0.5
     ends = np.array([p.s[-1] for p in nav.paths])
+    windows = np.stack([targets - 0.5, np.minimum(targets + 2.5, ends)], axis=1)
     args = (nav.radius, nav.sonar_cfg.range_max, nav.incidence, nav.cone)
     before = np.array([p.point(t) for p, t in zip(nav.paths, targets, strict=True)])
     f = nav.features[int(nav.scores[1].feature[nav.paths[1].index(targets[1])])]
+    assert nav.rearranger.sector_of(before[0]) == nav.rearranger.sector_of(before[1]) >= 0
 
     def worst(pts):
         return min(unblocked_scan_angle(pts[i], f, pts[[1 - i]], *args) for i in range(2))
 
     blocked = unblocked_scan_angle(before[1], f, before[[0]], *args)
     assert blocked < unblocked_scan_angle(before[1], f, np.zeros((0, 2)), *args) - math.radians(10)
-    out = nav._rearrange(targets.copy(), np.arange(2), ends, np.array([3.0, 3.0]))
-    after = nav.subgoals()
-    assert np.isfinite(nav.goal_xy).all() and np.allclose(after, nav.goal_xy)
-    c = before.mean(axis=0)
-    n = (f.point - c) / np.hypot(*(f.point - c))
-    assert np.abs((after - 0.5 * (c + f.point)) @ n).max() < 0.03  # on the bisector
+    res = nav.rearranger.rearrange(nav.paths, nav.scores, targets.copy(), windows, np.arange(2))
+    after = np.where(np.isfinite(res.goals), res.goals,
+                     np.array([p.point(t) for p, t in zip(nav.paths, res.targets, strict=True)]))
+    assert res.pairs == 1
     assert np.hypot(*(after[0] - after[1])) >= 2 * nav.radius + nav.p.separation_margin - 1e-9
-    assert nav._free_test(after).all()
+    assert nav.rearranger.free(after).all()
     assert worst(after) > worst(before) + math.radians(10)
-    assert np.all(out >= nav.progress) and nav.stats()["sonar_rearranged"] == 1
-    # a pair that does not block each other keeps its subgoals
-    nav._stats["rearranged"] = 0
+    assert np.all(res.targets >= windows[:, 0] - 1e-9) and np.all(res.targets <= windows[:, 1] + 1e-9)
     far = np.array([3.0, 2.5])
-    nav.progress = far - 0.5
-    assert np.array_equal(nav._rearrange(far.copy(), np.arange(2), ends, np.array([3.0, 3.0])), far)
-    assert not np.isfinite(nav.goal_xy).any() and nav.stats()["sonar_rearranged"] == 0
+    res = nav.rearranger.rearrange(nav.paths, nav.scores, far.copy(), np.stack([far - 0.5, far + 2.5], 1),
+                                   np.arange(2))
+    assert np.array_equal(res.targets, far) and res.pairs == 0 and not np.isfinite(res.goals).any()
 
 
 def test_localization_region_holds_the_seed_b_circle_and_the_covariance_ellipse():
@@ -262,3 +278,33 @@ def test_side_turn_steers_away_from_a_close_side_echo():
     assert turn(2.54, 2.54, front=0.1) == 0.0  # front beams are the brake's business
     nav.side = np.zeros(0, dtype=int)  # a ring without side beams never turns
     assert turn(0.1, 0.1) == 0.0
+
+
+def test_odometry_beyond_the_observation_bounds_is_dead_reckoned_from_the_encoder_speed():
+    """The observed x, y are clipped to the map box +- 1 m; a drifted odometry pose beyond it moves by
+    v dt along the mid-step heading (0.3 m/s x 0.1 s along +x, then at 45 deg during a quarter turn),
+    and keeps its offset to the reading once the reading is inside again."""
+    env = parcover_env.parallel_env("hallway", preset="ideal")
+    nav = SonarNavigator.for_env(env)
+    obs, _ = env.reset(seed=0)
+    nav.reset(obs)
+    lay, o, dt = nav.layout, obs["robot_0"], nav.dt
+    hi_x = float(lay.high[lay.slices["x"]][0])
+    o[lay.slices["x"]], o[lay.slices["v"]] = hi_x, 0.3
+    o[lay.slices["cos_theta"]], o[lay.slices["sin_theta"]] = 1.0, 0.0
+    nav._ingest(obs)
+    x0, y0 = nav.last_odom[0, :2]
+    nav._ingest(obs)
+    assert nav.last_odom[0, :2] == pytest.approx([x0 + 0.3 * dt, y0])
+    o[lay.slices["cos_theta"]], o[lay.slices["sin_theta"]] = 0.0, 1.0
+    nav._ingest(obs)
+    step = 0.3 * dt / math.sqrt(2)
+    assert nav.last_odom[0, :2] == pytest.approx([x0 + 0.3 * dt + step, y0 + step])
+    o[lay.slices["x"]] = hi_x - 0.5
+    nav._ingest(obs)  # the step off the bound is still dead-reckoned (the last reading was clipped)
+    after = nav.last_odom[0, :2].copy()
+    assert after == pytest.approx([x0 + 0.3 * dt + step, y0 + step + 0.3 * dt])
+    o[lay.slices["x"]] += 0.01
+    o[lay.slices["y"]] += 0.02
+    nav._ingest(obs)  # inside: the observed motion
+    assert nav.last_odom[0, :2] == pytest.approx(after + [0.01, 0.02], abs=1e-6)

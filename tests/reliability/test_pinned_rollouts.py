@@ -19,7 +19,7 @@ PINNED = {  # scenario: (random actions, seed 3), (expert, seed 5)
     # coordinate (no BLAS; estimates move by <= 2e-14 m) and angles come from libm on every CPU
     "office": ("d98e2b74c17d449f", "43cad01637c5abef"),
     "tree": ("393320070f84a3c7", "357f08514f739001"),
-    "hallway": ("628ea18c8d4b84ab", "7e508009e30c9035"),  # expert: navigator lane brake, side turn (2026-11-23)
+    "hallway": ("628ea18c8d4b84ab", "42902e74dc66862e"),  # expert: lanes, rearranging, horizon (2026-11-25)
     "t_room": ("c95573cf86299f95", "3701b5f9fe41faeb"),
     "triangle_room": ("8fca13669f6ae282", "876b7f48fcbd8782"),  # Fig. 4 room redrawn: rectangle + triangle (issue 29)
 }

@@ -17,7 +17,9 @@ at the corner, and ``B = | theta_1 - theta_2 |`` is 0 on the corner's bisector.
 Blocking (§3.2): ``A_i`` is the angle range robot i needs to scan its feature (from its farthest
 useful point of wall 1 through the corner to that of wall 2) minus the bearings blocked by other
 robots (a disc at range r blocks ``asin(R / r) + cone / 2`` either side of its bearing); a teammate
-blocks robot i when it lowers ``A_i`` (:func:`unblocked_scan_angle`).
+blocks robot i when it lowers ``A_i`` (:func:`unblocked_scan_angle`). Rearrangement maximizes the
+smaller ``A_i`` of a pair over each robot's legal space S_i (:func:`best_pair`; "in general, they can
+simply move along their paths").
 
 Bisector construction (§4, the implementation behind Fig. 9(a) -> (b)): take the perpendicular
 bisector of the segment from the robots' centre c to the feature F. A robot whose path crosses it
@@ -39,8 +41,8 @@ from parcover_env.localization.sonar.features import MapFeature
 from parcover_env.localization.sonar.sectors import visible_features
 
 __all__ = ["PathNodes", "densify", "scan_bias", "wall_readings", "NodeScores", "score_nodes",
-           "choose_subgoal", "team_subgoal", "scan_interval", "unblocked_scan_angle",
-           "bisector_rearrangement", "Rearrangement"]
+           "choose_subgoal", "team_subgoal", "scan_interval", "unblocked_scan_angle", "unblocked_angles",
+           "best_pair", "PairChoice", "bisector_rearrangement", "Rearrangement"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -234,6 +236,59 @@ def unblocked_scan_angle(xy, feature: MapFeature, others, robot_radius: float, r
         half = math.asin(min(1.0, robot_radius / r)) + cone / 2
         free &= np.abs(wrap_angle(b - math.atan2(q[1] - p[1], q[0] - p[0]))) > half
     return float(free.sum() * resolution)
+
+
+def unblocked_angles(points, feature: MapFeature, others, robot_radius: float, range_max: float,
+                     incidence_max: float = math.pi / 2, cone: float = 0.0, margin: float = math.radians(2),
+                     resolution: float = math.radians(0.5)) -> np.ndarray:
+    """``(K, M)``: :func:`unblocked_scan_angle` of ``feature`` from each of ``points (K, 2)`` with one
+    teammate at each of ``others (M, 2)`` (rad)."""
+    pts = np.atleast_2d(np.asarray(points, dtype=float))
+    oth = np.atleast_2d(np.asarray(others, dtype=float)).reshape(-1, 2)
+    out = np.zeros((len(pts), len(oth)))
+    for k, p in enumerate(pts):
+        start, width = scan_interval(p, feature, range_max, incidence_max)
+        b = start - margin + np.arange(0.0, width + 2 * margin + 1e-12, resolution)
+        rel = oth - p
+        r = np.hypot(*rel.T)
+        half = np.arcsin(np.minimum(1.0, robot_radius / np.maximum(r, 1e-9))) + cone / 2
+        free = np.abs(wrap_angle(b[None, :] - atan2(rel[:, 1], rel[:, 0])[:, None])) > half[:, None]
+        out[k] = np.where(r > 1e-9, free.sum(axis=1) * resolution, 0.0)
+    return out
+
+
+@dataclass(frozen=True)
+class PairChoice:
+    """Result of :func:`best_pair`: candidate indices ``(a, b)`` and the pair's minimum unblocked
+    scan angle there (rad); ``(-1, -1)`` and ``-inf`` without a valid pair."""
+
+    a: int
+    b: int
+    value: float
+
+
+def best_pair(cands_a, cands_b, feature: MapFeature, min_separation: float, robot_radius: float,
+              range_max: float, incidence_max: float = math.pi / 2, cone: float = 0.0,
+              cost=None, resolution: float = math.radians(0.5)) -> PairChoice:
+    """§3.2: subgoals ``N_a`` in ``cands_a (K, 2)`` and ``N_b`` in ``cands_b (M, 2)`` (each robot's
+    legal space S_i, e.g. nodes of its path) maximizing ``min(A_a, A_b)``, the smaller of the two
+    robots' unblocked scan angles of the shared ``feature``, among pairs at least ``min_separation``
+    apart. Values within ``resolution`` of the best tie; then the smallest ``cost (K, M)`` (e.g. the
+    displacement from the old subgoals) wins."""
+    pa, pb = np.atleast_2d(np.asarray(cands_a, dtype=float)), np.atleast_2d(np.asarray(cands_b, dtype=float))
+    if len(pa) == 0 or len(pb) == 0:
+        return PairChoice(-1, -1, -math.inf)
+    args = (robot_radius, range_max, incidence_max, cone)
+    worst = np.minimum(unblocked_angles(pa, feature, pb, *args, resolution=resolution),
+                       unblocked_angles(pb, feature, pa, *args, resolution=resolution).T)
+    apart = np.hypot(pa[:, None, 0] - pb[None, :, 0], pa[:, None, 1] - pb[None, :, 1]) >= min_separation
+    worst = np.where(apart, worst, -math.inf)
+    top = float(worst.max())
+    if not np.isfinite(top):
+        return PairChoice(-1, -1, -math.inf)
+    c = np.zeros(worst.shape) if cost is None else np.asarray(cost, dtype=float)
+    a, b = np.unravel_index(int(np.argmin(np.where(worst >= top - resolution / 2, c, np.inf))), worst.shape)
+    return PairChoice(int(a), int(b), float(worst[a, b]))
 
 
 @dataclass(frozen=True)

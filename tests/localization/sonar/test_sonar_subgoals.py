@@ -8,13 +8,15 @@ import numpy as np
 import pytest
 
 from parcover_env.config import MapConfig
-from parcover_env.localization.sonar.features import map_features
+from parcover_env.localization.sonar.features import MapFeature, map_features
 from parcover_env.localization.sonar.subgoals import (
+    best_pair,
     choose_subgoal,
     densify,
     scan_bias,
     score_nodes,
     team_subgoal,
+    unblocked_angles,
     unblocked_scan_angle,
     wall_readings,
 )
@@ -170,3 +172,32 @@ def test_bisector_rearrangement_windows_and_slide_past_a_wall():
                                   windows=[(1.0, 2.0), (0.0, 2.0)])
     assert np.hypot(*(res2.subgoals[1] - res2.subgoals[0])) >= 0.4 - 1e-9
     assert (res2.subgoals[1] - res2.subgoals[0]) @ u * away < 0  # it slid past robot 0
+
+
+def _corner_xy():
+    """A concave corner at the origin, walls 3 m long along +x and +y (free space in between)."""
+    return MapFeature(0, np.zeros(2), np.array([[1.0, 0.0], [0.0, 1.0]]), np.array([[0.0, 1.0], [1.0, 0.0]]),
+                      np.array([3.0, 3.0]))
+
+
+def test_unblocked_angles_and_best_pair_by_hand():
+    """Robot a at (2, 2) scans the corner over 143.1 deg (far wall ends (3, 0) and (0, 3) at
+    +-71.6 deg of the corner's bearing) + 2 x 2 deg margin = 147.1 deg. Robot b at B1 = (1, 1) stands
+    on a's line of sight: its disc (0.165 m at 1.414 m) hides 2 asin(0.165 / 1.414) = 13.4 deg of it
+    -> 133.7 deg, while a lies behind b (b scans 216.8 + 4 deg unblocked). At B2 = (2.4, 1.6), abreast
+    of a, 0.566 m away: a is free (b's bearing is 90 deg off, 16.9 deg half-width), and a hides
+    4.2 deg of b's 144.9 deg -> min 140.7 deg. B2 is the better assignment unless the pair must stay
+    0.6 m apart."""
+    f = _corner_xy()
+    a, b = [[2.0, 2.0]], [[1.0, 1.0], [2.4, 1.6]]
+    deg = np.degrees
+    assert deg(unblocked_angles(a, f, b, 0.165, 10.0)).ravel() == pytest.approx([133.7, 147.1], abs=1.0)
+    assert deg(unblocked_angles(b, f, a, 0.165, 10.0)).ravel() == pytest.approx([220.8, 140.7], abs=1.0)
+    best = best_pair(a, b, f, 0.3, 0.165, 10.0)
+    assert (best.a, best.b) == (0, 1) and deg(best.value) == pytest.approx(140.7, abs=1.0)
+    apart = best_pair(a, b, f, 0.6, 0.165, 10.0)
+    assert (apart.a, apart.b) == (0, 0) and deg(apart.value) == pytest.approx(133.7, abs=1.0)
+    # ties go to the cheapest pair; no pair far enough apart: none
+    tie = best_pair(a, [[2.4, 1.6], [2.4, 1.6]], f, 0.3, 0.165, 10.0, cost=[[1.0, 0.0]])
+    assert tie.b == 1
+    assert best_pair(a, b, f, 5.0, 0.165, 10.0).a == -1
