@@ -252,35 +252,13 @@ def write_sidecar(path: Path, info: dict, script: str = __file__, argv: list[str
 
 
 # ------------------------------------------------------------------------------ evaluation
-class _Actor:
-    """The model in training as a ``act(observations)`` policy, normalizing with the current stats."""
-
-    def __init__(self, model, obs_rms, clip: float, eps: float):
-        import numpy as np
-
-        self.model, self.mean = model, obs_rms.mean.astype(np.float32)
-        self.std = np.sqrt(obs_rms.var + eps).astype(np.float32)
-        self.clip = clip
-
-    def act(self, observations):
-        import numpy as np
-
-        agents = sorted(observations)
-        if not agents:
-            return {}
-        obs = np.stack([observations[a] for a in agents]).astype(np.float32)
-        obs = np.clip((obs - self.mean) / self.std, -self.clip, self.clip)
-        act, _ = self.model.predict(obs, deterministic=True)
-        act = np.clip(act, -1, 1).astype(np.float32)
-        return {a: act[i] for i, a in enumerate(agents)}
-
-
 def evaluate(model, venv, scenarios: list[str], args: Args) -> list[dict]:
     """Deterministic episodes on validation seeds; one row per episode."""
     from parcover_env.envs import ParallelCoverageEnv
     from parcover_env.harness.rollout import run_episode
+    from parcover_env.policies.learned import ObsNormalizer, PPOPolicy
 
-    actor = _Actor(model, venv.obs_rms, venv.clip_obs, venv.epsilon)
+    actor = PPOPolicy.from_model(model, ObsNormalizer(venv.obs_rms.mean, venv.obs_rms.var, venv.clip_obs, venv.epsilon))
     rows = []
     for sc in scenarios:
         env = ParallelCoverageEnv(sc, preset=args.preset,

@@ -7,7 +7,8 @@ import pytest
 
 import parcover_env
 from parcover_env.config import SonarConfig
-from parcover_env.expert.policy import ScriptedExpert
+from parcover_env.expert import expert_for
+from parcover_env.expert.scripted import ScriptedExpert
 from parcover_env.geometry.poses import compose, inverse
 from parcover_env.harness.rollout import run_episode
 from parcover_env.localization.sonar.scan import ScanCollector
@@ -40,7 +41,7 @@ def test_out_of_view_leaders_with_sonar_fixes_succeed_and_localize():
     # a generated office has rooms no Kinect sees, where leaders stop for sonar fixes
     env = parcover_env.parallel_env("generated:2")
     assert env.scenario.localization == "both"
-    expert = ScriptedExpert.for_env(env)
+    expert = expert_for(env)
     m = run_episode(env, expert, 35)
     assert m["success"] and m["sonar_localized"] >= 1 and m["sonar_scans"] >= m["sonar_localized"]
 

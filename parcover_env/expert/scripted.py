@@ -34,12 +34,13 @@ from parcover_env.expert.sonar_fix import chain_pose, covariance_from_entries
 from parcover_env.geometry import atan2, rotate, segments_blocked, wrap_angle
 from parcover_env.geometry.poses import compose, inverse
 from parcover_env.geometry.rays import point_segment_distance
+from parcover_env.policies.protocol import Policy
 from parcover_env.scenarios import Mission, RouteTracker
 
 __all__ = ["ScriptedExpert"]
 
 
-class ScriptedExpert:
+class ScriptedExpert(Policy):
     """Seed A's robots as a policy: ``for_env(env)``, ``reset(obs)``, ``act(obs) -> actions``, ``stats()``.
 
     Every tunable comes from ``config`` (default: the scenario's ``expert`` section,
@@ -77,16 +78,12 @@ class ScriptedExpert:
         self._last_odom = np.zeros((mission.n_robots, 3))
 
     @classmethod
-    def for_env(cls, env, **kwargs):
+    def for_env(cls, env, **kwargs) -> ScriptedExpert:
         """Build from an env's public spec: observation layout, mission (scenario, plan), sonar beams.
 
-        With ``localization: sonar`` the robots localize by stop-and-scan instead (seed B): the
-        returned policy is a :class:`~parcover_env.expert.navigator.SonarNavigator`.
+        Always a ScriptedExpert; :func:`parcover_env.expert.expert_for` picks the expert that suits
+        the scenario's localization mode (the stop-and-scan navigator with ``localization: sonar``).
         """
-        if env.scenario.localization == "sonar" and env.sonar is not None:
-            from parcover_env.expert.navigator import SonarNavigator
-
-            return SonarNavigator.for_env(env, **kwargs)
         angles = env.sonar.beam_angles if env.sonar is not None else None
         return cls(env.layout, env.mission, angles, **kwargs)
 
