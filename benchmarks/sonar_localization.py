@@ -23,6 +23,7 @@ import numpy as np
 import shapely
 
 from parcover_env.geometry import wrap_angle
+from parcover_env.localization.sonar.config import sonar_localizer_config
 from parcover_env.localization.sonar.features import map_features
 from parcover_env.localization.sonar.localizer import Ellipse, localize
 from parcover_env.localization.sonar.params import SonarLocalizerParams
@@ -135,7 +136,7 @@ def main() -> None:
     for name in args.maps:
         for unknown in unknowns:
             for flt in filters:
-                params = dataclasses.replace(load_scenario(name).sonar_localizer, filter=flt)
+                params = dataclasses.replace(sonar_localizer_config(load_scenario(name)), filter=flt)
                 if args.no_grid:
                     params = dataclasses.replace(params, grid_step=0.0)
                 run(name, unknown, args.n, args.model, args.seed, params, args.where, not args.no_heading)

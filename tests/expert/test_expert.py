@@ -9,6 +9,7 @@ import pytest
 
 import parcover_env
 from parcover_env.expert import expert_for
+from parcover_env.expert.config import expert_config
 from parcover_env.expert.scripted import ScriptedExpert
 from parcover_env.geometry import rotate
 from parcover_env.harness.rollout import run_episode
@@ -140,7 +141,8 @@ def test_visible_goal_only_redirects_a_leader_off_its_route_with_a_wall_in_betwe
 
 def test_a_follower_out_of_sight_of_the_robot_ahead_for_alone_after_navigates_alone():
     env = parcover_env.parallel_env("generated:18")
-    expert = ScriptedExpert.for_env(env, config=replace(env.scenario.expert, alone_after=0.3))  # 3 steps of 0.1 s
+    cfg = replace(expert_config(env.scenario), alone_after=0.3)  # 3 steps of 0.1 s
+    expert = ScriptedExpert.for_env(env, config=cfg)
     obs = {a: np.zeros(env.layout.size, dtype=np.float32) for a in ("robot_0", "robot_1", "robot_2")}
     for o, lead in zip(obs.values(), (1.0, 0.0, 0.0), strict=True):
         o[env.layout.slices["leader"]] = lead

@@ -7,7 +7,7 @@ import pytest
 
 import parcover_env
 from parcover_env.expert import expert_for
-from parcover_env.planning import scenario as planning_scenario
+from parcover_env.planning import scenario_plan as planning_scenario
 from parcover_env.scenarios import mission as mission_module
 from parcover_env.world import map_model as map_module
 
