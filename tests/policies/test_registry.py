@@ -61,6 +61,12 @@ def test_one_entry_adds_a_policy(monkeypatch):
     assert isinstance(make_policy("still", env, 0), _Still)
     with pytest.raises(ParcoverError, match="unknown policy 'still:x'"):  # takes no path
         check_policy_spec("still:x")
+    from parcover_env.cli.main import build_parser  # the command line's help lists it too
+
+    parser = build_parser()
+    helps = [a.help for act in parser._subparsers._group_actions for sub in act.choices.values()
+             for a in sub._actions if a.dest in ("policy", "policies") and "random" in a.help]
+    assert len(helps) == 2 and all("still" in h for h in helps)  # run --policy, bench --policies
 
 
 def test_specs_and_errors():
