@@ -8,7 +8,7 @@ seeds ``seed0 + k``); every later round r lets the network of round r-1 drive on
 ``driver_probs[r]`` of the steps while the teacher labels every step (Ross et al. 2011,
 :func:`parcover_env.harness.datasets.record_episodes`), on fresh episode seeds of the same maps.
 After each round the actor is refit from scratch on all rounds' data (mean action, MSE) and the
-critic on the discounted returns, with ``train_ppo.bc_initialize``; the result is an SB3 PPO model
+critic on the discounted returns (:func:`parcover_env.harness.training.bc_initialize`); the result is an SB3 PPO model
 (``OUT/round_<r>/model.zip`` + ``vecnormalize.pkl`` + ``model.json``), a ``--policies ppo:PATH``
 policy that ``train_ppo.py --resume`` can fine-tune. Each round is scored on validation maps
 (``--val-scenarios``, seeds ``val_seed0 ..``, disjoint from training maps and from the benchmark's
@@ -56,7 +56,7 @@ class Args:
     """Recording processes."""
     bc_epochs: int = 20
     learning_rate: float = 1e-3
-    """Adam step size of the BC fit (train_ppo's ``bc_initialize`` uses 1e-3)."""
+    """Adam step size of the BC fit."""
     net_arch: str = "128,128"
     drop_obs: str = "x,y,cos_theta,sin_theta"
     """Observation fields hidden from the networks (the world-frame pose: meaningless on unseen maps)."""
@@ -72,11 +72,14 @@ class Args:
     threads: int = 1
 
 
+_ARGV: list[str] = []
+"""The arguments ``parse_args`` read (written into the sidecars' command)."""
+
+
 def parse_args(argv=None) -> Args:
-    import train_ppo
     import tyro
 
-    train_ppo._ARGV[:] = list(sys.argv[1:] if argv is None else argv)
+    _ARGV[:] = list(sys.argv[1:] if argv is None else argv)
     return tyro.cli(Args, args=argv, description=__doc__)
 
 
@@ -116,20 +119,20 @@ def collect_round(args: Args, rnd: int, driver: str | None, prob: float) -> list
 def fit(args: Args, eps: list, out: Path, info: dict) -> Path:
     """A fresh PPO network cloned on ``eps``; saved as ``out/model.zip`` + stats + sidecar."""
     import torch
-    import train_ppo
     from stable_baselines3 import PPO
 
-    targs = train_ppo.Args(scenario=f"generated:{args.map_seed0}", preset=args.preset, seed=args.seed,
-                           n_envs=1, net_arch=args.net_arch, drop_obs=args.drop_obs, gamma=args.gamma,
-                           bc_epochs=args.bc_epochs, bc_log_std=args.bc_log_std, out=str(out))
+    from parcover_env.harness.training import bc_initialize, make_sb3_venv, observation_selection
+
+    scenario = f"generated:{args.map_seed0}"
     torch.manual_seed(args.seed)
-    venv = train_ppo.make_venv(targs, [targs.scenario], args.seed)
+    venv = make_sb3_venv([scenario], args.seed, preset=args.preset, gamma=args.gamma)
     policy_kwargs: dict = {"net_arch": [int(h) for h in args.net_arch.split(",")]}
     if args.drop_obs:
-        policy_kwargs.update(train_ppo.obs_selection(targs, targs.scenario))
+        policy_kwargs.update(observation_selection(scenario, args.preset, args.drop_obs))
     model = PPO("MlpPolicy", venv, seed=args.seed, device="cpu", gamma=args.gamma, verbose=0,
                 policy_kwargs=policy_kwargs)
-    stats = train_ppo.bc_initialize(model, venv, targs, eps)
+    stats = bc_initialize(model, venv, eps, gamma=args.gamma, seed=args.seed, epochs=args.bc_epochs,
+                          log_std=args.bc_log_std, learning_rate=args.learning_rate)
     out.mkdir(parents=True, exist_ok=True)
     model.save(out / "model.zip")
     venv.save(str(out / "vecnormalize.pkl"))
@@ -156,10 +159,11 @@ def validate(args: Args, model_zip: Path) -> list[dict]:
 def run(args: Args) -> Path:
     import numpy as np
     import torch
-    import train_ppo
+
+    from parcover_env.harness.training import RunRecord, write_csv
 
     torch.set_num_threads(args.threads)
-    train_ppo._START_COMMIT = train_ppo.git_commit()
+    record = RunRecord.start(__file__, _ARGV)  # the code that ran, even if HEAD moves during the run
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     probs = driver_schedule(args.driver_probs)
@@ -191,7 +195,7 @@ def run(args: Args) -> Path:
         info.update(validation=rows, eval_seeds=sorted({r["seed"] for r in rows}),
                     validation_score={"kpoi_fraction": score[0], "success": score[1]},
                     timesteps=0, wall_time_s=time.time() - t0, round_wall_time_s=time.time() - t_round)
-        train_ppo.write_sidecar(rdir / "model.json", info, script=__file__)
+        record.write_sidecar(rdir / "model.json", info)
         history.append({"round": rnd, "driver_prob": prob, "samples": info["bc_samples"],
                         "bc_action_mse": info["bc_action_mse"], "val_kpoi_fraction": score[0],
                         "val_success": score[1], "wall_time_s": time.time() - t0})
@@ -206,7 +210,7 @@ def run(args: Args) -> Path:
     rec = json.loads((src / "model.json").read_text())
     rec.update(selected_by="validation", history=history, best_round=best["round"], wall_time_s=time.time() - t0)
     (out / "model.json").write_text(json.dumps(rec, indent=2, default=str) + "\n")
-    train_ppo.write_csv(out / "history.csv", history)
+    write_csv(out / "history.csv", history)
     print(f"best round {best['round']} -> {out / 'model.zip'} ({time.time() - t0:.0f} s)")
     return out
 

@@ -21,8 +21,6 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
 
 @dataclass
 class Args:
@@ -79,14 +77,13 @@ def mlp(n_in: int, hidden: tuple[int, ...], n_out: int):
 def train(args: Args) -> Path:
     import numpy as np
     import torch
-    import train_ppo
     from stable_baselines3.common.running_mean_std import RunningMeanStd
-    from train_ppo import EnvFactory, plot_curve, write_csv, write_sidecar
 
     from parcover_env.envs.vec_env import ParallelVecEnv
+    from parcover_env.harness.training import EnvFactory, RunRecord, plot_curve, write_csv
     from parcover_env.policies.learned import make_mlp
 
-    train_ppo._START_COMMIT = train_ppo.git_commit()  # the code that ran, even if HEAD moves meanwhile
+    record = RunRecord.start(__file__, _ARGV)  # the code that ran, even if HEAD moves meanwhile
     torch.manual_seed(args.seed)
     torch.set_num_threads(args.threads)
     device = torch.device(("cuda" if torch.cuda.is_available() else "cpu") if args.device == "auto" else args.device)
@@ -186,11 +183,11 @@ def train(args: Args) -> Path:
                 "scenario": args.scenario, "algorithm": "mappo", "critic_state_dim": state_dim}, out / "actor.pt")
     write_csv(out / "curve.csv", curve)
     plot_curve(out)
-    write_sidecar(out / "actor.json", {"algorithm": "mappo", "preset": args.preset, "seed": args.seed,
-                                       "train_seeds": f"ParallelEnv k resets with seed {args.seed} + k",
-                                       "timesteps": steps, "wall_time_s": wall, "training_episodes": len(curve),
-                                       "device": str(device), "args": asdict(args)},
-                  script=__file__, argv=_ARGV)
+    record.write_sidecar(out / "actor.json", {"algorithm": "mappo", "preset": args.preset, "seed": args.seed,
+                                              "train_seeds": f"ParallelEnv k resets with seed {args.seed} + k",
+                                              "timesteps": steps, "wall_time_s": wall,
+                                              "training_episodes": len(curve), "device": str(device),
+                                              "args": asdict(args)})
     print(f"{steps} agent-steps in {wall:.0f} s")
     return out
 

@@ -41,19 +41,10 @@ each, here processes on this machine) on many cores, which is what would shorten
 
 from __future__ import annotations
 
-import contextlib
-import csv
-import json
-import os
-import platform
-import shlex
-import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @dataclass
@@ -152,8 +143,6 @@ class Args:
 
 _ARGV: list[str] = []
 """The arguments ``parse_args`` read (written into the sidecar's command)."""
-_START_COMMIT = ""
-"""The git commit when training started (the code that ran; HEAD may move during a long run)."""
 
 
 def parse_args(argv=None) -> Args:
@@ -193,94 +182,22 @@ def stage_scenarios(scenario: str, n_envs: int, map_seed: int) -> list[str]:
     return [scenario] * n_envs
 
 
-class EnvFactory:
-    """Picklable factory of a ParallelCoverageEnv with a preset (for worker processes)."""
-
-    def __init__(self, scenario: str, preset: str, overrides: dict | None):
-        self.scenario, self.preset, self.overrides = scenario, preset, overrides
-
-    def __call__(self):
-        from parcover_env.envs import ParallelCoverageEnv
-
-        return ParallelCoverageEnv(self.scenario, overrides=self.overrides, preset=self.preset)
-
-
 def make_venv(args: Args, scenarios: list[str], seed: int):
-    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+    """The normalized SB3 VecEnv of a stage (:func:`parcover_env.harness.training.make_sb3_venv`)."""
+    from parcover_env.harness.training import make_sb3_venv
 
-    from parcover_env.envs.vec_env import ParallelVecEnv
-
-    overrides = {"episode": {"max_steps": args.max_steps}} if args.max_steps else None
-    fns = [EnvFactory(s, args.preset, overrides) for s in scenarios]
-    base = ParallelVecEnv(fns, multiprocess=args.multiprocess)
-    base.seed(seed)
-    return VecNormalize(VecMonitor(base), norm_obs=True, norm_reward=True, gamma=args.gamma)
-
-
-# ------------------------------------------------------------------------------ sidecar
-def git_commit() -> str:
-    try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, check=True)
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT,
-                               capture_output=True, text=True, check=True).stdout.strip()
-        return sha.stdout.strip() + ("-dirty" if dirty else "")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
-def versions() -> dict[str, str]:
-    import importlib.metadata as md
-
-    out = {"python": platform.python_version()}
-    for pkg in ("parcover_env", "stable-baselines3", "torch", "numpy", "gymnasium", "pettingzoo", "pymunk"):
-        try:
-            out[pkg] = md.version(pkg)
-        except md.PackageNotFoundError:
-            out[pkg] = "not installed"
-    return out
-
-
-def write_sidecar(path: Path, info: dict, script: str = __file__, argv: list[str] | None = None) -> None:
-    """``info`` + the command (``python SCRIPT ARGV``), git commit, CPU count and versions as JSON."""
-    rel = Path(script)
-    with contextlib.suppress(ValueError):
-        rel = rel.resolve().relative_to(ROOT)
-    argv = _ARGV if argv is None else argv
-    record = {"command": shlex.join(["python", str(rel), *argv]), "git_commit": _START_COMMIT or git_commit(),
-              "versions": versions(), "cpu_count": os.cpu_count(), **info}
-    path.write_text(json.dumps(record, indent=2, default=str) + "\n")
+    return make_sb3_venv(scenarios, seed, preset=args.preset, gamma=args.gamma, max_steps=args.max_steps,
+                         multiprocess=args.multiprocess)
 
 
 # ------------------------------------------------------------------------------ evaluation
-class _Actor:
-    """The model in training as a ``act(observations)`` policy, normalizing with the current stats."""
-
-    def __init__(self, model, obs_rms, clip: float, eps: float):
-        import numpy as np
-
-        self.model, self.mean = model, obs_rms.mean.astype(np.float32)
-        self.std = np.sqrt(obs_rms.var + eps).astype(np.float32)
-        self.clip = clip
-
-    def act(self, observations):
-        import numpy as np
-
-        agents = sorted(observations)
-        if not agents:
-            return {}
-        obs = np.stack([observations[a] for a in agents]).astype(np.float32)
-        obs = np.clip((obs - self.mean) / self.std, -self.clip, self.clip)
-        act, _ = self.model.predict(obs, deterministic=True)
-        act = np.clip(act, -1, 1).astype(np.float32)
-        return {a: act[i] for i, a in enumerate(agents)}
-
-
 def evaluate(model, venv, scenarios: list[str], args: Args) -> list[dict]:
     """Deterministic episodes on validation seeds; one row per episode."""
     from parcover_env.envs import ParallelCoverageEnv
     from parcover_env.harness.rollout import run_episode
+    from parcover_env.policies.learned import ObsNormalizer, PPOPolicy
 
-    actor = _Actor(model, venv.obs_rms, venv.clip_obs, venv.epsilon)
+    actor = PPOPolicy.from_model(model, ObsNormalizer(venv.obs_rms.mean, venv.obs_rms.var, venv.clip_obs, venv.epsilon))
     rows = []
     for sc in scenarios:
         env = ParallelCoverageEnv(sc, preset=args.preset,
@@ -320,57 +237,10 @@ def load_demos(args: Args, scenario: str) -> tuple[list[dict], dict]:
 
 
 def bc_initialize(model, venv, args: Args, eps: list[dict]) -> dict:
-    """Clone the expert into the PPO actor (mean action, MSE) and fit the critic to the demos'
-    discounted returns; sets the VecNormalize statistics from the demonstrations ``eps``."""
-    import numpy as np
-    import torch
+    """Clone the expert into the PPO actor and the critic (:func:`parcover_env.harness.training.bc_initialize`)."""
+    from parcover_env.harness.training import bc_initialize as clone
 
-    t0 = time.time()
-    obs = np.concatenate([e["observations"][:-1] for e in eps]).astype(np.float64)
-    act = np.clip(np.concatenate([e["actions"] for e in eps]), -1, 1)
-    # discounted returns-to-go (MC value targets) and the running discounted return VecNormalize tracks
-    rtg, running = [], []
-    for e in eps:
-        r = np.asarray(e["rewards"], dtype=np.float64)
-        g, out = 0.0, np.empty_like(r)
-        for t in range(len(r) - 1, -1, -1):
-            g = r[t] + args.gamma * g
-            out[t] = g
-        rtg.append(out)
-        acc, run = 0.0, np.empty_like(r)
-        for t in range(len(r)):
-            acc = acc * args.gamma + r[t]
-            run[t] = acc
-        running.append(run)
-    rtg, running = np.concatenate(rtg), np.concatenate(running)
-    venv.obs_rms.mean, venv.obs_rms.var, venv.obs_rms.count = obs.mean(0), obs.var(0), float(len(obs))
-    venv.ret_rms.mean, venv.ret_rms.var, venv.ret_rms.count = 0.0, float(running.var()), float(len(running))
-    x = torch.as_tensor(venv.normalize_obs(obs.astype(np.float32)), dtype=torch.float32, device=model.device)
-    y = torch.as_tensor(act, dtype=torch.float32, device=model.device)
-    v = torch.as_tensor(np.clip(rtg / np.sqrt(venv.ret_rms.var + venv.epsilon), -venv.clip_reward * 50,
-                                venv.clip_reward * 50), dtype=torch.float32, device=model.device)
-    pol = model.policy
-    opt = torch.optim.Adam(pol.parameters(), lr=1e-3)
-    gen = torch.Generator().manual_seed(args.seed)
-    losses = []
-    for _epoch in range(args.bc_epochs):
-        perm, tot_a, tot_v = torch.randperm(len(x), generator=gen), 0.0, 0.0
-        for i in range(0, len(x), 512):
-            idx = perm[i : i + 512]
-            feats = pol.extract_features(x[idx])
-            lat_pi, lat_vf = pol.mlp_extractor(feats)
-            loss_a = torch.nn.functional.mse_loss(pol.action_net(lat_pi), y[idx])
-            loss_v = torch.nn.functional.mse_loss(pol.value_net(lat_vf).squeeze(-1), v[idx])
-            opt.zero_grad()
-            (loss_a + 0.5 * loss_v).backward()
-            opt.step()
-            tot_a += loss_a.item() * len(idx)
-            tot_v += loss_v.item() * len(idx)
-        losses.append((tot_a / len(x), tot_v / len(x)))
-    with torch.no_grad():
-        pol.log_std.fill_(args.bc_log_std)
-    return {"bc_samples": int(len(x)), "bc_robot_episodes": len(eps), "bc_action_mse": losses[-1][0],
-            "bc_value_mse": losses[-1][1], "bc_fit_wall_time_s": time.time() - t0}
+    return clone(model, venv, eps, gamma=args.gamma, seed=args.seed, epochs=args.bc_epochs, log_std=args.bc_log_std)
 
 
 class BCRegularizer:
@@ -412,10 +282,11 @@ def train(args: Args) -> Path:
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
 
+    from parcover_env.harness.training import RunRecord, plot_curve, write_csv
+
     if args.init and args.resume:
         raise SystemExit("--init and --resume exclude each other: start from a network, or continue a run")
-    global _START_COMMIT
-    _START_COMMIT = git_commit()
+    run = RunRecord.start(__file__, _ARGV)  # the code that ran, even if HEAD moves during the run
     torch.set_num_threads(args.threads)
     device = ("cuda" if torch.cuda.is_available() else "cpu") if args.device == "auto" else args.device
     out = Path(args.out)
@@ -496,7 +367,7 @@ def train(args: Args) -> Path:
             (out / "best").mkdir(exist_ok=True)
             model.save(out / "best" / "model.zip")
             venv.save(str(out / "best" / "vecnormalize.pkl"))
-            write_sidecar(out / "best" / "model.json",
+            run.write_sidecar(out / "best" / "model.json",
                           {**info, "timesteps": n, "wall_time_s": time.time() - t0, "selected_by": "validation",
                            "selected_from_run": str(out),
                            "validation": rows, "validation_score": {"kpoi_fraction": score[0], "success": score[1]},
@@ -565,7 +436,7 @@ def train(args: Args) -> Path:
                 (out / "bc_init").mkdir(exist_ok=True)
                 model.save(out / "bc_init" / "model.zip")
                 venv.save(str(out / "bc_init" / "vecnormalize.pkl"))
-                write_sidecar(out / "bc_init" / "model.json",
+                run.write_sidecar(out / "bc_init" / "model.json",
                               {**info, "timesteps": 0, "wall_time_s": time.time() - t0})
                 print(f"BC init: {info['bc_samples']} samples, action MSE {info['bc_action_mse']:.4f}", flush=True)
         else:
@@ -599,7 +470,7 @@ def train(args: Args) -> Path:
         info["best"] = {"timesteps": best["timesteps"], "kpoi_fraction": best["score"][0], "success": best["score"][1]}
         print(f"best validation score at {best['timesteps']} agent-steps: KPOI fraction {best['score'][0]:.2f}, "
               f"success {best['score'][1]:.2f} (OUT/best/)")
-    write_sidecar(out / "model.json", {**info, "timesteps": int(model.num_timesteps), "wall_time_s": wall,
+    run.write_sidecar(out / "model.json", {**info, "timesteps": int(model.num_timesteps), "wall_time_s": wall,
                                        "training_episodes": len(curve),
                                        "final_eval": evals[-args.eval_episodes * 2:] if evals else []})
     print(f"{model.num_timesteps} agent-steps in {wall:.0f} s")
@@ -643,13 +514,9 @@ def set_actor_trainable(model, on: bool) -> None:
 
 def obs_selection(args: Args, scenario: str) -> dict:
     """``policy_kwargs`` entries that hide the fields ``args.drop_obs`` from the networks."""
-    from parcover_env.envs import ParallelCoverageEnv
-    from parcover_env.policies.sb3_features import SelectEntries, keep_indices
+    from parcover_env.harness.training import observation_selection
 
-    layout = ParallelCoverageEnv(scenario, preset=args.preset).layout
-    drop = [f.strip() for f in args.drop_obs.split(",") if f.strip()]
-    return {"features_extractor_class": SelectEntries,
-            "features_extractor_kwargs": {"keep": keep_indices(layout.names, layout.slices, drop)}}
+    return observation_selection(scenario, args.preset, args.drop_obs)
 
 
 def _switch_env(model, venv) -> None:
@@ -661,23 +528,6 @@ def _switch_env(model, venv) -> None:
     model.rollout_buffer = model.rollout_buffer_class(
         model.n_steps, model.observation_space, model.action_space, device=model.device, gamma=model.gamma,
         gae_lambda=model.gae_lambda, n_envs=model.n_envs, **model.rollout_buffer_kwargs)
-
-
-def write_csv(path: Path, rows: list[dict]) -> None:
-    if not rows:
-        return
-    with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-
-
-def plot_curve(out: Path) -> None:
-    """``OUT/curve.png`` from ``curve.csv`` (+ ``eval.csv``); see ``parcover_env.viz.curves``."""
-    from parcover_env.viz.curves import plot_learning_curves
-
-    if (out / "curve.csv").is_file():
-        plot_learning_curves([out], out / "curve.png")
 
 
 if __name__ == "__main__":

@@ -23,7 +23,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 import parcover_env
-from parcover_env.expert.policy import ScriptedExpert
+from parcover_env.expert import expert_for
 from parcover_env.harness.failures import CAUSES, run_diagnosed
 
 
@@ -38,7 +38,7 @@ def episode(job: tuple[str, int, str, str]) -> dict:
         env = parcover_env.parallel_env(name, overrides={"formation": {"mode": mode}}, preset=preset)
     except Exception as exc:  # noqa: BLE001 - a map that cannot be built is reported, not fatal
         return {"success": False, "cause": "error", "error": f"{type(exc).__name__}: {exc}", "seed": seed}
-    m, diag = run_diagnosed(env, ScriptedExpert.for_env(env), seed)
+    m, diag = run_diagnosed(env, expert_for(env), seed)
     m["n_messages"] = sum(m["messages"].values())
     m["seed"] = seed
     m["error"] = diag.error

@@ -20,7 +20,7 @@ import argparse
 import numpy as np
 
 import parcover_env
-from parcover_env.expert.policy import ScriptedExpert
+from parcover_env.expert import expert_for
 
 FLOOR = {
     "map": {"size": [14.0, 3.0], "walls": [], "obstacles": [], "unknown_obstacles": []},
@@ -67,7 +67,7 @@ def expert_errors(pose_source: str, seeds: int) -> tuple[list[float], list[float
     for seed in range(seeds):
         env = parcover_env.parallel_env("office", overrides={"observation": {"pose_source": pose_source}})
         obs, _ = env.reset(seed=seed)
-        policy = ScriptedExpert.for_env(env)
+        policy = expert_for(env)
         while env.agents:
             obs, _, _, _, infos = env.step(policy.act(obs))
             fresh = (env.fix_age <= 0.2 + 1e-9) & env.team.leader

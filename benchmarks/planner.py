@@ -16,7 +16,7 @@ from parcover_env.config import MapConfig
 from parcover_env.planning.exact import exact_min_robots, exact_minmax, held_karp, route_cost
 from parcover_env.planning.ppcp import merge_routes, metric_closure, minmax_routes, solve_ppcp, stage1_routes
 from parcover_env.planning.roadmap import build_roadmap, planner_clearance
-from parcover_env.planning.scenario import make_simplifier
+from parcover_env.planning.scenario_plan import make_simplifier
 from parcover_env.world.map_model import MapModel
 
 RADIUS, RES, KPOI_RADIUS = 0.15, 0.05, 0.25

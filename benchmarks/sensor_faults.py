@@ -15,7 +15,7 @@ import numpy as np
 
 import parcover_env as pe
 from parcover_env.config.typed import to_mapping
-from parcover_env.expert.policy import ScriptedExpert
+from parcover_env.expert import expert_for
 from parcover_env.harness.rollout import run_episode
 
 
@@ -40,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in args.scenarios:
         for drop, garbage in levels:
             env = pe.parallel_env(name, overrides=faults(name, drop, garbage))
-            rows = [run_episode(env, ScriptedExpert.for_env(env), seed) for seed in range(args.seeds)]
+            rows = [run_episode(env, expert_for(env), seed) for seed in range(args.seeds)]
             succ = np.mean([r["success"] for r in rows])
             kp = np.mean([r["kpois_visited"] for r in rows])
             err = np.mean([r["localization_error"] for r in rows])

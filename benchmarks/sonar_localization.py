@@ -47,9 +47,11 @@ import zlib
 import numpy as np
 import shapely
 
-from parcover_env.config import Scenario, SonarConfig, SonarLocalizerConfig
+from parcover_env.config import Scenario, SonarConfig
 from parcover_env.control.leader import go_to_goal
+from parcover_env.expert.config import expert_config
 from parcover_env.geometry import wrap_angle
+from parcover_env.localization.sonar.config import SonarLocalizerConfig, sonar_localizer_config
 from parcover_env.localization.sonar.known_map import known_map_features
 from parcover_env.localization.sonar.localizer import localize
 from parcover_env.scenarios import load_scenario
@@ -226,8 +228,9 @@ def run_map(name: str, trials_n: int, seed: int, unknown: bool = False) -> None:
         if name not in UNKNOWN:
             raise SystemExit(f"--unknown: no unknown obstacles defined for {name!r} (only {sorted(UNKNOWN)})")
         sc = dataclasses.replace(sc, map=dataclasses.replace(sc.map, unknown_obstacles=UNKNOWN[name]))
-    loc, sonar = sc.sonar_localizer, sc.robot.sonar
-    known, feats, sectors = known_map_features(sc.map, sonar.range_max, sc.expert.navigator.sector_rule)
+    loc, sonar = sonar_localizer_config(sc), sc.robot.sonar
+    sector_rule = expert_config(sc).navigator.sector_rule
+    known, feats, sectors = known_map_features(sc.map, sonar.range_max, sector_rule)
     world = MapModel.from_config(sc.map, include_unknown=True)
     # one stream per purpose, seeded by (seed, map name): routes + odometry, the sonar, the mismatched sonar
     streams = [np.random.default_rng(s) for s in np.random.SeedSequence([seed, zlib.crc32(name.encode())]).spawn(3)]
@@ -243,7 +246,7 @@ def run_map(name: str, trials_n: int, seed: int, unknown: bool = False) -> None:
     sig = np.array([math.sqrt(np.linalg.eigvalsh(t.covariance[:2, :2]).max()) for t in trials])
     print(f"\n{name}{' with unknown obstacles' if unknown else ''}: {trials_n} trials (seed {seed}; "
           f"{redrawn} drives redrawn: true end pose against a wall), "
-          f"{len(sectors)} relaxed sectors (rule {sc.expert.navigator.sector_rule}), routes "
+          f"{len(sectors)} relaxed sectors (rule {sector_rule}), routes "
           f"{np.median([t.route_length for t in trials]):.1f} m median ({t_drive:.1f} s to drive)")
     print(f"  odometry prior: position error median {100 * np.median(prior):.1f} cm, p90 "
           f"{100 * np.percentile(prior, 90):.1f} cm; heading error median {np.median(prior_head):.2f} deg, p90 "

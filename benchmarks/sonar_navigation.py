@@ -16,8 +16,8 @@ import time
 import numpy as np
 
 import parcover_env
-from parcover_env.config import NavigatorConfig
 from parcover_env.envs.metrics import episode_metrics
+from parcover_env.expert.config import NavigatorConfig
 from parcover_env.expert.navigator import SonarNavigator
 
 

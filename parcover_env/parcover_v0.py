@@ -8,21 +8,29 @@ factories apply by default. Infos follow v1's flat convention. New work should u
 
 from __future__ import annotations
 
-from functools import partial
+from pettingzoo.utils.conversions import parallel_to_aec
 
-import parcover_env
 from parcover_env import ParallelCoverageEnv
 
 __all__ = ["env", "parallel_env", "raw_env"]
 
-raw_env = partial(ParallelCoverageEnv, preset="ideal")
+
+class raw_env(ParallelCoverageEnv):  # noqa: N801 - PettingZoo's factory name
+    """v0's ParallelEnv class: ParallelCoverageEnv with the ``ideal`` preset by default, named
+    ``parcover_v0`` in ``metadata["name"]``."""
+
+    metadata = {**ParallelCoverageEnv.metadata, "name": "parcover_v0"}
+
+    def __init__(self, scenario="office", render_mode=None, overrides=None, preset="ideal", max_cycles=None):
+        super().__init__(scenario, render_mode=render_mode, overrides=overrides, preset=preset, max_cycles=max_cycles)
 
 
-def parallel_env(scenario="office", render_mode=None, overrides=None, preset="ideal"):
+def parallel_env(scenario="office", render_mode=None, overrides=None, preset="ideal", max_cycles=None) -> raw_env:
     """v0's ParallelEnv: :func:`parcover_env.parallel_env` with the ``ideal`` preset."""
-    return parcover_env.parallel_env(scenario, render_mode=render_mode, overrides=overrides, preset=preset)
+    return raw_env(scenario, render_mode=render_mode, overrides=overrides, preset=preset, max_cycles=max_cycles)
 
 
-def env(scenario="office", render_mode=None, overrides=None, preset="ideal"):
+def env(scenario="office", render_mode=None, overrides=None, preset="ideal", max_cycles=None):
     """v0's AEC env: :func:`parcover_env.env` with the ``ideal`` preset."""
-    return parcover_env.env(scenario, render_mode=render_mode, overrides=overrides, preset=preset)
+    return parallel_to_aec(parallel_env(scenario, render_mode=render_mode, overrides=overrides, preset=preset,
+                                        max_cycles=max_cycles))

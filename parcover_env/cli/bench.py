@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from parcover_env.cli.checks import check_writable_dir, non_negative_int, positive_int
 from parcover_env.errors import ParcoverError
-from parcover_env.policies.registry import check_policy_spec
+from parcover_env.policies.registry import check_policy_spec, policy_specs
 
 __all__ = ["add_bench_parser", "add_collect_parser"]
 
@@ -21,7 +21,7 @@ def add_bench_parser(sub) -> None:
     b.add_argument(
         "--policies",
         default="expert,random",
-        help="comma-separated: expert, waypoint, random, ppo:PATH, bc:PATH, mappo:PATH (default: expert,random)",
+        help=f"comma-separated, each one of: {policy_specs()} (default: expert,random)",
     )
     b.add_argument("--seeds", type=positive_int, default=10,
                    help="episodes per (scenario, policy): seeds OFFSET..OFFSET+N-1 (default: 10)")

@@ -19,7 +19,7 @@ from parcover_env.cli.checks import (
     write_image,
 )
 from parcover_env.errors import ParcoverError
-from parcover_env.policies.registry import POLICY_SPECS
+from parcover_env.policies.registry import policy_specs
 
 __all__ = ["main", "build_parser"]
 
@@ -210,7 +210,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("scenario", nargs="?", default="office", help="scenario name or YAML path (default: office)")
     r.add_argument("--seed", type=non_negative_int, default=0, help="episode seed (default: 0)")
     r.add_argument("--steps", type=positive_int, default=None, help="stop after N steps (default: scenario's limit)")
-    r.add_argument("--policy", default="expert", help=f"who drives: {POLICY_SPECS} (default: expert)")
+    r.add_argument("--policy", default="expert", help=f"who drives: {policy_specs()} (default: expert)")
     r.add_argument("--preset", choices=["realistic", "ideal"], default="realistic",
                    help="error models: realistic (the config's) or ideal (all off) (default: realistic)")
     r.add_argument("--gif", default=None, help="write an animated GIF of the episode here")

@@ -8,12 +8,10 @@ from parcover_env.config.loading import deep_merge, read_yaml, replace_source, s
 from parcover_env.config.schema import (
     DriveConfig,
     EpisodeConfig,
-    ExpertConfig,
     FormationConfig,
     KinectConfig,
     KinectTrackingConfig,
     MapConfig,
-    NavigatorConfig,
     ObservationConfig,
     OdometryConfig,
     PhysicsConfig,
@@ -26,8 +24,6 @@ from parcover_env.config.schema import (
     Scenario,
     Segment,
     SonarConfig,
-    SonarFixConfig,
-    SonarLocalizerConfig,
 )
 from parcover_env.config.typed import from_mapping, to_mapping
 from parcover_env.errors import ConfigError
@@ -35,7 +31,7 @@ from parcover_env.errors import ConfigError
 __all__ = [
     "ConfigError", "MapConfig", "Pose", "SonarConfig", "DriveConfig", "OdometryConfig", "RobotConfig", "KinectConfig",
     "PhysicsConfig", "EpisodeConfig", "RewardConfig", "ObservationConfig", "FormationConfig", "PlannerConfig",
-    "SonarLocalizerConfig", "KinectTrackingConfig", "ExpertConfig", "NavigatorConfig", "SonarFixConfig",
+    "KinectTrackingConfig",
     "Scenario", "Point", "Polygon", "Segment", "read_yaml", "deep_merge", "scenario_from_mapping",
     "scenario_to_yaml", "replace_source", "from_mapping", "to_mapping",
 ]

@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 from parcover_env.config.checks import check as _check
 from parcover_env.config.checks import positive as _positive
-from parcover_env.config.expert import ExpertConfig, NavigatorConfig, SonarFixConfig
-from parcover_env.config.localization import KinectTrackingConfig, SonarLocalizerConfig
+from parcover_env.config.localization import KinectTrackingConfig
 from parcover_env.config.robot import DriveConfig, KinectConfig, OdometryConfig, Point, RobotConfig, SonarConfig
 from parcover_env.errors import ConfigError
 
@@ -26,8 +25,7 @@ Segment = tuple[Point, Point]
 __all__ = [
     "ConfigError", "MapConfig", "Pose", "SonarConfig", "DriveConfig", "OdometryConfig", "RobotConfig",
     "KinectConfig", "PhysicsConfig", "EpisodeConfig", "RewardConfig", "ObservationConfig",
-    "FormationConfig", "PlannerConfig", "SonarLocalizerConfig", "KinectTrackingConfig", "ExpertConfig",
-    "NavigatorConfig", "SonarFixConfig", "Scenario",
+    "FormationConfig", "PlannerConfig", "KinectTrackingConfig", "Scenario",
     "Point", "Polygon", "Segment",
 ]
 
@@ -120,7 +118,9 @@ class RewardConfig:
     kpoi: float = 10.0
     """Per KPOI visited, to every agent (team reward)."""
     progress: float = 1.0
-    """Per metre the agent gets closer to its current goal."""
+    """Per metre of route length left that the agent removed this step (potential-based; the
+    route length left is the straight distance from the robot's true position to its goal point
+    on its route plus the route's length from that point to its end, so driving back costs it)."""
     time: float = -0.01
     """Per step, to every agent."""
     collision: float = -1.0
@@ -219,16 +219,18 @@ class Scenario:
     formation: FormationConfig = field(default_factory=FormationConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     localization: Literal["kinect", "sonar", "both"] = "kinect"
-    sonar_localizer: SonarLocalizerConfig = field(default_factory=SonarLocalizerConfig)
-    """Tunables of the sonar feature localizer and its Fig. 11 filter (seed B)."""
+    sonar_localizer: dict[str, Any] = field(default_factory=dict, hash=False)
+    """The sonar localizer's YAML section, kept as read: the env never runs the localizer; its owner
+    validates it (:func:`parcover_env.localization.sonar.config.sonar_localizer_config`)."""
     kinect_tracking: KinectTrackingConfig = field(default_factory=KinectTrackingConfig)
     """Gate and fusion radius of the Kinect leader tracker (seed A)."""
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)
     episode: EpisodeConfig = field(default_factory=EpisodeConfig)
     rewards: RewardConfig = field(default_factory=RewardConfig)
     observation: ObservationConfig = field(default_factory=ObservationConfig)
-    expert: ExpertConfig = field(default_factory=ExpertConfig)
-    """Tunables of the scripted expert (seed A controllers, seed B navigator); not used by the env."""
+    expert: dict[str, Any] = field(default_factory=dict, hash=False)
+    """The scripted experts' YAML section, kept as read: the env never reads it; its owner validates
+    it (:func:`parcover_env.expert.config.expert_config`)."""
     source: str = field(default="<dict>", compare=False, metadata={"internal": True})
 
     def __post_init__(self) -> None:

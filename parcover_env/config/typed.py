@@ -6,6 +6,7 @@ closest known key as a suggestion, and each error names the source file and the 
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import difflib
 import math
@@ -59,6 +60,10 @@ def _convert(tp: Any, value: Any, source: str, key: str) -> Any:
         raise ConfigError(source, key, " or ".join(dict.fromkeys(errors)))
     if origin is tuple:
         return _convert_tuple(tp, value, source, key)
+    if origin is dict:  # a section owned by a higher room (e.g. ``expert``): a mapping, validated there
+        if not isinstance(value, dict) or not all(isinstance(k, str) for k in value):
+            raise ConfigError(source, key, f"expected a mapping with text keys, got {_describe(value)}")
+        return copy.deepcopy(value)
     if tp is bool:
         if not isinstance(value, bool):
             raise ConfigError(source, key, f"expected true/false, got {_describe(value)}")

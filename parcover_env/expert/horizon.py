@@ -17,7 +17,8 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-from parcover_env.config import NavigatorConfig, OdometryConfig
+from parcover_env.config import OdometryConfig
+from parcover_env.expert.config import NavigatorConfig
 from parcover_env.expert.sonar_fix import belief_covariance_step
 from parcover_env.geometry import wrap_angle
 from parcover_env.localization.sonar.localizer import Ellipse

@@ -41,10 +41,11 @@ import math
 
 import numpy as np
 
-from parcover_env.config import NavigatorConfig, Scenario
+from parcover_env.config import Scenario
 from parcover_env.control.leader import go_to_goal
 from parcover_env.envs.observations import ObservationLayout
 from parcover_env.expert.avoidance import brake_factor, lane_gap, sidestep, turn_away
+from parcover_env.expert.config import NavigatorConfig, expert_config
 from parcover_env.expert.horizon import RegionModel, collision_horizon
 from parcover_env.expert.rearrange import SubgoalRearranger
 from parcover_env.expert.sonar_fix import belief_covariance_step
@@ -52,6 +53,7 @@ from parcover_env.expert.team_localizer import TeamLocalizer
 from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.poses import compose as _compose
 from parcover_env.geometry.poses import inverse as _inverse
+from parcover_env.localization.sonar.config import sonar_localizer_config
 from parcover_env.localization.sonar.localizer import Ellipse
 from parcover_env.localization.sonar.parallel_paths import lane_offsets, lateral_offset, parallel_path, with_start
 from parcover_env.localization.sonar.params import SonarLocalizerParams
@@ -59,7 +61,7 @@ from parcover_env.localization.sonar.scan import ScanCollector
 from parcover_env.localization.sonar.subgoals import PathNodes, densify, score_nodes, team_subgoal
 
 NavigatorParams = NavigatorConfig
-"""Former name of :class:`~parcover_env.config.NavigatorConfig` (the scenario's ``expert.navigator``)."""
+"""Former name of :class:`~parcover_env.expert.config.NavigatorConfig` (the scenario's ``expert.navigator``)."""
 
 __all__ = ["NavigatorConfig", "NavigatorParams", "SonarNavigator"]
 
@@ -79,8 +81,8 @@ class SonarNavigator:
         if len(paths) == 0:
             raise ValueError("SonarNavigator needs one route per robot, got none")
         self.layout, self.scenario, self.dt = layout, scenario, float(control_dt)
-        self.p = params if params is not None else scenario.expert.navigator
-        self.loc = localizer or scenario.sonar_localizer
+        self.p = params if params is not None else expert_config(scenario).navigator
+        self.loc = localizer or sonar_localizer_config(scenario)
         self.beams = np.asarray(sonar_angles, dtype=float)
         r = scenario.robot
         self.sonar_cfg = r.sonar
@@ -97,7 +99,7 @@ class SonarNavigator:
         self.side = np.flatnonzero(np.abs(np.abs(wrap_angle(self.beams)) - math.pi / 2)
                                    <= math.radians(self.p.side_sector_deg))
         self.odometry, self.wheel_base = r.odometry, r.drive.wheel_base
-        fx = scenario.expert.sonar_fix
+        fx = expert_config(scenario).sonar_fix
         self.fix_cov = np.diag([fx.fix_sigma**2, fx.fix_sigma**2, math.radians(fx.fix_sigma_heading_deg) ** 2])
         self.routes = [np.asarray(p, dtype=float) for p in paths]
         self.n = len(self.routes)

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from parcover_env.config import NavigatorConfig
+from parcover_env.expert.config import NavigatorConfig
 from parcover_env.localization.sonar.subgoals import (
     NodeScores,
     PathNodes,

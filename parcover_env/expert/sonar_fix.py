@@ -25,9 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from parcover_env.config import OdometryConfig, SonarFixConfig
+from parcover_env.config import OdometryConfig
+from parcover_env.expert.config import SonarFixConfig, expert_config
 from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.poses import compose, inverse
+from parcover_env.localization.sonar.config import sonar_localizer_config
 from parcover_env.localization.sonar.scan import ScanCollector
 from parcover_env.sensors.odometry import propagate_covariance, wheel_increment_cov
 
@@ -146,15 +148,16 @@ class SonarFixer:
     def __init__(self, scenario, beam_angles: np.ndarray, control_dt: float, config: SonarFixConfig | None = None):
         from parcover_env.expert.team_localizer import TeamLocalizer
 
-        self.cfg = cfg = config if config is not None else scenario.expert.sonar_fix
+        expert = expert_config(scenario)
+        self.cfg = cfg = config if config is not None else expert.sonar_fix
         self.sonar = scenario.robot.sonar
         self.odometry = scenario.robot.odometry
         self.wheel_base = scenario.robot.drive.wheel_base
         sxy, sth = scenario.observation.fix_sigma_xy, math.radians(scenario.observation.fix_sigma_heading_deg)
         self.kinect_cov = np.diag([sxy**2, sxy**2, sth**2])
         self.fix_cov = np.diag([cfg.fix_sigma**2, cfg.fix_sigma**2, math.radians(cfg.fix_sigma_heading_deg) ** 2])
-        self.params = scenario.sonar_localizer
-        self.team = TeamLocalizer(scenario, scenario.expert.navigator, self.params)
+        self.params = sonar_localizer_config(scenario)
+        self.team = TeamLocalizer(scenario, expert.navigator, self.params)
         self.map, self.features, self.sectors = self.team.map, self.team.features, self.team.sectors
         self.beams = np.asarray(beam_angles, dtype=float)
         self.n_bins = int(round(360.0 / self.sonar.scan_step_deg))

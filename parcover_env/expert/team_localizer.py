@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from parcover_env.config import NavigatorConfig, Scenario
+from parcover_env.config import Scenario
+from parcover_env.expert.config import NavigatorConfig
 from parcover_env.localization.sonar.known_map import known_map_features
 from parcover_env.localization.sonar.localizer import Ellipse, LocalizationResult, localize, scan_error
 from parcover_env.localization.sonar.params import SonarLocalizerParams

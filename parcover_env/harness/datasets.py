@@ -53,7 +53,7 @@ def record_episodes(
         coin = np.random.default_rng(ep_seed)
         obs, _ = env.reset(seed=ep_seed)
         for p in (pol, drv):
-            if p is not None and hasattr(p, "reset"):
+            if p is not None:
                 p.reset(obs)
         traj = {
             a: {"observations": [obs[a]], "actions": [], "rewards": [], "terminations": [], "truncations": []}

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from parcover_env.envs.metrics import episode_metrics
+from parcover_env.policies.protocol import Policy
 
 __all__ = ["EpisodeDiagnosis", "CAUSES", "classify_failure", "run_diagnosed"]
 
@@ -92,7 +93,7 @@ def _estimates(env) -> np.ndarray:
     return env.pose_estimates() if hasattr(env, "pose_estimates") else env.estimate
 
 
-def run_diagnosed(env, policy, seed: int | None, window: float = 20.0) -> tuple[dict, EpisodeDiagnosis]:
+def run_diagnosed(env, policy: Policy, seed: int | None, window: float = 20.0) -> tuple[dict, EpisodeDiagnosis]:
     """Run one episode; returns (episode summary + ``cause``, diagnosis). ``window`` in seconds."""
     plan, kpois = env.plan, np.asarray(env.scenario.kpois, dtype=float)
     n, dt = env.n_robots, env.scenario.physics.control_dt
@@ -102,8 +103,7 @@ def run_diagnosed(env, policy, seed: int | None, window: float = 20.0) -> tuple[
     summary, error, t0 = None, None, time.perf_counter()
     try:
         obs, _ = env.reset(seed=seed)
-        if hasattr(policy, "reset"):
-            policy.reset(obs)
+        policy.reset(obs)
         while env.agents:
             obs, _, _, _, infos = env.step(policy.act(obs))
             true = _true_poses(env)
@@ -119,13 +119,13 @@ def run_diagnosed(env, policy, seed: int | None, window: float = 20.0) -> tuple[
     if summary is None:
         summary = env.metrics.summary()
     summary["wall_time"] = time.perf_counter() - t0
-    if hasattr(policy, "stats"):
-        summary.update(policy.stats())
+    summary.update(policy.stats())
     true = _true_poses(env)
     belief = _estimates(env)
-    if hasattr(policy, "belief"):
-        with contextlib.suppress(RuntimeError):  # no observation yet
-            belief = np.asarray(policy.belief(), dtype=float).reshape(n, -1)
+    with contextlib.suppress(RuntimeError):  # no observation yet
+        own = policy.belief()
+        if own is not None:  # the policy steers by its own estimate
+            belief = np.asarray(own, dtype=float).reshape(n, -1)
     moved = np.hypot(*(history[-1] - history[0]).T) if history else np.zeros(n)
     diag = EpisodeDiagnosis(visited=env.progress.visited.copy(), owner=plan.kpoi_owner(), closest=closest,
                             moved=moved, clearance=_clearance(env, true),

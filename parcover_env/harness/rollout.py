@@ -5,11 +5,12 @@ from __future__ import annotations
 import time
 
 from parcover_env.envs.metrics import episode_metrics
+from parcover_env.policies.protocol import Policy
 
 __all__ = ["run_episode"]
 
 
-def run_episode(env, policy, seed: int | None, max_steps: int | None = None, frames=None,
+def run_episode(env, policy: Policy, seed: int | None, max_steps: int | None = None, frames=None,
                 progress: bool = False) -> dict:
     """Run one episode; returns the episode metrics (plus wall time).
 
@@ -18,8 +19,7 @@ def run_episode(env, policy, seed: int | None, max_steps: int | None = None, fra
     the step limit on stderr, closed with the step at which the episode ended.
     """
     obs, _ = env.reset(seed=seed)
-    if hasattr(policy, "reset"):
-        policy.reset(obs)
+    policy.reset(obs)
     limit = max_steps or env.scenario.episode.max_steps
     summary, t0, step = None, time.perf_counter(), 0
     bar = None
@@ -47,6 +47,5 @@ def run_episode(env, policy, seed: int | None, max_steps: int | None = None, fra
     if summary is None:
         summary = env.metrics.summary()
     summary["wall_time"] = time.perf_counter() - t0
-    if hasattr(policy, "stats"):
-        summary.update(policy.stats())
+    summary.update(policy.stats())
     return summary

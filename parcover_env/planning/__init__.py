@@ -5,7 +5,7 @@ from parcover_env.planning.kinect_tree import KinectTree, kinect_footprints, kin
 from parcover_env.planning.plan import Branch, Plan, PlanTree, RobotPlan, TurningPoint
 from parcover_env.planning.ppcp import metric_closure, solve_ppcp
 from parcover_env.planning.roadmap import Roadmap, UnreachableKpoiError, build_roadmap, planner_clearance
-from parcover_env.planning.scenario import plan_scenario, scenario_roadmap
+from parcover_env.planning.scenario_plan import plan_scenario, scenario_roadmap
 
 __all__ = [
     "Branch", "KinectTree", "Plan", "PlanTree", "RobotPlan", "Roadmap", "TurningPoint",

@@ -255,7 +255,7 @@ def solve_ppcp(graph: nx.Graph, start, kpois: Sequence, n_robots: int | None = N
     (<= 12 distinct KPOI nodes) or ``auto``. ``simplify`` smooths polylines between plan-tree nodes.
     ``tp_merge_tol`` (m): TPs reached within this distance after another merge into it (one multi-way TP).
     """
-    from parcover_env.planning.plan_tree import build_plan
+    from parcover_env.planning.plan_builder import build_plan
 
     if method not in ("auto", "heuristic", "exact"):
         raise ValueError(f"method must be 'auto', 'heuristic' or 'exact', got {method!r}")

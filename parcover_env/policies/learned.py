@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from parcover_env.errors import ParcoverError
+from parcover_env.policies.protocol import Policy
 
 __all__ = ["PPOPolicy", "BCPolicy", "ObsNormalizer", "vecnormalize_file"]
 
@@ -51,7 +52,7 @@ def vecnormalize_file(model_file: Path) -> Path | None:
     return None
 
 
-class PPOPolicy:
+class PPOPolicy(Policy):
     """A saved SB3 PPO model (``model.zip`` + ``vecnormalize.pkl``, or ``NAME.zip`` +
     ``NAME_vecnormalize.pkl``, see :func:`vecnormalize_file`)."""
 
@@ -70,6 +71,14 @@ class PPOPolicy:
         self.normalize = ObsNormalizer.from_vecnormalize(stats) if stats is not None else None
         self.deterministic = deterministic
         self.obs_shape = tuple(self.model.observation_space.shape)
+
+    @classmethod
+    def from_model(cls, model, normalize: ObsNormalizer | None, deterministic: bool = True) -> PPOPolicy:
+        """A PPO model held in memory (e.g. one in training) with its observation statistics."""
+        self = cls.__new__(cls)
+        self.model, self.normalize, self.deterministic = model, normalize, deterministic
+        self.obs_shape = tuple(model.observation_space.shape)
+        return self
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         agents, obs = _stack(observations)
@@ -94,7 +103,7 @@ def make_mlp(n_in: int, n_out: int, hidden: tuple[int, ...] = (256, 256)):
     return nn.Sequential(*layers)
 
 
-class BCPolicy:
+class BCPolicy(Policy):
     """A tanh-output MLP actor: behaviour cloning (``baselines/train_bc.py``, ``bc.pt``) or the
     MAPPO actor (``baselines/train_mappo.py``, ``actor.pt``, same format)."""
 

@@ -1,65 +1,124 @@
-"""One registry of policies by spec string: expert, waypoint, random, ppo:PATH, bc:PATH, mappo:PATH."""
+"""One registry of policies, by spec string: ``NAME`` or ``NAME:PATH`` (``expert``, ``ppo:runs/x``).
+
+:data:`POLICIES` maps a name to a :class:`PolicyEntry`: a factory ``(env, seed, path) -> Policy``
+and whether the spec needs a checkpoint path. ``parcover run --policy``, ``parcover bench`` and
+``parcover collect`` all build their policies here, so the spec help, the error for an unknown
+name and the checks of a spec are written once.
+
+Adding a policy is one entry. Write the class (subclass :class:`~parcover_env.policies.Policy`
+for the default ``reset``/``stats``/``belief``) in its own module, then add here::
+
+    "greedy": PolicyEntry(_greedy, "drives to the nearest unvisited KPOI"),
+
+with ``def _greedy(env, seed, path): from parcover_env.policies.greedy import Greedy; return Greedy(env.layout)``
+(import inside the factory: heavy dependencies load only when the policy is used). A policy that
+loads a checkpoint sets ``needs_path=True`` (:func:`check_policy_spec` then checks that the path
+exists) and checks in its factory that the checkpoint's observation shape is the scenario's.
+Code outside the package may add an entry to :data:`POLICIES` at run time the same way
+(in-process runs only: ``parcover bench`` workers start from the built-in registry).
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from parcover_env.errors import ParcoverError
+from parcover_env.policies.protocol import Policy
 
-__all__ = ["BASIC_POLICIES", "POLICY_SPECS", "make_policy", "check_policy_spec"]
-
-BASIC_POLICIES = ("expert", "waypoint", "random")
-POLICY_SPECS = "expert | waypoint | random | ppo:PATH | bc:PATH | mappo:PATH"
-LEARNED_KINDS = ("ppo", "bc", "mappo")
+__all__ = ["POLICIES", "PolicyEntry", "BASIC_POLICIES", "POLICY_SPECS", "make_policy", "check_policy_spec",
+           "policy_specs"]
 
 
-def make_policy(spec: str, env, seed: int | None):
-    """A policy object with ``act(observations) -> actions`` from a spec string."""
-    kind, _, path = spec.partition(":")
-    if kind == "random":
-        from parcover_env.policies.simple import RandomPolicy
+@dataclass(frozen=True)
+class PolicyEntry:
+    """How to build one kind of policy."""
 
-        return RandomPolicy(seed)
-    if kind == "waypoint":
-        from parcover_env.policies.simple import WaypointPolicy
+    factory: Callable[[Any, int | None, str], Policy]
+    """``(env, seed, path) -> Policy``; ``path`` is the text after ``NAME:`` ("" if none)."""
+    summary: str
+    """One line for ``--help``."""
+    needs_path: bool = False
+    """The spec is ``NAME:PATH`` with an existing checkpoint path (else plain ``NAME``)."""
 
-        return WaypointPolicy(env.layout)
-    if kind == "expert":
-        from parcover_env.expert.policy import ScriptedExpert
 
-        return ScriptedExpert.for_env(env)
-    if kind in LEARNED_KINDS:
-        if not path:
-            raise ParcoverError(f"policy '{spec}': give a checkpoint, e.g. {kind}:runs/{kind}_office")
-        check_policy_spec(spec)
+def _random(env, seed: int | None, path: str) -> Policy:
+    from parcover_env.policies.simple import RandomPolicy
+
+    return RandomPolicy(seed)
+
+
+def _waypoint(env, seed: int | None, path: str) -> Policy:
+    from parcover_env.policies.simple import WaypointPolicy
+
+    return WaypointPolicy(env.layout)
+
+
+def _expert(env, seed: int | None, path: str) -> Policy:
+    from parcover_env.expert import expert_for
+
+    return expert_for(env)
+
+
+def _learned(kind: str) -> Callable[[Any, int | None, str], Policy]:
+    def build(env, seed: int | None, path: str) -> Policy:
         from parcover_env.errors import require
 
-        torch = require("torch", "train", f"policy '{spec}'")
+        torch = require("torch", "train", f"policy '{kind}:{path}'")
         if kind == "ppo":
-            require("stable_baselines3", "train", f"policy '{spec}'", package="stable-baselines3")
+            require("stable_baselines3", "train", f"policy '{kind}:{path}'", package="stable-baselines3")
         from parcover_env.policies.learned import BCPolicy, PPOPolicy
 
         torch.set_num_threads(1)  # small MLPs: one thread is fastest and avoids oversubscribing workers
-
         policy = PPOPolicy(path) if kind == "ppo" else BCPolicy(path, "actor.pt" if kind == "mappo" else "bc.pt")
         expected = env.observation_space(env.possible_agents[0]).shape
         if tuple(policy.obs_shape) != tuple(expected):
-            raise ParcoverError(f"policy '{spec}' was trained on observations of shape {tuple(policy.obs_shape)}; "
-                                f"scenario '{env.scenario.name}' gives {tuple(expected)}")
+            raise ParcoverError(f"policy '{kind}:{path}' was trained on observations of shape "
+                                f"{tuple(policy.obs_shape)}; scenario '{env.scenario.name}' gives {tuple(expected)}")
         return policy
-    raise ParcoverError(
-        f"unknown policy '{spec}' (choose from {', '.join(BASIC_POLICIES)}, ppo:PATH, bc:PATH, mappo:PATH)"
-    )
+
+    return build
+
+
+POLICIES: dict[str, PolicyEntry] = {
+    "expert": PolicyEntry(_expert, "the scripted expert of the scenario's localization mode"),
+    "waypoint": PolicyEntry(_waypoint, "each robot drives to its observed route waypoint, alone"),
+    "random": PolicyEntry(_random, "uniform random actions"),
+    "ppo": PolicyEntry(_learned("ppo"), "a saved SB3 PPO model (model.zip + vecnormalize.pkl)", needs_path=True),
+    "bc": PolicyEntry(_learned("bc"), "a behaviour-cloned MLP (bc.pt)", needs_path=True),
+    "mappo": PolicyEntry(_learned("mappo"), "a MAPPO actor (actor.pt)", needs_path=True),
+}
+"""Every policy by name; see the module docstring to add one."""
+
+
+def policy_specs() -> str:
+    """The accepted specs, e.g. ``expert | waypoint | random | ppo:PATH | bc:PATH | mappo:PATH``."""
+    return " | ".join(f"{name}:PATH" if e.needs_path else name for name, e in POLICIES.items())
+
+
+BASIC_POLICIES = tuple(name for name, e in POLICIES.items() if not e.needs_path)
+"""The policies that need no checkpoint."""
+POLICY_SPECS = policy_specs()
+"""The accepted specs as one line (the built-in registry)."""
 
 
 def check_policy_spec(spec: str) -> None:
-    kind, _, path = spec.partition(":")
-    if kind in BASIC_POLICIES and not path:
-        return
-    if kind in LEARNED_KINDS and path:
+    """Raise ParcoverError unless ``spec`` names a registered policy (with an existing path if it needs one)."""
+    name, _, path = spec.partition(":")
+    entry = POLICIES.get(name)
+    if entry is None or (path and not entry.needs_path):
+        raise ParcoverError(f"unknown policy '{spec}' (choose from {policy_specs()})")
+    if entry.needs_path:
+        if not path:
+            raise ParcoverError(f"policy '{spec}': give a checkpoint, e.g. {name}:runs/{name}_office")
         if not Path(path).exists():
             raise ParcoverError(f"policy '{spec}': {path} does not exist")
-        return
-    raise ParcoverError(
-        f"unknown policy '{spec}' (choose from {', '.join(BASIC_POLICIES)}, ppo:PATH, bc:PATH, mappo:PATH)"
-    )
+
+
+def make_policy(spec: str, env, seed: int | None) -> Policy:
+    """The policy named by ``spec`` for ``env`` (``seed`` seeds a stochastic policy's generator)."""
+    check_policy_spec(spec)
+    name, _, path = spec.partition(":")
+    return POLICIES[name].factory(env, seed, path)

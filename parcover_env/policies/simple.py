@@ -6,11 +6,12 @@ import numpy as np
 
 from parcover_env.envs.observations import ObservationLayout
 from parcover_env.geometry import atan2
+from parcover_env.policies.protocol import Policy
 
 __all__ = ["RandomPolicy", "WaypointPolicy"]
 
 
-class RandomPolicy:
+class RandomPolicy(Policy):
     """Uniform random actions in [-1, 1]^2 from its own seeded generator."""
 
     def __init__(self, seed: int | None = None):
@@ -20,7 +21,7 @@ class RandomPolicy:
         return {a: self.rng.uniform(-1.0, 1.0, 2).astype(np.float32) for a in sorted(observations)}
 
 
-class WaypointPolicy:
+class WaypointPolicy(Policy):
     """Every robot drives to the waypoint in its observation (``goal_dx, goal_dy``), independently.
 
     Unicycle go-to-goal: turn rate proportional to the bearing, speed reduced when the goal is off

@@ -40,7 +40,7 @@ def _rings(geom):
 def draw_plan(scenario: Scenario, plan: Plan, kinect_tree: KinectTree | None = None,
               scale_px_per_m: float = 60.0, roadmap: bool = True) -> np.ndarray:
     """RGB image ``(H, W, 3) uint8`` of the plan on the scenario's known map."""
-    from parcover_env.planning.scenario import scenario_roadmap
+    from parcover_env.planning.scenario_plan import scenario_roadmap
 
     if not scale_px_per_m > 0:
         raise ValueError(f"scale_px_per_m must be > 0, got {scale_px_per_m}")

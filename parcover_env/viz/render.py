@@ -222,22 +222,36 @@ def _has_display() -> bool:
     return sys.platform in ("win32", "darwin") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
-def show_frame(frame: np.ndarray, window: str, wait_ms: int) -> str:
+_WARNED: set[str] = set()
+"""The reasons ``human`` rendering showed nothing that this process has already warned about."""
+
+
+def show_frame(frame: np.ndarray, window: str, wait_ms: int) -> str | None:
     """Show an RGB frame in an OpenCV window (the ``human`` render mode); returns the window name.
 
-    Raises ParcoverError when there is no display or OpenCV was built without GUI support."""
-    from parcover_env.errors import ParcoverError
-
+    Without a display (no DISPLAY/WAYLAND_DISPLAY) or with an OpenCV built without GUI support
+    (``opencv-python-headless``) it shows nothing and returns None, and warns once per process and
+    reason (a ``UserWarning``): ``render_mode="human"`` runs headless, as the Gymnasium and
+    PettingZoo checkers build it."""
     if not _has_display():
-        raise ParcoverError("render_mode='human' needs a display (no DISPLAY/WAYLAND_DISPLAY); "
-                            "use render_mode='rgb_array'")
+        return _no_window("no display (DISPLAY/WAYLAND_DISPLAY unset)")
     try:
         cv2.imshow(window, cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
         cv2.waitKey(max(1, int(wait_ms)))
     except cv2.error:
-        raise ParcoverError("render_mode='human' needs OpenCV with GUI support (pip install opencv-python, "
-                            "not opencv-python-headless); use render_mode='rgb_array'") from None
+        return _no_window("OpenCV has no GUI support (pip install opencv-python, not opencv-python-headless)")
     return window
+
+
+def _no_window(reason: str) -> None:
+    import warnings
+
+    if reason in _WARNED:
+        return None
+    _WARNED.add(reason)
+    warnings.warn(f"render_mode='human' shows nothing: {reason}; use render_mode='rgb_array' for frames",
+                  UserWarning, stacklevel=4)
+    return None
 
 
 def close_window(window: str) -> None:

@@ -134,6 +134,13 @@ def test_bad_yaml_duplicate_key(tmp_path):
     _assert_one_line(_parcover("run", str(y), "--quiet"), "duplicate key")
 
 
+def test_bad_expert_section_is_one_line_naming_file_and_key(tmp_path):
+    """The expert owns its YAML section; a bad value there stops ``parcover run`` when the expert is built."""
+    y = tmp_path / "bad_expert.yaml"
+    y.write_text((ROOT / "configs" / "t_room.yaml").read_text() + "\nexpert:\n  leader_speed: 1.5\n")
+    _assert_one_line(_parcover("run", str(y), "--quiet"), "bad_expert.yaml", "expert.leader_speed")
+
+
 def test_unknown_policy():
     _assert_one_line(_parcover("run", "office", "--quiet", "--policy", "expret"), "unknown policy")
 

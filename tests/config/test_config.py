@@ -131,13 +131,19 @@ def test_top_level_not_a_mapping(tmp_path):
         load_scenario(path)
 
 
-def test_expert_section_is_typed_validated_and_reachable_from_yaml():
-    from parcover_env.config import ExpertConfig, NavigatorConfig, SonarFixConfig
+def test_expert_section_is_owned_by_the_expert_typed_validated_and_reachable_from_yaml():
+    from parcover_env.expert.config import ExpertConfig, NavigatorConfig, SonarFixConfig, expert_config
 
     s = load_scenario("office", overrides={"expert": {"patience": 3.0, "sonar_fix": {"stale_after": 5.0},
                                                                    "navigator": {"max_axis": 0.3}}})
-    assert s.expert.patience == 3.0 and s.expert.sonar_fix.stale_after == 5.0 and s.expert.navigator.max_axis == 0.3
-    assert load_scenario("office").expert == ExpertConfig()
+    cfg = expert_config(s)
+    assert cfg.patience == 3.0 and cfg.sonar_fix.stale_after == 5.0 and cfg.navigator.max_axis == 0.3
+    assert cfg.leader_speed == ExpertConfig().leader_speed  # keys left out keep their defaults
+    assert expert_config(load_scenario("office")) == ExpertConfig()
+    # the scenario keeps the section as read (the env never reads it), and stays hashable
+    assert s.expert["patience"] == 3.0 and hash(s) == hash(load_scenario("office"))
+    with pytest.raises(ConfigError, match="expert: expected a mapping"):
+        load_scenario("office", overrides={"expert": 5})
     bad = [({"leader_speed": 1.5}, "expert.leader_speed"), ({"slow_margin": 0.01}, "expert.slow_margin"),
            ({"sonar_fix": {"gate_heading_deg": 120.0}}, "expert.sonar_fix.gate_heading_deg"),
            ({"sonar_fix": {"gate_heading_max_deg": 95.0}}, "expert.sonar_fix.gate_heading_max_deg"),
@@ -151,7 +157,7 @@ def test_expert_section_is_typed_validated_and_reachable_from_yaml():
            ({"navigator": {"max_axs": 0.5}}, "did you mean 'max_axis'")]
     for override, key in bad:
         with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
-            load_scenario("office", overrides={"expert": override})
+            expert_config(load_scenario("office", overrides={"expert": override}))
     with pytest.raises(ConfigError, match="stale_after"):
         SonarFixConfig(stale_after=0.0)
     with pytest.raises(ConfigError, match="sector_rule"):

@@ -14,7 +14,6 @@ import pytest
 from pettingzoo.test import render_test
 
 import parcover_env
-from parcover_env.errors import ParcoverError
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -38,6 +37,10 @@ def test_parcover_v0_module_is_the_ideal_preset_without_covariance_entries():
     assert v0.layout.size == v1.layout.size - 5
     assert parcover_v0.env("t_room").unwrapped.scenario == v0.scenario
     assert parcover_v0.raw_env("t_room").scenario == v0.scenario
+    # each version reports its own name (v0 was reported as parcover_v1)
+    assert v0.metadata["name"] == "parcover_v0" and v1.metadata["name"] == "parcover_v1"
+    assert parcover_v0.env("t_room").unwrapped.metadata["name"] == "parcover_v0"
+    assert parcover_env.ParallelCoverageEnv.metadata["name"] == "parcover_v1"
 
 
 def test_human_render_mode_shows_a_window(monkeypatch):
@@ -57,14 +60,45 @@ def test_human_render_mode_shows_a_window(monkeypatch):
     assert ("closed", "parcover office") in shown
 
 
-def test_human_render_without_a_display_is_one_clear_error(monkeypatch):
+def test_human_render_without_a_display_warns_once_and_shows_nothing(monkeypatch):
     from parcover_env.viz import render
 
     monkeypatch.setattr(render, "_has_display", lambda: False)
+    monkeypatch.setattr(render, "_WARNED", set())
+    monkeypatch.setattr(render.cv2, "imshow", lambda *a: pytest.fail("no window may open without a display"))
     env = parcover_env.parallel_env("t_room", render_mode="human")
     env.reset(seed=0)
-    with pytest.raises(ParcoverError, match="needs a display"):
-        env.render()
+    with pytest.warns(UserWarning, match="shows nothing: no display") as caught:
+        assert env.render() is None
+        env.step({a: np.zeros(2, np.float32) for a in env.agents})
+        assert env.render() is None
+    assert len(caught) == 1
+    env.close()
+
+
+def test_human_render_without_opencv_gui_warns_once_and_shows_nothing(monkeypatch):
+    from parcover_env.viz import render
+
+    def no_gui(*args):
+        raise render.cv2.error("The function is not implemented")
+
+    monkeypatch.setattr(render, "_has_display", lambda: True)
+    monkeypatch.setattr(render, "_WARNED", set())
+    monkeypatch.setattr(render.cv2, "imshow", no_gui)
+    env = parcover_env.parallel_env("t_room", render_mode="human")
+    env.reset(seed=0)
+    with pytest.warns(UserWarning, match="no GUI support") as caught:
+        assert env.render() is None and env.render() is None
+    assert len(caught) == 1
+
+
+def test_pettingzoo_render_test_passes_headless(monkeypatch):
+    from parcover_env.viz import render
+
+    monkeypatch.setattr(render, "_has_display", lambda: False)
+    monkeypatch.setattr(render, "_WARNED", set())
+    with pytest.warns(UserWarning, match="shows nothing"):
+        render_test(lambda render_mode=None: parcover_env.env("office", render_mode=render_mode))
 
 
 def test_np_random_is_the_episode_generator():

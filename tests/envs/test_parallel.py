@@ -6,7 +6,7 @@ import copy
 
 import numpy as np
 import pytest
-from pettingzoo.test import api_test, parallel_api_test, render_test
+from pettingzoo.test import api_test, parallel_api_test
 
 import parcover_env
 from parcover_env.envs.metrics import episode_metrics
@@ -30,13 +30,6 @@ def test_aec_api(name):
     api_test(parcover_env.env(name), num_cycles=50)
 
 
-def test_render_via_aec():
-    # render_test first builds an env with render_mode="human" only to read metadata["render_modes"];
-    # we support rgb_array only (no display server), so that probe gets render_mode=None.
-    def make(render_mode=None):
-        return parcover_env.env("office", render_mode=None if render_mode == "human" else render_mode)
-
-    render_test(make)
 
 
 def _rollout(env, seed, steps, action_seed):

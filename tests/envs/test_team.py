@@ -67,12 +67,12 @@ def test_env_records_kinect_splits_and_unseen_leader_time():
     """Office: one Kinect sees the start, the TP and both KPOIs, so the only split is the Kinect's
     and no leader is ever out of view; with the Kinect moved away the split falls back on odometry."""
     import parcover_env
-    from parcover_env.expert.policy import ScriptedExpert
+    from parcover_env.expert import expert_for
 
     def run(overrides):
         env = parcover_env.parallel_env("office", overrides=overrides, preset="ideal")
         obs, _ = env.reset(seed=0)
-        policy = ScriptedExpert.for_env(env)
+        policy = expert_for(env)
         while env.agents:
             obs, _, _, _, infos = env.step(policy.act(obs))
         return episode_metrics(next(iter(infos.values())))

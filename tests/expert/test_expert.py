@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.expert.policy import ScriptedExpert
+from parcover_env.expert import expert_for
+from parcover_env.expert.config import expert_config
+from parcover_env.expert.scripted import ScriptedExpert
 from parcover_env.geometry import rotate
 from parcover_env.harness.rollout import run_episode
 
@@ -21,7 +23,7 @@ CASES = [(name, seed) for seed in (0, 1) for name in SCENARIOS]  # realistic def
 @pytest.mark.parametrize("name,seed", CASES)
 def test_expert_solves_scenario(name, seed):
     env = parcover_env.parallel_env(name)
-    m = run_episode(env, ScriptedExpert.for_env(env), seed)
+    m = run_episode(env, expert_for(env), seed)
     assert m["success"], f"{name} seed {seed}: {m['kpois_visited']}/{m['n_kpois']} KPOIs"
     assert m["wall_collisions"] == 0
     if env.scenario.localization != "sonar":  # stop-and-scan localization (seed B) costs time
@@ -35,7 +37,7 @@ def test_expert_solves_scenario(name, seed):
 @pytest.mark.parametrize("name", ["hallway", "t_room"])
 def test_expert_without_sonar_localization_is_fast(name):
     env = parcover_env.parallel_env(name, overrides={"localization": "kinect"})  # no Kinects: odometry
-    m = run_episode(env, ScriptedExpert.for_env(env), 0)
+    m = run_episode(env, expert_for(env), 0)
     assert m["success"] and m["wall_collisions"] == 0 and m["makespan_ratio"] <= 1.3
 
 
@@ -43,7 +45,7 @@ def test_office_reproduces_seed_a_experiment():
     """Two robots leave S in formation, split at the TP, each reaches its own KPOI (Fig. 11)."""
     env = parcover_env.parallel_env("office")
     obs, _ = env.reset(seed=0)
-    expert = ScriptedExpert.for_env(env)
+    expert = expert_for(env)
     roles = []
     while env.agents:
         roles.append(env.team.leader.copy())
@@ -60,7 +62,7 @@ def test_tree_splits_at_every_tp_and_formation_saves_messages():
     totals = {}
     for mode in ("formation", "individual"):
         env = parcover_env.parallel_env("tree", overrides={"formation": {"mode": mode}})
-        m = run_episode(env, ScriptedExpert.for_env(env), 0)
+        m = run_episode(env, expert_for(env), 0)
         assert m["success"]
         totals[mode] = m["messages"]
         if mode == "formation":
@@ -75,15 +77,15 @@ def test_tree_splits_at_every_tp_and_formation_saves_messages():
 @pytest.mark.parametrize("seed", [3, 7, 11, 25])
 def test_expert_solves_generated_maps(seed):
     env = parcover_env.parallel_env(f"generated:{seed}")
-    m = run_episode(env, ScriptedExpert.for_env(env), seed)
+    m = run_episode(env, expert_for(env), seed)
     assert m["success"], f"generated:{seed}: {m['kpois_visited']}/{m['n_kpois']} KPOIs"
     assert m["sonar_localized"] >= 1
 
 
 def test_expert_takes_its_tunables_from_the_scenario():
     env = parcover_env.parallel_env("office", overrides={"expert": {"leader_speed": 0.5, "front_sector_deg": 10.0}})
-    expert = ScriptedExpert.for_env(env)
-    default = ScriptedExpert.for_env(parcover_env.parallel_env("office"))
+    expert = expert_for(env)
+    default = expert_for(parcover_env.parallel_env("office"))
     assert expert.cfg.leader_speed == 0.5
     assert 0 < len(expert.sonar_front) < len(default.sonar_front)
     obs, _ = env.reset(seed=0)
@@ -99,7 +101,7 @@ def test_expert_takes_its_tunables_from_the_scenario():
 def test_route_tree_waypoint_leads_back_through_the_shared_trunk():
     """A robot carried into a teammate's branch (B) heads for the turning position (2, 0) where its
     own branch (A) leaves, the visible tree vertex with the least straight + along-tree distance."""
-    from parcover_env.expert.policy import route_tree_waypoint
+    from parcover_env.expert.scripted import route_tree_waypoint
 
     routes = (np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]]), np.array([[0.0, 0.0], [2.0, 0.0], [4.0, 0.0]]))
     wall = np.array([[2.2, 0.3, 2.2, 3.0]])  # hides A's branch and the start from the robot
@@ -118,7 +120,7 @@ def test_visible_goal_only_redirects_a_leader_off_its_route_with_a_wall_in_betwe
 
     import parcover_env
 
-    expert = ScriptedExpert.for_env(parcover_env.parallel_env("office", preset="ideal"))
+    expert = expert_for(parcover_env.parallel_env("office", preset="ideal"))
     routes = (np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]]), np.array([[0.0, 0.0], [2.0, 0.0], [4.0, 0.0]]))
     wall = np.array([[2.2, 0.3, 2.2, 3.0]])
     expert.mission = SimpleNamespace(routes=routes, known_map=SimpleNamespace(segments=wall))
@@ -139,7 +141,8 @@ def test_visible_goal_only_redirects_a_leader_off_its_route_with_a_wall_in_betwe
 
 def test_a_follower_out_of_sight_of_the_robot_ahead_for_alone_after_navigates_alone():
     env = parcover_env.parallel_env("generated:18")
-    expert = ScriptedExpert.for_env(env, config=replace(env.scenario.expert, alone_after=0.3))  # 3 steps of 0.1 s
+    cfg = replace(expert_config(env.scenario), alone_after=0.3)  # 3 steps of 0.1 s
+    expert = ScriptedExpert.for_env(env, config=cfg)
     obs = {a: np.zeros(env.layout.size, dtype=np.float32) for a in ("robot_0", "robot_1", "robot_2")}
     for o, lead in zip(obs.values(), (1.0, 0.0, 0.0), strict=True):
         o[env.layout.slices["leader"]] = lead
@@ -157,6 +160,6 @@ def test_expert_keeps_promoted_leaders_identities_on_tree():
     those estimates, robots 6 and 7 swapped identities and robot 6 never reached its KPOI. The Kinect
     system's hand-over (formation poses) keeps them apart."""
     env = parcover_env.parallel_env("tree")
-    m = run_episode(env, ScriptedExpert.for_env(env), 46)
+    m = run_episode(env, expert_for(env), 46)
     assert m["success"] and m["kpois_visited"] == 15
     assert m["localization_error"] < 0.2

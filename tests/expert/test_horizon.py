@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from parcover_env.config import MapConfig, NavigatorConfig, OdometryConfig
+from parcover_env.config import MapConfig, OdometryConfig
+from parcover_env.expert.config import NavigatorConfig
 from parcover_env.expert.horizon import RegionModel, collision_horizon, region_ellipse
 from parcover_env.localization.sonar.subgoals import densify
 from parcover_env.world.map_model import MapModel

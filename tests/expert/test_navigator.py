@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.config import NavigatorConfig
+from parcover_env.expert.config import NavigatorConfig
 from parcover_env.expert.navigator import SonarNavigator, _compose, _inverse
 from parcover_env.geometry import wrap_angle as wrap
 from parcover_env.harness.rollout import run_episode

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import shapely
 
-from parcover_env.config import MapConfig, NavigatorConfig
+from parcover_env.config import MapConfig
+from parcover_env.expert.config import NavigatorConfig
 from parcover_env.expert.rearrange import SubgoalRearranger
 from parcover_env.localization.sonar.features import MapFeature
 from parcover_env.localization.sonar.sectors import Sector

@@ -7,7 +7,8 @@ import pytest
 
 import parcover_env
 from parcover_env.config import SonarConfig
-from parcover_env.expert.policy import ScriptedExpert
+from parcover_env.expert import expert_for
+from parcover_env.expert.scripted import ScriptedExpert
 from parcover_env.geometry.poses import compose, inverse
 from parcover_env.harness.rollout import run_episode
 from parcover_env.localization.sonar.scan import ScanCollector
@@ -40,7 +41,7 @@ def test_out_of_view_leaders_with_sonar_fixes_succeed_and_localize():
     # a generated office has rooms no Kinect sees, where leaders stop for sonar fixes
     env = parcover_env.parallel_env("generated:2")
     assert env.scenario.localization == "both"
-    expert = ScriptedExpert.for_env(env)
+    expert = expert_for(env)
     m = run_episode(env, expert, 35)
     assert m["success"] and m["sonar_localized"] >= 1 and m["sonar_scans"] >= m["sonar_localized"]
 
@@ -52,7 +53,7 @@ def _fixer(cfg):
 
 
 def test_fix_gate_is_the_covariance_ellipse_not_a_circle():
-    from parcover_env.config import SonarFixConfig
+    from parcover_env.expert.config import SonarFixConfig
 
     cfg = SonarFixConfig(gate_distance=0.15, gate_sigmas=4.0, gate_heading_deg=15.0, gate_heading_max_deg=40.0)
     fixer = _fixer(cfg)
@@ -117,7 +118,7 @@ def test_belief_covariance_grows_like_chong_kleeman_on_a_straight_drive():
 
 
 def test_a_refused_fix_is_accepted_when_the_next_scan_confirms_it():
-    from parcover_env.config import SonarFixConfig
+    from parcover_env.expert.config import SonarFixConfig
 
     fixer = _fixer(SonarFixConfig(confirm_distance=0.2, gate_heading_deg=15.0))
     # a refused fix said: the robot is 1 m further along x than its odometry believes
@@ -181,12 +182,14 @@ def test_a_follower_that_sees_its_leader_shares_the_leaders_accuracy():
 def _expert_cfg(env, **sonar_fix):
     from dataclasses import replace
 
-    cfg = env.scenario.expert
+    from parcover_env.expert.config import expert_config
+
+    cfg = expert_config(env.scenario)
     return replace(cfg, sonar_fix=replace(cfg.sonar_fix, **sonar_fix))
 
 
 def test_a_refused_fix_starts_the_next_scan_at_once_up_to_refused_rescans():
-    from parcover_env.config import SonarFixConfig
+    from parcover_env.expert.config import SonarFixConfig
     from parcover_env.expert.sonar_fix import _State
 
     fixer = _fixer(SonarFixConfig(refused_rescans=2, rescan_distance=2.0))
@@ -209,7 +212,7 @@ def test_a_refused_fix_starts_the_next_scan_at_once_up_to_refused_rescans():
 
 
 def test_a_leader_due_for_a_scan_brakes_until_it_stands_still():
-    from parcover_env.config import SonarFixConfig
+    from parcover_env.expert.config import SonarFixConfig
 
     fixer = _fixer(SonarFixConfig(stop_speed=0.005))
     odom, ranges = np.array([1.0, 1.0, 0.0]), np.full(len(fixer.beams), 1.0)
@@ -221,7 +224,7 @@ def test_a_leader_due_for_a_scan_brakes_until_it_stands_still():
 
 
 def test_scans_without_a_fix_widen_the_next_gate_until_a_fix():
-    from parcover_env.config import SonarFixConfig
+    from parcover_env.expert.config import SonarFixConfig
     from parcover_env.expert.sonar_fix import _State
 
     fixer = _fixer(SonarFixConfig(miss_inflation=2.0, max_inflation=8.0, refused_rescans=2))
@@ -268,7 +271,7 @@ def _scan_at(fixer, true):
 
 
 def test_localize_accepts_a_fix_in_the_gate_refuses_one_outside_until_confirmed():
-    from parcover_env.config import SonarFixConfig
+    from parcover_env.expert.config import SonarFixConfig
     from parcover_env.expert.sonar_fix import _State
 
     fixer = _fixer(SonarFixConfig(miss_inflation=2.0))
@@ -306,7 +309,7 @@ def test_localize_accepts_a_fix_in_the_gate_refuses_one_outside_until_confirmed(
 
 
 def test_localize_does_not_use_a_fix_the_scan_does_not_pin_down():
-    from parcover_env.config import SonarFixConfig
+    from parcover_env.expert.config import SonarFixConfig
     from parcover_env.expert.sonar_fix import _State
 
     true = np.array([1.0, 1.0, 0.3])

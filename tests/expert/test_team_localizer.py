@@ -30,12 +30,14 @@ def _scan_pin(size, pose):
     from types import SimpleNamespace
 
     from parcover_env.config.schema import MapConfig
+    from parcover_env.expert.config import expert_config
     from parcover_env.expert.team_localizer import TeamLocalizer, shift_sensitivity
+    from parcover_env.localization.sonar.config import sonar_localizer_config
     from parcover_env.sensors.sonar import simulate_beams
 
     sc = parcover_env.load_scenario("generated:120")
-    team = TeamLocalizer(SimpleNamespace(map=MapConfig(size=size), robot=sc.robot), sc.expert.navigator,
-                         sc.sonar_localizer)
+    team = TeamLocalizer(SimpleNamespace(map=MapConfig(size=size), robot=sc.robot), expert_config(sc).navigator,
+                         sonar_localizer_config(sc))
     pose = np.asarray(pose, dtype=float)
     ranges = simulate_beams(sc.robot.sonar, pose[None, :2], (pose[2] + team.scan_angles)[None, :], team.map.segments,
                             np.zeros((0, 2)), sc.robot.radius, np.array([-1]))[0]

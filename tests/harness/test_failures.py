@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.expert.policy import ScriptedExpert
+from parcover_env.expert import expert_for
 from parcover_env.harness.failures import EpisodeDiagnosis, classify_failure, run_diagnosed
 
 
@@ -37,7 +37,7 @@ def test_classify_failure(changes, cause):
 
 def test_run_diagnosed_on_a_solved_episode():
     env = parcover_env.parallel_env("office")
-    m, d = run_diagnosed(env, ScriptedExpert.for_env(env), 0)
+    m, d = run_diagnosed(env, expert_for(env), 0)
     assert m["success"] and m["cause"] == "solved"
     assert d.visited.all() and np.all(d.closest <= env.scenario.kpoi_radius)
     assert np.all(d.belief_error < 0.1) and np.all(d.clearance > 0)

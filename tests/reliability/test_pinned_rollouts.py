@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.expert.policy import ScriptedExpert
+from parcover_env.expert import expert_for
 
 PINNED = {  # scenario: (random actions, seed 3), (expert, seed 5)
     # expert hashes re-pinned 2026-11-24: the Kinect estimate model projects markers coordinate by
@@ -29,7 +29,7 @@ def rollout_hash(scenario: str, seed: int, expert: bool, steps: int = 150) -> st
     env = parcover_env.parallel_env(scenario, preset="ideal")
     obs, _ = env.reset(seed=seed)
     rng = np.random.default_rng(seed)
-    policy = ScriptedExpert.for_env(env) if expert else None
+    policy = expert_for(env) if expert else None
     digest = hashlib.sha256()
     for _ in range(steps):
         if not env.agents:

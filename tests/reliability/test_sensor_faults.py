@@ -9,7 +9,7 @@ import pytest
 
 import parcover_env as pe
 from parcover_env.config.typed import to_mapping
-from parcover_env.expert.policy import ScriptedExpert
+from parcover_env.expert import expert_for
 
 STEPS = 300
 
@@ -23,7 +23,7 @@ def _kinect_overrides(name: str, drop: float) -> dict:
 
 def _run(overrides: dict, seed: int = 0, steps: int = STEPS) -> tuple[dict, list[np.ndarray], object]:
     env = pe.parallel_env("office", overrides=overrides)
-    expert = ScriptedExpert.for_env(env)
+    expert = expert_for(env)
     obs, _ = env.reset(seed=seed)
     expert.reset(obs)
     ages = []

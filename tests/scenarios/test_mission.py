@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.expert.policy import ScriptedExpert
-from parcover_env.planning import scenario as planning_scenario
+from parcover_env.expert import expert_for
+from parcover_env.planning import scenario_plan as planning_scenario
 from parcover_env.scenarios import mission as mission_module
 from parcover_env.world import map_model as map_module
 
@@ -45,7 +45,7 @@ def test_a_second_env_and_the_expert_reuse_the_mission(counters):
     first = parcover_env.parallel_env("office")
     second = parcover_env.parallel_env("office")
     obs, _ = second.reset(seed=1)
-    ScriptedExpert.for_env(second).act(obs)
+    expert_for(second).act(obs)
     assert counters == {"maps": 2, "missions": 1}
     assert second.mission is first.mission
 

@@ -11,7 +11,7 @@ corner's two walls give the heading (map normal angle minus measured bearing) an
 the two wall-distance equations ``n_i . (p - c) = d_i``. With only one wall matched, the corner's
 measured range/bearing (an M point) gives the position.
 
-Extensions beyond the paper, each a switch of :class:`~parcover_env.config.SonarLocalizerConfig`
+Extensions beyond the paper, each a switch of :class:`~parcover_env.localization.sonar.config.SonarLocalizerConfig`
 (all on by default; ``SonarLocalizerConfig.paper_method()`` turns them off):
 
 * ``arc_fallback``: a pair whose walls give no pose near the ellipse tries poses on the circle of

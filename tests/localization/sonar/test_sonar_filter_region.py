@@ -7,8 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from parcover_env.config import ConfigError, MapConfig, SonarConfig, SonarLocalizerConfig
+from parcover_env.config import ConfigError, MapConfig, SonarConfig
 from parcover_env.localization.sonar import compute_sectors, map_features
+from parcover_env.localization.sonar.config import SonarLocalizerConfig, sonar_localizer_config
 from parcover_env.localization.sonar.filter import filter_scan
 from parcover_env.localization.sonar.localizer import Ellipse, localize
 from parcover_env.scenarios import load_scenario
@@ -87,13 +88,14 @@ def test_localize_accepts_a_position_covariance():
     assert far.pose is None or np.linalg.norm(far.pose[:2] - pose[:2]) > 1.0
 
 
-def test_localizer_config_lives_in_the_scenario_schema():
+def test_localizer_configs_are_read_from_the_scenario_yaml():
     s = load_scenario("t_room", {"sonar_localizer": {"filter": False, "filter_repeats": 5},
                                  "kinect_tracking": {"gate": 0.8}})
-    assert s.sonar_localizer.filter is False and s.sonar_localizer.filter_repeats == 5
+    loc = sonar_localizer_config(s)  # the localizer owns its section's schema
+    assert loc.filter is False and loc.filter_repeats == 5 and loc.window == SonarLocalizerConfig().window
     assert s.kinect_tracking.gate == 0.8
     assert load_scenario("t_room").kinect_tracking.gate == 1.0
     with pytest.raises(ConfigError, match="sonar_localizer.filter_repeats"):
-        load_scenario("t_room", {"sonar_localizer": {"filter_repeats": 0}})
+        sonar_localizer_config(load_scenario("t_room", {"sonar_localizer": {"filter_repeats": 0}}))
     with pytest.raises(ConfigError, match="kinect_tracking.fuse_radius"):
         load_scenario("t_room", {"kinect_tracking": {"gate": 0.1, "fuse_radius": 0.2}})

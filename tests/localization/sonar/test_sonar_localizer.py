@@ -8,8 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from parcover_env.config import MapConfig, SonarConfig, SonarLocalizerConfig
+from parcover_env.config import MapConfig, SonarConfig
 from parcover_env.errors import ConfigError
+from parcover_env.localization.sonar.config import SonarLocalizerConfig
 from parcover_env.localization.sonar.features import map_features
 from parcover_env.localization.sonar.localizer import Ellipse, localize
 from parcover_env.localization.sonar.sectors import compute_sectors

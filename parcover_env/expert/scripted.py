@@ -19,39 +19,40 @@ env internals. Roles (leader/follower), splits at TPs, and waypoints come from t
   ``patience`` (plus ``patience_stagger`` per robot index, so two robots never give way together)
   backs off briefly while turning, which breaks face-to-face deadlocks.
 
-Every tunable is a field of the scenario's ``expert`` section (:class:`~parcover_env.config.ExpertConfig`).
+Every tunable is a field of the scenario's ``expert`` section (:class:`~parcover_env.expert.config.ExpertConfig`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from parcover_env.config import ExpertConfig
 from parcover_env.control.follower import LeaderVelocityEstimator, l_psi_control, relative_l_psi
 from parcover_env.control.leader import go_to_goal
 from parcover_env.envs.observations import ObservationLayout
 from parcover_env.expert.avoidance import brake_factor
+from parcover_env.expert.config import ExpertConfig, expert_config
 from parcover_env.expert.sonar_fix import chain_pose, covariance_from_entries
 from parcover_env.geometry import atan2, rotate, segments_blocked, wrap_angle
 from parcover_env.geometry.poses import compose, inverse
 from parcover_env.geometry.rays import point_segment_distance
+from parcover_env.policies.protocol import Policy
 from parcover_env.scenarios import Mission, RouteTracker
 
 __all__ = ["ScriptedExpert"]
 
 
-class ScriptedExpert:
+class ScriptedExpert(Policy):
     """Seed A's robots as a policy: ``for_env(env)``, ``reset(obs)``, ``act(obs) -> actions``, ``stats()``.
 
     Every tunable comes from ``config`` (default: the scenario's ``expert`` section,
-    :class:`~parcover_env.config.ExpertConfig`).
+    :class:`~parcover_env.expert.config.ExpertConfig`).
     """
 
     def __init__(self, layout: ObservationLayout, mission: Mission, sonar_angles: np.ndarray | None = None,
                  config: ExpertConfig | None = None):
         self.layout, self.mission = layout, mission
         self.scenario = scenario = mission.scenario
-        self.cfg = cfg = config if config is not None else scenario.expert
+        self.cfg = cfg = config if config is not None else expert_config(scenario)
         self.plan = mission.plan
         self.dt = control_dt = scenario.physics.control_dt
         r = scenario.robot
@@ -78,16 +79,12 @@ class ScriptedExpert:
         self._last_odom = np.zeros((mission.n_robots, 3))
 
     @classmethod
-    def for_env(cls, env, **kwargs):
+    def for_env(cls, env, **kwargs) -> ScriptedExpert:
         """Build from an env's public spec: observation layout, mission (scenario, plan), sonar beams.
 
-        With ``localization: sonar`` the robots localize by stop-and-scan instead (seed B): the
-        returned policy is a :class:`~parcover_env.expert.navigator.SonarNavigator`.
+        Always a ScriptedExpert; :func:`parcover_env.expert.expert_for` picks the expert that suits
+        the scenario's localization mode (the stop-and-scan navigator with ``localization: sonar``).
         """
-        if env.scenario.localization == "sonar" and env.sonar is not None:
-            from parcover_env.expert.navigator import SonarNavigator
-
-            return SonarNavigator.for_env(env, **kwargs)
         angles = env.sonar.beam_angles if env.sonar is not None else None
         return cls(env.layout, env.mission, angles, **kwargs)
 

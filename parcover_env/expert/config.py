@@ -1,7 +1,9 @@
-"""Tunables of the scripted expert: ``Scenario.expert`` (YAML key ``expert``).
+"""Tunables of the scripted experts, read from a scenario's ``expert`` section: :func:`expert_config`.
 
-The env never reads these; they are the expert's controller gains, margins and timeouts, kept in
-the schema so that every number the expert uses is documented, validated and reachable from YAML:
+The env never reads these; they are the experts' controller gains, margins and timeouts, owned by
+the expert (the ``Scenario`` keeps the YAML section as a plain mapping), documented, validated
+(a ``ConfigError`` naming the file and the ``expert.*`` key when an expert is built) and reachable
+from YAML:
 
 .. code-block:: yaml
 
@@ -15,9 +17,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from parcover_env.config import Scenario, from_mapping
 from parcover_env.config.checks import check, positive
 
-__all__ = ["ExpertConfig", "NavigatorConfig", "SonarFixConfig"]
+__all__ = ["ExpertConfig", "NavigatorConfig", "SonarFixConfig", "expert_config"]
 
 
 @dataclass(frozen=True)
@@ -196,10 +199,10 @@ class NavigatorConfig:
         check(self.mask_sigmas >= 0, "mask_sigmas", f"must be >= 0, got {self.mask_sigmas}")
         check(0 < self.min_unmasked_share <= 1, "min_unmasked_share",
               f"must be in (0, 1], got {self.min_unmasked_share}")
-        positive(self, "region_sigmas")
-        positive(self, "node_step", "stop_speed", "rate_distance", "max_axis", "min_advance", "lookahead",
-                 "arrive_tol", "goal_tol", "scan_rate", "bin_tol_deg", "shift_step", "initial_axis", "accept_error",
-                 "front_sector_deg")
+        for name in ("region_sigmas", "node_step", "stop_speed", "rate_distance", "max_axis", "min_advance",
+                     "lookahead", "arrive_tol", "goal_tol", "scan_rate", "bin_tol_deg", "shift_step", "initial_axis",
+                     "accept_error", "front_sector_deg"):
+            positive(self, name)
         for name in ("rate_rotation", "max_shift", "separation_margin", "drive_timeout", "min_wall_length",
                      "range_margin", "tie_tol_deg", "stop_margin"):
             check(getattr(self, name) >= 0, name, f"must be >= 0, got {getattr(self, name)}")
@@ -266,3 +269,9 @@ class ExpertConfig:
         check(self.patience_stagger >= 0, "patience_stagger", f"must be >= 0, got {self.patience_stagger}")
         check(self.off_route_distance > 0, "off_route_distance", f"must be > 0, got {self.off_route_distance}")
         check(self.front_sector_deg <= 180, "front_sector_deg", f"must be <= 180, got {self.front_sector_deg}")
+
+
+def expert_config(scenario: Scenario) -> ExpertConfig:
+    """The ``expert`` section of ``scenario`` as a validated :class:`ExpertConfig` (defaults for
+    missing keys); a bad value raises ``ConfigError`` naming the scenario file and ``expert.<key>``."""
+    return from_mapping(ExpertConfig, scenario.expert, scenario.source, "expert")
