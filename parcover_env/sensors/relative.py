@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from parcover_env.geometry import sight_lines_blocked
+from parcover_env.sensors import onboard_kernels
 
 __all__ = ["RelativeCamera", "RelativeReading", "lines_of_sight_blocked"]
 
@@ -44,8 +45,6 @@ class RelativeCamera:
         """``poses (N, 3)`` true poses; ``predecessor (N,)`` index of the robot each one follows, -1 none.
         ``blocked (N,)``: whether a wall cuts each robot's line of sight to its predecessor, if
         already computed (:func:`lines_of_sight_blocked` over batched worlds)."""
-        from parcover_env.sensors import _onboard_kernels
-
         poses = np.asarray(poses, dtype=float)
         predecessor = np.ascontiguousarray(predecessor, dtype=np.int64)
         n = len(poses)
@@ -53,12 +52,18 @@ class RelativeCamera:
         if blocked is None:
             walls = np.ascontiguousarray(segments, dtype=float).reshape(-1, 4)
             blocked = sight_lines_blocked(px, py, predecessor, walls)
-        rel_xy, rel_heading, visible = np.empty((n, 2)), np.empty(n), np.empty(n, dtype=bool)
+        view = onboard_kernels.CameraView(np.empty((n, 2)), np.empty(n), np.empty(n, dtype=bool))
         z = rng.standard_normal((3, int(np.count_nonzero(predecessor >= 0))))  # range, bearing, heading
-        _onboard_kernels.camera_view(px, py, pth, predecessor, np.ascontiguousarray(blocked, dtype=bool), z,
-                                     float(self.max_range), math.radians(self.fov_deg) / 2, float(self.range_noise),
-                                     float(self.bearing_noise), float(self.heading_noise), rel_xy, rel_heading, visible)
-        return RelativeReading(rel_xy, rel_heading, visible)
+        onboard_kernels.camera_view(px, py, pth, predecessor, np.ascontiguousarray(blocked, dtype=bool), z,
+                                    self.spec, view)
+        return RelativeReading(*view)
+
+    @property
+    def spec(self) -> onboard_kernels.CameraSpec:
+        """The camera's reach and noise as the compiled camera reads them (SI units, half the FOV)."""
+        return onboard_kernels.CameraSpec(float(self.max_range), math.radians(self.fov_deg) / 2,
+                                           float(self.range_noise), float(self.bearing_noise),
+                                           float(self.heading_noise))
 
 
 def lines_of_sight_blocked(poses: np.ndarray, predecessor: np.ndarray, segments: np.ndarray) -> np.ndarray:

@@ -4,7 +4,7 @@ Geometry and conventions
 - The transducers sit at the robot centre (a documented simplification: ranges are measured from
   the centre, so a wall touching the robot reads ``robot_radius``). Beam angles are in the robot
   frame, counter-clockwise from the heading. All rays are cast with the formulas of
-  :mod:`parcover_env.geometry.rays` (its compiled per-ray helpers, in :mod:`._sonar_kernels`).
+  :mod:`parcover_env.geometry.rays` (its compiled per-ray helpers, in :mod:`.sonar_kernels`).
 - ``model: ray`` — one ideal ray along each beam axis; reading = first hit (walls or other robots).
 - ``model: specular`` (default) — each beam is a cone of ``cone_deg`` sampled by ``n_subrays`` rays (the
   axis direction rotated by each sub-ray's offset). Overlapping cones share the sub-rays that point
@@ -36,6 +36,7 @@ import numpy as np
 from parcover_env.config import SonarConfig
 from parcover_env.geometry import rays
 from parcover_env.geometry.angles import wrap_angle
+from parcover_env.sensors import sonar_kernels as kern
 
 __all__ = ["SonarRing", "AMIGOBOT_ANGLES_DEG", "concave_corners", "simulate_beams", "crosstalk"]
 
@@ -50,12 +51,14 @@ _NUDGE = 1e-7
 class _Walls:
     """What the sonar kernels need of a wall set, derived once per set (read-only arrays)."""
 
-    segments: np.ndarray
-    """``(S, 4)`` C-contiguous."""
-    lengths: np.ndarray
-    """``(S,)`` length of each segment (m)."""
-    corners: tuple[np.ndarray, np.ndarray, np.ndarray]
+    kernel: kern.WallSet
+    """Segments ``(S, 4)`` C-contiguous and their lengths (m)."""
+    corners: kern.Corners
     """Corner vertices and their wall directions (:func:`concave_corners`)."""
+
+    @property
+    def segments(self) -> np.ndarray:
+        return self.kernel.segments
 
 
 @lru_cache(maxsize=32)
@@ -81,10 +84,10 @@ def _walls_of(seg_bytes: bytes, n: int) -> _Walls:
         pts.append(vv)
         u1s.append(u1)
         u2s.append(u2)
-    corners = (np.array(pts), np.array(u1s), np.array(u2s)) if pts else (np.zeros((0, 2)),) * 3
+    corners = kern.Corners(*((np.array(pts), np.array(u1s), np.array(u2s)) if pts else (np.zeros((0, 2)),) * 3))
     for a in (lengths, *corners):
         a.setflags(write=False)
-    return _Walls(segs, lengths, corners)
+    return _Walls(kern.WallSet(segs, lengths), corners)
 
 
 def _walls(segments: np.ndarray) -> _Walls:
@@ -169,22 +172,20 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     n, b = axes.shape
     rmax = float(cfg.range_max)
     walls = _walls(segments)
-    offsets, specular = _cone(cfg, n_subrays, walls)
+    offsets = _offsets(cfg, n_subrays)
+    rules = _echo_rules(cfg, rays.BOX_CULL)
     # one compiled pass over all sub-rays of all robots: walls, discs, incidence, second bounces
     origins = np.asarray(origins, dtype=float).reshape(-1, 2)
     ox, oy = np.ascontiguousarray(origins[:, 0]), np.ascontiguousarray(origins[:, 1])
     axes = np.ascontiguousarray(axes, dtype=float)
-    cx, cy, r2, owner_ = rays.disc_planes(centres, float(radius), owner, n)
-    idx, cnt = rays.near_segments(ox, oy, walls.segments, rmax)
+    discs = kern.Discs(*rays.disc_planes(centres, float(radius), owner, n))
+    near = kern.NearWalls(*rays.near_segments(ox, oy, walls.segments, rmax))
     reading = np.empty((n, b))
-    from parcover_env.sensors import _sonar_kernels as kern
-
-    kern.sonar_echoes(ox, oy, axes, offsets, _share(axes, offsets), walls.segments, walls.lengths, idx, cnt, cx, cy,
-                      r2, owner_, rmax, specular, bool(cfg.multipath), _cos_min(cfg), _NUDGE, rays.BOX_CULL, reading)
-    pts, u1, u2 = walls.corners
-    if specular and len(pts):  # concave corners inside a cone retro-reflect (lowers ``reading`` in place)
-        kern.sonar_corner_echoes(ox, oy, axes, pts, u1, u2, walls.segments, idx, cnt, cx, cy, r2, owner_, rmax,
-                                 _half_cone(cfg), reading)
+    kern.sonar_echoes(ox, oy, axes, kern.Cone(offsets, _share(axes, offsets)), walls.kernel, near, discs, rules,
+                      reading)
+    if rules.specular and len(walls.corners.points):  # concave corners in a cone retro-reflect (lower ``reading``)
+        kern.sonar_corner_echoes(ox, oy, axes, walls.corners, walls.segments, near, discs, rmax, _half_cone(cfg),
+                                 reading)
     return np.minimum(reading, rmax, out=reading)
 
 
@@ -197,10 +198,18 @@ def _offsets(cfg: SonarConfig, n_subrays: int) -> np.ndarray:
     return _subray_offsets(float(cfg.cone_deg), n_subrays) if cfg.model == "specular" else _AXIS_ONLY
 
 
-def _cone(cfg: SonarConfig, n_subrays: int, walls: _Walls) -> tuple[np.ndarray, bool]:
-    """A beam's sub-ray offsets (rad) and whether the specular rules apply (the model, and walls to
-    apply them to)."""
-    return _offsets(cfg, n_subrays), cfg.model == "specular" and len(walls.segments) > 0
+def _echo_rules(cfg: SonarConfig, box_cull: bool) -> kern.EchoRules:
+    """The echo rules of the compiled sonar (the specular ones apply only where there are walls)."""
+    return kern.EchoRules(range_max=float(cfg.range_max), specular=cfg.model == "specular",
+                          multipath=bool(cfg.multipath), cos_min=_cos_min(cfg), nudge=_NUDGE, box_cull=bool(box_cull))
+
+
+def _noise_rules(cfg: SonarConfig) -> kern.NoiseRules:
+    """The noise rules of the compiled sonar (:meth:`SonarRing.corrupt`)."""
+    return kern.NoiseRules(range_min=float(cfg.range_min), range_max=float(cfg.range_max),
+                           drop_below=cfg.below_min == "drop", noise_std=float(cfg.noise_std),
+                           noise_rel=float(cfg.noise_rel), quantization=float(cfg.quantization),
+                           garbage_rate=float(cfg.garbage_rate))
 
 
 def _cos_min(cfg: SonarConfig) -> float:
@@ -233,13 +242,14 @@ class SonarRing:
         self._checked: np.ndarray | None = None
         """The last wall array :meth:`measure` checked, if frozen (:func:`_frozen`)."""
         self._beams = np.ascontiguousarray(self.beam_angles, dtype=float)
-        self._share = _share(self._beams[None], _offsets(cfg, self.n_subrays))
-        """The ring's shared sub-rays (:func:`_share`)."""
-        self._all_round = _covers_circle(self._beams.tobytes(), _half_cone(cfg))
-        self._par = np.array([cfg.range_max, _cos_min(cfg), _NUDGE,
-                              rays.NEAR_SLACK, _half_cone(cfg), cfg.crosstalk_prob, cfg.range_min, cfg.noise_std,
-                              cfg.noise_rel, cfg.quantization, cfg.garbage_rate], dtype=float)
-        """The constants of :func:`~parcover_env.sensors._sonar_kernels.ring_readings`."""
+        offsets = _offsets(cfg, self.n_subrays)
+        self._noise = _noise_rules(cfg)
+        self._model = kern.RingModel(
+            beams=self._beams, cone=kern.Cone(offsets, _share(self._beams[None], offsets)),
+            echo=_echo_rules(cfg, True), half_cone=_half_cone(cfg),
+            all_round=_covers_circle(self._beams.tobytes(), _half_cone(cfg)), near_slack=rays.NEAR_SLACK,
+            crosstalk_prob=float(cfg.crosstalk_prob), noise=self._noise)
+        """The constants of :func:`~parcover_env.sensors.sonar_kernels.ring_readings`."""
 
     @property
     def n_beams(self) -> int:
@@ -287,22 +297,16 @@ class SonarRing:
                  draws: list[tuple[np.ndarray, ...]]) -> np.ndarray:
         """Readings ``(K, N, B)`` float32 of ``K`` worlds sharing the walls ``segments``, robots ``poses
         (K, N, 3)`` that see the robots of their own world, with each world's :meth:`draw`: one
-        compiled call (:func:`~parcover_env.sensors._sonar_kernels.ring_readings`). World ``k``
+        compiled call (:func:`~parcover_env.sensors.sonar_kernels.ring_readings`). World ``k``
         reads what :meth:`measure` reads for it alone with a generator that gives those draws."""
-        from parcover_env.sensors import _sonar_kernels
-
-        cfg, walls = self.cfg, _walls(segments)
+        walls = _walls(segments)
         poses = np.asarray(poses, dtype=float)
         k, n, nb = poses.shape[0], poses.shape[1], self.n_beams
-        talk, z, bad, junk = (np.concatenate(parts) if k > 1 else parts[0] for parts in zip(*draws, strict=True))
-        offsets, specular = _cone(cfg, self.n_subrays, walls)
-        pts, u1, u2 = walls.corners
+        flat = kern.Draws(*(np.concatenate(parts) if k > 1 else parts[0] for parts in zip(*draws, strict=True)))
         out = np.empty((k * n, nb), dtype=np.float32)
         px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
         r = float(robot_radius)
-        _sonar_kernels.ring_readings(px, py, pth, r * r, self._beams, offsets, self._share, walls.segments,
-                                       walls.lengths, pts, u1, u2, specular, bool(cfg.multipath), self._all_round,
-                                       cfg.below_min == "drop", self._par, talk, z, bad, junk, out)
+        kern.ring_readings(px, py, pth, r * r, self._model, walls.kernel, walls.corners, flat, out)
         return out.reshape(k, n, nb)
 
     def ideal_batch(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float) -> np.ndarray:
@@ -341,20 +345,14 @@ class SonarRing:
     def _noisy(self, ideal, heard: np.ndarray | None, rng: np.random.Generator | None, dtype) -> np.ndarray:
         """Readings from noise-free ranges: cross-talk with ``heard`` (if given, at ``crosstalk_prob``),
         then :meth:`corrupt`'s steps; one compiled pass drawing from ``rng``
-        (:func:`~parcover_env.sensors._sonar_kernels.ring_noise`)."""
-        from parcover_env.sensors import _sonar_kernels
-
-        cfg = self.cfg
+        (:func:`~parcover_env.sensors.sonar_kernels.ring_noise`)."""
         ideal = np.asarray(ideal, dtype=float)
         rows = np.ascontiguousarray(ideal.reshape(-1, ideal.shape[-1]) if ideal.ndim else ideal.reshape(1, 1))
         out = np.empty(rows.shape, dtype=dtype)
         talk = heard is not None
         heard = np.ascontiguousarray(heard, dtype=float).reshape(rows.shape) if talk else rows
-        _sonar_kernels.ring_noise(rows, heard, float(cfg.crosstalk_prob) if talk else 0.0,
-                                    *self._draws(rows.size, rng, talk),
-                                    float(cfg.range_min), float(cfg.range_max), cfg.below_min == "drop",
-                                    float(cfg.noise_std), float(cfg.noise_rel), float(cfg.quantization),
-                                    float(cfg.garbage_rate), out)
+        kern.ring_noise(rows, heard, float(self.cfg.crosstalk_prob) if talk else 0.0,
+                        kern.Draws(*self._draws(rows.size, rng, talk)), self._noise, out)
         return out.reshape(ideal.shape)
 
 
@@ -377,13 +375,10 @@ def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segm
     want = np.ones((k, n, nb), dtype=bool) if want is None else np.ascontiguousarray(want, dtype=bool)
     segments = _walls(segments).segments
     px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
-    idx, cnt = rays.near_segments(px.reshape(-1), py.reshape(-1), segments, 2 * float(cfg.range_max))
+    near = kern.NearWalls(*rays.near_segments(px.reshape(-1), py.reshape(-1), segments, 2 * float(cfg.range_max)))
     beams = np.ascontiguousarray(beam_angles, dtype=float)
-    from parcover_env.sensors import _sonar_kernels
-
-    _sonar_kernels.sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments,
-                                   idx, cnt,
-                                   _half_cone(cfg), float(cfg.range_max), want, out)
+    kern.sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments, near,
+                         _half_cone(cfg), float(cfg.range_max), want, out)
     return out
 
 

@@ -233,8 +233,8 @@ def test_near_segments_lists_the_segments_within_reach_by_point_to_segment_dista
 
 
 def test_in_cone_equals_the_wrapped_angle_test():
-    from parcover_env.geometry._ray_kernels import _in_cone
     from parcover_env.geometry.angles import wrap_angle
+    from parcover_env.geometry.ray_kernels import in_cone
 
     rng = np.random.default_rng(0)
     halves = [0.0, 1e-12, 0.26, math.pi / 2, math.pi - 1e-12, math.pi, 4.0]
@@ -243,7 +243,7 @@ def test_in_cone_equals_the_wrapped_angle_test():
     angles = np.concatenate([rng.uniform(-25, 25, 4000), edges, shifted, [-e for e in edges]])
     for half in halves:
         want = [bool(abs(wrap_angle(a)) <= half) for a in angles]
-        assert [bool(_in_cone(a, half)) for a in angles] == want
+        assert [bool(in_cone(a, half)) for a in angles] == want
 
 
 def test_disc_planes_with_one_radius_equal_the_broadcast_radii():

@@ -168,7 +168,7 @@ def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit():
     legs, disc culls) reads bit for bit what tracing every sub-ray's two legs against every wall and
     robot reads, in a room of oblique walls with a crowd of robots."""
     from parcover_env.geometry import rays
-    from parcover_env.sensors import _sonar_kernels
+    from parcover_env.sensors import sonar_kernels as kern
     from parcover_env.sensors.sonar import _NUDGE, _share, _subray_offsets, _walls
 
     cfg = SonarConfig()
@@ -182,15 +182,16 @@ def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit():
         xy = np.column_stack([rng.uniform(0.3, 3.5, 10), rng.uniform(0.3, 2.8, 10)])
         axes = np.ascontiguousarray(rng.uniform(-4, 4, (10, 1)) + ring.beam_angles[None, :])
         ox, oy = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
-        cx, cy, r2, owner = rays.disc_planes(xy, 0.15, np.arange(10), 10)
-        idx, cnt = rays.near_segments(ox, oy, walls.segments, cfg.range_max)
+        discs = kern.Discs(*rays.disc_planes(xy, 0.15, np.arange(10), 10))
+        near = kern.NearWalls(*rays.near_segments(ox, oy, walls.segments, cfg.range_max))
         got = np.empty((10, ring.n_beams))
-        share = _share(axes, offsets)
-        _sonar_kernels.sonar_echoes(ox, oy, axes, offsets, share, walls.segments, walls.lengths, idx, cnt, cx, cy, r2,
-                                    owner, cfg.range_max, True, True, cos_min, _NUDGE, True, got)
+        rules = kern.EchoRules(range_max=cfg.range_max, specular=True, multipath=True, cos_min=cos_min, nudge=_NUDGE,
+                               box_cull=True)
+        kern.sonar_echoes(ox, oy, axes, kern.Cone(offsets, _share(axes, offsets)), walls.kernel, near, discs, rules,
+                          got)
         for n in range(10):
             others = [tuple(p) for i, p in enumerate(xy) if i != n]
-            want = _specular_reference(ox[n], oy[n], axes[n], offsets, walls.segments, walls.lengths, others,
+            want = _specular_reference(ox[n], oy[n], axes[n], offsets, walls.segments, walls.kernel.lengths, others,
                                        0.15 * 0.15, cfg.range_max, cos_min, _NUDGE)
             assert got[n].tobytes() == np.array(want).tobytes(), n
         n_mirrored += int(((got > 2.0) & np.isfinite(got)).sum())

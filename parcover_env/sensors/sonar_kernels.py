@@ -1,45 +1,178 @@
-"""Compiled (numba) loops of the sonar ring (:mod:`parcover_env.sensors.sonar`; import only through
-it): the specular cone with its second legs and concave corners, cross-talk, noise, and the whole
-ring of every robot of K worlds in one call. They cast rays with the per-ray helpers of
-:mod:`parcover_env.geometry._ray_kernels` (same float operations, no fast-math).
+"""Compiled (numba) loops of the sonar ring, the internals of :mod:`parcover_env.sensors.sonar`
+(public so that tests and other rooms may use them): the specular cone with its second legs and
+concave corners, cross-talk, noise, and the whole ring of every robot of K worlds in one call. They
+cast rays with the per-ray helpers of :mod:`parcover_env.geometry.ray_kernels` (same float
+operations, no fast-math).
 
-The caller draws the random numbers (numpy, the episode's generator, whole arrays in the order the
-numpy formulas drew them) and hands them in: passing a ``Generator`` to a compiled function costs
-about 5 us per call. ``tests/sensors/test_sonar.py`` keeps plain-Python and numpy references.
+The kernels take named records (the ``NamedTuple`` classes below) instead of long argument lists;
+numba reads their fields at compile time. The caller draws the random numbers (numpy, the episode's
+generator, whole arrays in the order the numpy formulas drew them) and hands them in as
+:class:`Draws`: passing a ``Generator`` to a compiled function costs about 5 us per call.
+``tests/references/sonar.py`` keeps the plain-Python references.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from parcover_env.geometry._ray_kernels import (
-    _COS_FLOOR,
-    _disc_hit,
-    _disc_hit_from,
-    _in_cone,
-    _segment_hit,
-    near_segments,
-)
+from parcover_env.geometry.ray_kernels import COS_FLOOR, disc_hit, disc_hit_from, in_cone, near_segments, segment_hit
+
+__all__ = ["WallSet", "NearWalls", "Discs", "Corners", "Cone", "EchoRules", "NoiseRules", "Draws", "RingModel",
+           "sonar_echoes", "sonar_corner_echoes", "sonar_crosstalk", "ring_noise", "ring_readings"]
+
+
+class WallSet(NamedTuple):
+    """The walls a ring sees."""
+
+    segments: np.ndarray
+    """``(S, 4)`` float64 C-contiguous rows ``(x1, y1, x2, y2)`` (m)."""
+    lengths: np.ndarray
+    """``(S,)`` length of each segment (m)."""
+
+
+class NearWalls(NamedTuple):
+    """Per origin ``o``, the walls within a path length of it: ``idx[o, :cnt[o]]`` (ascending), as
+    :func:`~parcover_env.geometry.ray_kernels.near_segments` writes them."""
+
+    idx: np.ndarray
+    """``(N, S)`` int64."""
+    cnt: np.ndarray
+    """``(N,)`` int64."""
+
+
+class Discs(NamedTuple):
+    """Robot discs that block and echo, as :func:`parcover_env.geometry.rays.disc_planes` lays them out."""
+
+    cx: np.ndarray
+    """``(C, D)`` centres' x: row ``o`` for origin ``o`` if ``C > 1`` (a set per origin), else row 0 (m)."""
+    cy: np.ndarray
+    """``(C, D)`` centres' y (m)."""
+    r2: np.ndarray
+    """``(D,)`` squared radii (m^2)."""
+    owner: np.ndarray
+    """``(N,)`` int64: the disc of origin ``o`` itself (never hit), -1 if none."""
+
+
+class Corners(NamedTuple):
+    """Corner vertices of a wall set and the unit directions of their two walls
+    (:func:`parcover_env.sensors.sonar.concave_corners`)."""
+
+    points: np.ndarray
+    """``(C, 2)`` (m)."""
+    u1: np.ndarray
+    """``(C, 2)``."""
+    u2: np.ndarray
+    """``(C, 2)``."""
+
+
+class Cone(NamedTuple):
+    """The sub-rays of a ring's beams."""
+
+    offsets: np.ndarray
+    """``(J,)`` angles of a beam's sub-rays about its axis (rad)."""
+    share: np.ndarray
+    """``(B, J)`` int64: for beam ``b`` and sub-ray ``j``, the flat index ``b' * J + j'`` of the sub-ray
+    traced for that pair (``b' * J + j' <= b * J + j``), its own index the first time a direction
+    comes up (overlapping cones share sub-rays)."""
+
+
+class EchoRules(NamedTuple):
+    """How a sub-ray echoes (:func:`sonar_echoes`)."""
+
+    range_max: float
+    """A path longer than this returns nothing (m)."""
+    specular: bool
+    """Walls echo only near the normal (else every hit echoes)."""
+    multipath: bool
+    """An oblique wall mirrors the sub-ray, which may echo off the next surface."""
+    cos_min: float
+    """Smallest ``|cos|`` of incidence at which a wall echoes."""
+    nudge: float
+    """A mirrored sub-ray starts this far off the wall it left (m)."""
+    box_cull: bool
+    """Box-cull the walls of a cast (never changes a result)."""
+
+
+class NoiseRules(NamedTuple):
+    """What happens to a noise-free range (:func:`ring_noise`)."""
+
+    range_min: float
+    """(m)."""
+    range_max: float
+    """No echo reads this (m)."""
+    drop_below: bool
+    """Echoes nearer than ``range_min`` are lost (else clipped)."""
+    noise_std: float
+    """Gaussian noise sigma (m) ..."""
+    noise_rel: float
+    """... plus this times the range."""
+    quantization: float
+    """Echoes are rounded to multiples of this (m); 0: not."""
+    garbage_rate: float
+    """Probability of a reading uniform in the range."""
+
+
+class Draws(NamedTuple):
+    """The random numbers of a ring's readings, flat ``(R,)`` arrays (world after world, robot after
+    robot, beam after beam), empty where that step is off."""
+
+    talk: np.ndarray
+    """Uniforms: cross-talk where below its probability."""
+    z: np.ndarray
+    """Standard normals: the noise."""
+    bad: np.ndarray
+    """Uniforms: a garbage reading where below its rate."""
+    junk: np.ndarray
+    """Uniforms in ``[range_min, range_max]``: the garbage readings."""
+
+
+class RingModel(NamedTuple):
+    """The constants of a ring (:func:`ring_readings`)."""
+
+    beams: np.ndarray
+    """``(B,)`` beam axes in the robot frame (rad)."""
+    cone: Cone
+    echo: EchoRules
+    half_cone: float
+    """Half the beam's cone, with a rounding slack (rad)."""
+    all_round: bool
+    """The cones cover every direction (a robot's beam always points back)."""
+    near_slack: float
+    """Slack added to a near-wall list's reach (m)."""
+    crosstalk_prob: float
+    noise: NoiseRules
+
+
+class _DiscTerms(NamedTuple):
+    """Per origin, the terms of the discs a sub-ray can hit (:func:`_near_discs`), compacted first."""
+
+    ocx: np.ndarray
+    ocy: np.ndarray
+    cc: np.ndarray
+    ux: np.ndarray
+    uy: np.ndarray
+    cos_w: np.ndarray
 
 
 @njit(cache=True, inline="always")
 def _incidence(den, seg_len, i):
     """``|cos|`` of the incidence of a hit on segment ``i`` (``den = d x e``; 0 if no hit)."""
-    return abs(den) / max(seg_len[i], _COS_FLOOR) if i >= 0 else 0.0
+    return abs(den) / max(seg_len[i], COS_FLOOR) if i >= 0 else 0.0
 
 
 @njit(cache=True, nogil=True)
-def sonar_echoes(ox, oy, axes, offsets, share, segs, seg_len, idx, cnt, cx, cy, r2, owner, rmax,
-                 specular, multipath, cos_min, nudge, box_cull, reading):
+def sonar_echoes(ox, oy, axes, cone, walls, near_walls, discs, rules, reading):
     """Nearest echo ``reading (N, B)`` over the sub-rays of every beam, inf if none (the rules of
-    :func:`parcover_env.sensors.sonar.simulate_beams`). Beam ``b`` of origin ``n`` has the sub-rays
-    at angles ``axes[n, b] + offsets[j]``: the axis's unit vector ``(cos, sin)(axes[n, b])`` rotated by
-    ``offsets[j]`` (two sines and cosines per beam, not per sub-ray). Overlapping cones share
-    sub-rays: ``share[b, j]`` is the flat index ``b' * J + j'`` (``b' * J + j' <= b * J + j``) of the
-    sub-ray traced for that pair, its own index the first time a direction comes up.
+    :func:`parcover_env.sensors.sonar.simulate_beams`), from origins ``ox, oy (N,)``: a
+    :class:`Cone`, a :class:`WallSet`, the :class:`NearWalls` of the origins (within ``rmax`` plus
+    the nudge), the :class:`Discs` and the :class:`EchoRules` (specular only if there are walls).
+    Beam ``b`` of origin ``n`` has the sub-rays at angles ``axes[n, b] + offsets[j]``: the axis's unit
+    vector ``(cos, sin)(axes[n, b])`` rotated by ``offsets[j]`` (two sines and cosines per beam, not
+    per sub-ray). Overlapping cones share sub-rays (``cone.share``).
 
     A sub-ray's first hit within ``rmax`` on the walls is ``t1`` (incidence ``|cos| c1``), on the
     discs ``td``. ``specular``: a wall echoes only if ``c1 >= cos_min``; with ``multipath`` an
@@ -48,6 +181,12 @@ def sonar_echoes(ox, oy, axes, offsets, share, segs, seg_len, idx, cnt, cx, cy, 
     ``rmax - t1`` (``t2 + nudge`` compared). A disc nearer than the wall echoes (``td``). Walls
     are looked up in the origin's list ``idx`` of those within ``rmax`` (plus the nudge;
     :func:`near_segments`): a two-leg path of length <= ``rmax`` stays within it."""
+    offsets, share = cone.offsets, cone.share
+    segs, seg_len = walls.segments, walls.lengths
+    idx, cnt = near_walls.idx, near_walls.cnt
+    cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
+    rmax, multipath, cos_min, box_cull = rules.range_max, rules.multipath, rules.cos_min, rules.box_cull
+    specular = rules.specular and segs.shape[0] > 0
     cull = box_cull and math.isfinite(rmax)
     per_origin = cx.shape[0] > 1
     n_discs = cx.shape[1]
@@ -80,13 +219,13 @@ def sonar_echoes(ox, oy, axes, offsets, share, segs, seg_len, idx, cnt, cx, cy, 
     bx = np.empty(n_discs)  # per beam: those a sub-ray of its cone can hit
     by = np.empty(n_discs)
     bc = np.empty(n_discs)
+    terms = _DiscTerms(ocx, ocy, cc, ux, uy, cos_w)
     for n in range(ox.shape[0]):
         x0 = ox[n]
         y0 = oy[n]
         row = n if per_origin else 0
         near = idx[n, :cnt[n]]
-        m = _near_discs(x0, y0, cx[row], cy[row], r2, owner[n], rmax, cos_spread, sin_spread, ocx, ocy, cc, ux, uy,
-                        cos_w)
+        m = _near_discs(x0, y0, cx[row], cy[row], r2, owner[n], rmax, cos_spread, sin_spread, terms)
         for b in range(axes.shape[1]):
             ax = math.cos(axes[n, b])
             ay = math.sin(axes[n, b])
@@ -106,8 +245,8 @@ def sonar_echoes(ox, oy, axes, offsets, share, segs, seg_len, idx, cnt, cx, cy, 
                     # an echo is never nearer than the sub-ray's first wall or disc, so walls beyond the
                     # cone's nearest echo so far (``best``) are culled, unless another cone reads it too
                     reach = rmax if again[u] else min(rmax, best)
-                    t1, i1, den = _segment_hit(x0, y0, ddx, ddy, segs, near, reach, cull, False)
-                    td = _disc_hit_from(ddx, ddy, bx[:nb], by[:nb], bc[:nb])
+                    t1, i1, den = segment_hit(x0, y0, ddx, ddy, segs, near, reach, cull, False)
+                    td = disc_hit_from(ddx, ddy, bx[:nb], by[:nb], bc[:nb])
                     if not td <= rmax:
                         td = np.inf
                     if not (i1 >= 0 and t1 <= rmax):
@@ -134,8 +273,8 @@ def sonar_echoes(ox, oy, axes, offsets, share, segs, seg_len, idx, cnt, cx, cy, 
                 u = share[b, j]
                 if leg_t[u] < best:
                     if math.isnan(leg_echo[u]):
-                        leg_echo[u] = _second_leg(x0, y0, leg_x[u], leg_y[u], leg_t[u], leg_i[u], segs, seg_len,
-                                                  near, cx, cy, row, r2, owner[n], rmax, cos_min, nudge, box_cull)
+                        leg_echo[u] = _second_leg(x0, y0, leg_x[u], leg_y[u], leg_t[u], leg_i[u], walls, near, discs, n,
+                                                  rules)
                     best = min(best, leg_echo[u])
             reading[n, b] = best
 
@@ -148,14 +287,15 @@ outside every wanted cone skips the exact bearing test, which rounding never mak
 
 
 @njit(cache=True, inline="always")
-def _near_discs(x0, y0, cx, cy, r2, mine, rmax, cos_spread, sin_spread, ocx, ocy, cc, ux, uy, cos_w):
+def _near_discs(x0, y0, cx, cy, r2, mine, rmax, cos_spread, sin_spread, terms):
     """The discs ``cx, cy`` (squared radii ``r2``) but ``mine`` that a ray from ``(x0, y0)`` can hit
-    within ``rmax``, compacted into the first ``m`` entries of the outputs (``m`` returned): the
-    terms ``oc = o - c`` and ``|oc|^2 - r^2`` of :func:`_disc_hit_from`, the unit vector ``u`` to the
+    within ``rmax``, compacted into the first ``m`` entries of ``terms`` (``m`` returned): the
+    terms ``oc = o - c`` and ``|oc|^2 - r^2`` of :func:`disc_hit_from`, the unit vector ``u`` to the
     centre and the cosine of ``spread`` (< pi / 2; given as its cosine and sine) plus the half-angle
     the disc spans (-2 if the origin is inside it: every ray hits). A ray hits a disc outside it only
     within that half-angle of ``u`` (at a distance >= ``|oc| - r``), so a cone of half-angle
     ``spread`` about a unit axis ``a`` can hit it only if ``a . u >= cos_w``."""
+    ocx, ocy, cc, ux, uy, cos_w = terms
     m = 0
     for d in range(cx.shape[0]):
         if d == mine:
@@ -184,10 +324,14 @@ def _near_discs(x0, y0, cx, cy, r2, mine, rmax, cos_spread, sin_spread, ocx, ocy
 
 
 @njit(cache=True, inline="always")
-def _second_leg(x0, y0, ddx, ddy, t1, i1, segs, seg_len, near, cx, cy, row, r2, mine, rmax, cos_min, nudge,
-                box_cull):
-    """Echo length ``t1 + t2`` of a sub-ray mirrored at ``t1`` by segment ``i1``, inf if its second
-    leg finds no echoing surface within ``rmax - t1``."""
+def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, near, discs, n, rules):
+    """Echo length ``t1 + t2`` of a sub-ray of origin ``n`` mirrored at ``t1`` by segment ``i1``, inf if
+    its second leg finds no echoing surface within ``rmax - t1`` (walls ``near``, the discs of ``n``)."""
+    segs, seg_len = walls.segments, walls.lengths
+    cx, cy, r2 = discs.cx, discs.cy, discs.r2
+    row = n if cx.shape[0] > 1 else 0
+    mine = discs.owner[n]
+    rmax, cos_min, nudge, box_cull = rules.range_max, rules.cos_min, rules.nudge, rules.box_cull
     ex = segs[i1, 2] - segs[i1, 0]
     ey = segs[i1, 3] - segs[i1, 1]
     norm = math.sqrt(ex * ex + ey * ey)
@@ -199,23 +343,27 @@ def _second_leg(x0, y0, ddx, ddy, t1, i1, segs, seg_len, near, cx, cy, row, r2, 
     px = (x0 + ddx * t1) + d2x * nudge
     py = (y0 + ddy * t1) + d2y * nudge
     reach = rmax - t1
-    t2w, i2, den2 = _segment_hit(px, py, d2x, d2y, segs, near, reach, box_cull and math.isfinite(reach), False)
+    t2w, i2, den2 = segment_hit(px, py, d2x, d2y, segs, near, reach, box_cull and math.isfinite(reach), False)
     if not (i2 >= 0 and t2w <= reach):
         t2w = np.inf
         i2 = -1
     wall2 = t2w if _incidence(den2, seg_len, i2) >= cos_min else np.inf
-    td2 = _disc_hit(px, py, d2x, d2y, cx, cy, row, r2, mine)
+    td2 = disc_hit(px, py, d2x, d2y, cx, cy, row, r2, mine)
     t2 = (td2 if td2 < t2w else wall2) + nudge
     return t1 + t2 if t2 <= rmax - t1 else np.inf
 
 
 @njit(cache=True, nogil=True)
-def sonar_corner_echoes(ox, oy, axes, pts, u1, u2, segs, idx, cnt, cx, cy, r2, owner, rmax, half, reading):
-    """Lower ``reading (N, B)`` to the distance of every concave corner ``pts (C, 2)`` (wall
-    directions ``u1, u2``) that origin ``n`` sees from inside the corner's wedge, within ``rmax``,
-    with no wall (nor disc) in between, and inside beam ``b``'s cone (``|bearing - axis| <= half``);
-    the concave-corner rule of :func:`parcover_env.sensors.sonar.simulate_beams`. Walls are looked
-    up in the origin's list ``idx`` of those within ``rmax`` (:func:`near_segments`)."""
+def sonar_corner_echoes(ox, oy, axes, corners, segs, near_walls, discs, rmax, half, reading):
+    """Lower ``reading (N, B)`` to the distance of every concave corner of :class:`Corners` ``pts
+    (C, 2)`` (wall directions ``u1, u2``) that origin ``n`` sees from inside the corner's wedge,
+    within ``rmax``, with no wall ``segs`` (nor one of the :class:`Discs`) in between, and inside beam
+    ``b``'s cone (``|bearing - axis| <= half``); the concave-corner rule of
+    :func:`parcover_env.sensors.sonar.simulate_beams`. Walls are looked up in the origin's
+    :class:`NearWalls` (those within ``rmax``)."""
+    pts, u1, u2 = corners
+    idx, cnt = near_walls.idx, near_walls.cnt
+    cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
     has_discs = cx.shape[1] > 0
     per_origin = cx.shape[0] > 1
     for n in range(ox.shape[0]):
@@ -236,14 +384,14 @@ def sonar_corner_echoes(ox, oy, axes, pts, u1, u2, segs, idx, cnt, cx, cy, r2, o
             bearing = math.atan2(vy, vx)
             seen = -1  # line of sight: unknown until a beam's cone holds the corner
             for b in range(axes.shape[1]):
-                if not (dist < reading[n, b] and _in_cone(bearing - axes[n, b], half)):
+                if not (dist < reading[n, b] and in_cone(bearing - axes[n, b], half)):
                     continue
                 if seen < 0:
                     dx = vx / dist
                     dy = vy / dist
-                    t, _, _ = _segment_hit(x0, y0, dx, dy, segs, near, np.inf, False, False)
+                    t, _, _ = segment_hit(x0, y0, dx, dy, segs, near, np.inf, False, False)
                     seen = 1 if t >= dist * (1.0 - 1e-7) - 1e-9 else 0  # else a wall in between
-                    if seen and has_discs and not _disc_hit(x0, y0, dx, dy, cx, cy, n if per_origin else 0, r2,
+                    if seen and has_discs and not disc_hit(x0, y0, dx, dy, cx, cy, n if per_origin else 0, r2,
                                                             owner[n]) >= dist:
                         seen = 0  # a robot in between
                 if seen:
@@ -251,16 +399,17 @@ def sonar_corner_echoes(ox, oy, axes, pts, u1, u2, segs, idx, cnt, cx, cy, r2, o
 
 
 @njit(cache=True, nogil=True)
-def sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, half, rmax, want, out):
+def sonar_crosstalk(px, py, pth, beams, all_round, segs, near_walls, half, rmax, want, out):
     """Cross-talk readings ``out (K, N, B)`` (left inf where none) of robots ``(K, N)`` poses
     ``px, py, pth``: beam ``b`` of robot ``i`` reads ``d / 2`` from the nearest robot ``j`` of its world
     inside that beam's cone (``half``) with a beam of ``j`` pointing back at ``i``, ``0 < d / 2 <= rmax``
     and no wall between them; the rules of :func:`parcover_env.sensors.sonar.crosstalk`.
     ``all_round``: the cones cover every direction (a beam always points back). Walls are looked up
-    in robot ``k * N + i``'s list ``idx`` of those within ``2 rmax`` (:func:`near_segments`).
+    in robot ``k * N + i``'s :class:`NearWalls` (those within ``2 rmax``).
     Only the beams ``want (K, N, B)`` are computed (the others stay inf). A robot ``j`` more than
     ``_CONE_SLACK`` outside every wanted cone of ``i`` (a dot product with the axes) skips the exact
     bearing test."""
+    idx, cnt = near_walls.idx, near_walls.cnt
     nb = beams.shape[0]
     n_robots = px.shape[1]
     cos_lim = math.cos(min(half + _CONE_SLACK, math.pi))
@@ -297,36 +446,37 @@ def sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, half, rmax, w
                 bearing = math.atan2(dy, dx)
                 gain = False  # does a beam of i hold j nearer than what it heard so far?
                 for b in range(nb):
-                    if want[k, i, b] and d / 2 < out[k, i, b] and _in_cone(bearing - pth[k, i] - beams[b], half):
+                    if want[k, i, b] and d / 2 < out[k, i, b] and in_cone(bearing - pth[k, i] - beams[b], half):
                         gain = True
                         break
                 if not gain:
                     continue
                 back = all_round
                 for c in range(0 if all_round else nb):
-                    if _in_cone(bearing + math.pi - pth[k, j] - beams[c], half):
+                    if in_cone(bearing + math.pi - pth[k, j] - beams[c], half):
                         back = True
                         break
                 if not back:
                     continue
-                _, hit, _ = _segment_hit(px[k, i], py[k, i], dx, dy, segs, near, 1.0, True, True)
+                _, hit, _ = segment_hit(px[k, i], py[k, i], dx, dy, segs, near, 1.0, True, True)
                 if hit >= 0:
                     continue  # a wall between them
                 for b in range(nb):
-                    if want[k, i, b] and d / 2 < out[k, i, b] and _in_cone(bearing - pth[k, i] - beams[b], half):
+                    if want[k, i, b] and d / 2 < out[k, i, b] and in_cone(bearing - pth[k, i] - beams[b], half):
                         out[k, i, b] = d / 2
 
 
 @njit(cache=True, nogil=True)
-def ring_noise(ideal, heard, talk_prob, talk, z, bad, junk, range_min, range_max, drop_below, noise_std, noise_rel,
-               quantization, garbage_rate, out):
-    """``out (N, B) float32`` from the noise-free ``ideal (N, B)``: cross-talk (``talk_prob > 0``:
-    a beam reads ``min(ideal, heard)`` with that probability, ``heard (N, B)``), readings below
-    ``range_min`` lost (``drop_below``), Gaussian noise ``noise_std + noise_rel * r`` on echoes,
-    quantization of echoes, clamping to ``[range_min, range_max]``, garbage readings uniform in that
-    range. The draws, flat ``(N * B,)`` arrays or empty where a step is off: ``talk`` uniform
-    (cross-talk), ``z`` standard normal (noise), ``bad`` uniform and ``junk`` uniform in the range
-    (garbage)."""
+def ring_noise(ideal, heard, talk_prob, draws, rules, out):
+    """``out (N, B)`` (float32 or float64) from the noise-free ``ideal (N, B)``: cross-talk
+    (``talk_prob > 0``: a beam reads ``min(ideal, heard)`` with that probability, ``heard (N, B)``),
+    then the :class:`NoiseRules`: readings below ``range_min`` lost (``drop_below``), Gaussian noise
+    ``noise_std + noise_rel * r`` on echoes, quantization of echoes, clamping to ``[range_min,
+    range_max]``, garbage readings uniform in that range. The :class:`Draws` are ``(N * B,)``."""
+    talk, z, bad, junk = draws
+    range_min, range_max, drop_below = rules.range_min, rules.range_max, rules.drop_below
+    noise_std, noise_rel, quantization, garbage_rate = rules.noise_std, rules.noise_rel, rules.quantization, \
+        rules.garbage_rate
     n, b = ideal.shape
     size = n * b
     r = ideal.copy().reshape(size)
@@ -358,18 +508,18 @@ def ring_noise(ideal, heard, talk_prob, talk, z, bad, junk, range_min, range_max
 
 
 @njit(cache=True, nogil=True)
-def ring_readings(px, py, pth, radius2, beams, offsets, share, segs, seg_len, pts, u1, u2, specular, multipath,
-                  all_round, drop_below, par, talk, z, bad, junk, out):
+def ring_readings(px, py, pth, radius2, ring, walls, corners, draws, out):
     """The rings of every robot of ``K`` worlds sharing the walls, ``px, py, pth (K, N)``, in one pass:
     what :meth:`parcover_env.sensors.sonar.SonarRing.measure` composes from its parts for each world
-    alone. The noise-free echoes (:func:`sonar_echoes`, the sub-rays shared as ``share`` says; concave
-    corners; the discs are the other robots of the robot's world, of squared radius ``radius2``), the
-    cross-talk of the beams whose uniform ``talk`` draw is below its probability (``talk`` empty:
-    none), then :func:`ring_noise` into ``out (K * N, B) float32``. The draws are flat, world after
-    world, robot after robot, beam after beam. ``par`` = range max, incidence cosine bound, restart
-    nudge, near-list slack, half cone, cross-talk probability, range min, noise sigma, relative
-    noise, quantization, garbage rate."""
-    rmax, cos_min, nudge, slack, half = par[0], par[1], par[2], par[3], par[4]
+    alone. The noise-free echoes (:func:`sonar_echoes` with the :class:`RingModel`'s cone and rules,
+    on a :class:`WallSet`; its :class:`Corners`; the discs are the other robots of the robot's world,
+    of squared radius ``radius2``), the cross-talk of the beams whose uniform ``draws.talk`` is below
+    its probability (``talk`` empty: none), then :func:`ring_noise` into ``out (K * N, B) float32``.
+    The :class:`Draws` are flat, world after world, robot after robot, beam after beam."""
+    beams, rules = ring.beams, ring.echo
+    rmax, slack, half = rules.range_max, ring.near_slack, ring.half_cone
+    segs = walls.segments
+    talk = draws.talk
     k, n = px.shape
     nb = beams.shape[0]
     ox = px.reshape(k * n)
@@ -389,23 +539,21 @@ def ring_readings(px, py, pth, radius2, beams, offsets, share, segs, seg_len, pt
     owner = np.empty(k * n, dtype=np.int64)
     for r in range(k * n):
         owner[r] = r % n
-    idx = np.empty((k * n, segs.shape[0]), dtype=np.int64)
-    cnt = np.empty(k * n, dtype=np.int64)
-    near_segments(ox, oy, segs, rmax + slack, idx, cnt)
+    discs = Discs(cx, cy, r2, owner)
+    near = NearWalls(np.empty((k * n, segs.shape[0]), dtype=np.int64), np.empty(k * n, dtype=np.int64))
+    near_segments(ox, oy, segs, rmax + slack, near.idx, near.cnt)
     ideal = np.empty((k * n, nb))
-    sonar_echoes(ox, oy, axes, offsets, share, segs, seg_len, idx, cnt, cx, cy, r2, owner, rmax, specular,
-                 multipath, cos_min, nudge, True, ideal)
-    if specular and pts.shape[0] > 0:
-        sonar_corner_echoes(ox, oy, axes, pts, u1, u2, segs, idx, cnt, cx, cy, r2, owner, rmax, half, ideal)
+    sonar_echoes(ox, oy, axes, ring.cone, walls, near, discs, rules, ideal)
+    if rules.specular and corners.points.shape[0] > 0:
+        sonar_corner_echoes(ox, oy, axes, corners, segs, near, discs, rmax, half, ideal)
     heard = ideal  # (no echo reads inf here, range max in the parts: ring_noise treats both alike)
     if talk.shape[0]:
         want = np.empty((k, n, nb), dtype=np.bool_)
         for r in range(k * n):
             for b in range(nb):
-                want[r // n, r % n, b] = talk[r * nb + b] < par[5]
-        near_segments(ox, oy, segs, 2.0 * rmax + slack, idx, cnt)
+                want[r // n, r % n, b] = talk[r * nb + b] < ring.crosstalk_prob
+        near_segments(ox, oy, segs, 2.0 * rmax + slack, near.idx, near.cnt)
         heard3 = np.full((k, n, nb), np.inf)
-        sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, half, rmax, want, heard3)
+        sonar_crosstalk(px, py, pth, beams, ring.all_round, segs, near, half, rmax, want, heard3)
         heard = heard3.reshape(k * n, nb)
-    ring_noise(ideal, heard, par[5] if talk.shape[0] else 0.0, talk, z, bad, junk, par[6], rmax, drop_below, par[7],
-               par[8], par[9], par[10], out)
+    ring_noise(ideal, heard, ring.crosstalk_prob if talk.shape[0] else 0.0, draws, ring.noise, out)

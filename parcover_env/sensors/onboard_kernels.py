@@ -1,0 +1,179 @@
+"""Compiled (numba) loops of the onboard sensors, the internals of :mod:`parcover_env.sensors.relative`
+(the follower camera) and :mod:`parcover_env.sensors.odometry` (the wheel odometry); public so that
+tests and other rooms may use them (the sonar's are in :mod:`parcover_env.sensors.sonar_kernels`).
+They take named records (the ``NamedTuple`` classes below) for their constants and state.
+
+The callers draw the random numbers (numpy, the episode's generator, whole arrays in the order the
+numpy formulas drew them) and hand them in: passing a ``Generator`` to a compiled function costs
+about 5 us per call. ``tests/references/onboard.py`` keeps the numpy references.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from parcover_env.geometry.angle_kernels import wrap
+
+__all__ = ["CameraSpec", "CameraView", "WheelState", "WheelErrors", "camera_view", "wheel_odometry"]
+
+
+class CameraSpec(NamedTuple):
+    """The follower camera's reach and noise (:class:`parcover_env.sensors.relative.RelativeCamera`)."""
+
+    max_range: float
+    """(m)."""
+    half_fov: float
+    """Half the field of view (rad)."""
+    range_noise: float
+    """Range sigma per metre of distance."""
+    bearing_noise: float
+    """(rad)."""
+    heading_noise: float
+    """(rad)."""
+
+
+class CameraView(NamedTuple):
+    """What the follower cameras see, written by :func:`camera_view`."""
+
+    rel_xy: np.ndarray
+    """``(N, 2)`` the predecessor in the follower's frame (m)."""
+    rel_heading: np.ndarray
+    """``(N,)`` (rad)."""
+    visible: np.ndarray
+    """``(N,)`` bool."""
+
+
+class WheelState(NamedTuple):
+    """The odometry's state, updated in place by :func:`wheel_odometry`."""
+
+    estimate: np.ndarray
+    """``(N, 3)`` pose estimates."""
+    covariance: np.ndarray
+    """``(N, 3, 3)``."""
+    travelled: np.ndarray
+    """``(N,)`` distance since the last fix (m)."""
+    turned: np.ndarray
+    """``(N,)`` angle turned since the last fix (rad)."""
+
+
+class WheelErrors(NamedTuple):
+    """The wheels' error model (:class:`parcover_env.config.OdometryConfig` and the episode's
+    systematic errors)."""
+
+    factors: np.ndarray
+    """``(N, 2)`` encoder reading / true distance (left, right)."""
+    believed_base: np.ndarray
+    """``(N,)`` the wheel base the odometry divides by (m)."""
+    wheel_base: float
+    """The true wheel base (m)."""
+    slip_accel: float
+    slip_turn: float
+    wheel_variance: float
+    """Random per-wheel variance per metre (m)."""
+    covariance_wheel_variance: float
+    """The variance the covariance assumes (m)."""
+
+
+@njit(cache=True, nogil=True)
+def camera_view(px, py, pth, predecessor, blocked, z, cam, view):
+    """The follower camera (:meth:`parcover_env.sensors.relative.RelativeCamera.measure`) of robots
+    ``px, py, pth (N,)``: for each follower ``i`` (``predecessor[i] >= 0``, F of them) of its
+    predecessor ``j``: range ``r (1 + range_noise z1)``, bearing ``+ bearing_noise z2`` and relative
+    heading ``wrap(th_j - th_i + heading_noise z3)`` (:class:`CameraSpec` ``cam``), written into the
+    :class:`CameraView` ``view`` where seen (within ``max_range`` and ``half_fov``, ``blocked[i]``
+    False), zeros elsewhere. ``z (3, F)``: the standard normals z1, z2, z3 of the F followers, in
+    robot order."""
+    max_range, half_fov = cam.max_range, cam.half_fov
+    range_noise, bearing_noise, heading_noise = cam.range_noise, cam.bearing_noise, cam.heading_noise
+    rel_xy, rel_heading, visible = view
+    n = px.shape[0]
+    rel_xy[:] = 0.0
+    rel_heading[:] = 0.0
+    visible[:] = False
+    z1 = z[0]
+    z2 = z[1]
+    z3 = z[2]
+    k = 0
+    for i in range(n):
+        j = predecessor[i]
+        if j < 0:
+            continue
+        dx = px[j] - px[i]
+        dy = py[j] - py[i]
+        dist = math.hypot(dx, dy)
+        bearing = wrap(math.atan2(dy, dx) - pth[i])
+        if dist <= max_range and abs(bearing) <= half_fov and not blocked[i]:
+            r = dist * (1.0 + range_noise * z1[k])
+            b = bearing + bearing_noise * z2[k]
+            rel_xy[i, 0] = r * math.cos(b)
+            rel_xy[i, 1] = r * math.sin(b)
+            rel_heading[i] = wrap(pth[j] - pth[i] + heading_noise * z3[k])
+            visible[i] = True
+        k += 1
+
+
+@njit(cache=True, nogil=True)
+def wheel_odometry(state, travel, speed_change, dt, z, errors):
+    """One control step of the ``wheels`` odometry
+    (:meth:`parcover_env.sensors.odometry.Odometry.measure_wheels`), in place on the
+    :class:`WheelState`, from each wheel's true distance ``travel (N, 2)`` and summed speed changes
+    ``speed_change (N, 2)`` over ``dt`` with the :class:`WheelErrors`. ``z``: the standard normals,
+    flat ``(2, N, 2)``: the slip factors, then the random wheel errors."""
+    est, cov, travelled, turned = state
+    factors, believed_base, wheel_base = errors.factors, errors.believed_base, errors.wheel_base
+    slip_accel, slip_turn = errors.slip_accel, errors.slip_turn
+    wheel_variance, cov_wheel_variance = errors.wheel_variance, errors.covariance_wheel_variance
+    n = est.shape[0]
+    for i in range(n):
+        d0 = travel[i, 0]
+        d1 = travel[i, 1]
+        turn_rate = abs(d1 - d0) / (wheel_base * dt)
+        read0 = 0.0
+        read1 = 0.0
+        for w in range(2):
+            d = travel[i, w]
+            slip = abs(z[2 * i + w]) * (slip_accel * speed_change[i, w] / dt + slip_turn * turn_rate)
+            read = d * factors[i, w] * (1.0 + slip) + math.sqrt(wheel_variance * abs(d)) * z[2 * n + 2 * i + w]
+            if w == 0:
+                read0 = read
+            else:
+                read1 = read
+        base = believed_base[i]
+        ds = 0.5 * (read0 + read1)
+        dth = (read1 - read0) / base
+        var_l = cov_wheel_variance * abs(read0)
+        var_r = cov_wheel_variance * abs(read1)
+        q00 = 0.25 * (var_l + var_r)
+        q11 = (var_l + var_r) / (base * base)
+        q01 = 0.5 * (var_r - var_l) / base
+        mid = est[i, 2] + 0.5 * dth
+        c = math.cos(mid)
+        s = math.sin(mid)
+        _propagate(cov[i], -ds * s, ds * c, c, -0.5 * ds * s, s, 0.5 * ds * c, q00, q01, q11)
+        est[i, 0] += ds * c
+        est[i, 1] += ds * s
+        est[i, 2] = wrap(est[i, 2] + dth)
+        travelled[i] += abs(ds)
+        turned[i] += abs(dth)
+
+
+@njit(cache=True, inline="always")
+def _propagate(p, a, b, g00, g01, g10, g11, q00, q01, q11):
+    """``p := F p F^T + G Q G^T`` for ``F = [[1, 0, a], [0, 1, b], [0, 0, 1]]``,
+    ``G = [[g00, g01], [g10, g11], [0, 1]]`` and the symmetric ``Q = [[q00, q01], [q01, q11]]``."""
+    fp = np.empty((3, 3))
+    for j in range(3):
+        fp[0, j] = p[0, j] + a * p[2, j]
+        fp[1, j] = p[1, j] + b * p[2, j]
+        fp[2, j] = p[2, j]
+    g = ((g00, g01), (g10, g11), (0.0, 1.0))
+    for i in range(3):
+        gq0 = g[i][0] * q00 + g[i][1] * q01
+        gq1 = g[i][0] * q01 + g[i][1] * q11
+        row = (fp[i, 0] + a * fp[i, 2], fp[i, 1] + b * fp[i, 2], fp[i, 2])
+        for j in range(3):
+            p[i, j] = row[j] + (gq0 * g[j][0] + gq1 * g[j][1])
