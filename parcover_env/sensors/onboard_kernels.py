@@ -1,7 +1,8 @@
 """Compiled (numba) loops of the onboard sensors, the internals of :mod:`parcover_env.sensors.relative`
 (the follower camera) and :mod:`parcover_env.sensors.odometry` (the wheel odometry); public so that
 tests and other rooms may use them (the sonar's are in :mod:`parcover_env.sensors.sonar_kernels`).
-They take named records (the ``NamedTuple`` classes below) for their constants and state.
+They read their constants from records (structured arrays, :mod:`parcover_env.geometry.records`):
+:data:`CAMERA` and :data:`WHEEL_ERRORS`.
 
 The callers draw the random numbers (numpy, the episode's generator, whole arrays in the order the
 numpy formulas drew them) and hand them in: passing a ``Generator`` to a compiled function costs
@@ -11,85 +12,45 @@ about 5 us per call. ``tests/references/onboard.py`` keeps the numpy references.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from parcover_env.geometry.angle_kernels import wrap
 
-__all__ = ["CameraSpec", "CameraView", "WheelState", "WheelErrors", "camera_view", "wheel_odometry"]
+__all__ = ["CAMERA", "WHEEL_ERRORS", "camera_view", "wheel_odometry"]
 
+CAMERA = np.dtype([
+    ("max_range", "f8"),  # (m)
+    ("half_fov", "f8"),  # half the field of view (rad)
+    ("range_noise", "f8"),  # range sigma per metre of distance
+    ("bearing_noise", "f8"),  # (rad)
+    ("heading_noise", "f8"),  # (rad)
+])
+"""The follower camera's reach and noise (:class:`parcover_env.sensors.relative.RelativeCamera`)."""
 
-class CameraSpec(NamedTuple):
-    """The follower camera's reach and noise (:class:`parcover_env.sensors.relative.RelativeCamera`)."""
-
-    max_range: float
-    """(m)."""
-    half_fov: float
-    """Half the field of view (rad)."""
-    range_noise: float
-    """Range sigma per metre of distance."""
-    bearing_noise: float
-    """(rad)."""
-    heading_noise: float
-    """(rad)."""
-
-
-class CameraView(NamedTuple):
-    """What the follower cameras see, written by :func:`camera_view`."""
-
-    rel_xy: np.ndarray
-    """``(N, 2)`` the predecessor in the follower's frame (m)."""
-    rel_heading: np.ndarray
-    """``(N,)`` (rad)."""
-    visible: np.ndarray
-    """``(N,)`` bool."""
-
-
-class WheelState(NamedTuple):
-    """The odometry's state, updated in place by :func:`wheel_odometry`."""
-
-    estimate: np.ndarray
-    """``(N, 3)`` pose estimates."""
-    covariance: np.ndarray
-    """``(N, 3, 3)``."""
-    travelled: np.ndarray
-    """``(N,)`` distance since the last fix (m)."""
-    turned: np.ndarray
-    """``(N,)`` angle turned since the last fix (rad)."""
-
-
-class WheelErrors(NamedTuple):
-    """The wheels' error model (:class:`parcover_env.config.OdometryConfig` and the episode's
-    systematic errors)."""
-
-    factors: np.ndarray
-    """``(N, 2)`` encoder reading / true distance (left, right)."""
-    believed_base: np.ndarray
-    """``(N,)`` the wheel base the odometry divides by (m)."""
-    wheel_base: float
-    """The true wheel base (m)."""
-    slip_accel: float
-    slip_turn: float
-    wheel_variance: float
-    """Random per-wheel variance per metre (m)."""
-    covariance_wheel_variance: float
-    """The variance the covariance assumes (m)."""
+WHEEL_ERRORS = np.dtype([
+    ("wheel_base", "f8"),  # the true wheel base (m)
+    ("slip_accel", "f8"),  # slip per unit of wheel acceleration (s^2 / m)
+    ("slip_turn", "f8"),  # slip per unit of turn rate (s / rad)
+    ("wheel_variance", "f8"),  # random per-wheel variance per metre (m)
+    ("covariance_wheel_variance", "f8"),  # the variance the covariance assumes (m)
+])
+"""The wheels' random error model (:class:`parcover_env.config.OdometryConfig`)."""
 
 
 @njit(cache=True, nogil=True)
-def camera_view(px, py, pth, predecessor, blocked, z, cam, view):
+def camera_view(px, py, pth, predecessor, blocked, z, camera, rel_xy, rel_heading, visible):
     """The follower camera (:meth:`parcover_env.sensors.relative.RelativeCamera.measure`) of robots
     ``px, py, pth (N,)``: for each follower ``i`` (``predecessor[i] >= 0``, F of them) of its
     predecessor ``j``: range ``r (1 + range_noise z1)``, bearing ``+ bearing_noise z2`` and relative
-    heading ``wrap(th_j - th_i + heading_noise z3)`` (:class:`CameraSpec` ``cam``), written into the
-    :class:`CameraView` ``view`` where seen (within ``max_range`` and ``half_fov``, ``blocked[i]``
-    False), zeros elsewhere. ``z (3, F)``: the standard normals z1, z2, z3 of the F followers, in
-    robot order."""
+    heading ``wrap(th_j - th_i + heading_noise z3)`` (the :data:`CAMERA` record ``camera``), written
+    into ``rel_xy (N, 2)``, ``rel_heading (N,)`` and ``visible (N,)`` where seen (within ``max_range``
+    and ``half_fov``, ``blocked[i]`` False), zeros elsewhere. ``z (3, F)``: the standard normals z1,
+    z2, z3 of the F followers, in robot order."""
+    cam = camera[0]
     max_range, half_fov = cam.max_range, cam.half_fov
     range_noise, bearing_noise, heading_noise = cam.range_noise, cam.bearing_noise, cam.heading_noise
-    rel_xy, rel_heading, visible = view
     n = px.shape[0]
     rel_xy[:] = 0.0
     rel_heading[:] = 0.0
@@ -117,16 +78,17 @@ def camera_view(px, py, pth, predecessor, blocked, z, cam, view):
 
 
 @njit(cache=True, nogil=True)
-def wheel_odometry(state, travel, speed_change, dt, z, errors):
+def wheel_odometry(est, cov, travelled, turned, travel, speed_change, dt, z, factors, believed_base, errors):
     """One control step of the ``wheels`` odometry
-    (:meth:`parcover_env.sensors.odometry.Odometry.measure_wheels`), in place on the
-    :class:`WheelState`, from each wheel's true distance ``travel (N, 2)`` and summed speed changes
-    ``speed_change (N, 2)`` over ``dt`` with the :class:`WheelErrors`. ``z``: the standard normals,
-    flat ``(2, N, 2)``: the slip factors, then the random wheel errors."""
-    est, cov, travelled, turned = state
-    factors, believed_base, wheel_base = errors.factors, errors.believed_base, errors.wheel_base
-    slip_accel, slip_turn = errors.slip_accel, errors.slip_turn
-    wheel_variance, cov_wheel_variance = errors.wheel_variance, errors.covariance_wheel_variance
+    (:meth:`parcover_env.sensors.odometry.Odometry.measure_wheels`), in place on the estimates
+    ``est (N, 3)``, covariances ``cov (N, 3, 3)`` and the ``travelled``/``turned`` sums, from each
+    wheel's true distance ``travel (N, 2)`` and summed speed changes ``speed_change (N, 2)`` over
+    ``dt``, the systematic encoder ``factors (N, 2)`` and ``believed_base (N,)``, and the
+    :data:`WHEEL_ERRORS` record ``errors``. ``z``: the standard normals, flat ``(2, N, 2)``: the slip
+    factors, then the random wheel errors."""
+    err = errors[0]
+    wheel_base, slip_accel, slip_turn = err.wheel_base, err.slip_accel, err.slip_turn
+    wheel_variance, cov_wheel_variance = err.wheel_variance, err.covariance_wheel_variance
     n = est.shape[0]
     for i in range(n):
         d0 = travel[i, 0]

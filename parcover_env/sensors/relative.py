@@ -7,12 +7,14 @@ of sight. No Kinect and no messages are involved.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from parcover_env.geometry import sight_lines_blocked
+from parcover_env.geometry.records import record
 from parcover_env.sensors import onboard_kernels
 
 __all__ = ["RelativeCamera", "RelativeReading", "lines_of_sight_blocked"]
@@ -52,18 +54,19 @@ class RelativeCamera:
         if blocked is None:
             walls = np.ascontiguousarray(segments, dtype=float).reshape(-1, 4)
             blocked = sight_lines_blocked(px, py, predecessor, walls)
-        view = onboard_kernels.CameraView(np.empty((n, 2)), np.empty(n), np.empty(n, dtype=bool))
+        rel_xy, rel_heading, visible = np.empty((n, 2)), np.empty(n), np.empty(n, dtype=bool)
         z = rng.standard_normal((3, int(np.count_nonzero(predecessor >= 0))))  # range, bearing, heading
         onboard_kernels.camera_view(px, py, pth, predecessor, np.ascontiguousarray(blocked, dtype=bool), z,
-                                    self.spec, view)
-        return RelativeReading(*view)
+                                    self.record, rel_xy, rel_heading, visible)
+        return RelativeReading(rel_xy, rel_heading, visible)
 
-    @property
-    def spec(self) -> onboard_kernels.CameraSpec:
-        """The camera's reach and noise as the compiled camera reads them (SI units, half the FOV)."""
-        return onboard_kernels.CameraSpec(float(self.max_range), math.radians(self.fov_deg) / 2,
-                                           float(self.range_noise), float(self.bearing_noise),
-                                           float(self.heading_noise))
+    @functools.cached_property
+    def record(self) -> np.ndarray:
+        """The camera's reach and noise as the compiled camera reads them
+        (:data:`~parcover_env.sensors.onboard_kernels.CAMERA`; SI units, half the FOV)."""
+        return record(onboard_kernels.CAMERA, max_range=self.max_range, half_fov=math.radians(self.fov_deg) / 2,
+                      range_noise=self.range_noise, bearing_noise=self.bearing_noise,
+                      heading_noise=self.heading_noise)
 
 
 def lines_of_sight_blocked(poses: np.ndarray, predecessor: np.ndarray, segments: np.ndarray) -> np.ndarray:

@@ -36,6 +36,7 @@ import numpy as np
 from parcover_env.config import SonarConfig
 from parcover_env.geometry import rays
 from parcover_env.geometry.angles import wrap_angle
+from parcover_env.geometry.records import record
 from parcover_env.sensors import sonar_kernels as kern
 
 __all__ = ["SonarRing", "AMIGOBOT_ANGLES_DEG", "concave_corners", "simulate_beams", "crosstalk"]
@@ -52,13 +53,16 @@ class _Walls:
     """What the sonar kernels need of a wall set, derived once per set (read-only arrays)."""
 
     kernel: kern.WallSet
-    """Segments ``(S, 4)`` C-contiguous and their lengths (m)."""
-    corners: kern.Corners
-    """Corner vertices and their wall directions (:func:`concave_corners`)."""
+    """Segments ``(S, 4)`` C-contiguous, their lengths (m), the corners and their wall directions."""
 
     @property
     def segments(self) -> np.ndarray:
         return self.kernel.segments
+
+    @property
+    def corners(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Corner vertices and their wall directions (:func:`concave_corners`)."""
+        return self.kernel.points, self.kernel.u1, self.kernel.u2
 
 
 @lru_cache(maxsize=32)
@@ -84,10 +88,10 @@ def _walls_of(seg_bytes: bytes, n: int) -> _Walls:
         pts.append(vv)
         u1s.append(u1)
         u2s.append(u2)
-    corners = kern.Corners(*((np.array(pts), np.array(u1s), np.array(u2s)) if pts else (np.zeros((0, 2)),) * 3))
+    corners = (np.array(pts), np.array(u1s), np.array(u2s)) if pts else (np.zeros((0, 2)),) * 3
     for a in (lengths, *corners):
         a.setflags(write=False)
-    return _Walls(kern.WallSet(segs, lengths), corners)
+    return _Walls(kern.WallSet(segs, lengths, *corners))
 
 
 def _walls(segments: np.ndarray) -> _Walls:
@@ -173,19 +177,17 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     rmax = float(cfg.range_max)
     walls = _walls(segments)
     offsets = _offsets(cfg, n_subrays)
-    rules = _echo_rules(cfg, rays.BOX_CULL)
+    rules = _rules(cfg, box_cull=rays.BOX_CULL)
     # one compiled pass over all sub-rays of all robots: walls, discs, incidence, second bounces
     origins = np.asarray(origins, dtype=float).reshape(-1, 2)
     ox, oy = np.ascontiguousarray(origins[:, 0]), np.ascontiguousarray(origins[:, 1])
     axes = np.ascontiguousarray(axes, dtype=float)
     discs = kern.Discs(*rays.disc_planes(centres, float(radius), owner, n))
-    near = kern.NearWalls(*rays.near_segments(ox, oy, walls.segments, rmax))
+    idx, cnt = rays.near_segments(ox, oy, walls.segments, rmax)
     reading = np.empty((n, b))
-    kern.sonar_echoes(ox, oy, axes, kern.Cone(offsets, _share(axes, offsets)), walls.kernel, near, discs, rules,
-                      reading)
-    if rules.specular and len(walls.corners.points):  # concave corners in a cone retro-reflect (lower ``reading``)
-        kern.sonar_corner_echoes(ox, oy, axes, walls.corners, walls.segments, near, discs, rmax, _half_cone(cfg),
-                                 reading)
+    kern.sonar_echoes(ox, oy, axes, offsets, _share(axes, offsets), walls.kernel, idx, cnt, discs, rules, reading)
+    if cfg.model == "specular" and len(walls.kernel.points):  # concave corners in a cone retro-reflect
+        kern.sonar_corner_echoes(ox, oy, axes, walls.kernel, idx, cnt, discs, rules, reading)  # lowers ``reading``
     return np.minimum(reading, rmax, out=reading)
 
 
@@ -198,18 +200,16 @@ def _offsets(cfg: SonarConfig, n_subrays: int) -> np.ndarray:
     return _subray_offsets(float(cfg.cone_deg), n_subrays) if cfg.model == "specular" else _AXIS_ONLY
 
 
-def _echo_rules(cfg: SonarConfig, box_cull: bool) -> kern.EchoRules:
-    """The echo rules of the compiled sonar (the specular ones apply only where there are walls)."""
-    return kern.EchoRules(range_max=float(cfg.range_max), specular=cfg.model == "specular",
-                          multipath=bool(cfg.multipath), cos_min=_cos_min(cfg), nudge=_NUDGE, box_cull=bool(box_cull))
-
-
-def _noise_rules(cfg: SonarConfig) -> kern.NoiseRules:
-    """The noise rules of the compiled sonar (:meth:`SonarRing.corrupt`)."""
-    return kern.NoiseRules(range_min=float(cfg.range_min), range_max=float(cfg.range_max),
-                           drop_below=cfg.below_min == "drop", noise_std=float(cfg.noise_std),
-                           noise_rel=float(cfg.noise_rel), quantization=float(cfg.quantization),
-                           garbage_rate=float(cfg.garbage_rate))
+@lru_cache(maxsize=32)
+def _rules(cfg: SonarConfig, box_cull: bool = True, all_round: bool = False) -> np.ndarray:
+    """The :data:`~parcover_env.sensors.sonar_kernels.SONAR_RULES` record of a sonar (cached: the
+    config is frozen)."""
+    return record(kern.SONAR_RULES, range_max=cfg.range_max, specular=cfg.model == "specular",
+                  multipath=cfg.multipath, cos_min=_cos_min(cfg), nudge=_NUDGE, box_cull=box_cull,
+                  half_cone=_half_cone(cfg), all_round=all_round, near_slack=rays.NEAR_SLACK,
+                  crosstalk_prob=cfg.crosstalk_prob, range_min=cfg.range_min, drop_below=cfg.below_min == "drop",
+                  noise_std=cfg.noise_std, noise_rel=cfg.noise_rel, quantization=cfg.quantization,
+                  garbage_rate=cfg.garbage_rate)
 
 
 def _cos_min(cfg: SonarConfig) -> float:
@@ -242,14 +242,11 @@ class SonarRing:
         self._checked: np.ndarray | None = None
         """The last wall array :meth:`measure` checked, if frozen (:func:`_frozen`)."""
         self._beams = np.ascontiguousarray(self.beam_angles, dtype=float)
-        offsets = _offsets(cfg, self.n_subrays)
-        self._noise = _noise_rules(cfg)
-        self._model = kern.RingModel(
-            beams=self._beams, cone=kern.Cone(offsets, _share(self._beams[None], offsets)),
-            echo=_echo_rules(cfg, True), half_cone=_half_cone(cfg),
-            all_round=_covers_circle(self._beams.tobytes(), _half_cone(cfg)), near_slack=rays.NEAR_SLACK,
-            crosstalk_prob=float(cfg.crosstalk_prob), noise=self._noise)
-        """The constants of :func:`~parcover_env.sensors.sonar_kernels.ring_readings`."""
+        self._offsets = _offsets(cfg, self.n_subrays)
+        self._share = _share(self._beams[None], self._offsets)
+        """The ring's shared sub-rays (:func:`_share`)."""
+        self._rules = _rules(cfg, all_round=_covers_circle(self._beams.tobytes(), _half_cone(cfg)))
+        """The constants of the compiled ring (:data:`~parcover_env.sensors.sonar_kernels.SONAR_RULES`)."""
 
     @property
     def n_beams(self) -> int:
@@ -306,7 +303,8 @@ class SonarRing:
         out = np.empty((k * n, nb), dtype=np.float32)
         px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
         r = float(robot_radius)
-        kern.ring_readings(px, py, pth, r * r, self._model, walls.kernel, walls.corners, flat, out)
+        kern.ring_readings(px, py, pth, r * r, self._beams, self._offsets, self._share, walls.kernel, flat, self._rules,
+                           out)
         return out.reshape(k, n, nb)
 
     def ideal_batch(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float) -> np.ndarray:
@@ -352,7 +350,7 @@ class SonarRing:
         talk = heard is not None
         heard = np.ascontiguousarray(heard, dtype=float).reshape(rows.shape) if talk else rows
         kern.ring_noise(rows, heard, float(self.cfg.crosstalk_prob) if talk else 0.0,
-                        kern.Draws(*self._draws(rows.size, rng, talk)), self._noise, out)
+                        kern.Draws(*self._draws(rows.size, rng, talk)), self._rules, out)
         return out.reshape(ideal.shape)
 
 
@@ -375,10 +373,10 @@ def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segm
     want = np.ones((k, n, nb), dtype=bool) if want is None else np.ascontiguousarray(want, dtype=bool)
     segments = _walls(segments).segments
     px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
-    near = kern.NearWalls(*rays.near_segments(px.reshape(-1), py.reshape(-1), segments, 2 * float(cfg.range_max)))
+    idx, cnt = rays.near_segments(px.reshape(-1), py.reshape(-1), segments, 2 * float(cfg.range_max))
     beams = np.ascontiguousarray(beam_angles, dtype=float)
-    kern.sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments, near,
-                         _half_cone(cfg), float(cfg.range_max), want, out)
+    kern.sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments, idx, cnt,
+                         _rules(cfg), want, out)
     return out
 
 

@@ -4,9 +4,10 @@ concave corners, cross-talk, noise, and the whole ring of every robot of K world
 cast rays with the per-ray helpers of :mod:`parcover_env.geometry.ray_kernels` (same float
 operations, no fast-math).
 
-The kernels take named records (the ``NamedTuple`` classes below) instead of long argument lists;
-numba reads their fields at compile time. The caller draws the random numbers (numpy, the episode's
-generator, whole arrays in the order the numpy formulas drew them) and hands them in as
+The kernels read their constants from a :data:`SONAR_RULES` record (a structured array,
+:mod:`parcover_env.geometry.records`: ``rules[0].range_max``, never ``par[0]``) and take bundles of
+arrays as the ``NamedTuple`` classes below. The caller draws the random numbers (numpy, the
+episode's generator, whole arrays in the order the numpy formulas drew them) and hands them in as
 :class:`Draws`: passing a ``Generator`` to a compiled function costs about 5 us per call.
 ``tests/references/sonar.py`` keeps the plain-Python references.
 """
@@ -21,27 +22,43 @@ from numba import njit
 
 from parcover_env.geometry.ray_kernels import COS_FLOOR, disc_hit, disc_hit_from, in_cone, near_segments, segment_hit
 
-__all__ = ["WallSet", "NearWalls", "Discs", "Corners", "Cone", "EchoRules", "NoiseRules", "Draws", "RingModel",
-           "sonar_echoes", "sonar_corner_echoes", "sonar_crosstalk", "ring_noise", "ring_readings"]
+__all__ = ["SONAR_RULES", "WallSet", "Discs", "Draws", "sonar_echoes", "sonar_corner_echoes", "sonar_crosstalk",
+           "ring_noise", "ring_readings"]
+
+SONAR_RULES = np.dtype([
+    ("range_max", "f8"),  # a path longer than this returns nothing; no echo reads this (m)
+    ("specular", "?"),  # walls echo only near the normal (if there are walls), else every hit echoes
+    ("multipath", "?"),  # an oblique wall mirrors the sub-ray, which may echo off the next surface
+    ("cos_min", "f8"),  # smallest |cos| of incidence at which a wall echoes
+    ("nudge", "f8"),  # a mirrored sub-ray starts this far off the wall it left (m)
+    ("box_cull", "?"),  # box-cull the walls of a cast (never changes a result)
+    ("half_cone", "f8"),  # half the beam's cone, with a rounding slack (rad)
+    ("all_round", "?"),  # the ring's cones cover every direction (a robot's beam always points back)
+    ("near_slack", "f8"),  # slack added to a near-wall list's reach (m)
+    ("crosstalk_prob", "f8"),  # probability that a beam facing a robot that pings back hears it
+    ("range_min", "f8"),  # (m)
+    ("drop_below", "?"),  # echoes nearer than range_min are lost (else clipped to it)
+    ("noise_std", "f8"),  # Gaussian noise sigma (m) ...
+    ("noise_rel", "f8"),  # ... plus this times the range
+    ("quantization", "f8"),  # echoes are rounded to multiples of this (m); 0: not
+    ("garbage_rate", "f8"),  # probability of a reading uniform in [range_min, range_max]
+])
+"""Every constant of the compiled sonar, one record (:func:`parcover_env.geometry.records.record`)."""
 
 
 class WallSet(NamedTuple):
-    """The walls a ring sees."""
+    """The walls a ring sees and their corners."""
 
     segments: np.ndarray
     """``(S, 4)`` float64 C-contiguous rows ``(x1, y1, x2, y2)`` (m)."""
     lengths: np.ndarray
     """``(S,)`` length of each segment (m)."""
-
-
-class NearWalls(NamedTuple):
-    """Per origin ``o``, the walls within a path length of it: ``idx[o, :cnt[o]]`` (ascending), as
-    :func:`~parcover_env.geometry.ray_kernels.near_segments` writes them."""
-
-    idx: np.ndarray
-    """``(N, S)`` int64."""
-    cnt: np.ndarray
-    """``(N,)`` int64."""
+    points: np.ndarray
+    """``(C, 2)`` corner vertices (:func:`parcover_env.sensors.sonar.concave_corners`) (m)."""
+    u1: np.ndarray
+    """``(C, 2)`` unit direction of a corner's first wall."""
+    u2: np.ndarray
+    """``(C, 2)`` unit direction of its second wall."""
 
 
 class Discs(NamedTuple):
@@ -57,65 +74,6 @@ class Discs(NamedTuple):
     """``(N,)`` int64: the disc of origin ``o`` itself (never hit), -1 if none."""
 
 
-class Corners(NamedTuple):
-    """Corner vertices of a wall set and the unit directions of their two walls
-    (:func:`parcover_env.sensors.sonar.concave_corners`)."""
-
-    points: np.ndarray
-    """``(C, 2)`` (m)."""
-    u1: np.ndarray
-    """``(C, 2)``."""
-    u2: np.ndarray
-    """``(C, 2)``."""
-
-
-class Cone(NamedTuple):
-    """The sub-rays of a ring's beams."""
-
-    offsets: np.ndarray
-    """``(J,)`` angles of a beam's sub-rays about its axis (rad)."""
-    share: np.ndarray
-    """``(B, J)`` int64: for beam ``b`` and sub-ray ``j``, the flat index ``b' * J + j'`` of the sub-ray
-    traced for that pair (``b' * J + j' <= b * J + j``), its own index the first time a direction
-    comes up (overlapping cones share sub-rays)."""
-
-
-class EchoRules(NamedTuple):
-    """How a sub-ray echoes (:func:`sonar_echoes`)."""
-
-    range_max: float
-    """A path longer than this returns nothing (m)."""
-    specular: bool
-    """Walls echo only near the normal (else every hit echoes)."""
-    multipath: bool
-    """An oblique wall mirrors the sub-ray, which may echo off the next surface."""
-    cos_min: float
-    """Smallest ``|cos|`` of incidence at which a wall echoes."""
-    nudge: float
-    """A mirrored sub-ray starts this far off the wall it left (m)."""
-    box_cull: bool
-    """Box-cull the walls of a cast (never changes a result)."""
-
-
-class NoiseRules(NamedTuple):
-    """What happens to a noise-free range (:func:`ring_noise`)."""
-
-    range_min: float
-    """(m)."""
-    range_max: float
-    """No echo reads this (m)."""
-    drop_below: bool
-    """Echoes nearer than ``range_min`` are lost (else clipped)."""
-    noise_std: float
-    """Gaussian noise sigma (m) ..."""
-    noise_rel: float
-    """... plus this times the range."""
-    quantization: float
-    """Echoes are rounded to multiples of this (m); 0: not."""
-    garbage_rate: float
-    """Probability of a reading uniform in the range."""
-
-
 class Draws(NamedTuple):
     """The random numbers of a ring's readings, flat ``(R,)`` arrays (world after world, robot after
     robot, beam after beam), empty where that step is off."""
@@ -128,23 +86,6 @@ class Draws(NamedTuple):
     """Uniforms: a garbage reading where below its rate."""
     junk: np.ndarray
     """Uniforms in ``[range_min, range_max]``: the garbage readings."""
-
-
-class RingModel(NamedTuple):
-    """The constants of a ring (:func:`ring_readings`)."""
-
-    beams: np.ndarray
-    """``(B,)`` beam axes in the robot frame (rad)."""
-    cone: Cone
-    echo: EchoRules
-    half_cone: float
-    """Half the beam's cone, with a rounding slack (rad)."""
-    all_round: bool
-    """The cones cover every direction (a robot's beam always points back)."""
-    near_slack: float
-    """Slack added to a near-wall list's reach (m)."""
-    crosstalk_prob: float
-    noise: NoiseRules
 
 
 class _DiscTerms(NamedTuple):
@@ -165,14 +106,15 @@ def _incidence(den, seg_len, i):
 
 
 @njit(cache=True, nogil=True)
-def sonar_echoes(ox, oy, axes, cone, walls, near_walls, discs, rules, reading):
+def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, reading):
     """Nearest echo ``reading (N, B)`` over the sub-rays of every beam, inf if none (the rules of
-    :func:`parcover_env.sensors.sonar.simulate_beams`), from origins ``ox, oy (N,)``: a
-    :class:`Cone`, a :class:`WallSet`, the :class:`NearWalls` of the origins (within ``rmax`` plus
-    the nudge), the :class:`Discs` and the :class:`EchoRules` (specular only if there are walls).
-    Beam ``b`` of origin ``n`` has the sub-rays at angles ``axes[n, b] + offsets[j]``: the axis's unit
-    vector ``(cos, sin)(axes[n, b])`` rotated by ``offsets[j]`` (two sines and cosines per beam, not
-    per sub-ray). Overlapping cones share sub-rays (``cone.share``).
+    :func:`parcover_env.sensors.sonar.simulate_beams`), from origins ``ox, oy (N,)`` among the
+    :class:`WallSet` and the :class:`Discs`, with the :data:`SONAR_RULES` ``rules`` (specular only if
+    there are walls). Beam ``b`` of origin ``n`` has the sub-rays at angles ``axes[n, b] +
+    offsets[j]``: the axis's unit vector ``(cos, sin)(axes[n, b])`` rotated by ``offsets[j]`` (two
+    sines and cosines per beam, not per sub-ray). Overlapping cones share sub-rays: ``share[b, j]``
+    is the flat index ``b' * J + j'`` (``b' * J + j' <= b * J + j``) of the sub-ray traced for that
+    pair, its own index the first time a direction comes up.
 
     A sub-ray's first hit within ``rmax`` on the walls is ``t1`` (incidence ``|cos| c1``), on the
     discs ``td``. ``specular``: a wall echoes only if ``c1 >= cos_min``; with ``multipath`` an
@@ -180,13 +122,12 @@ def sonar_echoes(ox, oy, axes, cone, walls, near_walls, discs, rules, reading):
     ``t1 + t2 + nudge`` if its next surface (a normal-enough wall, or a disc) lies within
     ``rmax - t1`` (``t2 + nudge`` compared). A disc nearer than the wall echoes (``td``). Walls
     are looked up in the origin's list ``idx`` of those within ``rmax`` (plus the nudge;
-    :func:`near_segments`): a two-leg path of length <= ``rmax`` stays within it."""
-    offsets, share = cone.offsets, cone.share
+    :func:`near_segments`): a two-leg path of length <= ``rmax`` stays within it, ``idx[n, :cnt[n]]``."""
     segs, seg_len = walls.segments, walls.lengths
-    idx, cnt = near_walls.idx, near_walls.cnt
     cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
-    rmax, multipath, cos_min, box_cull = rules.range_max, rules.multipath, rules.cos_min, rules.box_cull
-    specular = rules.specular and segs.shape[0] > 0
+    rule = rules[0]
+    rmax, multipath, cos_min, box_cull = rule.range_max, rule.multipath, rule.cos_min, rule.box_cull
+    specular = rule.specular and segs.shape[0] > 0
     cull = box_cull and math.isfinite(rmax)
     per_origin = cx.shape[0] > 1
     n_discs = cx.shape[1]
@@ -331,7 +272,8 @@ def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, near, discs, n, rules):
     cx, cy, r2 = discs.cx, discs.cy, discs.r2
     row = n if cx.shape[0] > 1 else 0
     mine = discs.owner[n]
-    rmax, cos_min, nudge, box_cull = rules.range_max, rules.cos_min, rules.nudge, rules.box_cull
+    rule = rules[0]
+    rmax, cos_min, nudge, box_cull = rule.range_max, rule.cos_min, rule.nudge, rule.box_cull
     ex = segs[i1, 2] - segs[i1, 0]
     ey = segs[i1, 3] - segs[i1, 1]
     norm = math.sqrt(ex * ex + ey * ey)
@@ -354,16 +296,16 @@ def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, near, discs, n, rules):
 
 
 @njit(cache=True, nogil=True)
-def sonar_corner_echoes(ox, oy, axes, corners, segs, near_walls, discs, rmax, half, reading):
-    """Lower ``reading (N, B)`` to the distance of every concave corner of :class:`Corners` ``pts
-    (C, 2)`` (wall directions ``u1, u2``) that origin ``n`` sees from inside the corner's wedge,
-    within ``rmax``, with no wall ``segs`` (nor one of the :class:`Discs`) in between, and inside beam
-    ``b``'s cone (``|bearing - axis| <= half``); the concave-corner rule of
-    :func:`parcover_env.sensors.sonar.simulate_beams`. Walls are looked up in the origin's
-    :class:`NearWalls` (those within ``rmax``)."""
-    pts, u1, u2 = corners
-    idx, cnt = near_walls.idx, near_walls.cnt
+def sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading):
+    """Lower ``reading (N, B)`` to the distance of every concave corner ``points (C, 2)`` (wall
+    directions ``u1, u2``) of the :class:`WallSet` that origin ``n`` sees from inside the corner's
+    wedge, within ``range_max``, with no wall (nor one of the :class:`Discs`) in between, and inside
+    beam ``b``'s cone (``|bearing - axis| <= half_cone``); the concave-corner rule of
+    :func:`parcover_env.sensors.sonar.simulate_beams`. Walls are looked up in the origin's list
+    ``idx[n, :cnt[n]]`` of those within ``range_max`` (:func:`near_segments`)."""
+    segs, pts, u1, u2 = walls.segments, walls.points, walls.u1, walls.u2
     cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
+    rmax, half = rules[0].range_max, rules[0].half_cone
     has_discs = cx.shape[1] > 0
     per_origin = cx.shape[0] > 1
     for n in range(ox.shape[0]):
@@ -399,17 +341,17 @@ def sonar_corner_echoes(ox, oy, axes, corners, segs, near_walls, discs, rmax, ha
 
 
 @njit(cache=True, nogil=True)
-def sonar_crosstalk(px, py, pth, beams, all_round, segs, near_walls, half, rmax, want, out):
+def sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, rules, want, out):
     """Cross-talk readings ``out (K, N, B)`` (left inf where none) of robots ``(K, N)`` poses
     ``px, py, pth``: beam ``b`` of robot ``i`` reads ``d / 2`` from the nearest robot ``j`` of its world
-    inside that beam's cone (``half``) with a beam of ``j`` pointing back at ``i``, ``0 < d / 2 <= rmax``
+    inside that beam's cone (``half_cone``) with a beam of ``j`` pointing back at ``i``, ``0 < d / 2 <= range_max``
     and no wall between them; the rules of :func:`parcover_env.sensors.sonar.crosstalk`.
     ``all_round``: the cones cover every direction (a beam always points back). Walls are looked up
-    in robot ``k * N + i``'s :class:`NearWalls` (those within ``2 rmax``).
+    in robot ``k * N + i``'s list ``idx`` of those within ``2 range_max`` (:func:`near_segments`).
     Only the beams ``want (K, N, B)`` are computed (the others stay inf). A robot ``j`` more than
     ``_CONE_SLACK`` outside every wanted cone of ``i`` (a dot product with the axes) skips the exact
     bearing test."""
-    idx, cnt = near_walls.idx, near_walls.cnt
+    half, rmax = rules[0].half_cone, rules[0].range_max
     nb = beams.shape[0]
     n_robots = px.shape[1]
     cos_lim = math.cos(min(half + _CONE_SLACK, math.pi))
@@ -470,13 +412,14 @@ def sonar_crosstalk(px, py, pth, beams, all_round, segs, near_walls, half, rmax,
 def ring_noise(ideal, heard, talk_prob, draws, rules, out):
     """``out (N, B)`` (float32 or float64) from the noise-free ``ideal (N, B)``: cross-talk
     (``talk_prob > 0``: a beam reads ``min(ideal, heard)`` with that probability, ``heard (N, B)``),
-    then the :class:`NoiseRules`: readings below ``range_min`` lost (``drop_below``), Gaussian noise
+    then the :data:`SONAR_RULES`: readings below ``range_min`` lost (``drop_below``), Gaussian noise
     ``noise_std + noise_rel * r`` on echoes, quantization of echoes, clamping to ``[range_min,
     range_max]``, garbage readings uniform in that range. The :class:`Draws` are ``(N * B,)``."""
     talk, z, bad, junk = draws
-    range_min, range_max, drop_below = rules.range_min, rules.range_max, rules.drop_below
-    noise_std, noise_rel, quantization, garbage_rate = rules.noise_std, rules.noise_rel, rules.quantization, \
-        rules.garbage_rate
+    rule = rules[0]
+    range_min, range_max, drop_below = rule.range_min, rule.range_max, rule.drop_below
+    noise_std, noise_rel, quantization, garbage_rate = rule.noise_std, rule.noise_rel, rule.quantization, \
+        rule.garbage_rate
     n, b = ideal.shape
     size = n * b
     r = ideal.copy().reshape(size)
@@ -508,16 +451,17 @@ def ring_noise(ideal, heard, talk_prob, draws, rules, out):
 
 
 @njit(cache=True, nogil=True)
-def ring_readings(px, py, pth, radius2, ring, walls, corners, draws, out):
-    """The rings of every robot of ``K`` worlds sharing the walls, ``px, py, pth (K, N)``, in one pass:
-    what :meth:`parcover_env.sensors.sonar.SonarRing.measure` composes from its parts for each world
-    alone. The noise-free echoes (:func:`sonar_echoes` with the :class:`RingModel`'s cone and rules,
-    on a :class:`WallSet`; its :class:`Corners`; the discs are the other robots of the robot's world,
-    of squared radius ``radius2``), the cross-talk of the beams whose uniform ``draws.talk`` is below
-    its probability (``talk`` empty: none), then :func:`ring_noise` into ``out (K * N, B) float32``.
-    The :class:`Draws` are flat, world after world, robot after robot, beam after beam."""
-    beams, rules = ring.beams, ring.echo
-    rmax, slack, half = rules.range_max, ring.near_slack, ring.half_cone
+def ring_readings(px, py, pth, radius2, beams, offsets, share, walls, draws, rules, out):
+    """The rings (beam axes ``beams (B,)`` in the robot frame, sub-rays ``offsets`` shared as
+    ``share`` says) of every robot of ``K`` worlds sharing the :class:`WallSet`, ``px, py, pth
+    (K, N)``, in one pass: what :meth:`parcover_env.sensors.sonar.SonarRing.measure` composes from its
+    parts for each world alone. The noise-free echoes (:func:`sonar_echoes`, its concave corners;
+    the discs are the other robots of the robot's world, of squared radius ``radius2``), the
+    cross-talk of the beams whose uniform ``draws.talk`` is below its probability (``talk`` empty:
+    none), then :func:`ring_noise` into ``out (K * N, B) float32``, with the :data:`SONAR_RULES`
+    ``rules``. The :class:`Draws` are flat, world after world, robot after robot, beam after beam."""
+    rule = rules[0]
+    rmax, slack = rule.range_max, rule.near_slack
     segs = walls.segments
     talk = draws.talk
     k, n = px.shape
@@ -540,20 +484,21 @@ def ring_readings(px, py, pth, radius2, ring, walls, corners, draws, out):
     for r in range(k * n):
         owner[r] = r % n
     discs = Discs(cx, cy, r2, owner)
-    near = NearWalls(np.empty((k * n, segs.shape[0]), dtype=np.int64), np.empty(k * n, dtype=np.int64))
-    near_segments(ox, oy, segs, rmax + slack, near.idx, near.cnt)
+    idx = np.empty((k * n, segs.shape[0]), dtype=np.int64)
+    cnt = np.empty(k * n, dtype=np.int64)
+    near_segments(ox, oy, segs, rmax + slack, idx, cnt)
     ideal = np.empty((k * n, nb))
-    sonar_echoes(ox, oy, axes, ring.cone, walls, near, discs, rules, ideal)
-    if rules.specular and corners.points.shape[0] > 0:
-        sonar_corner_echoes(ox, oy, axes, corners, segs, near, discs, rmax, half, ideal)
+    sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, ideal)
+    if rule.specular and walls.points.shape[0] > 0:
+        sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, ideal)
     heard = ideal  # (no echo reads inf here, range max in the parts: ring_noise treats both alike)
     if talk.shape[0]:
         want = np.empty((k, n, nb), dtype=np.bool_)
         for r in range(k * n):
             for b in range(nb):
-                want[r // n, r % n, b] = talk[r * nb + b] < ring.crosstalk_prob
-        near_segments(ox, oy, segs, 2.0 * rmax + slack, near.idx, near.cnt)
+                want[r // n, r % n, b] = talk[r * nb + b] < rule.crosstalk_prob
+        near_segments(ox, oy, segs, 2.0 * rmax + slack, idx, cnt)
         heard3 = np.full((k, n, nb), np.inf)
-        sonar_crosstalk(px, py, pth, beams, ring.all_round, segs, near, half, rmax, want, heard3)
+        sonar_crosstalk(px, py, pth, beams, rule.all_round, segs, idx, cnt, rules, want, heard3)
         heard = heard3.reshape(k * n, nb)
-    ring_noise(ideal, heard, ring.crosstalk_prob if talk.shape[0] else 0.0, draws, ring.noise, out)
+    ring_noise(ideal, heard, rule.crosstalk_prob if talk.shape[0] else 0.0, draws, rules, out)

@@ -169,7 +169,7 @@ def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit():
     robot reads, in a room of oblique walls with a crowd of robots."""
     from parcover_env.geometry import rays
     from parcover_env.sensors import sonar_kernels as kern
-    from parcover_env.sensors.sonar import _NUDGE, _share, _subray_offsets, _walls
+    from parcover_env.sensors.sonar import _NUDGE, _rules, _share, _subray_offsets, _walls
 
     cfg = SonarConfig()
     ring = SonarRing(cfg)
@@ -183,12 +183,10 @@ def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit():
         axes = np.ascontiguousarray(rng.uniform(-4, 4, (10, 1)) + ring.beam_angles[None, :])
         ox, oy = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
         discs = kern.Discs(*rays.disc_planes(xy, 0.15, np.arange(10), 10))
-        near = kern.NearWalls(*rays.near_segments(ox, oy, walls.segments, cfg.range_max))
+        idx, cnt = rays.near_segments(ox, oy, walls.segments, cfg.range_max)
         got = np.empty((10, ring.n_beams))
-        rules = kern.EchoRules(range_max=cfg.range_max, specular=True, multipath=True, cos_min=cos_min, nudge=_NUDGE,
-                               box_cull=True)
-        kern.sonar_echoes(ox, oy, axes, kern.Cone(offsets, _share(axes, offsets)), walls.kernel, near, discs, rules,
-                          got)
+        rules = _rules(cfg)  # specular, multipath, box culls
+        kern.sonar_echoes(ox, oy, axes, offsets, _share(axes, offsets), walls.kernel, idx, cnt, discs, rules, got)
         for n in range(10):
             others = [tuple(p) for i, p in enumerate(xy) if i != n]
             want = _specular_reference(ox[n], oy[n], axes[n], offsets, walls.segments, walls.kernel.lengths, others,
