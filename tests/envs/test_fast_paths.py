@@ -10,7 +10,7 @@ import pytest
 from parcover_env.config import SonarConfig
 from parcover_env.envs import ParallelCoverageEnv
 from parcover_env.geometry import rays
-from parcover_env.localization.kinect.pipeline import _view_box
+from parcover_env.localization.kinect.estimate_model import view_box
 from parcover_env.scenarios.progress import RouteTracker as Mission
 from parcover_env.sensors import sonar as sn
 
@@ -128,7 +128,7 @@ def test_goals_cache_follows_progress():
 def test_kinect_view_box_never_rejects_a_visible_robot():
     env = ParallelCoverageEnv("tree")
     sensor = env.kinects.sensors[0]
-    x0, y0, x1, y1 = _view_box(sensor)
+    x0, y0, x1, y1 = view_box(sensor)
     assert x1 > x0 and y1 > y0
     cam = sensor.camera
     rng = np.random.default_rng(1)

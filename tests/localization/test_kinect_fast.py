@@ -10,7 +10,7 @@ import pytest
 
 import parcover_env
 from parcover_env.geometry import wrap_angle
-from parcover_env.localization.kinect.pipeline import FastModel, FastNoise, estimate_fast_all
+from parcover_env.localization.kinect.estimate_model import FastModel, FastNoise, estimate_fast_all
 from parcover_env.sensors.kinect import NATIVE_WIDTH
 
 
@@ -98,14 +98,15 @@ def test_frame_drops_and_several_kinects_in_one_call():
     env.reset(seed=2)
     sensors = env.kinects.sensors
     model = FastModel(sensors)
-    model.scal[:, 4] = 1.0  # every frame dropped: one draw per Kinect, nothing seen
+    model.kinects = model.kinects.copy()  # (the model's table is read-only)
+    model.kinects["drop_rate"] = 1.0  # every frame dropped: one draw per Kinect, nothing seen
     poses = np.column_stack([env.world.poses()[:, :2], np.zeros(env.n_robots)])
     rng = np.random.default_rng(0)
     assert model.estimate([2, 0], poses, np.ones(env.n_robots, bool), rng) == [[], []]
     ref = np.random.default_rng(0)
     ref.random(2)
     assert rng.random() == ref.random()
-    model.scal[:, 4] = 0.0
+    model.kinects["drop_rate"] = 0.0
     every = np.ones(env.n_robots, bool)
     seeing = [q for q, lst in enumerate(model.estimate(range(len(sensors)), poses, every, np.random.default_rng(0)))
               if lst]
@@ -135,28 +136,29 @@ def test_noise_scale_stamp_and_closing_limit():
     assert est[0].stamp == 2.5 and est[0].truth_index == 0
     loud = estimate_fast_all([s], pose, [True], np.random.default_rng(0), noise=FastNoise(pos_px=5.0))[0][0]
     assert 1e-4 < abs(loud.x - pose[0, 0]) < 0.2 and loud.stamp == 0.0
-    from parcover_env.localization.kinect.pipeline import estimate_fast
+    from parcover_env.localization.kinect.estimate_model import estimate_fast
 
     assert estimate_fast(s, pose, [True], np.random.default_rng(0), noise=quiet, stamp=1.0)[0].stamp == 1.0
     # markers merge in the closing when their gap is under 3 px at the robot's depth
     model = FastModel([s])
+    model.kinects = model.kinects.copy()
     z = s.camera.C[2] - s.robot_height
     px_per_m = s.camera.focal / z
     for gap_px, seen in ((2.6, False), (3.2, True)):
-        model.scal[0, 5] = gap_px / px_per_m
+        model.kinects[0]["pattern_gap"] = gap_px / px_per_m
         assert bool(model.estimate([0], pose, np.array([True]), np.random.default_rng(0))[0]) == seen
 
 
 def test_a_remounted_camera_is_not_served_from_the_old_cache():
-    from parcover_env.localization.kinect.pipeline import _view_box
+    from parcover_env.localization.kinect.estimate_model import view_box
 
     env = parcover_env.parallel_env("tree").unwrapped
     env.reset(seed=2)
     s = env.kinects.sensors[0]
     s.true_camera = s.camera
-    before = _view_box(s)
+    before = view_box(s)
     s.true_camera = s.camera.perturbed(0.0, 0.0, 0.0, 0.5)  # raised 0.5 m: a wider view
-    after = _view_box(s)
+    after = view_box(s)
     assert after[0] < before[0] - 0.1 and after[2] > before[2] + 0.1
     s.true_camera = s.camera
-    assert _view_box(s) == before
+    assert view_box(s) == before

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from parcover_env.config import KinectConfig, MapConfig
-from parcover_env.sensors import _kinect_kernels as kk
+from parcover_env.sensors import kinect_kernels as kk
 from parcover_env.sensors.kinect import KinectSensor
 from parcover_env.world.map_model import MapModel
 
