@@ -183,11 +183,8 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     ox, oy = np.ascontiguousarray(origins[:, 0]), np.ascontiguousarray(origins[:, 1])
     axes = np.ascontiguousarray(axes, dtype=float)
     discs = kern.Discs(*rays.disc_planes(centres, float(radius), owner, n))
-    idx, cnt = rays.near_segments(ox, oy, walls.segments, rmax)
     reading = np.empty((n, b))
-    kern.sonar_echoes(ox, oy, axes, offsets, _share(axes, offsets), walls.kernel, idx, cnt, discs, rules, reading)
-    if cfg.model == "specular" and len(walls.kernel.points):  # concave corners in a cone retro-reflect
-        kern.sonar_corner_echoes(ox, oy, axes, walls.kernel, idx, cnt, discs, rules, reading)  # lowers ``reading``
+    kern.beam_readings(ox, oy, axes, offsets, _share(axes, offsets), walls.kernel, discs, rules, reading)
     return np.minimum(reading, rmax, out=reading)
 
 

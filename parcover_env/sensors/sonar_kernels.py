@@ -23,7 +23,7 @@ from numba import njit
 from parcover_env.geometry.ray_kernels import COS_FLOOR, disc_hit, disc_hit_from, in_cone, near_segments, segment_hit
 
 __all__ = ["SONAR_RULES", "WallSet", "Discs", "Draws", "sonar_echoes", "sonar_corner_echoes", "sonar_crosstalk",
-           "ring_noise", "ring_readings"]
+           "ring_noise", "beam_readings", "ring_readings"]
 
 SONAR_RULES = np.dtype([
     ("range_max", "f8"),  # a path longer than this returns nothing; no echo reads this (m)
@@ -448,6 +448,23 @@ def ring_noise(ideal, heard, talk_prob, draws, rules, out):
     flat = out.reshape(size)
     for i in range(size):
         flat[i] = r[i]
+
+
+@njit(cache=True, nogil=True)
+def beam_readings(ox, oy, axes, offsets, share, walls, discs, rules, reading):
+    """Noise-free echoes ``reading (N, B)`` (inf: none) of beams ``axes (N, B)`` from origins ``ox, oy``
+    (:func:`parcover_env.sensors.sonar.simulate_beams`): the near-wall lists within ``range_max``
+    (plus ``near_slack``), :func:`sonar_echoes`, then the concave corners
+    (:func:`sonar_corner_echoes`) if specular, in one call."""
+    rule = rules[0]
+    segs = walls.segments
+    n = ox.shape[0]
+    idx = np.empty((n, segs.shape[0]), dtype=np.int64)
+    cnt = np.empty(n, dtype=np.int64)
+    near_segments(ox, oy, segs, rule.range_max + rule.near_slack, idx, cnt)
+    sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, reading)
+    if rule.specular and walls.points.shape[0] > 0:
+        sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading)
 
 
 @njit(cache=True, nogil=True)

@@ -156,9 +156,10 @@ def test_crosstalk_batched_over_worlds_equals_each_world_alone():
 @pytest.mark.parametrize("range_max", [0.8, 1.5, 3.0, 50.0])
 def test_near_wall_lists_change_no_reading(monkeypatch, range_max):
     """The sonar kernels look walls up in each robot's list of those within reach; with every wall
-    listed instead, readings and cross-talk are the same bit for bit (also short ranges, where the
-    lists leave most walls out)."""
+    listed instead (the lists' slack made huge, every list from ``near_segments`` full), readings and
+    cross-talk are the same bit for bit (also short ranges, where the lists leave most walls out)."""
     from parcover_env.geometry import rays
+    from parcover_env.sensors import sonar
     from parcover_env.sensors.sonar import crosstalk
 
     cfg = SonarConfig(range_max=range_max, crosstalk_prob=0.5)
@@ -174,7 +175,14 @@ def test_near_wall_lists_change_no_reading(monkeypatch, range_max):
     def every(ox, oy, segments, reach):
         return np.tile(np.arange(len(segments)), (len(ox), 1)), np.full(len(ox), len(segments))
 
+    def wide(*args, **kwargs):
+        rules = rules_of(*args, **kwargs).copy()
+        rules["near_slack"] = 1e9
+        return rules
+
+    rules_of = sonar._rules
     monkeypatch.setattr(rays, "near_segments", every)
+    monkeypatch.setattr(sonar, "_rules", wide)
     assert np.array_equal(ring.ideal_batch(poses, m.segments, 0.1), ideal)
     assert np.array_equal(crosstalk(cfg, poses, ring.beam_angles, m.segments), heard)
     assert np.array_equal(ring.scan(poses[0, 0], m.segments, poses[0, 1:, :2], 0.1, None), scan)
