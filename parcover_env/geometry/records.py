@@ -1,11 +1,13 @@
 """Named records for compiled code: the constants a numba kernel reads travel as a numpy structured
 array whose fields have names, so a kernel reads ``rules.range_max``, never ``par[3]``.
 
-Why structured arrays: numba types an array argument in its C dispatcher, so a record costs a
-kernel call what any array costs (~0.1 us); a ``NamedTuple`` is typed field by field in Python
-(~1 us and more per call). Kernels take the one-element array :func:`record` builds and read
-``rules[0]``; per-item tables (one row per Kinect, say) come from :func:`table`. Bundles of arrays
-are ``NamedTuple`` classes next to the kernels that take them.
+Why structured arrays: numba types an array argument in its C dispatcher, so a record of any
+number of fields adds about 0.3 us to a kernel call, where a ``NamedTuple`` is typed field by
+field in Python: about 1.2-1.4 us for a few fields, more when nested
+(``benchmarks/kernel_records.py``). Kernels take the one-element array :func:`record` builds and
+read ``rules[0]``; per-item tables (one row per Kinect, say) come from :func:`table`. Bundles of
+arrays are ``NamedTuple`` classes next to the kernels that take them, used where a kernel would
+otherwise take more than 12 arguments.
 """
 
 from __future__ import annotations
