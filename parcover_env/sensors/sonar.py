@@ -4,7 +4,8 @@ Geometry and conventions
 - The transducers sit at the robot centre (a documented simplification: ranges are measured from
   the centre, so a wall touching the robot reads ``robot_radius``). Beam angles are in the robot
   frame, counter-clockwise from the heading. All rays are cast with the formulas of
-  :mod:`parcover_env.geometry.rays` (its compiled per-ray helpers, in :mod:`.sonar_kernels`).
+  :mod:`parcover_env.geometry.rays` (its compiled per-ray helpers, in :mod:`.sonar_kernels` and
+  :mod:`.sonar_ring_kernels`).
 - ``model: ray`` — one ideal ray along each beam axis; reading = first hit (walls or other robots).
 - ``model: specular`` (default) — each beam is a cone of ``cone_deg`` sampled by ``n_subrays`` rays (the
   axis direction rotated by each sub-ray's offset). Overlapping cones share the sub-rays that point
@@ -38,6 +39,7 @@ from parcover_env.geometry import rays
 from parcover_env.geometry.angles import wrap_angle
 from parcover_env.geometry.records import record
 from parcover_env.sensors import sonar_kernels as kern
+from parcover_env.sensors import sonar_ring_kernels as ring_kern
 
 __all__ = ["SonarRing", "AMIGOBOT_ANGLES_DEG", "concave_corners", "simulate_beams", "crosstalk"]
 
@@ -291,17 +293,17 @@ class SonarRing:
                  draws: list[tuple[np.ndarray, ...]]) -> np.ndarray:
         """Readings ``(K, N, B)`` float32 of ``K`` worlds sharing the walls ``segments``, robots ``poses
         (K, N, 3)`` that see the robots of their own world, with each world's :meth:`draw`: one
-        compiled call (:func:`~parcover_env.sensors.sonar_kernels.ring_readings`). World ``k``
+        compiled call (:func:`~parcover_env.sensors.sonar_ring_kernels.ring_readings`). World ``k``
         reads what :meth:`measure` reads for it alone with a generator that gives those draws."""
         walls = _walls(segments)
         poses = np.asarray(poses, dtype=float)
         k, n, nb = poses.shape[0], poses.shape[1], self.n_beams
-        flat = kern.Draws(*(np.concatenate(parts) if k > 1 else parts[0] for parts in zip(*draws, strict=True)))
+        flat = ring_kern.Draws(*(np.concatenate(parts) if k > 1 else parts[0] for parts in zip(*draws, strict=True)))
         out = np.empty((k * n, nb), dtype=np.float32)
         px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
         r = float(robot_radius)
-        kern.ring_readings(px, py, pth, r * r, self._beams, self._offsets, self._share, walls.kernel, flat, self._rules,
-                           out)
+        ring_kern.ring_readings(px, py, pth, r * r, self._beams, self._offsets, self._share, walls.kernel, flat,
+                                self._rules, out)
         return out.reshape(k, n, nb)
 
     def ideal_batch(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float) -> np.ndarray:
@@ -340,14 +342,14 @@ class SonarRing:
     def _noisy(self, ideal, heard: np.ndarray | None, rng: np.random.Generator | None, dtype) -> np.ndarray:
         """Readings from noise-free ranges: cross-talk with ``heard`` (if given, at ``crosstalk_prob``),
         then :meth:`corrupt`'s steps; one compiled pass drawing from ``rng``
-        (:func:`~parcover_env.sensors.sonar_kernels.ring_noise`)."""
+        (:func:`~parcover_env.sensors.sonar_ring_kernels.ring_noise`)."""
         ideal = np.asarray(ideal, dtype=float)
         rows = np.ascontiguousarray(ideal.reshape(-1, ideal.shape[-1]) if ideal.ndim else ideal.reshape(1, 1))
         out = np.empty(rows.shape, dtype=dtype)
         talk = heard is not None
         heard = np.ascontiguousarray(heard, dtype=float).reshape(rows.shape) if talk else rows
-        kern.ring_noise(rows, heard, float(self.cfg.crosstalk_prob) if talk else 0.0,
-                        kern.Draws(*self._draws(rows.size, rng, talk)), self._rules, out)
+        ring_kern.ring_noise(rows, heard, float(self.cfg.crosstalk_prob) if talk else 0.0,
+                             ring_kern.Draws(*self._draws(rows.size, rng, talk)), self._rules, out)
         return out.reshape(ideal.shape)
 
 
@@ -372,8 +374,8 @@ def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segm
     px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
     idx, cnt = rays.near_segments(px.reshape(-1), py.reshape(-1), segments, 2 * float(cfg.range_max))
     beams = np.ascontiguousarray(beam_angles, dtype=float)
-    kern.sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments, idx, cnt,
-                         _rules(cfg), want, out)
+    ring_kern.sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments, idx,
+                              cnt, _rules(cfg), want, out)
     return out
 
 

@@ -6,8 +6,8 @@
 * :func:`specular_echoes` and :func:`disc_echoes`: :func:`~parcover_env.sensors.sonar_kernels.sonar_echoes`
   with the kernel's float operations (both legs of every sub-ray, every wall and robot, no culling),
   compared bit for bit;
-* :func:`crosstalk`: :func:`~parcover_env.sensors.sonar_kernels.sonar_crosstalk`, every pair of robots;
-* :func:`noise`: :func:`~parcover_env.sensors.sonar_kernels.ring_noise` as numpy formulas.
+* :func:`crosstalk`: :func:`~parcover_env.sensors.sonar_ring_kernels.sonar_crosstalk`, every pair of robots;
+* :func:`noise`: :func:`~parcover_env.sensors.sonar_ring_kernels.ring_noise` as numpy formulas.
 """
 
 from __future__ import annotations
