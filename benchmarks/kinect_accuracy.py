@@ -27,7 +27,8 @@ import numpy as np
 
 from parcover_env.config import KinectConfig, MapConfig
 from parcover_env.geometry import wrap_angle
-from parcover_env.localization.kinect.pipeline import PipelineParams, estimate_fast, estimate_poses
+from parcover_env.localization.kinect.estimate_model import estimate_fast
+from parcover_env.localization.kinect.pipeline import PipelineParams, estimate_poses
 from parcover_env.sensors.kinect import KinectSensor, axial_sigma
 from parcover_env.viz.kinect_views import trajectory_image
 from parcover_env.world.map_model import MapModel

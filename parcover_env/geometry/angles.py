@@ -6,12 +6,19 @@ import math
 
 import numpy as np
 
-__all__ = ["wrap_angle", "rotate", "atan2"]
+__all__ = ["wrap", "wrap_angle", "rotate", "atan2"]
+
+
+def wrap(a: float) -> float:
+    """One angle ``a`` (rad) wrapped to (-pi, pi]: ``pi - ((pi - a) mod 2 pi)``, the mod taking the
+    sign of ``2 pi``. The package's one formula: compiled code uses it through
+    :func:`parcover_env.geometry.angle_kernels.wrap` and arrays through :func:`wrap_angle`."""
+    return math.pi - ((math.pi - a) % (2.0 * math.pi))
 
 
 def wrap_angle(a):
-    """Wrap angles to (-pi, pi]."""
-    return np.pi - np.mod(np.pi - np.asarray(a, dtype=float), 2.0 * np.pi)
+    """Angles (rad, scalar or array) wrapped to (-pi, pi]: :func:`wrap` element-wise (a compiled ufunc)."""
+    return _kernels().wrap_angles(np.asarray(a, dtype=float))
 
 
 def rotate(v: np.ndarray, theta) -> np.ndarray:
@@ -29,10 +36,15 @@ def atan2(y, x):
     ``math.atan2`` and arrays to a compiled loop over it (libm either way)."""
     if np.ndim(y) == 0 and np.ndim(x) == 0:
         return np.float64(math.atan2(float(y), float(x)))
-    from parcover_env.geometry import _libm_kernels
-
     yy, xx = np.broadcast_arrays(np.asarray(y, dtype=float), np.asarray(x, dtype=float))
     out = np.empty(yy.shape)
-    _libm_kernels.atan2_into(np.ascontiguousarray(yy).reshape(-1), np.ascontiguousarray(xx).reshape(-1),
-                             out.reshape(-1))
+    _kernels().atan2_into(np.ascontiguousarray(yy).reshape(-1), np.ascontiguousarray(xx).reshape(-1),
+                            out.reshape(-1))
     return out
+
+
+def _kernels():
+    """:mod:`parcover_env.geometry.angle_kernels` (numba is imported on first use, not with the package)."""
+    from parcover_env.geometry import angle_kernels
+
+    return angle_kernels

@@ -23,7 +23,7 @@ meets the box of its reach ``[o, o + max_range d]`` (grown by 1e-9 m); a hit wit
 both boxes, so culled and full tests give the same numbers bit for bit. Casts whose paths from an
 origin are at most ``L`` long (the sonar) look up the walls in the origin's list of segments within
 ``L`` (:func:`near_segments`), which changes no result either. The loops are compiled
-with numba (:mod:`parcover_env.geometry._ray_kernels`, imported on the first cast).
+with numba (:mod:`parcover_env.geometry.ray_kernels`, imported on the first cast).
 
 A hit farther than ``max_range`` is reported as no hit: distance ``inf``, segment index ``-1``.
 """
@@ -46,9 +46,9 @@ BOX_CULL = True
 
 def kernels():
     """The compiled loops (numba is imported on the first cast, not with the package)."""
-    from parcover_env.geometry import _ray_kernels
+    from parcover_env.geometry import ray_kernels
 
-    return _ray_kernels
+    return ray_kernels
 
 
 @dataclass(frozen=True, eq=False)

@@ -31,7 +31,6 @@ Model (seed A section III-A/IV, ALGORITHMS.md "Kinect v1 model"):
 
 from __future__ import annotations
 
-import functools
 import math
 import weakref
 from dataclasses import dataclass, field
@@ -41,13 +40,15 @@ import numpy as np
 
 from parcover_env.geometry import cast_rays
 from parcover_env.geometry.camera import CameraModel
+from parcover_env.geometry.records import record
+from parcover_env.sensors.kinect_noise import axial_sigma, normal_table, rounded_normal_table
 
 if TYPE_CHECKING:
     from parcover_env.config import KinectConfig
     from parcover_env.world.map_model import MapModel
 
-__all__ = ["KinectFrame", "KinectSensor", "marker_pattern", "axial_sigma", "may_see_all", "normal_table",
-           "BASELINE", "NATIVE_WIDTH"]
+__all__ = ["KinectFrame", "KinectSensor", "marker_pattern", "axial_sigma", "may_see_all", "check_poses",
+           "normal_table", "rounded_normal_table", "BASELINE", "NATIVE_WIDTH"]
 
 BASELINE = 0.075
 """Projector-camera baseline b of the Kinect v1 (m)."""
@@ -63,12 +64,6 @@ def marker_pattern(robot_radius: float = 0.15, marker_radius: float = 0.02) -> n
     if not robot_radius > marker_radius > 0:
         raise ValueError(f"need robot_radius > marker_radius > 0, got {robot_radius}, {marker_radius}")
     return _UNIT_PATTERN * min(1.0, (robot_radius - marker_radius) / 0.108)
-
-
-def axial_sigma(z) -> np.ndarray:
-    """Axial depth noise std (m) at camera depth ``z`` (m), Nguyen, Izadi, Lovell 2012."""
-    z = np.asarray(z, dtype=float)
-    return 0.0012 + 0.0019 * (z - 0.4) ** 2
 
 
 @dataclass
@@ -277,7 +272,7 @@ class KinectSensor:
         boxes[ok, :2], boxes[ok, 2:] = lo[ok], hi[ok]
         return boxes
 
-    def _cull_box(self) -> tuple[float, float, float, float]:
+    def cull_box(self) -> tuple[float, float, float, float]:
         """Floor box outside which no robot cylinder can appear in the image (cached): the image
         corners cast on the floor and on the robot-top plane, grown by the robot radius. Config
         validation keeps every corner ray below the horizon, so both planes are met."""
@@ -294,7 +289,7 @@ class KinectSensor:
         return self._cull
 
     def may_see(self, poses: np.ndarray, marker_mask: np.ndarray) -> bool:
-        """Whether some marker carrier stands inside :meth:`_cull_box` (cheap and conservative: a
+        """Whether some marker carrier stands inside :meth:`cull_box` (cheap and conservative: a
         ``False`` means no frame of this camera can show a marker, so none needs rendering)."""
         return bool(may_see_all([self], poses, marker_mask)[0])
 
@@ -304,7 +299,7 @@ class KinectSensor:
 
         Marker code per pixel: 0 none, 1 saturated marker, 2 depth-missing halo only.
         """
-        poses, marker_mask = self._check_inputs(poses, marker_mask)
+        poses, marker_mask = check_poses(poses, marker_mask)
         return tuple(a.copy() for a in self._render_clean(poses, marker_mask))
 
     def _render_clean(self, poses: np.ndarray, marker_mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -317,7 +312,7 @@ class KinectSensor:
         top = self._buffer("top", bool)
         top.fill(False)
         C = self.true_camera.C
-        cx0, cy0, cx1, cy1 = self._cull_box()
+        cx0, cy0, cx1, cy1 = self.cull_box()
         seen = np.flatnonzero((poses[:, 0] >= cx0) & (poses[:, 0] <= cx1) & (poses[:, 1] >= cy0)
                               & (poses[:, 1] <= cy1))
         boxes = np.full((len(poses), 4), -1, dtype=np.int64)  # u0 < 0: not drawn
@@ -330,20 +325,10 @@ class KinectSensor:
         carriers = np.flatnonzero(marker_mask & (boxes[:, 0] >= 0))
         if len(carriers):
             cos_sin = np.array([(math.cos(th), math.sin(th)) for th in poses[:, 2].tolist()])
-            k.marker_codes(code, depth, owner, top, self.rays, C, boxes, poses, cos_sin, carriers,
-                           self.pattern, self.marker_radius ** 2, (self.marker_radius * self.missing_factor) ** 2)
+            discs = record(k.MARKER_DISCS, marker_r2=self.marker_radius ** 2,
+                           halo_r2=(self.marker_radius * self.missing_factor) ** 2)
+            k.marker_codes(code, depth, owner, top, self.rays, C, boxes, poses, cos_sin, carriers, self.pattern, discs)
         return depth, owner, code
-
-    def _check_inputs(self, poses, marker_mask) -> tuple[np.ndarray, np.ndarray]:
-        poses = np.asarray(poses, dtype=float)
-        if poses.ndim != 2 or poses.shape[1] != 3:
-            raise ValueError(f"poses must have shape (N, 3) (x, y, theta), got {poses.shape}")
-        if not np.all(np.isfinite(poses)):
-            raise ValueError("poses contain NaN or inf")
-        mask = np.ones(len(poses), dtype=bool) if marker_mask is None else np.asarray(marker_mask, dtype=bool)
-        if mask.shape != (len(poses),):
-            raise ValueError(f"marker_mask must have shape ({len(poses)},), got {mask.shape}")
-        return poses, mask
 
     # ------------------------------------------------------------------ measurement
     def lateral_jitter(self, depth: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -405,7 +390,7 @@ class KinectSensor:
 
         With probability ``cfg.drop_rate`` the frame is dropped: ``dropped=True``, all-zero images.
         """
-        poses, marker_mask = self._check_inputs(poses, marker_mask)
+        poses, marker_mask = check_poses(poses, marker_mask)
         if self.cfg.drop_rate > 0 and rng.random() < self.cfg.drop_rate:
             return KinectFrame(self.name, np.zeros(self.shape, np.float32), np.zeros(self.shape, np.uint8),
                                stamp, dropped=True)
@@ -423,47 +408,36 @@ def may_see_all(sensors: list[KinectSensor], poses, marker_mask) -> np.ndarray:
     """:meth:`KinectSensor.may_see` of each sensor ``(K,) bool``, the inputs checked once."""
     if not sensors:
         return np.zeros(0, dtype=bool)
-    poses, mask = sensors[0]._check_inputs(poses, marker_mask)
-    box = np.array([s._cull_box() for s in sensors])
+    poses, mask = check_poses(poses, marker_mask)
+    box = np.array([s.cull_box() for s in sensors])
     xy = poses[mask, :2]
     inside = (xy[None, :, 0] >= box[:, None, 0]) & (xy[None, :, 0] <= box[:, None, 2]) \
         & (xy[None, :, 1] >= box[:, None, 1]) & (xy[None, :, 1] <= box[:, None, 3])
     return inside.any(axis=1)
 
 
+def check_poses(poses, marker_mask) -> tuple[np.ndarray, np.ndarray]:
+    """Robot poses ``(N, 3)`` float and who carries markers ``(N,)`` bool (None: every robot), checked:
+    ``ValueError`` naming the wrong shape or the non-finite poses."""
+    poses = np.asarray(poses, dtype=float)
+    if poses.ndim != 2 or poses.shape[1] != 3:
+        raise ValueError(f"poses must have shape (N, 3) (x, y, theta), got {poses.shape}")
+    if not np.all(np.isfinite(poses)):
+        raise ValueError("poses contain NaN or inf")
+    mask = np.ones(len(poses), dtype=bool) if marker_mask is None else np.asarray(marker_mask, dtype=bool)
+    if mask.shape != (len(poses),):
+        raise ValueError(f"marker_mask must have shape ({len(poses)},), got {mask.shape}")
+    return poses, mask
+
+
 def _kernels():
     """The compiled per-pixel loops (numba is imported on first use, not with the package)."""
-    from parcover_env.sensors import _kinect_kernels
+    from parcover_env.sensors import kinect_kernels
 
-    return _kinect_kernels
+    return kinect_kernels
 
 
 def _as_f32_bound(x) -> np.floating:
     """A range limit in the precision numpy compares it with a float32 image: a Python number is
     rounded to float32 (a weak scalar), a numpy float64 is kept (the image is promoted instead)."""
     return np.result_type(np.float32, x).type(x)
-
-
-@functools.cache
-def normal_table(bits: int = 12) -> np.ndarray:
-    """Inverse-CDF table of the standard normal, float32, read-only: entry ``u`` of ``2**bits`` is
-    the value drawn by the uniform integer ``u``, the quantile at the middle of its probability bin
-    (``ndtri((u + 0.5) / 2**bits)``). Symmetric, zero mean; variance 0.9997 for 12 bits."""
-    from scipy.special import ndtri
-
-    table = ndtri((np.arange(1 << bits) + 0.5) / (1 << bits)).astype(np.float32)
-    table.setflags(write=False)
-    return table
-
-
-def rounded_normal_table(sigma: float, bits: int = 16) -> np.ndarray:
-    """Inverse-CDF table of ``round(sigma * Z)``, ``Z ~ N(0, 1)``: entry ``u`` of ``2**bits`` is the
-    offset drawn by the uniform integer ``u`` (each offset's probability is exact to ``2**-bits``)."""
-    if not sigma > 0:
-        raise ValueError(f"sigma must be > 0, got {sigma}")
-    from scipy.special import ndtr
-
-    k = np.arange(-(math.ceil(8 * sigma) + 1), math.ceil(8 * sigma) + 2)
-    cdf = ndtr((k + 0.5) / sigma)  # P(round(sigma Z) <= k)
-    u = (np.arange(1 << bits) + 0.5) / (1 << bits)
-    return k[np.minimum(np.searchsorted(cdf, u), len(k) - 1)].astype(np.int32)

@@ -19,6 +19,8 @@ import numpy as np
 
 from parcover_env.config import OdometryConfig
 from parcover_env.geometry import wrap_angle
+from parcover_env.geometry.records import record
+from parcover_env.sensors import onboard_kernels
 
 __all__ = ["Odometry", "encoder_factors", "integrate", "propagate_covariance", "wheel_increment_cov"]
 
@@ -87,6 +89,10 @@ class Odometry:
         self.cfg = cfg
         n = len(true_poses)
         self.wheel_base = float(wheel_base)
+        self._errors = record(onboard_kernels.WHEEL_ERRORS, wheel_base=self.wheel_base, slip_accel=cfg.slip_accel,
+                              slip_turn=cfg.slip_turn, wheel_variance=cfg.wheel_variance,
+                              covariance_wheel_variance=cfg.covariance_wheel_variance)
+        """The compiled wheels' random errors (:data:`~parcover_env.sensors.onboard_kernels.WHEEL_ERRORS`)."""
         self._last_true = np.array(true_poses, dtype=float)
         self.estimate = np.array(true_poses, dtype=float)
         self.covariance = np.zeros((n, 3, 3))
@@ -138,15 +144,11 @@ class Odometry:
         ``travel`` ``(N, 2)``: each wheel's true ground distance (m) over the step of ``dt`` s;
         ``speed_change`` ``(N, 2)``: the summed |speed changes| of each wheel (m/s) over it.
         """
-        from parcover_env.sensors import _onboard_kernels
-
-        c = self.cfg
-        _onboard_kernels.wheel_odometry(self.estimate, self.covariance, self.travelled, self.turned,
-                                        np.ascontiguousarray(travel, dtype=float),
-                                        np.ascontiguousarray(speed_change, dtype=float), float(dt),
-                                        rng.standard_normal(4 * len(self.estimate)), self.factors,
-                                        self.believed_base, self.wheel_base, float(c.slip_accel), float(c.slip_turn),
-                                        float(c.wheel_variance), float(c.covariance_wheel_variance))
+        onboard_kernels.wheel_odometry(self.estimate, self.covariance, self.travelled, self.turned,
+                                       np.ascontiguousarray(travel, dtype=float),
+                                       np.ascontiguousarray(speed_change, dtype=float), float(dt),
+                                       rng.standard_normal(4 * len(self.estimate)), self.factors, self.believed_base,
+                                       self._errors)
         return self.estimate
 
     def _advance(self, ds: np.ndarray, dth: np.ndarray, q: np.ndarray) -> None:

@@ -7,12 +7,15 @@ of sight. No Kinect and no messages are involved.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from parcover_env.geometry import sight_lines_blocked
+from parcover_env.geometry.records import record
+from parcover_env.sensors import onboard_kernels
 
 __all__ = ["RelativeCamera", "RelativeReading", "lines_of_sight_blocked"]
 
@@ -44,8 +47,6 @@ class RelativeCamera:
         """``poses (N, 3)`` true poses; ``predecessor (N,)`` index of the robot each one follows, -1 none.
         ``blocked (N,)``: whether a wall cuts each robot's line of sight to its predecessor, if
         already computed (:func:`lines_of_sight_blocked` over batched worlds)."""
-        from parcover_env.sensors import _onboard_kernels
-
         poses = np.asarray(poses, dtype=float)
         predecessor = np.ascontiguousarray(predecessor, dtype=np.int64)
         n = len(poses)
@@ -55,10 +56,17 @@ class RelativeCamera:
             blocked = sight_lines_blocked(px, py, predecessor, walls)
         rel_xy, rel_heading, visible = np.empty((n, 2)), np.empty(n), np.empty(n, dtype=bool)
         z = rng.standard_normal((3, int(np.count_nonzero(predecessor >= 0))))  # range, bearing, heading
-        _onboard_kernels.camera_view(px, py, pth, predecessor, np.ascontiguousarray(blocked, dtype=bool), z,
-                                     float(self.max_range), math.radians(self.fov_deg) / 2, float(self.range_noise),
-                                     float(self.bearing_noise), float(self.heading_noise), rel_xy, rel_heading, visible)
+        onboard_kernels.camera_view(px, py, pth, predecessor, np.ascontiguousarray(blocked, dtype=bool), z,
+                                    self.record, rel_xy, rel_heading, visible)
         return RelativeReading(rel_xy, rel_heading, visible)
+
+    @functools.cached_property
+    def record(self) -> np.ndarray:
+        """The camera's reach and noise as the compiled camera reads them
+        (:data:`~parcover_env.sensors.onboard_kernels.CAMERA`; SI units, half the FOV)."""
+        return record(onboard_kernels.CAMERA, max_range=self.max_range, half_fov=math.radians(self.fov_deg) / 2,
+                      range_noise=self.range_noise, bearing_noise=self.bearing_noise,
+                      heading_noise=self.heading_noise)
 
 
 def lines_of_sight_blocked(poses: np.ndarray, predecessor: np.ndarray, segments: np.ndarray) -> np.ndarray:

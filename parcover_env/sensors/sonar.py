@@ -4,7 +4,8 @@ Geometry and conventions
 - The transducers sit at the robot centre (a documented simplification: ranges are measured from
   the centre, so a wall touching the robot reads ``robot_radius``). Beam angles are in the robot
   frame, counter-clockwise from the heading. All rays are cast with the formulas of
-  :mod:`parcover_env.geometry.rays` (its compiled per-ray helpers, in :mod:`._sonar_kernels`).
+  :mod:`parcover_env.geometry.rays` (its compiled per-ray helpers, in :mod:`.sonar_kernels` and
+  :mod:`.sonar_ring_kernels`).
 - ``model: ray`` — one ideal ray along each beam axis; reading = first hit (walls or other robots).
 - ``model: specular`` (default) — each beam is a cone of ``cone_deg`` sampled by ``n_subrays`` rays (the
   axis direction rotated by each sub-ray's offset). Overlapping cones share the sub-rays that point
@@ -36,6 +37,9 @@ import numpy as np
 from parcover_env.config import SonarConfig
 from parcover_env.geometry import rays
 from parcover_env.geometry.angles import wrap_angle
+from parcover_env.geometry.records import record
+from parcover_env.sensors import sonar_kernels as kern
+from parcover_env.sensors import sonar_ring_kernels as ring_kern
 
 __all__ = ["SonarRing", "AMIGOBOT_ANGLES_DEG", "concave_corners", "simulate_beams", "crosstalk"]
 
@@ -50,12 +54,17 @@ _NUDGE = 1e-7
 class _Walls:
     """What the sonar kernels need of a wall set, derived once per set (read-only arrays)."""
 
-    segments: np.ndarray
-    """``(S, 4)`` C-contiguous."""
-    lengths: np.ndarray
-    """``(S,)`` length of each segment (m)."""
-    corners: tuple[np.ndarray, np.ndarray, np.ndarray]
-    """Corner vertices and their wall directions (:func:`concave_corners`)."""
+    kernel: kern.WallSet
+    """Segments ``(S, 4)`` C-contiguous, their lengths (m), the corners and their wall directions."""
+
+    @property
+    def segments(self) -> np.ndarray:
+        return self.kernel.segments
+
+    @property
+    def corners(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Corner vertices and their wall directions (:func:`concave_corners`)."""
+        return self.kernel.points, self.kernel.u1, self.kernel.u2
 
 
 @lru_cache(maxsize=32)
@@ -84,7 +93,7 @@ def _walls_of(seg_bytes: bytes, n: int) -> _Walls:
     corners = (np.array(pts), np.array(u1s), np.array(u2s)) if pts else (np.zeros((0, 2)),) * 3
     for a in (lengths, *corners):
         a.setflags(write=False)
-    return _Walls(segs, lengths, corners)
+    return _Walls(kern.WallSet(segs, lengths, *corners))
 
 
 def _walls(segments: np.ndarray) -> _Walls:
@@ -169,22 +178,15 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     n, b = axes.shape
     rmax = float(cfg.range_max)
     walls = _walls(segments)
-    offsets, specular = _cone(cfg, n_subrays, walls)
+    offsets = _offsets(cfg, n_subrays)
+    rules = _rules(cfg, box_cull=rays.BOX_CULL)
     # one compiled pass over all sub-rays of all robots: walls, discs, incidence, second bounces
     origins = np.asarray(origins, dtype=float).reshape(-1, 2)
     ox, oy = np.ascontiguousarray(origins[:, 0]), np.ascontiguousarray(origins[:, 1])
     axes = np.ascontiguousarray(axes, dtype=float)
-    cx, cy, r2, owner_ = rays.disc_planes(centres, float(radius), owner, n)
-    idx, cnt = rays.near_segments(ox, oy, walls.segments, rmax)
+    discs = kern.Discs(*rays.disc_planes(centres, float(radius), owner, n))
     reading = np.empty((n, b))
-    from parcover_env.sensors import _sonar_kernels as kern
-
-    kern.sonar_echoes(ox, oy, axes, offsets, _share(axes, offsets), walls.segments, walls.lengths, idx, cnt, cx, cy,
-                      r2, owner_, rmax, specular, bool(cfg.multipath), _cos_min(cfg), _NUDGE, rays.BOX_CULL, reading)
-    pts, u1, u2 = walls.corners
-    if specular and len(pts):  # concave corners inside a cone retro-reflect (lowers ``reading`` in place)
-        kern.sonar_corner_echoes(ox, oy, axes, pts, u1, u2, walls.segments, idx, cnt, cx, cy, r2, owner_, rmax,
-                                 _half_cone(cfg), reading)
+    kern.beam_readings(ox, oy, axes, offsets, _share(axes, offsets), walls.kernel, discs, rules, reading)
     return np.minimum(reading, rmax, out=reading)
 
 
@@ -197,10 +199,16 @@ def _offsets(cfg: SonarConfig, n_subrays: int) -> np.ndarray:
     return _subray_offsets(float(cfg.cone_deg), n_subrays) if cfg.model == "specular" else _AXIS_ONLY
 
 
-def _cone(cfg: SonarConfig, n_subrays: int, walls: _Walls) -> tuple[np.ndarray, bool]:
-    """A beam's sub-ray offsets (rad) and whether the specular rules apply (the model, and walls to
-    apply them to)."""
-    return _offsets(cfg, n_subrays), cfg.model == "specular" and len(walls.segments) > 0
+@lru_cache(maxsize=32)
+def _rules(cfg: SonarConfig, box_cull: bool = True, all_round: bool = False) -> np.ndarray:
+    """The :data:`~parcover_env.sensors.sonar_kernels.SONAR_RULES` record of a sonar (cached: the
+    config is frozen)."""
+    return record(kern.SONAR_RULES, range_max=cfg.range_max, specular=cfg.model == "specular",
+                  multipath=cfg.multipath, cos_min=_cos_min(cfg), nudge=_NUDGE, box_cull=box_cull,
+                  half_cone=_half_cone(cfg), all_round=all_round, near_slack=rays.NEAR_SLACK,
+                  crosstalk_prob=cfg.crosstalk_prob, range_min=cfg.range_min, drop_below=cfg.below_min == "drop",
+                  noise_std=cfg.noise_std, noise_rel=cfg.noise_rel, quantization=cfg.quantization,
+                  garbage_rate=cfg.garbage_rate)
 
 
 def _cos_min(cfg: SonarConfig) -> float:
@@ -233,13 +241,11 @@ class SonarRing:
         self._checked: np.ndarray | None = None
         """The last wall array :meth:`measure` checked, if frozen (:func:`_frozen`)."""
         self._beams = np.ascontiguousarray(self.beam_angles, dtype=float)
-        self._share = _share(self._beams[None], _offsets(cfg, self.n_subrays))
+        self._offsets = _offsets(cfg, self.n_subrays)
+        self._share = _share(self._beams[None], self._offsets)
         """The ring's shared sub-rays (:func:`_share`)."""
-        self._all_round = _covers_circle(self._beams.tobytes(), _half_cone(cfg))
-        self._par = np.array([cfg.range_max, _cos_min(cfg), _NUDGE,
-                              rays.NEAR_SLACK, _half_cone(cfg), cfg.crosstalk_prob, cfg.range_min, cfg.noise_std,
-                              cfg.noise_rel, cfg.quantization, cfg.garbage_rate], dtype=float)
-        """The constants of :func:`~parcover_env.sensors._sonar_kernels.ring_readings`."""
+        self._rules = _rules(cfg, all_round=_covers_circle(self._beams.tobytes(), _half_cone(cfg)))
+        """The constants of the compiled ring (:data:`~parcover_env.sensors.sonar_kernels.SONAR_RULES`)."""
 
     @property
     def n_beams(self) -> int:
@@ -287,22 +293,17 @@ class SonarRing:
                  draws: list[tuple[np.ndarray, ...]]) -> np.ndarray:
         """Readings ``(K, N, B)`` float32 of ``K`` worlds sharing the walls ``segments``, robots ``poses
         (K, N, 3)`` that see the robots of their own world, with each world's :meth:`draw`: one
-        compiled call (:func:`~parcover_env.sensors._sonar_kernels.ring_readings`). World ``k``
+        compiled call (:func:`~parcover_env.sensors.sonar_ring_kernels.ring_readings`). World ``k``
         reads what :meth:`measure` reads for it alone with a generator that gives those draws."""
-        from parcover_env.sensors import _sonar_kernels
-
-        cfg, walls = self.cfg, _walls(segments)
+        walls = _walls(segments)
         poses = np.asarray(poses, dtype=float)
         k, n, nb = poses.shape[0], poses.shape[1], self.n_beams
-        talk, z, bad, junk = (np.concatenate(parts) if k > 1 else parts[0] for parts in zip(*draws, strict=True))
-        offsets, specular = _cone(cfg, self.n_subrays, walls)
-        pts, u1, u2 = walls.corners
+        flat = ring_kern.Draws(*(np.concatenate(parts) if k > 1 else parts[0] for parts in zip(*draws, strict=True)))
         out = np.empty((k * n, nb), dtype=np.float32)
         px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
         r = float(robot_radius)
-        _sonar_kernels.ring_readings(px, py, pth, r * r, self._beams, offsets, self._share, walls.segments,
-                                       walls.lengths, pts, u1, u2, specular, bool(cfg.multipath), self._all_round,
-                                       cfg.below_min == "drop", self._par, talk, z, bad, junk, out)
+        ring_kern.ring_readings(px, py, pth, r * r, self._beams, self._offsets, self._share, walls.kernel, flat,
+                                self._rules, out)
         return out.reshape(k, n, nb)
 
     def ideal_batch(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float) -> np.ndarray:
@@ -341,20 +342,14 @@ class SonarRing:
     def _noisy(self, ideal, heard: np.ndarray | None, rng: np.random.Generator | None, dtype) -> np.ndarray:
         """Readings from noise-free ranges: cross-talk with ``heard`` (if given, at ``crosstalk_prob``),
         then :meth:`corrupt`'s steps; one compiled pass drawing from ``rng``
-        (:func:`~parcover_env.sensors._sonar_kernels.ring_noise`)."""
-        from parcover_env.sensors import _sonar_kernels
-
-        cfg = self.cfg
+        (:func:`~parcover_env.sensors.sonar_ring_kernels.ring_noise`)."""
         ideal = np.asarray(ideal, dtype=float)
         rows = np.ascontiguousarray(ideal.reshape(-1, ideal.shape[-1]) if ideal.ndim else ideal.reshape(1, 1))
         out = np.empty(rows.shape, dtype=dtype)
         talk = heard is not None
         heard = np.ascontiguousarray(heard, dtype=float).reshape(rows.shape) if talk else rows
-        _sonar_kernels.ring_noise(rows, heard, float(cfg.crosstalk_prob) if talk else 0.0,
-                                    *self._draws(rows.size, rng, talk),
-                                    float(cfg.range_min), float(cfg.range_max), cfg.below_min == "drop",
-                                    float(cfg.noise_std), float(cfg.noise_rel), float(cfg.quantization),
-                                    float(cfg.garbage_rate), out)
+        ring_kern.ring_noise(rows, heard, float(self.cfg.crosstalk_prob) if talk else 0.0,
+                             ring_kern.Draws(*self._draws(rows.size, rng, talk)), self._rules, out)
         return out.reshape(ideal.shape)
 
 
@@ -379,11 +374,8 @@ def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segm
     px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
     idx, cnt = rays.near_segments(px.reshape(-1), py.reshape(-1), segments, 2 * float(cfg.range_max))
     beams = np.ascontiguousarray(beam_angles, dtype=float)
-    from parcover_env.sensors import _sonar_kernels
-
-    _sonar_kernels.sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments,
-                                   idx, cnt,
-                                   _half_cone(cfg), float(cfg.range_max), want, out)
+    ring_kern.sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments, idx,
+                              cnt, _rules(cfg), want, out)
     return out
 
 

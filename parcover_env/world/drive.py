@@ -74,7 +74,7 @@ class DiffDrive:
     def advance_steps(self, targets: np.ndarray, dt: float, steps: int) -> np.ndarray:
         """``steps`` calls of :meth:`advance` towards the same ``targets`` in one compiled loop (the
         same floats); returns the body velocities ``(steps, n, 2)`` of each call."""
-        from parcover_env.world._drive_kernels import lag_steps
+        from parcover_env.world.drive_kernels import lag_steps
 
         c = self.cfg
         gain = -math.expm1(-dt / c.tau)

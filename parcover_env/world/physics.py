@@ -6,7 +6,7 @@ and other robots are resolved by pymunk while the robots follow their commands i
 (Kinematic bodies would pass through walls.) pymunk moves bodies before it calls
 ``velocity_func``, so a new command takes effect after one physics step (``physics.dt``), like
 an actuator delay; the velocity the contact solver corrected is what moves the body. The
-``velocity_func`` is a compiled C callback (:mod:`parcover_env.world._body_kernels`) reading the
+``velocity_func`` is a compiled C callback (:mod:`parcover_env.world.body_kernels`) reading the
 commands from one array; where that is not available, a Python callable computing the same floats.
 
 With a ``DriveConfig`` of ``model: wheels`` the commands are wheel-speed targets for a
@@ -39,18 +39,24 @@ _COMPILED: dict = {}
 
 
 def _kernels():
-    """The compiled body access (:mod:`parcover_env.world._body_kernels`), or ``None`` if this pymunk
+    """The compiled body access (:mod:`parcover_env.world.body_kernels`), or ``None`` if this pymunk
     build's body layout is not the one it expects (then the Python callbacks run)."""
     if "k" not in _COMPILED:
         kernels = None
         if _cp is not None:
-            from parcover_env.world import _body_kernels
+            from parcover_env.world import body_kernels
 
-            if _body_kernels.layout_matches(_ffi, _cp):
-                kernels = _body_kernels
+            if body_kernels.layout_matches(_ffi, _cp):
+                kernels = body_kernels
                 _COMPILED["fn"] = _ffi.cast("cpBodyVelocityFunc", kernels.velocity_update.address)
         _COMPILED["k"] = kernels
     return _COMPILED["k"]
+
+def _cp_body(body: pymunk.Body):
+    """The chipmunk ``cpBody*`` of a pymunk body, for the C setters and the compiled callback. pymunk
+    has no public accessor for it: this is the one place that reads its private ``_body``."""
+    return body._body
+
 
 ROBOT, WALL = 1, 2
 # World attributes rebuilt from a snapshot, never copied
@@ -115,12 +121,12 @@ class World:
             shape.robot_index = i
             space.add(body, shape)
             self.bodies.append(body)
-        self._addresses = np.array([int(_ffi.cast("intptr_t", b._body)) for b in self.bodies], dtype=np.int64) \
+        self._addresses = np.array([int(_ffi.cast("intptr_t", _cp_body(b))) for b in self.bodies], dtype=np.int64) \
             if kernels else None
         if kernels:
             kernels.bind_commands(self._addresses, self._rows.values.ctypes.data)
             for body in self.bodies:
-                _cp.cpBodySetVelocityUpdateFunc(body._body, _COMPILED["fn"])
+                _cp.cpBodySetVelocityUpdateFunc(_cp_body(body), _COMPILED["fn"])
         space.on_collision(ROBOT, WALL, begin=self._on_wall)
         space.on_collision(ROBOT, ROBOT, begin=self._on_robot)
         self.space = space
@@ -169,7 +175,7 @@ class World:
 
         new = World.__new__(World)
         memo[id(self)] = new
-        new._restore(copy.deepcopy(self.__getstate__(), memo))
+        new.__setstate__(copy.deepcopy(self.__getstate__(), memo))
         return new
 
     def _velocity_func(self, i: int) -> _UnicycleVelocity:
@@ -263,7 +269,7 @@ class _UnicycleVelocity:
             body.velocity = (v * math.cos(a), v * math.sin(a))
             body.angular_velocity = w
             return
-        b = body._body
+        b = _cp_body(body)
         a = _cp.cpBodyGetAngle(b)
         _cp.cpBodySetVelocity(b, (v * math.cos(a), v * math.sin(a)))
         _cp.cpBodySetAngularVelocity(b, w)

@@ -6,11 +6,12 @@ import dataclasses
 
 import numpy as np
 import pytest
+from references import progress as reference
 
 from parcover_env.config import SonarConfig
 from parcover_env.envs import ParallelCoverageEnv
 from parcover_env.geometry import rays
-from parcover_env.localization.kinect.pipeline import _view_box
+from parcover_env.localization.kinect.estimate_model import view_box
 from parcover_env.scenarios.progress import RouteTracker as Mission
 from parcover_env.sensors import sonar as sn
 
@@ -60,41 +61,13 @@ def test_range_culled_sonar_matches_full_ray_casting(model, monkeypatch):
     assert np.any(fast < reach)
 
 
-def _advance_reference(m: Mission, i: int, p: np.ndarray) -> None:
-    """The per-robot progress update the vectorized one replaced (kept as the specification)."""
-    route, arc, must = m.routes[i], m._arc[i], m._must[i]
-    s0 = m.progress[i]
-    limit = s0 + m.window
-    for j in np.flatnonzero(must & (arc > s0 + 1e-9)):
-        if arc[j] > limit:
-            break
-        if np.hypot(*(route[j] - p)) <= m.tol:
-            s0 = m.progress[i] = arc[j]
-            limit = s0 + m.window
-            continue
-        limit = arc[j]
-        break
-    lo = max(int(np.searchsorted(arc, s0 - 0.2, side="right")) - 1, 0)
-    hi = min(int(np.searchsorted(arc, limit, side="left")), len(route) - 1)
-    a, e = route[lo:hi], route[lo + 1:hi + 1] - route[lo:hi]
-    ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-12)
-    u = np.clip(np.einsum("ij,ij->i", p - a, e) / ee, 0.0, 1.0)
-    dist = np.hypot(*(a + u[:, None] * e - p).T)
-    j = int(np.argmin(dist - 1e-6 * np.arange(len(dist))))
-    if dist[j] > m.max_offset:
-        return
-    m.progress[i] = max(s0, min(arc[lo + j] + u[j] * np.sqrt(ee[j]), limit))
-    m.waypoint[i] = min(int(np.searchsorted(arc, m.progress[i] + 1e-9, side="right")), len(route) - 1)
-
-
-def test_vectorized_mission_progress_matches_per_robot_reference():
+def test_compiled_mission_progress_matches_the_reference_on_a_noisy_drive():
     # an out-and-back route with KPOI vertices, a straight one and a single-vertex one
     routes = [np.array([[0, 0], [2, 0], [2, 2], [2, 0], [4, 0]], float),
               np.array([[0, 1], [1, 1], [3, 1], [5, 1]], float),
               np.array([[1, 3]], float)]
     kpois = np.array([[2, 2], [4, 0], [5, 1]], float)
     fast = Mission(kpois, 0.3, routes, waypoint_tol=0.2, lookahead=0.4)
-    ref = Mission(kpois, 0.3, routes, waypoint_tol=0.2, lookahead=0.4)
     rng = np.random.default_rng(0)
     pos = np.array([[0, 0], [0, 1], [1, 3]], float)
     targets = [np.vstack([r, r[-1:]]) for r in routes]
@@ -104,11 +77,10 @@ def test_vectorized_mission_progress_matches_per_robot_reference():
             d = goal - pos[i]
             pos[i] += 0.1 * d / max(np.hypot(*d), 1e-9) + rng.normal(0, 0.03, 2)
         before = fast.waypoint.copy()
+        want_progress, want_waypoint = reference.advance_all(fast, pos)
         fast.update(pos, pos, step * 0.1)
-        for i in range(2):
-            _advance_reference(ref, i, pos[i])
-        np.testing.assert_array_equal(fast.progress[:2], ref.progress[:2])
-        np.testing.assert_array_equal(fast.waypoint[:2], ref.waypoint[:2])
+        np.testing.assert_array_equal(fast.progress, want_progress)
+        np.testing.assert_array_equal(fast.waypoint, want_waypoint)
         assert fast.waypoint[2] == 0
         assert np.array_equal(fast.advanced, fast.waypoint != before)
     assert fast.progress[0] > 5.0  # it went out to the KPOI, back and on
@@ -128,7 +100,7 @@ def test_goals_cache_follows_progress():
 def test_kinect_view_box_never_rejects_a_visible_robot():
     env = ParallelCoverageEnv("tree")
     sensor = env.kinects.sensors[0]
-    x0, y0, x1, y1 = _view_box(sensor)
+    x0, y0, x1, y1 = view_box(sensor)
     assert x1 > x0 and y1 > y0
     cam = sensor.camera
     rng = np.random.default_rng(1)

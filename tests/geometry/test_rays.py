@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from references import rays as reference
 
 from parcover_env.geometry import cast_rays, cast_rays_discs, segments_blocked
 
@@ -156,29 +157,12 @@ def test_discs_per_origin_sets_equal_separate_calls():
     assert other[0] == math.inf
 
 
-def _blocked_by_formula(a, b, walls) -> np.ndarray:
-    """The open-segment test written out per pair (module docstring formulas), as the reference."""
-    out = np.zeros(len(a), dtype=bool)
-    for r in range(len(a)):
-        d = b[r] - a[r]
-        for x1, y1, x2, y2 in walls:
-            e = np.array([x2 - x1, y2 - y1])
-            w = np.array([x1, y1]) - a[r]
-            den = d[0] * e[1] - d[1] * e[0]
-            if abs(den) <= 1e-12:
-                continue
-            t = (w[0] * e[1] - w[1] * e[0]) / den
-            u = (w[0] * d[1] - w[1] * d[0]) / den
-            out[r] |= bool(0.0 < t < 1.0 and -1e-12 <= u <= 1.0 + 1e-12)
-    return out
-
-
 def test_segments_blocked_equals_the_per_pair_formula():
     walls, a, _ = _random_walls_and_rays(3, 400)
     b = a + np.random.default_rng(5).uniform(-2, 2, (400, 2))
     b[:5] = walls[30:35, 2:]  # ends on a wall end: the open segment does not cross there
     got = segments_blocked(a, b, walls)
-    assert 50 < got.sum() < 350 and np.array_equal(got, _blocked_by_formula(a, b, walls))
+    assert 50 < got.sum() < 350 and np.array_equal(got, reference.blocked(a, b, walls))
 
 
 def test_grazing_rays_on_walls_and_discs():
@@ -233,8 +217,8 @@ def test_near_segments_lists_the_segments_within_reach_by_point_to_segment_dista
 
 
 def test_in_cone_equals_the_wrapped_angle_test():
-    from parcover_env.geometry._ray_kernels import _in_cone
     from parcover_env.geometry.angles import wrap_angle
+    from parcover_env.geometry.ray_kernels import in_cone
 
     rng = np.random.default_rng(0)
     halves = [0.0, 1e-12, 0.26, math.pi / 2, math.pi - 1e-12, math.pi, 4.0]
@@ -243,7 +227,7 @@ def test_in_cone_equals_the_wrapped_angle_test():
     angles = np.concatenate([rng.uniform(-25, 25, 4000), edges, shifted, [-e for e in edges]])
     for half in halves:
         want = [bool(abs(wrap_angle(a)) <= half) for a in angles]
-        assert [bool(_in_cone(a, half)) for a in angles] == want
+        assert [bool(in_cone(a, half)) for a in angles] == want
 
 
 def test_disc_planes_with_one_radius_equal_the_broadcast_radii():

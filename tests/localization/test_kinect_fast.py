@@ -3,66 +3,12 @@ draws, the same poses to rounding (the kernel projects coordinate by coordinate,
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
+from references import kinect as reference
 
 import parcover_env
-from parcover_env.geometry import wrap_angle
-from parcover_env.localization.kinect.pipeline import FastModel, FastNoise, estimate_fast_all
-from parcover_env.sensors.kinect import NATIVE_WIDTH
-
-
-def _project(cam, pts):
-    pc = (pts - cam.C) @ cam.R.T
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return (pc[:, :2] / pc[:, 2:3]) * np.diag(cam.K)[:2] + cam.K[:2, 2], pc[:, 2]
-
-
-def _onto_plane(cam, uv, height):
-    xc = (uv[:, 0] - cam.K[0, 2]) / cam.K[0, 0]
-    yc = (uv[:, 1] - cam.K[1, 2]) / cam.K[1, 1]
-    rays = np.stack([xc, yc, np.ones_like(xc)], axis=1) @ cam.R
-    t = (height - cam.C[2]) / rays[:, 2]
-    return np.where(((t > 0) & np.isfinite(t))[:, None], cam.C[:2] + rays[:, :2] * t[:, None], np.nan)
-
-
-def _numpy_estimates(s, poses, mask, rng):
-    """One Kinect's estimate model as numpy formulas (no view-box pre-filter: it rejects nothing more)."""
-    nz = FastNoise()
-    if s.cfg.drop_rate > 0 and rng.random() < s.cfg.drop_rate:
-        return []
-    cam, pat, h, (rows, cols) = s.true_camera, s.pattern, s.robot_height, s.shape
-    out = []
-    for i in np.flatnonzero(mask):
-        x, y, th = poses[i]
-        c, sn = math.cos(th), math.sin(th)
-        world = np.column_stack([x + c * pat[:, 0] - sn * pat[:, 1], y + sn * pat[:, 0] + c * pat[:, 1],
-                                 np.full(len(pat), h)])
-        uv, z = _project(cam, world)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            r = s.marker_radius * cam.focal / z + nz.margin_px
-        inside = (z > 0) & (uv[:, 0] - r >= 0) & (uv[:, 0] + r <= cols - 1) & (uv[:, 1] - r >= 0) \
-            & (uv[:, 1] + r <= rows - 1) & (z >= cam.range_min) & (z <= cam.range_max)
-        if not inside.all():
-            continue
-        if np.any(s.nominal_static_depth[np.rint(uv[:, 1]).astype(int), np.rint(uv[:, 0]).astype(int)] < z - 1e-6):
-            continue
-        p_det = min(max((s.marker_radius * cam.focal / z.max() - nz.r_px_min) / (nz.r_px_full - nz.r_px_min), 0), 1)
-        gaps = np.linalg.norm(pat[:, None] - pat[None], axis=-1) + np.eye(len(pat)) * 1e9
-        gap_px = (gaps.min() - 2 * s.marker_radius) * s.camera.focal / z.max()
-        if gap_px < 3 or rng.random() >= p_det:
-            continue
-        mpp = z.mean() / cam.focal * (NATIVE_WIDTH / cols) ** nz.res_exponent
-        ex, ey = rng.normal(0.0, nz.pos_px * mpp, size=2)
-        eth = rng.normal(0.0, nz.heading_px * mpp / (np.ptp(pat[:, 0]) or 0.1))
-        if cam is not s.camera:
-            uv2, _ = _project(cam, np.array([[x, y, h], [x + 0.1 * c, y + 0.1 * sn, h]]))
-            back = _onto_plane(s.camera, uv2, h)
-            x, y, th = back[0, 0], back[0, 1], math.atan2(back[1, 1] - back[0, 1], back[1, 0] - back[0, 0])
-        out.append((int(i), x + ex, y + ey, float(wrap_angle(th + eth))))
-    return out
+from parcover_env.localization.kinect.estimate_model import FastModel, FastNoise, estimate_fast_all
 
 
 @pytest.mark.parametrize("scenario, remount", [("tree", False), ("tree", True), ("office", True)])
@@ -83,7 +29,7 @@ def test_kernel_equals_the_numpy_formulas(scenario, remount):
         a, b = np.random.default_rng(trial), np.random.default_rng(trial)
         got = estimate_fast_all(sensors, poses, mask, a)
         for s, est in zip(sensors, got, strict=True):
-            want = _numpy_estimates(s, poses, mask, b)
+            want = reference.estimates(s, poses, mask, b)
             assert [e.truth_index for e in est] == [w[0] for w in want]
             for e, w in zip(est, want, strict=True):
                 assert (e.x, e.y, e.theta) == pytest.approx(w[1:], abs=1e-12)
@@ -98,14 +44,15 @@ def test_frame_drops_and_several_kinects_in_one_call():
     env.reset(seed=2)
     sensors = env.kinects.sensors
     model = FastModel(sensors)
-    model.scal[:, 4] = 1.0  # every frame dropped: one draw per Kinect, nothing seen
+    model.kinects = model.kinects.copy()  # (the model's table is read-only)
+    model.kinects["drop_rate"] = 1.0  # every frame dropped: one draw per Kinect, nothing seen
     poses = np.column_stack([env.world.poses()[:, :2], np.zeros(env.n_robots)])
     rng = np.random.default_rng(0)
     assert model.estimate([2, 0], poses, np.ones(env.n_robots, bool), rng) == [[], []]
     ref = np.random.default_rng(0)
     ref.random(2)
     assert rng.random() == ref.random()
-    model.scal[:, 4] = 0.0
+    model.kinects["drop_rate"] = 0.0
     every = np.ones(env.n_robots, bool)
     seeing = [q for q, lst in enumerate(model.estimate(range(len(sensors)), poses, every, np.random.default_rng(0)))
               if lst]
@@ -135,28 +82,29 @@ def test_noise_scale_stamp_and_closing_limit():
     assert est[0].stamp == 2.5 and est[0].truth_index == 0
     loud = estimate_fast_all([s], pose, [True], np.random.default_rng(0), noise=FastNoise(pos_px=5.0))[0][0]
     assert 1e-4 < abs(loud.x - pose[0, 0]) < 0.2 and loud.stamp == 0.0
-    from parcover_env.localization.kinect.pipeline import estimate_fast
+    from parcover_env.localization.kinect.estimate_model import estimate_fast
 
     assert estimate_fast(s, pose, [True], np.random.default_rng(0), noise=quiet, stamp=1.0)[0].stamp == 1.0
     # markers merge in the closing when their gap is under 3 px at the robot's depth
     model = FastModel([s])
+    model.kinects = model.kinects.copy()
     z = s.camera.C[2] - s.robot_height
     px_per_m = s.camera.focal / z
     for gap_px, seen in ((2.6, False), (3.2, True)):
-        model.scal[0, 5] = gap_px / px_per_m
+        model.kinects[0]["pattern_gap"] = gap_px / px_per_m
         assert bool(model.estimate([0], pose, np.array([True]), np.random.default_rng(0))[0]) == seen
 
 
 def test_a_remounted_camera_is_not_served_from_the_old_cache():
-    from parcover_env.localization.kinect.pipeline import _view_box
+    from parcover_env.localization.kinect.estimate_model import view_box
 
     env = parcover_env.parallel_env("tree").unwrapped
     env.reset(seed=2)
     s = env.kinects.sensors[0]
     s.true_camera = s.camera
-    before = _view_box(s)
+    before = view_box(s)
     s.true_camera = s.camera.perturbed(0.0, 0.0, 0.0, 0.5)  # raised 0.5 m: a wider view
-    after = _view_box(s)
+    after = view_box(s)
     assert after[0] < before[0] - 0.1 and after[2] > before[2] + 0.1
     s.true_camera = s.camera
-    assert _view_box(s) == before
+    assert view_box(s) == before

@@ -9,12 +9,11 @@ import pytest
 
 from parcover_env.config import KinectConfig, MapConfig
 from parcover_env.geometry import wrap_angle
+from parcover_env.localization.kinect.estimate_model import estimate_fast, estimate_fast_all
 from parcover_env.localization.kinect.pipeline import (
     PipelineParams,
     PoseEstimate,
     detect_markers,
-    estimate_fast,
-    estimate_fast_all,
     estimate_poses,
     fit_pattern,
     group_blobs,
@@ -428,7 +427,7 @@ def test_may_see_all_edges_are_inside_on_every_side():
     from parcover_env.sensors.kinect import may_see_all
 
     s = sensor(res=(320, 240))
-    x0, y0, x1, y1 = s._cull_box()
+    x0, y0, x1, y1 = s.cull_box()
     for x, y in ((x0, 3.0), (x1, 3.0), (3.0, y0), (3.0, y1)):
         assert may_see_all([s], np.array([[x, y, 0.0]]), [True]).tolist() == [True]
         dx, dy = np.sign(x - 3.0) * 1e-9, np.sign(y - 3.0) * 1e-9

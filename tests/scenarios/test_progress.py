@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from references import progress as reference
 
 from parcover_env.scenarios.progress import RouteTracker as Mission
 
@@ -44,8 +45,6 @@ def test_compiled_progress_is_the_same_floats_as_the_numpy_reference():
     short = np.array([[0.0, 3.0], [0.3, 3.0], [0.3, 3.0], [0.45, 3.2], [2.0, 3.2]])  # 0.3 m, 0 m, 0.25 m legs
     routes = [route, route[::-1].copy(), route[:3] + 0.05, short, np.array([[1.0, 1.0]])]
     fast = Mission(kpois, 0.2, routes, waypoint_tol=0.15, lookahead=0.4)
-    ref = Mission(kpois, 0.2, routes, waypoint_tol=0.15, lookahead=0.4)
-    ref._advance_all = ref._advance_all_numpy
     rng = np.random.default_rng(2)
     arc = [np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(r, axis=0).T))]) for r in routes[:4]]
     moved = 0
@@ -60,25 +59,18 @@ def test_compiled_progress_is_the_same_floats_as_the_numpy_reference():
         est = np.array(est) + rng.normal(0.0, 0.05, (5, 2))
         if t % 37 == 0:
             est[t % 3] += 3.0  # a lost estimate: no progress
-        n1 = fast.update(est, est, 0.1 * t)
-        n2 = ref.update(est, est, 0.1 * t)
-        assert n1 == n2
-        assert fast.progress.tobytes() == ref.progress.tobytes()
-        assert fast.waypoint.tolist() == ref.waypoint.tolist() and fast.advanced.tolist() == ref.advanced.tolist()
-        goal, s_goal = ref._goals_numpy()
+        want_progress, want_waypoint = reference.advance_all(fast, est)
+        new, _ = reference.visits(kpois, 0.2, fast.visited, est)
+        before = fast.waypoint.copy()
+        assert fast.update(est, est, 0.1 * t) == new.sum()
+        assert fast.progress.tobytes() == want_progress.tobytes()
+        assert fast.waypoint.tolist() == want_waypoint.tolist()
+        assert fast.advanced.tolist() == (want_waypoint != before).tolist()
+        goal, s_goal = reference.goals(fast)
         assert fast.goals().tobytes() == goal.tobytes() and fast._goals()[1].tobytes() == s_goal.tobytes()
         moved += int(fast.advanced.sum())
     assert moved >= 10 and fast.visited.all()  # the walk crossed vertices and reached every KPOI
     assert fast.waypoint[4] == 0 and fast.progress[4] == 0.0
-
-
-def _numpy_visits(kpois, radius, visited, xy):
-    """The visit rule as numpy formulas (the reference of the compiled loop): newly visited KPOIs and
-    their visitors, the nearest robot within the radius (lowest index on ties)."""
-    d = np.linalg.norm(kpois[:, None, :] - xy[None, :, :], axis=-1)
-    near = d <= radius
-    new = near.any(axis=1) & ~visited
-    return new, np.argmin(np.where(near, d, np.inf), axis=1)
 
 
 def test_kpoi_visits_are_the_numpy_rule():
@@ -91,7 +83,7 @@ def test_kpoi_visits_are_the_numpy_rule():
     visited = m.visited.copy()
     for t in range(40):
         xy = rng.uniform(0, 6, (6, 2))
-        new, who = _numpy_visits(kpois, 0.3, visited, xy)
+        new, who = reference.visits(kpois, 0.3, visited, xy)
         assert m.update(xy, xy, 0.1 * t) == new.sum()
         assert m.visited.tolist() == (visited | new).tolist()
         assert np.array_equal(m.visit_time[new], np.full(new.sum(), 0.1 * t)) and (m.visitor[new] == who[new]).all()

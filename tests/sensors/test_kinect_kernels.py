@@ -3,13 +3,12 @@ lateral shift, and the robot drawing against a numpy reference of its formulas."
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
+from references import kinect as reference
 
 from parcover_env.config import KinectConfig, MapConfig
-from parcover_env.sensors import _kinect_kernels as kk
+from parcover_env.sensors import kinect_kernels as kk
 from parcover_env.sensors.kinect import KinectSensor
 from parcover_env.world.map_model import MapModel
 
@@ -48,53 +47,6 @@ def test_lateral_shift_reads_the_displaced_pixel_clamped_to_the_image():
     np.testing.assert_array_equal(out, want)
 
 
-def _render_reference(s: KinectSensor, poses: np.ndarray, marker_mask: np.ndarray):
-    """Robots and marker codes drawn with numpy, one robot at a time, from the formulas of
-    :meth:`KinectSensor.render_clean` (the code the compiled loops replaced)."""
-    depth = s.static_depth.copy()
-    owner = np.full(s.shape, -1, dtype=np.int32)
-    top = np.zeros(s.shape, dtype=bool)
-    C, r2 = s.true_camera.C, s.robot_radius ** 2
-    boxes = s._robot_boxes(poses[:, :2])
-    for i, (x, y, _) in enumerate(poses):
-        if boxes[i, 0] < 0:
-            continue
-        u0, v0, u1, v1 = boxes[i]
-        D = s.rays[v0:v1, u0:u1]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t_top = (s.robot_height - C[2]) / D[..., 2]
-            px, py = C[0] + D[..., 0] * t_top - x, C[1] + D[..., 1] * t_top - y
-            on_top = (t_top > 0) & (px * px + py * py <= r2)
-            ox, oy = C[0] - x, C[1] - y
-            a = D[..., 0] ** 2 + D[..., 1] ** 2
-            b = ox * D[..., 0] + oy * D[..., 1]
-            disc = b * b - a * (ox * ox + oy * oy - r2)
-            t_side = (-b - np.sqrt(np.maximum(disc, 0.0))) / a
-            z_side = C[2] + t_side * D[..., 2]
-        on_side = (disc > 0) & (t_side > 0) & (z_side >= 0) & (z_side <= s.robot_height)
-        t = np.minimum(np.where(on_top, t_top, np.inf), np.where(on_side, t_side, np.inf))
-        sub = depth[v0:v1, u0:u1]
-        closer = t < sub
-        sub[closer] = t[closer]
-        owner[v0:v1, u0:u1][closer] = i
-        top[v0:v1, u0:u1][closer] = on_top[closer] & (t_top[closer] <= t[closer])
-    code = np.zeros(s.shape, dtype=np.uint8)
-    for i, (x, y, th) in enumerate(poses):
-        if not marker_mask[i] or boxes[i, 0] < 0:
-            continue
-        u0, v0, u1, v1 = boxes[i]
-        mine = (owner[v0:v1, u0:u1] == i) & top[v0:v1, u0:u1]
-        t = depth[v0:v1, u0:u1][mine]
-        D = s.rays[v0:v1, u0:u1][mine]
-        p = C[:2] + D[:, :2] * t[:, None] - (x, y)
-        c, sn = math.cos(th), math.sin(th)
-        q = np.stack([c * p[:, 0] + sn * p[:, 1], -sn * p[:, 0] + c * p[:, 1]], axis=1)
-        d2 = ((q[:, None, :] - s.pattern[None]) ** 2).sum(-1).min(axis=1)
-        code[v0:v1, u0:u1][mine] = np.where(d2 <= s.marker_radius ** 2, 1,
-                                            np.where(d2 <= (s.marker_radius * s.missing_factor) ** 2, 2, 0))
-    return depth, owner, code
-
-
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_robot_drawing_equals_the_numpy_reference_bit_for_bit(seed):
     """Touching and overlapping robots (occlusion order), robots cut by the image border, marker
@@ -109,7 +61,7 @@ def test_robot_drawing_equals_the_numpy_reference_bit_for_bit(seed):
     mask = rng.random(12) < 0.6
     mask[:2] = True
     depth, owner, code = s.render_clean(poses, mask)
-    want = _render_reference(s, poses, mask)
+    want = reference.render(s, poses, mask)
     np.testing.assert_array_equal(depth, want[0])
     np.testing.assert_array_equal(owner, want[1])
     np.testing.assert_array_equal(code, want[2])

@@ -9,7 +9,8 @@ import pytest
 
 from parcover_env.config import ConfigError, KinectConfig, MapConfig
 from parcover_env.geometry.camera import CameraModel
-from parcover_env.localization.kinect.pipeline import PipelineParams, estimate_fast, estimate_poses
+from parcover_env.localization.kinect.estimate_model import estimate_fast
+from parcover_env.localization.kinect.pipeline import PipelineParams, estimate_poses
 from parcover_env.sensors.kinect import KinectSensor
 from parcover_env.world.map_model import MapModel
 
@@ -131,7 +132,7 @@ def test_lateral_offsets_have_the_configured_spread_and_clamp_at_the_border():
 
 def test_may_see_only_marker_carriers_inside_the_view_box():
     s = KinectSensor(KinectConfig(name="k", position=(3.0, 3.0), height=2.8), 0.15, 0.3, OPEN)
-    x0, y0, x1, y1 = s._cull_box()
+    x0, y0, x1, y1 = s.cull_box()
     inside, outside = [3.0, 3.0, 0.0], [x1 + 0.05, 3.0, 0.0]
     assert s.may_see(np.array([inside]), [True])
     assert not s.may_see(np.array([inside]), [False])  # a follower carries no markers
@@ -144,7 +145,7 @@ def test_may_see_all_answers_for_each_sensor_in_one_call():
 
     a = KinectSensor(KinectConfig(name="a", position=(2.0, 3.0), height=2.8), 0.15, 0.3, OPEN)
     b = KinectSensor(KinectConfig(name="b", position=(7.0, 3.0), height=2.8), 0.15, 0.3, OPEN)
-    ax1, bx0 = a._cull_box()[2], b._cull_box()[0]
+    ax1, bx0 = a.cull_box()[2], b.cull_box()[0]
     assert ax1 < bx0  # two separate views
     poses = np.array([[2.0, 3.0, 0.0], [7.0, 3.0, 0.0]])
     assert may_see_all([a, b], poses, [True, False]).tolist() == [True, False]

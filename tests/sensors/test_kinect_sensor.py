@@ -140,7 +140,7 @@ def test_view_culling_never_changes_a_frame():
     env.reset(seed=0)
     rng = np.random.default_rng(1)
     for sensor in env.kinects.sensors:
-        x0, y0, x1, y1 = sensor._cull_box()
+        x0, y0, x1, y1 = sensor.cull_box()
         assert x1 - x0 < 12 and y1 - y0 < 10  # the box really culls something on this map
         for _ in range(30):
             poses = np.c_[rng.uniform(0, 12, 15), rng.uniform(0, 10, 15), rng.uniform(-3, 3, 15)]
@@ -262,7 +262,7 @@ def test_robot_boxes_hold_every_pixel_of_the_robot():
     poses = np.column_stack([rng.uniform(2.0, 4.0, 6), rng.uniform(2.3, 3.7, 6), rng.uniform(-3, 3, 6)])
     boxes = s._robot_boxes(poses[:, :2])
     assert np.all(boxes[:, 0] >= 0) and np.all(boxes[:, 2] <= 320) and np.all(boxes[:, 3] <= 240)
-    from parcover_env.sensors import _kinect_kernels as kk
+    from parcover_env.sensors import kinect_kernels as kk
 
     out = []
     for bx in (boxes, np.tile([0, 0, 320, 240], (6, 1))):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from references import onboard as reference
 
 from parcover_env.config import OdometryConfig
 from parcover_env.sensors.odometry import Odometry
@@ -264,25 +265,6 @@ def test_systematic_draws_use_three_normals_per_robot():
     assert rng.standard_normal() == np.random.default_rng(9).standard_normal(7)[6]
 
 
-def _numpy_wheels(odo, travel, speed_change, dt, rng):
-    """``measure_wheels`` as numpy formulas (the reference of the compiled step); returns
-    (estimate, covariance, travelled, turned) without touching ``odo``."""
-    from parcover_env.sensors.odometry import integrate, propagate_covariance, wheel_increment_cov
-
-    c, d = odo.cfg, np.asarray(travel, dtype=float)
-    z = rng.standard_normal((2,) + d.shape)
-    turn_rate = np.abs(d[:, 1] - d[:, 0]) / (odo.wheel_base * dt)
-    slip = np.abs(z[0]) * (c.slip_accel * np.asarray(speed_change) / dt + c.slip_turn * turn_rate[:, None])
-    read = d * odo.factors * (1.0 + slip) + np.sqrt(c.wheel_variance * np.abs(d)) * z[1]
-    ds, dth = 0.5 * (read[:, 0] + read[:, 1]), (read[:, 1] - read[:, 0]) / odo.believed_base
-    var = c.covariance_wheel_variance * np.abs(read)
-    est = odo.estimate.copy()
-    cov = propagate_covariance(odo.covariance, est[:, 2], ds, dth,
-                               wheel_increment_cov(var[:, 0], var[:, 1], odo.believed_base))
-    integrate(est, ds, dth)
-    return est, cov, odo.travelled + np.abs(ds), odo.turned + np.abs(dth)
-
-
 def test_compiled_wheel_step_equals_the_numpy_formulas():
     cfg = OdometryConfig(model="wheels", diameter_ratio_std=0.01, scale_std=0.01, wheelbase_std=0.02)
     g = np.random.default_rng(0)
@@ -292,7 +274,7 @@ def test_compiled_wheel_step_equals_the_numpy_formulas():
         travel = g.uniform(-0.05, 0.06, (6, 2))
         change = g.uniform(0, 0.4, (6, 2))
         a, b = np.random.default_rng(step), np.random.default_rng(step)
-        want = _numpy_wheels(odo, travel, change, 0.1, b)
+        want = reference.wheel_odometry(odo, travel, change, 0.1, b)
         odo.measure_wheels(travel, change, 0.1, a)
         for got, ref in zip((odo.estimate, odo.covariance, odo.travelled, odo.turned), want, strict=True):
             np.testing.assert_allclose(got, ref, rtol=1e-13, atol=1e-15)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from references import onboard as reference
 
 import parcover_env
 from parcover_env.config import ConfigError
@@ -83,28 +84,6 @@ def test_without_followers_the_reading_is_zeros_of_the_right_shape():
     assert not r.rel_xy.any() and not r.rel_heading.any() and not r.visible.any()
 
 
-def _numpy_camera(cam, poses, predecessor, segments, rng):
-    """The camera as numpy formulas (the reference of the compiled kernel)."""
-    from parcover_env.geometry import segments_blocked, wrap_angle
-
-    n = len(poses)
-    rel_xy, rel_heading, visible = np.zeros((n, 2)), np.zeros(n), np.zeros(n, dtype=bool)
-    f = np.flatnonzero(predecessor >= 0)
-    me, other = poses[f], poses[predecessor[f]]
-    delta = other[:, :2] - me[:, :2]
-    dist = np.hypot(delta[:, 0], delta[:, 1])
-    bearing = wrap_angle(np.arctan2(delta[:, 1], delta[:, 0]) - me[:, 2])
-    seen = (dist <= cam.max_range) & (np.abs(bearing) <= np.radians(cam.fov_deg) / 2)
-    seen &= ~segments_blocked(me[:, :2], other[:, :2], segments)
-    r = dist * (1.0 + cam.range_noise * rng.standard_normal(len(f)))
-    b = bearing + cam.bearing_noise * rng.standard_normal(len(f))
-    h = wrap_angle(other[:, 2] - me[:, 2] + cam.heading_noise * rng.standard_normal(len(f)))
-    rel_xy[f] = np.where(seen[:, None], np.stack([r * np.cos(b), r * np.sin(b)], axis=1), 0.0)
-    rel_heading[f] = np.where(seen, h, 0.0)
-    visible[f] = seen
-    return rel_xy, rel_heading, visible
-
-
 def test_compiled_camera_equals_the_numpy_formulas_bit_for_bit():
     cam = RelativeCamera(fov_deg=300.0, max_range=1.0, range_noise=0.05, bearing_noise=0.04, heading_noise=0.1)
     draw = np.random.default_rng(3)
@@ -113,7 +92,7 @@ def test_compiled_camera_equals_the_numpy_formulas_bit_for_bit():
     walls = np.array([[0.6, 0.0, 0.6, 0.6]])
     a, b = np.random.default_rng(6), np.random.default_rng(6)
     got = cam.measure(poses, predecessor, walls, a)
-    want = _numpy_camera(cam, poses, predecessor, walls, b)
+    want = reference.camera_view(cam, poses, predecessor, walls, b)
     assert 5 < got.visible.sum() < 30  # some seen, some not
     for g, w in zip((got.rel_xy, got.rel_heading, got.visible), want, strict=True):
         assert np.array_equal(g, w)

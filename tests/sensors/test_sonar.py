@@ -7,6 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from references import sonar as reference
 
 from parcover_env.config import MapConfig, SonarConfig
 from parcover_env.sensors.sonar import SonarRing
@@ -15,75 +16,6 @@ from parcover_env.world.map_model import MapModel
 T_ROOM = MapConfig(size=(4.0, 4.0), boundary=((1.2, 0.0), (2.8, 0.0), (2.8, 2.4), (4.0, 2.4), (4.0, 4.0),
                                               (0.0, 4.0), (0.0, 2.4), (1.2, 2.4)),
                    obstacles=(((2.9, 3.0), (3.3, 3.0), (3.3, 3.3), (2.9, 3.3)),))
-
-
-def _ref_ray(o, ang, segs, discs, radius, cos_min):
-    """Brute force: nearest hit, whether it echoes (specular), plain Python loops."""
-    d = (math.cos(ang), math.sin(ang))
-    best, echo = math.inf, False
-    for x1, y1, x2, y2 in segs:
-        ex, ey = x2 - x1, y2 - y1
-        den = d[0] * ey - d[1] * ex
-        if abs(den) < 1e-12:
-            continue
-        wx, wy = x1 - o[0], y1 - o[1]
-        t = (wx * ey - wy * ex) / den
-        u = (wx * d[1] - wy * d[0]) / den
-        if t >= 0 and -1e-12 <= u <= 1 + 1e-12 and t < best:
-            best, echo = t, abs(den) / math.hypot(ex, ey) >= cos_min - 1e-12
-    for c in discs:
-        ox, oy = o[0] - c[0], o[1] - c[1]
-        b = ox * d[0] + oy * d[1]
-        cc = ox * ox + oy * oy - radius * radius
-        if b * b - cc < 0:
-            continue
-        t = 0.0 if cc <= 0 else -b - math.sqrt(b * b - cc)
-        if t >= 0 and t < best:
-            best, echo = t, True
-    return best, echo
-
-
-def _ref_corners(segs):
-    out = []
-    for i, s in enumerate(segs):
-        for j, q in enumerate(segs):
-            if j <= i:
-                continue
-            for a, a_other in ((s[:2], s[2:]), (s[2:], s[:2])):
-                for b, b_other in ((q[:2], q[2:]), (q[2:], q[:2])):
-                    if np.allclose(a, b, atol=1e-9):
-                        out.append((a, a_other - a, b_other - a))
-    return out
-
-
-def _reference(cfg: SonarConfig, origin, axes, segs, discs, radius, n_sub=5):
-    cos_min = math.cos(math.radians(cfg.incidence_max_deg))
-    spec = cfg.model == "specular"
-    offs = np.linspace(-0.5, 0.5, n_sub) * math.radians(cfg.cone_deg) if spec else [0.0]
-    corners = _ref_corners(segs) if spec else []
-    out = []
-    for ax in axes:
-        best = math.inf
-        for off in offs:
-            t, echo = _ref_ray(origin, ax + off, segs, discs, radius, cos_min if spec else -1.0)
-            if echo:
-                best = min(best, t)
-        for c, u1, u2 in corners:
-            v = np.asarray(origin) - c
-            cr = lambda p, q: p[0] * q[1] - p[1] * q[0]  # noqa: E731
-            s = cr(u1, u2)
-            if abs(s) < 1e-9 or not (cr(u1, v) * s > 0 and cr(v, u2) * s > 0):
-                continue
-            dist = float(np.linalg.norm(v))
-            bearing = math.atan2(-v[1], -v[0])
-            if dist > cfg.range_max or abs(math.remainder(bearing - ax, 2 * math.pi)) > math.radians(
-                    cfg.cone_deg) / 2:
-                continue
-            t, _ = _ref_ray(origin, bearing, segs, discs, radius, -1.0)
-            if t >= dist * (1 - 1e-7) - 1e-9:
-                best = min(best, dist)
-        out.append(min(best, cfg.range_max))
-    return np.array(out)
 
 
 @pytest.mark.parametrize("model", ["ray", "specular"])
@@ -98,10 +30,10 @@ def test_vectorized_matches_brute_force(model):
     got = ring.measure(poses, m.segments, 0.165, None)
     for i, pose in enumerate(poses):
         others = [p[:2] for j, p in enumerate(poses) if j != i]
-        want = _reference(cfg, pose[:2], pose[2] + ring.beam_angles, m.segments, others, 0.165)
+        want = reference.beams(cfg, pose[:2], pose[2] + ring.beam_angles, m.segments, others, 0.165)
         np.testing.assert_allclose(got[i], np.maximum(want, cfg.range_min), atol=1e-4)
     scan = ring.scan(poses[0], m.segments, poses[1:, :2], 0.165, None)
-    want = _reference(cfg, poses[0, :2], poses[0, 2] + ring.scan_angles, m.segments, poses[1:, :2], 0.165)
+    want = reference.beams(cfg, poses[0, :2], poses[0, 2] + ring.scan_angles, m.segments, poses[1:, :2], 0.165)
     np.testing.assert_allclose(scan, np.maximum(want, cfg.range_min), atol=1e-6)
     assert scan.shape == (72,)
 
@@ -224,9 +156,10 @@ def test_crosstalk_batched_over_worlds_equals_each_world_alone():
 @pytest.mark.parametrize("range_max", [0.8, 1.5, 3.0, 50.0])
 def test_near_wall_lists_change_no_reading(monkeypatch, range_max):
     """The sonar kernels look walls up in each robot's list of those within reach; with every wall
-    listed instead, readings and cross-talk are the same bit for bit (also short ranges, where the
-    lists leave most walls out)."""
+    listed instead (the lists' slack made huge, every list from ``near_segments`` full), readings and
+    cross-talk are the same bit for bit (also short ranges, where the lists leave most walls out)."""
     from parcover_env.geometry import rays
+    from parcover_env.sensors import sonar
     from parcover_env.sensors.sonar import crosstalk
 
     cfg = SonarConfig(range_max=range_max, crosstalk_prob=0.5)
@@ -242,33 +175,20 @@ def test_near_wall_lists_change_no_reading(monkeypatch, range_max):
     def every(ox, oy, segments, reach):
         return np.tile(np.arange(len(segments)), (len(ox), 1)), np.full(len(ox), len(segments))
 
+    def wide(*args, **kwargs):
+        rules = rules_of(*args, **kwargs).copy()
+        rules["near_slack"] = 1e9
+        return rules
+
+    rules_of = sonar._rules
     monkeypatch.setattr(rays, "near_segments", every)
+    monkeypatch.setattr(sonar, "_rules", wide)
     assert np.array_equal(ring.ideal_batch(poses, m.segments, 0.1), ideal)
     assert np.array_equal(crosstalk(cfg, poses, ring.beam_angles, m.segments), heard)
     assert np.array_equal(ring.scan(poses[0, 0], m.segments, poses[0, 1:, :2], 0.1, None), scan)
     if range_max < 1:
         assert counts.mean() < 0.5 * len(m.segments)  # the lists do leave walls out
     assert (ideal < range_max).any()
-
-
-def _numpy_noise(cfg, ideal, heard, rng):
-    """The ring's noise as numpy formulas (the reference of the compiled kernel): cross-talk, drop
-    or clip below range_min, Gaussian noise on echoes, quantization, clamping, garbage."""
-    r = np.asarray(ideal, dtype=float)
-    if heard is not None:
-        r = np.where(rng.random(r.shape) < cfg.crosstalk_prob, np.minimum(r, heard), r)
-    if cfg.below_min == "drop":
-        r = np.where(r < cfg.range_min, cfg.range_max, r)
-    echo = r < cfg.range_max
-    if rng is not None and (cfg.noise_std > 0 or cfg.noise_rel > 0):
-        r = np.where(echo, r + (cfg.noise_std + cfg.noise_rel * r) * rng.standard_normal(r.shape), r)
-    if cfg.quantization > 0:
-        r = np.where(echo, np.round(r / cfg.quantization) * cfg.quantization, r)
-    r = np.clip(r, cfg.range_min, cfg.range_max)
-    if rng is not None and cfg.garbage_rate > 0:
-        bad = rng.random(r.shape) < cfg.garbage_rate
-        r = np.where(bad, rng.uniform(cfg.range_min, cfg.range_max, r.shape), r)
-    return r
 
 
 @pytest.mark.parametrize("change", [{}, {"below_min": "clip"}, {"garbage_rate": 0.2}, {"quantization": 0.0},
@@ -283,13 +203,13 @@ def test_compiled_noise_equals_the_numpy_formulas_bit_for_bit(change):
     heard = np.where(draw.random(ideal.shape) < 0.5, draw.uniform(0.0, 2.0, ideal.shape), np.inf)
     talk = cfg.crosstalk_prob > 0
     got = ring._noisy(ideal, heard if talk else None, np.random.default_rng(8), np.float32)
-    want = _numpy_noise(cfg, ideal, heard if talk else None, np.random.default_rng(8))
+    want = reference.noise(cfg, ideal, heard if talk else None, np.random.default_rng(8))
     assert got.dtype == np.float32 and np.array_equal(got, want.astype(np.float32))
     rng_a, rng_b = np.random.default_rng(1), np.random.default_rng(1)
     scan = ring.corrupt(ideal[0], rng_a)  # 1-D, float64
-    assert scan.dtype == np.float64 and np.array_equal(scan, _numpy_noise(cfg, ideal[0], None, rng_b))
+    assert scan.dtype == np.float64 and np.array_equal(scan, reference.noise(cfg, ideal[0], None, rng_b))
     assert rng_a.random() == rng_b.random()  # the same number of draws
-    assert np.array_equal(ring.corrupt(ideal, None), _numpy_noise(cfg, ideal, None, None))
+    assert np.array_equal(ring.corrupt(ideal, None), reference.noise(cfg, ideal, None, None))
 
 
 def test_ring_cones_cover_the_circle_only_when_the_gaps_are_narrower_than_a_cone():

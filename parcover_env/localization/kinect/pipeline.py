@@ -12,7 +12,8 @@ pattern. The pose is the rigid 2-D fit (all blob-to-marker assignments tried) of
 pattern to the marker points, those being intersected with the horizontal plane at the height given
 by the hull's mean depth. A fit with residual above ``max_residual`` is rejected.
 
-:func:`estimate_fast` is a cheap statistical stand-in for the full pipeline (see its docstring) and
+:func:`~parcover_env.localization.kinect.estimate_model.estimate_fast` is a cheap statistical
+stand-in for the full pipeline (see its docstring) and
 :class:`~parcover_env.localization.kinect.tracker.KinectTracker` fuses several Kinects and keeps
 identities across frames.
 """
@@ -23,7 +24,6 @@ import contextlib
 import functools
 import itertools
 import math
-import weakref
 from dataclasses import dataclass
 
 import cv2
@@ -31,10 +31,10 @@ import numpy as np
 
 from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.camera import CameraModel
-from parcover_env.sensors.kinect import NATIVE_WIDTH, KinectFrame, KinectSensor, marker_pattern
+from parcover_env.sensors.kinect import KinectFrame, marker_pattern
 
-__all__ = ["PipelineParams", "PoseEstimate", "FastNoise", "pipeline_stages", "detect_markers", "find_blobs",
-           "group_blobs", "fit_pattern", "estimate_poses", "estimate_fast"]
+__all__ = ["PipelineParams", "PoseEstimate", "pipeline_stages", "detect_markers", "find_blobs", "group_blobs",
+           "fit_pattern", "estimate_poses"]
 
 
 @dataclass(frozen=True)
@@ -359,144 +359,3 @@ def estimate_poses(frame: KinectFrame, camera: CameraModel,
         out.append(PoseEstimate(float(pose[0]), float(pose[1]), float(pose[2]), len(g), z_mean, rms,
                                 frame.name, frame.stamp))
     return out
-
-
-_STATIC: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-"""Static per-sensor quantities of the fast path (see ``_sensor_cache``)."""
-
-
-@dataclass(frozen=True)
-class FastNoise:
-    """Error model of the fast path, calibrated with ``benchmarks/kinect_accuracy.py`` on the full
-    pipeline (Kinect looking down, 2.8-3.0 m). Errors are Gaussian with per-axis position std
-    ``pos_px`` and heading std ``heading_px / span`` in pixels at the robot's depth (metres = px * z / f),
-    both times ``(640 / width) ** res_exponent``. Detection probability ramps linearly from 0 to 1
-    as the marker radius in pixels goes from ``r_px_min`` to ``r_px_full`` (small markers vanish in
-    the 3x3 opening)."""
-
-    pos_px: float = 0.05
-    heading_px: float = 0.10
-    res_exponent: float = 1.3
-    r_px_min: float = 1.95
-    r_px_full: float = 2.35
-    margin_px: float = 2.0
-
-
-def estimate_fast(sensor: KinectSensor, poses, marker_mask, rng: np.random.Generator,
-                  noise: FastNoise | None = None, stamp: float = 0.0) -> list[PoseEstimate]:
-    """Cheap stand-in for render + :func:`estimate_poses`: visibility test plus sampled errors.
-
-    A marker-carrying robot is detected when every marker disc projects inside the image (with a
-    margin), its depth is within the valid range and no wall top hides it (static depth); frames are
-    dropped at ``drop_rate``. The estimate is the true pose plus Gaussian noise whose scale
-    (``noise``, in pixels) was measured on the full pipeline, so both paths agree statistically.
-    """
-    return estimate_fast_all([sensor], poses, marker_mask, rng, noise, stamp)[0]
-
-
-def estimate_fast_all(sensors: list[KinectSensor], poses, marker_mask, rng: np.random.Generator,
-                      noise: FastNoise | None = None, stamp: float = 0.0) -> list[list[PoseEstimate]]:
-    """:func:`estimate_fast` of each sensor in turn, the inputs checked once: the same estimates
-    from the same random draws in the same order as one call per sensor."""
-    if not sensors:
-        return []
-    poses, mask = sensors[0]._check_inputs(poses, marker_mask)
-    return FastModel(sensors, noise).estimate(range(len(sensors)), poses, mask, rng, stamp)
-
-
-class FastModel:
-    """The estimate model (:func:`estimate_fast`) of a set of Kinects: their constants stacked once
-    for one compiled call per step (:func:`~parcover_env.localization.kinect._estimate_kernel.
-    estimate`). Build it again after a sensor is remounted."""
-
-    def __init__(self, sensors: list[KinectSensor], noise: FastNoise | None = None):
-        self.sensors = list(sensors)
-        nz = noise or FastNoise()
-        boxes = [_view_box(s) for s in self.sensors]
-        self.box = np.array([b if b is not None else (0.0,) * 4 for b in boxes], dtype=float).reshape(-1, 4)
-        self.use_box = np.array([b is not None for b in boxes], dtype=bool)
-        self.pattern = np.stack([np.asarray(s.pattern, dtype=float) for s in self.sensors])
-        true_cams, nominal = [s.true_camera for s in self.sensors], [s.camera for s in self.sensors]
-        self.true_R, self.true_C, self.true_K = _stacked(true_cams)
-        self.nom_R, self.nom_C, self.nom_K = _stacked(nominal)
-        self.remounted = np.array([t is not c for t, c in zip(true_cams, nominal, strict=True)], dtype=bool)
-        self.depths = tuple(np.ascontiguousarray(s.nominal_static_depth, dtype=float) for s in self.sensors)
-        self.size = np.array([(s.shape[1], s.shape[0]) for s in self.sensors], dtype=np.int64)
-        self.scal = np.array([(s.marker_radius, s.robot_height, s.true_camera.range_min, s.true_camera.range_max,
-                               s.cfg.drop_rate, _pattern_gap(s), (NATIVE_WIDTH / s.shape[1]) ** nz.res_exponent,
-                               float(np.ptp(s.pattern[:, 0])) or 0.1) for s in self.sensors], dtype=float)
-        self.noise = np.array([nz.margin_px, _CLOSE_KSIZE - 2, nz.r_px_min, nz.r_px_full, nz.pos_px, nz.heading_px])
-
-    def estimate(self, due, poses: np.ndarray, mask: np.ndarray, rng: np.random.Generator,
-                 stamp: float = 0.0) -> list[list[PoseEstimate]]:
-        """Estimates of the Kinects ``due`` (indices into ``sensors``, in that order) of the
-        marker carriers ``mask`` among the checked true ``poses (N, 3)``: one list per Kinect."""
-        from parcover_env.localization.kinect import _estimate_kernel
-
-        due = np.asarray(due, dtype=np.int64).reshape(-1)
-        carriers = np.flatnonzero(mask)
-        cap = len(due) * len(carriers)
-        out_sensor, out_index, out_pose = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((cap, 3))
-        n = _estimate_kernel.estimate(due, np.ascontiguousarray(poses, dtype=float), carriers, self.box,
-                                      self.use_box, self.pattern, self.true_R, self.true_C, self.true_K, self.nom_R,
-                                      self.nom_C, self.nom_K, self.remounted, self.depths, self.size, self.scal,
-                                      self.noise, rng, out_sensor, out_index, out_pose)
-        per: list[list[PoseEstimate]] = [[] for _ in due]
-        k = self.pattern.shape[1]
-        for p, i, (x, y, th) in zip(out_sensor[:n].tolist(), out_index[:n].tolist(), out_pose[:n].tolist(),
-                                    strict=True):
-            per[p].append(PoseEstimate(x, y, th, k, kinect=self.sensors[due[p]].name, stamp=stamp, truth_index=i))
-        return per
-
-
-_CLOSE_KSIZE = 5
-"""The pipeline's closing kernel (px): markers whose gap is under ``_CLOSE_KSIZE - 2`` px merge
-(gaps of >= 3 px keep at least 3 markers apart in the full pipeline: checked on ``tree``)."""
-
-
-def _stacked(cams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Rotations ``(S, 3, 3)``, centres ``(S, 3)`` and intrinsics ``(S, 4)`` (fu, fv, cu, cv) of cameras."""
-    return (np.stack([np.asarray(c.R, dtype=float) for c in cams]),
-            np.stack([np.asarray(c.C, dtype=float) for c in cams]),
-            np.array([(c.K[0, 0], c.K[1, 1], c.K[0, 2], c.K[1, 2]) for c in cams], dtype=float))
-
-
-def _sensor_cache(sensor: KinectSensor) -> dict:
-    """Per-sensor cache of static quantities, dropped if the camera, pattern or height change."""
-    cam, key = sensor.true_camera, (sensor.pattern.tobytes(), sensor.marker_radius, sensor.robot_height)
-    entry = _STATIC.get(sensor)
-    if entry is None or entry[0] is not cam or entry[1] != key:  # the camera itself, not its id (reused)
-        entry = (cam, key, {})
-        _STATIC[sensor] = entry
-    return entry[2]
-
-
-def _pattern_gap(sensor: KinectSensor) -> float:
-    """Smallest edge-to-edge distance between two markers of the pattern (m)."""
-    cache = _sensor_cache(sensor)
-    if "gap" not in cache:
-        pat = sensor.pattern
-        d = np.linalg.norm(pat[:, None] - pat[None], axis=-1) + np.eye(len(pat)) * 1e9
-        cache["gap"] = float(d.min()) - 2 * sensor.marker_radius
-    return cache["gap"]
-
-
-def _view_box(sensor: KinectSensor) -> tuple[float, float, float, float] | None:
-    """Floor box ``(x0, y0, x1, y1)`` outside which no robot centre can have all its markers in the
-    image: the image corners cast onto the marker plane, grown by the pattern's reach (1 mm slack).
-    None when a corner ray does not meet that plane (a tilted camera): no pre-filter then."""
-    cache = _sensor_cache(sensor)
-    if "box" not in cache:
-        cam = sensor.true_camera
-        corners = np.array([[0.0, 0.0], [cam.width - 1.0, 0.0], [cam.width - 1.0, cam.height - 1.0],
-                            [0.0, cam.height - 1.0]])
-        rays = cam.pixel_rays(corners)
-        box = None
-        if np.all(rays[:, 2] < 0) and sensor.robot_height < cam.C[2]:
-            t = (sensor.robot_height - cam.C[2]) / rays[:, 2]
-            pts = cam.C[:2] + t[:, None] * rays[:, :2]
-            reach = float(np.hypot(sensor.pattern[:, 0], sensor.pattern[:, 1]).max()) + 1e-3
-            lo, hi = pts.min(axis=0) - reach, pts.max(axis=0) + reach
-            box = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
-        cache["box"] = box
-    return cache["box"]

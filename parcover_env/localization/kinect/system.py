@@ -24,9 +24,10 @@ import shapely
 
 from parcover_env.config import Scenario
 from parcover_env.geometry.poses import compose, inverse
-from parcover_env.localization.kinect.pipeline import FastModel, PipelineParams, estimate_poses
+from parcover_env.localization.kinect.estimate_model import FastModel
+from parcover_env.localization.kinect.pipeline import PipelineParams, estimate_poses
 from parcover_env.localization.kinect.tracker import KinectTracker
-from parcover_env.sensors.kinect import KinectFrame, KinectSensor, may_see_all
+from parcover_env.sensors.kinect import KinectFrame, KinectSensor, check_poses, may_see_all
 from parcover_env.world.map_model import MapModel
 
 __all__ = ["KinectSystem", "handover_poses"]
@@ -103,7 +104,7 @@ class KinectSystem:
             self.next_tick[due] = time + self.periods[due]
             return {}
         if self.fast is not None:
-            poses, mask = self.sensors[0]._check_inputs(true_poses, markers)
+            poses, mask = check_poses(true_poses, markers)
             per_kinect = self.fast.estimate(due, poses, mask, rng, stamp=time)
         else:
             due_sensors = [self.sensors[k] for k in due]

@@ -1,8 +1,9 @@
-"""Compiled (numba) per-pixel loops of the Kinect's frames mode; import only through
-:mod:`parcover_env.sensors.kinect`, which draws every random number itself (numpy, the episode's
-generator) and hands the draws in. The depth noise is float32 arithmetic (Python constants rounded
-to float32 first); the robot drawing repeats, in float64 and in the same order, the cylinder and
-marker-disc formulas of the numpy reference in ``tests/sensors/test_kinect_kernels.py``.
+"""Compiled (numba) per-pixel loops of the Kinect's frames mode, the internals of
+:mod:`parcover_env.sensors.kinect` (public so that tests and other rooms may use them), which draws
+every random number itself (numpy, the episode's generator) and hands the draws in. The depth noise
+is float32 arithmetic (Python constants rounded to float32 first); the robot drawing repeats, in
+float64 and in the same order, the cylinder and marker-disc formulas of the numpy reference in
+``tests/references/kinect.py``.
 """
 
 from __future__ import annotations
@@ -11,6 +12,14 @@ import math
 
 import numpy as np
 from numba import njit
+
+__all__ = ["MARKER_DISCS", "depth_noise", "lateral_shift", "draw_robots", "marker_codes", "ir_levels"]
+
+MARKER_DISCS = np.dtype([
+    ("marker_r2", "f8"),  # squared radius of a marker disc (m^2): saturates the IR image
+    ("halo_r2", "f8"),  # squared radius around a marker centre where depth is missing (m^2)
+])
+"""The marker discs of :func:`marker_codes` (a record, :mod:`parcover_env.geometry.records`)."""
 
 _F32_SIGMA0 = np.float32(0.0012)
 _F32_SIGMA2 = np.float32(0.0019)
@@ -87,10 +96,13 @@ def draw_robots(depth, owner, top, rays, C, boxes, xy, r2, height):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def marker_codes(code, depth, owner, top, rays, C, boxes, poses, cos_sin, carriers, pattern, rm2, rh2):
-    """Marker code of every pixel showing a carrier's top disc: 1 within ``sqrt(rm2)`` of a marker
-    centre (``pattern (K, 2)``, robot frame), 2 within ``sqrt(rh2)`` (depth-missing halo), else 0.
-    ``carriers``: robot indices; ``cos_sin (N, 2)``: cos and sin of each robot's heading."""
+def marker_codes(code, depth, owner, top, rays, C, boxes, poses, cos_sin, carriers, pattern, discs):
+    """Marker code of every pixel showing a carrier's top disc (as :func:`draw_robots` left
+    ``depth``, ``owner`` and ``top``): 1 within ``sqrt(marker_r2)`` of a marker centre (``pattern
+    (K, 2)``, robot frame), 2 within ``sqrt(halo_r2)`` (depth-missing halo), else 0 (the
+    :data:`MARKER_DISCS` record ``discs``). ``carriers``: robot indices; ``cos_sin (N, 2)``: cos and
+    sin of each robot's heading."""
+    rm2, rh2 = discs[0].marker_r2, discs[0].halo_r2
     for i in carriers:
         u0, v0, u1, v1 = boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3]
         if u0 < 0:

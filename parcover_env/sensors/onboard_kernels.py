@@ -1,11 +1,12 @@
-"""Compiled (numba) loops of the onboard sensors: the follower camera and the wheel odometry (the
-sonar's are in :mod:`parcover_env.sensors._sonar_kernels`). Import only through
-:mod:`parcover_env.sensors.relative` and :mod:`parcover_env.sensors.odometry`.
+"""Compiled (numba) loops of the onboard sensors, the internals of :mod:`parcover_env.sensors.relative`
+(the follower camera) and :mod:`parcover_env.sensors.odometry` (the wheel odometry); public so that
+tests and other rooms may use them (the sonar's are in :mod:`parcover_env.sensors.sonar_kernels`).
+They read their constants from records (structured arrays, :mod:`parcover_env.geometry.records`):
+:data:`CAMERA` and :data:`WHEEL_ERRORS`.
 
 The callers draw the random numbers (numpy, the episode's generator, whole arrays in the order the
 numpy formulas drew them) and hand them in: passing a ``Generator`` to a compiled function costs
-about 5 us per call. ``tests/sensors/test_relative_camera.py`` and ``test_odometry.py`` keep the
-numpy references.
+about 5 us per call. ``tests/references/onboard.py`` keeps the numpy references.
 """
 
 from __future__ import annotations
@@ -15,18 +16,41 @@ import math
 import numpy as np
 from numba import njit
 
-from parcover_env.geometry._ray_kernels import _wrap
+from parcover_env.geometry.angle_kernels import wrap
+
+__all__ = ["CAMERA", "WHEEL_ERRORS", "camera_view", "wheel_odometry"]
+
+CAMERA = np.dtype([
+    ("max_range", "f8"),  # (m)
+    ("half_fov", "f8"),  # half the field of view (rad)
+    ("range_noise", "f8"),  # range sigma per metre of distance
+    ("bearing_noise", "f8"),  # (rad)
+    ("heading_noise", "f8"),  # (rad)
+])
+"""The follower camera's reach and noise (:class:`parcover_env.sensors.relative.RelativeCamera`)."""
+
+WHEEL_ERRORS = np.dtype([
+    ("wheel_base", "f8"),  # the true wheel base (m)
+    ("slip_accel", "f8"),  # slip per unit of wheel acceleration (s^2 / m)
+    ("slip_turn", "f8"),  # slip per unit of turn rate (s / rad)
+    ("wheel_variance", "f8"),  # random per-wheel variance per metre (m)
+    ("covariance_wheel_variance", "f8"),  # the variance the covariance assumes (m)
+])
+"""The wheels' random error model (:class:`parcover_env.config.OdometryConfig`)."""
 
 
 @njit(cache=True, nogil=True)
-def camera_view(px, py, pth, predecessor, blocked, z, max_range, half_fov, range_noise, bearing_noise,
-                heading_noise, rel_xy, rel_heading, visible):
+def camera_view(px, py, pth, predecessor, blocked, z, camera, rel_xy, rel_heading, visible):
     """The follower camera (:meth:`parcover_env.sensors.relative.RelativeCamera.measure`) of robots
     ``px, py, pth (N,)``: for each follower ``i`` (``predecessor[i] >= 0``, F of them) of its
     predecessor ``j``: range ``r (1 + range_noise z1)``, bearing ``+ bearing_noise z2`` and relative
-    heading ``wrap(th_j - th_i + heading_noise z3)``, written where seen (within ``max_range`` and
-    ``half_fov``, ``blocked[i]`` False), zeros elsewhere. ``z (3, F)``: the standard normals z1, z2,
-    z3 of the F followers, in robot order."""
+    heading ``wrap(th_j - th_i + heading_noise z3)`` (the :data:`CAMERA` record ``camera``), written
+    into ``rel_xy (N, 2)``, ``rel_heading (N,)`` and ``visible (N,)`` where seen (within ``max_range``
+    and ``half_fov``, ``blocked[i]`` False), zeros elsewhere. ``z (3, F)``: the standard normals z1,
+    z2, z3 of the F followers, in robot order."""
+    cam = camera[0]
+    max_range, half_fov = cam.max_range, cam.half_fov
+    range_noise, bearing_noise, heading_noise = cam.range_noise, cam.bearing_noise, cam.heading_noise
     n = px.shape[0]
     rel_xy[:] = 0.0
     rel_heading[:] = 0.0
@@ -42,24 +66,29 @@ def camera_view(px, py, pth, predecessor, blocked, z, max_range, half_fov, range
         dx = px[j] - px[i]
         dy = py[j] - py[i]
         dist = math.hypot(dx, dy)
-        bearing = _wrap(math.atan2(dy, dx) - pth[i])
+        bearing = wrap(math.atan2(dy, dx) - pth[i])
         if dist <= max_range and abs(bearing) <= half_fov and not blocked[i]:
             r = dist * (1.0 + range_noise * z1[k])
             b = bearing + bearing_noise * z2[k]
             rel_xy[i, 0] = r * math.cos(b)
             rel_xy[i, 1] = r * math.sin(b)
-            rel_heading[i] = _wrap(pth[j] - pth[i] + heading_noise * z3[k])
+            rel_heading[i] = wrap(pth[j] - pth[i] + heading_noise * z3[k])
             visible[i] = True
         k += 1
 
 
 @njit(cache=True, nogil=True)
-def wheel_odometry(est, cov, travelled, turned, travel, speed_change, dt, z, factors, believed_base, wheel_base,
-                   slip_accel, slip_turn, wheel_variance, cov_wheel_variance):
+def wheel_odometry(est, cov, travelled, turned, travel, speed_change, dt, z, factors, believed_base, errors):
     """One control step of the ``wheels`` odometry
     (:meth:`parcover_env.sensors.odometry.Odometry.measure_wheels`), in place on the estimates
-    ``est (N, 3)``, covariances ``cov (N, 3, 3)`` and the ``travelled``/``turned`` sums. ``z``: the
-    standard normals, flat ``(2, N, 2)``: the slip factors, then the random wheel errors."""
+    ``est (N, 3)``, covariances ``cov (N, 3, 3)`` and the ``travelled``/``turned`` sums, from each
+    wheel's true distance ``travel (N, 2)`` and summed speed changes ``speed_change (N, 2)`` over
+    ``dt``, the systematic encoder ``factors (N, 2)`` and ``believed_base (N,)``, and the
+    :data:`WHEEL_ERRORS` record ``errors``. ``z``: the standard normals, flat ``(2, N, 2)``: the slip
+    factors, then the random wheel errors."""
+    err = errors[0]
+    wheel_base, slip_accel, slip_turn = err.wheel_base, err.slip_accel, err.slip_turn
+    wheel_variance, cov_wheel_variance = err.wheel_variance, err.covariance_wheel_variance
     n = est.shape[0]
     for i in range(n):
         d0 = travel[i, 0]
@@ -89,7 +118,7 @@ def wheel_odometry(est, cov, travelled, turned, travel, speed_change, dt, z, fac
         _propagate(cov[i], -ds * s, ds * c, c, -0.5 * ds * s, s, 0.5 * ds * c, q00, q01, q11)
         est[i, 0] += ds * c
         est[i, 1] += ds * s
-        est[i, 2] = _wrap(est[i, 2] + dth)
+        est[i, 2] = wrap(est[i, 2] + dth)
         travelled[i] += abs(ds)
         turned[i] += abs(dth)
 

@@ -1,5 +1,5 @@
-"""Compiled (numba) loop behind :meth:`parcover_env.world.drive.DiffDrive.advance_steps`; import
-only through that method. The IEEE operations and their order are those of
+"""Compiled (numba) loop behind :meth:`parcover_env.world.drive.DiffDrive.advance_steps` (public so
+that tests and other rooms may use it). The IEEE operations and their order are those of
 :meth:`~parcover_env.world.drive.DiffDrive.advance` (no fast-math): the results are the same floats.
 """
 

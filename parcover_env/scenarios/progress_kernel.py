@@ -1,7 +1,8 @@
 """Compiled (numba) bodies of :class:`parcover_env.scenarios.progress.RouteTracker` (KPOI visits,
-progress, goals); import only through its methods. Robot by robot, the same IEEE operations in the same order as the
-vectorized numpy version it replaces (kept as ``RouteTracker._advance_all_numpy``; a test compares
-them), no fast-math: the same floats.
+progress, goals), public so that tests and other rooms may use them. Robot by robot, the same IEEE
+operations in the same order as the vectorized numpy reference (``tests/references/progress.py``;
+a test compares them), no fast-math: the same floats. The routes are the padded tables of
+:class:`~parcover_env.scenarios.progress.RouteTable`; the constants a :data:`PROGRESS_RULES` record.
 """
 
 from __future__ import annotations
@@ -11,11 +12,23 @@ import math
 import numpy as np
 from numba import njit
 
+__all__ = ["PROGRESS_RULES", "advance_all", "goals", "visits"]
+
+PROGRESS_RULES = np.dtype([
+    ("window", "f8"),  # progress is searched this far ahead of the current progress (m)
+    ("tol", "f8"),  # a KPOI vertex is reached within this distance (m)
+    ("max_offset", "f8"),  # an estimate farther than this from the route makes no progress (m)
+])
+"""The constants of :func:`advance_all` (a record, :mod:`parcover_env.geometry.records`)."""
+
 
 @njit(cache=True)
-def advance_all(p, progress, waypoint, length, arc, must, pts, e, ee, seg_len, window, tol, max_offset):
-    """New ``(progress, waypoint)`` of every robot from its estimate ``p (N, 2)``; see
-    :class:`~parcover_env.scenarios.progress.RouteTracker` for the rule."""
+def advance_all(p, progress, waypoint, length, arc, must, pts, e, ee, seg_len, rules):
+    """New ``(progress, waypoint)`` of every robot from its estimate ``p (N, 2)``, its route's
+    ``length``, ``arc``, ``must``, ``pts``, ``e``, ``ee`` and ``seg_len``
+    (:class:`~parcover_env.scenarios.progress.RouteTable`) and the :data:`PROGRESS_RULES` record
+    ``rules``; see :class:`~parcover_env.scenarios.progress.RouteTracker` for the rule."""
+    window, tol, max_offset = rules[0].window, rules[0].tol, rules[0].max_offset
     n, m = arc.shape
     new_progress = progress.copy()
     new_waypoint = waypoint.copy()

@@ -1,6 +1,8 @@
-"""Compiled (numba) loops behind :mod:`parcover_env.geometry.rays`; import only through that module
-(and the sonar's compiled loops, :mod:`parcover_env.sensors._sonar_kernels`, which build on the
-per-ray helpers here).
+"""Compiled (numba) loops behind :mod:`parcover_env.geometry.rays`, and the per-ray helpers every
+compiled caster shares (:func:`segment_hit`, :func:`disc_hit`, :func:`disc_hit_from`, :func:`in_cone`;
+the sonar's loops, :mod:`parcover_env.sensors.sonar_kernels`, build on them). Public so that kernels
+of other rooms and tests use these, one implementation each; Python code casts through
+:mod:`~parcover_env.geometry.rays`.
 
 Each (ray, segment) and (ray, disc) pair goes through the same IEEE float operations, in the same
 order, as the formulas in the docstring of :mod:`~parcover_env.geometry.rays` (no fast-math, so no
@@ -15,16 +17,18 @@ import math
 import numpy as np
 from numba import njit
 
+from parcover_env.geometry.angle_kernels import wrap
+
 _EPS = 1e-12
 """Parallel rays (|direction x segment| below this) never hit; segment ends get this slack."""
 _BOX_SLACK = 1e-9
 """Margin (m) of a ray's reach box: rounding never culls a segment the ray meets."""
-_COS_FLOOR = 1e-9
+COS_FLOOR = 1e-9
 """Floor of a segment's length in ``|cos| = |d x e| / |e|`` (degenerate segments)."""
 
 
 @njit(cache=True, inline="always")
-def _segment_hit(x0, y0, ddx, ddy, segs, idx, reach, cull, open_end):
+def segment_hit(x0, y0, ddx, ddy, segs, idx, reach, cull, open_end):
     """Nearest hit of one ray on the segments ``idx`` (ascending indices into ``segs``):
     ``(t, index, d x e)``; ``(inf, -1, 0)`` if none.
 
@@ -88,7 +92,7 @@ def _disc_t(b, c):
 
 
 @njit(cache=True, inline="always")
-def _disc_hit(x0, y0, ddx, ddy, cx, cy, row, r2, mine):
+def disc_hit(x0, y0, ddx, ddy, cx, cy, row, r2, mine):
     """Nearest disc hit of one ray (inf if none) among discs ``cx[row], cy[row]`` but ``mine``."""
     best = np.inf
     for d in range(cx.shape[1]):
@@ -103,8 +107,8 @@ def _disc_hit(x0, y0, ddx, ddy, cx, cy, row, r2, mine):
 
 
 @njit(cache=True, inline="always")
-def _disc_hit_from(ddx, ddy, ocx, ocy, cc):
-    """:func:`_disc_hit` with the origin's disc terms ``oc = o - c`` and ``|oc|^2 - r^2`` computed
+def disc_hit_from(ddx, ddy, ocx, ocy, cc):
+    """:func:`disc_hit` with the origin's disc terms ``oc = o - c`` and ``|oc|^2 - r^2`` computed
     once for many rays (``cc`` = inf for a disc to skip); the same numbers."""
     best = np.inf
     for d in range(ocx.shape[0]):
@@ -125,11 +129,11 @@ def first_segment_hits(ox, oy, dx, dy, per, segs, seg_len, reach, box_cull, t_ou
     every = np.arange(segs.shape[0])
     for r in range(dx.shape[0]):
         o = r // per
-        t, i, den = _segment_hit(ox[o], oy[o], dx[r], dy[r], segs, every, reach, cull, False)
+        t, i, den = segment_hit(ox[o], oy[o], dx[r], dy[r], segs, every, reach, cull, False)
         if i >= 0 and t <= reach:
             t_out[r] = t
             i_out[r] = i
-            c_out[r] = abs(den) / max(seg_len[i], _COS_FLOOR)
+            c_out[r] = abs(den) / max(seg_len[i], COS_FLOOR)
         else:
             t_out[r] = np.inf
             i_out[r] = -1
@@ -145,7 +149,7 @@ def first_disc_hits(ox, oy, dx, dy, per, cx, cy, r2, owner, reach, t_out):
     per_origin = cx.shape[0] > 1
     for r in range(dx.shape[0]):
         o = r // per
-        t = _disc_hit(ox[o], oy[o], dx[r], dy[r], cx, cy, o if per_origin else 0, r2, owner[o])
+        t = disc_hit(ox[o], oy[o], dx[r], dy[r], cx, cy, o if per_origin else 0, r2, owner[o])
         t_out[r] = t if t <= reach else np.inf
 
 
@@ -154,7 +158,7 @@ def open_segments_blocked(ax, ay, bx, by, segs, out):
     """Whether the open segment ``a -> b`` (ray parameter ``0 < t < 1``) crosses one of ``segs``."""
     every = np.arange(segs.shape[0])
     for r in range(ax.shape[0]):
-        _, i, _ = _segment_hit(ax[r], ay[r], bx[r] - ax[r], by[r] - ay[r], segs, every, 1.0, True, True)
+        _, i, _ = segment_hit(ax[r], ay[r], bx[r] - ax[r], by[r] - ay[r], segs, every, 1.0, True, True)
         out[r] = i >= 0
 
 
@@ -167,7 +171,7 @@ def sight_lines_blocked(px, py, target, segs, out):
         j = target[i]
         out[i] = False
         if j >= 0:
-            _, hit, _ = _segment_hit(px[i], py[i], px[j] - px[i], py[j] - py[i], segs, every, 1.0, True, True)
+            _, hit, _ = segment_hit(px[i], py[i], px[j] - px[i], py[j] - py[i], segs, every, 1.0, True, True)
             out[i] = hit >= 0
 
 
@@ -196,15 +200,10 @@ def near_segments(ox, oy, segs, reach, idx, cnt):
 
 
 @njit(cache=True, inline="always")
-def _wrap(a):
-    """``a`` wrapped to (-pi, pi], as :func:`parcover_env.geometry.angles.wrap_angle`."""
-    return math.pi - ((math.pi - a) % (2.0 * math.pi))
-
-
-@njit(cache=True, inline="always")
-def _in_cone(a, half):
+def in_cone(a, half):
     """``|wrap(a)| <= half``, exactly; a cheap rounding-based wrap first rejects angles clearly
-    outside (it agrees with :func:`_wrap` to ~1e-15 rad, far below the 1e-9 rad margin)."""
+    outside (it agrees with :func:`~parcover_env.geometry.angle_kernels.wrap` to ~1e-15 rad, far below
+    the 1e-9 rad margin)."""
     if abs(a - 2.0 * math.pi * round(a / (2.0 * math.pi))) > half + 1e-9:
         return False
-    return abs(_wrap(a)) <= half
+    return abs(wrap(a)) <= half

@@ -1,6 +1,6 @@
-"""Compiled (numba) access to the robots' chipmunk bodies; import only through
-:mod:`parcover_env.world.physics`, which falls back to pymunk's Python callbacks when
-:func:`layout_matches` is false.
+"""Compiled (numba) access to the robots' chipmunk bodies, the internals of
+:mod:`parcover_env.world.physics` (public so that tests and other rooms may use them), which falls
+back to pymunk's Python callbacks when :func:`layout_matches` is false.
 
 pymunk calls a Python ``velocity_func`` once per body per physics substep, after it has moved the
 bodies and before the contact solver. :func:`velocity_update` is the same unicycle update as a C

@@ -1,0 +1,337 @@
+"""Compiled (numba) echoes of the sonar, the internals of :mod:`parcover_env.sensors.sonar` (public
+so that tests and other rooms may use them): the specular cone with its second legs, robots and
+concave corners, noise-free. Cross-talk, noise and the whole ring of every robot of K worlds in one
+call build on them in :mod:`parcover_env.sensors.sonar_ring_kernels`. They cast rays with the
+per-ray helpers of :mod:`parcover_env.geometry.ray_kernels` (same float operations, no fast-math).
+
+The kernels read their constants from a :data:`SONAR_RULES` record (a structured array,
+:mod:`parcover_env.geometry.records`: ``rules[0].range_max``, never ``par[0]``) and take bundles of
+arrays as the ``NamedTuple`` classes below. ``tests/references/sonar.py`` keeps the plain-Python
+references.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from parcover_env.geometry.ray_kernels import COS_FLOOR, disc_hit, disc_hit_from, in_cone, near_segments, segment_hit
+
+__all__ = ["SONAR_RULES", "WallSet", "Discs", "sonar_echoes", "sonar_corner_echoes", "beam_readings"]
+
+SONAR_RULES = np.dtype([
+    ("range_max", "f8"),  # a path longer than this returns nothing; no echo reads this (m)
+    ("specular", "?"),  # walls echo only near the normal (if there are walls), else every hit echoes
+    ("multipath", "?"),  # an oblique wall mirrors the sub-ray, which may echo off the next surface
+    ("cos_min", "f8"),  # smallest |cos| of incidence at which a wall echoes
+    ("nudge", "f8"),  # a mirrored sub-ray starts this far off the wall it left (m)
+    ("box_cull", "?"),  # box-cull the walls of a cast (never changes a result)
+    ("half_cone", "f8"),  # half the beam's cone, with a rounding slack (rad)
+    ("all_round", "?"),  # the ring's cones cover every direction (a robot's beam always points back)
+    ("near_slack", "f8"),  # slack added to a near-wall list's reach (m)
+    ("crosstalk_prob", "f8"),  # probability that a beam facing a robot that pings back hears it
+    ("range_min", "f8"),  # (m)
+    ("drop_below", "?"),  # echoes nearer than range_min are lost (else clipped to it)
+    ("noise_std", "f8"),  # Gaussian noise sigma (m) ...
+    ("noise_rel", "f8"),  # ... plus this times the range
+    ("quantization", "f8"),  # echoes are rounded to multiples of this (m); 0: not
+    ("garbage_rate", "f8"),  # probability of a reading uniform in [range_min, range_max]
+])
+"""Every constant of the compiled sonar, one record (:func:`parcover_env.geometry.records.record`)."""
+
+
+class WallSet(NamedTuple):
+    """The walls a ring sees and their corners."""
+
+    segments: np.ndarray
+    """``(S, 4)`` float64 C-contiguous rows ``(x1, y1, x2, y2)`` (m)."""
+    lengths: np.ndarray
+    """``(S,)`` length of each segment (m)."""
+    points: np.ndarray
+    """``(C, 2)`` corner vertices (:func:`parcover_env.sensors.sonar.concave_corners`) (m)."""
+    u1: np.ndarray
+    """``(C, 2)`` unit direction of a corner's first wall."""
+    u2: np.ndarray
+    """``(C, 2)`` unit direction of its second wall."""
+
+
+class Discs(NamedTuple):
+    """Robot discs that block and echo, as :func:`parcover_env.geometry.rays.disc_planes` lays them out."""
+
+    cx: np.ndarray
+    """``(C, D)`` centres' x: row ``o`` for origin ``o`` if ``C > 1`` (a set per origin), else row 0 (m)."""
+    cy: np.ndarray
+    """``(C, D)`` centres' y (m)."""
+    r2: np.ndarray
+    """``(D,)`` squared radii (m^2)."""
+    owner: np.ndarray
+    """``(N,)`` int64: the disc of origin ``o`` itself (never hit), -1 if none."""
+
+
+class _DiscTerms(NamedTuple):
+    """Per origin, the terms of the discs a sub-ray can hit (:func:`_near_discs`), compacted first."""
+
+    ocx: np.ndarray
+    ocy: np.ndarray
+    cc: np.ndarray
+    ux: np.ndarray
+    uy: np.ndarray
+    cos_w: np.ndarray
+
+
+@njit(cache=True, inline="always")
+def _incidence(den, seg_len, i):
+    """``|cos|`` of the incidence of a hit on segment ``i`` (``den = d x e``; 0 if no hit)."""
+    return abs(den) / max(seg_len[i], COS_FLOOR) if i >= 0 else 0.0
+
+
+@njit(cache=True, nogil=True)
+def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, reading):
+    """Nearest echo ``reading (N, B)`` over the sub-rays of every beam, inf if none (the rules of
+    :func:`parcover_env.sensors.sonar.simulate_beams`), from origins ``ox, oy (N,)`` among the
+    :class:`WallSet` and the :class:`Discs`, with the :data:`SONAR_RULES` ``rules`` (specular only if
+    there are walls). Beam ``b`` of origin ``n`` has the sub-rays at angles ``axes[n, b] +
+    offsets[j]``: the axis's unit vector ``(cos, sin)(axes[n, b])`` rotated by ``offsets[j]`` (two
+    sines and cosines per beam, not per sub-ray). Overlapping cones share sub-rays: ``share[b, j]``
+    is the flat index ``b' * J + j'`` (``b' * J + j' <= b * J + j``) of the sub-ray traced for that
+    pair, its own index the first time a direction comes up.
+
+    A sub-ray's first hit within ``rmax`` on the walls is ``t1`` (incidence ``|cos| c1``), on the
+    discs ``td``. ``specular``: a wall echoes only if ``c1 >= cos_min``; with ``multipath`` an
+    oblique wall mirrors the sub-ray, which starts again ``nudge`` off the wall and reads
+    ``t1 + t2 + nudge`` if its next surface (a normal-enough wall, or a disc) lies within
+    ``rmax - t1`` (``t2 + nudge`` compared). A disc nearer than the wall echoes (``td``). Walls
+    are looked up in the origin's list ``idx`` of those within ``rmax`` (plus the nudge;
+    :func:`near_segments`): a two-leg path of length <= ``rmax`` stays within it, ``idx[n, :cnt[n]]``."""
+    segs, seg_len = walls.segments, walls.lengths
+    cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
+    rule = rules[0]
+    rmax, multipath, cos_min, box_cull = rule.range_max, rule.multipath, rule.cos_min, rule.box_cull
+    specular = rule.specular and segs.shape[0] > 0
+    cull = box_cull and math.isfinite(rmax)
+    per_origin = cx.shape[0] > 1
+    n_discs = cx.shape[1]
+    n_sub = offsets.shape[0]
+    spread = 0.0  # the sub-rays' largest angle off the beam axis (< pi / 2: cones are < 180 deg)
+    for j in range(n_sub):
+        spread = max(spread, abs(offsets[j]))
+    cos_spread = math.cos(spread)
+    sin_spread = math.sin(spread)
+    co = np.cos(offsets)
+    so = np.sin(offsets)
+    n_pairs = share.shape[0] * n_sub
+    again = np.zeros(n_pairs, dtype=np.bool_)  # sub-rays a later beam reads too
+    for b in range(share.shape[0]):
+        for j in range(n_sub):
+            if share[b, j] != b * n_sub + j:
+                again[share[b, j]] = True
+    direct = np.empty(n_pairs)  # per origin, per sub-ray traced: its direct echo (inf if none)
+    leg_t = np.empty(n_pairs)  # where an oblique wall mirrored it (inf: not mirrored)
+    leg_i = np.empty(n_pairs, dtype=np.int64)
+    leg_x = np.empty(n_pairs)
+    leg_y = np.empty(n_pairs)
+    leg_echo = np.empty(n_pairs)  # its two-leg echo, once traced (nan: not yet)
+    ocx = np.empty(n_discs)  # per origin: the terms of the discs a sub-ray within rmax can hit
+    ocy = np.empty(n_discs)
+    cc = np.empty(n_discs)
+    ux = np.empty(n_discs)
+    uy = np.empty(n_discs)
+    cos_w = np.empty(n_discs)
+    bx = np.empty(n_discs)  # per beam: those a sub-ray of its cone can hit
+    by = np.empty(n_discs)
+    bc = np.empty(n_discs)
+    terms = _DiscTerms(ocx, ocy, cc, ux, uy, cos_w)
+    for n in range(ox.shape[0]):
+        x0 = ox[n]
+        y0 = oy[n]
+        row = n if per_origin else 0
+        near = idx[n, :cnt[n]]
+        m = _near_discs(x0, y0, cx[row], cy[row], r2, owner[n], rmax, cos_spread, sin_spread, terms)
+        for b in range(axes.shape[1]):
+            ax = math.cos(axes[n, b])
+            ay = math.sin(axes[n, b])
+            nb = 0
+            for d in range(m):
+                if ax * ux[d] + ay * uy[d] >= cos_w[d]:
+                    bx[nb] = ocx[d]
+                    by[nb] = ocy[d]
+                    bc[nb] = cc[d]
+                    nb += 1
+            best = np.inf
+            for j in range(n_sub):  # first legs: direct echoes (walls near the normal, discs)
+                u = share[b, j]
+                if u == b * n_sub + j:  # a direction not traced yet
+                    ddx = ax * co[j] - ay * so[j]
+                    ddy = ay * co[j] + ax * so[j]
+                    # an echo is never nearer than the sub-ray's first wall or disc, so walls beyond the
+                    # cone's nearest echo so far (``best``) are culled, unless another cone reads it too
+                    reach = rmax if again[u] else min(rmax, best)
+                    t1, i1, den = segment_hit(x0, y0, ddx, ddy, segs, near, reach, cull, False)
+                    td = disc_hit_from(ddx, ddy, bx[:nb], by[:nb], bc[:nb])
+                    if not td <= rmax:
+                        td = np.inf
+                    if not (i1 >= 0 and t1 <= rmax):
+                        t1 = np.inf
+                        i1 = -1
+                    leg_t[u] = np.inf
+                    leg_echo[u] = np.nan
+                    if not specular:
+                        echo = min(t1, td)
+                    elif td < t1:
+                        echo = td
+                    elif _incidence(den, seg_len, i1) >= cos_min:
+                        echo = t1
+                    else:
+                        echo = np.inf
+                        if multipath and i1 >= 0:  # mirrored by an oblique wall: its second leg comes after
+                            leg_t[u] = t1
+                            leg_i[u] = i1
+                            leg_x[u] = ddx
+                            leg_y[u] = ddy
+                    direct[u] = echo
+                best = min(best, direct[u])
+            for j in range(n_sub):  # second legs, once the cone's direct echoes bound what can be nearer
+                u = share[b, j]
+                if leg_t[u] < best:
+                    if math.isnan(leg_echo[u]):
+                        leg_echo[u] = _second_leg(x0, y0, leg_x[u], leg_y[u], leg_t[u], leg_i[u], walls, near, discs, n,
+                                                  rules)
+                    best = min(best, leg_echo[u])
+            reading[n, b] = best
+
+
+_DISC_SLACK = 1e-6
+"""Margin (m, rad) of the disc culls of :func:`sonar_echoes`: rounding never culls a disc a sub-ray hits."""
+@njit(cache=True, inline="always")
+def _near_discs(x0, y0, cx, cy, r2, mine, rmax, cos_spread, sin_spread, terms):
+    """The discs ``cx, cy`` (squared radii ``r2``) but ``mine`` that a ray from ``(x0, y0)`` can hit
+    within ``rmax``, compacted into the first ``m`` entries of ``terms`` (``m`` returned): the
+    terms ``oc = o - c`` and ``|oc|^2 - r^2`` of :func:`disc_hit_from`, the unit vector ``u`` to the
+    centre and the cosine of ``spread`` (< pi / 2; given as its cosine and sine) plus the half-angle
+    the disc spans (-2 if the origin is inside it: every ray hits). A ray hits a disc outside it only
+    within that half-angle of ``u`` (at a distance >= ``|oc| - r``), so a cone of half-angle
+    ``spread`` about a unit axis ``a`` can hit it only if ``a . u >= cos_w``."""
+    ocx, ocy, cc, ux, uy, cos_w = terms
+    m = 0
+    for d in range(cx.shape[0]):
+        if d == mine:
+            continue
+        dx = x0 - cx[d]
+        dy = y0 - cy[d]
+        c = (dx * dx + dy * dy) - r2[d]
+        if c > 0.0:
+            dist = math.sqrt(dx * dx + dy * dy)
+            r = math.sqrt(r2[d])
+            if dist - r > rmax + _DISC_SLACK:
+                continue
+            ux[m] = -dx / dist
+            uy[m] = -dy / dist
+            sin_w = min(r / dist, 1.0)  # cos(spread + w), w the disc's half-angle, minus a rounding margin
+            cos_w[m] = cos_spread * math.sqrt(1.0 - sin_w * sin_w) - sin_spread * sin_w - _DISC_SLACK
+        else:
+            ux[m] = 0.0
+            uy[m] = 0.0
+            cos_w[m] = -2.0
+        ocx[m] = dx
+        ocy[m] = dy
+        cc[m] = c
+        m += 1
+    return m
+
+
+@njit(cache=True, inline="always")
+def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, near, discs, n, rules):
+    """Echo length ``t1 + t2`` of a sub-ray of origin ``n`` mirrored at ``t1`` by segment ``i1``, inf if
+    its second leg finds no echoing surface within ``rmax - t1`` (walls ``near``, the discs of ``n``)."""
+    segs, seg_len = walls.segments, walls.lengths
+    cx, cy, r2 = discs.cx, discs.cy, discs.r2
+    row = n if cx.shape[0] > 1 else 0
+    mine = discs.owner[n]
+    rule = rules[0]
+    rmax, cos_min, nudge, box_cull = rule.range_max, rule.cos_min, rule.nudge, rule.box_cull
+    ex = segs[i1, 2] - segs[i1, 0]
+    ey = segs[i1, 3] - segs[i1, 1]
+    norm = math.sqrt(ex * ex + ey * ey)
+    nx = -ey / norm
+    ny = ex / norm
+    f = 2.0 * (ddx * nx + ddy * ny)
+    d2x = ddx - f * nx
+    d2y = ddy - f * ny
+    px = (x0 + ddx * t1) + d2x * nudge
+    py = (y0 + ddy * t1) + d2y * nudge
+    reach = rmax - t1
+    t2w, i2, den2 = segment_hit(px, py, d2x, d2y, segs, near, reach, box_cull and math.isfinite(reach), False)
+    if not (i2 >= 0 and t2w <= reach):
+        t2w = np.inf
+        i2 = -1
+    wall2 = t2w if _incidence(den2, seg_len, i2) >= cos_min else np.inf
+    td2 = disc_hit(px, py, d2x, d2y, cx, cy, row, r2, mine)
+    t2 = (td2 if td2 < t2w else wall2) + nudge
+    return t1 + t2 if t2 <= rmax - t1 else np.inf
+
+
+@njit(cache=True, nogil=True)
+def sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading):
+    """Lower ``reading (N, B)`` to the distance of every concave corner ``points (C, 2)`` (wall
+    directions ``u1, u2``) of the :class:`WallSet` that origin ``n`` sees from inside the corner's
+    wedge, within ``range_max``, with no wall (nor one of the :class:`Discs`) in between, and inside
+    beam ``b``'s cone (``|bearing - axis| <= half_cone``); the concave-corner rule of
+    :func:`parcover_env.sensors.sonar.simulate_beams`. Walls are looked up in the origin's list
+    ``idx[n, :cnt[n]]`` of those within ``range_max`` (:func:`near_segments`)."""
+    segs, pts, u1, u2 = walls.segments, walls.points, walls.u1, walls.u2
+    cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
+    rmax, half = rules[0].range_max, rules[0].half_cone
+    has_discs = cx.shape[1] > 0
+    per_origin = cx.shape[0] > 1
+    for n in range(ox.shape[0]):
+        x0 = ox[n]
+        y0 = oy[n]
+        near = idx[n, :cnt[n]]
+        for c in range(pts.shape[0]):
+            vx = pts[c, 0] - x0
+            vy = pts[c, 1] - y0
+            dist = math.sqrt(vx * vx + vy * vy)
+            if not (dist <= rmax and dist > 1e-9):
+                continue
+            s = u1[c, 0] * u2[c, 1] - u1[c, 1] * u2[c, 0]
+            wx = x0 - pts[c, 0]
+            wy = y0 - pts[c, 1]
+            if not ((u1[c, 0] * wy - u1[c, 1] * wx) * s > 0 and (wx * u2[c, 1] - wy * u2[c, 0]) * s > 0):
+                continue  # not inside the corner's wedge
+            bearing = math.atan2(vy, vx)
+            seen = -1  # line of sight: unknown until a beam's cone holds the corner
+            for b in range(axes.shape[1]):
+                if not (dist < reading[n, b] and in_cone(bearing - axes[n, b], half)):
+                    continue
+                if seen < 0:
+                    dx = vx / dist
+                    dy = vy / dist
+                    t, _, _ = segment_hit(x0, y0, dx, dy, segs, near, np.inf, False, False)
+                    seen = 1 if t >= dist * (1.0 - 1e-7) - 1e-9 else 0  # else a wall in between
+                    if seen and has_discs and not disc_hit(x0, y0, dx, dy, cx, cy, n if per_origin else 0, r2,
+                                                            owner[n]) >= dist:
+                        seen = 0  # a robot in between
+                if seen:
+                    reading[n, b] = dist
+
+
+@njit(cache=True, nogil=True)
+def beam_readings(ox, oy, axes, offsets, share, walls, discs, rules, reading):
+    """Noise-free echoes ``reading (N, B)`` (inf: none) of beams ``axes (N, B)`` from origins ``ox, oy``
+    (:func:`parcover_env.sensors.sonar.simulate_beams`): the near-wall lists within ``range_max``
+    (plus ``near_slack``), :func:`sonar_echoes`, then the concave corners
+    (:func:`sonar_corner_echoes`) if specular, in one call."""
+    rule = rules[0]
+    segs = walls.segments
+    n = ox.shape[0]
+    idx = np.empty((n, segs.shape[0]), dtype=np.int64)
+    cnt = np.empty(n, dtype=np.int64)
+    near_segments(ox, oy, segs, rule.range_max + rule.near_slack, idx, cnt)
+    sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, reading)
+    if rule.specular and walls.points.shape[0] > 0:
+        sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading)
+
+
