@@ -6,36 +6,81 @@ same float operations, in the same order, as the numpy formulas they replace
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
+import numpy as np
 from numba import njit
 
 
+class RobotRows(NamedTuple):
+    """Per-robot inputs of :func:`scalar_entries` (the first ten fields of
+    :class:`~parcover_env.envs.observations.ScalarInputs`)."""
+
+    est: np.ndarray
+    vel: np.ndarray
+    leader: np.ndarray
+    slot: np.ndarray
+    fix_age: np.ndarray
+    cov: np.ndarray
+    goals: np.ndarray
+    rel_xy: np.ndarray
+    rel_heading: np.ndarray
+    visible: np.ndarray
+
+
+class TeamScalars(NamedTuple):
+    """Team-wide inputs of :func:`scalar_entries`."""
+
+    slot_div: float
+    max_fix_age: float
+    kpois: float
+    time: float
+
+
 @njit(cache=True, nogil=True)
-def scalar_entries(out, cols, est, vel, leader, slot, slot_div, fix_age, max_fix_age, cov, goals, rel_xy,
-                   rel_heading, visible, kpois, time):
-    """Write the scalar entries of every robot's observation row ``out (N, D)``; ``cols``: the column
-    of each entry of :data:`~parcover_env.envs.observations.SCALAR_ENTRIES` (-1: not in the layout)."""
+def _put(out, i, col, value):
+    if col >= 0:
+        out[i, col] = value
+
+
+@njit(cache=True, nogil=True)
+def scalar_entries(out, cols, r, team):
+    """Write the non-sensor entries of every robot's observation row ``out (N, D)``; ``cols``: a
+    :data:`~parcover_env.envs.obs_spec.KernelColumns` (each entry's column by name, -1 = absent)."""
     for i in range(out.shape[0]):
-        th = est[i, 2]
-        a, b, c = cov[i, 0, 0], cov[i, 0, 1], cov[i, 1, 1]
+        th = r.est[i, 2]
+        a, b, c = r.cov[i, 0, 0], r.cov[i, 0, 1], r.cov[i, 1, 1]
         mean = 0.5 * (a + c)
         half = math.hypot(0.5 * (a - c), b)
         two_a = 0.0 if half <= 1e-9 * mean else math.atan2(2.0 * b, a - c) - 2.0 * th
-        gx = goals[i, 0] - est[i, 0]
-        gy = goals[i, 1] - est[i, 1]
+        gx = r.goals[i, 0] - r.est[i, 0]
+        gy = r.goals[i, 1] - r.est[i, 1]
         cr = math.cos(-th)
         sr = math.sin(-th)
-        seen = visible[i]
-        values = (est[i, 0], est[i, 1], math.cos(th), math.sin(th), vel[i, 0], vel[i, 1], 1.0 if leader[i] else 0.0,
-                  slot[i] / slot_div, min(fix_age[i], max_fix_age),
-                  math.sqrt(max(mean + half, 0.0)), math.sqrt(max(mean - half, 0.0)), math.cos(two_a),
-                  math.sin(two_a), math.sqrt(max(cov[i, 2, 2], 0.0)),
-                  cr * gx - sr * gy, sr * gx + cr * gy,
-                  rel_xy[i, 0], rel_xy[i, 1], math.cos(rel_heading[i]) if seen else 0.0,
-                  math.sin(rel_heading[i]) if seen else 0.0, 1.0 if seen else 0.0, kpois, time)
-        for k in range(len(values)):
-            if cols[k] >= 0:
-                out[i, cols[k]] = values[k]
+        seen = r.visible[i]
+        _put(out, i, cols.x, r.est[i, 0])
+        _put(out, i, cols.y, r.est[i, 1])
+        _put(out, i, cols.cos_theta, math.cos(th))
+        _put(out, i, cols.sin_theta, math.sin(th))
+        _put(out, i, cols.v, r.vel[i, 0])
+        _put(out, i, cols.omega, r.vel[i, 1])
+        _put(out, i, cols.leader, 1.0 if r.leader[i] else 0.0)
+        _put(out, i, cols.slot, r.slot[i] / team.slot_div)
+        _put(out, i, cols.fix_age, min(r.fix_age[i], team.max_fix_age))
+        _put(out, i, cols.sigma_major, math.sqrt(max(mean + half, 0.0)))
+        _put(out, i, cols.sigma_minor, math.sqrt(max(mean - half, 0.0)))
+        _put(out, i, cols.sigma_axis_cos2, math.cos(two_a))
+        _put(out, i, cols.sigma_axis_sin2, math.sin(two_a))
+        _put(out, i, cols.sigma_heading, math.sqrt(max(r.cov[i, 2, 2], 0.0)))
+        _put(out, i, cols.goal_dx, cr * gx - sr * gy)
+        _put(out, i, cols.goal_dy, sr * gx + cr * gy)
+        _put(out, i, cols.pred_dx, r.rel_xy[i, 0])
+        _put(out, i, cols.pred_dy, r.rel_xy[i, 1])
+        _put(out, i, cols.pred_cos, math.cos(r.rel_heading[i]) if seen else 0.0)
+        _put(out, i, cols.pred_sin, math.sin(r.rel_heading[i]) if seen else 0.0)
+        _put(out, i, cols.pred_visible, 1.0 if seen else 0.0)
+        _put(out, i, cols.kpois_visited, team.kpois)
+        _put(out, i, cols.time, team.time)
 
 
 @njit(cache=True, nogil=True)

@@ -13,7 +13,8 @@ from pettingzoo import ParallelEnv
 from parcover_env.config import Scenario, deep_merge
 from parcover_env.envs.actions import to_commands
 from parcover_env.envs.metrics import EpisodeMetrics, formation_errors
-from parcover_env.envs.observations import ObservationLayout
+from parcover_env.envs.obs_spec import markdown_table
+from parcover_env.envs.observations import ObservationLayout, ScalarInputs, build_sensors
 from parcover_env.envs.rewards import REWARD_KEYS, TERMS, reward_terms
 from parcover_env.envs.team import Team
 from parcover_env.geometry import wrap_angle
@@ -21,7 +22,6 @@ from parcover_env.localization.kinect.system import KinectSystem, handover_poses
 from parcover_env.scenarios import load_scenario, mission_for
 from parcover_env.sensors.odometry import Odometry
 from parcover_env.sensors.relative import RelativeCamera
-from parcover_env.sensors.sonar import SonarRing
 from parcover_env.world.drive import wheel_targets
 from parcover_env.world.physics import World
 
@@ -51,26 +51,14 @@ class ParallelCoverageEnv(ParallelEnv):
     (``ideal`` preset) applies the command as the body velocity.
 
     ## Observation space
-    One flat ``Box`` per agent, identical across agents (``env.layout`` names the slices):
+    One flat ``Box`` per agent, identical across agents (``env.layout`` names the slices), entries in
+    this order:
 
-    | entry | size | unit | meaning |
-    |---|---|---|---|
-    | x, y | 2 | m | pose estimate: odometry, reset by Kinect fixes of seen leaders (``pose_source``) |
-    | cos_theta, sin_theta | 2 | - | heading estimate |
-    | v, omega | 2 | m/s, rad/s | encoder velocity: odometry increment of the last step / step (ideal: command) |
-    | leader | 1 | - | 1 if the robot leads its group, else 0 (follower) |
-    | slot | 1 | - | position in its group's column / (n_robots - 1); 0 = leader |
-    | fix_age | 1 | s | time since the last absolute pose fix, capped at 60 s (large = stale estimate) |
-    | sigma_major, sigma_minor | 2 | m | axes (1 sigma) of the position uncertainty ellipse of the estimate |
-    | sigma_axis_cos2, sigma_axis_sin2 | 2 | - | cos, sin of twice the major axis angle, robot frame (1, 0 if round) |
-    | sigma_heading | 1 | rad | heading sigma of the estimate |
-    | goal_dx, goal_dy | 2 | m | current route waypoint in the robot frame (x ahead, y left), from the estimate |
-    | pred_dx, pred_dy | 2 | m | robot ahead in the column, in this robot's frame (onboard camera; 0 if unseen) |
-    | pred_cos, pred_sin | 2 | - | its heading relative to this robot's |
-    | pred_visible | 1 | - | 1 if a follower's camera sees its predecessor (FOV, range, walls) |
-    | kpois_visited | 1 | - | fraction of KPOIs visited by the team |
-    | time | 1 | - | fraction of the step limit elapsed |
-    | sonar | B | m | sonar ring ranges (B beams; ``robot.sonar``), max range = no echo |
+    OBSERVATION_TABLE
+
+    Generated from the observation spec (``parcover_env.envs.obs_spec.ENTRIES``, one declaration per
+    entry); an entry of size 0 in a scenario is absent (the ``sigma_*`` entries without
+    ``observation.pose_covariance``; ``sonar`` without ``observation.sonar``). B = beams of the ring.
 
     The ``sigma_*`` entries (``observation.pose_covariance``, off in the ``ideal`` preset) come from
     the pose covariance the odometry propagates (Chong & Kleeman) and that an absolute fix resets to
@@ -151,15 +139,14 @@ class ParallelCoverageEnv(ParallelEnv):
         self.n_robots = self.plan.r
         self.possible_agents = [f"robot_{i}" for i in range(self.n_robots)]
         self.agents: list[str] = []
-        self.sonar = SonarRing(s.robot.sonar) if s.observation.sonar else None
-        n_sonar = self.sonar.n_beams if self.sonar else 0
+        self.sensors = build_sensors(s)
+        """The sensor of each ``sensor`` entry of the observation spec (None = off)."""
+        self.sonar = self.sensors["sonar"]
         self.kinects = KinectSystem(s, self.map) if s.kinects and s.observation.pose_source == "kinect" else None
         f = s.formation
         self.camera = RelativeCamera(f.camera_fov_deg, f.camera_range, f.camera_range_noise, f.camera_bearing_noise,
                                      f.camera_heading_noise)
-        self.layout = ObservationLayout.build(self.map.bounds, s.robot.max_speed, s.robot.max_turn_rate,
-                                              n_sonar, s.robot.sonar.range_max, s.formation.camera_range,
-                                              covariance=s.observation.pose_covariance)
+        self.layout = ObservationLayout.build(s, self.map.bounds, self.sensors)
         sxy, sth = s.observation.fix_sigma_xy, np.radians(s.observation.fix_sigma_heading_deg)
         self._fix_cov = np.diag([sxy**2, sxy**2, sth**2])
         self._obs_space = self.layout.space()
@@ -388,10 +375,10 @@ class ParallelCoverageEnv(ParallelEnv):
         rel = self.camera.measure(true, self.team.predecessor, self.map.segments, self._rng, camera_blocked)
         self._view = (self.team.predecessor, rel, est.copy())
         time = self.steps / self.scenario.episode.max_steps
-        self.layout.fill_scalars(obs, est, self.velocity, self.team.leader, self.team.slot, self.fix_age,
-                                 self.odometry.covariance, self.progress.goals(), rel.rel_xy, rel.rel_heading,
-                                 rel.visible, np.count_nonzero(self.progress.visited) / len(self.progress.visited),
-                                 time)
+        self.layout.fill_scalars(obs, ScalarInputs(
+            est, self.velocity, self.team.leader, self.team.slot, self.fix_age, self.odometry.covariance,
+            self.progress.goals(), rel.rel_xy, rel.rel_heading, rel.visible,
+            np.count_nonzero(self.progress.visited) / len(self.progress.visited), time))
         return obs
 
     # ------------------------------------------------------------------ extras
@@ -447,6 +434,11 @@ class ParallelCoverageEnv(ParallelEnv):
 
             close_window(self._window)
             self._window = None
+
+
+if ParallelCoverageEnv.__doc__:  # the observation table, generated from the spec (absent under python -OO)
+    ParallelCoverageEnv.__doc__ = ParallelCoverageEnv.__doc__.replace(
+        "OBSERVATION_TABLE", markdown_table().replace("\n", "\n    "))
 
 
 def _state_space(bounds, n_robots: int, n_kpois: int) -> spaces.Box:

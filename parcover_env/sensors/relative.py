@@ -8,11 +8,13 @@ of sight. No Kinect and no messages are involved.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from parcover_env.geometry import sight_lines_blocked
+from parcover_env.sensors.base import SensingState
 
 __all__ = ["RelativeCamera", "RelativeReading", "lines_of_sight_blocked"]
 
@@ -59,6 +61,26 @@ class RelativeCamera:
                                      float(self.max_range), math.radians(self.fov_deg) / 2, float(self.range_noise),
                                      float(self.bearing_noise), float(self.heading_noise), rel_xy, rel_heading, visible)
         return RelativeReading(rel_xy, rel_heading, visible)
+
+    size = 4
+    """Numbers per robot of :meth:`sense`: the predecessor's x, y in this robot's frame (m), its
+    relative heading (rad), seen (1) or not (0)."""
+
+    def sense(self, state: SensingState, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        """The :class:`~parcover_env.sensors.base.Sensor` reading ``(K, N, 4)`` (see :attr:`size`):
+        every world's lines of sight in one test, then :meth:`measure` of each world with its own
+        generator."""
+        blocked = lines_of_sight_blocked(state.poses, state.predecessor, state.segments)
+        out = np.empty((state.n_worlds, state.n_robots, self.size))
+        for k, rng in enumerate(rngs):
+            r = self.measure(state.poses[k], state.predecessor[k], state.segments, rng, blocked[k])
+            out[k, :, :2], out[k, :, 2], out[k, :, 3] = r.rel_xy, r.rel_heading, r.visible
+        return out
+
+    @staticmethod
+    def reading(row: np.ndarray) -> RelativeReading:
+        """One world's :meth:`sense` rows ``(N, 4)`` as a :class:`RelativeReading`."""
+        return RelativeReading(row[:, :2], row[:, 2], row[:, 3] > 0.5)
 
 
 def lines_of_sight_blocked(poses: np.ndarray, predecessor: np.ndarray, segments: np.ndarray) -> np.ndarray:
