@@ -24,6 +24,7 @@ import numpy as np
 
 from parcover_env.config import Scenario
 from parcover_env.sensors.base import Sensor
+from parcover_env.sensors.lidar import Lidar
 from parcover_env.sensors.sonar import SonarRing
 
 __all__ = ["Entry", "ENTRIES", "KERNEL_ENTRIES", "KernelColumns", "MAX_FIX_AGE", "markdown_table"]
@@ -137,7 +138,10 @@ ENTRIES: tuple[Entry, ...] = (
     Entry("time", "-", "fraction of the step limit elapsed", _flag, "mission"),
     Entry("sonar", "m", "sonar ring ranges, one per beam (``robot.sonar``); max range = no echo",
           lambda s, b: (0.0, s.robot.sonar.range_max), "sensor", bounds_doc="[0, range_max]",
-          sensor=lambda s: SonarRing(s.robot.sonar) if s.observation.sonar else None, size_doc="B"),
+          sensor=lambda s: SonarRing(s.robot.sonar) if s.observation.sonar else None, size_doc="B (beams)"),
+    Entry("lidar", "m", "2-D lidar ranges, ray i at 360 i / n_rays deg from the heading (``robot.lidar``); "
+          "range_max = no hit", lambda s, b: (0.0, s.robot.lidar.range_max), "sensor", bounds_doc="[0, range_max]",
+          sensor=lambda s: Lidar(s.robot.lidar) if s.robot.lidar.enabled else None, presets=(), size_doc="R (rays)"),
 )
 """The observation, in column order."""
 
