@@ -88,6 +88,13 @@ class ParallelCoverageEnv(ParallelEnv):
     ``heading_error`` (rad, absolute). ``env.true_poses()`` and ``env.pose_estimates()`` return
     ``(n_robots, 3)`` arrays (x, y, theta) in agent order, ``env.pose_covariances()`` ``(n_robots, 3, 3)``.
 
+    ## Step
+    ``step`` runs the public stepper (``parcover_env.envs.stepper``), the same one the batched worlds
+    and the single-robot env run: ``advance`` (act, physics, pose estimator, mission, Alg. 1 splits
+    and hand-overs, rewards, metrics), then ``observe`` (every sensor of every world in one call,
+    the observation spec's entries), then ``outputs``. A new sensor is a ``sensors/`` module, a
+    config field and one spec entry; it reaches this env and the batched worlds unchanged.
+
     ## Rates
     One ``step`` is one control period of ``physics.substeps x physics.dt`` seconds (default
     5 x 0.02 s = 0.1 s); pymunk integrates at ``physics.dt``.

@@ -115,12 +115,12 @@ class World:
             shape.robot_index = i
             space.add(body, shape)
             self.bodies.append(body)
-        self._addresses = np.array([int(_ffi.cast("intptr_t", _handle(b))) for b in self.bodies], dtype=np.int64) \
+        self._addresses = np.array([int(_ffi.cast("intptr_t", b._body)) for b in self.bodies], dtype=np.int64) \
             if kernels else None
         if kernels:
             kernels.bind_commands(self._addresses, self._rows.values.ctypes.data)
             for body in self.bodies:
-                _cp.cpBodySetVelocityUpdateFunc(_handle(body), _COMPILED["fn"])
+                _cp.cpBodySetVelocityUpdateFunc(body._body, _COMPILED["fn"])
         space.on_collision(ROBOT, WALL, begin=self._on_wall)
         space.on_collision(ROBOT, ROBOT, begin=self._on_robot)
         self.space = space
@@ -169,7 +169,7 @@ class World:
 
         new = World.__new__(World)
         memo[id(self)] = new
-        new.__setstate__(copy.deepcopy(self.__getstate__(), memo))
+        new._restore(copy.deepcopy(self.__getstate__(), memo))
         return new
 
     def _velocity_func(self, i: int) -> _UnicycleVelocity:
@@ -238,12 +238,6 @@ class _CommandRows:
         self.values = state
 
 
-def _handle(body: pymunk.Body):
-    """The Chipmunk ``cpBody*`` of a pymunk body, for the compiled velocity callback. pymunk has no
-    public name for it: this is the package's one reach-in into pymunk."""
-    return body._body
-
-
 class _UnicycleVelocity:
     """``body.velocity_func`` of robot ``i``: velocity from the shared commands (``_CommandRows``).
 
@@ -269,7 +263,7 @@ class _UnicycleVelocity:
             body.velocity = (v * math.cos(a), v * math.sin(a))
             body.angular_velocity = w
             return
-        b = _handle(body)
+        b = body._body
         a = _cp.cpBodyGetAngle(b)
         _cp.cpBodySetVelocity(b, (v * math.cos(a), v * math.sin(a)))
         _cp.cpBodySetAngularVelocity(b, w)

@@ -125,3 +125,12 @@ def test_batched_worlds_with_lidar_equal_separate_envs(how):
         obs, rew, done, _ = venv.step(a)
         r_obs, r_rew, r_done, _ = ref.step(a)
         assert np.array_equal(obs, r_obs) and np.array_equal(rew, r_rew) and np.array_equal(done, r_done)
+
+
+def test_single_robot_env_reads_the_lidar():
+    from parcover_env.envs.single_agent import SingleRobotCoverageEnv
+
+    env = SingleRobotCoverageEnv("t_room", overrides=_lidar())
+    obs, _ = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    np.testing.assert_allclose(_rows(obs, env.par.layout), T_ROOM, atol=1e-6)
