@@ -150,7 +150,7 @@ KERNEL_ENTRIES = tuple(e.name for e in ENTRIES if e.source != "sensor")
 
 KernelColumns = namedtuple("KernelColumns", KERNEL_ENTRIES)
 """Column of each :data:`KERNEL_ENTRIES` entry in a layout (-1: absent), addressed by name in the
-compiled pass (``parcover_env.envs._step_kernels.scalar_entries``)."""
+compiled pass (``parcover_env.envs.step_kernels.scalar_entries``)."""
 
 
 def markdown_table() -> str:

@@ -104,11 +104,11 @@ class ObservationLayout:
         since the last fix (capped at :data:`MAX_FIX_AGE`), the ellipse of the covariance
         (:func:`ellipse_entries`), the lookahead goal in the robot frame, the follower camera's
         reading and the two team-wide fractions."""
-        from parcover_env.envs import _step_kernels
+        from parcover_env.envs import step_kernels
 
-        team = _step_kernels.TeamScalars(float(max(len(obs) - 1, 1)), MAX_FIX_AGE, float(inputs.kpois_visited),
+        team = step_kernels.TeamScalars(float(max(len(obs) - 1, 1)), MAX_FIX_AGE, float(inputs.kpois_visited),
                                           float(inputs.time))
-        _step_kernels.scalar_entries(obs, self.columns, _step_kernels.RobotRows(*inputs[:10]), team)
+        step_kernels.scalar_entries(obs, self.columns, step_kernels.RobotRows(*inputs[:10]), team)
 
     @property
     def columns(self) -> KernelColumns:

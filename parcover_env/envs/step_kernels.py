@@ -86,7 +86,7 @@ def scalar_entries(out, cols, r, team):
 @njit(cache=True, nogil=True)
 def formation_errors(poses, predecessor, offset, l_d, psi_d, dl, dpsi):
     """``dl[k], dpsi[k]`` of the ``k``-th follower (robot order): ``l - l_d`` and
-    ``wrap(psi - psi_d)`` with ``l, psi`` the distance and bearing (in the predecessor's frame) of the
+    ``psi - psi_d`` (unwrapped) with ``l, psi`` the distance and bearing (in the predecessor's frame) of the
     follower's point ``offset`` ahead of its centre, seen from the predecessor; returns the count."""
     k = 0
     for i in range(poses.shape[0]):
@@ -98,7 +98,6 @@ def formation_errors(poses, predecessor, offset, l_d, psi_d, dl, dpsi):
         dx = qx - poses[j, 0]
         dy = qy - poses[j, 1]
         dl[k] = math.hypot(dx, dy) - l_d
-        psi = math.atan2(dy, dx) - poses[j, 2]
-        dpsi[k] = math.pi - ((math.pi - (psi - psi_d)) % (2.0 * math.pi))
+        dpsi[k] = math.atan2(dy, dx) - poses[j, 2] - psi_d  # wrapped by the caller (geometry.wrap_angle)
         k += 1
     return k
