@@ -107,7 +107,7 @@ class ObservationLayout:
         from parcover_env.envs import step_kernels
 
         team = step_kernels.TeamScalars(float(max(len(obs) - 1, 1)), MAX_FIX_AGE, float(inputs.kpois_visited),
-                                          float(inputs.time))
+                                        float(inputs.time))
         step_kernels.scalar_entries(obs, self.columns, step_kernels.RobotRows(*inputs[:10]), team)
 
     @property
