@@ -5,7 +5,7 @@ box), source, meaning and the presets it appears in. Everything else is generate
 :data:`ENTRIES`: the layout and its slices (:class:`~parcover_env.envs.observations.ObservationLayout`),
 the ``observation_space`` bounds, the observation table of ``ParallelCoverageEnv``'s docstring
 (:func:`markdown_table`) and the columns of the compiled pass that writes the non-sensor entries
-(:data:`KernelColumns`: one named field per entry, so the kernel addresses a column by its name).
+(:data:`KERNEL_COLUMNS`: one named field per entry, so the kernel addresses a column by its name).
 
 Sources: ``estimate``, ``team``, ``mission`` and ``camera`` entries are written by that compiled pass
 from the env's state; a ``sensor`` entry is the reading of the sensor its ``sensor`` factory builds
@@ -16,7 +16,6 @@ one ``sensor`` entry here: neither the env nor the batched worlds change.
 
 from __future__ import annotations
 
-from collections import namedtuple
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -27,7 +26,7 @@ from parcover_env.sensors.base import Sensor
 from parcover_env.sensors.lidar import Lidar
 from parcover_env.sensors.sonar import SonarRing
 
-__all__ = ["Entry", "ENTRIES", "KERNEL_ENTRIES", "KernelColumns", "MAX_FIX_AGE", "markdown_table"]
+__all__ = ["Entry", "ENTRIES", "KERNEL_ENTRIES", "KERNEL_COLUMNS", "MAX_FIX_AGE", "markdown_table"]
 
 MAX_FIX_AGE = 60.0
 """Seconds since the last absolute pose fix are reported capped at this value."""
@@ -148,9 +147,10 @@ ENTRIES: tuple[Entry, ...] = (
 KERNEL_ENTRIES = tuple(e.name for e in ENTRIES if e.source != "sensor")
 """The entries the compiled pass writes (all but the sensors')."""
 
-KernelColumns = namedtuple("KernelColumns", KERNEL_ENTRIES)
-"""Column of each :data:`KERNEL_ENTRIES` entry in a layout (-1: absent), addressed by name in the
-compiled pass (``parcover_env.envs.step_kernels.scalar_entries``)."""
+KERNEL_COLUMNS = np.dtype([(name, "i8") for name in KERNEL_ENTRIES])
+"""Record of the column of each :data:`KERNEL_ENTRIES` entry in a layout (-1: absent), addressed by
+name in the compiled pass (``parcover_env.envs.step_kernels.scalar_entries``). A structured array,
+not a NamedTuple: numba types it in its C dispatcher (a NamedTuple is typed field by field)."""
 
 
 def markdown_table() -> str:

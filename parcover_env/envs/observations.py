@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from parcover_env.config import Scenario
-from parcover_env.envs.obs_spec import ENTRIES, KERNEL_ENTRIES, MAX_FIX_AGE, KernelColumns
+from parcover_env.envs.obs_spec import ENTRIES, KERNEL_COLUMNS, KERNEL_ENTRIES, MAX_FIX_AGE
 from parcover_env.geometry import atan2
 from parcover_env.sensors.base import Sensor
 
@@ -106,16 +106,19 @@ class ObservationLayout:
         reading and the two team-wide fractions."""
         from parcover_env.envs import step_kernels
 
-        team = step_kernels.TeamScalars(float(max(len(obs) - 1, 1)), MAX_FIX_AGE, float(inputs.kpois_visited),
-                                        float(inputs.time))
-        step_kernels.scalar_entries(obs, self.columns, step_kernels.RobotRows(*inputs[:10]), team)
+        rows = step_kernels.RobotRows(*inputs[:10])
+        step_kernels.scalar_entries(obs, self.columns, rows, float(max(len(obs) - 1, 1)), MAX_FIX_AGE,
+                                    float(inputs.kpois_visited), float(inputs.time))
 
     @property
-    def columns(self) -> KernelColumns:
-        """The column of each :data:`SCALAR_ENTRIES` entry (-1: not in this layout)."""
+    def columns(self) -> np.ndarray:
+        """The column of each :data:`SCALAR_ENTRIES` entry (-1: not in this layout), a one-element
+        read-only :data:`~parcover_env.envs.obs_spec.KERNEL_COLUMNS` record."""
         cols = self.__dict__.get("_cols")
         if cols is None:  # frozen dataclass: cache by the back door
-            cols = KernelColumns(*(self.slices[k].start if k in self.slices else -1 for k in KERNEL_ENTRIES))
+            cols = np.array([tuple(self.slices[k].start if k in self.slices else -1 for k in KERNEL_ENTRIES)],
+                            dtype=KERNEL_COLUMNS)
+            cols.setflags(write=False)
             object.__setattr__(self, "_cols", cols)
         return cols
 

@@ -28,15 +28,6 @@ class RobotRows(NamedTuple):
     visible: np.ndarray
 
 
-class TeamScalars(NamedTuple):
-    """Team-wide inputs of :func:`scalar_entries`."""
-
-    slot_div: float
-    max_fix_age: float
-    kpois: float
-    time: float
-
-
 @njit(cache=True, nogil=True)
 def _put(out, i, col, value):
     if col >= 0:
@@ -44,9 +35,12 @@ def _put(out, i, col, value):
 
 
 @njit(cache=True, nogil=True)
-def scalar_entries(out, cols, r, team):
-    """Write the non-sensor entries of every robot's observation row ``out (N, D)``; ``cols``: a
-    :data:`~parcover_env.envs.obs_spec.KernelColumns` (each entry's column by name, -1 = absent)."""
+def scalar_entries(out, cols, r, slot_div, max_fix_age, kpois, time):
+    """Write the non-sensor entries of every robot's observation row ``out (N, D)``: ``cols`` a
+    one-element :data:`~parcover_env.envs.obs_spec.KERNEL_COLUMNS` record (each entry's column by
+    name, -1 = absent), ``r`` the :class:`RobotRows`, slots divided by ``slot_div``, fix ages capped
+    at ``max_fix_age``, and the team's ``kpois`` and ``time`` fractions."""
+    col = cols[0]
     for i in range(out.shape[0]):
         th = r.est[i, 2]
         a, b, c = r.cov[i, 0, 0], r.cov[i, 0, 1], r.cov[i, 1, 1]
@@ -58,29 +52,29 @@ def scalar_entries(out, cols, r, team):
         cr = math.cos(-th)
         sr = math.sin(-th)
         seen = r.visible[i]
-        _put(out, i, cols.x, r.est[i, 0])
-        _put(out, i, cols.y, r.est[i, 1])
-        _put(out, i, cols.cos_theta, math.cos(th))
-        _put(out, i, cols.sin_theta, math.sin(th))
-        _put(out, i, cols.v, r.vel[i, 0])
-        _put(out, i, cols.omega, r.vel[i, 1])
-        _put(out, i, cols.leader, 1.0 if r.leader[i] else 0.0)
-        _put(out, i, cols.slot, r.slot[i] / team.slot_div)
-        _put(out, i, cols.fix_age, min(r.fix_age[i], team.max_fix_age))
-        _put(out, i, cols.sigma_major, math.sqrt(max(mean + half, 0.0)))
-        _put(out, i, cols.sigma_minor, math.sqrt(max(mean - half, 0.0)))
-        _put(out, i, cols.sigma_axis_cos2, math.cos(two_a))
-        _put(out, i, cols.sigma_axis_sin2, math.sin(two_a))
-        _put(out, i, cols.sigma_heading, math.sqrt(max(r.cov[i, 2, 2], 0.0)))
-        _put(out, i, cols.goal_dx, cr * gx - sr * gy)
-        _put(out, i, cols.goal_dy, sr * gx + cr * gy)
-        _put(out, i, cols.pred_dx, r.rel_xy[i, 0])
-        _put(out, i, cols.pred_dy, r.rel_xy[i, 1])
-        _put(out, i, cols.pred_cos, math.cos(r.rel_heading[i]) if seen else 0.0)
-        _put(out, i, cols.pred_sin, math.sin(r.rel_heading[i]) if seen else 0.0)
-        _put(out, i, cols.pred_visible, 1.0 if seen else 0.0)
-        _put(out, i, cols.kpois_visited, team.kpois)
-        _put(out, i, cols.time, team.time)
+        _put(out, i, col.x, r.est[i, 0])
+        _put(out, i, col.y, r.est[i, 1])
+        _put(out, i, col.cos_theta, math.cos(th))
+        _put(out, i, col.sin_theta, math.sin(th))
+        _put(out, i, col.v, r.vel[i, 0])
+        _put(out, i, col.omega, r.vel[i, 1])
+        _put(out, i, col.leader, 1.0 if r.leader[i] else 0.0)
+        _put(out, i, col.slot, r.slot[i] / slot_div)
+        _put(out, i, col.fix_age, min(r.fix_age[i], max_fix_age))
+        _put(out, i, col.sigma_major, math.sqrt(max(mean + half, 0.0)))
+        _put(out, i, col.sigma_minor, math.sqrt(max(mean - half, 0.0)))
+        _put(out, i, col.sigma_axis_cos2, math.cos(two_a))
+        _put(out, i, col.sigma_axis_sin2, math.sin(two_a))
+        _put(out, i, col.sigma_heading, math.sqrt(max(r.cov[i, 2, 2], 0.0)))
+        _put(out, i, col.goal_dx, cr * gx - sr * gy)
+        _put(out, i, col.goal_dy, sr * gx + cr * gy)
+        _put(out, i, col.pred_dx, r.rel_xy[i, 0])
+        _put(out, i, col.pred_dy, r.rel_xy[i, 1])
+        _put(out, i, col.pred_cos, math.cos(r.rel_heading[i]) if seen else 0.0)
+        _put(out, i, col.pred_sin, math.sin(r.rel_heading[i]) if seen else 0.0)
+        _put(out, i, col.pred_visible, 1.0 if seen else 0.0)
+        _put(out, i, col.kpois_visited, kpois)
+        _put(out, i, col.time, time)
 
 
 @njit(cache=True, nogil=True)

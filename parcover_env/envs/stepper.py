@@ -40,8 +40,8 @@ def sensing_state(worlds: Sequence[Any], true: np.ndarray) -> SensingState:
     """What the sensors read: ``true (K, N, 3)`` poses of the worlds, their shared walls and radius,
     and who follows whom in each world."""
     first = worlds[0]
-    return SensingState(np.asarray(true, dtype=float), first.map.segments, float(first.scenario.robot.radius),
-                        np.stack([w.team.predecessor for w in worlds]))
+    predecessor = first.team.predecessor[None] if len(worlds) == 1 else np.stack([w.team.predecessor for w in worlds])
+    return SensingState(true, first.map.segments, float(first.scenario.robot.radius), predecessor)
 
 
 def _scalar_inputs(w: Any, reading) -> ScalarInputs:

@@ -68,13 +68,14 @@ class RelativeCamera:
 
     def sense(self, state: SensingState, rngs: Sequence[np.random.Generator]) -> np.ndarray:
         """The :class:`~parcover_env.sensors.base.Sensor` reading ``(K, N, 4)`` (see :attr:`size`):
-        every world's lines of sight in one test, then :meth:`measure` of each world with its own
-        generator."""
-        blocked = lines_of_sight_blocked(state.poses, state.predecessor, state.segments)
-        out = np.empty((state.n_worlds, state.n_robots, self.size))
-        for k, rng in enumerate(rngs):
-            r = self.measure(state.poses[k], state.predecessor[k], state.segments, rng, blocked[k])
-            out[k, :, :2], out[k, :, 2], out[k, :, 3] = r.rel_xy, r.rel_heading, r.visible
+        every world's lines of sight in one test (one world: :meth:`measure` tests them), then
+        :meth:`measure` of each world with its own generator."""
+        k = state.n_worlds
+        blocked = lines_of_sight_blocked(state.poses, state.predecessor, state.segments) if k > 1 else [None]
+        out = np.empty((k, state.n_robots, self.size))
+        for w, rng in enumerate(rngs):
+            r = self.measure(state.poses[w], state.predecessor[w], state.segments, rng, blocked[w])
+            np.concatenate([r.rel_xy, r.rel_heading[:, None], r.visible[:, None]], axis=1, out=out[w])
         return out
 
     @staticmethod

@@ -7,7 +7,7 @@ import pytest
 
 import parcover_env
 from parcover_env.envs import ParallelCoverageEnv
-from parcover_env.envs.obs_spec import ENTRIES, KERNEL_ENTRIES, KernelColumns, markdown_table
+from parcover_env.envs.obs_spec import ENTRIES, KERNEL_COLUMNS, KERNEL_ENTRIES, markdown_table
 from parcover_env.envs.observations import ScalarInputs
 
 
@@ -44,7 +44,7 @@ def test_layout_and_space_follow_the_spec_order_and_bounds(preset):
 
 
 def test_kernel_columns_are_the_non_sensor_entries_and_all_are_written():
-    assert KernelColumns._fields == KERNEL_ENTRIES
+    assert KERNEL_COLUMNS.names == KERNEL_ENTRIES
     assert set(KERNEL_ENTRIES) == {e.name for e in ENTRIES if e.source != "sensor"}
     env = parcover_env.parallel_env("office")
     lay, n = env.layout, 3
@@ -58,11 +58,11 @@ def test_kernel_columns_are_the_non_sensor_entries_and_all_are_written():
     for name in KERNEL_ENTRIES:
         assert np.isfinite(obs[:, lay.slices[name]]).all(), name
     assert np.isnan(obs[:, lay.slices["sonar"]]).all()  # sensor columns are the stepper's
-    assert lay.columns.sigma_major == lay.slices["sigma_major"].start
+    assert lay.columns[0]["sigma_major"] == lay.slices["sigma_major"].start
     np.testing.assert_array_equal(obs[:, lay.slices["sigma_major"]].ravel(), np.float32(0.2))
     np.testing.assert_array_equal(obs[:, lay.slices["slot"]].ravel(), np.float32([0.0, 0.5, 1.0]))
 
 
 def test_an_absent_entry_has_column_minus_one():
     env = parcover_env.parallel_env("office", preset="ideal")
-    assert env.layout.columns.sigma_major == -1 and "sigma_major" not in env.layout.slices
+    assert env.layout.columns[0]["sigma_major"] == -1 and "sigma_major" not in env.layout.slices
