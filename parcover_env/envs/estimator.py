@@ -12,8 +12,7 @@ with no change to the estimator or the stepper.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
@@ -26,8 +25,7 @@ from parcover_env.world.drive import wheel_targets
 __all__ = ["FixRequest", "FixSource", "KinectFixes", "PoseEstimator"]
 
 
-@dataclass(frozen=True, eq=False)
-class FixRequest:
+class FixRequest(NamedTuple):
     """What a fix source may read at one step."""
 
     time: float

@@ -11,7 +11,7 @@ measured), not state read behind the caller's back.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -22,8 +22,7 @@ from parcover_env.sensors.relative import RelativeReading
 __all__ = ["CameraView", "update_team"]
 
 
-@dataclass(frozen=True, eq=False)
-class CameraView:
+class CameraView(NamedTuple):
     """The follower cameras' measurements of one observation, with what they were taken against."""
 
     predecessor: np.ndarray

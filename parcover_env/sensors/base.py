@@ -15,17 +15,16 @@ worlds (``parcover_env.envs.obs_spec``).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
 __all__ = ["SensingState", "Sensor"]
 
 
-@dataclass(frozen=True, eq=False)
-class SensingState:
-    """What a sensor may read at one instant, for ``K`` worlds of ``N`` robots sharing one map."""
+class SensingState(NamedTuple):
+    """What a sensor may read at one instant, for ``K`` worlds of ``N`` robots sharing one map (a
+    read-only record; made every step, hence a NamedTuple)."""
 
     poses: np.ndarray
     """True poses ``(K, N, 3)``: x, y (m), theta (rad)."""
