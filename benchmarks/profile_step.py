@@ -25,6 +25,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from throughput import MODES, SCENARIOS, merge, open_box  # noqa: E402
 
+from parcover_env.envs import stepper  # noqa: E402
+
 
 def make_env(scenario: str, mode: str, n_robots: int | None):
     from parcover_env.envs import ParallelCoverageEnv
@@ -79,16 +81,16 @@ def breakdown(env, steps: int) -> None:
     tm.wrap(env_mod, "to_commands", "actions (validation)")
     tm.wrap(env.world, "step", "physics (pymunk + velocity callbacks)")
     tm.wrap(env.world, "poses", "poses read-back")
-    tm.wrap(env, "_sense", "sense: odometry + Kinect system")
+    tm.wrap(env.estimator, "update", "estimator: odometry + Kinect system")
     if env.kinects is not None:
         tm.wrap(env.kinects, "update", "  Kinect system update")
     tm.wrap(env.progress, "update", "mission: KPOIs + route progress")
     tm.wrap(env.team, "update", "team: splits at TPs")
     tm.wrap(env, "_rewards", "rewards")
     tm.wrap(env, "_record", "metrics")
-    tm.wrap(env, "_observe", "observation assembly (all)")
+    tm.wrap(stepper, "observe", "observation assembly (all)")
     if env.sonar is not None:
-        tm.wrap(env.sonar, "measure", "  sonar ring")
+        tm.wrap(env.sonar, "sense", "  sonar ring")
     tm.wrap(env.camera.__class__, "measure", "  follower camera")
     total = run(env, steps)
     print(f"\n{steps} steps: {1e3 * total / steps:.3f} ms/step ({steps / total:.0f} steps/s), "

@@ -85,6 +85,7 @@ def _register() -> None:
     try:
         import multiprocessing.forkserver as forkserver
 
+        # reach-in kept: the stdlib has no public getter of the forkserver's preload list
         preload = list(getattr(forkserver._forkserver, "_preload_modules", ["__main__"]))
         if __name__ not in preload:
             forkserver.set_forkserver_preload([*preload, __name__])

@@ -13,7 +13,7 @@ from parcover_env.config.checks import positive as _positive
 
 Point = tuple[float, float]
 
-__all__ = ["SonarConfig", "DriveConfig", "OdometryConfig", "RobotConfig", "KinectConfig"]
+__all__ = ["SonarConfig", "LidarConfig", "DriveConfig", "OdometryConfig", "RobotConfig", "KinectConfig"]
 
 
 @dataclass(frozen=True)
@@ -65,6 +65,27 @@ class SonarConfig:
         _check(0 <= self.crosstalk_prob <= 1, "crosstalk_prob", f"must be in [0, 1], got {self.crosstalk_prob}")
         _check(0 < self.incidence_max_deg <= 90, "incidence_max_deg", "must be in (0, 90]")
         _check(self.cone_deg < 180, "cone_deg", f"must be < 180, got {self.cone_deg}")
+
+
+@dataclass(frozen=True)
+class LidarConfig:
+    """A 2-D scanning lidar on the robot's centre (VMAS-like): ``n_rays`` rays evenly over 360
+    degrees, ray ``i`` at ``360 i / n_rays`` degrees from the heading; walls and the other robots
+    (discs) reflect; a ray with no hit within ``range_max`` reads ``range_max``. Off by default;
+    ``enabled: true`` adds the ``lidar`` entry to the observation."""
+
+    enabled: bool = False
+    """Observe the lidar (the ``lidar`` observation entry, ``n_rays`` columns)."""
+    n_rays: int = 16
+    """Rays per scan, evenly spaced over 360 degrees."""
+    range_max: float = 3.0
+    """Farthest range (m), read by a ray that hits nothing nearer."""
+    noise_std: float = 0.01
+    """Gaussian range noise sigma (m) of a ray that hits; the reading is clipped to [0, range_max]."""
+
+    def __post_init__(self) -> None:
+        _positive(self, "n_rays", "range_max")
+        _check(self.noise_std >= 0, "noise_std", f"noise must be >= 0, got {self.noise_std}")
 
 
 @dataclass(frozen=True)
@@ -186,6 +207,7 @@ class RobotConfig:
     marker_radius: float = 0.02
     """Radius of each marker disc (m)."""
     sonar: SonarConfig = field(default_factory=SonarConfig)
+    lidar: LidarConfig = field(default_factory=LidarConfig)
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
     drive: DriveConfig = field(default_factory=DriveConfig)
 

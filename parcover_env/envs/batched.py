@@ -4,18 +4,17 @@
 robots are slots ``k * n_robots ... (k + 1) * n_robots - 1``) and the semantics of
 :class:`~parcover_env.envs.vec_env.ParallelVecEnv` (parameter sharing, auto-reset, per-world
 seeding, ``terminal_observation`` / ``TimeLimit.truncated`` / ``metrics`` in the infos), so a
-policy trained on one trains on the other. What differs is how a step runs:
+policy trained on one trains on the other. The worlds step through the same public stepper as
+the ParallelEnv (:mod:`parcover_env.envs.stepper`), with ``K`` worlds instead of one:
 
-* each world advances its own pymunk space, odometry, Kinect system, mission and team (one
+* each world advances its own pymunk space, pose estimator, Kinect system, mission and team (one
   Python call per world, none per robot);
-* the follower cameras' lines of sight of all worlds are tested in one call
-  (:func:`~parcover_env.sensors.relative.lines_of_sight_blocked`);
-* each world draws its own random numbers from its own generator, in the same order as the
-  ParallelEnv does (camera, then its sonar ring's :meth:`SonarRing.draw`), and the sonar rings of
-  **all robots of all worlds** are then cast, cross-talked and made noisy in one compiled call
-  (:meth:`SonarRing.readings`: the worlds share the static walls, each robot's beams see the
-  robots of its own world), so world ``k`` is bit for bit the ParallelEnv made with the same
-  scenario, seed and actions (``tests/envs/test_batched.py``).
+* the sensors measure **all robots of all worlds** in one call each (the follower cameras' lines
+  of sight, the sonar rings' casts, cross-talk and noise, and any other ``sensor`` entry of the
+  observation spec): the worlds share the static walls, each robot sees the robots of its own
+  world, and each world draws its random numbers from its own generator in the order the
+  ParallelEnv does, so world ``k`` is bit for bit the ParallelEnv made with the same scenario,
+  seed and actions (``tests/envs/test_batched.py``).
 
 Seeding: ``seed(s)`` makes world ``k`` reset with seed ``s + k`` at the next ``reset()``; automatic
 resets after an episode ends use no seed (the world continues its own generator) - exactly as K
@@ -34,9 +33,8 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
-from parcover_env.envs.metrics import episode_metrics
+from parcover_env.envs import stepper
 from parcover_env.envs.parallel import ParallelCoverageEnv
-from parcover_env.sensors.relative import lines_of_sight_blocked
 
 __all__ = ["BatchedVecEnv"]
 
@@ -44,14 +42,18 @@ __all__ = ["BatchedVecEnv"]
 def _shared_parts(env: ParallelCoverageEnv) -> dict[int, Any]:
     """A deepcopy memo sharing ``env``'s read-only, scenario-wide parts (Mission, map, plan and the
     rendered static Kinect scenes) instead of copying them."""
+    agent = env.possible_agents[0]
     shared: list[Any] = [env.scenario, env.mission, env.map, env.known_map, env.plan, env.layout,
-                         env._obs_space, env._act_space, env.state_space]
+                         env.observation_space(agent), env.action_space(agent), env.state_space]
     if env.kinects is not None:
         shared.append(env.kinects.footprint)
         for s in env.kinects.sensors:
             shared += [s.nominal_static_depth, s.rays, s.pattern, s.camera]
-            if s._static is not None:
-                shared.append(s._static)
+            # reach-in kept: the rendered static scene (if rendered yet) has no public name without
+            # rendering it; sharing it saves a copy of every Kinect's scene per world
+            static = s._static
+            if static is not None:
+                shared.append(static)
     return {id(x): x for x in shared}
 
 
@@ -118,38 +120,17 @@ class BatchedVecEnv(VecEnv):
             raise RuntimeError("step_wait() without step_async()")
         acts, self._actions = self._actions, None
         n, names = self.n_robots, self.agents_per_world
-        trues = [w._advance(dict(zip(names, acts[k * n:(k + 1) * n], strict=True)))
-                 for k, w in enumerate(self.worlds)]
-        first = self.worlds[0]
-        poses, segments = np.stack(trues), first.map.segments
-        # the followers' lines of sight to their predecessors, every world in one test
-        blocked = lines_of_sight_blocked(poses, np.stack([w.team.predecessor for w in self.worlds]), segments)
-        world_obs = [w._observe_scalars(trues[k], blocked[k]) for k, w in enumerate(self.worlds)]
-        if first.sonar is not None:  # each world draws its ring's numbers, then every ring in one call
-            draws = [w.sonar.draw(n, w._rng) for w in self.worlds]
-            rings = first.sonar.readings(poses, segments, first.scenario.robot.radius, draws)
-            for o, ring in zip(world_obs, rings, strict=True):
-                o[:, first.layout.slices["sonar"]] = ring
+        world_obs, outs = stepper.step(self.worlds, [dict(zip(names, acts[k * n:(k + 1) * n], strict=True))
+                                                     for k in range(self.n_worlds)])
         obs = np.empty((self.num_envs, *self._zero.shape), dtype=self._zero.dtype)
         rewards = np.empty(self.num_envs, dtype=np.float32)
         dones = np.zeros(self.num_envs, dtype=bool)
         infos: list[dict] = []
-        for k, w in enumerate(self.worlds):
-            o = w.layout.clip(world_obs[k])
-            _, rew, term, trunc, inf = w._outputs(trues[k], {})
-            rows = slice(k * n, (k + 1) * n)
+        for k, (rew, term, trunc, inf) in enumerate(outs):
+            o, rows = world_obs[k], slice(k * n, (k + 1) * n)
             rewards[rows] = [rew[a] for a in names]
-            t, tr = term[names[0]], trunc[names[0]]
-            for i, a in enumerate(names):
-                info = inf[a]
-                metrics = episode_metrics(info)
-                if metrics is not None:  # SB3/VecMonitor own info["episode"] = {"r", "l", "t"}
-                    info["metrics"] = metrics
-                info["active"] = True
-                if t or tr:
-                    info["terminal_observation"] = o[i]
-                    info["TimeLimit.truncated"] = tr and not t
-                infos.append(info)
+            t, tr = term[names[0]], trunc[names[0]]  # all robots of a world end together
+            infos += [stepper.slot_info(inf[a], o[i], t, tr) for i, a in enumerate(names)]
             if t or tr:
                 dones[rows] = True
                 o = self._reset_world(k)

@@ -13,6 +13,8 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from parcover_env.geometry import wrap_angle
+
 __all__ = ["EpisodeMetrics", "formation_errors", "MESSAGE_KINDS", "METRICS_PREFIX", "episode_metrics"]
 
 MESSAGE_KINDS = ("split", "promotion", "waypoint", "pose")
@@ -23,14 +25,14 @@ METRICS_PREFIX = "metrics/"
 def formation_errors(poses: np.ndarray, predecessor: np.ndarray, offset: float, l_d: float,
                      psi_d: float) -> tuple[np.ndarray, np.ndarray]:
     """(l - l_d, wrap(psi - psi_d)) of every follower from true poses (seed A / Das et al. l-psi)."""
-    from parcover_env.envs import _step_kernels
+    from parcover_env.envs import step_kernels
 
     predecessor = np.ascontiguousarray(predecessor, dtype=np.int64)
     n = int(np.count_nonzero(predecessor >= 0))
     dl, dpsi = np.empty(n), np.empty(n)
-    _step_kernels.formation_errors(np.ascontiguousarray(poses, dtype=float), predecessor, float(offset), float(l_d),
-                                   float(psi_d), dl, dpsi)
-    return dl, dpsi
+    step_kernels.formation_errors(np.ascontiguousarray(poses, dtype=float), predecessor, float(offset), float(l_d),
+                                  float(psi_d), dl, dpsi)
+    return dl, wrap_angle(dpsi)
 
 
 @dataclass

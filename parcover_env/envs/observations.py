@@ -3,22 +3,49 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
 
+from parcover_env.config import Scenario
+from parcover_env.envs.obs_spec import ENTRIES, KERNEL_COLUMNS, KERNEL_ENTRIES, MAX_FIX_AGE
 from parcover_env.geometry import atan2
+from parcover_env.sensors.base import Sensor
 
-__all__ = ["ObservationLayout", "MAX_FIX_AGE", "SCALAR_ENTRIES", "ellipse_entries"]
+__all__ = ["ObservationLayout", "MAX_FIX_AGE", "SCALAR_ENTRIES", "ScalarInputs", "build_sensors", "ellipse_entries"]
 
-MAX_FIX_AGE = 60.0
-"""Seconds since the last absolute pose fix are reported capped at this value."""
+SCALAR_ENTRIES = KERNEL_ENTRIES
+"""The one-column entries :meth:`ObservationLayout.fill_scalars` writes (all but the sensors')."""
 
 
-SCALAR_ENTRIES = ("x", "y", "cos_theta", "sin_theta", "v", "omega", "leader", "slot", "fix_age", "sigma_major",
-                  "sigma_minor", "sigma_axis_cos2", "sigma_axis_sin2", "sigma_heading", "goal_dx", "goal_dy",
-                  "pred_dx", "pred_dy", "pred_cos", "pred_sin", "pred_visible", "kpois_visited", "time")
-"""The one-column entries :meth:`ObservationLayout.fill_scalars` writes (all but the sonar)."""
+class ScalarInputs(NamedTuple):
+    """What :meth:`ObservationLayout.fill_scalars` reads, per robot ``(N, ...)`` and team-wide."""
+
+    est: np.ndarray
+    """Pose estimates ``(N, 3)``."""
+    velocity: np.ndarray
+    """Encoder ``(v, omega)`` ``(N, 2)``."""
+    leader: np.ndarray
+    """Leader flags ``(N,)`` bool."""
+    slot: np.ndarray
+    """Column slots ``(N,)`` int (reported / ``max(N - 1, 1)``)."""
+    fix_age: np.ndarray
+    """Seconds since the last absolute fix ``(N,)`` (reported capped at :data:`MAX_FIX_AGE`)."""
+    covariance: np.ndarray
+    """Pose covariances ``(N, 3, 3)``."""
+    goals: np.ndarray
+    """Lookahead waypoints ``(N, 2)``, world frame."""
+    rel_xy: np.ndarray
+    """The follower camera's predecessor position ``(N, 2)``, robot frame."""
+    rel_heading: np.ndarray
+    """Its relative heading ``(N,)``."""
+    visible: np.ndarray
+    """Predecessor seen ``(N,)`` bool."""
+    kpois_visited: float
+    """Fraction of KPOIs visited by the team."""
+    time: float
+    """Fraction of the step limit elapsed."""
 
 
 def ellipse_entries(cov: np.ndarray, heading: np.ndarray) -> np.ndarray:
@@ -42,32 +69,19 @@ class ObservationLayout:
     high: np.ndarray
 
     @classmethod
-    def build(cls, bounds, max_speed: float, max_turn_rate: float, n_sonar: int,
-              sonar_max: float, pred_range: float, covariance: bool = False) -> ObservationLayout:
-        """The layout; ``covariance`` adds the pose-uncertainty entries after ``fix_age``."""
-        x0, y0, x1, y1 = bounds
-        diag = float(np.hypot(x1 - x0, y1 - y0))
-        m = 1.0  # estimates may drift off the floor a little: clipped to the map box +- 1 m
-        entries = [
-            ("x", 1, x0 - m, x1 + m), ("y", 1, y0 - m, y1 + m),
-            ("cos_theta", 1, -1.0, 1.0), ("sin_theta", 1, -1.0, 1.0),
-            ("v", 1, -max_speed, max_speed), ("omega", 1, -max_turn_rate, max_turn_rate),
-            ("leader", 1, 0.0, 1.0), ("slot", 1, 0.0, 1.0), ("fix_age", 1, 0.0, MAX_FIX_AGE),
-            *([("sigma_major", 1, 0.0, diag), ("sigma_minor", 1, 0.0, diag),
-               ("sigma_axis_cos2", 1, -1.0, 1.0), ("sigma_axis_sin2", 1, -1.0, 1.0),
-               ("sigma_heading", 1, 0.0, np.pi)] if covariance else []),
-            ("goal_dx", 1, -diag - 2 * m, diag + 2 * m), ("goal_dy", 1, -diag - 2 * m, diag + 2 * m),
-            ("pred_dx", 1, -pred_range, pred_range), ("pred_dy", 1, -pred_range, pred_range),
-            ("pred_cos", 1, -1.0, 1.0), ("pred_sin", 1, -1.0, 1.0), ("pred_visible", 1, 0.0, 1.0),
-            ("kpois_visited", 1, 0.0, 1.0), ("time", 1, 0.0, 1.0),
-            ("sonar", n_sonar, 0.0, sonar_max),
-        ]
+    def build(cls, scenario: Scenario, box, sensors: dict[str, Sensor | None] | None = None) -> ObservationLayout:
+        """The layout of ``scenario`` on a map of bounds ``box`` from the spec
+        (:data:`~parcover_env.envs.obs_spec.ENTRIES`); ``sensors``: the built sensor of each
+        ``sensor`` entry (None = off; built from the scenario if not given)."""
+        sensors = sensors if sensors is not None else build_sensors(scenario)
         names, slices, low, high, at = [], {}, [], [], 0
-        for name, size, lo, hi in entries:
+        for e in ENTRIES:
+            size = e.n_columns(scenario, sensors.get(e.name))
             if size == 0:
                 continue
-            names.append(name)
-            slices[name] = slice(at, at + size)
+            lo, hi = e.bounds(scenario, tuple(box))
+            names.append(e.name)
+            slices[e.name] = slice(at, at + size)
             low += [lo] * size
             high += [hi] * size
             at += size
@@ -84,29 +98,35 @@ class ObservationLayout:
         """Clip ``(N, D)`` observations into the bounds in place (NaN stays NaN, as with ``np.clip``)."""
         return np.minimum(np.maximum(obs, self.low, out=obs), self.high, out=obs)
 
-    def fill_scalars(self, obs: np.ndarray, est: np.ndarray, velocity: np.ndarray, leader: np.ndarray,
-                     slot: np.ndarray, fix_age: np.ndarray, covariance: np.ndarray, goals: np.ndarray,
-                     rel_xy: np.ndarray, rel_heading: np.ndarray, visible: np.ndarray, kpois_visited: float,
-                     time: float) -> None:
+    def fill_scalars(self, obs: np.ndarray, inputs: ScalarInputs) -> None:
         """Write the :data:`SCALAR_ENTRIES` of every robot's row of ``obs (N, D)`` in one compiled
-        pass: pose estimate ``est (N, 3)``, ``velocity (N, 2)`` (v, omega), leader flags, formation
-        slots (scaled by ``N - 1``), seconds since the last fix (capped at :data:`MAX_FIX_AGE`), the
-        ellipse of ``covariance (N, 3, 3)`` (:func:`ellipse_entries`), the lookahead ``goals (N, 2)``
-        in the robot frame, the follower camera's reading, and two team-wide fractions."""
-        from parcover_env.envs import _step_kernels
+        pass: the pose estimate, encoder velocity, leader flag, slot (scaled by ``N - 1``), seconds
+        since the last fix (capped at :data:`MAX_FIX_AGE`), the ellipse of the covariance
+        (:func:`ellipse_entries`), the lookahead goal in the robot frame, the follower camera's
+        reading and the two team-wide fractions."""
+        from parcover_env.envs import step_kernels
 
-        n = len(obs)
-        _step_kernels.scalar_entries(obs, self._columns(), est, velocity, leader, slot, max(n - 1, 1), fix_age,
-                                     MAX_FIX_AGE, covariance, goals, rel_xy, rel_heading, visible, float(kpois_visited),
-                                     float(time))
+        rows = step_kernels.RobotRows(*inputs[:10])
+        step_kernels.scalar_entries(obs, self.columns, rows, float(max(len(obs) - 1, 1)), MAX_FIX_AGE,
+                                    float(inputs.kpois_visited), float(inputs.time))
 
-    def _columns(self) -> np.ndarray:
+    @property
+    def columns(self) -> np.ndarray:
+        """The column of each :data:`SCALAR_ENTRIES` entry (-1: not in this layout), a one-element
+        read-only :data:`~parcover_env.envs.obs_spec.KERNEL_COLUMNS` record."""
         cols = self.__dict__.get("_cols")
         if cols is None:  # frozen dataclass: cache by the back door
-            cols = np.array([self.slices[k].start if k in self.slices else -1 for k in SCALAR_ENTRIES], np.int64)
+            cols = np.array([tuple(self.slices[k].start if k in self.slices else -1 for k in KERNEL_ENTRIES)],
+                            dtype=KERNEL_COLUMNS)
+            cols.setflags(write=False)
             object.__setattr__(self, "_cols", cols)
         return cols
 
     def get(self, obs: np.ndarray, name: str) -> np.ndarray:
         """The entry ``name`` of one observation ``(D,)`` or a batch ``(N, D)``."""
         return obs[..., self.slices[name]]
+
+
+def build_sensors(scenario: Scenario) -> dict[str, Sensor | None]:
+    """The sensor of every ``sensor`` entry of the spec, built from ``scenario`` (None = off)."""
+    return {e.name: e.sensor(scenario) for e in ENTRIES if e.sensor is not None}

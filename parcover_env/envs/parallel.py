@@ -11,18 +11,19 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from parcover_env.config import Scenario, deep_merge
+from parcover_env.envs import stepper
 from parcover_env.envs.actions import to_commands
+from parcover_env.envs.estimator import KinectFixes, PoseEstimator
+from parcover_env.envs.handover import CameraView, update_team
 from parcover_env.envs.metrics import EpisodeMetrics, formation_errors
-from parcover_env.envs.observations import ObservationLayout
+from parcover_env.envs.obs_spec import markdown_table
+from parcover_env.envs.observations import ObservationLayout, build_sensors
 from parcover_env.envs.rewards import REWARD_KEYS, TERMS, reward_terms
 from parcover_env.envs.team import Team
 from parcover_env.geometry import wrap_angle
-from parcover_env.localization.kinect.system import KinectSystem, handover_poses
+from parcover_env.localization.kinect.system import KinectSystem
 from parcover_env.scenarios import load_scenario, mission_for
-from parcover_env.sensors.odometry import Odometry
 from parcover_env.sensors.relative import RelativeCamera
-from parcover_env.sensors.sonar import SonarRing
-from parcover_env.world.drive import wheel_targets
 from parcover_env.world.physics import World
 
 __all__ = ["ParallelCoverageEnv"]
@@ -51,26 +52,14 @@ class ParallelCoverageEnv(ParallelEnv):
     (``ideal`` preset) applies the command as the body velocity.
 
     ## Observation space
-    One flat ``Box`` per agent, identical across agents (``env.layout`` names the slices):
+    One flat ``Box`` per agent, identical across agents (``env.layout`` names the slices), entries in
+    this order:
 
-    | entry | size | unit | meaning |
-    |---|---|---|---|
-    | x, y | 2 | m | pose estimate: odometry, reset by Kinect fixes of seen leaders (``pose_source``) |
-    | cos_theta, sin_theta | 2 | - | heading estimate |
-    | v, omega | 2 | m/s, rad/s | encoder velocity: odometry increment of the last step / step (ideal: command) |
-    | leader | 1 | - | 1 if the robot leads its group, else 0 (follower) |
-    | slot | 1 | - | position in its group's column / (n_robots - 1); 0 = leader |
-    | fix_age | 1 | s | time since the last absolute pose fix, capped at 60 s (large = stale estimate) |
-    | sigma_major, sigma_minor | 2 | m | axes (1 sigma) of the position uncertainty ellipse of the estimate |
-    | sigma_axis_cos2, sigma_axis_sin2 | 2 | - | cos, sin of twice the major axis angle, robot frame (1, 0 if round) |
-    | sigma_heading | 1 | rad | heading sigma of the estimate |
-    | goal_dx, goal_dy | 2 | m | current route waypoint in the robot frame (x ahead, y left), from the estimate |
-    | pred_dx, pred_dy | 2 | m | robot ahead in the column, in this robot's frame (onboard camera; 0 if unseen) |
-    | pred_cos, pred_sin | 2 | - | its heading relative to this robot's |
-    | pred_visible | 1 | - | 1 if a follower's camera sees its predecessor (FOV, range, walls) |
-    | kpois_visited | 1 | - | fraction of KPOIs visited by the team |
-    | time | 1 | - | fraction of the step limit elapsed |
-    | sonar | B | m | sonar ring ranges (B beams; ``robot.sonar``), max range = no echo |
+    OBSERVATION_TABLE
+
+    Generated from the observation spec (``parcover_env.envs.obs_spec.ENTRIES``, one declaration per
+    entry); an entry of size 0 in a scenario is absent (the ``sigma_*`` entries without
+    ``observation.pose_covariance``; ``sonar`` without ``observation.sonar``).
 
     The ``sigma_*`` entries (``observation.pose_covariance``, off in the ``ideal`` preset) come from
     the pose covariance the odometry propagates (Chong & Kleeman) and that an absolute fix resets to
@@ -98,6 +87,13 @@ class ParallelCoverageEnv(ParallelEnv):
     ``info[agent]`` also holds the per-step estimate error ``pose_error`` (m) and
     ``heading_error`` (rad, absolute). ``env.true_poses()`` and ``env.pose_estimates()`` return
     ``(n_robots, 3)`` arrays (x, y, theta) in agent order, ``env.pose_covariances()`` ``(n_robots, 3, 3)``.
+
+    ## Step
+    ``step`` runs the public stepper (``parcover_env.envs.stepper``), the same one the batched worlds
+    and the single-robot env run: ``advance`` (act, physics, pose estimator, mission, Alg. 1 splits
+    and hand-overs, rewards, metrics), then ``observe`` (every sensor of every world in one call,
+    the observation spec's entries), then ``outputs``. A new sensor is a ``sensors/`` module, a
+    config field and one spec entry; it reaches this env and the batched worlds unchanged.
 
     ## Rates
     One ``step`` is one control period of ``physics.substeps x physics.dt`` seconds (default
@@ -151,17 +147,18 @@ class ParallelCoverageEnv(ParallelEnv):
         self.n_robots = self.plan.r
         self.possible_agents = [f"robot_{i}" for i in range(self.n_robots)]
         self.agents: list[str] = []
-        self.sonar = SonarRing(s.robot.sonar) if s.observation.sonar else None
-        n_sonar = self.sonar.n_beams if self.sonar else 0
+        self.sensors = build_sensors(s)
+        """The sensor of each ``sensor`` entry of the observation spec (None = off)."""
+        self.sonar = self.sensors["sonar"]
         self.kinects = KinectSystem(s, self.map) if s.kinects and s.observation.pose_source == "kinect" else None
         f = s.formation
         self.camera = RelativeCamera(f.camera_fov_deg, f.camera_range, f.camera_range_noise, f.camera_bearing_noise,
                                      f.camera_heading_noise)
-        self.layout = ObservationLayout.build(self.map.bounds, s.robot.max_speed, s.robot.max_turn_rate,
-                                              n_sonar, s.robot.sonar.range_max, s.formation.camera_range,
-                                              covariance=s.observation.pose_covariance)
+        self.layout = ObservationLayout.build(s, self.map.bounds, self.sensors)
         sxy, sth = s.observation.fix_sigma_xy, np.radians(s.observation.fix_sigma_heading_deg)
-        self._fix_cov = np.diag([sxy**2, sxy**2, sth**2])
+        self.fix_sources = [KinectFixes(self.kinects, s.robot.markers, np.diag([sxy**2, sxy**2, sth**2]))
+                            ] if self.kinects is not None else []
+        """The estimator's sources of absolute pose fixes (:class:`~parcover_env.envs.estimator.FixSource`)."""
         self._obs_space = self.layout.space()
         self._act_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         self.state_space = _state_space(self.map.bounds, self.n_robots, len(s.kpois))
@@ -202,13 +199,9 @@ class ParallelCoverageEnv(ParallelEnv):
         self.agents = list(self.possible_agents)
         self.world = World(self.map, s.robot.radius, s.physics, self.mission.start_poses, s.robot.drive)
         true = self.world.poses()
-        self.odometry = Odometry(s.robot.odometry, true, s.robot.drive.wheel_base, self._rng)
-        self.estimate = true.copy()
-        self.velocity = np.zeros((self.n_robots, 2))
-        self.fix_age = np.zeros(self.n_robots)
-        if self.kinects is not None:
-            self.kinects.reset(self._rng)
-        self._view = None
+        self.estimator = PoseEstimator(s, true, self._rng, self.fix_sources)
+        self.camera_view: CameraView | None = None
+        """The follower cameras' measurements at the last observation (set by ``stepper.observe``)."""
         self.progress = self.mission.tracker()
         self.team = Team(self.plan, s.formation.mode, reach_tol=self.mission.reach_tol)
         self.commands = np.zeros((self.n_robots, 2))
@@ -220,38 +213,44 @@ class ParallelCoverageEnv(ParallelEnv):
                                       path_lengths=[0.0] * self.n_robots)
         self.trails = [[p[:2].copy()] for p in true]
         self.progress.update(true[:, :2], self.estimate[:, :2], 0.0)
-        self._update_team()
-        obs = self._observe(true)
+        update_team(self.team, self.kinects, self.estimate, self.progress.plan_progress, self.camera_view)
+        obs = self._as_dict(stepper.observe([self], true[None])[0])
         zeros = np.zeros(self.n_robots).tolist()
         return obs, self._infos(true, [zeros] * len(TERMS), self.metrics.flat(ended=False))
 
     def step(self, actions: dict[str, Any]):
-        true = self._advance(actions)
-        obs = self._observe(true)
-        return self._outputs(true, obs)
+        obs, ((rewards, terminations, truncations, infos),) = stepper.step([self], [actions])
+        return self._as_dict(obs[0]), rewards, terminations, truncations, infos
 
-    def _advance(self, actions: dict[str, Any]) -> np.ndarray:
-        """First half of ``step``: act, integrate, sense, track the mission, score and record.
-        Returns the true poses; ``_observe`` and ``_outputs`` finish the step (the batched VecEnv
-        runs the sonar of all its worlds in one call between the two halves)."""
+    def _as_dict(self, obs: np.ndarray) -> dict[str, np.ndarray]:
+        return dict(zip(self.possible_agents, obs, strict=True))  # all agents live or end together
+
+    def advance(self, actions: dict[str, Any]) -> np.ndarray:
+        """Stepper part 1 (:mod:`~parcover_env.envs.stepper`): act, integrate, estimate, track the
+        mission, split and hand over (Alg. 1, from the cameras' last ``camera_view``), score and
+        record. Returns the true poses ``(N, 3)``."""
         if not self.agents:
             raise RuntimeError("step() called on a finished episode; call reset() first")
-        self.commands = to_commands(actions, self.agents, self.scenario.robot.max_speed,
-                                    self.scenario.robot.max_turn_rate)
+        s = self.scenario
+        self.commands = to_commands(actions, self.agents, s.robot.max_speed, s.robot.max_turn_rate)
         before = self.world.poses()
         self.world.step(self.commands)
         self.steps += 1
         true = self.world.poses()
-        self._sense(true)
+        fixes = self.estimator.update(true, self.commands, self.world.drive, self.world.time, self.team.leader,
+                                      self._rng)
+        if "kinect" in fixes:  # a Kinect fix is a message to a leader
+            self.team.count_pose_fixes(len(fixes["kinect"]))
         n_new = self.progress.update(true[:, :2], self.estimate[:, :2], self.world.time)
         self.team.count_waypoints(self.progress.advanced)
-        self._update_team()
+        update_team(self.team, self.kinects, self.estimate, self.progress.plan_progress, self.camera_view)
         self._terms = self._rewards(true, n_new)
         self._record(before, true)
         return true
 
-    def _outputs(self, true: np.ndarray, obs: dict[str, np.ndarray]):
-        """Second half of ``step``: rewards, terminations, truncations and infos as PettingZoo dicts."""
+    def outputs(self, true: np.ndarray) -> tuple[dict, dict, dict, dict]:
+        """Stepper part 3: rewards, terminations, truncations and infos as PettingZoo dicts (the
+        episode's agents are cleared when it ends)."""
         terms = self._terms
         done = self.progress.done
         truncated = self.steps >= self.scenario.episode.max_steps and not done
@@ -264,7 +263,7 @@ class ParallelCoverageEnv(ParallelEnv):
         truncations = {a: truncated for a in self.agents}
         if done or truncated:
             self.agents = []
-        return obs, rewards, terminations, truncations, infos
+        return rewards, terminations, truncations, infos
 
     def _infos(self, true: np.ndarray, terms: list[list[float]], metrics: dict) -> dict[str, dict]:
         """``info[agent]``: the reward terms (one list per :data:`TERMS` entry), the episode
@@ -283,58 +282,6 @@ class ParallelCoverageEnv(ParallelEnv):
         return infos
 
     # ------------------------------------------------------------------ step parts
-    def _update_team(self) -> None:
-        """Alg. 1: splits on the Kinect system's detections of leaders (estimates out of view); the
-        Kinect system locates the promoted followers by the formation (``KinectSystem.hand_over``)."""
-        est = self.estimate[:, :2]
-        if self.kinects is None:
-            self.team.update(est, self.progress.plan_progress)
-            return
-        before, fixes = self.team.leader, self.kinects.last_fixes
-        in_view = np.zeros(self.n_robots, dtype=bool)  # read for leaders without a fix only
-        unfixed = [i for i in np.flatnonzero(before).tolist() if i not in fixes]
-        if unfixed:
-            in_view[unfixed] = self.kinects.in_view(est[unfixed])
-        if self.team.update(est, self.progress.plan_progress, fixes, in_view) and self._view is not None:
-            predecessor, rel, estimates = self._view  # the cameras' last measurements, before the split
-            promoted = self.team.leader & ~before
-            self.kinects.hand_over(handover_poses(promoted, predecessor, rel.rel_xy, rel.rel_heading, rel.visible,
-                                                  estimates), estimates)
-
-    def _sense(self, true: np.ndarray) -> None:
-        """Pose estimates: odometry dead reckoning, corrected by Kinect fixes of the leaders."""
-        s = self.scenario
-        dt = s.physics.control_dt
-        if s.robot.odometry.model == "wheels":
-            if self.world.drive is not None:
-                travel, change = self.world.drive.take_travel()
-            else:  # instant drive: the wheels turned at the commanded speeds all step
-                travel = wheel_targets(self.commands, s.robot.drive.wheel_base, np.inf) * dt
-                change = np.zeros_like(travel)
-            before = self.odometry.estimate.copy()
-            est = self.odometry.measure_wheels(travel, change, dt, self._rng)
-            velocity = np.empty((len(est), 2))  # (signed distance, heading change) over the step / dt
-            np.multiply(np.hypot(est[:, 0] - before[:, 0], est[:, 1] - before[:, 1]),
-                        np.sign(travel[:, 0] + travel[:, 1]), out=velocity[:, 0])
-            velocity[:, 1] = wrap_angle(est[:, 2] - before[:, 2])
-            velocity /= dt
-            self.velocity = velocity
-        else:
-            est = self.odometry.measure(true, self._rng)
-            self.velocity = self.commands
-        self.fix_age += dt
-        if s.observation.pose_source == "ground_truth":
-            self.odometry.set_truth(true)
-            self.fix_age[:] = 0.0
-        elif self.kinects is not None:
-            markers = self.team.leader & self.scenario.robot.markers
-            fixes = self.kinects.update(self.world.time, true, markers, est, self._rng)
-            for i, pose in fixes.items():
-                self.odometry.fix(i, pose, self._fix_cov)
-                self.fix_age[i] = 0.0
-            self.team.count_pose_fixes(len(fixes))
-        self.estimate = est
-
     def _rewards(self, true: np.ndarray, n_new: int) -> dict[str, np.ndarray]:
         remaining = self.progress.remaining(true[:, :2])
         progress, self._remaining = self._remaining - remaining, remaining
@@ -362,39 +309,22 @@ class ParallelCoverageEnv(ParallelEnv):
             for trail, p in zip(self.trails, true):
                 trail.append(p[:2].copy())
 
-    def _observe(self, true: np.ndarray) -> dict[str, np.ndarray]:
-        obs = self._observe_array(true)
-        if len(self.agents) == self.n_robots:
-            return dict(zip(self.possible_agents, obs, strict=True))
-        active = set(self.agents)
-        return {a: obs[i] for i, a in enumerate(self.possible_agents) if a in active}
-
-    def _observe_array(self, true: np.ndarray) -> np.ndarray:
-        """Observations ``(n_robots, size)`` float32 of every robot."""
-        obs = self._observe_scalars(true)
-        if self.sonar is not None:  # what ``sonar.measure`` reads, without checking the physics' poses again
-            draws = [self.sonar.draw(self.n_robots, self._rng)]
-            obs[:, self.layout.slices["sonar"]] = self.sonar.readings(true[None], self.map.segments,
-                                                                      self.scenario.robot.radius, draws)[0]
-        return self.layout.clip(obs)
-
-    def _observe_scalars(self, true: np.ndarray, camera_blocked: np.ndarray | None = None) -> np.ndarray:
-        """:meth:`_observe_array` without the sonar entries (left 0) and unclipped: the follower
-        camera (its draws) and the scalar entries. ``camera_blocked``: the cameras' blocked lines of
-        sight if already cast (the batched VecEnv casts those of every world in one call, then the
-        sonar rings of every world in one call)."""
-        est = self.estimate
-        obs = np.zeros((self.n_robots, self.layout.size), dtype=np.float32)
-        rel = self.camera.measure(true, self.team.predecessor, self.map.segments, self._rng, camera_blocked)
-        self._view = (self.team.predecessor, rel, est.copy())
-        time = self.steps / self.scenario.episode.max_steps
-        self.layout.fill_scalars(obs, est, self.velocity, self.team.leader, self.team.slot, self.fix_age,
-                                 self.odometry.covariance, self.progress.goals(), rel.rel_xy, rel.rel_heading,
-                                 rel.visible, np.count_nonzero(self.progress.visited) / len(self.progress.visited),
-                                 time)
-        return obs
-
     # ------------------------------------------------------------------ extras
+    @property
+    def estimate(self) -> np.ndarray:
+        """The pose estimates ``(n_robots, 3)`` (the estimator's; not a copy)."""
+        return self.estimator.estimate
+
+    @property
+    def fix_age(self) -> np.ndarray:
+        """Seconds since each robot's last absolute pose fix ``(n_robots,)``."""
+        return self.estimator.fix_age
+
+    @property
+    def odometry(self):
+        """The estimator's wheel odometry (:class:`~parcover_env.sensors.odometry.Odometry`)."""
+        return self.estimator.odometry
+
     def true_poses(self) -> np.ndarray:
         """Ground-truth poses ``(n_robots, 3)`` (x, y m; theta rad in (-pi, pi]) in agent order."""
         return self.world.poses()
@@ -405,7 +335,7 @@ class ParallelCoverageEnv(ParallelEnv):
 
     def pose_covariances(self) -> np.ndarray:
         """Covariances ``(n_robots, 3, 3)`` of the pose estimates (m^2, m rad, rad^2), agent order."""
-        return self.odometry.covariance.copy()
+        return self.estimator.covariance.copy()
 
     def state(self) -> np.ndarray:
         true = self.world.poses()
@@ -447,6 +377,11 @@ class ParallelCoverageEnv(ParallelEnv):
 
             close_window(self._window)
             self._window = None
+
+
+if ParallelCoverageEnv.__doc__:  # the observation table, generated from the spec (absent under python -OO)
+    ParallelCoverageEnv.__doc__ = ParallelCoverageEnv.__doc__.replace(
+        "OBSERVATION_TABLE", markdown_table().replace("\n", "\n    "))
 
 
 def _state_space(bounds, n_robots: int, n_kpois: int) -> spaces.Box:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import gymnasium as gym
 
 from parcover_env.envs import ParallelCoverageEnv
-from parcover_env.envs.metrics import episode_metrics
+from parcover_env.envs.stepper import with_metrics
 
 __all__ = ["SingleRobotCoverageEnv"]
 
@@ -36,10 +36,7 @@ class SingleRobotCoverageEnv(gym.Env):
 
     def step(self, action):
         obs, rew, term, trunc, infos = self.par.step({self.agent: action})
-        info = infos[self.agent]
-        metrics = episode_metrics(info)
-        if metrics is not None:  # gymnasium's RecordEpisodeStatistics owns info["episode"]
-            info["metrics"] = metrics
+        info = with_metrics(infos[self.agent])  # gymnasium's RecordEpisodeStatistics owns info["episode"]
         return obs[self.agent], rew[self.agent], term[self.agent], trunc[self.agent], info
 
     def render(self):

@@ -37,7 +37,7 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import CloudpickleWrapper, VecEnv
 
-from parcover_env.envs.metrics import episode_metrics
+from parcover_env.envs.stepper import slot_info
 
 __all__ = ["AgentSlots", "BACKENDS", "ParallelVecEnv", "make_vec_env"]  # + BatchedVecEnv (lazy)
 
@@ -88,18 +88,11 @@ class AgentSlots:
             if a not in live:
                 out_infos.append({"active": False})
                 continue
-            info = dict(infos.get(a, {}))
-            metrics = episode_metrics(info)
-            if metrics is not None:  # SB3/VecMonitor own info["episode"] = {"r", "l", "t"}
-                info["metrics"] = metrics
-            info["active"] = True
             rewards[i] = float(rew.get(a, 0.0))
             t, tr = bool(term.get(a, False)), bool(trunc.get(a, False))
-            if t or tr or a not in still:
-                dones[i] = True
-                info["terminal_observation"] = np.asarray(obs.get(a, self._zero), dtype=self._zero.dtype)
-                info["TimeLimit.truncated"] = tr and not t
-            out_infos.append(info)
+            dones[i] = t or tr or a not in still
+            last = np.asarray(obs.get(a, self._zero), dtype=self._zero.dtype) if dones[i] else None
+            out_infos.append(slot_info(dict(infos.get(a, {})), last, t, tr, ended=bool(dones[i])))
         if not still:
             return self.reset(), rewards, dones, out_infos
         return self._stack({a: obs[a] for a in still if a in obs}), rewards, dones, out_infos

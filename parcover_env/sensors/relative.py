@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,6 +17,7 @@ import numpy as np
 from parcover_env.geometry import sight_lines_blocked
 from parcover_env.geometry.records import record
 from parcover_env.sensors import onboard_kernels
+from parcover_env.sensors.base import SensingState
 
 __all__ = ["RelativeCamera", "RelativeReading", "lines_of_sight_blocked"]
 
@@ -67,6 +69,27 @@ class RelativeCamera:
         return record(onboard_kernels.CAMERA, max_range=self.max_range, half_fov=math.radians(self.fov_deg) / 2,
                       range_noise=self.range_noise, bearing_noise=self.bearing_noise,
                       heading_noise=self.heading_noise)
+
+    size = 4
+    """Numbers per robot of :meth:`sense`: the predecessor's x, y in this robot's frame (m), its
+    relative heading (rad), seen (1) or not (0)."""
+
+    def sense(self, state: SensingState, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        """The :class:`~parcover_env.sensors.base.Sensor` reading ``(K, N, 4)`` (see :attr:`size`):
+        every world's lines of sight in one test (one world: :meth:`measure` tests them), then
+        :meth:`measure` of each world with its own generator."""
+        k = state.n_worlds
+        blocked = lines_of_sight_blocked(state.poses, state.predecessor, state.segments) if k > 1 else [None]
+        out = np.empty((k, state.n_robots, self.size))
+        for w, rng in enumerate(rngs):
+            r = self.measure(state.poses[w], state.predecessor[w], state.segments, rng, blocked[w])
+            np.concatenate([r.rel_xy, r.rel_heading[:, None], r.visible[:, None]], axis=1, out=out[w])
+        return out
+
+    @staticmethod
+    def reading(row: np.ndarray) -> RelativeReading:
+        """One world's :meth:`sense` rows ``(N, 4)`` as a :class:`RelativeReading`."""
+        return RelativeReading(row[:, :2], row[:, 2], row[:, 3] > 0.5)
 
 
 def lines_of_sight_blocked(poses: np.ndarray, predecessor: np.ndarray, segments: np.ndarray) -> np.ndarray:

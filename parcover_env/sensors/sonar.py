@@ -29,6 +29,7 @@ Geometry and conventions
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -40,6 +41,7 @@ from parcover_env.geometry.angles import wrap_angle
 from parcover_env.geometry.records import record
 from parcover_env.sensors import sonar_kernels as kern
 from parcover_env.sensors import sonar_ring_kernels as ring_kern
+from parcover_env.sensors.base import SensingState
 
 __all__ = ["SonarRing", "AMIGOBOT_ANGLES_DEG", "concave_corners", "simulate_beams", "crosstalk"]
 
@@ -270,6 +272,17 @@ class SonarRing:
         owner = np.arange(n) if include_robots else np.full(n, -1)
         ideal = simulate_beams(self.cfg, poses[:, :2], axes, segments, centres, robot_radius, owner, self.n_subrays)
         return self._noisy(ideal, None, rng, np.float32)
+
+    @property
+    def size(self) -> int:
+        """Readings per robot (:class:`~parcover_env.sensors.base.Sensor`): one per beam."""
+        return self.n_beams
+
+    def sense(self, state: SensingState, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        """The :class:`~parcover_env.sensors.base.Sensor` reading ``(K, N, B)`` float32: each world's
+        :meth:`draw` from its own generator, then every ring of every world in one :meth:`readings`."""
+        draws = [self.draw(state.n_robots, rng) for rng in rngs]
+        return self.readings(state.poses, state.segments, state.robot_radius, draws)
 
     def draw(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
         """The random numbers :meth:`measure` draws for ``n`` robots that see each other, in its order:

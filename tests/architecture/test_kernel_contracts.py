@@ -3,8 +3,7 @@ named records (no call with more than 12 positional arguments, no compiled funct
 12 parameters), kernel modules are public rooms (no private module or name imported across
 modules), and the angle wrap is written once.
 
-``LEFT`` lists what other parts of issue 30 still have to remove (the observation spec rewrites
-``envs/_step_kernels.py`` and its callers): it may only shrink.
+``LEFT`` lists known exceptions still to remove: it is empty and may only stay so.
 """
 
 from __future__ import annotations
@@ -15,16 +14,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "parcover_env"
 MAX_POSITIONAL = 12
-LEFT = {
-    "calls": {("parcover_env/config/expert.py", "positive"),
-              ("parcover_env/envs/observations.py", "_step_kernels.scalar_entries"),
-              ("parcover_env/envs/parallel.py", "self.layout.fill_scalars")},
-    "kernels": {("parcover_env/envs/_step_kernels.py", "scalar_entries")},
-    "private modules": {"parcover_env/envs/_step_kernels.py"},
-    "private imports": {("parcover_env/envs/metrics.py", "parcover_env.envs._step_kernels"),
-                        ("parcover_env/envs/observations.py", "parcover_env.envs._step_kernels")},
-    "wraps": {"parcover_env/envs/_step_kernels.py"},
-}
+LEFT: dict[str, set] = {"calls": set(), "kernels": set(), "private modules": set(), "private imports": set(),
+                       "wraps": set()}
 THIRD_PARTY_PRIVATE = {("parcover_env/world/physics.py", "pymunk._chipmunk")}
 """pymunk exposes chipmunk's C functions only through its private module (the fast body setters)."""
 COMPILERS = {"njit", "jit", "cfunc", "vectorize", "guvectorize"}

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from layout_helpers import layout_of
 
-from parcover_env.envs.observations import MAX_FIX_AGE, SCALAR_ENTRIES, ObservationLayout, ellipse_entries
+from parcover_env.envs.observations import MAX_FIX_AGE, SCALAR_ENTRIES, ScalarInputs, ellipse_entries
 from parcover_env.geometry import rotate
 
 
@@ -33,7 +34,7 @@ def _numpy_rows(layout, est, vel, leader, slot, fix_age, cov, goals, rel_xy, rel
 
 @pytest.mark.parametrize("covariance, n", [(True, 9), (False, 9), (True, 2)])
 def test_compiled_scalar_entries_equal_the_numpy_formulas(covariance, n):
-    layout = ObservationLayout.build((0, 0, 10, 8), 0.5, 1.5, 16, 3.0, 2.5, covariance=covariance)
+    layout = layout_of((0, 0, 10, 8), 0.5, 1.5, 16, 3.0, 2.5, covariance=covariance)
     g = np.random.default_rng(0)
     est = np.column_stack([g.uniform(0, 10, (n, 2)), g.uniform(-4, 4, n)])
     m = g.normal(size=(n, 3, 3)) * 0.1
@@ -45,7 +46,7 @@ def test_compiled_scalar_entries_equal_the_numpy_formulas(covariance, n):
             g.uniform(0, 10, (n, 2)), np.where(visible[:, None], g.uniform(-1, 1, (n, 2)), 0.0),
             g.uniform(-3, 3, n), visible, 0.375, 0.125)
     got = np.zeros((n, layout.size), dtype=np.float32)
-    layout.fill_scalars(got, *args)
+    layout.fill_scalars(got, ScalarInputs(*args))
     want = _numpy_rows(layout, *args)
     assert np.array_equal(got, want)
     assert set(SCALAR_ENTRIES) - set(layout.names) == (set() if covariance else

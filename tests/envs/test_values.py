@@ -7,12 +7,13 @@ import math
 
 import numpy as np
 import pytest
+from layout_helpers import layout_of
 
 import parcover_env
 from parcover_env.config import RewardConfig
 from parcover_env.envs.actions import to_commands
 from parcover_env.envs.metrics import EpisodeMetrics, episode_metrics, formation_errors
-from parcover_env.envs.observations import MAX_FIX_AGE, ObservationLayout
+from parcover_env.envs.observations import MAX_FIX_AGE
 from parcover_env.envs.rewards import REWARD_KEYS, TERMS, reward_terms
 from parcover_env.errors import ActionError
 
@@ -84,7 +85,7 @@ def test_env_collision_term_counts_new_contacts_of_this_agent():
 
 # ---------------------------------------------------------------- observations
 def test_layout_slices_and_bounds():
-    lay = ObservationLayout.build((0.0, -1.0, 10.0, 5.0), 0.5, 1.2, 3, 4.0, 2.5)
+    lay = layout_of((0.0, -1.0, 10.0, 5.0), 0.5, 1.2, 3, 4.0, 2.5)
     names = ["x", "y", "cos_theta", "sin_theta", "v", "omega", "leader", "slot", "fix_age", "goal_dx",
              "goal_dy", "pred_dx", "pred_dy", "pred_cos", "pred_sin", "pred_visible", "kpois_visited", "time",
              "sonar"]
@@ -105,7 +106,7 @@ def test_layout_slices_and_bounds():
 
 
 def test_layout_without_sonar_and_clip_and_get():
-    lay = ObservationLayout.build((0.0, 0.0, 4.0, 3.0), 1.0, 1.0, 0, 4.0, 2.0)
+    lay = layout_of((0.0, 0.0, 4.0, 3.0), 1.0, 1.0, 0, 4.0, 2.0)
     assert "sonar" not in lay.slices and lay.size == 18
     obs = np.full((2, lay.size), 100.0, np.float32)
     obs[1] = -100.0
@@ -278,7 +279,7 @@ def test_episode_metrics_zero_c_max_gives_nan_bound():
 
 
 def test_layout_goal_bounds_use_the_map_diagonal_off_origin():
-    lay = ObservationLayout.build((2.0, -1.0, 12.0, 5.0), 0.5, 1.2, 0, 4.0, 2.5)
+    lay = layout_of((2.0, -1.0, 12.0, 5.0), 0.5, 1.2, 0, 4.0, 2.5)
     diag = math.hypot(10.0, 6.0)
     assert lay.high[lay.slices["goal_dx"]][0] == pytest.approx(diag + 2, rel=1e-6)
     assert lay.low[lay.slices["x"]][0] == 1.0 and lay.high[lay.slices["x"]][0] == 13.0

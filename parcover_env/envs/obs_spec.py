@@ -1,0 +1,163 @@
+"""The observation spec: every entry of an agent's observation, declared once.
+
+Each :class:`Entry` gives its name, size, unit, bounds (functions of the scenario and the map's
+box), source, meaning and the presets it appears in. Everything else is generated from
+:data:`ENTRIES`: the layout and its slices (:class:`~parcover_env.envs.observations.ObservationLayout`),
+the ``observation_space`` bounds, the observation table of ``ParallelCoverageEnv``'s docstring
+(:func:`markdown_table`) and the columns of the compiled pass that writes the non-sensor entries
+(:data:`KERNEL_COLUMNS`: one named field per entry, so the kernel addresses a column by its name).
+
+Sources: ``estimate``, ``team``, ``mission`` and ``camera`` entries are written by that compiled pass
+from the env's state; a ``sensor`` entry is the reading of the sensor its ``sensor`` factory builds
+from the scenario (a :class:`~parcover_env.sensors.base.Sensor`), filled for every world at once by
+the stepper (:mod:`parcover_env.envs.stepper`). A new sensor is a sensor module, a config field and
+one ``sensor`` entry here: neither the env nor the batched worlds change.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from parcover_env.config import Scenario
+from parcover_env.sensors.base import Sensor
+from parcover_env.sensors.lidar import Lidar
+from parcover_env.sensors.sonar import SonarRing
+
+__all__ = ["Entry", "ENTRIES", "KERNEL_ENTRIES", "KERNEL_COLUMNS", "MAX_FIX_AGE", "markdown_table"]
+
+MAX_FIX_AGE = 60.0
+"""Seconds since the last absolute pose fix are reported capped at this value."""
+
+Box = tuple[float, float, float, float]
+"""The map's bounds ``(x0, y0, x1, y1)`` (m)."""
+BOTH = ("realistic", "ideal")
+MARGIN = 1.0
+"""Estimates may drift off the floor a little: x, y are bounded by the map box +- this (m)."""
+
+
+def _diag(box: Box) -> float:
+    return float(np.hypot(box[2] - box[0], box[3] - box[1]))
+
+
+def _unit(s: Scenario, box: Box) -> tuple[float, float]:
+    return -1.0, 1.0
+
+
+def _flag(s: Scenario, box: Box) -> tuple[float, float]:
+    return 0.0, 1.0
+
+
+def _goal(s: Scenario, box: Box) -> tuple[float, float]:
+    return -_diag(box) - 2 * MARGIN, _diag(box) + 2 * MARGIN
+
+
+def _pred(s: Scenario, box: Box) -> tuple[float, float]:
+    return -s.formation.camera_range, s.formation.camera_range
+
+
+def _ellipse_axis(s: Scenario, box: Box) -> tuple[float, float]:
+    return 0.0, _diag(box)
+
+
+def _covariance(s: Scenario) -> int:
+    return int(s.observation.pose_covariance)
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One named entry of the observation vector."""
+
+    name: str
+    unit: str
+    meaning: str
+    bounds: Callable[[Scenario, Box], tuple[float, float]]
+    """``(low, high)`` of every column of the entry, from the scenario and the map's box."""
+    source: str
+    """``estimate`` / ``team`` / ``mission`` / ``camera`` (the compiled pass) or ``sensor``."""
+    size: Callable[[Scenario], int] | None = None
+    """Columns in this scenario (0 = absent); None = 1 column (or the sensor's ``size``)."""
+    sensor: Callable[[Scenario], Sensor | None] | None = None
+    """``sensor`` entries: builds the sensor from the scenario, None when it is switched off."""
+    presets: tuple[str, ...] = BOTH
+    """Presets in which the entry is on by default."""
+    size_doc: str = "1"
+    """The size as the docstring table shows it."""
+    bounds_doc: str = ""
+    """The bounds as the docstring table shows them (default: those of the shared helpers)."""
+
+    def bounds_text(self) -> str:
+        named = {_unit: "[-1, 1]", _flag: "[0, 1]", _goal: "+-(map diagonal + 2)", _pred: "+-camera_range",
+                 _ellipse_axis: "[0, map diagonal]"}
+        return self.bounds_doc or named[self.bounds]
+
+    def n_columns(self, s: Scenario, sensor: Sensor | None = None) -> int:
+        if self.source == "sensor":
+            return sensor.size if sensor is not None else 0
+        return 1 if self.size is None else self.size(s)
+
+
+ENTRIES: tuple[Entry, ...] = (
+    Entry("x", "m", "pose estimate x: odometry, reset by Kinect fixes of seen leaders (``pose_source``)",
+          lambda s, b: (b[0] - MARGIN, b[2] + MARGIN), "estimate",
+          bounds_doc="map x +- 1"),
+    Entry("y", "m", "pose estimate y", lambda s, b: (b[1] - MARGIN, b[3] + MARGIN), "estimate",
+          bounds_doc="map y +- 1"),
+    Entry("cos_theta", "-", "cosine of the heading estimate", _unit, "estimate"),
+    Entry("sin_theta", "-", "sine of the heading estimate", _unit, "estimate"),
+    Entry("v", "m/s", "encoder speed: odometry increment of the last step / step (ideal: command)",
+          lambda s, b: (-s.robot.max_speed, s.robot.max_speed), "estimate", bounds_doc="+-max_speed"),
+    Entry("omega", "rad/s", "encoder turn rate, as ``v``",
+          lambda s, b: (-s.robot.max_turn_rate, s.robot.max_turn_rate), "estimate", bounds_doc="+-max_turn_rate"),
+    Entry("leader", "-", "1 if the robot leads its group, else 0 (follower)", _flag, "team"),
+    Entry("slot", "-", "position in its group's column / (n_robots - 1); 0 = leader", _flag, "team"),
+    Entry("fix_age", "s", f"time since the last absolute pose fix, capped at {MAX_FIX_AGE:g} s (large = stale)",
+          lambda s, b: (0.0, MAX_FIX_AGE), "estimate", bounds_doc=f"[0, {MAX_FIX_AGE:g}]"),
+    Entry("sigma_major", "m", "major axis (1 sigma) of the position uncertainty ellipse of the estimate",
+          _ellipse_axis, "estimate", _covariance, presets=("realistic",)),
+    Entry("sigma_minor", "m", "minor axis (1 sigma) of that ellipse", _ellipse_axis, "estimate",
+          _covariance, presets=("realistic",)),
+    Entry("sigma_axis_cos2", "-", "cos of twice the major axis angle, robot frame (1 if round)", _unit, "estimate",
+          _covariance, presets=("realistic",)),
+    Entry("sigma_axis_sin2", "-", "sin of twice the major axis angle, robot frame (0 if round)", _unit, "estimate",
+          _covariance, presets=("realistic",)),
+    Entry("sigma_heading", "rad", "heading sigma of the estimate", lambda s, b: (0.0, np.pi), "estimate",
+          _covariance, presets=("realistic",), bounds_doc="[0, pi]"),
+    Entry("goal_dx", "m", "current route waypoint in the robot frame, x ahead (from the estimate)", _goal, "mission"),
+    Entry("goal_dy", "m", "current route waypoint in the robot frame, y left", _goal, "mission"),
+    Entry("pred_dx", "m", "robot ahead in the column, x in this robot's frame (onboard camera; 0 if unseen)",
+          _pred, "camera"),
+    Entry("pred_dy", "m", "robot ahead in the column, y in this robot's frame", _pred, "camera"),
+    Entry("pred_cos", "-", "cos of its heading relative to this robot's (0 if unseen)", _unit, "camera"),
+    Entry("pred_sin", "-", "sin of its heading relative to this robot's (0 if unseen)", _unit, "camera"),
+    Entry("pred_visible", "-", "1 if a follower's camera sees its predecessor (FOV, range, walls)", _flag, "camera"),
+    Entry("kpois_visited", "-", "fraction of KPOIs visited by the team", _flag, "mission"),
+    Entry("time", "-", "fraction of the step limit elapsed", _flag, "mission"),
+    Entry("sonar", "m", "sonar ring ranges, one per beam (``robot.sonar``); max range = no echo",
+          lambda s, b: (0.0, s.robot.sonar.range_max), "sensor", bounds_doc="[0, range_max]",
+          sensor=lambda s: SonarRing(s.robot.sonar) if s.observation.sonar else None, size_doc="B (beams)"),
+    Entry("lidar", "m", "2-D lidar ranges, ray i at 360 i / n_rays deg from the heading (``robot.lidar``); "
+          "range_max = no hit", lambda s, b: (0.0, s.robot.lidar.range_max), "sensor", bounds_doc="[0, range_max]",
+          sensor=lambda s: Lidar(s.robot.lidar) if s.robot.lidar.enabled else None, presets=(), size_doc="R (rays)"),
+)
+"""The observation, in column order."""
+
+KERNEL_ENTRIES = tuple(e.name for e in ENTRIES if e.source != "sensor")
+"""The entries the compiled pass writes (all but the sensors')."""
+
+KERNEL_COLUMNS = np.dtype([(name, "i8") for name in KERNEL_ENTRIES])
+"""Record of the column of each :data:`KERNEL_ENTRIES` entry in a layout (-1: absent), addressed by
+name in the compiled pass (``parcover_env.envs.step_kernels.scalar_entries``). A structured array,
+not a NamedTuple: numba types it in its C dispatcher (a NamedTuple is typed field by field)."""
+
+
+def markdown_table() -> str:
+    """The observation table of ``ParallelCoverageEnv``'s docstring, generated from :data:`ENTRIES`."""
+    rows = ["| entry | size | unit | bounds | source | presets | meaning |", "|---|---|---|---|---|---|---|"]
+    for e in ENTRIES:
+        presets = ", ".join(e.presets) if e.presets else "off (opt-in)"
+        cells = (e.name, e.size_doc, e.unit, e.bounds_text(), e.source, presets, e.meaning)
+        rows.append("| " + " | ".join(cells) + " |")
+    return "\n".join(rows)

@@ -1,0 +1,100 @@
+"""The public stepper: one env step over ``K`` worlds of one scenario (``K = 1``: the ParallelEnv).
+
+``ParallelCoverageEnv``, the batched worlds (:mod:`parcover_env.envs.batched`) and the single-robot
+env all step through here, so the rules are written once:
+
+1. **advance** (per world, :meth:`ParallelCoverageEnv.advance`): act, integrate the physics, update the
+   pose estimator (odometry, fixes), track the mission, hand over at splits (Alg. 1), score, record;
+2. **sense and observe** (:func:`observe`, all worlds at once): one :class:`SensingState` of every
+   world; the follower cameras first, then the compiled pass writes every non-sensor entry of the
+   observation spec, then every ``sensor`` entry of the spec is filled by its sensor's ``sense`` for
+   all worlds in one call; clipped into the bounds. World ``k`` draws from its own generator in the
+   order a single world would, so it is bit for bit a separate env;
+3. **outputs** (per world, :meth:`ParallelCoverageEnv.outputs`): rewards, terminations, truncations,
+   infos;
+4. **slots** (:func:`slot_info`, :func:`with_metrics`): what a vectorized or single-agent view adds
+   to an agent's info (``metrics``, ``terminal_observation``, ``TimeLimit.truncated``, ``active``);
+   a world whose agents are all done is reset by the caller (auto-reset).
+
+The stepper reads the worlds through public names only (``team``, ``estimator``, ``progress``,
+``layout``, ``sensors``, ``camera``, ``np_random``, ...).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from parcover_env.envs.handover import CameraView
+from parcover_env.envs.metrics import episode_metrics
+from parcover_env.envs.observations import ScalarInputs
+from parcover_env.sensors.base import SensingState
+from parcover_env.sensors.relative import RelativeCamera
+
+__all__ = ["sensing_state", "observe", "step", "with_metrics", "slot_info"]
+
+
+def sensing_state(worlds: Sequence[Any], true: np.ndarray) -> SensingState:
+    """What the sensors read: ``true (K, N, 3)`` poses of the worlds, their shared walls and radius,
+    and who follows whom in each world."""
+    first = worlds[0]
+    predecessor = first.team.predecessor[None] if len(worlds) == 1 else np.stack([w.team.predecessor for w in worlds])
+    return SensingState(true, first.map.segments, float(first.scenario.robot.radius), predecessor)
+
+
+def _scalar_inputs(w: Any, reading) -> ScalarInputs:
+    est, visited = w.estimator, w.progress.visited
+    return ScalarInputs(est.estimate, est.velocity, w.team.leader, w.team.slot, est.fix_age, est.covariance,
+                        w.progress.goals(), reading.rel_xy, reading.rel_heading, reading.visible,
+                        np.count_nonzero(visited) / len(visited), w.steps / w.scenario.episode.max_steps)
+
+
+def observe(worlds: Sequence[Any], true: np.ndarray) -> np.ndarray:
+    """Observations ``(K, N, D)`` float32 of every robot of the ``K`` worlds at true poses ``(K, N, 3)``.
+    Sets each world's ``camera_view`` (the cameras' measurements Alg. 1's next hand-over uses)."""
+    first = worlds[0]
+    state = sensing_state(worlds, true)
+    rngs = [w.np_random for w in worlds]
+    camera = first.camera.sense(state, rngs)
+    obs = np.zeros((len(worlds), state.n_robots, first.layout.size), dtype=np.float32)
+    for k, w in enumerate(worlds):
+        reading = RelativeCamera.reading(camera[k])
+        w.camera_view = CameraView(w.team.predecessor, reading, w.estimator.estimate.copy())
+        w.layout.fill_scalars(obs[k], _scalar_inputs(w, reading))
+    for name, sensor in first.sensors.items():  # every sensor entry of the spec, all worlds in one call
+        if sensor is not None:
+            obs[..., first.layout.slices[name]] = sensor.sense(state, rngs)
+    for k, w in enumerate(worlds):
+        w.layout.clip(obs[k])
+    return obs
+
+
+def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.ndarray, list[tuple]]:
+    """One step of every world (``actions[k]``: world ``k``'s action dict): the observations
+    ``(K, N, D)`` and each world's ``(rewards, terminations, truncations, infos)``."""
+    true = np.stack([w.advance(a) for w, a in zip(worlds, actions, strict=True)])
+    obs = observe(worlds, true)
+    return obs, [w.outputs(true[k]) for k, w in enumerate(worlds)]
+
+
+def with_metrics(info: dict) -> dict:
+    """``info`` with the episode's metrics gathered into ``info["metrics"]`` (a dict) on the step that
+    ends it (Gymnasium's and SB3's wrappers own ``info["episode"]``)."""
+    metrics = episode_metrics(info)
+    if metrics is not None:
+        info["metrics"] = metrics
+    return info
+
+
+def slot_info(info: dict, obs: np.ndarray, terminated: bool, truncated: bool, ended: bool | None = None) -> dict:
+    """An active agent slot's info in a VecEnv: :func:`with_metrics`, ``active``, and when its episode
+    ``ended`` (default: terminated or truncated) its last observation (``terminal_observation``) and
+    ``TimeLimit.truncated``."""
+    info = with_metrics(info)
+    info["active"] = True
+    if terminated or truncated if ended is None else ended:
+        info["terminal_observation"] = obs
+        info["TimeLimit.truncated"] = truncated and not terminated
+    return info

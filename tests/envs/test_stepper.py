@@ -1,0 +1,91 @@
+"""The public stepper's rules: the hand-over's explicit camera view, the slot and metrics rules."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import parcover_env
+from parcover_env.envs import stepper
+from parcover_env.envs.handover import CameraView, update_team
+from parcover_env.envs.team import Team
+from parcover_env.sensors.relative import RelativeReading
+
+
+class FakeKinects:
+    """No fixes, nothing in view (every split falls back on the estimate); records hand-overs."""
+
+    def __init__(self):
+        self.last_fixes: dict = {}
+        self.handed: list = []
+
+    def in_view(self, xy):
+        return np.zeros(len(np.atleast_2d(xy)), dtype=bool)
+
+    def hand_over(self, poses, estimates):
+        self.handed.append((poses, estimates))
+
+
+def _at_first_tp():
+    env = parcover_env.parallel_env("tree")
+    plan = env.plan
+    team = Team(plan, reach_tol=0.2)
+    tp = next(t for t in plan.turning_points if tuple(t.robots) == (0, plan.r))
+    est = np.zeros((plan.r, 3))
+    est[:, :2] = tp.position
+    est[:, 0] -= 0.5 * np.arange(plan.r)  # a column along x, facing +x, the leader at the TP
+    return team, est, np.zeros(plan.r)
+
+
+def test_the_hand_over_uses_the_view_it_is_given_and_nothing_else():
+    team, est, progress = _at_first_tp()
+    kinects = FakeKinects()
+    update_team(team, kinects, est, progress, view=None)
+    promoted = team.leader.copy()
+    promoted[0] = False
+    assert promoted.any() and kinects.handed == []  # a split, but no camera view: no hand-over
+    team, est, progress = _at_first_tp()
+    n = len(est)
+    predecessor = np.arange(-1, n - 1)
+    reading = RelativeReading(np.tile([0.5, 0.0], (n, 1)), np.zeros(n), predecessor >= 0)
+    view = CameraView(predecessor, reading, est.copy())
+    update_team(team, kinects, est, progress, view)
+    (poses, estimates), = kinects.handed
+    assert estimates is view.estimates
+    new = np.flatnonzero(team.leader)[1:]
+    assert sorted(poses) == new.tolist()
+    for i in new:  # the robot ahead (its estimate), 0.5 m behind it as the camera saw
+        np.testing.assert_allclose(poses[i], est[i - 1] - [0.5, 0.0, 0.0], atol=1e-12)
+
+
+def test_slot_info_rules():
+    env = parcover_env.parallel_env("office", overrides={"episode": {"max_steps": 2}})
+    env.reset(seed=0)
+    still = {a: np.zeros(2, np.float32) for a in env.agents}
+    _, _, term, trunc, infos = env.step(still)
+    info = stepper.slot_info(dict(infos["robot_0"]), np.ones(3), False, False)
+    assert info["active"] and "metrics" not in info and "terminal_observation" not in info
+    _, _, term, trunc, infos = env.step(still)
+    assert trunc["robot_0"] and not term["robot_0"]
+    info = stepper.slot_info(dict(infos["robot_0"]), np.ones(3), False, True)
+    assert info["TimeLimit.truncated"] is True and info["terminal_observation"].tolist() == [1.0] * 3
+    assert info["metrics"]["steps"] == 2 and "ended" not in info["metrics"]
+    done = stepper.slot_info(dict(infos["robot_0"]), np.ones(3), True, True)
+    assert done["TimeLimit.truncated"] is False  # terminated wins
+    gone = stepper.slot_info({}, np.zeros(3), False, False, ended=True)  # left before its team
+    assert gone["TimeLimit.truncated"] is False and "terminal_observation" in gone
+
+
+def test_one_world_step_is_the_env_step():
+    a, b = parcover_env.parallel_env("office"), parcover_env.parallel_env("office")
+    oa, _ = a.reset(seed=3)
+    ob, _ = b.reset(seed=3)
+    acts = {n: np.array([0.5, 0.2], np.float32) for n in a.agents}
+    obs, ((rew, term, trunc, infos),) = stepper.step([b], [acts])
+    ra = a.step(acts)
+    assert all(np.array_equal(ra[0][n], obs[0][i]) for i, n in enumerate(a.possible_agents))
+    assert ra[1] == rew and ra[2] == term and ra[3] == trunc
+    assert b.camera_view is not None and b.camera_view.predecessor is b.team.predecessor
+    with pytest.raises(RuntimeError, match="finished episode"):
+        b.agents = []
+        stepper.step([b], [acts])
