@@ -1,5 +1,5 @@
 """Compiled (numba) angle functions, public so the compiled loops of every room use the same ones:
-:func:`wrap`, the one angle wrap (:func:`parcover_env.geometry.angles.wrap` compiled for kernels),
+:func:`wrap`, the one angle wrap (:func:`parcover_env.geometry.wrap_formula.wrap` compiled for kernels),
 :data:`wrap_angles`, the same function as a numpy ufunc (behind
 :func:`~parcover_env.geometry.angles.wrap_angle`), and libm's ``atan2`` over arrays (behind
 :func:`~parcover_env.geometry.angles.atan2`). Importing this module imports numba: the Python side
@@ -12,12 +12,12 @@ import math
 
 from numba import njit, vectorize
 
-from parcover_env.geometry import angles
+from parcover_env.geometry.wrap_formula import wrap as _formula
 
 __all__ = ["wrap", "wrap_angles", "atan2_into"]
 
-wrap = njit(cache=True, inline="always")(angles.wrap)
-"""``a`` wrapped to (-pi, pi] inside compiled code: :func:`parcover_env.geometry.angles.wrap`, the same
+wrap = njit(cache=True, inline="always")(_formula)
+"""``a`` wrapped to (-pi, pi] inside compiled code: :func:`parcover_env.geometry.wrap_formula.wrap`, the same
 float operations (no fast-math)."""
 
 

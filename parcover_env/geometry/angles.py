@@ -6,14 +6,9 @@ import math
 
 import numpy as np
 
+from parcover_env.geometry.wrap_formula import wrap
+
 __all__ = ["wrap", "wrap_angle", "rotate", "atan2"]
-
-
-def wrap(a: float) -> float:
-    """One angle ``a`` (rad) wrapped to (-pi, pi]: ``pi - ((pi - a) mod 2 pi)``, the mod taking the
-    sign of ``2 pi``. The package's one formula: compiled code uses it through
-    :func:`parcover_env.geometry.angle_kernels.wrap` and arrays through :func:`wrap_angle`."""
-    return math.pi - ((math.pi - a) % (2.0 * math.pi))
 
 
 def wrap_angle(a):

@@ -72,4 +72,4 @@ def test_the_angle_wrap_is_written_once():
     uses :func:`parcover_env.geometry.angle_kernels.wrap`, arrays :func:`~parcover_env.geometry.angles.wrap_angle`."""
     writers = {str(p.relative_to(ROOT)) for p in PACKAGE.rglob("*.py")
                if "% (2.0 * math.pi)" in p.read_text() or "np.mod(np.pi -" in p.read_text()}
-    assert writers - LEFT["wraps"] == {"parcover_env/geometry/angles.py"}
+    assert writers - LEFT["wraps"] == {"parcover_env/geometry/wrap_formula.py"}
