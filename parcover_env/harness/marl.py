@@ -30,7 +30,7 @@ from parcover_env.harness.marl_config import MarlConfig
 from parcover_env.harness.training import git_commit, write_csv
 from parcover_env.policies.torchrl_policy import POLICY_FILE, actor_net
 
-__all__ = ["TrainRequest", "EnvMaker", "build_actor", "build_critic", "build_loss", "train", "GROUP"]
+__all__ = ["TrainRequest", "EnvMaker", "build_actor", "save_policy", "build_critic", "build_loss", "train", "GROUP"]
 
 GROUP = "robot"
 """TorchRL's group of the robots (``robot_0``, ``robot_1``, ... share the prefix)."""
@@ -88,6 +88,17 @@ def build_actor(obs_low, obs_high, act_dim: int, hidden: tuple[int, ...]):
                               return_log_prob=True)
 
 
+def save_policy(actor, path: Path) -> None:
+    """Write the actor's network as the ``policy.pt`` that
+    :class:`~parcover_env.policies.torchrl_policy.TorchRLPolicy` loads (torch alone, no TorchRL)."""
+    import torch
+
+    net = actor.module[0].module[0]  # TensorDictModule -> Sequential(actor_net, NormalParamExtractor) -> actor_net
+    linear = [m for m in net if isinstance(m, torch.nn.Linear)]
+    torch.save({"state_dict": net.state_dict(), "obs_dim": linear[0].in_features,
+                "hidden": [m.out_features for m in linear[:-1]], "act_dim": linear[-1].out_features // 2}, path)
+
+
 def build_critic(algo: str, obs_dim: int, state_dim: int, hidden: tuple[int, ...]):
     """The shared value network: ``(GROUP, "state_value")`` of shape ``[..., robots, 1]``. IPPO reads
     ``(GROUP, "observation")``; MAPPO reads ``"state"`` (broadcast to every robot) and the observation."""
@@ -129,7 +140,8 @@ def build_loss(algo: str, cfg: MarlConfig, actor, critic):
                normalize_advantage=cfg.normalize_advantage)
     loss.set_keys(reward=(GROUP, "reward"), action=(GROUP, "action"), value=(GROUP, "state_value"),
                   done=(GROUP, "done"), terminated=(GROUP, "terminated"),
-                  sample_log_prob=(GROUP, "action_log_prob"))
+                  sample_log_prob=(GROUP, "action_log_prob"), advantage=(GROUP, "advantage"),
+                  value_target=(GROUP, "value_target"))
     loss.make_value_estimator(ValueEstimators.MAGAE, gamma=cfg.gamma, lmbda=cfg.gae_lambda)
     return loss
 
@@ -213,11 +225,12 @@ def train(req: TrainRequest) -> dict:
                 optim.step()
     finally:
         collector.shutdown()
+        if req.backend == "ray" and not req.ray_address:  # the local Ray this run started
+            import ray
+
+            ray.shutdown()
     req.out.mkdir(parents=True, exist_ok=True)
-    net = actor.module[0].module[0]  # TensorDictModule -> Sequential(actor_net, NormalParamExtractor) -> actor_net
-    torch.save({"state_dict": net.state_dict(), "obs_low": torch.as_tensor(obs_space.low),
-                "obs_high": torch.as_tensor(obs_space.high), "hidden": list(cfg.hidden), "act_dim": act_dim},
-               req.out / POLICY_FILE)
+    save_policy(actor, req.out / POLICY_FILE)
     write_csv(req.out / CURVE_FILE, rows)
     sidecar = {
         "algo": req.algo, "library": {"name": "torchrl", "version": md.version("torchrl")},

@@ -77,10 +77,10 @@ class MarlConfig:
 
 
 def default_config_path(algo: str) -> Path:
-    """``configs/train/ALGO.yaml`` of the installed package."""
-    import parcover_env.configs
+    """``configs/train/ALGO.yaml``: of the source checkout, else of the installed package."""
+    from parcover_env.scenarios.registry import configs_dir
 
-    return Path(parcover_env.configs.__file__).parent / "train" / f"{algo}.yaml"
+    return configs_dir() / "train" / f"{algo}.yaml"
 
 
 def load_marl_config(algo: str, path: str | Path | None = None) -> MarlConfig:

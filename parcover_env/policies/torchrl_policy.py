@@ -1,7 +1,7 @@
 """A robot policy trained by ``parcover train`` (TorchRL IPPO/MAPPO), loaded with torch alone.
 
-The checkpoint ``policy.pt`` is a dict: ``state_dict`` of :func:`actor_net`, the observation box
-(``obs_low``, ``obs_high``), ``hidden`` and ``act_dim``. Every robot runs the same network on its
+The checkpoint ``policy.pt`` is a dict: ``state_dict`` of :func:`actor_net` (the weights and the
+observation box it scales by), ``obs_dim``, ``hidden`` and ``act_dim``. Every robot runs the same network on its
 own observation (parameter sharing). The network outputs the location and the pre-softplus scale of
 a TanhNormal distribution (TorchRL's ``NormalParamExtractor`` splits them); acting takes the
 distribution's deterministic sample ``tanh(loc)``, which lies in the action box [-1, 1].
@@ -61,14 +61,14 @@ class TorchRLPolicy(Policy):
             raise ParcoverError(f"TorchRL policy checkpoint not found: {file}")
         try:
             ckpt = torch.load(file, map_location="cpu", weights_only=True)
-            self.net = actor_net(np.asarray(ckpt["obs_low"]), np.asarray(ckpt["obs_high"]), tuple(ckpt["hidden"]),
-                                 int(ckpt["act_dim"]))
+            n = int(ckpt["obs_dim"])  # the box's centre and half-width come with the state dict
+            self.net = actor_net(np.zeros(n), np.ones(n), tuple(ckpt["hidden"]), int(ckpt["act_dim"]))
             self.net.load_state_dict(ckpt["state_dict"])
         except Exception as exc:  # a foreign or corrupt file: name it instead of a deep traceback
             raise ParcoverError(f"cannot load TorchRL policy {file}: {type(exc).__name__}: {exc}") from None
         self.net.eval()
         self.act_dim = int(ckpt["act_dim"])
-        self.obs_shape = (len(ckpt["obs_low"]),)
+        self.obs_shape = (n,)
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         import torch
