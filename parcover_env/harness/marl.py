@@ -27,7 +27,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from parcover_env.harness.marl_config import MarlConfig
-from parcover_env.harness.training import git_commit, write_csv
+from parcover_env.harness.training import git_commit, plot_curve, write_csv
 from parcover_env.policies.torchrl_policy import POLICY_FILE, actor_net
 
 __all__ = ["TrainRequest", "EnvMaker", "build_actor", "save_policy", "build_critic", "build_loss", "train", "GROUP"]
@@ -56,19 +56,32 @@ class TrainRequest:
 
 class EnvMaker:
     """Picklable ``() -> TorchRL env`` (Ray workers build their own): the scenario's ParallelEnv in a
-    ``PettingZooWrapper`` with the global state, plus ``RewardSum`` of each robot's reward."""
+    ``PettingZooWrapper`` with the global state, plus ``RewardSum`` of each robot's reward. With a
+    ``seed``, the env's generator is seeded before the wrapper's first reset (every later reset
+    continues that one stream: a ParallelEnv reset without a seed keeps its generator), and so is
+    torch's generator of the process that builds the env, which samples the collector's actions
+    (in a Ray worker too)."""
 
-    def __init__(self, scenario: str, preset: str, episode_steps: int):
-        self.scenario, self.preset, self.episode_steps = scenario, preset, episode_steps
+    def __init__(self, scenario: str, preset: str, episode_steps: int, seed: int | None = None):
+        self.scenario, self.preset, self.episode_steps, self.seed = scenario, preset, episode_steps, seed
+
+    def parallel(self):
+        """The scenario's PettingZoo ParallelEnv, unwrapped and unseeded."""
+        from parcover_env import parallel_env
+
+        return parallel_env(self.scenario, preset=self.preset, max_cycles=self.episode_steps or None)
 
     def __call__(self):
         import warnings
 
         from torchrl.envs import PettingZooWrapper, RewardSum, TransformedEnv
 
-        from parcover_env import parallel_env
+        env = self.parallel()
+        if self.seed is not None:
+            import torch
 
-        env = parallel_env(self.scenario, preset=self.preset, max_cycles=self.episode_steps or None)
+            env.reset(seed=self.seed)
+            torch.manual_seed(self.seed)
         with warnings.catch_warnings():  # "tested using PettingZoo 1.24.3": ours is checked by tests/harness
             warnings.filterwarnings("ignore", message="PettingZoo in TorchRL is tested", category=UserWarning)
             wrapped = PettingZooWrapper(env, return_state=True, categorical_actions=False)
@@ -164,7 +177,6 @@ def _collector(req: TrainRequest, make_env, actor, total_frames: int):
 
         collector = Collector(make_env, actor, frames_per_batch=cfg.frames_per_batch, total_frames=total_frames,
                               auto_register_policy_transforms=False)  # a feed-forward policy needs none
-    collector.set_seed(req.seed)
     return collector
 
 
@@ -183,7 +195,8 @@ def _episodes(batch, n_kpois: int) -> list[dict]:
 
 
 def train(req: TrainRequest) -> dict:
-    """Train, then write ``policy.pt``, ``run.json`` and ``curve.csv`` into ``req.out``; returns the sidecar."""
+    """Train, then write ``policy.pt``, ``run.json``, ``curve.csv`` and ``curve.png`` into ``req.out``;
+    returns the sidecar."""
     import importlib.metadata as md
 
     import torch
@@ -193,8 +206,8 @@ def train(req: TrainRequest) -> dict:
     torch.set_num_threads(1)
     torch.manual_seed(req.seed)
     cfg, t0 = req.config, time.perf_counter()
-    probe = EnvMaker(req.scenario, cfg.preset, cfg.episode_steps)
-    base = probe().base_env._env  # the ParallelEnv: spaces, robot and KPOI counts
+    make_env = EnvMaker(req.scenario, cfg.preset, cfg.episode_steps, seed=req.seed)
+    base = make_env.parallel()  # spaces, robot and KPOI counts
     n_robots, n_kpois = base.n_robots, len(base.scenario.kpois)
     obs_space, act_dim = base.observation_space(base.possible_agents[0]), base.action_space("robot_0").shape[0]
     actor = build_actor(obs_space.low, obs_space.high, act_dim, cfg.hidden)
@@ -202,7 +215,7 @@ def train(req: TrainRequest) -> dict:
     loss = build_loss(req.algo, cfg, actor, critic)
     optim = torch.optim.Adam(loss.parameters(), lr=cfg.learning_rate)
     batches = max(1, math.ceil(req.steps / (n_robots * cfg.frames_per_batch)))
-    collector = _collector(req, probe, actor, batches * cfg.frames_per_batch)
+    collector = _collector(req, make_env, actor, batches * cfg.frames_per_batch)
     buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.frames_per_batch), sampler=SamplerWithoutReplacement(),
                           batch_size=cfg.minibatch_size)
     rows, agent_steps = [], 0
@@ -232,6 +245,7 @@ def train(req: TrainRequest) -> dict:
     req.out.mkdir(parents=True, exist_ok=True)
     save_policy(actor, req.out / POLICY_FILE)
     write_csv(req.out / CURVE_FILE, rows)
+    plot_curve(req.out)  # curve.png: KPOI fraction of the training episodes against agent-steps and wall time
     sidecar = {
         "algo": req.algo, "library": {"name": "torchrl", "version": md.version("torchrl")},
         "backend": req.backend, "ray_address": req.ray_address, "scenario": req.scenario, "init": None,

@@ -132,6 +132,7 @@ def test_short_run_writes_policy_sidecar_and_curve(backend, tmp_path):
     # 50-step episodes: 2 end in the first batch (steps 50, 100), 3 in the second (150, 200, 250)
     assert [int(r["agent_steps"]) for r in rows] == [256, 256, 512, 512, 512]
     assert list(rows[0]) == ["agent_steps", "wall_time", "episode_return", "kpoi_fraction", "success"]
+    assert (tmp_path / backend / "curve.png").stat().st_size > 0  # viz.curves drew the CSV
     assert all(0.0 <= float(r["kpoi_fraction"]) <= 1.0 for r in rows)
 
     from parcover_env import parallel_env
@@ -153,3 +154,15 @@ def test_mappo_critic_reads_the_state_ippo_critic_does_not():
         assert values[0].shape == (N, 1)
         assert (not torch.allclose(values[0], values[1])) == reads_state
         assert ("state" in critic.in_keys) == reads_state
+
+
+def test_same_seed_same_policy_local(tmp_path):
+    cfg = dataclasses.replace(load_marl_config("mappo"), frames_per_batch=64, minibatch_size=32, epochs=1,
+                              hidden=(8,), episode_steps=30)
+    weights = []
+    for seed in (5, 5, 6):
+        out = tmp_path / f"s{seed}_{len(weights)}"
+        train(TrainRequest("mappo", "office", 256, out, cfg, "x", seed=seed))
+        weights.append(torch.load(out / "policy.pt")["state_dict"])
+    same = [all(torch.equal(weights[0][k], w[k]) for k in w) for w in weights[1:]]
+    assert same == [True, False]
