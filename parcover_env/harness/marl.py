@@ -3,7 +3,8 @@
 What is TorchRL's, not ours: the env runs as is through ``PettingZooWrapper`` (per-robot
 observation, reward, ``terminated`` and ``truncated``; ``env.state()`` under ``"state"``), episode
 returns come from ``RewardSum``; ``Collector`` (``--backend local``) or ``RayCollector`` on Ray
-core (``--backend ray``: a local Ray, or the cluster at ``--ray-address``) collects;
+core (``--backend ray``: a local Ray, or the cluster at ``--ray-address``; ``ray_collectors``
+remote collectors, each with its own env seed, receive the new weights before every batch) collects;
 ``IPPOLoss`` / ``MAPPOLoss`` (``ClipPPOLoss`` with ``MultiAgentGAE``) compute advantages and
 value targets: a truncated step bootstraps from the value of its next state, a terminated one does
 not, and the collector resets the env after either. ``PopArtValueNorm`` / ``RunningValueNorm``
@@ -159,16 +160,20 @@ def build_loss(algo: str, cfg: MarlConfig, actor, critic):
     return loss
 
 
-def _collector(req: TrainRequest, make_env, actor, total_frames: int):
-    """TorchRL's single-process ``Collector``, or its ``RayCollector`` with one remote collector."""
+def _collector(req: TrainRequest, make_env: EnvMaker, actor, total_frames: int):
+    """TorchRL's single-process ``Collector``, or its ``RayCollector`` with ``ray_collectors`` remote
+    collectors (env seeds ``seed + k``) whose batches are stacked (``sync=True``)."""
     cfg = req.config
     if req.backend == "ray":
         from torchrl.collectors.distributed import RayCollector
 
-        init = {"address": req.ray_address} if req.ray_address else {"num_cpus": 1, "include_dashboard": False}
+        k = cfg.ray_collectors
+        makers = [EnvMaker(make_env.scenario, make_env.preset, make_env.episode_steps, seed=req.seed + i)
+                  for i in range(k)]
+        init = {"address": req.ray_address} if req.ray_address else {"num_cpus": k, "include_dashboard": False}
         init["log_to_driver"] = False  # the workers' warnings would print the collector's repr
-        collector = RayCollector([make_env], actor, frames_per_batch=cfg.frames_per_batch, total_frames=total_frames,
-                                 num_collectors=1, sync=True, ray_init_config=init, remote_configs={"num_cpus": 1},
+        collector = RayCollector(makers, actor, frames_per_batch=cfg.frames_per_batch, total_frames=total_frames,
+                                 num_collectors=k, sync=True, ray_init_config=init, remote_configs={"num_cpus": 1},
                                  collector_kwargs={"auto_register_policy_transforms": False},
                                  update_after_each_batch=True)  # the new weights reach the worker before each batch
         collector.update_policy_weights_()  # starts the weight synchronization

@@ -55,10 +55,14 @@ class MarlConfig:
     """Step limit of a training episode (0: the scenario's ``episode.max_steps``)."""
     preset: Literal["realistic", "ideal"] = "realistic"
     """Error models of the training env."""
+    ray_collectors: int = 1
+    """``--backend ray``: remote collectors (``RayCollector(num_collectors=...)``), one env each (seeds
+    SEED, SEED + 1, ...); each collects ``frames_per_batch / ray_collectors`` env steps of every batch."""
 
     def check(self, source: str) -> MarlConfig:
         """Self, or ConfigError naming ``source`` and the first out-of-range key."""
-        positive = ("frames_per_batch", "epochs", "minibatch_size", "learning_rate", "max_grad_norm", "clip_epsilon")
+        positive = ("frames_per_batch", "epochs", "minibatch_size", "learning_rate", "max_grad_norm", "clip_epsilon",
+                    "ray_collectors")
         for key in positive:
             if not getattr(self, key) > 0:
                 raise ConfigError(source, key, f"must be > 0, got {getattr(self, key)}")
@@ -71,6 +75,9 @@ class MarlConfig:
         if self.minibatch_size > self.frames_per_batch:
             raise ConfigError(source, "minibatch_size", f"must be <= frames_per_batch ({self.frames_per_batch}), "
                               f"got {self.minibatch_size}")
+        if self.frames_per_batch % self.ray_collectors:
+            raise ConfigError(source, "ray_collectors", f"must divide frames_per_batch ({self.frames_per_batch}), "
+                              f"got {self.ray_collectors}")
         if not self.hidden or min(self.hidden) < 1:
             raise ConfigError(source, "hidden", f"expected one or more widths >= 1, got {list(self.hidden)}")
         return self

@@ -107,7 +107,7 @@ def test_saved_policy_acts_as_the_actors_deterministic_mode(tmp_path):
 
 def _short(backend: str, tmp_path) -> tuple[dict, list[dict]]:
     cfg = dataclasses.replace(load_marl_config("ippo"), frames_per_batch=128, minibatch_size=64, epochs=1,
-                              hidden=(16,), episode_steps=50)
+                              hidden=(16,), episode_steps=50, ray_collectors=2)
     out = tmp_path / backend
     record = train(TrainRequest("ippo", "office", 500, out, cfg, "configs/train/ippo.yaml", backend=backend,
                                 seed=1, command="parcover train ippo office --steps 500"))
@@ -129,8 +129,10 @@ def test_short_run_writes_policy_sidecar_and_curve(backend, tmp_path):
     assert record["backend"] == backend and record["wall_time"] > 0 and record["commit"]
     assert record["command"] == "parcover train ippo office --steps 500"
     assert record["policy"] == f"torchrl:{tmp_path / backend / 'policy.pt'}"
-    # 50-step episodes: 2 end in the first batch (steps 50, 100), 3 in the second (150, 200, 250)
-    assert [int(r["agent_steps"]) for r in rows] == [256, 256, 512, 512, 512]
+    # 50-step episodes. Local: one env, 2 end in the first batch (steps 50, 100), 3 in the second (150, 200,
+    # 250). Ray: two collectors of 64 steps per batch, each ends one episode per batch (its steps 50 and 100)
+    expected = [256, 256, 512, 512, 512] if backend == "local" else [256, 256, 512, 512]
+    assert [int(r["agent_steps"]) for r in rows] == expected
     assert list(rows[0]) == ["agent_steps", "wall_time", "episode_return", "kpoi_fraction", "success"]
     assert (tmp_path / backend / "curve.png").stat().st_size > 0  # viz.curves drew the CSV
     assert all(0.0 <= float(r["kpoi_fraction"]) <= 1.0 for r in rows)

@@ -23,6 +23,7 @@ def test_shipped_configs_load(algo):
     ("minibatch_size: 2048\nframes_per_batch: 1024\n", "minibatch_size", "<= frames_per_batch"),
     ("learning_rate: 0\n", "learning_rate", "> 0"),
     ("hidden: []\n", "hidden", "widths"),
+    ("ray_collectors: 3\n", "ray_collectors", "divide frames_per_batch"),
 ])
 def test_bad_values_name_file_and_key(tmp_path, text, key, words):
     path = tmp_path / "bad.yaml"
