@@ -228,9 +228,11 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--seed", type=non_negative_int, default=0)
     f.set_defaults(func=cmd_render)
     from parcover_env.cli.bench import add_bench_parser, add_collect_parser
+    from parcover_env.cli.train import add_train_parser
 
     add_bench_parser(sub)
     add_collect_parser(sub)
+    add_train_parser(sub)
     pl = sub.add_parser("plan", help="PPCP plan: print r, c_max, c_p and the TPs; draw it")
     pl.add_argument("scenario", nargs="?", default="office")
     pl.add_argument("--png", default=None, help="draw the map, roadmap, plan tree and Kinect tree here")

@@ -82,6 +82,21 @@ def _learned(kind: str) -> Callable[[Any, int | None, str], Policy]:
     return build
 
 
+def _torchrl(env, seed: int | None, path: str) -> Policy:
+    from parcover_env.errors import require
+
+    torch = require("torch", "train", f"policy 'torchrl:{path}'")
+    from parcover_env.policies.torchrl_policy import TorchRLPolicy
+
+    torch.set_num_threads(1)
+    policy = TorchRLPolicy(path)
+    expected = env.observation_space(env.possible_agents[0]).shape
+    if tuple(policy.obs_shape) != tuple(expected):
+        raise ParcoverError(f"policy 'torchrl:{path}' was trained on observations of shape "
+                            f"{tuple(policy.obs_shape)}; scenario '{env.scenario.name}' gives {tuple(expected)}")
+    return policy
+
+
 POLICIES: dict[str, PolicyEntry] = {
     "expert": PolicyEntry(_expert, "the scripted expert of the scenario's localization mode"),
     "waypoint": PolicyEntry(_waypoint, "each robot drives to its observed route waypoint, alone"),
@@ -89,12 +104,13 @@ POLICIES: dict[str, PolicyEntry] = {
     "ppo": PolicyEntry(_learned("ppo"), "a saved SB3 PPO model (model.zip + vecnormalize.pkl)", needs_path=True),
     "bc": PolicyEntry(_learned("bc"), "a behaviour-cloned MLP (bc.pt)", needs_path=True),
     "mappo": PolicyEntry(_learned("mappo"), "a MAPPO actor (actor.pt)", needs_path=True),
+    "torchrl": PolicyEntry(_torchrl, "an IPPO/MAPPO actor from parcover train (DIR/policy.pt)", needs_path=True),
 }
 """Every policy by name; see the module docstring to add one."""
 
 
 def policy_specs() -> str:
-    """The accepted specs, e.g. ``expert | waypoint | random | ppo:PATH | bc:PATH | mappo:PATH``."""
+    """The accepted specs, e.g. ``expert | waypoint | random | ppo:PATH | bc:PATH | mappo:PATH | torchrl:PATH``."""
     return " | ".join(f"{name}:PATH" if e.needs_path else name for name, e in POLICIES.items())
 
 

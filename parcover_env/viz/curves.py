@@ -1,5 +1,6 @@
 """Learning curves of training runs: ``curve.csv`` (training episodes) and ``eval.csv`` (periodic
-evaluation) written by ``baselines/train_ppo.py``, against agent-steps and wall time."""
+evaluation) written by ``baselines/train_ppo.py`` (agent-steps in ``timesteps``) and ``parcover train``
+(agent-steps in ``agent_steps``), against agent-steps and wall time."""
 
 from __future__ import annotations
 
@@ -57,7 +58,8 @@ def plot_learning_curves(runs: list[str | Path], path: str | Path, labels: list[
             rows = read_rows(run / "curve.csv")
             if rows:
                 y = smooth(np.array([r[metric] for r in rows]), window)
-                axes[0].plot([r["timesteps"] for r in rows], y, color=color, lw=1, alpha=0.6)
+                steps = [r["agent_steps"] if "agent_steps" in r else r["timesteps"] for r in rows]
+                axes[0].plot(steps, y, color=color, lw=1, alpha=0.6)
                 axes[1].plot([r["wall_time"] / 60 for r in rows], y, color=color, lw=1, alpha=0.6)
         if (run / "eval.csv").is_file():
             ev = read_rows(run / "eval.csv")

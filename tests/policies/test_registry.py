@@ -66,11 +66,12 @@ def test_one_entry_adds_a_policy(monkeypatch, capsys):
     for command in ("run", "bench"):
         with pytest.raises(SystemExit):
             build_parser().parse_args([command, "--help"])
-        assert "random | ppo:PATH | bc:PATH | mappo:PATH | still" in " ".join(capsys.readouterr().out.split())
+        help_text = " ".join(capsys.readouterr().out.split())
+        assert "random | ppo:PATH | bc:PATH | mappo:PATH | torchrl:PATH | still" in help_text
 
 
 def test_specs_and_errors():
-    assert policy_specs() == "expert | waypoint | random | ppo:PATH | bc:PATH | mappo:PATH"
+    assert policy_specs() == "expert | waypoint | random | ppo:PATH | bc:PATH | mappo:PATH | torchrl:PATH"
     with pytest.raises(ParcoverError, match=r"unknown policy 'greedy' \(choose from expert \| waypoint"):
         check_policy_spec("greedy")
     with pytest.raises(ParcoverError, match="give a checkpoint"):

@@ -1,0 +1,263 @@
+"""``parcover train``: IPPO and MAPPO with parameter sharing, through TorchRL's maintained parts.
+
+What is TorchRL's, not ours: the env runs as is through ``PettingZooWrapper`` (per-robot
+observation, reward, ``terminated`` and ``truncated``; ``env.state()`` under ``"state"``), episode
+returns come from ``RewardSum``; ``Collector`` (``--backend local``) or ``RayCollector`` on Ray
+core (``--backend ray``: a local Ray, or the cluster at ``--ray-address``; ``ray_collectors``
+remote collectors, each with its own env seed, receive the new weights before every batch) collects;
+``IPPOLoss`` / ``MAPPOLoss`` (``ClipPPOLoss`` with ``MultiAgentGAE``) compute advantages and
+value targets: a truncated step bootstraps from the value of its next state, a terminated one does
+not, and the collector resets the env after either. ``PopArtValueNorm`` / ``RunningValueNorm``
+normalize the value targets; a ``ReplayBuffer`` without replacement serves the minibatches.
+
+The two algorithms differ only in the critic. IPPO (de Witt et al. 2020): each robot's value of
+its own observation. MAPPO (Yu et al. 2022): one critic on the global state ``env.state()``
+concatenated with the robot's own observation (the MAPPO paper's agent-specific global state);
+its size is read from ``env.state_space``. Actor and critic are each one network shared by every
+robot. Settings: :class:`~parcover_env.harness.marl_config.MarlConfig` (``configs/train/``).
+
+torch, torchrl and ray are imported inside the functions (``pip install 'parcover_env[train]'``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from parcover_env.harness.marl_config import MarlConfig
+from parcover_env.harness.training import git_commit, plot_curve, write_csv
+from parcover_env.policies.torchrl_policy import POLICY_FILE, actor_net
+
+__all__ = ["TrainRequest", "EnvMaker", "build_actor", "save_policy", "build_critic", "build_loss", "train", "GROUP"]
+
+GROUP = "robot"
+"""TorchRL's group of the robots (``robot_0``, ``robot_1``, ... share the prefix)."""
+CURVE_FILE, SIDECAR_FILE = "curve.csv", "run.json"
+
+
+@dataclass(frozen=True)
+class TrainRequest:
+    """One ``parcover train`` run."""
+
+    algo: str
+    scenario: str
+    steps: int
+    """Agent-steps to collect at least (whole batches: rounded up)."""
+    out: Path
+    config: MarlConfig
+    config_path: str
+    backend: str = "local"
+    ray_address: str | None = None
+    seed: int = 0
+    command: str = ""
+
+
+class EnvMaker:
+    """Picklable ``() -> TorchRL env`` (Ray workers build their own): the scenario's ParallelEnv in a
+    ``PettingZooWrapper`` with the global state, plus ``RewardSum`` of each robot's reward. With a
+    ``seed``, the env's generator is seeded before the wrapper's first reset (every later reset
+    continues that one stream: a ParallelEnv reset without a seed keeps its generator), and so is
+    torch's generator of the process that builds the env, which samples the collector's actions
+    (in a Ray worker too)."""
+
+    def __init__(self, scenario: str, preset: str, episode_steps: int, seed: int | None = None):
+        self.scenario, self.preset, self.episode_steps, self.seed = scenario, preset, episode_steps, seed
+
+    def parallel(self):
+        """The scenario's PettingZoo ParallelEnv, unwrapped and unseeded."""
+        from parcover_env import parallel_env
+
+        return parallel_env(self.scenario, preset=self.preset, max_cycles=self.episode_steps or None)
+
+    def __call__(self):
+        import warnings
+
+        from torchrl.envs import PettingZooWrapper, RewardSum, TransformedEnv
+
+        env = self.parallel()
+        if self.seed is not None:
+            import torch
+
+            env.reset(seed=self.seed)
+            torch.manual_seed(self.seed)
+        with warnings.catch_warnings():  # "tested using PettingZoo 1.24.3": ours is checked by tests/harness
+            warnings.filterwarnings("ignore", message="PettingZoo in TorchRL is tested", category=UserWarning)
+            wrapped = PettingZooWrapper(env, return_state=True, categorical_actions=False)
+        return TransformedEnv(wrapped, RewardSum(in_keys=[(GROUP, "reward")], out_keys=[(GROUP, "episode_reward")]))
+
+
+def build_actor(obs_low, obs_high, act_dim: int, hidden: tuple[int, ...]):
+    """The shared stochastic policy: :func:`actor_net` -> ``NormalParamExtractor`` -> TanhNormal on [-1, 1]."""
+    from tensordict.nn import NormalParamExtractor, TensorDictModule
+    from torch import nn
+    from torchrl.modules import ProbabilisticActor, TanhNormal
+
+    net = nn.Sequential(actor_net(obs_low, obs_high, hidden, act_dim), NormalParamExtractor())
+    module = TensorDictModule(net, in_keys=[(GROUP, "observation")], out_keys=[(GROUP, "loc"), (GROUP, "scale")])
+    return ProbabilisticActor(module, in_keys=[(GROUP, "loc"), (GROUP, "scale")], out_keys=[(GROUP, "action")],
+                              distribution_class=TanhNormal, distribution_kwargs={"low": -1.0, "high": 1.0},
+                              return_log_prob=True)
+
+
+def save_policy(actor, path: Path) -> None:
+    """Write the actor's network as the ``policy.pt`` that
+    :class:`~parcover_env.policies.torchrl_policy.TorchRLPolicy` loads (torch alone, no TorchRL)."""
+    import torch
+
+    net = actor.module[0].module[0]  # TensorDictModule -> Sequential(actor_net, NormalParamExtractor) -> actor_net
+    linear = [m for m in net if isinstance(m, torch.nn.Linear)]
+    torch.save({"state_dict": net.state_dict(), "obs_dim": linear[0].in_features,
+                "hidden": [m.out_features for m in linear[:-1]], "act_dim": linear[-1].out_features // 2}, path)
+
+
+def build_critic(algo: str, obs_dim: int, state_dim: int, hidden: tuple[int, ...]):
+    """The shared value network: ``(GROUP, "state_value")`` of shape ``[..., robots, 1]``. IPPO reads
+    ``(GROUP, "observation")``; MAPPO reads ``"state"`` (broadcast to every robot) and the observation."""
+    import torch
+    from tensordict.nn import TensorDictModule
+    from torch import nn
+    from torchrl.modules import MLP
+
+    class StateAndObservation(nn.Module):
+        """``value(cat(state, obs_i))`` for every robot ``i`` with one network."""
+
+        def __init__(self, mlp: nn.Module):
+            super().__init__()
+            self.mlp = mlp
+
+        def forward(self, state, obs):
+            state = state.unsqueeze(-2).expand(*obs.shape[:-1], state.shape[-1])
+            return self.mlp(torch.cat([state, obs], dim=-1))
+
+    n_in = obs_dim + (state_dim if algo == "mappo" else 0)
+    mlp = MLP(in_features=n_in, out_features=1, num_cells=list(hidden), activation_class=nn.Tanh)
+    if algo == "mappo":
+        return TensorDictModule(StateAndObservation(mlp), in_keys=["state", (GROUP, "observation")],
+                                out_keys=[(GROUP, "state_value")])
+    return TensorDictModule(mlp, in_keys=[(GROUP, "observation")], out_keys=[(GROUP, "state_value")])
+
+
+def build_loss(algo: str, cfg: MarlConfig, actor, critic):
+    """``IPPOLoss`` or ``MAPPOLoss`` with the group's keys, the configured value normalization and
+    ``MultiAgentGAE(gamma, lmbda)`` as its value estimator."""
+    from torchrl.modules import PopArtValueNorm, RunningValueNorm
+    from torchrl.objectives import ValueEstimators
+    from torchrl.objectives.multiagent import IPPOLoss, MAPPOLoss
+
+    norm = {"popart": PopArtValueNorm, "running": RunningValueNorm}.get(cfg.value_norm)
+    cls = MAPPOLoss if algo == "mappo" else IPPOLoss
+    loss = cls(actor, critic, value_norm=norm(shape=1) if norm else None, clip_epsilon=cfg.clip_epsilon,
+               entropy_coeff=cfg.entropy_coeff, critic_coeff=cfg.critic_coeff,
+               normalize_advantage=cfg.normalize_advantage)
+    loss.set_keys(reward=(GROUP, "reward"), action=(GROUP, "action"), value=(GROUP, "state_value"),
+                  done=(GROUP, "done"), terminated=(GROUP, "terminated"),
+                  sample_log_prob=(GROUP, "action_log_prob"), advantage=(GROUP, "advantage"),
+                  value_target=(GROUP, "value_target"))
+    loss.make_value_estimator(ValueEstimators.MAGAE, gamma=cfg.gamma, lmbda=cfg.gae_lambda)
+    return loss
+
+
+def _collector(req: TrainRequest, make_env: EnvMaker, actor, total_frames: int):
+    """TorchRL's single-process ``Collector``, or its ``RayCollector`` with ``ray_collectors`` remote
+    collectors (env seeds ``seed + k``) whose batches are stacked (``sync=True``)."""
+    cfg = req.config
+    if req.backend == "ray":
+        from torchrl.collectors.distributed import RayCollector
+
+        k = cfg.ray_collectors
+        makers = [EnvMaker(make_env.scenario, make_env.preset, make_env.episode_steps, seed=req.seed + i)
+                  for i in range(k)]
+        init = {"address": req.ray_address} if req.ray_address else {"num_cpus": k, "include_dashboard": False}
+        init["log_to_driver"] = False  # the workers' warnings would print the collector's repr
+        collector = RayCollector(makers, actor, frames_per_batch=cfg.frames_per_batch, total_frames=total_frames,
+                                 num_collectors=k, sync=True, ray_init_config=init, remote_configs={"num_cpus": 1},
+                                 collector_kwargs={"auto_register_policy_transforms": False},
+                                 update_after_each_batch=True)  # the new weights reach the worker before each batch
+        collector.update_policy_weights_()  # starts the weight synchronization
+    else:
+        from torchrl.collectors import Collector
+
+        collector = Collector(make_env, actor, frames_per_batch=cfg.frames_per_batch, total_frames=total_frames,
+                              auto_register_policy_transforms=False)  # a feed-forward policy needs none
+    return collector
+
+
+def _episodes(batch, n_kpois: int) -> list[dict]:
+    """Return, KPOI fraction and success of every episode that ended in ``batch``."""
+    nxt = batch.reshape(-1)["next"]  # (time,), or (collectors, time) from RayCollector
+    ended = nxt["done"].reshape(-1).nonzero().flatten().tolist()
+    nxt = nxt[GROUP]
+    out = []
+    for t in ended:
+        info = nxt["info"][t]
+        out.append({"episode_return": float(nxt["episode_reward"][t].mean()),
+                    "kpoi_fraction": float(info["metrics/kpois_visited"][0]) / max(n_kpois, 1),
+                    "success": float(info["metrics/success"][0])})
+    return out
+
+
+def train(req: TrainRequest) -> dict:
+    """Train, then write ``policy.pt``, ``run.json``, ``curve.csv`` and ``curve.png`` into ``req.out``;
+    returns the sidecar."""
+    import importlib.metadata as md
+
+    import torch
+    from torchrl.data import LazyTensorStorage, ReplayBuffer
+    from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
+
+    torch.set_num_threads(1)
+    torch.manual_seed(req.seed)
+    cfg, t0 = req.config, time.perf_counter()
+    make_env = EnvMaker(req.scenario, cfg.preset, cfg.episode_steps, seed=req.seed)
+    base = make_env.parallel()  # spaces, robot and KPOI counts
+    n_robots, n_kpois = base.n_robots, len(base.scenario.kpois)
+    obs_space, act_dim = base.observation_space(base.possible_agents[0]), base.action_space("robot_0").shape[0]
+    actor = build_actor(obs_space.low, obs_space.high, act_dim, cfg.hidden)
+    critic = build_critic(req.algo, obs_space.shape[0], base.state_space.shape[0], cfg.hidden)
+    loss = build_loss(req.algo, cfg, actor, critic)
+    optim = torch.optim.Adam(loss.parameters(), lr=cfg.learning_rate)
+    batches = max(1, math.ceil(req.steps / (n_robots * cfg.frames_per_batch)))
+    collector = _collector(req, make_env, actor, batches * cfg.frames_per_batch)
+    buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.frames_per_batch), sampler=SamplerWithoutReplacement(),
+                          batch_size=cfg.minibatch_size)
+    rows, agent_steps = [], 0
+    try:
+        for batch in collector:
+            agent_steps += batch.numel() * n_robots
+            wall = time.perf_counter() - t0
+            rows += [{"agent_steps": agent_steps, "wall_time": round(wall, 3), **ep}
+                     for ep in _episodes(batch, n_kpois)]
+            with torch.no_grad():
+                loss.value_estimator(batch, params=loss.critic_network_params,
+                                     target_params=loss.target_critic_network_params)
+            buffer.extend(batch.reshape(-1))
+            for _ in range(cfg.epochs * (cfg.frames_per_batch // cfg.minibatch_size)):
+                parts = loss(buffer.sample())
+                total = parts["loss_objective"] + parts["loss_critic"] + parts.get("loss_entropy", 0.0)
+                optim.zero_grad()
+                total.backward()
+                torch.nn.utils.clip_grad_norm_(loss.parameters(), cfg.max_grad_norm)
+                optim.step()
+    finally:
+        collector.shutdown()
+        if req.backend == "ray" and not req.ray_address:  # the local Ray this run started
+            import ray
+
+            ray.shutdown()
+    req.out.mkdir(parents=True, exist_ok=True)
+    save_policy(actor, req.out / POLICY_FILE)
+    write_csv(req.out / CURVE_FILE, rows)
+    plot_curve(req.out)  # curve.png: KPOI fraction of the training episodes against agent-steps and wall time
+    sidecar = {
+        "algo": req.algo, "library": {"name": "torchrl", "version": md.version("torchrl")},
+        "backend": req.backend, "ray_address": req.ray_address, "scenario": req.scenario, "init": None,
+        "agent_steps": agent_steps, "wall_time": round(time.perf_counter() - t0, 3), "seed": req.seed,
+        "command": req.command, "commit": git_commit(Path(__file__).parent), "config_file": req.config_path,
+        "config": asdict(cfg), "n_robots": n_robots, "episodes": len(rows),
+        "policy": f"torchrl:{req.out / POLICY_FILE}", "curve": CURVE_FILE,
+    }
+    (req.out / SIDECAR_FILE).write_text(json.dumps(sidecar, indent=2) + "\n")
+    return sidecar

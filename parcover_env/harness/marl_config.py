@@ -1,0 +1,104 @@
+"""Hyper-parameters of ``parcover train`` (IPPO, MAPPO), one YAML per algorithm in ``configs/train/``.
+
+:class:`MarlConfig` is a frozen typed dataclass filled by the project's config loader
+(:func:`parcover_env.config.from_mapping`): an unknown key, a wrong type or a value out of range is
+one :class:`~parcover_env.errors.ConfigError` naming the file and the key. Every field is a knob of a
+TorchRL component (named beside it); the trainer only passes them on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+from parcover_env.config import from_mapping, read_yaml
+from parcover_env.errors import ConfigError
+
+__all__ = ["MarlConfig", "ALGOS", "default_config_path", "load_marl_config"]
+
+ALGOS = ("ippo", "mappo")
+"""The algorithms ``parcover train`` knows: IPPO (per-agent critic), MAPPO (centralized critic)."""
+
+
+@dataclass(frozen=True)
+class MarlConfig:
+    """PPO settings, collected and optimized by TorchRL (agent-steps = env steps x robots)."""
+
+    frames_per_batch: int = 1024
+    """Env steps per collected batch (``Collector(frames_per_batch=...)``); each holds every robot."""
+    epochs: int = 4
+    """Passes over each batch."""
+    minibatch_size: int = 256
+    """Env steps per gradient step (``ReplayBuffer(batch_size=...)``, sampled without replacement)."""
+    learning_rate: float = 3e-4
+    """Adam step size for actor and critic."""
+    max_grad_norm: float = 0.5
+    """Gradients are clipped to this global norm."""
+    gamma: float = 0.99
+    """Discount (``MultiAgentGAE(gamma=...)``)."""
+    gae_lambda: float = 0.95
+    """GAE lambda (``MultiAgentGAE(lmbda=...)``)."""
+    clip_epsilon: float = 0.2
+    """PPO ratio clip (``ClipPPOLoss(clip_epsilon=...)``)."""
+    entropy_coeff: float = 0.0
+    """Entropy bonus weight."""
+    critic_coeff: float = 1.0
+    """Critic loss weight."""
+    value_norm: Literal["popart", "running", "none"] = "popart"
+    """Value-target normalization: ``PopArtValueNorm`` (MAPPO paper), ``RunningValueNorm`` or none."""
+    normalize_advantage: bool = True
+    """Standardize advantages per minibatch (over time, not across robots)."""
+    hidden: tuple[int, ...] = (128, 128)
+    """Hidden layer widths of the actor and the critic (tanh MLPs, shared by every robot)."""
+    episode_steps: int = 0
+    """Step limit of a training episode (0: the scenario's ``episode.max_steps``)."""
+    preset: Literal["realistic", "ideal"] = "realistic"
+    """Error models of the training env."""
+    ray_collectors: int = 1
+    """``--backend ray``: remote collectors (``RayCollector(num_collectors=...)``), one env each (seeds
+    SEED, SEED + 1, ...); each collects ``frames_per_batch / ray_collectors`` env steps of every batch."""
+
+    def check(self, source: str) -> MarlConfig:
+        """Self, or ConfigError naming ``source`` and the first out-of-range key."""
+        positive = ("frames_per_batch", "epochs", "minibatch_size", "learning_rate", "max_grad_norm", "clip_epsilon",
+                    "ray_collectors")
+        for key in positive:
+            if not getattr(self, key) > 0:
+                raise ConfigError(source, key, f"must be > 0, got {getattr(self, key)}")
+        for key in ("gamma", "gae_lambda"):
+            if not 0.0 <= getattr(self, key) <= 1.0:
+                raise ConfigError(source, key, f"must be in [0, 1], got {getattr(self, key)}")
+        for key in ("entropy_coeff", "critic_coeff", "episode_steps"):
+            if getattr(self, key) < 0:
+                raise ConfigError(source, key, f"must be >= 0, got {getattr(self, key)}")
+        if self.minibatch_size > self.frames_per_batch:
+            raise ConfigError(source, "minibatch_size", f"must be <= frames_per_batch ({self.frames_per_batch}), "
+                              f"got {self.minibatch_size}")
+        if self.frames_per_batch % self.ray_collectors:
+            raise ConfigError(source, "ray_collectors", f"must divide frames_per_batch ({self.frames_per_batch}), "
+                              f"got {self.ray_collectors}")
+        if not self.hidden or min(self.hidden) < 1:
+            raise ConfigError(source, "hidden", f"expected one or more widths >= 1, got {list(self.hidden)}")
+        return self
+
+
+def default_config_path(algo: str) -> Path:
+    """``configs/train/ALGO.yaml``: of the source checkout, else of the installed package."""
+    from parcover_env.scenarios.registry import configs_dir
+
+    return configs_dir() / "train" / f"{algo}.yaml"
+
+
+def load_marl_config(algo: str, path: str | Path | None = None) -> MarlConfig:
+    """The settings of ``algo`` from ``path`` (default: :func:`default_config_path`)."""
+    path = Path(path) if path is not None else default_config_path(algo)
+    source = str(path)
+    if not path.is_file():
+        raise ConfigError(source, "", "no such file")
+    data = read_yaml(path)
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError(source, "", f"expected a mapping of settings, got {type(data).__name__}")
+    return from_mapping(MarlConfig, data, source).check(source)

@@ -1,0 +1,83 @@
+"""A robot policy trained by ``parcover train`` (TorchRL IPPO/MAPPO), loaded with torch alone.
+
+The checkpoint ``policy.pt`` is a dict: ``state_dict`` of :func:`actor_net` (the weights and the
+observation box it scales by), ``obs_dim``, ``hidden`` and ``act_dim``. Every robot runs the same network on its
+own observation (parameter sharing). The network outputs the location and the pre-softplus scale of
+a TanhNormal distribution (TorchRL's ``NormalParamExtractor`` splits them); acting takes the
+distribution's deterministic sample ``tanh(loc)``, which lies in the action box [-1, 1].
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from parcover_env.errors import ParcoverError
+from parcover_env.policies.protocol import Policy
+
+__all__ = ["actor_net", "TorchRLPolicy", "POLICY_FILE"]
+
+POLICY_FILE = "policy.pt"
+"""The checkpoint's name in a ``parcover train`` output directory."""
+
+
+def actor_net(obs_low: np.ndarray, obs_high: np.ndarray, hidden: tuple[int, ...], act_dim: int):
+    """``obs -> (loc, scale parameter)`` per robot: the observation box scaled to [-1, 1], then a tanh
+    MLP with ``2 * act_dim`` outputs. Works on any leading dimensions (time, robots)."""
+    import torch
+    from torch import nn
+
+    class BoxScale(nn.Module):
+        """``(x - centre) / half_width`` of a finite box (a fixed affine map, saved with the weights)."""
+
+        def __init__(self, low: np.ndarray, high: np.ndarray):
+            super().__init__()
+            low_t, high_t = torch.as_tensor(low, dtype=torch.float32), torch.as_tensor(high, dtype=torch.float32)
+            self.register_buffer("centre", (low_t + high_t) / 2)
+            self.register_buffer("half_width", torch.clamp((high_t - low_t) / 2, min=1e-6))
+
+        def forward(self, x):
+            return (x - self.centre) / self.half_width
+
+    layers: list[nn.Module] = [BoxScale(obs_low, obs_high)]
+    last = len(obs_low)
+    for width in hidden:
+        layers += [nn.Linear(last, width), nn.Tanh()]
+        last = width
+    layers.append(nn.Linear(last, 2 * act_dim))
+    return nn.Sequential(*layers)
+
+
+class TorchRLPolicy(Policy):
+    """The actor of a ``parcover train`` run: ``torchrl:DIR`` or ``torchrl:DIR/policy.pt``."""
+
+    def __init__(self, path: str | Path):
+        import torch
+
+        path = Path(path)
+        file = path / POLICY_FILE if path.is_dir() else path
+        if not file.is_file():
+            raise ParcoverError(f"TorchRL policy checkpoint not found: {file}")
+        try:
+            ckpt = torch.load(file, map_location="cpu", weights_only=True)
+            n = int(ckpt["obs_dim"])  # the box's centre and half-width come with the state dict
+            self.net = actor_net(np.zeros(n), np.ones(n), tuple(ckpt["hidden"]), int(ckpt["act_dim"]))
+            self.net.load_state_dict(ckpt["state_dict"])
+        except Exception as exc:  # a foreign or corrupt file: name it instead of a deep traceback
+            raise ParcoverError(f"cannot load TorchRL policy {file}: {type(exc).__name__}: {exc}") from None
+        self.net.eval()
+        self.act_dim = int(ckpt["act_dim"])
+        self.obs_shape = (n,)
+
+    def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        import torch
+
+        agents = sorted(observations)
+        if not agents:
+            return {}
+        obs = torch.as_tensor(np.stack([np.asarray(observations[a], dtype=np.float32) for a in agents]))
+        with torch.no_grad():
+            loc = self.net(obs)[:, : self.act_dim]
+        actions = torch.tanh(loc).numpy().astype(np.float32)
+        return {a: actions[i] for i, a in enumerate(agents)}
