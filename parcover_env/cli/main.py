@@ -245,7 +245,7 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--out", default="kinect_views", help="output directory (default: kinect_views/)")
     k.add_argument("--seed", type=non_negative_int, default=0)
     k.set_defaults(func=cmd_kinect)
-    se = sub.add_parser("sectors", help="sonar visibility sectors of a map (seed B Fig. 3/4)")
+    se = sub.add_parser("sectors", help="sonar visibility sectors of a map (Kim, Pearce & Amato Fig. 3/4)")
     se.add_argument("scenario", nargs="?", default="t_room")
     se.add_argument("--rule", type=int, choices=(0, 1, 2), default=2, help="0 original, 1 or 2 merge rule")
     se.add_argument("--png", default=None, help="draw the sectors here")
@@ -253,7 +253,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="sonar range in metres, or inf (default: the scenario's sonar range_max)")
     se.add_argument("--json", action="store_true", help="print features and sectors as one JSON object")
     se.add_argument("--rearrangement", default=None, metavar="PNG",
-                    help="draw seed B Fig. 9(a)->(b) here: two robots' subgoals before/after the bisector "
+                    help="draw Kim, Pearce & Amato Fig. 9(a)->(b) here: two robots' subgoals before/after the bisector "
                     "rearrangement")
     se.set_defaults(func=cmd_sectors)
     return p

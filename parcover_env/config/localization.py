@@ -16,7 +16,7 @@ __all__ = ["KinectTrackingConfig"]
 
 @dataclass(frozen=True)
 class KinectTrackingConfig:
-    """Identity tracking of leaders across overhead Kinects (seed A)."""
+    """Identity tracking of leaders across overhead Kinects (Min et al.)."""
 
     gate: float = 1.0
     """A Kinect detection is matched to a leader only within this distance of the leader's

@@ -25,7 +25,7 @@ __all__ = ["ExpertConfig", "NavigatorConfig", "SonarFixConfig", "expert_config"]
 
 @dataclass(frozen=True)
 class SonarFixConfig:
-    """Sonar fixes of leaders out of Kinect view (``localization: both``; seed A + seed B)."""
+    """Sonar fixes of leaders out of Kinect view (``localization: both``; Min et al. + Kim, Pearce & Amato)."""
 
     stale_after: float = 8.0
     """A leader whose last Kinect fix is older than this stops to scan (s)."""
@@ -50,7 +50,7 @@ class SonarFixConfig:
     covariance (Mahalanobis distance), and the localizer searches that ellipse (-). The covariance
     is the odometry's (observed, Chong & Kleeman) until a sonar fix, then the expert's own
     propagation from the fix: a gate along the covariance ellipse admits a drifted robot's true
-    fix along the major axis without admitting false matches along the minor one (seed B 3-4)."""
+    fix along the major axis without admitting false matches along the minor one (Kim, Pearce & Amato §3-4)."""
     gate_heading_deg: float = 15.0
     """A fix is accepted only within this heading of the belief... (deg): rooms are nearly
     symmetric, and a scan often matches the map turned by 90 or 180 degrees about a nearby point."""
@@ -91,7 +91,7 @@ class SonarFixConfig:
     follow_chain: bool = True
     """A follower that sees the robot ahead fuses, at every step, the pose that the camera measurement
     implies (the robot ahead's belief composed with the measured relative pose) into its own belief
-    (a Kalman update with the chained covariance): seed A's followers are localized relative to
+    (a Kalman update with the chained covariance): Min et al.'s followers are localized relative to
     their leader, so a follower promoted at a split starts from its leader's accuracy instead of its
     own drifted, contact-pushed odometry. False: followers keep pure odometry until they lead."""
 
@@ -116,7 +116,7 @@ class SonarFixConfig:
 
 @dataclass(frozen=True)
 class NavigatorConfig:
-    """Seed B's NAVIGATOR (``localization: sonar``; :mod:`parcover_env.expert.navigator`)."""
+    """Kim, Pearce & Amato's NAVIGATOR (``localization: sonar``; :mod:`parcover_env.expert.navigator`)."""
 
     node_step: float = 0.05
     """Spacing of the path nodes scored as subgoal candidates (m)."""
@@ -141,7 +141,7 @@ class NavigatorConfig:
     range_margin: float = 0.15
     """Features are looked for within the sonar's ``range_max`` minus this (m)."""
     max_shift: float = 0.6
-    """Bisector rearrangement (seed B §4): farthest an off-path subgoal may lie from its path, and
+    """Bisector rearrangement (Kim, Pearce & Amato §4): farthest an off-path subgoal may lie from its path, and
     farthest it may slide along the bisector to keep the robots apart (m)."""
     shift_step: float = 0.1
     """Bisector rearrangement: step of that slide along the bisector (m)."""
@@ -174,7 +174,7 @@ class NavigatorConfig:
     """Sonar beams within this of +-90 deg are the side beams: a side echo closer than radius +
     ``slow_margin`` turns a driving robot away from it, at omega_max at radius + ``stop_margin`` (deg)."""
     sector_rule: int = 2
-    """Visibility sector merge rule of the localizer's sectors (0 = none, 1 or 2, seed B)."""
+    """Visibility sector merge rule of the localizer's sectors (0 = none, 1 or 2, Kim, Pearce & Amato)."""
     teammates_in_map: bool = True
     """Localize against the known map plus the teammates' discs at their believed positions."""
     accept_error: float = 0.07
@@ -184,7 +184,7 @@ class NavigatorConfig:
 
     region_sigmas: float = 3.0
     """A scan is localized inside this many standard deviations of the belief's covariance
-    (propagated from the last fix with the robot's odometry model), widened by the seed B ellipse's
+    (propagated from the last fix with the robot's odometry model), widened by the Kim, Pearce & Amato ellipse's
     semi-axis (-)."""
     mask_sigmas: float = 2.0
     """Navigator fixes rejected by both tests above are accepted when the scan matches the known map
@@ -220,7 +220,7 @@ class NavigatorConfig:
 
 @dataclass(frozen=True)
 class ExpertConfig:
-    """The scripted expert of seed A (leaders drive the plan, followers keep formation)."""
+    """The scripted expert of Min et al. (leaders drive the plan, followers keep formation)."""
 
     leader_speed: float = 0.9
     """A leader with followers drives at this fraction of v_max so they can close gaps (-)."""

@@ -44,14 +44,14 @@ class RegionModel:
 
 def region_ellipse(center, cov: np.ndarray, grown: float, n_sigma: float) -> Ellipse:
     """The ``n_sigma`` ellipse of the position covariance ``cov (3, 3)`` widened in every direction by
-    ``grown`` (m; the seed B ellipse's semi-axis)."""
+    ``grown`` (m; the Kim, Pearce & Amato ellipse's semi-axis)."""
     return Ellipse.from_covariance(center, np.asarray(cov)[:2, :2] + (grown / n_sigma) ** 2 * np.eye(2), n_sigma)
 
 
 def collision_horizon(path: PathNodes, start: float, stop: float, cov: np.ndarray, travelled: float,
                       turned: float, axis0: float, model: RegionModel) -> float:
     """Label of the last node of ``path`` in ``[start, stop]`` before the predicted region (from the
-    belief's covariance ``cov (3, 3)``, ``travelled`` m and ``turned`` rad since the last fix, seed B
+    belief's covariance ``cov (3, 3)``, ``travelled`` m and ``turned`` rad since the last fix, Kim, Pearce & Amato
     axis ``axis0``) first collides by growth; ``stop`` if it never does. See the module docstring."""
     k = np.nonzero((path.s >= start - 1e-9) & (path.s <= stop + 1e-9))[0]
     if len(k) < 2:

@@ -1,4 +1,4 @@
-"""Multi-Kinect connection tree (seed A Alg. 2).
+"""Multi-Kinect connection tree (Min et al. Alg. 2).
 
 Each Kinect sees a floor polygon (its footprint). Walking the plan tree from the start, every time a
 path leaves the Kinect it was in and enters another one (or enters one after a stretch seen by
@@ -50,7 +50,7 @@ class KinectTree:
         return sum(c for (a, b), c in self.links.items() if a == name)
 
     def edges(self) -> list[list[str]]:
-        """Adjacent Kinect pairs as sorted ``[a, b]`` (seed A Fig. 6(b): "A is connected with B, C
+        """Adjacent Kinect pairs as sorted ``[a, b]`` (Min et al. Fig. 6(b): "A is connected with B, C
         and D, and B with D"), whatever the direction the plan crosses them in."""
         return [list(p) for p in sorted({tuple(sorted(k)) for k in self.links})]
 
@@ -155,7 +155,7 @@ def kinect_tree(footprints: dict[str, Polygon], plan: Plan, start, step: float =
 def plan_summary(plan: Plan, tree: KinectTree | None = None) -> dict[str, Any]:
     """The plan as scripts want it (``parcover plan --json``): ``n_robots``, ``c_max``, ``c_p``,
     ``method``, ``turning_positions`` ``[[x, y], ...]``, ``tp_branches`` (robots per branch of each TP,
-    the numbers beside the TPs of seed A Fig. 6(c)), ``kinect_tree`` (adjacent Kinect pairs, empty
+    the numbers beside the TPs of Min et al. Fig. 6(c)), ``kinect_tree`` (adjacent Kinect pairs, empty
     without Kinects), ``kinect_root``, ``kinect_links`` ``[[from, to, crossings], ...]`` and ``routes``
     (per robot: ``kpois`` in visiting order, ``cost`` on the roadmap metric, ``path`` ``[[x, y], ...]``)."""
     return {

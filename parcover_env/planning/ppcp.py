@@ -1,4 +1,4 @@
-"""Parallel Path Coverage Problem (seed A §II): minimum robots r at the minimum coverage cost.
+"""Parallel Path Coverage Problem (Min et al. §II): minimum robots r at the minimum coverage cost.
 
 Interpretation of the paper (its reference [6] is not public; see ``ALGORITHMS.md``):
 

@@ -227,7 +227,7 @@ def generate_scenario_mapping(seed_text: str, source: str = "") -> dict:
         "start": {"x": lay.start[0], "y": lay.start[1], "theta_deg": 0.0},
         "start_queue": [list(p) for p in lay.queue],
         "kpois": [list(k) for k in kpois],
-        "kpoi_radius": 0.4,  # seed A Def. 1: a KPOI is covered within the robot's sensor range
+        "kpoi_radius": 0.4,  # Min et al. Def. 1: a KPOI is covered within the robot's sensor range
         "n_robots": "auto",
         "robot": {
             "radius": ROBOT_RADIUS,

@@ -61,7 +61,7 @@ def kinect_blind_spots(s: Scenario) -> list[tuple[str, tuple[float, float]]]:
     """The start, turning positions and KPOIs of ``s`` no Kinect sees, as ``(key, (x, y))``.
 
     Seen = a robot centred there lies wholly inside some Kinect's footprint at the height of its
-    markers (``robot.height``), so the marker pipeline can detect it. Seed A (Alg. 1, Fig. 11):
+    markers (``robot.height``), so the marker pipeline can detect it. Min et al. (Alg. 1, Fig. 11):
     the Kinect system detects leaders at the start, at each TP (to split the group) and at the KPOIs.
     TPs come from the scenario's PPCP plan (cached, shared with the env).
     """

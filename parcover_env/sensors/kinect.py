@@ -1,6 +1,6 @@
 """Synthetic overhead Kinect v1: a depth frame and an IR frame rendered from ground truth.
 
-Model (seed A section III-A/IV, ALGORITHMS.md "Kinect v1 model"):
+Model (Min et al. section III-A/IV, ALGORITHMS.md "Kinect v1 model"):
 
 * Scene: the floor (z = 0), every non-free region of the map extruded to ``wall_height`` (walls,
   obstacles, outside of the building), and robots as vertical cylinders of radius ``r`` and

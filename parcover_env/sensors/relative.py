@@ -1,6 +1,6 @@
 """Follower's onboard camera: range, bearing and relative heading of the robot ahead.
 
-The follower sees its predecessor (seed A: "followers simply follow the leader by using only their
+The follower sees its predecessor (Min et al.: "followers simply follow the leader by using only their
 camera sensor") if it lies within the camera's field of view and range and no wall blocks the line
 of sight. No Kinect and no messages are involved.
 """

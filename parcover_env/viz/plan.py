@@ -1,4 +1,4 @@
-"""Picture of a plan (like seed A Fig. 6b/6c): map, roadmap, robots' paths, TPs with robot counts,
+"""Picture of a plan (like Min et al. Fig. 6b/6c): map, roadmap, robots' paths, TPs with robot counts,
 numbered KPOIs, start, Kinect footprints, and a side panel with the Kinect tree. Drawn with cv2."""
 
 from __future__ import annotations

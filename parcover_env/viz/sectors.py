@@ -1,4 +1,4 @@
-"""Drawing of visibility sectors (seed B Figs. 3-4) as an RGB image with cv2."""
+"""Drawing of visibility sectors (Kim, Pearce & Amato Figs. 3-4) as an RGB image with cv2."""
 
 from __future__ import annotations
 
@@ -66,7 +66,7 @@ def draw_sectors(map_model, sectors: list[Sector], features: list[MapFeature],
 
 def rearrangement_figure(scenario, px_per_m: float = 70.0, node_step: float = 0.05,
                          horizon: float = 7.0) -> tuple[np.ndarray, dict]:
-    """Seed B Fig. 9(a) -> (b) on ``scenario`` (two robots): RGB image and the numbers drawn.
+    """Kim, Pearce & Amato Fig. 9(a) -> (b) on ``scenario`` (two robots): RGB image and the numbers drawn.
 
     (a) the first team subgoal after scan-angle optimization (eq. 1) within ``horizon`` metres of the
     start (the sonar navigator's default: ellipse limit 0.35 m / growth 0.05 m per m) over the robots' plan paths,

@@ -1,1 +1,1 @@
-"""Seed A's overhead Kinect localization: marker pipeline, multi-Kinect tracker, the system loop."""
+"""Min et al.'s overhead Kinect localization: marker pipeline, multi-Kinect tracker, the system loop."""

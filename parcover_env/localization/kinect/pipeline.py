@@ -1,4 +1,4 @@
-"""Marker-based robot localization from overhead Kinect frames (seed A section IV, Figs. 7 and 9).
+"""Marker-based robot localization from overhead Kinect frames (Min et al. section IV, Figs. 7 and 9).
 
 Pipeline, as in the paper: median filter (3x3) -> threshold (fixed; Otsu optional) -> morphology with
 a 3x3 element (opening: removes projector speckle) then a 5x5 element (closing: fills holes) ->

@@ -1,7 +1,7 @@
 """The overhead Kinect system in the env: sensors, marker localization, identity tracking.
 
 Every Kinect produces a frame when the simulated clock passes its next tick (``rate_hz``; at most
-one frame per control step). Leaders carry the markers (seed A: only leaders are localized); the
+one frame per control step). Leaders carry the markers (Min et al.: only leaders are localized); the
 tracker matches the detections to the leaders' predicted poses (their current estimates) and the
 matched leaders receive a pose fix. ``kinect: estimate`` samples the pipeline's calibrated error
 model (fast); ``kinect: frames`` renders depth + IR frames and runs the full pipeline, for the

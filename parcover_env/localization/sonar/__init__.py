@@ -1,4 +1,4 @@
-"""Sonar localization of seed B: characteristic points, visibility sectors, the Fig. 6 localizer."""
+"""Sonar localization of Kim, Pearce & Amato: characteristic points, visibility sectors, the Fig. 6 localizer."""
 
 from parcover_env.localization.sonar.features import MapFeature, characteristic_points, map_features
 from parcover_env.localization.sonar.filter import filter_scan

@@ -66,7 +66,7 @@ class SonarLocalizerConfig:
     max_candidates: int = 400
     """Upper bound on synthetic scans per localization."""
     filter: bool = True
-    """Run seed B's Fig. 11 filter on the measured scan before feature extraction (too-long
+    """Run Kim, Pearce & Amato's Fig. 11 filter on the measured scan before feature extraction (too-long
     readings next to the nearest walls are moved onto those walls). The scan comparison uses the
     raw scan, as the synthetic scans model the same sonar."""
     filter_repeats: int = 4

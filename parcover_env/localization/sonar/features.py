@@ -1,4 +1,4 @@
-"""Map features (concave corners) and characteristic points of a 360-degree sonar scan (seed B §2.1).
+"""Map features (concave corners) and characteristic points of a 360-degree sonar scan (Kim, Pearce & Amato §2.1).
 
 Characteristic points, one letter per reading: ``m`` local minimum (foot of a wall's perpendicular),
 ``M`` local maximum (a concave corner: the paper's *feature*), ``D``/``c`` the far/near side of a

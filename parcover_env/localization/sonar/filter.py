@@ -1,4 +1,4 @@
-"""The paper's minimal sonar noise filter (seed B Fig. 11).
+"""The paper's minimal sonar noise filter (Kim, Pearce & Amato Fig. 11).
 
 Starting from the nearest unprocessed reading MS, if a few readings around it lie on a line L, walk
 left then right: every neighbour reading farther than the current one is moved onto L (sonar faults

@@ -87,7 +87,7 @@ class Ellipse:
     def grow(self, distance: float, rotation: float, rate_distance: float = 0.1,
              rate_rotation: float = 0.05) -> Ellipse:
         """Grow both axes linearly: ``rate_distance`` m per metre travelled plus ``rate_rotation`` m per
-        radian turned (seed B: the ellipse grows linearly as the robot translates or rotates)."""
+        radian turned (Kim, Pearce & Amato: the ellipse grows linearly as the robot translates or rotates)."""
         g = rate_distance * abs(float(distance)) + rate_rotation * abs(float(rotation))
         return replace(self, axes=(self.axes[0] + g, self.axes[1] + g))
 
@@ -235,7 +235,7 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
     feats = map_features(map_model) if features is None else features
     region = ellipse.polygon().buffer(p.ellipse_distance)
     f1 = sorted(set().union(*[s.features for s in sectors if s.polygon.intersects(region)]))
-    # seed B Fig. 11: features also come from the filtered scan (too-long readings moved onto the
+    # Kim, Pearce & Amato Fig. 11: features also come from the filtered scan (too-long readings moved onto the
     # nearest walls); the raw scan's features stay candidates (the filter can erase a wall's end)
     scans = [characteristic_points(r, a, sonar.range_max, p)]
     if p.filter:

@@ -1,4 +1,4 @@
-"""Subgoal selection for sonar localization (seed B §3): scan-angle optimization and rearrangement.
+"""Subgoal selection for sonar localization (Kim, Pearce & Amato §3): scan-angle optimization and rearrangement.
 
 Scan-angle optimization (§3.1, eq. 1). A path is cut into closely spaced nodes. At node N a map
 feature F (a concave corner with walls W1, W2) is *available* when it is in line of sight within
@@ -323,7 +323,7 @@ def _path_crossing(path: PathNodes, m: np.ndarray, n: np.ndarray, near: float,
 def bisector_rearrangement(subgoals, paths: list[PathNodes], sigmas, feature_point, min_separation: float,
                            free=None, max_slide: float = 3.0, slide_step: float = 0.02,
                            windows: list[tuple[float, float]] | None = None) -> Rearrangement:
-    """Seed B §4: rearrange the subgoals of two robots sharing a sector so both can scan the feature.
+    """Kim, Pearce & Amato §4: rearrange the subgoals of two robots sharing a sector so both can scan the feature.
 
     ``subgoals (2, 2)`` the current subgoals on ``paths`` at arclengths ``sigmas``; ``feature_point``
     the corner both localize on; ``free(points) -> bool array`` optional free-space test for the
