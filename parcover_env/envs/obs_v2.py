@@ -161,7 +161,7 @@ def fill(obs: np.ndarray, slices: dict[str, slice], facts: RouteFacts, rows: Tea
     put("wp_dx", wx)
     put("wp_dy", wy)
 
-    ahead = facts.tp_dist > rows.plan_progress[..., None]  # (K, N, T)
+    ahead = np.isfinite(facts.tp_dist) & (facts.tp_dist > rows.plan_progress[..., None])  # (K, N, T); inf = padding
     has = ahead.any(axis=-1)
     nxt = np.argmax(ahead, axis=-1)
     tp_xy = facts.tp_xy[np.arange(n), nxt]  # (K, N, 2)
