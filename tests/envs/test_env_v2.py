@@ -292,3 +292,15 @@ def test_the_state_table_in_the_docstring_is_generated():
     assert "STATE_TABLE" not in ParallelCoverageEnv.__doc__
     size = 16 * len(critic_state.ROBOT_FEATURES) + 32 * len(critic_state.KPOI_FEATURES) + 2
     assert size == critic_state.STATE_SIZE
+
+
+def test_v2_passes_the_pettingzoo_api_tests_with_constant_info_keys():
+    from pettingzoo.test import api_test, parallel_api_test
+
+    parallel_api_test(parcover_v2.parallel_env("office"), num_cycles=100)
+    api_test(parcover_v2.env("office"), num_cycles=20)
+    env = parcover_v2.parallel_env("office")
+    _, infos = env.reset(seed=0)
+    keys = list(infos["robot_0"])
+    _, _, _, _, infos = env.step({a: env.action_space(a).sample() for a in env.agents})
+    assert list(infos["robot_0"]) == keys and "route_done" in keys and "reward_own_kpoi" in keys
