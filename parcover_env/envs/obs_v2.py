@@ -113,10 +113,8 @@ def target_kpois(facts: RouteFacts, visited: np.ndarray) -> tuple[np.ndarray, np
     own = facts.own
     seen = np.where(own >= 0, visited[:, np.maximum(own, 0)], True)  # (K, N, J)
     done = seen.all(axis=-1)
-    first = np.argmax(~seen, axis=-1)
-    last = np.maximum((own >= 0).sum(axis=1) - 1, 0)
-    pick = np.where(done, last, first)
-    idx = np.take_along_axis(np.broadcast_to(own, seen.shape), pick[..., None], axis=-1)[..., 0]
+    pick = np.where(done, np.maximum((own >= 0).sum(axis=1) - 1, 0), np.argmax(~seen, axis=-1))
+    idx = own[np.arange(own.shape[0]), pick]  # (K, N)
     xy = np.where((idx >= 0)[..., None], facts.kpois[np.maximum(idx, 0)], facts.end)
     return xy, done
 
@@ -188,20 +186,16 @@ def _teammates(put, rows: TeamRows, frame: tuple[np.ndarray, np.ndarray], k: int
     d2 = dx * dx + dy * dy
     d2[:, np.arange(n), np.arange(n)] = np.inf
     m = min(k, n - 1)
-    order = np.argsort(d2, axis=-1, kind="stable")[..., :m]  # (K, N, m)
-
-    def pick(a: np.ndarray) -> np.ndarray:
-        return np.take_along_axis(a, order, axis=-1)
-
+    order = np.argsort(d2, axis=-1, kind="stable")[..., :m]  # (K, N, m): j of each slot
+    kk, ii = np.arange(len(est))[:, None, None], np.arange(n)[None, :, None]
     ci, si = c[..., None], s[..., None]
-    cj, sj = pick(np.broadcast_to(c[:, None, :], d2.shape)), pick(np.broadcast_to(s[:, None, :], d2.shape))
-    rx, ry = _rot(ci, si, pick(dx), pick(dy))
-    v = rows.velocity[..., 0]
-    vj = pick(np.broadcast_to(v[:, None, :], d2.shape))
+    cj, sj, v = c[kk, order], s[kk, order], rows.velocity[..., 0]
+    rx, ry = _rot(ci, si, dx[kk, ii, order], dy[kk, ii, order])
+    vj = v[kk, order]
     vx, vy = _rot(ci, si, vj * cj - (v * c)[..., None], vj * sj - (v * s)[..., None])
-    lead = pick(np.broadcast_to(rows.leader[:, None, :], d2.shape)).astype(float)
     feats = {"mate_dx": rx, "mate_dy": ry, "mate_cos": cj * ci + sj * si, "mate_sin": sj * ci - cj * si,
-             "mate_dvx": vx, "mate_dvy": vy, "mate_leader": lead, "mate_mask": np.ones_like(rx)}
+             "mate_dvx": vx, "mate_dvy": vy, "mate_leader": rows.leader[kk, order].astype(float),
+             "mate_mask": np.ones_like(rx)}
     for name, value in feats.items():
         padded = np.zeros(value.shape[:2] + (k,))
         padded[..., :m] = value
