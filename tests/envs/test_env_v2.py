@@ -304,3 +304,12 @@ def test_v2_passes_the_pettingzoo_api_tests_with_constant_info_keys():
     keys = list(infos["robot_0"])
     _, _, _, _, infos = env.step({a: env.action_space(a).sample() for a in env.agents})
     assert list(infos["robot_0"]) == keys and "route_done" in keys and "reward_own_kpoi" in keys
+
+
+def test_bad_v2_settings_raise_one_clear_error_at_construction():
+    with pytest.raises(ConfigError, match="generated:7: n_robots: observation version 2 takes at most 16"):
+        parcover_v2.parallel_env("generated:7", overrides={"n_robots": 17})
+    with pytest.raises(ConfigError, match="observation.neighbours: must be an integer in"):
+        parcover_v2.parallel_env("office", overrides={"observation": {"neighbours": 16}})
+    with pytest.raises(ConfigError, match="observation.version"):
+        parcover_env.parallel_env("office", overrides={"observation": {"version": 3}})
