@@ -33,14 +33,14 @@ def _slices(k: int = K) -> dict[str, slice]:
 
 def _facts() -> RouteFacts:
     """Three robots; robot 0 owns KPOI 0 at (0, 1), robot 1 KPOIs 1 then 2, robot 2 none.
-    Robot 0's route (1,1) (1,2) (2,2) (3,2); its TPs at plan distance 1 (at (1, 2)) and 3 (at (1, 4))."""
+    Robot 0's route (1,1) (1,2) (2,2) (3,2); its TPs at plan distance 1 (at (1, 2)) and 3 (at (0, 4))."""
     pts = np.array([[[1, 1], [1, 2], [2, 2], [3, 2]], [[0, 0], [5, 5], [5, 5], [5, 5]],
                     [[0, 0], [6, 0], [6, 0], [6, 0]]], dtype=float)
     tp_counts = np.array([[[3, 2, 2], [2, 2, 1]], [[3, 2, 1], [0, 0, 0]], [[3, 2, 2], [0, 0, 0]]], dtype=float)
     return RouteFacts(own=np.array([[0, -1], [1, 2], [-1, -1]]), end=pts[:, -1], pts=pts,
                       length=np.array([4, 2, 2]), kpois=np.array([[0.0, 1.0], [4.0, 4.0], [5.0, 6.0]]),
                       tp_dist=np.array([[1.0, 3.0], [1.0, np.inf], [1.0, np.inf]]),
-                      tp_xy=np.array([[[1, 2], [1, 4]], [[1, 2], [0, 0]], [[1, 2], [0, 0]]], dtype=float),
+                      tp_xy=np.array([[[1, 2], [0, 4]], [[1, 2], [0, 0]], [[1, 2], [0, 0]]], dtype=float),
                       tp_counts=tp_counts)
 
 
@@ -99,9 +99,9 @@ def test_route_preview_is_the_next_vertices_in_the_robot_frame_repeating_the_end
 
 def test_next_tp_is_the_first_ahead_of_the_plan_progress_with_its_counts():
     o = _observe(_rows(progress=(1.5, 0.5, 5.0)))
-    # robot 0 passed the TP at 1 m: the next is at 3 m, (1, 4): 3 m ahead of it
+    # robot 0 passed the TP at 1 m: the next is at 3 m, (0, 4): 3 m ahead of it, 1 m to its left
     assert o["tp_ahead"][0, 0] == 1.0
-    assert (o["tp_dx"][0, 0], o["tp_dy"][0, 0]) == pytest.approx((3.0, 0.0), abs=1e-12)
+    assert (o["tp_dx"][0, 0], o["tp_dy"][0, 0]) == pytest.approx((3.0, 1.0), abs=1e-12)
     assert (o["tp_group"][0, 0], o["tp_branches"][0, 0], o["tp_own_branch"][0, 0]) == (2.0, 2.0, 1.0)
     # robot 1 before its only TP (1, 2): on top of it, counts of the first TP
     assert (o["tp_ahead"][1, 0], o["tp_group"][1, 0], o["tp_own_branch"][1, 0]) == (1.0, 3.0, 1.0)
@@ -125,6 +125,9 @@ def test_nearest_teammates_are_ordered_by_distance_padded_with_zeros_and_mask_0(
     # robot 2 (standing) - robot 0 = (0, -0.5) world = (-0.5, 0)
     np.testing.assert_allclose(o["mate_dvx"][0], [-0.5, -0.5, 0.0, 0.0], atol=1e-12)
     np.testing.assert_allclose(o["mate_dvy"][0], [-0.2, 0.0, 0.0, 0.0], atol=1e-12)
+    # robot 1 (0.2 m/s along +x, its heading): robot 0 (0, 0.5) - (0.2, 0), robot 2 (0, 0) - (0.2, 0)
+    np.testing.assert_allclose(o["mate_dvx"][1], [-0.2, -0.2, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(o["mate_dvy"][1], [0.5, 0.0, 0.0, 0.0], atol=1e-12)
     # robot 2 at (3, 1) facing -x: robot 0 is 2 m ahead, robot 1 sqrt(5) m (2 ahead, 1 right)
     np.testing.assert_allclose(o["mate_dx"][2], [2.0, 2.0, 0.0, 0.0], atol=1e-12)
     np.testing.assert_allclose(o["mate_dy"][2], [0.0, -1.0, 0.0, 0.0], atol=1e-12)
