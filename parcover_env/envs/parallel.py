@@ -70,8 +70,7 @@ class ParallelCoverageEnv(ParallelEnv):
     what a robot needs to drive (its target KPOI, a route preview), wait or split (the next TP: the
     group arriving, its branches, the robots on its own branch), follow (the ``k`` nearest
     teammates, ``observation.neighbours``, padded with zeros and ``mate_mask`` 0; its group size)
-    and stop (``done_mask``); with ``k`` fixed its size does not depend on the team's. An entry for
-    a scan under way belongs to the estimator's sonar-fix service.
+    and stop (``done_mask``); with ``k`` fixed its size does not depend on the team's.
 
     ``state()`` is the global state for centralized critics. Version 1: true (x, y, cos, sin) and
     leader flag of every robot, the visited flag of every KPOI, and the elapsed time fraction (its
@@ -93,9 +92,9 @@ class ParallelCoverageEnv(ParallelEnv):
 
     Done robots (version 2): once every KPOI of its own route is visited, a robot's ``done_mask``
     entry and ``info[agent]["route_done"]`` are 1; it stays in the world (it can still block and
-    collide, and earns the team terms). A MAPPO trainer should death-mask it: leave its
-    transitions out of the policy and value losses (multiply them by ``1 - route_done``) and
-    bootstrap nothing from it; its action may be anything (a stop keeps it out of the way).
+    collide, and earns the team terms). A MAPPO trainer should death-mask it: its ``active_mask``
+    is ``1 - route_done`` (its transitions are left out of the policy and value losses); its
+    actions are still applied, so keep acting for it (its policy's action, or a stop).
 
     ## Episode end
     Terminated when every KPOI is visited; truncated after ``episode.max_steps`` control steps.
