@@ -1,8 +1,10 @@
 """parcover_env: multi-robot parallel path coverage as a PettingZoo / Gymnasium environment.
 
 Factories follow PettingZoo's module convention (``parallel_env()``, ``env()``, ``raw_env``);
-``make`` is an alias of ``parallel_env``; ``parcover_env.parcover_v0`` is the same factories under
-PettingZoo's ``<name>_v<N>`` module convention. ``make_vec_env`` (SB3 VecEnv, ``train`` extra)
+``make`` is an alias of ``parallel_env``; ``parcover_env.parcover_v0`` / ``parcover_v1`` /
+``parcover_v2`` are the factories of each env version under PettingZoo's ``<name>_v<N>`` module
+convention (``parcover_v1`` = these; ``parcover_v2``: observations, rewards and a fixed-shape
+state to learn from). ``make_vec_env`` (SB3 VecEnv, ``train`` extra)
 has one slot per robot per world; ``backend="batched"`` steps many worlds in one process. The
 single-robot Gymnasium env is registered as ``parcover_env/SingleRobotCoverage-v0``.
 """

@@ -125,6 +125,10 @@ class RewardConfig:
     """Per step, to every agent."""
     collision: float = -1.0
     """Per new contact of this agent with a wall or another robot."""
+    own_kpoi: float = 0.0
+    """Per KPOI of the agent's own route (the plan credits it with that KPOI) that the agent itself
+    visits: the per-robot KPOI reward (``parcover_v2`` sets 10, with ``kpoi`` a team bonus of 1;
+    0 keeps v1's rewards). A KPOI of another robot's route visited by this agent pays only ``kpoi``."""
 
 
 @dataclass(frozen=True)
@@ -143,8 +147,18 @@ class ObservationConfig:
     estimate restarts from after a fix."""
     fix_sigma_heading_deg: float = 2.0
     """Standard deviation of an absolute fix's heading (degrees)."""
+    version: Literal[1, 2] = 1
+    """Observation and ``state()`` version: 1 = ``parcover_v1``'s; 2 = ``parcover_v2``'s (adds the
+    own-KPOI, route preview, next-TP, nearest-teammate, group-size and done-mask entries; the
+    fixed-shape token ``state()``)."""
+    neighbours: int = 4
+    """Version 2: teammates (k nearest by estimated distance) each robot observes; fewer teammates
+    are padded with zeros and mask 0."""
 
     def __post_init__(self) -> None:
+        _check(self.version in (1, 2), "version", f"must be 1 or 2, got {self.version!r}")
+        _check(isinstance(self.neighbours, int) and 0 <= self.neighbours <= 15, "neighbours",
+               f"must be an integer in [0, 15], got {self.neighbours!r}")
         _check(self.fix_sigma_xy >= 0, "fix_sigma_xy", f"noise must be >= 0, got {self.fix_sigma_xy}")
         _check(self.fix_sigma_heading_deg >= 0, "fix_sigma_heading_deg",
                f"noise must be >= 0, got {self.fix_sigma_heading_deg}")

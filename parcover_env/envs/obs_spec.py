@@ -8,7 +8,9 @@ the ``observation_space`` bounds, the observation table of ``ParallelCoverageEnv
 (:data:`KERNEL_COLUMNS`: one named field per entry, so the kernel addresses a column by its name).
 
 Sources: ``estimate``, ``team``, ``mission`` and ``camera`` entries are written by that compiled pass
-from the env's state; a ``sensor`` entry is the reading of the sensor its ``sensor`` factory builds
+from the env's state; ``route`` and ``teammates`` entries (observation version 2 only) by
+:func:`parcover_env.envs.obs_v2.fill` for all robots of all worlds at once; a ``sensor`` entry is
+the reading of the sensor its ``sensor`` factory builds
 from the scenario (a :class:`~parcover_env.sensors.base.Sensor`), filled for every world at once by
 the stepper (:mod:`parcover_env.envs.stepper`). A new sensor is a sensor module, a config field and
 one ``sensor`` entry here: neither the env nor the batched worlds change.
@@ -26,10 +28,16 @@ from parcover_env.sensors.base import Sensor
 from parcover_env.sensors.lidar import Lidar
 from parcover_env.sensors.sonar import SonarRing
 
-__all__ = ["Entry", "ENTRIES", "KERNEL_ENTRIES", "KERNEL_COLUMNS", "MAX_FIX_AGE", "markdown_table"]
+__all__ = ["Entry", "ENTRIES", "KERNEL_ENTRIES", "KERNEL_COLUMNS", "V2_ENTRIES", "MAX_FIX_AGE", "MAX_ROBOTS",
+           "N_PREVIEW", "markdown_table"]
 
 MAX_FIX_AGE = 60.0
 """Seconds since the last absolute pose fix are reported capped at this value."""
+MAX_ROBOTS = 16
+"""Most robots a version-2 env takes (``state()`` is padded to it; robot counts are bounded by it)."""
+N_PREVIEW = 3
+"""Version 2: route vertices ahead in the route preview (``wp_dx``, ``wp_dy``)."""
+KERNEL_SOURCES = ("estimate", "team", "mission", "camera")
 
 Box = tuple[float, float, float, float]
 """The map's bounds ``(x0, y0, x1, y1)`` (m)."""
@@ -66,6 +74,26 @@ def _covariance(s: Scenario) -> int:
     return int(s.observation.pose_covariance)
 
 
+def _dist(s: Scenario, box: Box) -> tuple[float, float]:
+    return 0.0, _diag(box) + 2 * MARGIN
+
+
+def _count(s: Scenario, box: Box) -> tuple[float, float]:
+    return 0.0, float(MAX_ROBOTS)
+
+
+def _speed2(s: Scenario, box: Box) -> tuple[float, float]:
+    return -2.0 * s.robot.max_speed, 2.0 * s.robot.max_speed
+
+
+def _k(s: Scenario) -> int:
+    return s.observation.neighbours
+
+
+def _preview(s: Scenario) -> int:
+    return N_PREVIEW
+
+
 @dataclass(frozen=True)
 class Entry:
     """One named entry of the observation vector."""
@@ -87,13 +115,18 @@ class Entry:
     """The size as the docstring table shows it."""
     bounds_doc: str = ""
     """The bounds as the docstring table shows them (default: those of the shared helpers)."""
+    versions: tuple[int, ...] = (1, 2)
+    """Observation versions (``observation.version``) the entry is part of."""
 
     def bounds_text(self) -> str:
         named = {_unit: "[-1, 1]", _flag: "[0, 1]", _goal: "+-(map diagonal + 2)", _pred: "+-camera_range",
-                 _ellipse_axis: "[0, map diagonal]"}
+                 _ellipse_axis: "[0, map diagonal]", _dist: "[0, map diagonal + 2]",
+                 _count: f"[0, {MAX_ROBOTS}]", _speed2: "+-2 max_speed"}
         return self.bounds_doc or named[self.bounds]
 
     def n_columns(self, s: Scenario, sensor: Sensor | None = None) -> int:
+        if s.observation.version not in self.versions:
+            return 0
         if self.source == "sensor":
             return sensor.size if sensor is not None else 0
         return 1 if self.size is None else self.size(s)
@@ -135,6 +168,49 @@ ENTRIES: tuple[Entry, ...] = (
     Entry("pred_visible", "-", "1 if a follower's camera sees its predecessor (FOV, range, walls)", _flag, "camera"),
     Entry("kpois_visited", "-", "fraction of KPOIs visited by the team", _flag, "mission"),
     Entry("time", "-", "fraction of the step limit elapsed", _flag, "mission"),
+    # version 2: what a robot needs to decide to drive, wait, follow or split (filled by envs/obs_v2.py)
+    Entry("own_kpoi_cos", "-", "bearing (cos, robot frame, from the estimate) of its target KPOI: the next "
+          "KPOI of its own route not yet visited (the last one once all are): where to drive", _unit, "route",
+          versions=(2,)),
+    Entry("own_kpoi_sin", "-", "bearing (sin) of its target KPOI", _unit, "route", versions=(2,)),
+    Entry("own_kpoi_dist", "m", "straight distance from the estimate to its target KPOI: how far its own work is",
+          _dist, "route", versions=(2,)),
+    Entry("done_mask", "-", "1 once every KPOI of its own route is visited (by anyone; also its target KPOI's "
+          "visited flag): its work is done, mask it (death masking)", _flag, "route", versions=(2,)),
+    Entry("wp_dx", "m", f"route preview: its next {N_PREVIEW} route vertices (the last repeated at the end), x "
+          "ahead in the robot frame, from the estimate: the road beyond the lookahead goal", _goal, "route", _preview,
+          versions=(2,), size_doc=str(N_PREVIEW)),
+    Entry("wp_dy", "m", "route preview, y left", _goal, "route", _preview, versions=(2,), size_doc=str(N_PREVIEW)),
+    Entry("tp_ahead", "-", "1 if a turning point (TP) of its route lies ahead (plan progress before it): a split "
+          "is coming", _flag, "route", versions=(2,)),
+    Entry("tp_dx", "m", "the next TP, x ahead in the robot frame (0 if none ahead): where its group splits", _goal,
+          "route", versions=(2,)),
+    Entry("tp_dy", "m", "the next TP, y left (0 if none ahead)", _goal, "route", versions=(2,)),
+    Entry("tp_group", "robots", "robots arriving together at the next TP (0 if none ahead)", _count, "route",
+          versions=(2,)),
+    Entry("tp_branches", "-", "branches leaving the next TP with robots on them (0 if none ahead)", _count, "route",
+          versions=(2,)),
+    Entry("tp_own_branch", "robots", "robots taking its own branch at the next TP, itself included (0 if none "
+          "ahead): whether it leads, follows or goes alone after the split", _count, "route", versions=(2,)),
+    Entry("group_size", "robots", "robots in its formation group now, itself included: whom it travels with",
+          _count, "teammates", versions=(2,)),
+    Entry("mate_dx", "m", "k nearest teammates (by estimated distance, nearest first; ``observation.neighbours`` "
+          "= k): x ahead in the robot frame, from the shared estimates (0 in padding): whom to follow or avoid",
+          _goal, "teammates", _k, versions=(2,), size_doc="k"),
+    Entry("mate_dy", "m", "those teammates, y left (0 in padding)", _goal, "teammates", _k, versions=(2,),
+          size_doc="k"),
+    Entry("mate_cos", "-", "cos of each one's heading relative to this robot's (0 in padding)", _unit, "teammates",
+          _k, versions=(2,), size_doc="k"),
+    Entry("mate_sin", "-", "sin of that relative heading (0 in padding)", _unit, "teammates", _k, versions=(2,),
+          size_doc="k"),
+    Entry("mate_dvx", "m/s", "its encoder velocity minus this robot's, x in the robot frame (0 in padding): closing "
+          "in or falling back", _speed2, "teammates", _k, versions=(2,), size_doc="k"),
+    Entry("mate_dvy", "m/s", "relative velocity, y in the robot frame (0 in padding)", _speed2, "teammates", _k,
+          versions=(2,), size_doc="k"),
+    Entry("mate_leader", "-", "1 if that teammate leads its group (0 in padding)", _flag, "teammates", _k,
+          versions=(2,), size_doc="k"),
+    Entry("mate_mask", "-", "1 for a real teammate, 0 for padding (fewer than k teammates)", _flag, "teammates", _k,
+          versions=(2,), size_doc="k"),
     Entry("sonar", "m", "sonar ring ranges, one per beam (``robot.sonar``); max range = no echo",
           lambda s, b: (0.0, s.robot.sonar.range_max), "sensor", bounds_doc="[0, range_max]",
           sensor=lambda s: SonarRing(s.robot.sonar) if s.observation.sonar else None, size_doc="B (beams)"),
@@ -144,8 +220,11 @@ ENTRIES: tuple[Entry, ...] = (
 )
 """The observation, in column order."""
 
-KERNEL_ENTRIES = tuple(e.name for e in ENTRIES if e.source != "sensor")
-"""The entries the compiled pass writes (all but the sensors')."""
+KERNEL_ENTRIES = tuple(e.name for e in ENTRIES if e.source in KERNEL_SOURCES)
+"""The entries the compiled pass writes (all but the sensors' and version 2's ``route`` / ``teammates``)."""
+
+V2_ENTRIES = tuple(e.name for e in ENTRIES if e.source in ("route", "teammates"))
+"""The entries :func:`parcover_env.envs.obs_v2.fill` writes (observation version 2)."""
 
 KERNEL_COLUMNS = np.dtype([(name, "i8") for name in KERNEL_ENTRIES])
 """Record of the column of each :data:`KERNEL_ENTRIES` entry in a layout (-1: absent), addressed by
@@ -155,9 +234,11 @@ not a NamedTuple: numba types it in its C dispatcher (a NamedTuple is typed fiel
 
 def markdown_table() -> str:
     """The observation table of ``ParallelCoverageEnv``'s docstring, generated from :data:`ENTRIES`."""
-    rows = ["| entry | size | unit | bounds | source | presets | meaning |", "|---|---|---|---|---|---|---|"]
+    rows = ["| entry | size | unit | bounds | source | presets | versions | meaning |",
+            "|---|---|---|---|---|---|---|---|"]
     for e in ENTRIES:
         presets = ", ".join(e.presets) if e.presets else "off (opt-in)"
-        cells = (e.name, e.size_doc, e.unit, e.bounds_text(), e.source, presets, e.meaning)
+        versions = ", ".join(f"v{v}" for v in e.versions)
+        cells = (e.name, e.size_doc, e.unit, e.bounds_text(), e.source, presets, versions, e.meaning)
         rows.append("| " + " | ".join(cells) + " |")
     return "\n".join(rows)

@@ -11,14 +11,15 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from parcover_env.config import Scenario, deep_merge
-from parcover_env.envs import stepper
+from parcover_env.envs import critic_state, stepper
 from parcover_env.envs.actions import to_commands
 from parcover_env.envs.estimator import KinectFixes, PoseEstimator
 from parcover_env.envs.handover import CameraView, update_team
 from parcover_env.envs.metrics import EpisodeMetrics, formation_errors
 from parcover_env.envs.obs_spec import markdown_table
+from parcover_env.envs.obs_v2 import route_facts, target_kpois
 from parcover_env.envs.observations import ObservationLayout, build_sensors
-from parcover_env.envs.rewards import REWARD_KEYS, TERMS, reward_terms
+from parcover_env.envs.rewards import own_visits, reward_terms, terms_for
 from parcover_env.envs.team import Team
 from parcover_env.geometry import wrap_angle
 from parcover_env.localization.kinect.system import KinectSystem
@@ -65,15 +66,35 @@ class ParallelCoverageEnv(ParallelEnv):
     the pose covariance the odometry propagates (Chong & Kleeman) and that an absolute fix resets to
     ``observation.fix_sigma_xy`` / ``fix_sigma_heading_deg``: a policy can tell when it is lost.
 
-    ``state()`` is the global state for centralized critics: true (x, y, cos, sin) and leader
-    flag of every robot, the visited flag of every KPOI, and the elapsed time fraction.
+    Version 2 (``observation.version: 2``, ``parcover_env.parcover_v2``) adds the ``v2`` entries:
+    what a robot needs to drive (its target KPOI, a route preview), wait or split (the next TP: the
+    group arriving, its branches, the robots on its own branch), follow (the ``k`` nearest
+    teammates, ``observation.neighbours``, padded with zeros and ``mate_mask`` 0; its group size)
+    and stop (``done_mask``); with ``k`` fixed its size does not depend on the team's.
+
+    ``state()`` is the global state for centralized critics. Version 1: true (x, y, cos, sin) and
+    leader flag of every robot, the visited flag of every KPOI, and the elapsed time fraction (its
+    length depends on the scenario). Version 2: one shape ``(322,)`` on every map, 16 robot tokens,
+    32 KPOI tokens (each ending with its mask; padding is all zeros), then the globals
+    (``parcover_env.envs.critic_state``: ``state_tokens(state)`` gives ``(tokens, mask)`` arrays for an
+    attention or GNN critic; a scenario with more robots or KPOIs raises ``ConfigError``):
+
+    STATE_TABLE
 
     ## Rewards
     Per agent, the sum of named terms whose weights come from ``rewards`` in the scenario and which
     are reported in ``info[agent]["reward_<term>"]``: ``kpoi`` (per KPOI newly visited by anyone,
     team reward), ``progress`` (per metre of route-to-go removed, potential-based), ``time`` (per
     step), ``collision`` (per new contact of this agent with a wall or robot). A KPOI is visited
-    when a robot's true centre comes within ``kpoi_radius`` of it.
+    when a robot's true centre comes within ``kpoi_radius`` of it. Version 2 adds ``own_kpoi`` (per
+    KPOI of its own route the agent itself visits: the per-robot reward) and makes ``kpoi`` a small
+    team bonus (``parcover_v2``'s weights: ``own_kpoi`` 10, ``kpoi`` 1).
+
+    Done robots (version 2): once every KPOI of its own route is visited, a robot's ``done_mask``
+    entry and ``info[agent]["route_done"]`` are 1; it stays in the world (it can still block and
+    collide, and earns the team terms). A MAPPO trainer should death-mask it: its ``active_mask``
+    is ``1 - route_done`` (its transitions are left out of the policy and value losses); its
+    actions are still applied, so keep acting for it (its policy's action, or a stop).
 
     ## Episode end
     Terminated when every KPOI is visited; truncated after ``episode.max_steps`` control steps.
@@ -110,6 +131,10 @@ class ParallelCoverageEnv(ParallelEnv):
     ``env.np_random`` is the episode's ``numpy.random.Generator`` (made by ``reset(seed=...)``).
 
     ## Version history
+    * v2 (0.3.0): observations and rewards to learn from; ``observation.version: 2``, v1 unchanged.
+      Observation ``v2`` entries (target KPOI, ``done_mask``, route preview, next TP, group size,
+      ``k`` nearest teammates); the ``own_kpoi`` reward term with ``kpoi`` as a team bonus;
+      ``info[agent]["route_done"]``; ``state()`` of one fixed shape as robot and KPOI tokens.
     * v1 (0.2.0): realistic motion and covariance observations: differential-drive dynamics (wheel
       limits, lag, bounded acceleration), wheel odometry with UMBmark systematic, random and slip
       errors, ``v, omega`` measured by the encoders, pose-uncertainty entries (``sigma_*``) after
@@ -161,7 +186,20 @@ class ParallelCoverageEnv(ParallelEnv):
         """The estimator's sources of absolute pose fixes (:class:`~parcover_env.envs.estimator.FixSource`)."""
         self._obs_space = self.layout.space()
         self._act_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
-        self.state_space = _state_space(self.map.bounds, self.n_robots, len(s.kpois))
+        self.version = s.observation.version
+        """Observation, reward and ``state()`` version (``observation.version``)."""
+        self.terms = terms_for(self.version)
+        """The reward terms, in summing order (``info[agent]["reward_<term>"]``)."""
+        self.route_facts = None
+        """Version 2: the routes' static facts the v2 entries and ``state()`` read (``obs_v2.RouteFacts``)."""
+        if self.version == 2:
+            critic_state.check_maxima(s, self.n_robots)
+            table = self.mission.tracker().table
+            self.route_facts = route_facts(self.plan, table.pts, table.length, self.mission.kpois)
+            self._owner = self.plan.kpoi_owner()
+            self.state_space = critic_state.state_space(s, self.map.bounds)
+        else:
+            self.state_space = critic_state.state_space_v1(self.map.bounds, self.n_robots, len(s.kpois))
         self._rng: np.random.Generator | None = None
         self._window: str | None = None
 
@@ -205,6 +243,8 @@ class ParallelCoverageEnv(ParallelEnv):
         self.progress = self.mission.tracker()
         self.team = Team(self.plan, s.formation.mode, reach_tol=self.mission.reach_tol)
         self.commands = np.zeros((self.n_robots, 2))
+        self.true_velocity = np.zeros((self.n_robots, 2))
+        """True world-frame velocity ``(N, 2)``: the last step's displacement / control period (m/s)."""
         self.steps = 0
         self._contacts = (np.zeros(self.n_robots, dtype=np.int64),) * 2
         """Wall and robot contacts of each robot counted so far (``World.wall_contacts`` etc.)."""
@@ -216,7 +256,7 @@ class ParallelCoverageEnv(ParallelEnv):
         update_team(self.team, self.kinects, self.estimate, self.progress.plan_progress, self.camera_view)
         obs = self._as_dict(stepper.observe([self], true[None])[0])
         zeros = np.zeros(self.n_robots).tolist()
-        return obs, self._infos(true, [zeros] * len(TERMS), self.metrics.flat(ended=False))
+        return obs, self._infos(true, [zeros] * len(self.terms), self.metrics.flat(ended=False))
 
     def step(self, actions: dict[str, Any]):
         obs, ((rewards, terminations, truncations, infos),) = stepper.step([self], [actions])
@@ -241,10 +281,14 @@ class ParallelCoverageEnv(ParallelEnv):
                                       self._rng)
         if "kinect" in fixes:  # a Kinect fix is a message to a leader
             self.team.count_pose_fixes(len(fixes["kinect"]))
+        was = self.progress.visited.copy()
         n_new = self.progress.update(true[:, :2], self.estimate[:, :2], self.world.time)
+        self.true_velocity = (true[:, :2] - before[:, :2]) / s.physics.control_dt
         self.team.count_waypoints(self.progress.advanced)
         update_team(self.team, self.kinects, self.estimate, self.progress.plan_progress, self.camera_view)
-        self._terms = self._rewards(true, n_new)
+        own = None if self.version == 1 else own_visits(self.progress.visited & ~was, self.progress.visitor,
+                                                                 self._owner, self.n_robots)
+        self._terms = self._rewards(true, n_new, own)
         self._record(before, true)
         return true
 
@@ -255,10 +299,10 @@ class ParallelCoverageEnv(ParallelEnv):
         done = self.progress.done
         truncated = self.steps >= self.scenario.episode.max_steps and not done
         total = 0
-        for t in TERMS:  # summed in TERMS order, as sum() over the terms of each agent would
+        for t in self.terms:  # summed in terms order, as sum() over the terms of each agent would
             total = total + terms[t]
         rewards = dict(zip(self.agents, total.tolist(), strict=True))
-        infos = self._infos(true, [terms[t].tolist() for t in TERMS], self.metrics.flat(ended=done or truncated))
+        infos = self._infos(true, [terms[t].tolist() for t in self.terms], self.metrics.flat(ended=done or truncated))
         terminations = {a: done for a in self.agents}
         truncations = {a: truncated for a in self.agents}
         if done or truncated:
@@ -266,28 +310,31 @@ class ParallelCoverageEnv(ParallelEnv):
         return rewards, terminations, truncations, infos
 
     def _infos(self, true: np.ndarray, terms: list[list[float]], metrics: dict) -> dict[str, dict]:
-        """``info[agent]``: the reward terms (one list per :data:`TERMS` entry), the episode
-        ``metrics`` entries and the estimate errors, in that key order (each agent's dict a copy of
-        one template, then its own values)."""
+        """``info[agent]``: the reward terms (one list per :attr:`terms` entry), the episode
+        ``metrics`` entries, the estimate errors and (version 2) ``route_done``, in that key order
+        (each agent's dict a copy of one template, then its own values)."""
         pos_err = np.hypot(*(self.estimate[:, :2] - true[:, :2]).T).tolist()
         head_err = np.abs(wrap_angle(self.estimate[:, 2] - true[:, 2])).tolist()
-        template = dict.fromkeys(REWARD_KEYS, 0.0)
+        reward_keys = tuple(f"reward_{t}" for t in self.terms)
+        template = dict.fromkeys(reward_keys, 0.0)
         template.update(metrics)
         template["pose_error"] = template["heading_error"] = 0.0
-        keys = (*REWARD_KEYS, "pose_error", "heading_error")
+        keys, extra = (*reward_keys, "pose_error", "heading_error"), []
+        if self.version == 2:
+            keys, extra = (*keys, "route_done"), [self.route_done().astype(float).tolist()]
         infos = {}
-        for a, *vals in zip(self.agents, *terms, pos_err, head_err, strict=True):
+        for a, *vals in zip(self.agents, *terms, pos_err, head_err, *extra, strict=True):
             info = infos[a] = template.copy()
             info.update(zip(keys, vals))
         return infos
 
     # ------------------------------------------------------------------ step parts
-    def _rewards(self, true: np.ndarray, n_new: int) -> dict[str, np.ndarray]:
+    def _rewards(self, true: np.ndarray, n_new: int, own: np.ndarray | None) -> dict[str, np.ndarray]:
         remaining = self.progress.remaining(true[:, :2])
         progress, self._remaining = self._remaining - remaining, remaining
         (wall0, robot0), wall, robot = self._contacts, self.world.wall_contacts, self.world.robot_contacts
         self._new_contacts, self._contacts = (wall - wall0, robot - robot0), (wall.copy(), robot.copy())
-        return reward_terms(self.scenario.rewards, n_new, progress, self._new_contacts[0] + self._new_contacts[1])
+        return reward_terms(self.scenario.rewards, n_new, progress, self._new_contacts[0] + self._new_contacts[1], own)
 
     def _record(self, before: np.ndarray, true: np.ndarray) -> None:
         m = self.metrics
@@ -337,12 +384,15 @@ class ParallelCoverageEnv(ParallelEnv):
         """Covariances ``(n_robots, 3, 3)`` of the pose estimates (m^2, m rad, rad^2), agent order."""
         return self.estimator.covariance.copy()
 
+    def route_done(self) -> np.ndarray:
+        """Version 2: ``(N,)`` bool, every KPOI of each robot's own route visited (its ``done_mask``)."""
+        return target_kpois(self.route_facts, self.progress.visited[None])[1][0]
+
     def state(self) -> np.ndarray:
-        true = self.world.poses()
-        parts = [true[:, :2], np.cos(true[:, 2:3]), np.sin(true[:, 2:3]), self.team.leader[:, None]]
-        robots = np.concatenate(parts, axis=1).ravel()
-        t = [self.steps / self.scenario.episode.max_steps]
-        return np.concatenate([robots, self.progress.visited.astype(float), t]).astype(np.float32)
+        """The global state for a centralized critic (see the class docstring; its layout is the version's)."""
+        if self.version == 2:
+            return critic_state.global_state(self, self.route_facts, self.state_space)
+        return critic_state.state_v1(self)
 
     def kinect_frames(self) -> dict:
         """Depth + IR frames (``KinectFrame``) of every overhead Kinect at the current state.
@@ -381,14 +431,6 @@ class ParallelCoverageEnv(ParallelEnv):
 
 if ParallelCoverageEnv.__doc__:  # the observation table, generated from the spec (absent under python -OO)
     ParallelCoverageEnv.__doc__ = ParallelCoverageEnv.__doc__.replace(
-        "OBSERVATION_TABLE", markdown_table().replace("\n", "\n    "))
+        "OBSERVATION_TABLE", markdown_table().replace("\n", "\n    ")).replace(
+        "STATE_TABLE", critic_state.markdown_table().replace("\n", "\n    "))
 
-
-def _state_space(bounds, n_robots: int, n_kpois: int) -> spaces.Box:
-    """Bounds of ``state()``: per robot x, y in the map box, cos, sin in [-1, 1], leader flag in [0, 1];
-    KPOI visited flags and the elapsed time fraction in [0, 1]."""
-    x0, y0, x1, y1 = bounds
-    robot_lo, robot_hi = [x0, y0, -1.0, -1.0, 0.0], [x1, y1, 1.0, 1.0, 1.0]
-    low = np.array(robot_lo * n_robots + [0.0] * (n_kpois + 1), dtype=np.float32)
-    high = np.array(robot_hi * n_robots + [1.0] * (n_kpois + 1), dtype=np.float32)
-    return spaces.Box(low, high, dtype=np.float32)

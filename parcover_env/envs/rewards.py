@@ -6,25 +6,45 @@ import numpy as np
 
 from parcover_env.config import RewardConfig
 
-__all__ = ["TERMS", "REWARD_KEYS", "reward_terms"]
+__all__ = ["TERMS", "TERMS_V2", "REWARD_KEYS", "terms_for", "reward_terms", "own_visits"]
 
 TERMS = ("kpoi", "progress", "time", "collision")
+"""The terms of version 1 (and of version 2 after ``own_kpoi``)."""
+TERMS_V2 = ("own_kpoi", *TERMS)
+"""The terms of version 2: the per-robot ``own_kpoi`` first."""
 REWARD_KEYS = tuple(f"reward_{t}" for t in TERMS)
-"""Info keys of the terms: ``info[agent]["reward_kpoi"]`` etc. (flat, present at reset as 0)."""
+"""Info keys of the version-1 terms: ``info[agent]["reward_kpoi"]`` etc. (flat, present at reset as 0)."""
+
+
+def terms_for(version: int) -> tuple[str, ...]:
+    """The reward terms of observation ``version`` (1: :data:`TERMS`, 2: :data:`TERMS_V2`)."""
+    return TERMS_V2 if version == 2 else TERMS
+
+
+def own_visits(newly: np.ndarray, visitor: np.ndarray, owner: np.ndarray, n_robots: int) -> np.ndarray:
+    """KPOIs of its own route each robot visited this step ``(N,)``: ``newly (n_kpois,)`` bool the
+    KPOIs first visited this step, ``visitor`` the robot that visited each, ``owner`` the robot
+    whose route the plan credits with each."""
+    mine = newly & (visitor == owner) & (visitor >= 0)
+    return np.bincount(visitor[mine], minlength=n_robots).astype(float)
 
 
 def reward_terms(w: RewardConfig, n_new_kpois: int, progress: np.ndarray,
-                 new_contacts: np.ndarray) -> dict[str, np.ndarray]:
+                 new_contacts: np.ndarray, own_new: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Weighted terms per agent ``{name: (N,)}``.
 
-    kpoi: ``w.kpoi`` per KPOI newly visited by anyone (team reward, every agent);
+    own_kpoi (only when ``own_new`` is given, version 2): ``w.own_kpoi`` per KPOI of the agent's own
+    route that the agent itself visited this step (``own_new``, from :func:`own_visits`);
+    kpoi: ``w.kpoi`` per KPOI newly visited by anyone (team reward / team bonus, every agent);
     progress: ``w.progress`` per metre of route-length-to-go removed this step (potential-based);
     time: ``w.time`` every step; collision: ``w.collision`` per new contact of this agent.
     """
     n = len(progress)
-    return {
+    terms = {} if own_new is None else {"own_kpoi": w.own_kpoi * own_new}
+    terms.update({
         "kpoi": np.full(n, w.kpoi * n_new_kpois),
         "progress": w.progress * progress,
         "time": np.full(n, w.time),
         "collision": w.collision * new_contacts.astype(float),
-    }
+    })
+    return terms

@@ -8,7 +8,8 @@ env all step through here, so the rules are written once:
 2. **sense and observe** (:func:`observe`, all worlds at once): one :class:`SensingState` of every
    world; the follower cameras first, then the compiled pass writes every non-sensor entry of the
    observation spec, then every ``sensor`` entry of the spec is filled by its sensor's ``sense`` for
-   all worlds in one call; clipped into the bounds. World ``k`` draws from its own generator in the
+   all worlds in one call (version 2's ``route`` and ``teammates`` entries too,
+   :mod:`parcover_env.envs.obs_v2`); clipped into the bounds. World ``k`` draws from its own generator in the
    order a single world would, so it is bit for bit a separate env;
 3. **outputs** (per world, :meth:`ParallelCoverageEnv.outputs`): rewards, terminations, truncations,
    infos;
@@ -27,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from parcover_env.envs import obs_v2
 from parcover_env.envs.handover import CameraView
 from parcover_env.envs.metrics import episode_metrics
 from parcover_env.envs.observations import ScalarInputs
@@ -63,6 +65,9 @@ def observe(worlds: Sequence[Any], true: np.ndarray) -> np.ndarray:
         reading = RelativeCamera.reading(camera[k])
         w.camera_view = CameraView(w.team.predecessor, reading, w.estimator.estimate.copy())
         w.layout.fill_scalars(obs[k], _scalar_inputs(w, reading))
+    if first.route_facts is not None:  # observation version 2: route and teammate entries, all worlds at once
+        obs_v2.fill(obs, first.layout.slices, first.route_facts, obs_v2.team_rows(worlds),
+                    first.scenario.observation.neighbours)
     for name, sensor in first.sensors.items():  # every sensor entry of the spec, all worlds in one call
         if sensor is not None:
             obs[..., first.layout.slices[name]] = sensor.sense(state, rngs)

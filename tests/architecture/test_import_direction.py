@@ -63,7 +63,7 @@ def _imports(module: str, path: Path) -> list[tuple[str, bool]]:
     return out
 
 
-ENTRY_POINTS = {"parcover_v0", "parcover_v1"}  # top-level factory modules, like __init__: may import anything
+ENTRY_POINTS = {"parcover_v0", "parcover_v1", "parcover_v2"}  # top-level factory modules: may import anything
 
 
 def _room(module: str) -> str | None:

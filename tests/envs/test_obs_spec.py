@@ -14,7 +14,8 @@ from parcover_env.envs.observations import ScalarInputs
 def _doc_rows() -> list[list[str]]:
     doc = ParallelCoverageEnv.__doc__
     lines = [ln.strip() for ln in doc.splitlines() if ln.strip().startswith("|")]
-    return [[c.strip() for c in ln.strip("|").split("|")] for ln in lines[2:]]
+    table = lines[:lines.index("|---|---|---|---|---|---|---|---|") + 1 + len(ENTRIES)]  # the first table
+    return [[c.strip() for c in ln.strip("|").split("|")] for ln in table[2:]]
 
 
 def test_the_docstring_table_is_the_generated_one():
@@ -22,7 +23,8 @@ def test_the_docstring_table_is_the_generated_one():
     assert [r[0] for r in rows] == [e.name for e in ENTRIES]
     assert [r[2] for r in rows] == [e.unit for e in ENTRIES]
     assert [r[4] for r in rows] == [e.source for e in ENTRIES]
-    assert [r[6] for r in rows] == [e.meaning for e in ENTRIES]
+    assert [r[6] for r in rows] == [", ".join(f"v{v}" for v in e.versions) for e in ENTRIES]
+    assert [r[7] for r in rows] == [e.meaning for e in ENTRIES]
     assert markdown_table().replace("\n", "\n    ") in ParallelCoverageEnv.__doc__
     assert "OBSERVATION_TABLE" not in ParallelCoverageEnv.__doc__
 
@@ -45,7 +47,7 @@ def test_layout_and_space_follow_the_spec_order_and_bounds(preset):
 
 def test_kernel_columns_are_the_non_sensor_entries_and_all_are_written():
     assert KERNEL_COLUMNS.names == KERNEL_ENTRIES
-    assert set(KERNEL_ENTRIES) == {e.name for e in ENTRIES if e.source != "sensor"}
+    assert set(KERNEL_ENTRIES) == {e.name for e in ENTRIES if e.source not in ("sensor", "route", "teammates")}
     env = parcover_env.parallel_env("office")
     lay, n = env.layout, 3
     g = np.random.default_rng(1)
