@@ -66,14 +66,20 @@ class Reference:
         return self.observations(), np.array(rewards), np.array(dones), infos
 
 
-@pytest.mark.parametrize("scenario,preset,k,max_steps,steps", [
-    ("office", "realistic", 3, 25, 60),
-    ("office", "ideal", 3, 25, 60),
-    ("tree", "realistic", 2, 20, 50),
-    ("tree", "ideal", 2, 20, 50),
+FAST_SONAR = {"model": "fast", "dropout_prob": 0.1}
+
+
+@pytest.mark.parametrize("scenario,preset,k,max_steps,steps,sonar", [
+    ("office", "realistic", 3, 25, 60, None),
+    ("office", "ideal", 3, 25, 60, None),
+    ("tree", "realistic", 2, 20, 50, None),
+    ("tree", "ideal", 2, 20, 50, None),
+    ("tree", "realistic", 3, 20, 50, FAST_SONAR),
 ])
-def test_batched_worlds_equal_separate_parallel_envs(scenario, preset, k, max_steps, steps):
+def test_batched_worlds_equal_separate_parallel_envs(scenario, preset, k, max_steps, steps, sonar):
     overrides = {"episode": {"max_steps": max_steps}}
+    if sonar:
+        overrides["robot"] = {"sonar": sonar}
     venv = make_vec_env(scenario, n_envs=k, overrides=overrides, backend="batched", preset=preset, monitor=False)
     assert isinstance(venv, BatchedVecEnv)
     ref = Reference(scenario, k, overrides, preset, seed=11)
