@@ -72,3 +72,13 @@ def test_every_echo_is_lost_at_dropout_one_and_batched_worlds_match_alone():
 def test_dropout_prob_is_checked():
     with pytest.raises(ConfigError, match="dropout_prob"):
         SonarConfig(model="fast", dropout_prob=1.5)
+
+
+def test_scan_and_corrupt_use_the_fast_model():
+    ring = _ring(model="fast", noise_std=0.01)
+    scan = ring.scan(np.zeros(3), OBLIQUE, None, RADIUS, None)
+    assert scan[0] == pytest.approx(2.0, abs=1e-9) and scan.shape == (72,)
+    assert np.all(_ring(model="fast", dropout_prob=1.0).corrupt(scan, np.random.default_rng(0)) == 2.54)
+    noisy = ring.corrupt(scan, np.random.default_rng(0))
+    z = np.random.default_rng(0).standard_normal(72)
+    assert noisy[0] == pytest.approx(2.0 + 0.01 * z[0])  # noise_rel 0 here

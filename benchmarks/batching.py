@@ -1,0 +1,181 @@
+"""The ``batching`` section of ``benchmarks/throughput.py`` (issue 31): does batching pay?
+
+For both sonar models (``specular``, the realistic default, and ``fast``) and each K of ``--ks``:
+``make_vec_env("tree", n_envs=K, backend="batched")`` with random actions, world-steps/s and
+agent-steps/s, and the memory per world: RSS growth from building, resetting and warming up the K
+worlds, over K (imports and compiled kernels are loaded before, by a throw-away K = 1 run of each
+model). Then VMAS ``navigation`` (4 agents, CPU, ``--torch-threads`` torch threads) at the same K,
+and per model at the largest K the breakdown of a world-step (physics = each world's
+``World.step``, sonar = the rings' draws and their one compiled call, the rest = everything else),
+timed in a separate run with wrapped calls. The issue's targets are printed beside the figures,
+met or not; MPE2 ``simple_spread`` N = 10 and a single ``tree`` env are measured here for the
+single-env target.
+
+    .venv/bin/python benchmarks/throughput.py --sections batching --ks 1,4,16,64,256
+    .venv/bin/python benchmarks/throughput.py --sections batching --ks 1,64 --steps 60 --repeats 1
+"""
+
+from __future__ import annotations
+
+import functools
+import gc
+import time
+
+from throughput import VecRunner, VmasBatchedRunner, measure_parallel, our_env, peer_mpe, rss_mb, timed_chunks
+
+MODELS = ("specular", "fast")
+"""Sonar models compared; ``specular`` is the shipped default."""
+REALISTIC_SELF = 2.0
+"""Target: realistic sonar, K = 64 >= 2x K = 1 in agent-steps/s."""
+REALISTIC_VMAS = 1.0
+"""Target: realistic sonar, K = 64 >= 1x VMAS navigation 64 envs (CPU) in agent-steps/s."""
+FAST_VMAS = 2.0
+"""Target: fast sonar, K = 64 >= 2x VMAS navigation 64 envs."""
+SINGLE_MPE = 5.0
+"""Target: single env ``tree`` >= 5x MPE2 simple_spread N = 10 in agent-steps/s."""
+
+
+def _venv(model: str, k: int):
+    from parcover_env.envs.vec_env import make_vec_env
+
+    return make_vec_env("tree", n_envs=k, overrides={"robot": {"sonar": {"model": model}}}, backend="batched",
+                        monitor=False)
+
+
+def _row(model: str, k: int, steps: int, repeats: int) -> dict:
+    gc.collect()
+    before = rss_mb()
+    venv = _venv(model, k)
+    try:
+        run = VecRunner(venv)
+        sec = timed_chunks(run, steps, repeats, warmup=5)
+        grown = rss_mb() - before
+    finally:
+        venv.close()
+    r = {"model": model, "K": k, "slots": venv.num_envs, "world_steps_s": k / sec, "agent_steps_s": venv.num_envs / sec,
+         "mib_per_world": grown / k}
+    print(f"  tree batched {model:8s} K={k:4d}  {r['world_steps_s']:9.1f} world-steps/s  {r['agent_steps_s']:9.0f} "
+          f"agent-steps/s  {1e6 / r['world_steps_s']:7.1f} us/world-step  {r['mib_per_world']:6.2f} MiB/world",
+          flush=True)
+    del venv
+    gc.collect()
+    return r
+
+
+class _Clock:
+    """Wall-clock totals of wrapped bound methods, by label."""
+
+    def __init__(self):
+        self.total: dict[str, float] = {}
+
+    def wrap(self, obj, attr: str, label: str) -> None:
+        fn = getattr(obj, attr)
+
+        @functools.wraps(fn)
+        def timed(*a, **kw):
+            t0 = time.perf_counter()
+            try:
+                return fn(*a, **kw)
+            finally:
+                self.total[label] = self.total.get(label, 0.0) + time.perf_counter() - t0
+
+        setattr(obj, attr, timed)
+
+
+def breakdown(model: str, k: int, steps: int) -> dict:
+    """Microseconds per world-step of physics, sonar and the rest, batched ``tree`` at ``k`` worlds."""
+    venv = _venv(model, k)
+    try:
+        run = VecRunner(venv)
+        for i in range(5):
+            run(i)
+        clock, seen = _Clock(), set()
+        for w in venv.worlds:
+            clock.wrap(w.world, "step", "physics")
+            if w.sonar is not None and id(w.sonar) not in seen:
+                seen.add(id(w.sonar))
+                clock.wrap(w.sonar, "draw", "sonar")
+                clock.wrap(w.sonar, "readings", "sonar")
+        t0 = time.perf_counter()
+        for i in range(steps):
+            run(i)
+        total = time.perf_counter() - t0
+    finally:
+        venv.close()
+    per = 1e6 / (steps * k)
+    out = {"model": model, "K": k, "total_us": total * per, "physics_us": clock.total.get("physics", 0.0) * per,
+           "sonar_us": clock.total.get("sonar", 0.0) * per}
+    out["rest_us"] = out["total_us"] - out["physics_us"] - out["sonar_us"]
+    print(f"  breakdown {model:8s} K={k:4d}: {out['total_us']:7.1f} us/world-step = physics {out['physics_us']:6.1f} "
+          f"+ sonar {out['sonar_us']:6.1f} + rest {out['rest_us']:6.1f} (wrapped calls)", flush=True)
+    return out
+
+
+def _vmas(k: int, steps: int, repeats: int) -> dict | None:
+    try:
+        run = VmasBatchedRunner(k)
+    except ImportError as exc:
+        print(f"  VMAS navigation: not installed ({exc}); pip install vmas", flush=True)
+        return None
+    sec = timed_chunks(run, steps, repeats, warmup=5)
+    v = {"K": k, "world_steps_s": k / sec, "agent_steps_s": k * run.n_agents / sec}
+    print(f"  vmas navigation 4 agents  K={k:4d}  {v['world_steps_s']:9.1f} world-steps/s  "
+          f"{v['agent_steps_s']:9.0f} agent-steps/s", flush=True)
+    return v
+
+
+def _target(label: str, value: float, target: float) -> None:
+    print(f"  TARGET {label}: {value:.2f}x (target >= {target:g}x)  {'MET' if value >= target else 'NOT MET'}",
+          flush=True)
+
+
+def section_batching(args, results: dict) -> None:
+    ks = [int(x) for x in args.ks.split(",") if x.strip()]
+    steps = max(args.steps // 10, 5)
+    out: dict = {"rows": [], "vmas": [], "breakdown": []}
+    for model in MODELS:  # imports, compiled kernels and caches first: RSS growth is then the worlds'
+        venv = _venv(model, 1)
+        run = VecRunner(venv)
+        for i in range(5):
+            run(i)
+        venv.close()
+    del venv, run
+    for model in MODELS:
+        for k in ks:
+            out["rows"].append(_row(model, k, max(steps * 16 // k, 3), args.repeats))
+    for k in ks:
+        v = _vmas(k, max(steps * 16 // k, 3) * 4, args.repeats)
+        if v:
+            out["vmas"].append(v)
+    for model in MODELS:
+        out["breakdown"].append(breakdown(model, max(ks), max(steps * 16 // max(ks), 3) * args.repeats))
+    single = measure_parallel(our_env("tree", None), args.steps, args.repeats)
+    print(f"  single env tree (specular)     {single['agent_steps_s']:9.0f} agent-steps/s", flush=True)
+    try:
+        mpe = measure_parallel(peer_mpe(10), args.steps * 2, args.repeats)
+        print(f"  mpe2 simple_spread N=10        {mpe['agent_steps_s']:9.0f} agent-steps/s", flush=True)
+    except ImportError as exc:
+        mpe = None
+        print(f"  MPE2: not installed ({exc}); pip install mpe2", flush=True)
+    rows = {(r["model"], r["K"]): r for r in out["rows"]}
+    vmas = {v["K"]: v for v in out["vmas"]}
+    print("  per-world speed-up over K=1 (world-steps/s): " + "; ".join(
+        f"{m} " + ", ".join(f"K={k}: {rows[m, k]['world_steps_s'] / rows[m, ks[0]]['world_steps_s']:.2f}x"
+                            for k in ks) for m in MODELS), flush=True)
+    for k in ks:
+        if k in vmas:
+            print(f"  K={k:4d} ours / VMAS agent-steps/s: " + ", ".join(
+                f"{m} {rows[m, k]['agent_steps_s'] / vmas[k]['agent_steps_s']:.2f}x" for m in MODELS), flush=True)
+    if 1 in ks and 64 in ks:
+        _target("realistic K=64 / K=1 agent-steps/s", rows["specular", 64]["agent_steps_s"]
+                / rows["specular", 1]["agent_steps_s"], REALISTIC_SELF)
+    if 64 in vmas:
+        _target("realistic K=64 / VMAS navigation 64", rows["specular", 64]["agent_steps_s"]
+                / vmas[64]["agent_steps_s"], REALISTIC_VMAS)
+        _target("fast K=64 / VMAS navigation 64", rows["fast", 64]["agent_steps_s"] / vmas[64]["agent_steps_s"],
+                FAST_VMAS)
+    if mpe:
+        _target("single env tree / MPE2 simple_spread N=10", single["agent_steps_s"] / mpe["agent_steps_s"],
+                SINGLE_MPE)
+    out["single_tree"], out["mpe10"] = single, mpe
+    results["batching"] = out
