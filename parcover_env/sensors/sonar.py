@@ -278,7 +278,8 @@ class SonarRing:
     def draw(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
         """The random numbers :meth:`measure` draws for ``n`` robots that see each other, in its order:
         cross-talk uniforms, noise normals, garbage uniforms and ranges (each ``(n * B,)``, empty
-        where that step is off); for :meth:`readings`."""
+        where that step is off); for :meth:`readings`. ``model: fast``: noise normals, dropout
+        uniforms, garbage uniforms and ranges (:class:`~.sonar_fast_kernels.FastDraws`)."""
         return self._draws(n * self.n_beams, rng, n > 1)
 
     def _draws(self, size: int, rng: np.random.Generator | None, talk: bool) -> tuple[np.ndarray, ...]:

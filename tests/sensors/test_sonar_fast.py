@@ -82,3 +82,20 @@ def test_scan_and_corrupt_use_the_fast_model():
     noisy = ring.corrupt(scan, np.random.default_rng(0))
     z = np.random.default_rng(0).standard_normal(72)
     assert noisy[0] == pytest.approx(2.0 + 0.01 * z[0])  # noise_rel 0 here
+
+
+def test_noise_free_fast_readings_are_the_ideal_ray_bit_for_bit():
+    from parcover_env.config import MapConfig
+    from parcover_env.world.map_model import MapModel
+
+    room = MapModel.from_config(MapConfig(size=(4.0, 4.0), obstacles=(((1.0, 1.0), (1.6, 1.2), (1.2, 1.8)),)))
+    rng = np.random.default_rng(5)
+    pts = rng.uniform(0, 4, (200, 2))
+    pts = pts[room.contains(pts, margin=0.2)][:6]
+    poses = np.column_stack([pts, rng.uniform(-math.pi, math.pi, len(pts))])
+    fast = _ring(model="fast", n_beams=16, below_min="clip")
+    ray = _ring(model="ray", n_beams=16, below_min="clip", crosstalk_prob=0.0)
+    got = fast.measure(poses, room.segments, 0.165, np.random.default_rng(0))  # the compiled fast ring
+    want = ray.measure(poses, room.segments, 0.165, None)
+    assert np.array_equal(got, want)
+    assert np.mean(got < 2.54) > 0.5  # mostly echoes: the room is 4 m wide
