@@ -2,14 +2,15 @@
 
 For both sonar models (``specular``, the realistic default, and ``fast``) and each K of ``--ks``:
 ``make_vec_env("tree", n_envs=K, backend="batched")`` with random actions, world-steps/s and
-agent-steps/s, and the memory per world: RSS growth from building, resetting and warming up the K
-worlds, over K (imports and compiled kernels are loaded before, by a throw-away K = 1 run of each
-model). Then VMAS ``navigation`` (4 agents, CPU, ``--torch-threads`` torch threads) at the same K,
-and per model at the largest K the breakdown of a world-step (physics = each world's
-``World.step``, sonar = the rings' draws and their one compiled call, the rest = everything else),
-timed in a separate run with wrapped calls. The issue's targets are printed beside the figures,
-met or not; MPE2 ``simple_spread`` N = 10 and a single ``tree`` env are measured here for the
-single-env target.
+agent-steps/s, then VMAS ``navigation`` (4 agents, CPU, ``--torch-threads`` torch threads) at the
+same K right after (ratios side by side in time: the machine's load moves). The memory per world is
+measured in a fresh process per model and K (so that no freed memory of an earlier run is reused):
+its RSS growth from building, resetting and stepping the K worlds 5 times, over K, after a K = 1
+run loaded the imports and compiled kernels. Per model at the largest K, the breakdown of a
+world-step (physics = each world's ``World.step``, sonar = the rings' draws and their one compiled
+call, the rest = everything else), timed in a separate run with wrapped calls. The issue's targets
+are printed beside the figures, met or not; a single ``tree`` env and MPE2 ``simple_spread`` N = 10
+are measured here, alternately, for the single-env target.
 
     .venv/bin/python benchmarks/throughput.py --sections batching --ks 1,4,16,64,256
     .venv/bin/python benchmarks/throughput.py --sections batching --ks 1,64 --steps 60 --repeats 1
@@ -42,18 +43,43 @@ def _venv(model: str, k: int):
                         monitor=False)
 
 
-def _row(model: str, k: int, steps: int, repeats: int) -> dict:
+def _stepped(model: str, k: int, steps: int) -> None:
+    venv = _venv(model, k)
+    run = VecRunner(venv)
+    for i in range(steps):
+        run(i)
+    venv.close()
+
+
+def mib_per_world(model: str, k: int) -> float:
+    """RSS growth (MiB) per world of building and stepping ``k`` worlds, in this (fresh) process."""
+    _stepped(model, 1, 5)
     gc.collect()
     before = rss_mb()
     venv = _venv(model, k)
+    run = VecRunner(venv)
+    for i in range(5):
+        run(i)
+    return (rss_mb() - before) / k
+
+
+def _memory(model: str, k: int) -> float:
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        return pool.submit(mib_per_world, model, k).result()
+
+
+def _row(model: str, k: int, steps: int, repeats: int) -> dict:
+    gc.collect()
+    venv = _venv(model, k)
     try:
-        run = VecRunner(venv)
-        sec = timed_chunks(run, steps, repeats, warmup=5)
-        grown = rss_mb() - before
+        sec = timed_chunks(VecRunner(venv), steps, repeats, warmup=5)
     finally:
         venv.close()
     r = {"model": model, "K": k, "slots": venv.num_envs, "world_steps_s": k / sec, "agent_steps_s": venv.num_envs / sec,
-         "mib_per_world": grown / k}
+         "mib_per_world": _memory(model, k)}
     print(f"  tree batched {model:8s} K={k:4d}  {r['world_steps_s']:9.1f} world-steps/s  {r['agent_steps_s']:9.0f} "
           f"agent-steps/s  {1e6 / r['world_steps_s']:7.1f} us/world-step  {r['mib_per_world']:6.2f} MiB/world",
           flush=True)
@@ -124,6 +150,29 @@ def _vmas(k: int, steps: int, repeats: int) -> dict | None:
     return v
 
 
+def _single_and_mpe(args) -> tuple[dict, dict | None]:
+    """A single ``tree`` env and MPE2 simple_spread N = 10, measured alternately ``--repeats`` times
+    (chunks of ``--steps``; the median of each)."""
+    try:
+        mpe_env = peer_mpe(10)
+    except ImportError as exc:
+        print(f"  MPE2: not installed ({exc}); pip install mpe2", flush=True)
+        mpe_env = None
+    tree = our_env("tree", None)
+    ours, peer = [], []
+    for _ in range(args.repeats):
+        ours.append(measure_parallel(tree, args.steps, 1))
+        if mpe_env is not None:
+            peer.append(measure_parallel(mpe_env, args.steps * 2, 1))
+    single = sorted(ours, key=lambda r: r["agent_steps_s"])[len(ours) // 2]
+    print(f"  single env tree (specular)     {single['agent_steps_s']:9.0f} agent-steps/s", flush=True)
+    if not peer:
+        return single, None
+    mpe = sorted(peer, key=lambda r: r["agent_steps_s"])[len(peer) // 2]
+    print(f"  mpe2 simple_spread N=10        {mpe['agent_steps_s']:9.0f} agent-steps/s", flush=True)
+    return single, mpe
+
+
 def _target(label: str, value: float, target: float) -> None:
     print(f"  TARGET {label}: {value:.2f}x (target >= {target:g}x)  {'MET' if value >= target else 'NOT MET'}",
           flush=True)
@@ -133,30 +182,17 @@ def section_batching(args, results: dict) -> None:
     ks = [int(x) for x in args.ks.split(",") if x.strip()]
     steps = max(args.steps // 10, 5)
     out: dict = {"rows": [], "vmas": [], "breakdown": []}
-    for model in MODELS:  # imports, compiled kernels and caches first: RSS growth is then the worlds'
-        venv = _venv(model, 1)
-        run = VecRunner(venv)
-        for i in range(5):
-            run(i)
-        venv.close()
-    del venv, run
-    for model in MODELS:
-        for k in ks:
-            out["rows"].append(_row(model, k, max(steps * 16 // k, 3), args.repeats))
+    for model in MODELS:  # imports, compiled kernels and caches first
+        _stepped(model, 1, 5)
     for k in ks:
+        for model in MODELS:
+            out["rows"].append(_row(model, k, max(steps * 16 // k, 3), args.repeats))
         v = _vmas(k, max(steps * 16 // k, 3) * 4, args.repeats)
         if v:
             out["vmas"].append(v)
     for model in MODELS:
         out["breakdown"].append(breakdown(model, max(ks), max(steps * 16 // max(ks), 3) * args.repeats))
-    single = measure_parallel(our_env("tree", None), args.steps, args.repeats)
-    print(f"  single env tree (specular)     {single['agent_steps_s']:9.0f} agent-steps/s", flush=True)
-    try:
-        mpe = measure_parallel(peer_mpe(10), args.steps * 2, args.repeats)
-        print(f"  mpe2 simple_spread N=10        {mpe['agent_steps_s']:9.0f} agent-steps/s", flush=True)
-    except ImportError as exc:
-        mpe = None
-        print(f"  MPE2: not installed ({exc}); pip install mpe2", flush=True)
+    single, mpe = _single_and_mpe(args)
     rows = {(r["model"], r["K"]): r for r in out["rows"]}
     vmas = {v["K"]: v for v in out["vmas"]}
     print("  per-world speed-up over K=1 (world-steps/s): " + "; ".join(
