@@ -60,7 +60,7 @@ def main() -> int:
     cases = {
         "float": 1.0,
         "array (8,)": np.zeros(8),
-        "record (SONAR_RULES, 16 fields)": rules,
+        f"record (SONAR_RULES, {len(rules.dtype.names)} fields)": rules,
         "tuple of 4 arrays": tuple(arrays),
         "NamedTuple of 4 arrays": _Arrays(*arrays),
         "NamedTuple of 7 floats": _Floats(*(float(i) for i in range(7))),

@@ -6,7 +6,14 @@ cross-talk from the episode RNG) against the noise-free ideal ray along the beam
 share of in-range beams (ideal ray < range_max) that differ by more than ``--threshold``, and how
 they differ (too long / too short / lost).
 
+``--fast``: the ``fast`` training model (one ray per beam, noise, dropouts at ``--dropout``; the
+scenario's noise parameters) against the realistic specular ring, both drawing from their own
+generator at the same poses, on every shipped map (or ``--scenario``): per-beam ``|fast -
+specular|`` median and p90 over all beams, the share of beams differing by more than 0.1 m, and
+each model's no-echo rate (a reading of ``range_max``).
+
     .venv/bin/python benchmarks/sonar_realism.py [--scenario hallway] [--n 2000] [--seed 0]
+    .venv/bin/python benchmarks/sonar_realism.py --fast [--n 500] [--dropout 0.0]
 """
 
 from __future__ import annotations
@@ -35,13 +42,56 @@ def team_poses(world: MapModel, n_robots: int, radius: float, rng: np.random.Gen
             return np.column_stack([pts, rng.uniform(-math.pi, math.pi, n_robots)])
 
 
+SHIPPED = ("office", "tree", "hallway", "t_room", "triangle_room")
+"""The scenarios shipped in ``configs/``."""
+
+
+def fast_vs_specular(scenario: str, n: int, seed: int, dropout: float) -> dict:
+    """Readings of the ``fast`` and the specular ring at ``n`` random team placements of ``scenario``."""
+    sc = load_scenario(scenario)
+    world = MapModel.from_config(sc.map, include_unknown=True)
+    cfg = dataclasses.replace(sc.robot.sonar, model="specular")
+    real = SonarRing(cfg)
+    fast = SonarRing(dataclasses.replace(cfg, model="fast", dropout_prob=dropout))
+    n_robots = sc.n_robots_fixed or 2
+    rng, rng_real, rng_fast = (np.random.default_rng([seed, i]) for i in range(3))
+    a, b = [], []
+    for _ in range(n):
+        poses = team_poses(world, n_robots, sc.robot.radius, rng)
+        a.append(real.measure(poses, world.segments, sc.robot.radius, rng_real).astype(float))
+        b.append(fast.measure(poses, world.segments, sc.robot.radius, rng_fast).astype(float))
+    spec, fst = np.concatenate(a).ravel(), np.concatenate(b).ravel()
+    diff = np.abs(fst - spec)
+    top = cfg.range_max - 1e-6
+    return {"scenario": scenario, "robots": n_robots, "beams": spec.size, "median": float(np.median(diff)),
+            "p90": float(np.percentile(diff, 90)), "over_10cm": float(np.mean(diff > 0.1)),
+            "no_echo_specular": float(np.mean(spec >= top)), "no_echo_fast": float(np.mean(fst >= top))}
+
+
+def report_fast(scenarios, n: int, seed: int, dropout: float) -> None:
+    print(f"fast (one ray, noise, dropout_prob={dropout}, no cross-talk) vs specular (scenario config), "
+          f"{n} placements per map; |fast - specular| per beam")
+    print(f"{'map':14s} {'robots':>6s} {'beams':>7s} {'median m':>9s} {'p90 m':>7s} {'> 0.1 m':>8s} "
+          f"{'no echo spec':>12s} {'no echo fast':>12s}")
+    for name in scenarios:
+        r = fast_vs_specular(name, n, seed, dropout)
+        print(f"{r['scenario']:14s} {r['robots']:6d} {r['beams']:7d} {r['median']:9.3f} {r['p90']:7.3f} "
+              f"{r['over_10cm']:8.1%} {r['no_echo_specular']:12.1%} {r['no_echo_fast']:12.1%}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scenario", default="hallway")
+    ap.add_argument("--scenario", default=None, help="default: hallway (--fast: every shipped map)")
     ap.add_argument("--n", type=int, default=2000, help="team placements")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threshold", type=float, default=0.2, help="m")
+    ap.add_argument("--fast", action="store_true", help="the fast model against the specular one, every shipped map")
+    ap.add_argument("--dropout", type=float, default=0.0, help="dropout_prob of the fast model (--fast)")
     args = ap.parse_args()
+    if args.fast:
+        report_fast([args.scenario] if args.scenario else SHIPPED, args.n, args.seed, args.dropout)
+        return
+    args.scenario = args.scenario or "hallway"
     sc = load_scenario(args.scenario)
     world = MapModel.from_config(sc.map, include_unknown=True)
     cfg = sc.robot.sonar

@@ -24,6 +24,10 @@ Sections (``--sections``, comma separated; default all):
   and the speed-up over K separate in-process worlds, measured at K = 4), team-size scaling of the
   batched backend (open box, K = 16), and VMAS ``navigation`` batched (``num_envs`` 64, 4 agents,
   CPU) for the K = 64 ratio.
+* ``batching`` - issue 31 in one run (``benchmarks/batching.py``): batched ``tree`` at K of ``--ks``
+  (default 1, 4, 16, 64, 256) for the specular and the ``fast`` sonar model, VMAS ``navigation`` at the
+  same K, memory per world, the physics / sonar / rest breakdown of a world-step, and the issue's
+  targets beside the figures.
 * ``memory``  - peak RSS, and RSS sampled over ``--soak`` env-steps on ``office`` (one ParallelEnv) and
   over ``--soak`` world-steps of the batched backend (``office``, K = 16); ``--soak 1000000`` for
   the 10^6-step soak (``--soak-batched-only``: the batched one alone).
@@ -526,8 +530,15 @@ def section_memory(args, results: dict) -> None:
     results["memory"] = r
 
 
+def section_batching(args, results: dict) -> None:
+    from batching import section_batching as run
+
+    run(args, results)
+
+
 SECTIONS = {"ours": section_ours, "peers": section_peers, "floor": section_floor, "scaling": section_scaling,
-            "vec": section_vec, "batched": section_batched, "memory": section_memory}
+            "vec": section_vec, "batched": section_batched, "batching": section_batching,
+            "memory": section_memory}
 
 
 def summary(results: dict) -> None:
@@ -572,6 +583,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="env-steps of the memory soaks (default 20000; 1000000 for the 10^6-step soak)")
     p.add_argument("--soak-batched-only", action="store_true",
                    help="memory section: only the batched soak (the long batched soak without the single-env one)")
+    p.add_argument("--ks", default="1,4,16,64,256", help="worlds per process of the batching section")
     p.add_argument("--quick", action="store_true", help="short chunks (smoke run)")
     p.add_argument("--json", help="also write the figures to this JSON file")
     p.add_argument("--torch-threads", type=int, default=1,

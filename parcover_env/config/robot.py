@@ -21,7 +21,12 @@ class SonarConfig:
     """Sonar ring (seed B: AmigoBot). The default is the realistic model: a cone of ``cone_deg``
     whose walls echo only near normal incidence, multipath, retro-reflecting concave corners,
     echoes from robots, cross-talk between rings and readings lost below ``range_min``.
-    ``model: ray`` is one ideal ray per beam (the ``ideal`` preset)."""
+    ``model: ray`` is one ideal ray per beam (the ``ideal`` preset). ``model: fast`` is the cheap
+    option for training: one ray per beam along its axis (walls and the other robots of its world),
+    with the realistic model's range noise, quantization, drops below ``range_min`` and garbage, plus
+    random dropouts at ``dropout_prob``; it has no cone, no specular incidence limit, no multipath,
+    no corner echoes and no cross-talk (``benchmarks/sonar_realism.py`` measures how far it reads
+    from the specular model)."""
 
     layout: Literal["ring", "amigobot"] = "ring"
     n_beams: int = 16
@@ -30,8 +35,9 @@ class SonarConfig:
     """Nearest measurable range (m): the transducer still rings while a nearer echo returns."""
     range_max: float = 2.54
     """Farthest range (m); a beam with no echo reads this (seed B: 2.54 m = 'too far')."""
-    model: Literal["ray", "specular"] = "specular"
-    """``specular``: a cone of sub-rays with the specular physics below; ``ray``: one ideal ray."""
+    model: Literal["ray", "specular", "fast"] = "specular"
+    """``specular``: a cone of sub-rays with the specular physics below; ``ray``: one ideal ray
+    (with cross-talk); ``fast``: one ray, noise and dropouts, no cross-talk (see above)."""
     cone_deg: float = 30.0
     """Full opening angle of a beam (deg), sampled by sub-rays (specular model)."""
     incidence_max_deg: float = 20.0
@@ -55,6 +61,10 @@ class SonarConfig:
     """Angular step of a 360-degree scan (72 readings at 5 degrees)."""
     garbage_rate: float = 0.0
     """Fault injection: probability that a reading is replaced by a uniform random range."""
+    dropout_prob: float = 0.0
+    """``fast`` model only: probability (-) that an echo is lost and reads ``range_max`` (a stand-in
+    for the echoes the specular model loses at oblique walls, which the fast model does not trace).
+    Other models ignore it."""
 
     def __post_init__(self) -> None:
         _positive(self, "n_beams", "range_max", "cone_deg", "scan_step_deg")
@@ -62,6 +72,7 @@ class SonarConfig:
         _check(self.noise_std >= 0 and self.noise_rel >= 0, "noise_std", "noise must be >= 0")
         _check(self.quantization >= 0, "quantization", "must be >= 0")
         _check(0 <= self.garbage_rate <= 1, "garbage_rate", "must be in [0, 1]")
+        _check(0 <= self.dropout_prob <= 1, "dropout_prob", f"must be in [0, 1], got {self.dropout_prob}")
         _check(0 <= self.crosstalk_prob <= 1, "crosstalk_prob", f"must be in [0, 1], got {self.crosstalk_prob}")
         _check(0 < self.incidence_max_deg <= 90, "incidence_max_deg", "must be in (0, 90]")
         _check(self.cone_deg < 180, "cone_deg", f"must be < 180, got {self.cone_deg}")

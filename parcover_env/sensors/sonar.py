@@ -7,6 +7,9 @@ Geometry and conventions
   :mod:`parcover_env.geometry.rays` (its compiled per-ray helpers, in :mod:`.sonar_kernels` and
   :mod:`.sonar_ring_kernels`).
 - ``model: ray`` — one ideal ray along each beam axis; reading = first hit (walls or other robots).
+- ``model: fast`` — the ``ray`` model's noise-free reading, then dropouts (an echo lost at
+  ``dropout_prob``) and the noise below; no cone, no specular incidence limit, no multipath, no
+  corners, no cross-talk (:mod:`.sonar_fast_kernels`). The cheap option for training.
 - ``model: specular`` (default) — each beam is a cone of ``cone_deg`` sampled by ``n_subrays`` rays (the
   axis direction rotated by each sub-ray's offset). Overlapping cones share the sub-rays that point
   the same way (within 1e-9 rad): the default ring of 16 beams traces 48 rays, not 80.
@@ -39,6 +42,7 @@ from parcover_env.config import SonarConfig
 from parcover_env.geometry import rays
 from parcover_env.geometry.angles import wrap_angle
 from parcover_env.geometry.records import record
+from parcover_env.sensors import sonar_fast_kernels as fast_kern
 from parcover_env.sensors import sonar_kernels as kern
 from parcover_env.sensors import sonar_ring_kernels as ring_kern
 from parcover_env.sensors.base import SensingState
@@ -210,7 +214,7 @@ def _rules(cfg: SonarConfig, box_cull: bool = True, all_round: bool = False) -> 
                   half_cone=_half_cone(cfg), all_round=all_round, near_slack=rays.NEAR_SLACK,
                   crosstalk_prob=cfg.crosstalk_prob, range_min=cfg.range_min, drop_below=cfg.below_min == "drop",
                   noise_std=cfg.noise_std, noise_rel=cfg.noise_rel, quantization=cfg.quantization,
-                  garbage_rate=cfg.garbage_rate)
+                  garbage_rate=cfg.garbage_rate, dropout_prob=cfg.dropout_prob if cfg.model == "fast" else 0.0)
 
 
 def _cos_min(cfg: SonarConfig) -> float:
@@ -287,13 +291,23 @@ class SonarRing:
     def draw(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
         """The random numbers :meth:`measure` draws for ``n`` robots that see each other, in its order:
         cross-talk uniforms, noise normals, garbage uniforms and ranges (each ``(n * B,)``, empty
-        where that step is off); for :meth:`readings`."""
+        where that step is off); for :meth:`readings`. ``model: fast``: noise normals, dropout
+        uniforms, garbage uniforms and ranges (:class:`~.sonar_fast_kernels.FastDraws`)."""
         return self._draws(n * self.n_beams, rng, n > 1)
 
     def _draws(self, size: int, rng: np.random.Generator | None, talk: bool) -> tuple[np.ndarray, ...]:
         """``size`` of each of :meth:`draw`'s numbers (cross-talk ones only if ``talk``); all empty
-        without a generator."""
+        without a generator. ``model: fast``: a :class:`~.sonar_fast_kernels.FastDraws` (noise
+        normals, dropout uniforms, garbage uniforms and ranges; never cross-talk)."""
         cfg, none = self.cfg, np.empty(0)
+        if cfg.model == "fast":
+            if rng is None:
+                return fast_kern.FastDraws(none, none, none, none)
+            z = rng.standard_normal(size) if cfg.noise_std > 0 or cfg.noise_rel > 0 else none
+            drop = rng.random(size) if cfg.dropout_prob > 0 else none
+            bad = rng.random(size) if cfg.garbage_rate > 0 else none
+            junk = rng.uniform(cfg.range_min, cfg.range_max, size) if len(bad) else none
+            return fast_kern.FastDraws(z, drop, bad, junk)
         if rng is None:
             return none, none, none, none
         talk_u = rng.random(size) if talk and cfg.crosstalk_prob > 0 else none
@@ -311,10 +325,15 @@ class SonarRing:
         walls = _walls(segments)
         poses = np.asarray(poses, dtype=float)
         k, n, nb = poses.shape[0], poses.shape[1], self.n_beams
-        flat = ring_kern.Draws(*(np.concatenate(parts) if k > 1 else parts[0] for parts in zip(*draws, strict=True)))
+        joined = (np.concatenate(parts) if k > 1 else parts[0] for parts in zip(*draws, strict=True))
         out = np.empty((k * n, nb), dtype=np.float32)
         px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
         r = float(robot_radius)
+        if self.cfg.model == "fast":
+            fast_kern.fast_ring_readings(px, py, pth, r * r, self._beams, walls.segments, fast_kern.FastDraws(*joined),
+                                         self._rules, out)
+            return out.reshape(k, n, nb)
+        flat = ring_kern.Draws(*joined)
         ring_kern.ring_readings(px, py, pth, r * r, self._beams, self._offsets, self._share, walls.kernel, flat,
                                 self._rules, out)
         return out.reshape(k, n, nb)
@@ -360,6 +379,9 @@ class SonarRing:
         rows = np.ascontiguousarray(ideal.reshape(-1, ideal.shape[-1]) if ideal.ndim else ideal.reshape(1, 1))
         out = np.empty(rows.shape, dtype=dtype)
         talk = heard is not None
+        if self.cfg.model == "fast":  # never cross-talk
+            fast_kern.fast_noise(rows, self._draws(rows.size, rng, False), self._rules, out)
+            return out.reshape(ideal.shape)
         heard = np.ascontiguousarray(heard, dtype=float).reshape(rows.shape) if talk else rows
         ring_kern.ring_noise(rows, heard, float(self.cfg.crosstalk_prob) if talk else 0.0,
                              ring_kern.Draws(*self._draws(rows.size, rng, talk)), self._rules, out)

@@ -39,6 +39,7 @@ SONAR_RULES = np.dtype([
     ("noise_rel", "f8"),  # ... plus this times the range
     ("quantization", "f8"),  # echoes are rounded to multiples of this (m); 0: not
     ("garbage_rate", "f8"),  # probability of a reading uniform in [range_min, range_max]
+    ("dropout_prob", "f8"),  # fast model: probability that an echo is lost (reads range_max)
 ])
 """Every constant of the compiled sonar, one record (:func:`parcover_env.geometry.records.record`)."""
 

@@ -66,17 +66,23 @@ class Reference:
         return self.observations(), np.array(rewards), np.array(dones), infos
 
 
-@pytest.mark.parametrize("scenario,preset,k,max_steps,steps,version", [
-    ("office", "realistic", 3, 25, 60, 1),
-    ("office", "ideal", 3, 25, 60, 1),
-    ("tree", "realistic", 2, 20, 50, 1),
-    ("tree", "ideal", 2, 20, 50, 1),
-    ("tree", "realistic", 2, 20, 50, 2),  # observation version 2: route and teammate entries over (K, N)
-    ("generated:7", "realistic", 3, 20, 45, 2),
+FAST_SONAR = {"model": "fast", "dropout_prob": 0.1}
+
+
+@pytest.mark.parametrize("scenario,preset,k,max_steps,steps,version,sonar", [
+    ("office", "realistic", 3, 25, 60, 1, None),
+    ("office", "ideal", 3, 25, 60, 1, None),
+    ("tree", "realistic", 2, 20, 50, 1, None),
+    ("tree", "ideal", 2, 20, 50, 1, None),
+    ("tree", "realistic", 2, 20, 50, 2, None),  # observation version 2: route and teammate entries over (K, N)
+    ("generated:7", "realistic", 3, 20, 45, 2, None),
+    ("tree", "realistic", 3, 20, 50, 1, FAST_SONAR),
 ])
-def test_batched_worlds_equal_separate_parallel_envs(scenario, preset, k, max_steps, steps, version):
+def test_batched_worlds_equal_separate_parallel_envs(scenario, preset, k, max_steps, steps, version, sonar):
     overrides = {"episode": {"max_steps": max_steps}, "observation": {"version": version},
                  "rewards": {"own_kpoi": 10.0 if version == 2 else 0.0}}
+    if sonar:
+        overrides["robot"] = {"sonar": sonar}
     venv = make_vec_env(scenario, n_envs=k, overrides=overrides, backend="batched", preset=preset, monitor=False)
     assert isinstance(venv, BatchedVecEnv)
     ref = Reference(scenario, k, overrides, preset, seed=11)

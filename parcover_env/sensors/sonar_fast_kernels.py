@@ -1,0 +1,95 @@
+"""Compiled (numba) ``fast`` sonar ring, the training option of :mod:`parcover_env.sensors.sonar`:
+one ray per beam along its axis, the robots of the beam's own world as discs, then Gaussian range
+noise, dropouts, quantization and garbage readings with the realistic model's parameters
+(:func:`~parcover_env.sensors.sonar_ring_kernels.ring_noise`). No cone, no specular incidence
+limit, no multipath, no corner echoes, no cross-talk.
+
+The caller draws the random numbers (numpy, each world's own generator, in the order of
+:class:`FastDraws`) and hands them in; the kernels read their constants from the
+:data:`~parcover_env.sensors.sonar_kernels.SONAR_RULES` record.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from parcover_env.geometry.ray_kernels import disc_hit, near_segments, segment_hit
+from parcover_env.sensors.sonar_ring_kernels import Draws, ring_noise
+
+__all__ = ["FastDraws", "fast_noise", "fast_ring_readings"]
+
+
+class FastDraws(NamedTuple):
+    """The random numbers of a ``fast`` ring's readings, flat ``(R,)`` arrays (world after world,
+    robot after robot, beam after beam), drawn in this order, empty where that step is off."""
+
+    z: np.ndarray
+    """Standard normals: the range noise."""
+    drop: np.ndarray
+    """Uniforms: an echo is lost (reads ``range_max``) where below ``dropout_prob``."""
+    bad: np.ndarray
+    """Uniforms: a garbage reading where below its rate."""
+    junk: np.ndarray
+    """Uniforms in ``[range_min, range_max]``: the garbage readings."""
+
+
+@njit(cache=True, nogil=True)
+def fast_noise(ideal, draws, rules, out):
+    """``out (N, B)`` from the noise-free ``ideal (N, B)`` (inf or ``>= range_max``: no echo): echoes
+    whose ``draws.drop`` uniform is below ``dropout_prob`` are lost, then
+    :func:`~parcover_env.sensors.sonar_ring_kernels.ring_noise` without cross-talk (drops below
+    ``range_min``, noise, quantization, clamping, garbage)."""
+    rule = rules[0]
+    n, b = ideal.shape
+    r = ideal.copy()
+    drop = draws.drop
+    if drop.shape[0]:
+        flat = r.reshape(n * b)
+        for i in range(n * b):
+            if drop[i] < rule.dropout_prob:
+                flat[i] = np.inf
+    ring_noise(r, r, 0.0, Draws(drop[:0], draws.z, draws.bad, draws.junk), rules, out)
+
+
+@njit(cache=True, nogil=True)
+def fast_ring_readings(px, py, pth, radius2, beams, segs, draws, rules, out):
+    """Readings ``out (K * N, B) float32`` of the ``fast`` rings (beam axes ``beams (B,)`` in the
+    robot frame) of every robot of ``K`` worlds sharing the walls ``segs (S, 4)``, poses ``px, py,
+    pth (K, N)``: per beam, the nearest hit within ``range_max`` of one ray along its axis on the
+    walls (those within ``range_max`` of the robot, :func:`near_segments`) and on the other robots
+    of its world (discs of squared radius ``radius2``), inf if none; then :func:`fast_noise` with
+    the :class:`FastDraws`. Row ``k * N + i`` equals what world ``k`` alone reads."""
+    rule = rules[0]
+    rmax = rule.range_max
+    cull = rule.box_cull and math.isfinite(rmax)
+    k, n = px.shape
+    nb = beams.shape[0]
+    ox = px.reshape(k * n)
+    oy = py.reshape(k * n)
+    idx = np.empty((k * n, segs.shape[0]), dtype=np.int64)
+    cnt = np.empty(k * n, dtype=np.int64)
+    near_segments(ox, oy, segs, rmax + rule.near_slack, idx, cnt)
+    r2 = np.full(n, radius2)
+    ideal = np.empty((k * n, nb))
+    for w in range(k):
+        for i in range(n):
+            o = w * n + i
+            x0 = ox[o]
+            y0 = oy[o]
+            near = idx[o, :cnt[o]]
+            for b in range(nb):
+                a = pth[w, i] + beams[b]
+                ddx = math.cos(a)
+                ddy = math.sin(a)
+                t1, i1, _ = segment_hit(x0, y0, ddx, ddy, segs, near, rmax, cull, False)
+                if not (i1 >= 0 and t1 <= rmax):
+                    t1 = np.inf
+                td = disc_hit(x0, y0, ddx, ddy, px, py, w, r2, i)
+                if not td <= rmax:
+                    td = np.inf
+                ideal[o, b] = min(t1, td)
+    fast_noise(ideal, draws, rules, out)

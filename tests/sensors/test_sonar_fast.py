@@ -1,0 +1,101 @@
+"""The ``fast`` sonar model: one ray per beam, noise and dropouts, none of the specular effects."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from parcover_env.config import SonarConfig
+from parcover_env.errors import ConfigError
+from parcover_env.sensors.sonar import SonarRing
+
+OBLIQUE = np.array([[1.0, -1.0, 3.0, 1.0]])
+"""A wall the +x axis from the origin meets at x = 2, 45 degrees off its normal."""
+RADIUS = 0.1
+
+
+def _ring(**kw) -> SonarRing:
+    kw = {"n_beams": 4, "quantization": 0.0, "noise_std": 0.0, "noise_rel": 0.0} | kw
+    return SonarRing(SonarConfig(**kw))
+
+
+def test_oblique_wall_echoes_in_the_fast_model_only():
+    pose = np.array([[0.0, 0.0, 0.0]])
+    fast = _ring(model="fast").measure(pose, OBLIQUE, RADIUS, np.random.default_rng(0))
+    spec = _ring(model="specular").measure(pose, OBLIQUE, RADIUS, np.random.default_rng(0))
+    assert fast[0, 0] == pytest.approx(2.0, abs=1e-6)  # no incidence limit
+    assert spec[0, 0] == pytest.approx(2.54)  # 45 deg > 20 deg: mirrored away, lost
+    assert np.all(fast[0, 1:] == pytest.approx(2.54))  # the other beams see nothing
+
+
+def test_robots_of_the_world_block_and_echo_and_never_cross_talk():
+    poses = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, math.pi]])
+    ring = _ring(model="fast", crosstalk_prob=1.0)
+    got = ring.measure(poses, OBLIQUE, RADIUS, np.random.default_rng(0))
+    assert got[0, 0] == pytest.approx(0.9, abs=1e-6)  # the other robot's disc, not the wall at 2 m
+    assert got[1, 0] == pytest.approx(0.9, abs=1e-6)
+    assert got[0, 2] == pytest.approx(2.54)  # facing away: cross-talk (d / 2 = 0.5) would read 0.5
+
+
+def test_noise_and_dropouts_follow_the_draws_in_order():
+    cfg = SonarConfig(model="fast", n_beams=4, noise_std=0.02, noise_rel=0.01, quantization=0.01, dropout_prob=0.5)
+    ring = SonarRing(cfg)
+    poses = np.array([[0.0, 0.0, 0.0], [0.0, 0.5, 0.0]])
+    ideal = ring.measure(poses, OBLIQUE, RADIUS, None).astype(float)
+    got = ring.measure(poses, OBLIQUE, RADIUS, np.random.default_rng(7))
+    rng = np.random.default_rng(7)
+    z, drop = rng.standard_normal(8).reshape(2, 4), rng.random(8).reshape(2, 4)
+    echo = (ideal < 2.54) & (drop >= 0.5)
+    noisy = np.rint((ideal + (0.02 + 0.01 * ideal) * z) / 0.01) * 0.01
+    want = np.where(echo, np.clip(noisy, 0.15, 2.54), 2.54)
+    np.testing.assert_allclose(got, want, atol=1e-6)
+    assert 0 < echo.sum() < (ideal < 2.54).sum()  # this seed drops some echoes and keeps others
+    assert ideal[0, 0] == pytest.approx(2.0, abs=1e-6) and ideal[1, 0] == pytest.approx(2.5, abs=1e-6)
+    after = np.random.default_rng(7)
+    ring.draw(2, after)  # the draws: noise normals, dropout uniforms, nothing else
+    assert after.random() == rng.random()
+
+
+def test_every_echo_is_lost_at_dropout_one_and_batched_worlds_match_alone():
+    ring = _ring(model="fast", dropout_prob=1.0)
+    assert np.all(ring.measure(np.zeros((1, 3)), OBLIQUE, RADIUS, np.random.default_rng(0)) == np.float32(2.54))
+    ring = _ring(model="fast", noise_std=0.01, dropout_prob=0.2, n_beams=16)
+    poses = np.array([[[0.0, 0.0, 0.3], [0.2, 0.6, 1.0]], [[0.5, 0.1, -2.0], [0.0, -0.7, 2.5]]])
+    draws = [ring.draw(2, np.random.default_rng(s)) for s in (1, 2)]
+    both = ring.readings(poses, OBLIQUE, RADIUS, draws)
+    for k, s in enumerate((1, 2)):
+        assert np.array_equal(both[k], ring.measure(poses[k], OBLIQUE, RADIUS, np.random.default_rng(s)))
+
+
+def test_dropout_prob_is_checked():
+    with pytest.raises(ConfigError, match="dropout_prob"):
+        SonarConfig(model="fast", dropout_prob=1.5)
+
+
+def test_scan_and_corrupt_use_the_fast_model():
+    ring = _ring(model="fast", noise_std=0.01)
+    scan = ring.scan(np.zeros(3), OBLIQUE, None, RADIUS, None)
+    assert scan[0] == pytest.approx(2.0, abs=1e-9) and scan.shape == (72,)
+    assert np.all(_ring(model="fast", dropout_prob=1.0).corrupt(scan, np.random.default_rng(0)) == 2.54)
+    noisy = ring.corrupt(scan, np.random.default_rng(0))
+    z = np.random.default_rng(0).standard_normal(72)
+    assert noisy[0] == pytest.approx(2.0 + 0.01 * z[0])  # noise_rel 0 here
+
+
+def test_noise_free_fast_readings_are_the_ideal_ray_bit_for_bit():
+    from parcover_env.config import MapConfig
+    from parcover_env.world.map_model import MapModel
+
+    room = MapModel.from_config(MapConfig(size=(4.0, 4.0), obstacles=(((1.0, 1.0), (1.6, 1.2), (1.2, 1.8)),)))
+    rng = np.random.default_rng(5)
+    pts = rng.uniform(0, 4, (200, 2))
+    pts = pts[room.contains(pts, margin=0.2)][:6]
+    poses = np.column_stack([pts, rng.uniform(-math.pi, math.pi, len(pts))])
+    fast = _ring(model="fast", n_beams=16, below_min="clip")
+    ray = _ring(model="ray", n_beams=16, below_min="clip", crosstalk_prob=0.0)
+    got = fast.measure(poses, room.segments, 0.165, np.random.default_rng(0))  # the compiled fast ring
+    want = ray.measure(poses, room.segments, 0.165, None)
+    assert np.array_equal(got, want)
+    assert np.mean(got < 2.54) > 0.5  # mostly echoes: the room is 4 m wide
