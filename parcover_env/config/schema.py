@@ -24,7 +24,7 @@ Segment = tuple[Point, Point]
 
 __all__ = [
     "ConfigError", "MapConfig", "Pose", "SonarConfig", "DriveConfig", "OdometryConfig", "RobotConfig",
-    "KinectConfig", "PhysicsConfig", "EpisodeConfig", "RewardConfig", "ObservationConfig",
+    "KinectConfig", "PhysicsConfig", "EpisodeConfig", "RewardConfig", "ObservationConfig", "ScanConfig",
     "FormationConfig", "PlannerConfig", "KinectTrackingConfig", "Scenario",
     "Point", "Polygon", "Segment",
 ]
@@ -128,6 +128,43 @@ class RewardConfig:
 
 
 @dataclass(frozen=True)
+class ScanConfig:
+    """The env's sonar localization service (Kim, Pearce & Amato's stop-scan-match), opt-in.
+
+    With ``enabled`` the action gains a third component ``scan``: a robot whose ``scan > 0`` starts
+    a 360-degree sonar scan and is held still (commands zeroed) for the scan's duration, the time the
+    real robot takes to turn its ring through the 72 5-degree steps at ``turn_rate``. At the scan's
+    last step the env simulates that robot's scan of the true map (realistic sonar model, the
+    episode's generator) and runs the paper's localizer on the known map, teammates drawn in at
+    their estimates, inside the ``gate_sigmas`` ellipse of the robot's estimate and covariance (never
+    the true pose). An accepted fix resets the estimate to the fix and the covariance to
+    ``fix_sigma_xy`` / ``fix_sigma_heading_deg``; a rejected one changes nothing."""
+
+    enabled: bool = False
+    """Add the ``scan`` action component and the ``scanning`` / ``scan_result`` observation entries."""
+    turn_rate: float = 0.6
+    """Turn rate of the real robot during a scan (rad/s; capped at ``robot.max_turn_rate``): a scan
+    lasts ``ceil(2 pi / turn_rate / control_dt)`` control steps (105 at 0.6 rad/s and 0.1 s)."""
+    gate_sigmas: float = 3.0
+    """The localizer searches, and a fix is accepted only inside, this many standard deviations of
+    the estimate's position covariance widened by ``gate_distance`` (Mahalanobis distance) (-)."""
+    gate_distance: float = 0.15
+    """Floor of that region (m): the covariance is widened by (``gate_distance`` / ``gate_sigmas``)^2
+    in every direction, so a fresh estimate's tiny covariance still admits the localizer's error."""
+    gate_heading_deg: float = 30.0
+    """A fix is accepted only within this of the heading estimate plus ``gate_sigmas`` heading sigmas (deg)."""
+    fix_sigma_xy: float = 0.05
+    """Position standard deviation of an accepted sonar fix along x and y (m): the covariance the
+    estimate restarts from (the localizer's error on the shipped maps, ``benchmarks/sonar_localization.py``)."""
+    fix_sigma_heading_deg: float = 2.0
+    """Heading standard deviation of an accepted sonar fix (deg)."""
+
+    def __post_init__(self) -> None:
+        _positive(self, "turn_rate", "gate_sigmas", "gate_heading_deg", "fix_sigma_xy", "fix_sigma_heading_deg")
+        _check(self.gate_distance >= 0, "gate_distance", f"must be >= 0, got {self.gate_distance}")
+
+
+@dataclass(frozen=True)
 class ObservationConfig:
     pose_source: Literal["odometry", "kinect", "ground_truth"] = "kinect"
     """Where the pose in the observation comes from: ``kinect`` = odometry corrected by Kinect
@@ -143,6 +180,8 @@ class ObservationConfig:
     estimate restarts from after a fix."""
     fix_sigma_heading_deg: float = 2.0
     """Standard deviation of an absolute fix's heading (degrees)."""
+    scan: ScanConfig = field(default_factory=ScanConfig)
+    """The sonar localization service: the ``scan`` action (opt-in, :class:`ScanConfig`)."""
 
     def __post_init__(self) -> None:
         _check(self.fix_sigma_xy >= 0, "fix_sigma_xy", f"noise must be >= 0, got {self.fix_sigma_xy}")

@@ -13,12 +13,13 @@ from pettingzoo import ParallelEnv
 from parcover_env.config import Scenario, deep_merge
 from parcover_env.envs import stepper
 from parcover_env.envs.actions import to_commands
-from parcover_env.envs.estimator import KinectFixes, PoseEstimator
+from parcover_env.envs.estimator import FixRequest, KinectFixes, PoseEstimator
 from parcover_env.envs.handover import CameraView, update_team
 from parcover_env.envs.metrics import EpisodeMetrics, formation_errors
 from parcover_env.envs.obs_spec import markdown_table
 from parcover_env.envs.observations import ObservationLayout, build_sensors
 from parcover_env.envs.rewards import REWARD_KEYS, TERMS, reward_terms
+from parcover_env.envs.sonar_fixes import SonarFixes
 from parcover_env.envs.team import Team
 from parcover_env.geometry import wrap_angle
 from parcover_env.localization.kinect.system import KinectSystem
@@ -159,8 +160,12 @@ class ParallelCoverageEnv(ParallelEnv):
         self.fix_sources = [KinectFixes(self.kinects, s.robot.markers, np.diag([sxy**2, sxy**2, sth**2]))
                             ] if self.kinects is not None else []
         """The estimator's sources of absolute pose fixes (:class:`~parcover_env.envs.estimator.FixSource`)."""
+        self.scanner = SonarFixes(s, self.map.segments, self.n_robots) if s.observation.scan.enabled else None
+        """The sonar localization service (``observation.scan``; None = off), the last fix source."""
+        if self.scanner is not None:
+            self.fix_sources.append(self.scanner)
         self._obs_space = self.layout.space()
-        self._act_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+        self._act_space = spaces.Box(-1.0, 1.0, (2 if self.scanner is None else 3,), dtype=np.float32)
         self.state_space = _state_space(self.map.bounds, self.n_robots, len(s.kpois))
         self._rng: np.random.Generator | None = None
         self._window: str | None = None
@@ -232,7 +237,12 @@ class ParallelCoverageEnv(ParallelEnv):
         if not self.agents:
             raise RuntimeError("step() called on a finished episode; call reset() first")
         s = self.scenario
-        self.commands = to_commands(actions, self.agents, s.robot.max_speed, s.robot.max_turn_rate)
+        if self.scanner is None:
+            self.commands = to_commands(actions, self.agents, s.robot.max_speed, s.robot.max_turn_rate)
+        else:
+            raw = to_commands(actions, self.agents, s.robot.max_speed, s.robot.max_turn_rate, width=3)
+            self.commands = np.ascontiguousarray(raw[:, :2])
+            self.scanner.request(raw[:, 2], self.commands)  # scanning robots are held still
         before = self.world.poses()
         self.world.step(self.commands)
         self.steps += 1
@@ -241,6 +251,9 @@ class ParallelCoverageEnv(ParallelEnv):
                                       self._rng)
         if "kinect" in fixes:  # a Kinect fix is a message to a leader
             self.team.count_pose_fixes(len(fixes["kinect"]))
+        if self.scanner is not None and s.observation.pose_source == "ground_truth":  # no sources ran: scans end
+            self.scanner.fixes(FixRequest(self.world.time, true, self.estimate.copy(), self.team.leader,
+                                          self.estimator.covariance), self._rng)
         n_new = self.progress.update(true[:, :2], self.estimate[:, :2], self.world.time)
         self.team.count_waypoints(self.progress.advanced)
         update_team(self.team, self.kinects, self.estimate, self.progress.plan_progress, self.camera_view)
@@ -275,8 +288,13 @@ class ParallelCoverageEnv(ParallelEnv):
         template.update(metrics)
         template["pose_error"] = template["heading_error"] = 0.0
         keys = (*REWARD_KEYS, "pose_error", "heading_error")
+        columns = [pos_err, head_err]
+        if self.scanner is not None:
+            template["sonar_fix"] = 0.0
+            keys = (*keys, "sonar_fix")
+            columns.append(self.scanner.outcome.tolist())
         infos = {}
-        for a, *vals in zip(self.agents, *terms, pos_err, head_err, strict=True):
+        for a, *vals in zip(self.agents, *terms, *columns, strict=True):
             info = infos[a] = template.copy()
             info.update(zip(keys, vals))
         return infos
@@ -314,6 +332,13 @@ class ParallelCoverageEnv(ParallelEnv):
     def estimate(self) -> np.ndarray:
         """The pose estimates ``(n_robots, 3)`` (the estimator's; not a copy)."""
         return self.estimator.estimate
+
+    def localization_entries(self) -> dict[str, np.ndarray]:
+        """The ``scan`` entries of the observation spec, ``{name: (n_robots,)}`` (empty when
+        ``observation.scan`` is off): ``scanning`` and ``scan_result``."""
+        if self.scanner is None:
+            return {}
+        return {"scanning": self.scanner.scanning.astype(float), "scan_result": self.scanner.result}
 
     @property
     def fix_age(self) -> np.ndarray:

@@ -63,6 +63,8 @@ def observe(worlds: Sequence[Any], true: np.ndarray) -> np.ndarray:
         reading = RelativeCamera.reading(camera[k])
         w.camera_view = CameraView(w.team.predecessor, reading, w.estimator.estimate.copy())
         w.layout.fill_scalars(obs[k], _scalar_inputs(w, reading))
+        for name, values in w.localization_entries().items():  # the ``scan`` entries of the spec
+            obs[k][:, w.layout.slices[name]] = values[:, None]
     for name, sensor in first.sensors.items():  # every sensor entry of the spec, all worlds in one call
         if sensor is not None:
             obs[..., first.layout.slices[name]] = sensor.sense(state, rngs)

@@ -1,0 +1,132 @@
+"""The env's sonar localization service: Kim, Pearce & Amato's stop-scan-match as a fix source.
+
+A robot asks for a scan with the ``scan`` action component (``observation.scan.enabled``): it is
+held still (its commands zeroed) for :attr:`SonarFixes.duration_steps` control steps, the time the
+real robot takes to turn its ring through a 360-degree scan at ``scan.turn_rate``. At the scan's
+last step its scan of the true map is simulated (:meth:`~parcover_env.sensors.sonar.SonarRing.scan`,
+the realistic sonar model, the episode's generator; the teammates are obstacles at their true
+positions), and the paper's localizer (:func:`~parcover_env.localization.sonar.localizer.localize`)
+matches it against the known map, the teammates drawn in at their *estimates*, inside the region of
+the robot's own estimate and covariance (never its true pose). The fix is accepted when the
+localizer succeeds (mean clipped scan error below ``sonar_localizer.success_error``) inside the gate
+(``scan.gate_sigmas`` of the widened position covariance, heading within the heading gate); the
+estimator then resets the robot's estimate to it with :attr:`SonarFixes.covariance`. A rejected scan
+leaves the estimate and covariance as they were.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import shapely
+
+from parcover_env.config import Scenario
+from parcover_env.envs.estimator import FixRequest
+from parcover_env.geometry import wrap_angle
+from parcover_env.localization.sonar.config import sonar_localizer_config
+from parcover_env.localization.sonar.known_map import known_map_features
+from parcover_env.localization.sonar.localizer import Ellipse, localize
+from parcover_env.sensors.sonar import SonarRing
+from parcover_env.world.map_model import MapModel
+
+__all__ = ["ACCEPTED", "REJECTED", "SonarFixes", "scan_steps"]
+
+ACCEPTED, REJECTED = 1.0, -1.0
+"""Outcomes of a scan (``scan_result`` observation entry, ``info[agent]["sonar_fix"]``); 0 = none."""
+
+
+def scan_steps(scenario: Scenario) -> int:
+    """Control steps one scan holds a robot still: ``ceil(2 pi / turn_rate / control_dt)``, the
+    turn rate capped at ``robot.max_turn_rate``."""
+    rate = min(scenario.observation.scan.turn_rate, scenario.robot.max_turn_rate)
+    return max(1, math.ceil(2 * math.pi / rate / scenario.physics.control_dt - 1e-9))
+
+
+class SonarFixes:
+    """Per-robot scans on request, localized on the known map (a :class:`~parcover_env.envs.estimator.FixSource`).
+
+    ``segments``: the true walls the simulated sonar sees; ``n_robots``: the team size.
+    :attr:`remaining` ``(N,)`` counts the steps left of each robot's scan (0 = not scanning),
+    :attr:`result` ``(N,)`` holds each robot's last outcome and :attr:`outcome` ``(N,)`` this step's
+    (:data:`ACCEPTED`, :data:`REJECTED` or 0)."""
+
+    name = "sonar"
+
+    def __init__(self, scenario: Scenario, segments: np.ndarray, n_robots: int):
+        cfg = self.cfg = scenario.observation.scan
+        self.ring = SonarRing(scenario.robot.sonar)
+        self.segments = segments
+        self.radius = float(scenario.robot.radius)
+        self.params = sonar_localizer_config(scenario)
+        self.known, self.features, self.sectors = known_map_features(scenario.map, scenario.robot.sonar.range_max)
+        sth = math.radians(cfg.fix_sigma_heading_deg)
+        self.covariance = np.diag([cfg.fix_sigma_xy**2, cfg.fix_sigma_xy**2, sth**2])
+        self.duration_steps = scan_steps(scenario)
+        self.remaining = np.zeros(n_robots, dtype=np.int64)
+        self.result = np.zeros(n_robots)
+        self.outcome = np.zeros(n_robots)
+
+    @property
+    def scanning(self) -> np.ndarray:
+        """``(N,)`` bool: the robots whose scan is under way."""
+        return self.remaining > 0
+
+    def reset(self, rng: np.random.Generator) -> None:
+        self.remaining[:] = 0
+        self.result[:] = 0.0
+        self.outcome[:] = 0.0
+
+    def request(self, scan: np.ndarray, commands: np.ndarray) -> None:
+        """Start a scan for each robot with ``scan (N,) > 0`` not scanning yet, then zero the commands
+        ``(N, 2)`` of every scanning robot in place (held still)."""
+        start = (np.asarray(scan) > 0) & (self.remaining == 0)
+        self.remaining[start] = self.duration_steps
+        commands[self.remaining > 0] = 0.0
+
+    def fixes(self, request: FixRequest, rng: np.random.Generator) -> dict[int, np.ndarray]:
+        """Advance every scan by one step; localize the scans that end now. Returns the accepted fixes."""
+        self.outcome[:] = 0.0
+        active = self.remaining > 0
+        self.remaining[active] -= 1
+        out = {}
+        for i in np.flatnonzero(active & (self.remaining == 0)).tolist():
+            pose = self.localize_scan(i, request, rng)
+            self.outcome[i] = self.result[i] = REJECTED if pose is None else ACCEPTED
+            if pose is not None:
+                out[i] = pose
+        return out
+
+    def localize_scan(self, i: int, request: FixRequest, rng: np.random.Generator) -> np.ndarray | None:
+        """Robot ``i``'s simulated scan localized in the region of its estimate and covariance; the
+        accepted pose (3,) or None."""
+        others = np.delete(np.arange(len(request.true)), i)
+        ranges = self.ring.scan(request.true[i], self.segments, request.true[others, :2], self.radius, rng)
+        prior = request.estimate[i]
+        cov = request.covariance[i] if request.covariance is not None else np.zeros((3, 3))
+        pos, turn = self.gate(cov)
+        region = Ellipse.from_covariance(prior[:2], pos, self.cfg.gate_sigmas)
+        res = localize(ranges, self.ring.scan_angles, self.team_map(request.estimate[others, :2]), self.sectors,
+                       region, self.params, sonar=self.ring.cfg, features=self.features,
+                       heading=float(prior[2]), heading_tol=turn)
+        if res.pose is None or not res.success:
+            return None
+        d = res.pose[:2] - prior[:2]
+        inside = float(d @ np.linalg.solve(pos, d)) <= self.cfg.gate_sigmas**2
+        return res.pose.copy() if inside and abs(wrap_angle(res.pose[2] - prior[2])) <= turn else None
+
+    def gate(self, cov: np.ndarray) -> tuple[np.ndarray, float]:
+        """The region of a fix for an estimate of covariance ``cov (3, 3)``: the widened position
+        covariance (m^2) whose ``gate_sigmas`` ellipse the localizer searches, and the heading gate (rad)."""
+        c = self.cfg
+        pos = np.asarray(cov, dtype=float)[:2, :2] + (c.gate_distance / c.gate_sigmas) ** 2 * np.eye(2)
+        turn = math.radians(c.gate_heading_deg) + c.gate_sigmas * math.sqrt(max(float(cov[2, 2]), 0.0))
+        return pos, min(turn, math.pi)
+
+    def team_map(self, others: np.ndarray) -> MapModel:
+        """The known map with the teammates as discs at their estimated positions ``others (M, 2)``."""
+        if len(others) == 0:
+            return self.known
+        discs = shapely.union_all([shapely.Point(*q).buffer(self.radius, quad_segs=4) for q in others])
+        free = self.known.free.difference(discs)
+        return self.known if free.is_empty else MapModel(free=free, bounds=self.known.bounds)
