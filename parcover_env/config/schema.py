@@ -137,8 +137,10 @@ class ScanConfig:
     last step the env simulates that robot's scan of the true map (realistic sonar model, the
     episode's generator) and runs the paper's localizer on the known map, teammates drawn in at
     their estimates, inside the ``gate_sigmas`` ellipse of the robot's estimate and covariance (never
-    the true pose). An accepted fix resets the estimate to the fix and the covariance to
-    ``fix_sigma_xy`` / ``fix_sigma_heading_deg``; a rejected one changes nothing."""
+    the true pose). A fix is accepted when the localizer succeeds (or the scan matches on the readings
+    no teammate explains, ``mask_sigmas``) inside that gate. An accepted fix resets the estimate to
+    the fix and the covariance to ``fix_sigma_xy`` / ``fix_sigma_heading_deg``; a rejected one changes
+    nothing."""
 
     enabled: bool = False
     """Add the ``scan`` action component and the ``scanning`` / ``scan_result`` observation entries."""
@@ -158,8 +160,18 @@ class ScanConfig:
     estimate restarts from (the localizer's error on the shipped maps, ``benchmarks/sonar_localization.py``)."""
     fix_sigma_heading_deg: float = 2.0
     """Heading standard deviation of an accepted sonar fix (deg)."""
+    mask_sigmas: float = 2.0
+    """Teammates are not in the known map: a localized pose whose scan error is too large is still
+    accepted when the scan matches on the readings no teammate can explain (a reading shorter than
+    the known map's that ends within radius + this many position sigmas of a teammate's estimate is
+    left out) (-) ..."""
+    min_unmasked_share: float = 0.5
+    """... provided at least this share of the readings is left (-)."""
 
     def __post_init__(self) -> None:
+        _check(self.mask_sigmas >= 0, "mask_sigmas", f"must be >= 0, got {self.mask_sigmas}")
+        _check(0 < self.min_unmasked_share <= 1, "min_unmasked_share",
+               f"must be in (0, 1], got {self.min_unmasked_share}")
         _positive(self, "turn_rate", "gate_sigmas", "gate_heading_deg", "fix_sigma_xy", "fix_sigma_heading_deg")
         _check(self.gate_distance >= 0, "gate_distance", f"must be >= 0, got {self.gate_distance}")
 

@@ -8,7 +8,8 @@ the realistic sonar model, the episode's generator; the teammates are obstacles 
 positions), and the paper's localizer (:func:`~parcover_env.localization.sonar.localizer.localize`)
 matches it against the known map, the teammates drawn in at their *estimates*, inside the region of
 the robot's own estimate and covariance (never its true pose). The fix is accepted when the
-localizer succeeds (mean clipped scan error below ``sonar_localizer.success_error``) inside the gate
+localizer succeeds (mean clipped scan error below ``sonar_localizer.success_error``, or that error on
+the readings no teammate can explain, :meth:`SonarFixes.matches_unmasked`) inside the gate
 (``scan.gate_sigmas`` of the widened position covariance, heading within the heading gate); the
 estimator then resets the robot's estimate to it with :attr:`SonarFixes.covariance`. A rejected scan
 leaves the estimate and covariance as they were.
@@ -26,8 +27,9 @@ from parcover_env.envs.estimator import FixRequest
 from parcover_env.geometry import wrap_angle
 from parcover_env.localization.sonar.config import sonar_localizer_config
 from parcover_env.localization.sonar.known_map import known_map_features
-from parcover_env.localization.sonar.localizer import Ellipse, localize
-from parcover_env.sensors.sonar import SonarRing
+from parcover_env.localization.sonar.localizer import Ellipse, localize, scan_error
+from parcover_env.localization.sonar.teammates import teammate_mask
+from parcover_env.sensors.sonar import SonarRing, simulate_beams
 from parcover_env.world.map_model import MapModel
 
 __all__ = ["ACCEPTED", "REJECTED", "SonarFixes", "scan_steps"]
@@ -109,11 +111,31 @@ class SonarFixes:
         res = localize(ranges, self.ring.scan_angles, self.team_map(request.estimate[others, :2]), self.sectors,
                        region, self.params, sonar=self.ring.cfg, features=self.features,
                        heading=float(prior[2]), heading_tol=turn)
-        if res.pose is None or not res.success:
+        if res.pose is None or not (res.success or self.matches_unmasked(res.pose, ranges, request, others)):
             return None
         d = res.pose[:2] - prior[:2]
         inside = float(d @ np.linalg.solve(pos, d)) <= self.cfg.gate_sigmas**2
         return res.pose.copy() if inside and abs(wrap_angle(res.pose[2] - prior[2])) <= turn else None
+
+    def matches_unmasked(self, pose: np.ndarray, ranges: np.ndarray, request: FixRequest,
+                         others: np.ndarray) -> bool:
+        """Whether ``ranges`` match the known map's synthetic scan from ``pose`` (mean clipped error
+        below ``success_error``) on the readings no teammate can explain
+        (:func:`~parcover_env.localization.sonar.teammates.teammate_mask`, ``mask_sigmas``), with at
+        least ``min_unmasked_share`` of the readings left."""
+        if len(others) == 0:
+            return False
+        cov = request.covariance[others] if request.covariance is not None else np.zeros((len(others), 3, 3))
+        sigma = np.sqrt(np.maximum(np.linalg.eigvalsh(cov[:, :2, :2])[:, 1], 0.0))
+        reach = self.radius + self.cfg.mask_sigmas * sigma
+        angles = self.ring.scan_angles
+        synth = simulate_beams(self.ring.cfg, pose[None, :2], (pose[2] + angles)[None, :], self.known.segments,
+                               np.zeros((0, 2)), 0.0, np.array([-1]))[0]
+        keep = ~teammate_mask(pose, angles, ranges, synth, request.estimate[others, :2], reach)
+        if keep.mean() < self.cfg.min_unmasked_share:
+            return False
+        p = self.params
+        return float(scan_error(ranges[keep], synth[keep], p.error_clip, p.error_trim)[0]) <= p.success_error
 
     def gate(self, cov: np.ndarray) -> tuple[np.ndarray, float]:
         """The region of a fix for an estimate of covariance ``cov (3, 3)``: the widened position
