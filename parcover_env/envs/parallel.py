@@ -52,6 +52,22 @@ class ParallelCoverageEnv(ParallelEnv):
     the physics rate; from rest, full forward takes a few control steps. ``drive.model: instant``
     (``ideal`` preset) applies the command as the body velocity.
 
+    ## Sonar localization service (opt-in: ``observation.scan.enabled``)
+    The action becomes ``Box(-1, 1, (3,))``: ``(v, omega, scan)``. A robot whose ``scan > 0`` starts a
+    360-degree sonar scan (Kim, Pearce & Amato's stop-scan-match) and is held still, its ``(v, omega)``
+    ignored, for ``ceil(2 pi / scan.turn_rate / control_dt)`` steps (the real robot turning its ring
+    through 72 5-degree steps: 105 steps = 10.5 s at 0.6 rad/s), counting the step that asks; ``scan``
+    is ignored while a scan is under way. At the last step the env simulates the robot's scan of the
+    true map (realistic sonar, the episode's generator) and runs the paper's localizer on the known
+    map, teammates drawn in at their estimates, inside the ``scan.gate_sigmas`` region of the robot's
+    *estimate and covariance* (never its true pose). An accepted fix resets the estimate and its
+    covariance (``scan.fix_sigma_xy``, ``scan.fix_sigma_heading_deg``) and ``fix_age``; a rejected scan
+    changes nothing. The ``scanning`` entry is 1 while the scan is under way, ``scan_result`` holds
+    the last outcome (1 accepted, -1 rejected, 0 none yet) and ``info[agent]["sonar_fix"]`` this step's
+    (0 on other steps). Off by default, so the v1 action and observation spaces (and checkpoints)
+    are unchanged; the ``waypoint`` policy turns it on (``parcover_env.policies.registry``).
+    Module: ``parcover_env.envs.sonar_fixes``; a test with a known answer: ``tests/envs/test_sonar_fixes.py``.
+
     ## Observation space
     One flat ``Box`` per agent, identical across agents (``env.layout`` names the slices), entries in
     this order:
@@ -111,6 +127,9 @@ class ParallelCoverageEnv(ParallelEnv):
     ``env.np_random`` is the episode's ``numpy.random.Generator`` (made by ``reset(seed=...)``).
 
     ## Version history
+    * v1, opt-in ``observation.scan`` (unreleased): the sonar localization service (``scan`` action
+      component, ``scanning`` / ``scan_result`` entries, ``info[agent]["sonar_fix"]``); without it
+      v1 is unchanged.
     * v1 (0.2.0): realistic motion and covariance observations: differential-drive dynamics (wheel
       limits, lag, bounded acceleration), wheel odometry with UMBmark systematic, random and slip
       errors, ``v, omega`` measured by the encoders, pose-uncertainty entries (``sigma_*``) after
