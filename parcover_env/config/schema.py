@@ -140,7 +140,7 @@ class ScanConfig:
     the true pose). A fix is accepted when the localizer succeeds (or the scan matches on the readings
     no teammate explains, ``mask_sigmas``) inside that gate. An accepted fix resets the estimate to
     the fix and the covariance to ``fix_sigma_xy`` / ``fix_sigma_heading_deg``; a rejected one changes
-    nothing."""
+    nothing but the next search region of that robot (``miss_inflation``)."""
 
     enabled: bool = False
     """Add the ``scan`` action component and the ``scanning`` / ``scan_result`` observation entries."""
@@ -167,8 +167,16 @@ class ScanConfig:
     left out) (-) ..."""
     min_unmasked_share: float = 0.5
     """... provided at least this share of the readings is left (-)."""
+    miss_inflation: float = 2.0
+    """Each rejected scan widens the robot's next search region and gate: the standard deviations
+    are multiplied by this (-), until an accepted fix. Contacts push robots unseen by the encoders; a
+    robot pushed outside its covariance is otherwise never found inside its search region."""
+    max_inflation: float = 8.0
+    """Largest total factor of ``miss_inflation`` (-): the search region stays bounded."""
 
     def __post_init__(self) -> None:
+        _check(self.miss_inflation >= 1, "miss_inflation", f"must be >= 1, got {self.miss_inflation}")
+        _check(self.max_inflation >= 1, "max_inflation", f"must be >= 1, got {self.max_inflation}")
         _check(self.mask_sigmas >= 0, "mask_sigmas", f"must be >= 0, got {self.mask_sigmas}")
         _check(0 < self.min_unmasked_share <= 1, "min_unmasked_share",
                f"must be in (0, 1], got {self.min_unmasked_share}")

@@ -12,7 +12,8 @@ localizer succeeds (mean clipped scan error below ``sonar_localizer.success_erro
 the readings no teammate can explain, :meth:`SonarFixes.matches_unmasked`) inside the gate
 (``scan.gate_sigmas`` of the widened position covariance, heading within the heading gate); the
 estimator then resets the robot's estimate to it with :attr:`SonarFixes.covariance`. A rejected scan
-leaves the estimate and covariance as they were.
+leaves the estimate and covariance as they were; the robot's next scan searches a region whose
+sigmas are ``scan.miss_inflation`` times wider (at most ``scan.max_inflation``), until a fix.
 """
 
 from __future__ import annotations
@@ -68,6 +69,8 @@ class SonarFixes:
         self.remaining = np.zeros(n_robots, dtype=np.int64)
         self.result = np.zeros(n_robots)
         self.outcome = np.zeros(n_robots)
+        self.inflation = np.ones(n_robots)
+        """Factor on each robot's search-region sigmas after rejected scans (``miss_inflation``); 1 after a fix."""
 
     @property
     def scanning(self) -> np.ndarray:
@@ -78,6 +81,7 @@ class SonarFixes:
         self.remaining[:] = 0
         self.result[:] = 0.0
         self.outcome[:] = 0.0
+        self.inflation[:] = 1.0
 
     def request(self, scan: np.ndarray, commands: np.ndarray) -> None:
         """Start a scan for each robot with ``scan (N,) > 0`` not scanning yet, then zero the commands
@@ -95,6 +99,8 @@ class SonarFixes:
         for i in np.flatnonzero(active & (self.remaining == 0)).tolist():
             pose = self.localize_scan(i, request, rng)
             self.outcome[i] = self.result[i] = REJECTED if pose is None else ACCEPTED
+            c = self.cfg
+            self.inflation[i] = 1.0 if pose is not None else min(self.inflation[i] * c.miss_inflation, c.max_inflation)
             if pose is not None:
                 out[i] = pose
         return out
@@ -106,7 +112,7 @@ class SonarFixes:
         ranges = self.ring.scan(request.true[i], self.segments, request.true[others, :2], self.radius, rng)
         prior = request.estimate[i]
         cov = request.covariance[i] if request.covariance is not None else np.zeros((3, 3))
-        pos, turn = self.gate(cov)
+        pos, turn = self.gate(cov * self.inflation[i] ** 2)
         region = Ellipse.from_covariance(prior[:2], pos, self.cfg.gate_sigmas)
         res = localize(ranges, self.ring.scan_angles, self.team_map(request.estimate[others, :2]), self.sectors,
                        region, self.params, sonar=self.ring.cfg, features=self.features,

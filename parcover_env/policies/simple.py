@@ -30,25 +30,28 @@ class WaypointPolicy(Policy):
 
     With the env's sonar localization service (``observation.scan``: the observation has a
     ``scanning`` entry and the action a ``scan`` component), a robot stops and scans when its
-    uncertainty ellipse's major axis ``sigma_major`` exceeds ``scan_sigma`` (m); after a rejected
-    scan (``scan_result`` -1) it scans again only once ``sigma_major`` has grown ``retry_growth``
-    times its value at that scan (it has driven on, so the next scan sees another place).
-    ``scan_sigma`` defaults to :func:`default_scan_sigma`.
+    uncertainty ellipse's major axis ``sigma_major`` exceeds ``scan_sigma`` (m). After a rejected
+    scan (``scan_result`` -1) it scans again at once, up to ``retries`` times in a row (the env
+    searches a wider region after each rejection, ``observation.scan.miss_inflation``); after that it
+    scans again only once ``sigma_major`` has grown ``retry_growth`` times its value at the last
+    scan (it has driven on, so the next scan sees another place). ``scan_sigma`` defaults to
+    :func:`default_scan_sigma`; ``retries`` = 2 as the scripted expert's ``refused_rescans``.
     """
 
     def __init__(self, layout: ObservationLayout, k_v: float = 2.0, k_w: float = 2.0,
-                 scan_sigma: float | None = None, retry_growth: float = 1.5):
+                 scan_sigma: float | None = None, retry_growth: float = 1.5, retries: int = 2):
         self.layout, self.k_v, self.k_w = layout, k_v, k_w
         self.scans = "scanning" in layout.slices and "sigma_major" in layout.slices
         self.scan_sigma = default_scan_sigma() if scan_sigma is None else float(scan_sigma)
-        self.retry_growth = float(retry_growth)
+        self.retry_growth, self.retries = float(retry_growth), int(retries)
+        self.rejected: dict[str, int] = {}
         self.retry_at: dict[str, float] = {}
         self.was_scanning: dict[str, bool] = {}
         self.started: dict[str, float] = {}
         self.n_scans = 0
 
     def reset(self, observations=None) -> None:
-        self.retry_at, self.was_scanning, self.started, self.n_scans = {}, {}, {}, 0
+        self.retry_at, self.was_scanning, self.started, self.rejected, self.n_scans = {}, {}, {}, {}, 0
 
     def stats(self) -> dict:
         return {"scans": self.n_scans} if self.scans else {}
@@ -76,10 +79,16 @@ class WaypointPolicy(Policy):
         sigma = float(self.layout.get(obs, "sigma_major")[0])
         if self.was_scanning.get(agent, False) and not scanning:  # a scan just ended
             rejected = float(self.layout.get(obs, "scan_result")[0]) < 0
+            self.rejected[agent] = self.rejected.get(agent, 0) + 1 if rejected else 0
             self.retry_at[agent] = self.retry_growth * self.started[agent] if rejected else 0.0
         self.was_scanning[agent] = scanning
-        if scanning or sigma <= max(self.scan_sigma, self.retry_at.get(agent, 0.0)):
+        if scanning:
             return False
+        again = 0 < self.rejected.get(agent, 0) <= self.retries  # rejected: scan again at once
+        if not again:
+            if sigma <= max(self.scan_sigma, self.retry_at.get(agent, 0.0)):
+                return False
+            self.rejected[agent] = 0  # a new series of retries
         self.started[agent] = sigma
         self.n_scans += 1
         return True
