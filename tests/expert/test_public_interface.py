@@ -46,3 +46,27 @@ def test_expert_runs_on_public_inputs_only(scenario, seed, kind, monkeypatch):
         monkeypatch.setattr(env, name, _raise)
     m = run_episode(env, expert, seed)
     assert m["success"], f"{scenario}: {m['kpois_visited']}/{m['n_kpois']} KPOIs"
+
+
+def test_expert_scans_through_the_env_service(monkeypatch):
+    """With ``observation.scan`` the scripted expert asks the env for its sonar fixes: it never
+    localizes a scan itself, and the env's fixes are what it counts."""
+    from parcover_env.expert.team_localizer import TeamLocalizer
+
+    monkeypatch.setattr(TeamLocalizer, "localize", _raise)
+    env = parcover_env.parallel_env("generated:3", overrides={"observation": {"scan": {"enabled": True}}})
+    public = types.SimpleNamespace(layout=env.layout, scenario=env.scenario, plan=env.plan, sonar=env.sonar,
+                                   mission=PublicMission(env.mission))
+    expert = expert_for(public)
+    assert expert.fixer.env_scan
+    monkeypatch.setattr(env, "true_poses", _raise)
+    fixes = []
+    obs, _ = env.reset(seed=3)
+    expert.reset(obs)
+    while env.agents:
+        obs, _, _, _, infos = env.step(expert.act(obs))
+        fixes += [i["sonar_fix"] for i in infos.values() if i["sonar_fix"]]
+    m = env.metrics.summary()
+    assert m["kpois_visited"] == m["n_kpois"]
+    st = expert.stats()
+    assert st["sonar_localized"] == fixes.count(1.0) >= 1 and st["sonar_failed"] == fixes.count(-1.0)
