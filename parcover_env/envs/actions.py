@@ -29,7 +29,7 @@ def to_commands(actions: Mapping, agents: Sequence[str], max_speed: float,
     return out
 
 
-def _common_case(actions, agents: Sequence[str], width: int) -> np.ndarray | None:
+def _common_case(actions, agents: Sequence[str], width: int = 2) -> np.ndarray | None:
     """Raw ``(N, 2)`` actions when the joint action is the common case (a dict holding exactly the
     active agents, each a finite float ndarray of shape (2,)), cheaply; None otherwise."""
     if type(actions) is not dict or len(actions) != len(agents):
@@ -45,7 +45,7 @@ def _common_case(actions, agents: Sequence[str], width: int) -> np.ndarray | Non
     return out if np.isfinite(out).all() else None
 
 
-def _validated(actions, agents: Sequence[str], width: int) -> np.ndarray:
+def _validated(actions, agents: Sequence[str], width: int = 2) -> np.ndarray:
     """Raw ``(N, 2)`` actions after full validation; ActionError naming the agent otherwise."""
     if not isinstance(actions, Mapping):
         raise ActionError(f"actions must be a dict {{agent: array(2)}}, got {type(actions).__name__}")
