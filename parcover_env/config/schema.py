@@ -133,7 +133,8 @@ class ScanConfig:
 
     With ``enabled`` the action gains a third component ``scan``: a robot whose ``scan > 0`` starts
     a 360-degree sonar scan and is held still (commands zeroed) for the scan's duration, the time the
-    real robot takes to turn its ring through the 72 5-degree steps at ``turn_rate``. At the scan's
+    real robot takes to turn in place at ``turn_rate`` until its ring has read all 72 5-degree
+    directions (through the largest gap between neighbouring transducers). At the scan's
     last step the env simulates that robot's scan of the true map (realistic sonar model, the
     episode's generator) and runs the paper's localizer on the known map, teammates drawn in at
     their estimates, inside the ``gate_sigmas`` ellipse of the robot's estimate and covariance (never
@@ -145,8 +146,10 @@ class ScanConfig:
     enabled: bool = False
     """Add the ``scan`` action component and the ``scanning`` / ``scan_result`` observation entries."""
     turn_rate: float = 0.6
-    """Turn rate of the real robot during a scan (rad/s; capped at ``robot.max_turn_rate``): a scan
-    lasts ``ceil(2 pi / turn_rate / control_dt)`` control steps (105 at 0.6 rad/s and 0.1 s)."""
+    """Turn rate of the real robot during a scan (rad/s; capped at ``robot.max_turn_rate``; the
+    scripted expert's ``sonar_fix.scan_rate``): a scan lasts ``ceil(turn / turn_rate / control_dt)``
+    control steps, ``turn`` the largest gap between neighbouring transducers (AmigoBot ring: 72 deg,
+    21 steps = 2.1 s at 0.6 rad/s and 0.1 s; an evenly spaced ring of n: 360 / n deg)."""
     gate_sigmas: float = 3.0
     """The localizer searches, and a fix is accepted only inside, this many standard deviations of
     the estimate's position covariance widened by ``gate_distance`` (Mahalanobis distance) (-)."""

@@ -55,14 +55,16 @@ class ParallelCoverageEnv(ParallelEnv):
     ## Sonar localization service (opt-in: ``observation.scan.enabled``)
     The action becomes ``Box(-1, 1, (3,))``: ``(v, omega, scan)``. A robot whose ``scan > 0`` starts a
     360-degree sonar scan (Kim, Pearce & Amato's stop-scan-match) and is held still, its ``(v, omega)``
-    ignored, for ``ceil(2 pi / scan.turn_rate / control_dt)`` steps (the real robot turning its ring
-    through 72 5-degree steps: 105 steps = 10.5 s at 0.6 rad/s), counting the step that asks; ``scan``
-    is ignored while a scan is under way. At the last step the env simulates the robot's scan of the
-    true map (realistic sonar, the episode's generator) and runs the paper's localizer on the known
-    map, teammates drawn in at their estimates, inside the ``scan.gate_sigmas`` region of the robot's
-    *estimate and covariance* (never its true pose). An accepted fix resets the estimate and its
-    covariance (``scan.fix_sigma_xy``, ``scan.fix_sigma_heading_deg``) and ``fix_age``; a rejected scan
-    changes nothing. The ``scanning`` entry is 1 while the scan is under way, ``scan_result`` holds
+    ignored, for ``ceil(turn / scan.turn_rate / control_dt)`` steps, counting the step that asks: the
+    time the real robot turns in place until its ring has read all 72 5-degree directions, ``turn``
+    being the largest gap between neighbouring transducers (AmigoBot ring: 72 deg, 21 steps = 2.1 s
+    at 0.6 rad/s). ``scan`` is ignored while a scan is under way. At the last step the env simulates
+    the robot's scan of the true map (realistic sonar, the episode's generator) and runs the paper's
+    localizer on the known map, teammates drawn in at their estimates, inside the ``scan.gate_sigmas``
+    region of the robot's *estimate and covariance* (never its true pose). An accepted fix resets the
+    estimate and its covariance (``scan.fix_sigma_xy``, ``scan.fix_sigma_heading_deg``) and
+    ``fix_age``; a rejected scan changes nothing but that robot's next search region, which widens
+    (``scan.miss_inflation``). The ``scanning`` entry is 1 while the scan is under way, ``scan_result`` holds
     the last outcome (1 accepted, -1 rejected, 0 none yet) and ``info[agent]["sonar_fix"]`` this step's
     (0 on other steps). Off by default, so the v1 action and observation spaces (and checkpoints)
     are unchanged; the ``waypoint`` policy turns it on (``parcover_env.policies.registry``).

@@ -2,7 +2,9 @@
 
 A robot asks for a scan with the ``scan`` action component (``observation.scan.enabled``): it is
 held still (its commands zeroed) for :attr:`SonarFixes.duration_steps` control steps, the time the
-real robot takes to turn its ring through a 360-degree scan at ``scan.turn_rate``. At the scan's
+real robot takes to turn in place at ``scan.turn_rate`` until its ring has read every 5-degree
+direction of a 360-degree scan (72 readings; :func:`scan_turn`: the largest gap between neighbouring
+transducers, 72 degrees for the AmigoBot ring, as the scripted expert's own scans turn). At the scan's
 last step its scan of the true map is simulated (:meth:`~parcover_env.sensors.sonar.SonarRing.scan`,
 the realistic sonar model, the episode's generator; the teammates are obstacles at their true
 positions), and the paper's localizer (:func:`~parcover_env.localization.sonar.localizer.localize`)
@@ -33,17 +35,26 @@ from parcover_env.localization.sonar.teammates import teammate_mask
 from parcover_env.sensors.sonar import SonarRing, simulate_beams
 from parcover_env.world.map_model import MapModel
 
-__all__ = ["ACCEPTED", "REJECTED", "SonarFixes", "scan_steps"]
+__all__ = ["ACCEPTED", "REJECTED", "SonarFixes", "scan_steps", "scan_turn"]
 
 ACCEPTED, REJECTED = 1.0, -1.0
 """Outcomes of a scan (``scan_result`` observation entry, ``info[agent]["sonar_fix"]``); 0 = none."""
 
 
+def scan_turn(beam_angles: np.ndarray) -> float:
+    """How far (rad) a ring of transducers at ``beam_angles`` (robot frame, rad) turns in place until
+    every direction of a 360-degree scan has been read by one of them: the largest angle between
+    neighbouring transducers (72 degrees for the AmigoBot's eight; 2 pi for one transducer)."""
+    a = np.sort(np.mod(np.asarray(beam_angles, dtype=float), 2 * math.pi))
+    return float(np.max(np.diff(np.append(a, a[0] + 2 * math.pi))))
+
+
 def scan_steps(scenario: Scenario) -> int:
-    """Control steps one scan holds a robot still: ``ceil(2 pi / turn_rate / control_dt)``, the
-    turn rate capped at ``robot.max_turn_rate``."""
+    """Control steps one scan holds a robot still: ``ceil(turn / turn_rate / control_dt)`` with
+    ``turn`` the ring's :func:`scan_turn` and the turn rate capped at ``robot.max_turn_rate``."""
     rate = min(scenario.observation.scan.turn_rate, scenario.robot.max_turn_rate)
-    return max(1, math.ceil(2 * math.pi / rate / scenario.physics.control_dt - 1e-9))
+    turn = scan_turn(SonarRing(scenario.robot.sonar).beam_angles)
+    return max(1, math.ceil(turn / rate / scenario.physics.control_dt - 1e-9))
 
 
 class SonarFixes:

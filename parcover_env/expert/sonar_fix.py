@@ -144,6 +144,8 @@ class _State:
     """Scans in a row started at once after a refused fix (``refused_rescans``)."""
     missed: bool = False
     """The last scan gave no accepted fix."""
+    env_fixed: bool = False
+    """The fresh fix of these steps is the env's fix of this robot's scan (:attr:`SonarFixer.env_scan`)."""
     inflation: float = 1.0
     """Factor on the standard deviations of the gate after scans in a row without an accepted fix
     (``miss_inflation``); 1 after a fix."""
@@ -206,10 +208,14 @@ class SonarFixer:
         ``scanning``: the observation's ``scanning`` entry (:attr:`env_scan` only)."""
         st = self.states.setdefault(agent, _State(np.zeros(3), np.zeros((3, 3))))
         fresh = fix_age < 2 * self.dt  # a fresh Kinect (or env sonar) fix: the odometry pose is absolute again
-        if fresh and st.scan == ENV_SCAN and not scanning:
+        if fresh and st.scan == ENV_SCAN and not scanning:  # the env's fix of our scan
             self.stats["sonar_localized"] += 1
+            st.env_fixed = True
         if fresh:
-            st.correction, st.scan, st.driven_since_scan, st.refused = np.zeros(3), None, math.inf, None
+            # after a Kinect fix a stale robot may scan at once; after its own scan's fix it drives
+            # ``rescan_distance`` first, as after a fix of its own
+            driven = 0.0 if st.env_fixed else math.inf
+            st.correction, st.scan, st.driven_since_scan, st.refused = np.zeros(3), None, driven, None
             st.missed, st.inflation = False, 1.0
             st.cov = self.kinect_cov.copy() if odom_cov is None else odom_cov
         elif odom_cov is not None and not self.corrected(agent):
@@ -218,6 +224,8 @@ class SonarFixer:
             heading = float(self.belief(agent, st.last_odom)[2])
             st.cov = belief_covariance_step(st.cov, st.last_odom, odom, heading, self.odometry, self.wheel_base)
         st.last_odom = odom.copy()
+        if not fresh:
+            st.env_fixed = False
         if fresh:
             return None
         st.driven_since_scan += abs(speed) * self.dt

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.envs.sonar_fixes import ACCEPTED, REJECTED, scan_steps
+from parcover_env.envs.sonar_fixes import ACCEPTED, REJECTED, scan_steps, scan_turn
 from parcover_env.errors import ActionError
 
 SCAN = {"observation": {"scan": {"enabled": True}, "pose_source": "odometry"}}
@@ -45,9 +45,14 @@ def _scan(env):
 def test_scan_duration_is_the_real_robots_turn():
     env = _env()
     s = env.scenario
-    rate = min(0.6, s.robot.max_turn_rate)
-    assert env.scanner.duration_steps == scan_steps(s) == math.ceil(2 * math.pi / rate / s.physics.control_dt)
-    assert scan_steps(s) == 105  # 0.6 rad/s, 0.1 s control step: 10.5 s
+    assert s.robot.sonar.layout == "amigobot" and s.robot.max_turn_rate > 0.6
+    assert scan_turn(env.sonar.beam_angles) == pytest.approx(math.radians(72.0))  # the two rear transducers
+    assert env.scanner.duration_steps == scan_steps(s) == math.ceil(math.radians(72.0) / 0.6 / s.physics.control_dt)
+    assert scan_steps(s) == 21  # 0.6 rad/s, 0.1 s control step: 2.1 s
+    assert scan_turn(np.radians([0.0, 90.0, 180.0, 270.0])) == pytest.approx(math.pi / 2)
+    assert scan_turn(np.array([0.3])) == pytest.approx(2 * math.pi)
+    slow = parcover_env.parallel_env("t_room", overrides={"observation": {"scan": {"enabled": True, "turn_rate": 0.3}}})
+    assert slow.scanner.duration_steps == 42
     assert env.action_space("robot_0").shape == (3,)
     assert {"scanning", "scan_result"} <= set(env.layout.names)
 
@@ -125,12 +130,13 @@ def test_copy_mid_scan_continues_identically(how):
     acts[:, :, 2] = -1.0
     acts[5, :, 2] = 1.0  # every robot starts a scan at step 5
     step = lambda e, a: e.step(dict(zip(e.possible_agents, a, strict=True)))  # noqa: E731
-    for a in acts[:40]:
+    mid = 6 + env.scanner.duration_steps // 2
+    for a in acts[:mid]:
         step(env, a)
     assert env.scanner.scanning.all()
     twin = copy.deepcopy(env) if how == "deepcopy" else pickle.loads(pickle.dumps(env))
     outcomes = []
-    for a in acts[40:]:
+    for a in acts[mid:]:
         o1, r1, _, _, i1 = step(env, a)
         o2, r2, _, _, i2 = step(twin, a)
         assert all(np.array_equal(o1[k], o2[k]) for k in o1) and r1 == r2
