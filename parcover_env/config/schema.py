@@ -283,7 +283,8 @@ class Scenario:
     localization: Literal["kinect", "sonar", "both"] = "kinect"
     sonar_localizer: dict[str, Any] = field(default_factory=dict, hash=False)
     """The sonar localizer's YAML section, kept as read (used by the env's ``observation.scan``
-    service and the experts); its owner validates it (:func:`parcover_env.localization.sonar.config.sonar_localizer_config`)."""
+    service and the experts); its owner validates it
+    (:func:`parcover_env.localization.sonar.config.sonar_localizer_config`)."""
     kinect_tracking: KinectTrackingConfig = field(default_factory=KinectTrackingConfig)
     """Gate and fusion radius of the Kinect leader tracker (seed A)."""
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)

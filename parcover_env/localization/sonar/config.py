@@ -3,8 +3,8 @@
 
 The env's sonar localization service (``observation.scan``, :mod:`parcover_env.envs.sonar_fixes`) and
 the scripted experts run the localizer; the ``Scenario`` keeps that YAML section as a plain mapping
-and this module owns its schema: every
-field has a unit and is validated with a ``ConfigError`` naming the file and the key.
+and this module owns its schema: every field has a unit and is validated with a ``ConfigError``
+naming the file and the key.
 """
 
 from __future__ import annotations
