@@ -4,12 +4,16 @@
     python benchmarks/expert.py --seeds 5 --scenarios office tree
     python benchmarks/expert.py --scenarios generated --seeds 200 --preset ideal
     python benchmarks/expert.py --scenarios generated --seeds 60 --first-seed 1000
+    python benchmarks/expert.py --scenarios generated --seeds 200 --env-scan   # the env's sonar fixes
 
 ``generated`` stands for the maps ``generated:SEED`` with SEED = the episode seed (one map per
-seed). Prints one Markdown table (makespan ratio = makespan / (c_max / v_max): min / mean / p95 /
-max), failures by cause (``parcover_env.harness.failures``) with their seeds, for the sonar
-navigator its rearrangements, scan-angle bias and lateral offset, and, for the Kinect scenarios,
-the messages of formation mode vs every-robot-localized mode (``--messages``).
+seed). ``--env-scan``: the env's sonar localization service (``observation.scan``) does the
+expert's stop-and-scan fixes (the scripted expert asks for a scan and reads the env's estimate),
+instead of the expert localizing its own scan. Prints one Markdown table (makespan ratio =
+makespan / (c_max / v_max): min / mean / p95 / max), failures by cause
+(``parcover_env.harness.failures``) with their seeds, for the sonar navigator its rearrangements,
+scan-angle bias and lateral offset, and, for the Kinect scenarios, the messages of formation mode
+vs every-robot-localized mode (``--messages``).
 """
 
 from __future__ import annotations
@@ -31,11 +35,14 @@ def _name(scenario: str, seed: int) -> str:
     return f"generated:{seed}" if scenario == "generated" else scenario
 
 
-def episode(job: tuple[str, int, str, str]) -> dict:
-    scenario, seed, mode, preset = job
+def episode(job: tuple[str, int, str, str, bool]) -> dict:
+    scenario, seed, mode, preset, env_scan = job
     name = _name(scenario, seed)
+    overrides = {"formation": {"mode": mode}}
+    if env_scan:
+        overrides["observation"] = {"scan": {"enabled": True}}
     try:
-        env = parcover_env.parallel_env(name, overrides={"formation": {"mode": mode}}, preset=preset)
+        env = parcover_env.parallel_env(name, overrides=overrides, preset=preset)
     except Exception as exc:  # noqa: BLE001 - a map that cannot be built is reported, not fatal
         return {"success": False, "cause": "error", "error": f"{type(exc).__name__}: {exc}", "seed": seed}
     m, diag = run_diagnosed(env, expert_for(env), seed)
@@ -67,11 +74,12 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--messages", action="store_true",
                     help="also run 10 seeds per Kinect scenario in 'individual' mode and compare messages")
+    ap.add_argument("--env-scan", action="store_true", help="the env's sonar localization service does the scans")
     args = ap.parse_args()
     seeds = range(args.first_seed, args.first_seed + args.seeds)
-    jobs = [(s, k, "formation", args.preset) for s in args.scenarios for k in seeds]
+    jobs = [(s, k, "formation", args.preset, args.env_scan) for s in args.scenarios for k in seeds]
     kinect = [s for s in args.scenarios if args.messages and s != "generated" and parcover_env.load_scenario(s).kinects]
-    jobs += [(s, k, "individual", args.preset) for s in kinect for k in list(seeds)[:10]]
+    jobs += [(s, k, "individual", args.preset, args.env_scan) for s in kinect for k in list(seeds)[:10]]
     t0 = time.perf_counter()
     results = []
     with ProcessPoolExecutor(args.workers) as pool:
@@ -82,10 +90,10 @@ def main() -> None:
                   flush=True)
     print(file=sys.stderr)
     rows: dict[tuple[str, str], list[dict]] = {}
-    for (name, _, mode, _), m in zip(jobs, results, strict=True):
+    for (name, _, mode, _, _), m in zip(jobs, results, strict=True):
         rows.setdefault((name, mode), []).append(m)
     print(f"{len(jobs)} episodes in {time.perf_counter() - t0:.0f} s on {args.workers} workers, "
-          f"preset {args.preset}, seeds {seeds.start}..{seeds.stop - 1}\n")
+          f"preset {args.preset}, seeds {seeds.start}..{seeds.stop - 1}, env scans {args.env_scan}\n")
     print("| scenario | seeds | success | KPOIs | makespan ratio min / mean / p95 / max | wall coll. | robot coll. "
           "| messages | formation err l (m) | loc. err (m) | wall time / ep (s) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")

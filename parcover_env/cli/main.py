@@ -73,12 +73,13 @@ def _range(text: str) -> float:
 def cmd_run(args) -> int:
     from parcover_env import parallel_env
     from parcover_env.harness.rollout import run_episode
-    from parcover_env.policies.registry import make_policy
+    from parcover_env.policies.registry import make_policy, policy_overrides
     from parcover_env.viz.render import GifRecorder
 
     if args.gif:
         check_writable_file(args.gif, "--gif")
-    env = parallel_env(args.scenario, render_mode="rgb_array" if args.gif else None, preset=args.preset)
+    env = parallel_env(args.scenario, render_mode="rgb_array" if args.gif else None, preset=args.preset,
+                       overrides=policy_overrides(args.policy))
     policy = make_policy(args.policy, env, args.seed)
     say = _sayer(args)  # with --json, human-readable lines go to stderr, the JSON object to stdout
     say(f"scenario {env.scenario.name}: {env.n_robots} robots, {len(env.scenario.kpois)} KPOIs, "

@@ -21,6 +21,7 @@ from parcover_env.config.schema import (
     Pose,
     RewardConfig,
     RobotConfig,
+    ScanConfig,
     Scenario,
     Segment,
     SonarConfig,
@@ -31,7 +32,7 @@ from parcover_env.errors import ConfigError
 __all__ = [
     "ConfigError", "MapConfig", "Pose", "SonarConfig", "DriveConfig", "OdometryConfig", "RobotConfig", "KinectConfig",
     "PhysicsConfig", "EpisodeConfig", "RewardConfig", "ObservationConfig", "FormationConfig", "PlannerConfig",
-    "KinectTrackingConfig",
+    "KinectTrackingConfig", "ScanConfig",
     "Scenario", "Point", "Polygon", "Segment", "read_yaml", "deep_merge", "scenario_from_mapping",
     "scenario_to_yaml", "replace_source", "from_mapping", "to_mapping",
 ]

@@ -24,7 +24,7 @@ Segment = tuple[Point, Point]
 
 __all__ = [
     "ConfigError", "MapConfig", "Pose", "SonarConfig", "DriveConfig", "OdometryConfig", "RobotConfig",
-    "KinectConfig", "PhysicsConfig", "EpisodeConfig", "RewardConfig", "ObservationConfig",
+    "KinectConfig", "PhysicsConfig", "EpisodeConfig", "RewardConfig", "ObservationConfig", "ScanConfig",
     "FormationConfig", "PlannerConfig", "KinectTrackingConfig", "Scenario",
     "Point", "Polygon", "Segment",
 ]
@@ -132,6 +132,66 @@ class RewardConfig:
 
 
 @dataclass(frozen=True)
+class ScanConfig:
+    """The env's sonar localization service (Kim, Pearce & Amato's stop-scan-match), opt-in.
+
+    With ``enabled`` the action gains a third component ``scan``: a robot whose ``scan > 0`` starts
+    a 360-degree sonar scan and is held still (commands zeroed) for the scan's duration, the time the
+    real robot takes to turn in place at ``turn_rate`` until its ring has read all 72 5-degree
+    directions (through the largest gap between neighbouring transducers). At the scan's
+    last step the env simulates that robot's scan of the true map (realistic sonar model, the
+    episode's generator) and runs the paper's localizer on the known map, teammates drawn in at
+    their estimates, inside the ``gate_sigmas`` ellipse of the robot's estimate and covariance (never
+    the true pose). A fix is accepted when the localizer succeeds (or the scan matches on the readings
+    no teammate explains, ``mask_sigmas``) inside that gate. An accepted fix resets the estimate to
+    the fix and the covariance to ``fix_sigma_xy`` / ``fix_sigma_heading_deg``; a rejected one changes
+    nothing but the next search region of that robot (``miss_inflation``)."""
+
+    enabled: bool = False
+    """Add the ``scan`` action component and the ``scanning`` / ``scan_result`` observation entries."""
+    turn_rate: float = 0.6
+    """Turn rate of the real robot during a scan (rad/s; capped at ``robot.max_turn_rate``; the
+    scripted expert's ``sonar_fix.scan_rate``): a scan lasts ``ceil(turn / turn_rate / control_dt)``
+    control steps, ``turn`` the largest gap between neighbouring transducers (AmigoBot ring: 72 deg,
+    21 steps = 2.1 s at 0.6 rad/s and 0.1 s; an evenly spaced ring of n: 360 / n deg)."""
+    gate_sigmas: float = 3.0
+    """The localizer searches, and a fix is accepted only inside, this many standard deviations of
+    the estimate's position covariance widened by ``gate_distance`` (Mahalanobis distance) (-)."""
+    gate_distance: float = 0.15
+    """Floor of that region (m): the covariance is widened by (``gate_distance`` / ``gate_sigmas``)^2
+    in every direction, so a fresh estimate's tiny covariance still admits the localizer's error."""
+    gate_heading_deg: float = 30.0
+    """A fix is accepted only within this of the heading estimate plus ``gate_sigmas`` heading sigmas (deg)."""
+    fix_sigma_xy: float = 0.05
+    """Position standard deviation of an accepted sonar fix along x and y (m): the covariance the
+    estimate restarts from (the localizer's error on the shipped maps, ``benchmarks/sonar_localization.py``)."""
+    fix_sigma_heading_deg: float = 2.0
+    """Heading standard deviation of an accepted sonar fix (deg)."""
+    mask_sigmas: float = 2.0
+    """Teammates are not in the known map: a localized pose whose scan error is too large is still
+    accepted when the scan matches on the readings no teammate can explain (a reading shorter than
+    the known map's that ends within radius + this many position sigmas of a teammate's estimate is
+    left out) (-) ..."""
+    min_unmasked_share: float = 0.5
+    """... provided at least this share of the readings is left (-)."""
+    miss_inflation: float = 2.0
+    """Each rejected scan widens the robot's next search region and gate: the standard deviations
+    are multiplied by this (-), until an accepted fix. Contacts push robots unseen by the encoders; a
+    robot pushed outside its covariance is otherwise never found inside its search region."""
+    max_inflation: float = 8.0
+    """Largest total factor of ``miss_inflation`` (-): the search region stays bounded."""
+
+    def __post_init__(self) -> None:
+        _check(self.miss_inflation >= 1, "miss_inflation", f"must be >= 1, got {self.miss_inflation}")
+        _check(self.max_inflation >= 1, "max_inflation", f"must be >= 1, got {self.max_inflation}")
+        _check(self.mask_sigmas >= 0, "mask_sigmas", f"must be >= 0, got {self.mask_sigmas}")
+        _check(0 < self.min_unmasked_share <= 1, "min_unmasked_share",
+               f"must be in (0, 1], got {self.min_unmasked_share}")
+        _positive(self, "turn_rate", "gate_sigmas", "gate_heading_deg", "fix_sigma_xy", "fix_sigma_heading_deg")
+        _check(self.gate_distance >= 0, "gate_distance", f"must be >= 0, got {self.gate_distance}")
+
+
+@dataclass(frozen=True)
 class ObservationConfig:
     pose_source: Literal["odometry", "kinect", "ground_truth"] = "kinect"
     """Where the pose in the observation comes from: ``kinect`` = odometry corrected by Kinect
@@ -154,6 +214,8 @@ class ObservationConfig:
     neighbours: int = 4
     """Version 2: teammates (k nearest by estimated distance) each robot observes; fewer teammates
     are padded with zeros and mask 0."""
+    scan: ScanConfig = field(default_factory=ScanConfig)
+    """The sonar localization service: the ``scan`` action (opt-in, :class:`ScanConfig`)."""
 
     def __post_init__(self) -> None:
         _check(self.version in (1, 2), "version", f"must be 1 or 2, got {self.version!r}")
@@ -234,8 +296,9 @@ class Scenario:
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     localization: Literal["kinect", "sonar", "both"] = "kinect"
     sonar_localizer: dict[str, Any] = field(default_factory=dict, hash=False)
-    """The sonar localizer's YAML section, kept as read: the env never runs the localizer; its owner
-    validates it (:func:`parcover_env.localization.sonar.config.sonar_localizer_config`)."""
+    """The sonar localizer's YAML section, kept as read (used by the env's ``observation.scan``
+    service and the experts); its owner validates it
+    (:func:`parcover_env.localization.sonar.config.sonar_localizer_config`)."""
     kinect_tracking: KinectTrackingConfig = field(default_factory=KinectTrackingConfig)
     """Gate and fusion radius of the Kinect leader tracker (seed A)."""
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)

@@ -12,23 +12,24 @@ __all__ = ["to_commands"]
 
 
 def to_commands(actions: Mapping, agents: Sequence[str], max_speed: float,
-                max_turn_rate: float) -> np.ndarray:
-    """Joint action ``{agent: (2,) in [-1, 1]}`` -> unicycle commands ``(N, 2)`` (m/s, rad/s).
+                max_turn_rate: float, width: int = 2) -> np.ndarray:
+    """Joint action ``{agent: (width,) in [-1, 1]}`` -> unicycle commands ``(N, width)``: (m/s, rad/s)
+    and, with ``width = 3``, the ``scan`` component as given (clipped to [-1, 1]).
 
     Out-of-range values are clipped to [-1, 1] (documented behaviour); NaN/inf, a wrong shape, a
     non-real type (complex, bool, strings, None) and missing or unknown agents raise ActionError
     naming the agent.
     """
-    out = _common_case(actions, agents)
+    out = _common_case(actions, agents, width)
     if out is None:
-        out = _validated(actions, agents)
+        out = _validated(actions, agents, width)
     np.minimum(np.maximum(out, -1.0, out=out), 1.0, out=out)  # clip (the values are finite here)
     out[:, 0] *= max_speed
     out[:, 1] *= max_turn_rate
     return out
 
 
-def _common_case(actions, agents: Sequence[str]) -> np.ndarray | None:
+def _common_case(actions, agents: Sequence[str], width: int = 2) -> np.ndarray | None:
     """Raw ``(N, 2)`` actions when the joint action is the common case (a dict holding exactly the
     active agents, each a finite float ndarray of shape (2,)), cheaply; None otherwise."""
     if type(actions) is not dict or len(actions) != len(agents):
@@ -38,13 +39,13 @@ def _common_case(actions, agents: Sequence[str]) -> np.ndarray | None:
     except KeyError:
         return None
     for v in vals:
-        if type(v) is not np.ndarray or v.shape != (2,) or v.dtype.kind != "f":
+        if type(v) is not np.ndarray or v.shape != (width,) or v.dtype.kind != "f":
             return None
     out = np.array(vals, dtype=float)
     return out if np.isfinite(out).all() else None
 
 
-def _validated(actions, agents: Sequence[str]) -> np.ndarray:
+def _validated(actions, agents: Sequence[str], width: int = 2) -> np.ndarray:
     """Raw ``(N, 2)`` actions after full validation; ActionError naming the agent otherwise."""
     if not isinstance(actions, Mapping):
         raise ActionError(f"actions must be a dict {{agent: array(2)}}, got {type(actions).__name__}")
@@ -54,7 +55,7 @@ def _validated(actions, agents: Sequence[str]) -> np.ndarray:
     missing = [a for a in agents if a not in actions]
     if missing:
         raise ActionError(f"missing actions for agents {missing}")
-    out = np.empty((len(agents), 2))
+    out = np.empty((len(agents), width))
     for i, agent in enumerate(agents):
         try:
             raw = np.asarray(actions[agent])
@@ -63,8 +64,9 @@ def _validated(actions, agents: Sequence[str]) -> np.ndarray:
         if raw.dtype.kind not in "iuf":  # complex, bool, strings, objects: never silently cast
             raise ActionError(f"{agent}: action is not numeric (real numbers): {actions[agent]!r}")
         a = raw.astype(float)
-        if a.shape != (2,):
-            raise ActionError(f"{agent}: action must have shape (2,) = (v, omega) in [-1, 1], got {a.shape}")
+        if a.shape != (width,):
+            what = "(v, omega)" if width == 2 else "(v, omega, scan)"
+            raise ActionError(f"{agent}: action must have shape ({width},) = {what} in [-1, 1], got {a.shape}")
         if not np.all(np.isfinite(a)):
             raise ActionError(f"{agent}: action contains NaN or inf: {a.tolist()}")
         out[i] = a

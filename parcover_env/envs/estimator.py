@@ -4,9 +4,9 @@ Each step :meth:`PoseEstimator.update` advances every robot's belief by its whee
 (:class:`~parcover_env.sensors.odometry.Odometry`: estimate and Chong & Kleeman covariance), then
 asks each fix source in turn for absolute pose fixes and resets the fixed robots' beliefs
 (:meth:`PoseEstimator.fix`). A fix source is anything with the :class:`FixSource` shape: the overhead
-Kinect system (:class:`KinectFixes`, Min, Fehr & Papanikolopoulos) today; a sonar localizer fix for a
-robot that stops and scans (Kim, Pearce & Amato) is a third source, passed in the ``sources`` list,
-with no change to the estimator or the stepper.
+Kinect system (:class:`KinectFixes`, Min, Fehr & Papanikolopoulos) and the sonar localizer fix of a
+robot that stops and scans (Kim, Pearce & Amato; :class:`~parcover_env.envs.sonar_fixes.SonarFixes`,
+``observation.scan``), in that order.
 """
 
 from __future__ import annotations
@@ -36,6 +36,8 @@ class FixRequest(NamedTuple):
     """The dead-reckoned estimates ``(N, 3)`` of this step, before any fix."""
     leaders: np.ndarray
     """``(N,)`` bool: the robots leading a group."""
+    covariance: np.ndarray | None = None
+    """The covariances ``(N, 3, 3)`` of those estimates (the prior of a localizer; read only)."""
 
 
 class FixSource(Protocol):
@@ -122,7 +124,7 @@ class PoseEstimator:
             self.fix_age[:] = 0.0
             return fixed
         for source in self.sources:
-            fixes = fixed[source.name] = source.fixes(FixRequest(time, true, est, leaders), rng)
+            fixes = fixed[source.name] = source.fixes(FixRequest(time, true, est, leaders, self.covariance), rng)
             for i, pose in fixes.items():
                 self.fix(i, pose, source.covariance)
         return fixed

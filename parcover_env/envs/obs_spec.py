@@ -9,11 +9,12 @@ the ``observation_space`` bounds, the observation table of ``ParallelCoverageEnv
 
 Sources: ``estimate``, ``team``, ``mission`` and ``camera`` entries are written by that compiled pass
 from the env's state; ``route`` and ``teammates`` entries (observation version 2 only) by
-:func:`parcover_env.envs.obs_v2.fill` for all robots of all worlds at once; a ``sensor`` entry is
-the reading of the sensor its ``sensor`` factory builds
-from the scenario (a :class:`~parcover_env.sensors.base.Sensor`), filled for every world at once by
-the stepper (:mod:`parcover_env.envs.stepper`). A new sensor is a sensor module, a config field and
-one ``sensor`` entry here: neither the env nor the batched worlds change.
+:func:`parcover_env.envs.obs_v2.fill` for all robots of all worlds at once; ``scan`` entries by the
+stepper from ``env.localization_entries()`` (the sonar localization service,
+:mod:`parcover_env.envs.sonar_fixes`); a ``sensor`` entry is the reading of the sensor its ``sensor``
+factory builds from the scenario (a :class:`~parcover_env.sensors.base.Sensor`), filled for every world
+at once by the stepper (:mod:`parcover_env.envs.stepper`). A new sensor is a sensor module, a config
+field and one ``sensor`` entry here: neither the env nor the batched worlds change.
 """
 
 from __future__ import annotations
@@ -94,6 +95,10 @@ def _preview(s: Scenario) -> int:
     return N_PREVIEW
 
 
+def _scan(s: Scenario) -> int:
+    return int(s.observation.scan.enabled)
+
+
 @dataclass(frozen=True)
 class Entry:
     """One named entry of the observation vector."""
@@ -104,7 +109,8 @@ class Entry:
     bounds: Callable[[Scenario, Box], tuple[float, float]]
     """``(low, high)`` of every column of the entry, from the scenario and the map's box."""
     source: str
-    """``estimate`` / ``team`` / ``mission`` / ``camera`` (the compiled pass) or ``sensor``."""
+    """``estimate`` / ``team`` / ``mission`` / ``camera`` (the compiled pass), ``sensor``, or ``scan``
+    (the env's sonar localization service, ``env.localization_entries()``)."""
     size: Callable[[Scenario], int] | None = None
     """Columns in this scenario (0 = absent); None = 1 column (or the sensor's ``size``)."""
     sensor: Callable[[Scenario], Sensor | None] | None = None
@@ -158,6 +164,10 @@ ENTRIES: tuple[Entry, ...] = (
           _covariance, presets=("realistic",)),
     Entry("sigma_heading", "rad", "heading sigma of the estimate", lambda s, b: (0.0, np.pi), "estimate",
           _covariance, presets=("realistic",), bounds_doc="[0, pi]"),
+    Entry("scanning", "-", "1 while this robot's sonar scan is under way (held still; ``observation.scan``)",
+          _flag, "scan", _scan, presets=(), size_doc="1 (opt-in)"),
+    Entry("scan_result", "-", "outcome of this robot's last scan: 1 fix accepted, -1 rejected, 0 no scan yet",
+          _unit, "scan", _scan, presets=(), size_doc="1 (opt-in)"),
     Entry("goal_dx", "m", "current route waypoint in the robot frame, x ahead (from the estimate)", _goal, "mission"),
     Entry("goal_dy", "m", "current route waypoint in the robot frame, y left", _goal, "mission"),
     Entry("pred_dx", "m", "robot ahead in the column, x in this robot's frame (onboard camera; 0 if unseen)",

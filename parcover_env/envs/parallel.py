@@ -13,13 +13,14 @@ from pettingzoo import ParallelEnv
 from parcover_env.config import Scenario, deep_merge
 from parcover_env.envs import critic_state, stepper
 from parcover_env.envs.actions import to_commands
-from parcover_env.envs.estimator import KinectFixes, PoseEstimator
+from parcover_env.envs.estimator import FixRequest, KinectFixes, PoseEstimator
 from parcover_env.envs.handover import CameraView, update_team
 from parcover_env.envs.metrics import EpisodeMetrics, formation_errors
 from parcover_env.envs.obs_spec import markdown_table
 from parcover_env.envs.obs_v2 import route_facts, target_kpois
 from parcover_env.envs.observations import ObservationLayout, build_sensors
 from parcover_env.envs.rewards import own_visits, reward_terms, terms_for
+from parcover_env.envs.sonar_fixes import SonarFixes
 from parcover_env.envs.team import Team
 from parcover_env.geometry import wrap_angle
 from parcover_env.localization.kinect.system import KinectSystem
@@ -51,6 +52,24 @@ class ParallelCoverageEnv(ParallelEnv):
     follow with a first-order lag (``drive.tau``) and bounded acceleration (``drive.accel_max``) at
     the physics rate; from rest, full forward takes a few control steps. ``drive.model: instant``
     (``ideal`` preset) applies the command as the body velocity.
+
+    ## Sonar localization service (opt-in: ``observation.scan.enabled``)
+    The action becomes ``Box(-1, 1, (3,))``: ``(v, omega, scan)``. A robot whose ``scan > 0`` starts a
+    360-degree sonar scan (Kim, Pearce & Amato's stop-scan-match) and is held still, its ``(v, omega)``
+    ignored, for ``ceil(turn / scan.turn_rate / control_dt)`` steps, counting the step that asks: the
+    time the real robot turns in place until its ring has read all 72 5-degree directions, ``turn``
+    being the largest gap between neighbouring transducers (AmigoBot ring: 72 deg, 21 steps = 2.1 s
+    at 0.6 rad/s). ``scan`` is ignored while a scan is under way. At the last step the env simulates
+    the robot's scan of the true map (realistic sonar, the episode's generator) and runs the paper's
+    localizer on the known map, teammates drawn in at their estimates, inside the ``scan.gate_sigmas``
+    region of the robot's *estimate and covariance* (never its true pose). An accepted fix resets the
+    estimate and its covariance (``scan.fix_sigma_xy``, ``scan.fix_sigma_heading_deg``) and
+    ``fix_age``; a rejected scan changes nothing but that robot's next search region, which widens
+    (``scan.miss_inflation``). The ``scanning`` entry is 1 while the scan is under way, ``scan_result`` holds
+    the last outcome (1 accepted, -1 rejected, 0 none yet) and ``info[agent]["sonar_fix"]`` this step's
+    (0 on other steps). Off by default, so the v1 action and observation spaces (and checkpoints)
+    are unchanged; the ``waypoint`` policy turns it on (``parcover_env.policies.registry``).
+    Module: ``parcover_env.envs.sonar_fixes``; a test with a known answer: ``tests/envs/test_sonar_fixes.py``.
 
     ## Observation space
     One flat ``Box`` per agent, identical across agents (``env.layout`` names the slices), entries in
@@ -135,6 +154,9 @@ class ParallelCoverageEnv(ParallelEnv):
       Observation ``v2`` entries (target KPOI, ``done_mask``, route preview, next TP, group size,
       ``k`` nearest teammates); the ``own_kpoi`` reward term with ``kpoi`` as a team bonus;
       ``info[agent]["route_done"]``; ``state()`` of one fixed shape as robot and KPOI tokens.
+    * v1, opt-in ``observation.scan`` (unreleased): the sonar localization service (``scan`` action
+      component, ``scanning`` / ``scan_result`` entries, ``info[agent]["sonar_fix"]``); without it
+      v1 is unchanged.
     * v1 (0.2.0): realistic motion and covariance observations: differential-drive dynamics (wheel
       limits, lag, bounded acceleration), wheel odometry with UMBmark systematic, random and slip
       errors, ``v, omega`` measured by the encoders, pose-uncertainty entries (``sigma_*``) after
@@ -184,8 +206,12 @@ class ParallelCoverageEnv(ParallelEnv):
         self.fix_sources = [KinectFixes(self.kinects, s.robot.markers, np.diag([sxy**2, sxy**2, sth**2]))
                             ] if self.kinects is not None else []
         """The estimator's sources of absolute pose fixes (:class:`~parcover_env.envs.estimator.FixSource`)."""
+        self.scanner = SonarFixes(s, self.map.segments, self.n_robots) if s.observation.scan.enabled else None
+        """The sonar localization service (``observation.scan``; None = off), the last fix source."""
+        if self.scanner is not None:
+            self.fix_sources.append(self.scanner)
         self._obs_space = self.layout.space()
-        self._act_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+        self._act_space = spaces.Box(-1.0, 1.0, (2 if self.scanner is None else 3,), dtype=np.float32)
         self.version = s.observation.version
         """Observation, reward and ``state()`` version (``observation.version``)."""
         self.terms = terms_for(self.version)
@@ -272,7 +298,12 @@ class ParallelCoverageEnv(ParallelEnv):
         if not self.agents:
             raise RuntimeError("step() called on a finished episode; call reset() first")
         s = self.scenario
-        self.commands = to_commands(actions, self.agents, s.robot.max_speed, s.robot.max_turn_rate)
+        if self.scanner is None:
+            self.commands = to_commands(actions, self.agents, s.robot.max_speed, s.robot.max_turn_rate)
+        else:
+            raw = to_commands(actions, self.agents, s.robot.max_speed, s.robot.max_turn_rate, width=3)
+            self.commands = np.ascontiguousarray(raw[:, :2])
+            self.scanner.request(raw[:, 2], self.commands)  # scanning robots are held still
         before = self.world.poses()
         self.world.step(self.commands)
         self.steps += 1
@@ -281,6 +312,9 @@ class ParallelCoverageEnv(ParallelEnv):
                                       self._rng)
         if "kinect" in fixes:  # a Kinect fix is a message to a leader
             self.team.count_pose_fixes(len(fixes["kinect"]))
+        if self.scanner is not None and s.observation.pose_source == "ground_truth":  # no sources ran: scans end
+            self.scanner.fixes(FixRequest(self.world.time, true, self.estimate.copy(), self.team.leader,
+                                          self.estimator.covariance), self._rng)
         was = self.progress.visited.copy()
         n_new = self.progress.update(true[:, :2], self.estimate[:, :2], self.world.time)
         self.true_velocity = (true[:, :2] - before[:, :2]) / s.physics.control_dt
@@ -319,11 +353,17 @@ class ParallelCoverageEnv(ParallelEnv):
         template = dict.fromkeys(reward_keys, 0.0)
         template.update(metrics)
         template["pose_error"] = template["heading_error"] = 0.0
-        keys, extra = (*reward_keys, "pose_error", "heading_error"), []
+        keys = (*reward_keys, "pose_error", "heading_error")
+        columns = [pos_err, head_err]
         if self.version == 2:
-            keys, extra = (*keys, "route_done"), [self.route_done().astype(float).tolist()]
+            keys = (*keys, "route_done")
+            columns.append(self.route_done().astype(float).tolist())
+        if self.scanner is not None:
+            template["sonar_fix"] = 0.0
+            keys = (*keys, "sonar_fix")
+            columns.append(self.scanner.outcome.tolist())
         infos = {}
-        for a, *vals in zip(self.agents, *terms, pos_err, head_err, *extra, strict=True):
+        for a, *vals in zip(self.agents, *terms, *columns, strict=True):
             info = infos[a] = template.copy()
             info.update(zip(keys, vals))
         return infos
@@ -361,6 +401,13 @@ class ParallelCoverageEnv(ParallelEnv):
     def estimate(self) -> np.ndarray:
         """The pose estimates ``(n_robots, 3)`` (the estimator's; not a copy)."""
         return self.estimator.estimate
+
+    def localization_entries(self) -> dict[str, np.ndarray]:
+        """The ``scan`` entries of the observation spec, ``{name: (n_robots,)}`` (empty when
+        ``observation.scan`` is off): ``scanning`` and ``scan_result``."""
+        if self.scanner is None:
+            return {}
+        return {"scanning": self.scanner.scanning.astype(float), "scan_result": self.scanner.result}
 
     @property
     def fix_age(self) -> np.ndarray:

@@ -65,6 +65,8 @@ def observe(worlds: Sequence[Any], true: np.ndarray) -> np.ndarray:
         reading = RelativeCamera.reading(camera[k])
         w.camera_view = CameraView(w.team.predecessor, reading, w.estimator.estimate.copy())
         w.layout.fill_scalars(obs[k], _scalar_inputs(w, reading))
+        for name, values in w.localization_entries().items():  # the ``scan`` entries of the spec
+            obs[k][:, w.layout.slices[name]] = values[:, None]
     if first.route_facts is not None:  # observation version 2: route and teammate entries, all worlds at once
         obs_v2.fill(obs, first.layout.slices, first.route_facts, obs_v2.team_rows(worlds),
                     first.scenario.observation.neighbours)

@@ -31,7 +31,7 @@ from parcover_env.control.leader import go_to_goal
 from parcover_env.envs.observations import ObservationLayout
 from parcover_env.expert.avoidance import brake_factor
 from parcover_env.expert.config import ExpertConfig, expert_config
-from parcover_env.expert.sonar_fix import chain_pose, covariance_from_entries
+from parcover_env.expert.sonar_fix import SCAN_REQUEST, chain_pose, covariance_from_entries
 from parcover_env.geometry import atan2, rotate, segments_blocked, wrap_angle
 from parcover_env.geometry.poses import compose, inverse
 from parcover_env.geometry.rays import point_segment_distance
@@ -67,7 +67,8 @@ class ScriptedExpert(Policy):
         if scenario.localization == "both" and sonar_angles is not None:
             from parcover_env.expert.sonar_fix import SonarFixer
 
-            self.fixer = SonarFixer(scenario, sonar_angles, control_dt, cfg.sonar_fix)
+            self.fixer = SonarFixer(scenario, sonar_angles, control_dt, cfg.sonar_fix,
+                                    env_scan="scanning" in layout.slices)
         # with sonar fixes, the robots' progress along their routes is tracked on the corrected pose
         # (the env's waypoints follow its odometry estimate), from the start so that out-and-back
         # legs are never confused
@@ -135,7 +136,7 @@ class ScriptedExpert(Policy):
         for a in agents:
             obs = observations[a]
             if scans[a] is not None:
-                v, w = scans[a]
+                v, w = scans[a][:2]
             elif leaders[a]:
                 self.estimators.pop(a, None)
                 scale = self.cfg.leader_speed if has_followers[a] else 1.0
@@ -147,6 +148,9 @@ class ScriptedExpert(Policy):
                 self.estimators.pop(a, None)
                 v, w = go_to_goal(self._goal(obs, a, bel), self.v_max, self.w_max, speed_scale=self.cfg.search_speed)
             actions[a] = np.array([v / self.v_max, w / self.w_max], dtype=np.float32)
+        if "scanning" in self.layout.slices:  # the env's sonar localization service: (v, w, scan)
+            actions = {a: np.append(act, np.float32(1.0 if scans[a] == SCAN_REQUEST else -1.0))
+                       for a, act in actions.items()}
         return actions
 
     def _goal(self, obs: np.ndarray, agent: str, bel: np.ndarray | None) -> np.ndarray:
@@ -245,8 +249,9 @@ class ScriptedExpert(Policy):
         if "sigma_major" in self.layout.slices:
             names = ("sigma_major", "sigma_minor", "sigma_axis_cos2", "sigma_axis_sin2", "sigma_heading")
             cov = covariance_from_entries(np.array([g(obs, k)[0] for k in names], dtype=float), float(odom[2]))
+        scanning = "scanning" in self.layout.slices and bool(g(obs, "scanning")[0] > 0.5)
         return self.fixer.step(agent, odom, float(g(obs, "fix_age")[0]), float(g(obs, "v")[0]),
-                               g(obs, "sonar").astype(float), leader, at_end, cov, others)
+                               g(obs, "sonar").astype(float), leader, at_end, cov, others, scanning)
 
     def _follow(self, agent: str, obs: np.ndarray) -> tuple[float, float]:
         g, f = self.layout.get, self.scenario.formation

@@ -33,7 +33,13 @@ from parcover_env.localization.sonar.config import sonar_localizer_config
 from parcover_env.localization.sonar.scan import ScanCollector
 from parcover_env.sensors.odometry import propagate_covariance, wheel_increment_cov
 
-__all__ = ["SonarFixer", "belief_covariance_step", "chain_pose", "covariance_from_entries", "fix_gate", "fuse_pose"]
+ENV_SCAN = "env"
+""":attr:`_State.scan` while the env's sonar localization service scans for this robot."""
+SCAN_REQUEST = (0.0, 0.0, 1.0)
+"""What :meth:`SonarFixer.step` returns to ask the env for a scan (``(v, w, scan)``)."""
+
+__all__ = ["ENV_SCAN", "SCAN_REQUEST", "SonarFixer", "belief_covariance_step", "chain_pose", "covariance_from_entries",
+           "fix_gate", "fuse_pose"]
 
 
 def covariance_from_entries(entries: np.ndarray, heading: float) -> np.ndarray:
@@ -127,7 +133,8 @@ class _State:
     cov: np.ndarray
     """Covariance of the belief (3, 3), propagated by the expert while a sonar fix corrects it."""
     last_odom: np.ndarray | None = None
-    scan: ScanCollector | None = None
+    scan: ScanCollector | str | None = None
+    """The scan being collected, :data:`ENV_SCAN` while the env scans, or None."""
     scan_odom: np.ndarray | None = None
     scan_cov: np.ndarray | None = None
     driven_since_scan: float = math.inf
@@ -137,6 +144,8 @@ class _State:
     """Scans in a row started at once after a refused fix (``refused_rescans``)."""
     missed: bool = False
     """The last scan gave no accepted fix."""
+    env_fixed: bool = False
+    """The fresh fix of these steps is the env's fix of this robot's scan (:attr:`SonarFixer.env_scan`)."""
     inflation: float = 1.0
     """Factor on the standard deviations of the gate after scans in a row without an accepted fix
     (``miss_inflation``); 1 after a fix."""
@@ -145,7 +154,8 @@ class _State:
 class SonarFixer:
     """Per-robot sonar localization on demand, for the scripted expert's stale leaders."""
 
-    def __init__(self, scenario, beam_angles: np.ndarray, control_dt: float, config: SonarFixConfig | None = None):
+    def __init__(self, scenario, beam_angles: np.ndarray, control_dt: float, config: SonarFixConfig | None = None,
+                 env_scan: bool = False):
         from parcover_env.expert.team_localizer import TeamLocalizer
 
         expert = expert_config(scenario)
@@ -164,6 +174,10 @@ class SonarFixer:
         self.angles = np.arange(self.n_bins) * (2 * math.pi / self.n_bins)
         self.dt = control_dt
         self.scan_rate = min(cfg.scan_rate, scenario.robot.max_turn_rate)
+        self.env_scan = bool(env_scan)
+        """Scan through the env's sonar localization service (``observation.scan``): ask with
+        :data:`SCAN_REQUEST`, hold still while the ``scanning`` entry is 1, and take the env's fix (its
+        estimate, fresh ``fix_age``) instead of localizing a scan of its own."""
         self.states: dict[str, _State] = {}
         self.stats = {"sonar_scans": 0, "sonar_localized": 0, "sonar_failed": 0}
 
@@ -183,18 +197,25 @@ class SonarFixer:
 
     def step(self, agent: str, odom: np.ndarray, fix_age: float, speed: float, ranges: np.ndarray,
              is_leader: bool, at_end: bool = False, odom_cov: np.ndarray | None = None,
-             others: np.ndarray | None = None) -> tuple[float, float] | None:
+             others: np.ndarray | None = None, scanning: bool = False) -> tuple[float, ...] | None:
         """Advance this robot's scan logic; returns a (v, w) command while it is scanning. Only a robot
         that navigates by itself (``is_leader``: a leader, or a follower gone alone) starts a scan. ``at_end``:
         the robot believes it is at its route's end, where it checks its pose with a scan sooner
         (``final_rescan_distance``), since nothing later would catch a drifted arrival. ``odom_cov``:
         the observed covariance (3, 3) of the odometry pose, if the observation has one; otherwise
         the expert propagates it from the odometry increments. ``others`` ``(M, 2)``: the teammates'
-        positions as the expert believes them, drawn into the map when a scan is localized."""
+        positions as the expert believes them, drawn into the map when a scan is localized.
+        ``scanning``: the observation's ``scanning`` entry (:attr:`env_scan` only)."""
         st = self.states.setdefault(agent, _State(np.zeros(3), np.zeros((3, 3))))
-        fresh = fix_age < 2 * self.dt  # a fresh Kinect fix: the odometry pose is absolute again
+        fresh = fix_age < 2 * self.dt  # a fresh Kinect (or env sonar) fix: the odometry pose is absolute again
+        if fresh and st.scan == ENV_SCAN and not scanning:  # the env's fix of our scan
+            self.stats["sonar_localized"] += 1
+            st.env_fixed = True
         if fresh:
-            st.correction, st.scan, st.driven_since_scan, st.refused = np.zeros(3), None, math.inf, None
+            # after a Kinect fix a stale robot may scan at once; after its own scan's fix it drives
+            # ``rescan_distance`` first, as after a fix of its own
+            driven = 0.0 if st.env_fixed else math.inf
+            st.correction, st.scan, st.driven_since_scan, st.refused = np.zeros(3), None, driven, None
             st.missed, st.inflation = False, 1.0
             st.cov = self.kinect_cov.copy() if odom_cov is None else odom_cov
         elif odom_cov is not None and not self.corrected(agent):
@@ -203,6 +224,8 @@ class SonarFixer:
             heading = float(self.belief(agent, st.last_odom)[2])
             st.cov = belief_covariance_step(st.cov, st.last_odom, odom, heading, self.odometry, self.wheel_base)
         st.last_odom = odom.copy()
+        if not fresh:
+            st.env_fixed = False
         if fresh:
             return None
         st.driven_since_scan += abs(speed) * self.dt
@@ -214,9 +237,20 @@ class SonarFixer:
             if abs(speed) > self.cfg.stop_speed:
                 return 0.0, 0.0  # brake first: a scan is taken standing still
             st.retries = st.retries + 1 if retry else 0
+            if self.env_scan:
+                st.scan = ENV_SCAN
+                self.stats["sonar_scans"] += 1
+                return SCAN_REQUEST
             st.scan = ScanCollector(self.beams, self.n_bins, self.sonar.range_max, float(odom[2]))
             st.scan_odom, st.scan_cov = odom.copy(), st.cov * st.inflation**2
             self.stats["sonar_scans"] += 1
+        if st.scan == ENV_SCAN:
+            if scanning:
+                return 0.0, 0.0
+            # the env's scan ended without a fix (a fix is fresh above): search wider next time
+            st.missed, st.scan, st.driven_since_scan = True, None, 0.0
+            self.stats["sonar_failed"] += 1
+            return None
         if not st.scan.add(float(odom[2]), ranges):
             return 0.0, self.scan_rate
         self._localize(st, np.zeros((0, 2)) if others is None else np.asarray(others, dtype=float))

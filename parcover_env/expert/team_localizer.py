@@ -20,6 +20,7 @@ from parcover_env.expert.config import NavigatorConfig
 from parcover_env.localization.sonar.known_map import known_map_features
 from parcover_env.localization.sonar.localizer import Ellipse, LocalizationResult, localize, scan_error
 from parcover_env.localization.sonar.params import SonarLocalizerParams
+from parcover_env.localization.sonar.teammates import teammate_mask
 from parcover_env.sensors.sonar import simulate_beams
 from parcover_env.world.map_model import MapModel
 
@@ -105,16 +106,3 @@ def shift_sensitivity(errors: np.ndarray) -> float:
     fix is not informative along the corridor, whatever its own error says."""
     e = np.asarray(errors, dtype=float)
     return float(np.min(e[1:]) - e[0])
-
-
-def teammate_mask(pose: np.ndarray, scan_angles: np.ndarray, ranges: np.ndarray, expected: np.ndarray,
-                  others: np.ndarray, reach: np.ndarray) -> np.ndarray:
-    """``(n,)`` True for the readings a teammate may explain: shorter than ``expected`` (the known
-    map's synthetic scan from ``pose``) and ending within ``reach`` ``(M,)`` (m: the robot radius
-    grown by the teammate's position uncertainty) of a teammate ``others (M, 2)``. ``scan_angles``
-    are in the robot frame."""
-    r = np.asarray(ranges, dtype=float)
-    ang = pose[2] + np.asarray(scan_angles, dtype=float)
-    ends = np.asarray(pose[:2], dtype=float) + r[:, None] * np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    gap = np.hypot(*(ends[:, None, :] - np.asarray(others, dtype=float)[None, :, :]).transpose(2, 0, 1))
-    return (r < np.asarray(expected, dtype=float)) & np.any(gap <= np.asarray(reach, dtype=float)[None, :], axis=1)

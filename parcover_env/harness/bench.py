@@ -55,20 +55,23 @@ EPISODE_FIELDS = ("scenario", "policy", "preset", "seed", "success", "kpois_visi
 """Keys of one per-episode record (``episodes.csv``, ``--json``)."""
 
 
-_ENV_CACHE: dict[tuple[str, int | None, str], Any] = {}
+_ENV_CACHE: dict[tuple[str, int | None, str, str], Any] = {}
 
 
 def run_job(scenario: str, policy: str, seed: int, max_steps: int | None = None, preset: str = "realistic") -> dict:
     """One episode; a flat record (``EPISODE_FIELDS``). Envs are cached per process."""
+    from parcover_env.config import deep_merge
     from parcover_env.envs import ParallelCoverageEnv
     from parcover_env.harness.rollout import run_episode
-    from parcover_env.policies.registry import make_policy
+    from parcover_env.policies.registry import make_policy, policy_overrides
 
-    key = (scenario, max_steps, preset)
+    extra = policy_overrides(policy)
+    key = (scenario, max_steps, preset, repr(extra))
     if key not in _ENV_CACHE:
-        _ENV_CACHE[key] = ParallelCoverageEnv(
-            scenario, overrides={"episode": {"max_steps": max_steps}} if max_steps else None, preset=preset
-        )
+        overrides = {"episode": {"max_steps": max_steps}} if max_steps else None
+        if extra:
+            overrides = deep_merge(overrides or {}, extra)
+        _ENV_CACHE[key] = ParallelCoverageEnv(scenario, overrides=overrides, preset=preset)
     env = _ENV_CACHE[key]
     m = run_episode(env, make_policy(policy, env, seed), seed)
     return {

@@ -29,7 +29,7 @@ from parcover_env.errors import ParcoverError
 from parcover_env.policies.protocol import Policy
 
 __all__ = ["POLICIES", "PolicyEntry", "BASIC_POLICIES", "POLICY_SPECS", "make_policy", "check_policy_spec",
-           "policy_specs"]
+           "policy_overrides", "policy_specs"]
 
 
 @dataclass(frozen=True)
@@ -42,6 +42,9 @@ class PolicyEntry:
     """One line for ``--help``."""
     needs_path: bool = False
     """The spec is ``NAME:PATH`` with an existing checkpoint path (else plain ``NAME``)."""
+    env_overrides: dict | None = None
+    """Scenario overrides the env must be built with for this policy (e.g. the ``scan`` action of
+    the sonar localization service); ``parcover run`` and ``parcover bench`` apply them."""
 
 
 def _random(env, seed: int | None, path: str) -> Policy:
@@ -99,7 +102,9 @@ def _torchrl(env, seed: int | None, path: str) -> Policy:
 
 POLICIES: dict[str, PolicyEntry] = {
     "expert": PolicyEntry(_expert, "the scripted expert of the scenario's localization mode"),
-    "waypoint": PolicyEntry(_waypoint, "each robot drives to its observed route waypoint, alone"),
+    "waypoint": PolicyEntry(_waypoint, "each robot drives to its observed route waypoint, alone, and stops "
+                            "to scan (the env's sonar localization) when its uncertainty grows",
+                            env_overrides={"observation": {"scan": {"enabled": True}}}),
     "random": PolicyEntry(_random, "uniform random actions"),
     "ppo": PolicyEntry(_learned("ppo"), "a saved SB3 PPO model (model.zip + vecnormalize.pkl)", needs_path=True),
     "bc": PolicyEntry(_learned("bc"), "a behaviour-cloned MLP (bc.pt)", needs_path=True),
@@ -131,6 +136,12 @@ def check_policy_spec(spec: str) -> None:
             raise ParcoverError(f"policy '{spec}': give a checkpoint, e.g. {name}:runs/{name}_office")
         if not Path(path).exists():
             raise ParcoverError(f"policy '{spec}': {path} does not exist")
+
+
+def policy_overrides(spec: str) -> dict | None:
+    """The scenario overrides the env of policy ``spec`` needs (:attr:`PolicyEntry.env_overrides`)."""
+    check_policy_spec(spec)
+    return POLICIES[spec.partition(":")[0]].env_overrides
 
 
 def make_policy(spec: str, env, seed: int | None) -> Policy:

@@ -141,3 +141,13 @@ def test_sonar_config_replace_keeps_fast_path_exact_on_a_scenario(monkeypatch):
     monkeypatch.setattr(rays, "BOX_CULL", False)
     plain = sn.simulate_beams(*args)
     np.testing.assert_array_equal(fast, plain)
+
+
+def test_fast_action_path_with_a_scan_component():
+    from parcover_env.envs.actions import _common_case, _validated, to_commands
+
+    agents = ["robot_0", "robot_1"]
+    acts = {a: np.array([2.0, -0.5, 0.7], dtype=np.float32) for a in agents}
+    np.testing.assert_array_equal(_common_case(acts, agents, 3), _validated(acts, agents, 3))
+    np.testing.assert_allclose(to_commands(acts, agents, 0.2, 1.5, width=3), [[0.2, -0.75, 0.7]] * 2, rtol=1e-6)
+    assert _common_case({a: np.zeros(2) for a in agents}, agents, 3) is None  # wrong width: validated path

@@ -47,7 +47,8 @@ def test_layout_and_space_follow_the_spec_order_and_bounds(preset):
 
 def test_kernel_columns_are_the_non_sensor_entries_and_all_are_written():
     assert KERNEL_COLUMNS.names == KERNEL_ENTRIES
-    assert set(KERNEL_ENTRIES) == {e.name for e in ENTRIES if e.source not in ("sensor", "route", "teammates")}
+    assert set(KERNEL_ENTRIES) == {e.name for e in ENTRIES if e.source not in ("sensor", "route", "teammates", "scan")}
+    assert {e.name for e in ENTRIES if e.source == "scan"} == {"scanning", "scan_result"}  # the stepper's
     env = parcover_env.parallel_env("office")
     lay, n = env.layout, 3
     g = np.random.default_rng(1)

@@ -1,9 +1,10 @@
 """Tunables of the sonar feature localizer (Kim, Pearce & Amato 2001), read from a scenario's
 ``sonar_localizer`` section: :func:`sonar_localizer_config`.
 
-The env never runs the localizer (the scripted experts do, after a stop-and-scan), so the
-``Scenario`` keeps that YAML section as a plain mapping and this module owns its schema: every
-field has a unit and is validated with a ``ConfigError`` naming the file and the key.
+The env's sonar localization service (``observation.scan``, :mod:`parcover_env.envs.sonar_fixes`) and
+the scripted experts run the localizer; the ``Scenario`` keeps that YAML section as a plain mapping
+and this module owns its schema: every field has a unit and is validated with a ``ConfigError``
+naming the file and the key.
 """
 
 from __future__ import annotations

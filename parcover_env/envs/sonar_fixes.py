@@ -1,0 +1,171 @@
+"""The env's sonar localization service: Kim, Pearce & Amato's stop-scan-match as a fix source.
+
+A robot asks for a scan with the ``scan`` action component (``observation.scan.enabled``): it is
+held still (its commands zeroed) for :attr:`SonarFixes.duration_steps` control steps, the time the
+real robot takes to turn in place at ``scan.turn_rate`` until its ring has read every 5-degree
+direction of a 360-degree scan (72 readings; :func:`scan_turn`: the largest gap between neighbouring
+transducers, 72 degrees for the AmigoBot ring, as the scripted expert's own scans turn). At the scan's
+last step its scan of the true map is simulated (:meth:`~parcover_env.sensors.sonar.SonarRing.scan`,
+the realistic sonar model, the episode's generator; the teammates are obstacles at their true
+positions), and the paper's localizer (:func:`~parcover_env.localization.sonar.localizer.localize`)
+matches it against the known map, the teammates drawn in at their *estimates*, inside the region of
+the robot's own estimate and covariance (never its true pose). The fix is accepted when the
+localizer succeeds (mean clipped scan error below ``sonar_localizer.success_error``, or that error on
+the readings no teammate can explain, :meth:`SonarFixes.matches_unmasked`) inside the gate
+(``scan.gate_sigmas`` of the widened position covariance, heading within the heading gate); the
+estimator then resets the robot's estimate to it with :attr:`SonarFixes.covariance`. A rejected scan
+leaves the estimate and covariance as they were; the robot's next scan searches a region whose
+sigmas are ``scan.miss_inflation`` times wider (at most ``scan.max_inflation``), until a fix.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import shapely
+
+from parcover_env.config import Scenario
+from parcover_env.envs.estimator import FixRequest
+from parcover_env.geometry import wrap_angle
+from parcover_env.localization.sonar.config import sonar_localizer_config
+from parcover_env.localization.sonar.known_map import known_map_features
+from parcover_env.localization.sonar.localizer import Ellipse, localize, scan_error
+from parcover_env.localization.sonar.teammates import teammate_mask
+from parcover_env.sensors.sonar import SonarRing, simulate_beams
+from parcover_env.world.map_model import MapModel
+
+__all__ = ["ACCEPTED", "REJECTED", "SonarFixes", "scan_steps", "scan_turn"]
+
+ACCEPTED, REJECTED = 1.0, -1.0
+"""Outcomes of a scan (``scan_result`` observation entry, ``info[agent]["sonar_fix"]``); 0 = none."""
+
+
+def scan_turn(beam_angles: np.ndarray) -> float:
+    """How far (rad) a ring of transducers at ``beam_angles`` (robot frame, rad) turns in place until
+    every direction of a 360-degree scan has been read by one of them: the largest angle between
+    neighbouring transducers (72 degrees for the AmigoBot's eight; 2 pi for one transducer)."""
+    a = np.sort(np.mod(np.asarray(beam_angles, dtype=float), 2 * math.pi))
+    return float(np.max(np.diff(np.append(a, a[0] + 2 * math.pi))))
+
+
+def scan_steps(scenario: Scenario) -> int:
+    """Control steps one scan holds a robot still: ``ceil(turn / turn_rate / control_dt)`` with
+    ``turn`` the ring's :func:`scan_turn` and the turn rate capped at ``robot.max_turn_rate``."""
+    rate = min(scenario.observation.scan.turn_rate, scenario.robot.max_turn_rate)
+    turn = scan_turn(SonarRing(scenario.robot.sonar).beam_angles)
+    return max(1, math.ceil(turn / rate / scenario.physics.control_dt - 1e-9))
+
+
+class SonarFixes:
+    """Per-robot scans on request, localized on the known map (a :class:`~parcover_env.envs.estimator.FixSource`).
+
+    ``segments``: the true walls the simulated sonar sees; ``n_robots``: the team size.
+    :attr:`remaining` ``(N,)`` counts the steps left of each robot's scan (0 = not scanning),
+    :attr:`result` ``(N,)`` holds each robot's last outcome and :attr:`outcome` ``(N,)`` this step's
+    (:data:`ACCEPTED`, :data:`REJECTED` or 0)."""
+
+    name = "sonar"
+
+    def __init__(self, scenario: Scenario, segments: np.ndarray, n_robots: int):
+        cfg = self.cfg = scenario.observation.scan
+        self.ring = SonarRing(scenario.robot.sonar)
+        self.segments = segments
+        self.radius = float(scenario.robot.radius)
+        self.params = sonar_localizer_config(scenario)
+        self.known, self.features, self.sectors = known_map_features(scenario.map, scenario.robot.sonar.range_max)
+        sth = math.radians(cfg.fix_sigma_heading_deg)
+        self.covariance = np.diag([cfg.fix_sigma_xy**2, cfg.fix_sigma_xy**2, sth**2])
+        self.duration_steps = scan_steps(scenario)
+        self.remaining = np.zeros(n_robots, dtype=np.int64)
+        self.result = np.zeros(n_robots)
+        self.outcome = np.zeros(n_robots)
+        self.inflation = np.ones(n_robots)
+        """Factor on each robot's search-region sigmas after rejected scans (``miss_inflation``); 1 after a fix."""
+
+    @property
+    def scanning(self) -> np.ndarray:
+        """``(N,)`` bool: the robots whose scan is under way."""
+        return self.remaining > 0
+
+    def reset(self, rng: np.random.Generator) -> None:
+        self.remaining[:] = 0
+        self.result[:] = 0.0
+        self.outcome[:] = 0.0
+        self.inflation[:] = 1.0
+
+    def request(self, scan: np.ndarray, commands: np.ndarray) -> None:
+        """Start a scan for each robot with ``scan (N,) > 0`` not scanning yet, then zero the commands
+        ``(N, 2)`` of every scanning robot in place (held still)."""
+        start = (np.asarray(scan) > 0) & (self.remaining == 0)
+        self.remaining[start] = self.duration_steps
+        commands[self.remaining > 0] = 0.0
+
+    def fixes(self, request: FixRequest, rng: np.random.Generator) -> dict[int, np.ndarray]:
+        """Advance every scan by one step; localize the scans that end now. Returns the accepted fixes."""
+        self.outcome[:] = 0.0
+        active = self.remaining > 0
+        self.remaining[active] -= 1
+        out = {}
+        for i in np.flatnonzero(active & (self.remaining == 0)).tolist():
+            pose = self.localize_scan(i, request, rng)
+            self.outcome[i] = self.result[i] = REJECTED if pose is None else ACCEPTED
+            c = self.cfg
+            self.inflation[i] = 1.0 if pose is not None else min(self.inflation[i] * c.miss_inflation, c.max_inflation)
+            if pose is not None:
+                out[i] = pose
+        return out
+
+    def localize_scan(self, i: int, request: FixRequest, rng: np.random.Generator) -> np.ndarray | None:
+        """Robot ``i``'s simulated scan localized in the region of its estimate and covariance; the
+        accepted pose (3,) or None."""
+        others = np.delete(np.arange(len(request.true)), i)
+        ranges = self.ring.scan(request.true[i], self.segments, request.true[others, :2], self.radius, rng)
+        prior = request.estimate[i]
+        cov = request.covariance[i] if request.covariance is not None else np.zeros((3, 3))
+        pos, turn = self.gate(cov * self.inflation[i] ** 2)
+        region = Ellipse.from_covariance(prior[:2], pos, self.cfg.gate_sigmas)
+        res = localize(ranges, self.ring.scan_angles, self.team_map(request.estimate[others, :2]), self.sectors,
+                       region, self.params, sonar=self.ring.cfg, features=self.features,
+                       heading=float(prior[2]), heading_tol=turn)
+        if res.pose is None or not (res.success or self.matches_unmasked(res.pose, ranges, request, others)):
+            return None
+        d = res.pose[:2] - prior[:2]
+        inside = float(d @ np.linalg.solve(pos, d)) <= self.cfg.gate_sigmas**2
+        return res.pose.copy() if inside and abs(wrap_angle(res.pose[2] - prior[2])) <= turn else None
+
+    def matches_unmasked(self, pose: np.ndarray, ranges: np.ndarray, request: FixRequest,
+                         others: np.ndarray) -> bool:
+        """Whether ``ranges`` match the known map's synthetic scan from ``pose`` (mean clipped error
+        below ``success_error``) on the readings no teammate can explain
+        (:func:`~parcover_env.localization.sonar.teammates.teammate_mask`, ``mask_sigmas``), with at
+        least ``min_unmasked_share`` of the readings left."""
+        if len(others) == 0:
+            return False
+        cov = request.covariance[others] if request.covariance is not None else np.zeros((len(others), 3, 3))
+        sigma = np.sqrt(np.maximum(np.linalg.eigvalsh(cov[:, :2, :2])[:, 1], 0.0))
+        reach = self.radius + self.cfg.mask_sigmas * sigma
+        angles = self.ring.scan_angles
+        synth = simulate_beams(self.ring.cfg, pose[None, :2], (pose[2] + angles)[None, :], self.known.segments,
+                               np.zeros((0, 2)), 0.0, np.array([-1]))[0]
+        keep = ~teammate_mask(pose, angles, ranges, synth, request.estimate[others, :2], reach)
+        if keep.mean() < self.cfg.min_unmasked_share:
+            return False
+        p = self.params
+        return float(scan_error(ranges[keep], synth[keep], p.error_clip, p.error_trim)[0]) <= p.success_error
+
+    def gate(self, cov: np.ndarray) -> tuple[np.ndarray, float]:
+        """The region of a fix for an estimate of covariance ``cov (3, 3)``: the widened position
+        covariance (m^2) whose ``gate_sigmas`` ellipse the localizer searches, and the heading gate (rad)."""
+        c = self.cfg
+        pos = np.asarray(cov, dtype=float)[:2, :2] + (c.gate_distance / c.gate_sigmas) ** 2 * np.eye(2)
+        turn = math.radians(c.gate_heading_deg) + c.gate_sigmas * math.sqrt(max(float(cov[2, 2]), 0.0))
+        return pos, min(turn, math.pi)
+
+    def team_map(self, others: np.ndarray) -> MapModel:
+        """The known map with the teammates as discs at their estimated positions ``others (M, 2)``."""
+        if len(others) == 0:
+            return self.known
+        discs = shapely.union_all([shapely.Point(*q).buffer(self.radius, quad_segs=4) for q in others])
+        free = self.known.free.difference(discs)
+        return self.known if free.is_empty else MapModel(free=free, bounds=self.known.bounds)

@@ -1,0 +1,169 @@
+"""The env's sonar localization service (``observation.scan``): a scan holds the robot still for the
+documented time, Kim, Pearce & Amato's localizer fixes the estimate from its own prior, a rejected
+scan changes nothing, and rollouts stay deterministic (copies, batched worlds)."""
+
+from __future__ import annotations
+
+import copy
+import math
+import pickle
+
+import numpy as np
+import pytest
+
+import parcover_env
+from parcover_env.envs.sonar_fixes import ACCEPTED, REJECTED, scan_steps, scan_turn
+from parcover_env.errors import ActionError
+
+SCAN = {"observation": {"scan": {"enabled": True}, "pose_source": "odometry"}}
+
+
+def _env(overrides=SCAN, scenario="t_room"):
+    env = parcover_env.parallel_env(scenario, overrides=overrides)
+    env.reset(seed=0)
+    return env
+
+
+def _act(env, v=0.0, w=0.0, scan=-1.0):
+    return {a: np.array([v, w, scan], np.float32) for a in env.agents}
+
+
+def _scan(env):
+    """Request a scan for robot 0 (the others idle) and step until 2 steps after it ends; per-step
+    records. Robot 0 commands full speed while scanning (ignored: held still), then stands."""
+    rows = []
+    for k in range(env.scanner.duration_steps + 2):
+        acts = _act(env)
+        if k < env.scanner.duration_steps:
+            acts["robot_0"] = np.array([1.0, 1.0, 1.0 if k == 0 else -1.0], np.float32)
+        obs, _, _, _, infos = env.step(acts)
+        rows.append((env.layout.get(obs["robot_0"], "scanning")[0], env.layout.get(obs["robot_0"], "scan_result")[0],
+                     infos["robot_0"]["sonar_fix"]))
+    return rows
+
+
+def test_scan_duration_is_the_real_robots_turn():
+    env = _env()
+    s = env.scenario
+    assert s.robot.sonar.layout == "amigobot" and s.robot.max_turn_rate > 0.6
+    assert scan_turn(env.sonar.beam_angles) == pytest.approx(math.radians(72.0))  # the two rear transducers
+    assert env.scanner.duration_steps == scan_steps(s) == math.ceil(math.radians(72.0) / 0.6 / s.physics.control_dt)
+    assert scan_steps(s) == 21  # 0.6 rad/s, 0.1 s control step: 2.1 s
+    assert scan_turn(np.radians([0.0, 90.0, 180.0, 270.0])) == pytest.approx(math.pi / 2)
+    assert scan_turn(np.array([0.3])) == pytest.approx(2 * math.pi)
+    slow = parcover_env.parallel_env("t_room", overrides={"observation": {"scan": {"enabled": True, "turn_rate": 0.3}}})
+    assert slow.scanner.duration_steps == 42
+    assert env.action_space("robot_0").shape == (3,)
+    assert {"scanning", "scan_result"} <= set(env.layout.names)
+
+
+def test_default_env_is_unchanged_and_rejects_a_scan_component():
+    env = parcover_env.parallel_env("t_room")
+    env.reset(seed=0)
+    assert env.action_space("robot_0").shape == (2,) and env.scanner is None
+    assert "scanning" not in env.layout.names and "sonar_fix" not in env.step(
+        {a: np.zeros(2, np.float32) for a in env.agents})[4]["robot_0"]
+    with pytest.raises(ActionError, match=r"shape \(2,\)"):
+        env.step({a: np.zeros(3, np.float32) for a in env.agents})
+
+
+def test_scan_with_a_known_answer_fixes_the_drifted_estimate():
+    env = _env()
+    true = env.true_poses()[0].copy()
+    drifted = true + np.array([0.15, -0.10, 0.03])
+    prior = np.diag([0.1**2, 0.1**2, 0.05**2])
+    env.estimator.fix(0, drifted, prior)  # a drifted estimate whose covariance holds the truth
+    t0 = env.world.time
+    rows = _scan(env)
+    n = env.scanner.duration_steps
+    assert [r[0] for r in rows] == [1.0] * (n - 1) + [0.0] * 3  # scanning during, 0 after
+    assert [r[2] for r in rows] == [0.0] * (n - 1) + [ACCEPTED, 0.0, 0.0]  # info: this step's outcome
+    assert rows[-1][1] == ACCEPTED
+    after = env.true_poses()[0]
+    np.testing.assert_allclose(after, true, atol=1e-9)  # held still although it commanded full speed
+    est = env.pose_estimates()[0]
+    assert np.hypot(*(est[:2] - true[:2])) < 0.03 and abs(est[2] - true[2]) < math.radians(2)
+    sth = math.radians(2.0)
+    np.testing.assert_allclose(env.pose_covariances()[0], np.diag([0.05**2, 0.05**2, sth**2]), atol=1e-12)
+    assert env.fix_age[0] == pytest.approx(2 * env.scenario.physics.control_dt)
+    assert env.world.time - t0 == pytest.approx((n + 2) * env.scenario.physics.control_dt)
+
+
+def test_a_rejected_scan_leaves_estimate_and_covariance():
+    env = _env()
+    true = env.true_poses()[0].copy()
+    far = true + np.array([1.2, 0.8, 0.0])  # far outside its own small covariance
+    cov = np.diag([0.02**2, 0.02**2, 0.01**2])
+    env.estimator.fix(0, far, cov)
+    rows = _scan(env)
+    n = env.scanner.duration_steps
+    assert rows[n - 1][2] == REJECTED and rows[-1][1] == REJECTED
+    np.testing.assert_array_equal(env.pose_estimates()[0], far)  # standing still: no odometry change either
+    np.testing.assert_array_equal(env.pose_covariances()[0], cov)
+
+
+def test_localizer_prior_is_the_estimate_never_the_truth(monkeypatch):
+    from parcover_env.envs import sonar_fixes
+
+    seen = []
+    orig = sonar_fixes.localize
+
+    def spy(ranges, angles, map_model, sectors, region, *a, **kw):
+        seen.append((region.center, kw["heading"]))
+        return orig(ranges, angles, map_model, sectors, region, *a, **kw)
+
+    monkeypatch.setattr(sonar_fixes, "localize", spy)
+    env = _env()
+    est = env.true_poses()[0] + np.array([0.1, 0.05, 0.02])
+    env.estimator.fix(0, est, np.diag([0.01, 0.01, 0.001]))
+    _scan(env)
+    assert seen == [((pytest.approx(est[0]), pytest.approx(est[1])), pytest.approx(est[2]))]
+
+
+@pytest.mark.parametrize("how", ["deepcopy", "pickle"])
+def test_copy_mid_scan_continues_identically(how):
+    over = {"observation": {"scan": {"enabled": True}}}
+    env = parcover_env.parallel_env("office", overrides=over)
+    env.reset(seed=3)
+    rng = np.random.default_rng(1)
+    acts = rng.uniform(-1, 1, (140, env.n_robots, 3)).astype(np.float32)
+    acts[:, :, 2] = -1.0
+    acts[5, :, 2] = 1.0  # every robot starts a scan at step 5
+    step = lambda e, a: e.step(dict(zip(e.possible_agents, a, strict=True)))  # noqa: E731
+    mid = 6 + env.scanner.duration_steps // 2
+    for a in acts[:mid]:
+        step(env, a)
+    assert env.scanner.scanning.all()
+    twin = copy.deepcopy(env) if how == "deepcopy" else pickle.loads(pickle.dumps(env))
+    outcomes = []
+    for a in acts[mid:]:
+        o1, r1, _, _, i1 = step(env, a)
+        o2, r2, _, _, i2 = step(twin, a)
+        assert all(np.array_equal(o1[k], o2[k]) for k in o1) and r1 == r2
+        assert all(repr(i1[a]) == repr(i2[a]) for a in i1)
+        outcomes.append([i["sonar_fix"] for i in i1.values()])
+    assert any(any(x) for x in outcomes)  # the scans ended in the copied stretch
+
+
+def test_batched_worlds_scan_as_separate_envs():
+    pytest.importorskip("stable_baselines3")
+    from parcover_env.envs.vec_env import make_vec_env
+
+    over = {"observation": {"scan": {"enabled": True}}, "episode": {"max_steps": 200}}
+    venv = make_vec_env("office", n_envs=2, overrides=over, backend="batched", monitor=False)
+    refs = [parcover_env.parallel_env("office", overrides=over) for _ in range(2)]
+    venv.seed(7)
+    obs = venv.reset()
+    ref_obs = [e.reset(seed=7 + k)[0] for k, e in enumerate(refs)]
+    n = refs[0].n_robots
+    assert np.array_equal(obs, np.concatenate([np.stack([o[a] for a in refs[0].possible_agents]) for o in ref_obs]))
+    rng = np.random.default_rng(2)
+    for t in range(130):
+        acts = rng.uniform(-1, 1, (2 * n, 3)).astype(np.float32)
+        acts[:, 2] = 1.0 if t == 3 else -1.0
+        obs, rew, done, infos = venv.step(acts)
+        for k, e in enumerate(refs):
+            o, r, _, _, inf = e.step({a: acts[k * n + i] for i, a in enumerate(e.possible_agents)})
+            assert np.array_equal(obs[k * n:(k + 1) * n], np.stack([o[a] for a in e.possible_agents]))
+            assert [infos[k * n + i]["sonar_fix"] for i in range(n)] == [inf[a]["sonar_fix"] for a in e.possible_agents]
+    assert any(e.scanner.result.any() for e in refs)
