@@ -15,7 +15,7 @@ import numpy as np
 
 from parcover_env.geometry import wrap_angle
 
-__all__ = ["EpisodeMetrics", "formation_errors", "MESSAGE_KINDS", "METRICS_PREFIX", "episode_metrics"]
+__all__ = ["EpisodeMetrics", "formation_errors", "MESSAGE_KINDS", "METRICS_PREFIX", "episode_metrics", "record_step"]
 
 MESSAGE_KINDS = ("split", "promotion", "waypoint", "pose")
 """Kinds of message the Kinect system sends (counted in ``messages``)."""
@@ -140,3 +140,26 @@ def episode_metrics(info: dict) -> dict | None:
     out["path_lengths"] = np.asarray(info[p + "path_lengths"], dtype=float).tolist()
     out["messages"] = {k: int(info[f"{p}messages_{k}"]) for k in MESSAGE_KINDS}
     return out
+
+
+def record_step(m: EpisodeMetrics, before: np.ndarray, true: np.ndarray, *, time: float, progress, estimate: np.ndarray,
+                new_contacts: tuple[np.ndarray, np.ndarray], team, formation, kinects, control_dt: float) -> None:
+    """Add one control step to ``m``: path lengths (true displacement ``before`` -> ``true``), KPOIs
+    visited, localization error, new wall / robot contacts (``new_contacts``; a robot-robot contact
+    counts for both robots, so halved), formation errors (l-psi, true poses), the team's messages and
+    splits, the time leaders spend outside every Kinect footprint, and the makespan once ``progress``
+    is done (the last KPOI's visit time)."""
+    step = np.hypot(true[:, 0] - before[:, 0], true[:, 1] - before[:, 1]).tolist()
+    m.path_lengths = [total + d for total, d in zip(m.path_lengths, step, strict=True)]
+    m.record_step(time, int(progress.visited.sum()), true, estimate, int(new_contacts[0].sum()),
+                  int(new_contacts[1].sum()) // 2)
+    dl, dpsi = formation_errors(true, team.predecessor, formation.offset, formation.spacing,
+                                math.radians(formation.bearing_deg))
+    m.record_formation(dl, dpsi)
+    m.messages = dict(sorted(team.messages.items()))
+    m.kinect_splits, m.odometry_splits = team.splits["kinect"], team.splits["odometry"]
+    leaders = true[team.leader, :2]
+    seen = kinects.in_view(leaders) if kinects is not None else np.zeros(len(leaders), bool)
+    m.unseen_leader_time += control_dt * int(np.count_nonzero(~seen))
+    if progress.done and m.makespan is None:
+        m.makespan = float(np.nanmax(progress.visit_time))

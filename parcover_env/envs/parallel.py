@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +14,7 @@ from parcover_env.envs import critic_state, stepper
 from parcover_env.envs.actions import to_commands
 from parcover_env.envs.estimator import FixRequest, KinectFixes, PoseEstimator
 from parcover_env.envs.handover import CameraView, update_team
-from parcover_env.envs.metrics import EpisodeMetrics, formation_errors
+from parcover_env.envs.metrics import EpisodeMetrics, record_step
 from parcover_env.envs.obs_spec import markdown_table
 from parcover_env.envs.obs_v2 import route_facts, target_kpois
 from parcover_env.envs.observations import ObservationLayout, build_sensors
@@ -128,16 +127,11 @@ class ParallelCoverageEnv(ParallelEnv):
     ``heading_error`` (rad, absolute). ``env.true_poses()`` and ``env.pose_estimates()`` return
     ``(n_robots, 3)`` arrays (x, y, theta) in agent order, ``env.pose_covariances()`` ``(n_robots, 3, 3)``.
 
-    ## Step
-    ``step`` runs the public stepper (``parcover_env.envs.stepper``), the same one the batched worlds
-    and the single-robot env run: ``advance`` (act, physics, pose estimator, mission, Alg. 1 splits
-    and hand-overs, rewards, metrics), then ``observe`` (every sensor of every world in one call,
-    the observation spec's entries), then ``outputs``. A new sensor is a ``sensors/`` module, a
-    config field and one spec entry; it reaches this env and the batched worlds unchanged.
-
-    ## Rates
-    One ``step`` is one control period of ``physics.substeps x physics.dt`` seconds (default
-    5 x 0.02 s = 0.1 s); pymunk integrates at ``physics.dt``.
+    ## Step and rates
+    ``step`` runs the public stepper (``parcover_env.envs.stepper``), shared with the batched worlds
+    and the single-robot env: ``advance`` (act, physics, estimator, mission, Alg. 1, rewards,
+    metrics), ``observe`` (the spec's entries, every sensor of every world in one call), ``outputs``.
+    One step is ``physics.substeps x physics.dt`` seconds (default 5 x 0.02 s); pymunk runs at ``dt``.
 
     ## Arguments
     ``scenario`` (name, path or Scenario, default ``"office"``), ``render_mode`` (``None``,
@@ -157,23 +151,11 @@ class ParallelCoverageEnv(ParallelEnv):
     * v1, opt-in ``observation.scan`` (unreleased): the sonar localization service (``scan`` action
       component, ``scanning`` / ``scan_result`` entries, ``info[agent]["sonar_fix"]``); without it
       v1 is unchanged.
-    * v1 (0.2.0): realistic motion and covariance observations: differential-drive dynamics (wheel
-      limits, lag, bounded acceleration), wheel odometry with UMBmark systematic, random and slip
-      errors, ``v, omega`` measured by the encoders, pose-uncertainty entries (``sigma_*``) after
-      ``fix_age``, ``info[agent]`` pose errors, ``true_poses()`` / ``pose_estimates()`` /
-      ``pose_covariances()``; realistic Kinect mounting errors and sonar (multipath, cross-talk,
-      dropouts); the Kinect system matches a promoted follower by the pose its formation gives it
-      (robot ahead composed with its camera's last measurement) until first detected. Episode
-      metrics moved from ``info[agent]["episode"]`` (which Gymnasium's ``RecordEpisodeStatistics``
-      and SB3's ``Monitor`` own) to flat ``info[agent]["metrics/<name>"]``
-      entries; reward terms moved from ``info[agent]["reward_terms"]`` to flat
-      ``info[agent]["reward_<term>"]``; the reset info no longer carries the plan (``env.plan``);
-      ``human`` render mode; ``max_cycles``; finite ``state_space`` bounds; ``env.np_random``.
-      ``preset="ideal"`` keeps v0's motion, odometry, sensors and observation layout.
-      Kinect ``frames`` mode draws its depth and IR noise from fewer random bits (12-bit normal
-      table, IR noise 0-31): other frames from the same seed, same error statistics.
-      Rollouts no longer depend on the CPU (angles from libm, not numpy's AVX-512 ``arctan2``);
-      Kinect estimates projected without BLAS (they move by at most 2e-14 m).
+    * v1 (0.2.0): realistic motion and covariance observations (differential-drive dynamics, UMBmark
+      odometry, encoder ``v, omega``, ``sigma_*`` entries, realistic Kinect and sonar errors, the
+      formation hand-over of promoted followers); flat ``info[agent]["metrics/<name>"]`` and
+      ``["reward_<term>"]``; ``human`` render mode; ``max_cycles``; CPU-independent rollouts.
+      ``preset="ideal"`` keeps v0's simulation. Details: ``CHANGELOG.md``, 0.2.0.
     * v0 (0.1.0): initial release.
     """
 
@@ -377,21 +359,9 @@ class ParallelCoverageEnv(ParallelEnv):
         return reward_terms(self.scenario.rewards, n_new, progress, self._new_contacts[0] + self._new_contacts[1], own)
 
     def _record(self, before: np.ndarray, true: np.ndarray) -> None:
-        m = self.metrics
-        step = np.hypot(true[:, 0] - before[:, 0], true[:, 1] - before[:, 1]).tolist()
-        m.path_lengths = [total + d for total, d in zip(m.path_lengths, step, strict=True)]
-        m.record_step(self.world.time, int(self.progress.visited.sum()), true, self.estimate,
-                      int(self._new_contacts[0].sum()), int(self._new_contacts[1].sum()) // 2)
-        f = self.scenario.formation
-        dl, dpsi = formation_errors(true, self.team.predecessor, f.offset, f.spacing, math.radians(f.bearing_deg))
-        m.record_formation(dl, dpsi)
-        m.messages = dict(sorted(self.team.messages.items()))
-        m.kinect_splits, m.odometry_splits = self.team.splits["kinect"], self.team.splits["odometry"]
-        leaders = true[self.team.leader, :2]
-        seen = self.kinects.in_view(leaders) if self.kinects is not None else np.zeros(len(leaders), bool)
-        m.unseen_leader_time += self.scenario.physics.control_dt * int(np.count_nonzero(~seen))
-        if self.progress.done and m.makespan is None:
-            m.makespan = float(np.nanmax(self.progress.visit_time))
+        record_step(self.metrics, before, true, time=self.world.time, progress=self.progress, estimate=self.estimate,
+                    new_contacts=self._new_contacts, team=self.team, formation=self.scenario.formation,
+                    kinects=self.kinects, control_dt=self.scenario.physics.control_dt)
         if self.render_mode is not None:
             for trail, p in zip(self.trails, true):
                 trail.append(p[:2].copy())
@@ -442,13 +412,9 @@ class ParallelCoverageEnv(ParallelEnv):
         return critic_state.state_v1(self)
 
     def kinect_frames(self) -> dict:
-        """Depth + IR frames (``KinectFrame``) of every overhead Kinect at the current state.
-
-        With ``observation.kinect: frames`` these are the frames the pipeline localized from at the
-        last Kinect tick (only Kinects whose view could hold a leader render a frame); otherwise
-        they are rendered now from a generator seeded by the step count, so calling this never
-        changes the episode.
-        """
+        """Depth + IR frames (``KinectFrame``) of every overhead Kinect: in ``observation.kinect:
+        frames`` mode those of the last Kinect tick, otherwise rendered now from a generator seeded
+        by the step count (calling this never changes the episode)."""
         if self.kinects is None:
             return {}
         if self.scenario.observation.kinect == "frames" and self.kinects.frames:
