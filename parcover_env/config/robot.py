@@ -18,7 +18,7 @@ __all__ = ["SonarConfig", "LidarConfig", "DriveConfig", "OdometryConfig", "Robot
 
 @dataclass(frozen=True)
 class SonarConfig:
-    """Sonar ring (seed B: AmigoBot). The default is the realistic model: a cone of ``cone_deg``
+    """Sonar ring (Kim, Pearce & Amato: AmigoBot). The default is the realistic model: a cone of ``cone_deg``
     whose walls echo only near normal incidence, multipath, retro-reflecting concave corners,
     echoes from robots, cross-talk between rings and readings lost below ``range_min``.
     ``model: ray`` is one ideal ray per beam (the ``ideal`` preset). ``model: fast`` is the cheap
@@ -34,7 +34,7 @@ class SonarConfig:
     range_min: float = 0.15
     """Nearest measurable range (m): the transducer still rings while a nearer echo returns."""
     range_max: float = 2.54
-    """Farthest range (m); a beam with no echo reads this (seed B: 2.54 m = 'too far')."""
+    """Farthest range (m); a beam with no echo reads this (Kim, Pearce & Amato: 2.54 m = 'too far')."""
     model: Literal["ray", "specular", "fast"] = "specular"
     """``specular``: a cone of sub-rays with the specular physics below; ``ray``: one ideal ray
     (with cross-talk); ``fast``: one ray, noise and dropouts, no cross-talk (see above)."""
@@ -109,7 +109,7 @@ class DriveConfig:
     a first-order lag of time constant ``tau`` whose rate of change is bounded by ``accel_max``,
     integrated exactly at the physics rate ``physics.dt``.
 
-    Figures: seed B's AmigoBot. ARIA's robot parameter file for it (``params/amigo.p``, ActivMedia /
+    Figures: Kim, Pearce & Amato's AmigoBot. ARIA's robot parameter file for it (``params/amigo.p``, ActivMedia /
     MobileRobots) gives ``MaxVelocity 1000`` mm/s and ``DiffConvFactor 0.011`` (rotation rate =
     (v_R - v_L) / 2 * DiffConvFactor, wheel speeds in mm/s), i.e. an effective wheel base of
     2 / 0.011 mm = 0.18 m. The AmigoBot manual (AmigoBot Technical Manual v1.3, 2002) describes a

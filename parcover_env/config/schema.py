@@ -228,7 +228,7 @@ class ObservationConfig:
 
 @dataclass(frozen=True)
 class FormationConfig:
-    """Leader-follower column formation (l-psi control, seed A eq. 3)."""
+    """Leader-follower column formation (l-psi control, Min et al. eq. 3)."""
 
     spacing: float = 0.5
     """Desired separation l_d between consecutive robots (m)."""
@@ -266,7 +266,7 @@ class PlannerConfig:
     """Grid cell size used to build the roadmap (m)."""
     tp_merge_tol: float = 0.1
     """Turning positions reached within this distance (m, along the paths) after another one merge
-    into it: one multi-way TP (seed A Fig. 2, Alg. 1 step 3a) instead of a cascade of two-way splits
+    into it: one multi-way TP (Min et al. Fig. 2, Alg. 1 step 3a) instead of a cascade of two-way splits
     where the roadmap forks at several nearby points. About half a corridor width suits hub rooms."""
 
     def __post_init__(self) -> None:
@@ -300,7 +300,7 @@ class Scenario:
     service and the experts); its owner validates it
     (:func:`parcover_env.localization.sonar.config.sonar_localizer_config`)."""
     kinect_tracking: KinectTrackingConfig = field(default_factory=KinectTrackingConfig)
-    """Gate and fusion radius of the Kinect leader tracker (seed A)."""
+    """Gate and fusion radius of the Kinect leader tracker (Min et al.)."""
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)
     episode: EpisodeConfig = field(default_factory=EpisodeConfig)
     rewards: RewardConfig = field(default_factory=RewardConfig)

@@ -24,7 +24,7 @@ METRICS_PREFIX = "metrics/"
 
 def formation_errors(poses: np.ndarray, predecessor: np.ndarray, offset: float, l_d: float,
                      psi_d: float) -> tuple[np.ndarray, np.ndarray]:
-    """(l - l_d, wrap(psi - psi_d)) of every follower from true poses (seed A / Das et al. l-psi)."""
+    """(l - l_d, wrap(psi - psi_d)) of every follower from true poses (Min et al. / Das et al. l-psi)."""
     from parcover_env.envs import step_kernels
 
     predecessor = np.ascontiguousarray(predecessor, dtype=np.int64)
@@ -55,7 +55,7 @@ class EpisodeMetrics:
     """RMS distance between the observed pose estimates and the true poses (m)."""
     messages: dict[str, int] = field(default_factory=dict)
     kinect_splits: int = 0
-    """Splits at TPs triggered by the Kinect system detecting the leader there (seed A Alg. 1)."""
+    """Splits at TPs triggered by the Kinect system detecting the leader there (Min et al. Alg. 1)."""
     odometry_splits: int = 0
     """Splits decided on the leader's own estimate: its TP lay outside every Kinect footprint."""
     unseen_leader_time: float = 0.0

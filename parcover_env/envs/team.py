@@ -1,4 +1,4 @@
-"""The Kinect system's side of seed A, Alg. 1: formation groups, splits at TPs, promotions, messages.
+"""The Kinect system's side of Min et al., Alg. 1: formation groups, splits at TPs, promotions, messages.
 
 The team leaves the start as one column (robots ordered as in the plan, so every branch's robots
 form a contiguous block ``[lo, hi)``). When a group's leader reaches the TP where that group's

@@ -1,4 +1,4 @@
-"""SonarNavigator: seed B's NAVIGATOR loop (Fig. 1) as a policy over the env's observations.
+"""SonarNavigator: Kim, Pearce & Amato's NAVIGATOR loop (Fig. 1) as a policy over the env's observations.
 
     while goal not reached:  optimize the subgoal on the path (scan angle, eq. 1) -> replicate it for
     the team (parallel paths) -> rearrange subgoals (§3.2, §4) -> drive all robots
@@ -28,9 +28,9 @@ Design choices (documented deviations):
   stops once every bin holds a reading within ``bin_tol_deg`` of its centre (with 8 beams this takes
   the largest gap between beams, ~80 deg, like the paper's two-sonar half turn), or after a full turn.
 * Localization (Fig. 6) with relaxed sectors of rule 2, cached per map; other robots are unknown
-  obstacles. The uncertainty region searched is the seed B ellipse widened to ``region_sigmas`` of
+  obstacles. The uncertainty region searched is the Kim, Pearce & Amato ellipse widened to ``region_sigmas`` of
   the belief's covariance, propagated from the last fix with the robot's odometry model (Chong &
-  Kleeman): realistic drift outgrows the linear seed B ellipse. A failed localization keeps the
+  Kleeman): realistic drift outgrows the linear Kim, Pearce & Amato ellipse. A failed localization keeps the
   belief (the ellipse keeps growing); the next subgoal is then at least ``min_advance`` ahead so the
   robot scans from a new place.
 """
@@ -67,7 +67,7 @@ __all__ = ["NavigatorConfig", "NavigatorParams", "SonarNavigator"]
 
 
 class SonarNavigator:
-    """Seed B NAVIGATOR policy: ``for_env(env)``, ``reset(obs)``, ``act(obs) -> actions``, ``stats()``."""
+    """Kim, Pearce & Amato NAVIGATOR policy: ``for_env(env)``, ``reset(obs)``, ``act(obs) -> actions``, ``stats()``."""
 
     def __init__(self, layout: ObservationLayout, scenario: Scenario, paths: list[np.ndarray],
                  control_dt: float, sonar_angles: np.ndarray, params: NavigatorConfig | None = None,
@@ -182,7 +182,7 @@ class SonarNavigator:
 
     def region(self, i: int, center) -> Ellipse:
         """Where robot ``i``'s scan is localized: the ``region_sigmas`` ellipse of its belief's
-        covariance, widened in every direction by its seed B ellipse's semi-axis (so it holds both)."""
+        covariance, widened in every direction by its Kim, Pearce & Amato ellipse's semi-axis (so it holds both)."""
         k = self.p.region_sigmas
         grown = max(self.ellipse(i).axes)
         return Ellipse.from_covariance(center, self.cov[i][:2, :2] + (grown / k) ** 2 * np.eye(2), k)

@@ -1,4 +1,4 @@
-"""ScriptedExpert: seed A's robots, end to end — leaders drive the plan, followers keep formation.
+"""ScriptedExpert: Min et al.'s robots, end to end — leaders drive the plan, followers keep formation.
 
 The expert acts from the agents' observations plus what the paper's Kinect system knows, passed
 explicitly: the scenario (map, robot model, formation parameters) and the PPCP plan. It never reads
@@ -12,7 +12,7 @@ env internals. Roles (leader/follower), splits at TPs, and waypoints come from t
   (limited information, ref. [8]);
   if the robot ahead is out of sight, it drives along its own route (same path up to its split);
 * with ``localization: both``, a leader out of Kinect view for a while stops, turns and localizes
-  with its sonar (seed B's localizer, :mod:`parcover_env.expert.sonar_fix`) and steers by the
+  with its sonar (Kim, Pearce & Amato's localizer, :mod:`parcover_env.expert.sonar_fix`) and steers by the
   corrected pose toward the same route point;
 * leaders brake on their front sonar beams when a robot or wall is closer than ``stop_margin``
   (needed in ``individual`` mode, where all robots leave at once); a leader braked for longer than
@@ -42,7 +42,7 @@ __all__ = ["ScriptedExpert"]
 
 
 class ScriptedExpert(Policy):
-    """Seed A's robots as a policy: ``for_env(env)``, ``reset(obs)``, ``act(obs) -> actions``, ``stats()``.
+    """Min et al.'s robots as a policy: ``for_env(env)``, ``reset(obs)``, ``act(obs) -> actions``, ``stats()``.
 
     Every tunable comes from ``config`` (default: the scenario's ``expert`` section,
     :class:`~parcover_env.expert.config.ExpertConfig`).

@@ -1,12 +1,12 @@
 """Sonar fixes for robots out of Kinect view (``localization: both``).
 
 A leader whose last absolute fix is older than ``stale_after`` stops and turns in place while its
-sonar ring sweeps the 5-degree bins of a 360-degree scan (seed B: rotate and scan), then localizes
+sonar ring sweeps the 5-degree bins of a 360-degree scan (Kim, Pearce & Amato: rotate and scan), then localizes
 with the relaxed-sector feature localizer on the known map. A fix becomes a correction on top of
 the robot's odometry pose: ``belief = fix o odom_at_scan^-1 o odom``. A new Kinect fix (the env's
 estimate becomes absolute again) clears the correction.
 
-Uncertainty region (seed B Sections 3-4). Until a sonar fix, the belief is the env's estimate and
+Uncertainty region (Kim, Pearce & Amato Sections 3-4). Until a sonar fix, the belief is the env's estimate and
 its uncertainty is the pose covariance the env observes (``sigma_*`` entries, Chong & Kleeman
 propagation of the odometry). After a sonar fix the expert propagates the belief's covariance
 itself, from the fix's covariance and the odometry increments, with the same Jacobians

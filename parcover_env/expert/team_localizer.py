@@ -1,4 +1,4 @@
-"""Localize one robot's 360-degree sonar scan on the known map, its teammates drawn in (seed B Fig. 6).
+"""Localize one robot's 360-degree sonar scan on the known map, its teammates drawn in (Kim, Pearce & Amato Fig. 6).
 
 Used by the navigator (:mod:`parcover_env.expert.navigator`) after each stop-and-scan. The localizer
 (:func:`parcover_env.localization.sonar.localizer.localize`) sees teammates as unknown obstacles and

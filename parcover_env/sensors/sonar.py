@@ -1,4 +1,4 @@
-"""Sonar ring model (seed B): ranges per beam for all robots in one vectorized numpy pass.
+"""Sonar ring model (Kim, Pearce & Amato): ranges per beam for all robots in one vectorized numpy pass.
 
 Geometry and conventions
 - The transducers sit at the robot centre (a documented simplification: ranges are measured from
