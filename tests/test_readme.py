@@ -38,7 +38,7 @@ RECORDS = {
     ("generated:*", "ppo"): [("gen20_dagger_ppo_r4", "ppo:runs/ppo_generated_ft")],
     ("generated:*", "bc"): [("gen_bc_pose_hidden", "ppo:runs/ppo_generated2/bc_init")],
     ("generated:*", "bc+dagger"): [("gen_bc_dagger", "ppo:runs/ppo_generated3/bc_init")],
-    ("generated:*", "waypoint"): [("gen_base", "waypoint"), ("gen_waypoint_1010", "waypoint")],
+    ("generated:*", "waypoint"): [("gen_waypoint_scan", "waypoint")],
     ("generated:*", "random"): [("gen_base", "random")],
 }
 
