@@ -19,10 +19,10 @@ MPE2 ``simple_spread`` N = 10 are measured here, alternately, for the single-env
 
 from __future__ import annotations
 
-import functools
 import gc
 import time
 
+from profile_step import Timers
 from throughput import VecRunner, VmasBatchedRunner, measure_parallel, our_env, peer_mpe, rss_mb, timed_chunks
 
 MODELS = ("specular", "fast")
@@ -89,26 +89,6 @@ def _row(model: str, k: int, steps: int, repeats: int) -> dict:
     return r
 
 
-class _Clock:
-    """Wall-clock totals of wrapped bound methods, by label."""
-
-    def __init__(self):
-        self.total: dict[str, float] = {}
-
-    def wrap(self, obj, attr: str, label: str) -> None:
-        fn = getattr(obj, attr)
-
-        @functools.wraps(fn)
-        def timed(*a, **kw):
-            t0 = time.perf_counter()
-            try:
-                return fn(*a, **kw)
-            finally:
-                self.total[label] = self.total.get(label, 0.0) + time.perf_counter() - t0
-
-        setattr(obj, attr, timed)
-
-
 def breakdown(model: str, k: int, steps: int) -> dict:
     """Microseconds per world-step of physics, sonar and the rest, batched ``tree`` at ``k`` worlds."""
     venv = _venv(model, k)
@@ -116,7 +96,7 @@ def breakdown(model: str, k: int, steps: int) -> dict:
         run = VecRunner(venv)
         for i in range(5):
             run(i)
-        clock, seen = _Clock(), set()
+        clock, seen = Timers(), set()
         for w in venv.worlds:
             clock.wrap(w.world, "step", "physics")
             if w.sonar is not None and id(w.sonar) not in seen:
