@@ -7,7 +7,7 @@ seeding, ``terminal_observation`` / ``TimeLimit.truncated`` / ``metrics`` in the
 policy trained on one trains on the other. The worlds step through the same public stepper as
 the ParallelEnv (:mod:`parcover_env.envs.stepper`), with ``K`` worlds instead of one:
 
-* each world advances its own pymunk space, pose estimator, Kinect system, mission and team (one
+* each world steps its own pymunk space, pose estimator, Kinect system, mission and team (one
   Python call per world, none per robot);
 * the sensors measure **all robots of all worlds** in one call each (the follower cameras' lines
   of sight, the sonar rings' casts, cross-talk and noise, and any other ``sensor`` entry of the

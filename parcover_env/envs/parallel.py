@@ -129,7 +129,7 @@ class ParallelCoverageEnv(ParallelEnv):
 
     ## Step and rates
     ``step`` runs the public stepper (``parcover_env.envs.stepper``), shared with the batched worlds
-    and the single-robot env: ``advance`` (act, physics, estimator, mission, Alg. 1, rewards,
+    and the single-robot env: ``act`` (act, physics, estimator), ``score`` (mission, Alg. 1, rewards,
     metrics), ``observe`` (the spec's entries, every sensor of every world in one call), ``outputs``.
     One step is ``physics.substeps x physics.dt`` seconds (default 5 x 0.02 s); pymunk runs at ``dt``.
 
@@ -273,10 +273,10 @@ class ParallelCoverageEnv(ParallelEnv):
     def _as_dict(self, obs: np.ndarray) -> dict[str, np.ndarray]:
         return dict(zip(self.possible_agents, obs, strict=True))  # all agents live or end together
 
-    def advance(self, actions: dict[str, Any]) -> np.ndarray:
-        """Stepper part 1 (:mod:`~parcover_env.envs.stepper`): act, integrate, estimate, track the
-        mission, split and hand over (Alg. 1, from the cameras' last ``camera_view``), score and
-        record. Returns the true poses ``(N, 3)``."""
+    def act(self, actions: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+        """Stepper part 1a (:mod:`~parcover_env.envs.stepper`): act, integrate the physics, update the
+        pose estimator (odometry, fixes).
+        Returns the true poses ``(N, 3)`` before and after the step."""
         if not self.agents:
             raise RuntimeError("step() called on a finished episode; call reset() first")
         s = self.scenario
@@ -297,6 +297,12 @@ class ParallelCoverageEnv(ParallelEnv):
         if self.scanner is not None and s.observation.pose_source == "ground_truth":  # no sources ran: scans end
             self.scanner.fixes(FixRequest(self.world.time, true, self.estimate.copy(), self.team.leader,
                                           self.estimator.covariance), self._rng)
+        return before, true
+
+    def score(self, before: np.ndarray, true: np.ndarray) -> None:
+        """Stepper part 1b: track the mission, split and hand over (Alg. 1, from the cameras' last
+        ``camera_view``), score and record, for true poses ``before`` and ``true`` ``(N, 3)``."""
+        s = self.scenario
         was = self.progress.visited.copy()
         n_new = self.progress.update(true[:, :2], self.estimate[:, :2], self.world.time)
         self.true_velocity = (true[:, :2] - before[:, :2]) / s.physics.control_dt
@@ -306,7 +312,6 @@ class ParallelCoverageEnv(ParallelEnv):
                                                                  self._owner, self.n_robots)
         self._terms = self._rewards(true, n_new, own)
         self._record(before, true)
-        return true
 
     def outputs(self, true: np.ndarray) -> tuple[dict, dict, dict, dict]:
         """Stepper part 3: rewards, terminations, truncations and infos as PettingZoo dicts (the

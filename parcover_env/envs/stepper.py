@@ -3,15 +3,16 @@
 ``ParallelCoverageEnv``, the batched worlds (:mod:`parcover_env.envs.batched`) and the single-robot
 env all step through here, so the rules are written once:
 
-1. **advance** (per world, :meth:`ParallelCoverageEnv.advance`): act, integrate the physics, update the
-   pose estimator (odometry, fixes), track the mission, hand over at splits (Alg. 1), score, record;
+1. **act** (:func:`act`, per world :meth:`ParallelCoverageEnv.act`): act, integrate the physics, update
+   the pose estimator (odometry, fixes); **score** (:func:`score`, per world
+   :meth:`ParallelCoverageEnv.score`): track the mission, hand over at splits (Alg. 1), score, record;
 2. **sense and observe** (:func:`observe`, all worlds at once): one :class:`SensingState` of every
    world; the follower cameras first, then the compiled pass writes every non-sensor entry of the
    observation spec, then every ``sensor`` entry of the spec is filled by its sensor's ``sense`` for
    all worlds in one call (version 2's ``route`` and ``teammates`` entries too,
    :mod:`parcover_env.envs.obs_v2`); clipped into the bounds. World ``k`` draws from its own generator in the
    order a single world would, so it is bit for bit a separate env;
-3. **outputs** (per world, :meth:`ParallelCoverageEnv.outputs`): rewards, terminations, truncations,
+3. **outputs** (:func:`outputs`, per world :meth:`ParallelCoverageEnv.outputs`): rewards, terminations, truncations,
    infos;
 4. **slots** (:func:`slot_info`, :func:`with_metrics`): what a vectorized or single-agent view adds
    to an agent's info (``metrics``, ``terminal_observation``, ``TimeLimit.truncated``, ``active``);
@@ -35,7 +36,7 @@ from parcover_env.envs.observations import ScalarInputs
 from parcover_env.sensors.base import SensingState
 from parcover_env.sensors.relative import RelativeCamera
 
-__all__ = ["sensing_state", "observe", "step", "with_metrics", "slot_info"]
+__all__ = ["sensing_state", "observe", "step", "act", "score", "outputs", "with_metrics", "slot_info"]
 
 
 def sensing_state(worlds: Sequence[Any], true: np.ndarray) -> SensingState:
@@ -81,9 +82,29 @@ def observe(worlds: Sequence[Any], true: np.ndarray) -> np.ndarray:
 def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.ndarray, list[tuple]]:
     """One step of every world (``actions[k]``: world ``k``'s action dict): the observations
     ``(K, N, D)`` and each world's ``(rewards, terminations, truncations, infos)``."""
-    true = np.stack([w.advance(a) for w, a in zip(worlds, actions, strict=True)])
+    before, true = act(worlds, actions)
+    score(worlds, before, true)
     obs = observe(worlds, true)
-    return obs, [w.outputs(true[k]) for k, w in enumerate(worlds)]
+    return obs, outputs(worlds, true)
+
+
+def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.ndarray, np.ndarray]:
+    """Part 1a of every world (:meth:`ParallelCoverageEnv.act`): the true poses ``(K, N, 3)`` before
+    and after the step."""
+    before, true = zip(*(w.act(a) for w, a in zip(worlds, actions, strict=True)), strict=True)
+    return np.stack(before), np.stack(true)
+
+
+def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> None:
+    """Part 1b of every world (:meth:`ParallelCoverageEnv.score`) at true poses ``(K, N, 3)``."""
+    for k, w in enumerate(worlds):
+        w.score(before[k], true[k])
+
+
+def outputs(worlds: Sequence[Any], true: np.ndarray) -> list[tuple]:
+    """Part 3 of every world (:meth:`ParallelCoverageEnv.outputs`): ``(rewards, terminations,
+    truncations, infos)`` per world."""
+    return [w.outputs(true[k]) for k, w in enumerate(worlds)]
 
 
 def with_metrics(info: dict) -> dict:
