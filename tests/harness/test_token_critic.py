@@ -129,3 +129,12 @@ def test_short_mappo_run_with_the_attention_critic_on_env_v2(tmp_path):
     saved = torch.load(tmp_path / "run" / "critic.pt", weights_only=True)
     assert saved["spec"]["critic"] == "attention" and saved["spec"]["state_dim"] == STATE_SIZE
     assert any(k.startswith("module.robot_attn.") for k in saved["state_dict"])
+
+
+def test_one_attention_critic_moves_to_another_map_with_init(tmp_path):
+    cfg = dataclasses.replace(CFG, frames_per_batch=64, minibatch_size=64, epochs=1, episode_steps=30,
+                              env={"observation": {"version": 2}})
+    train(TrainRequest("mappo", "office", 128, tmp_path / "office", cfg, "cfg.yaml", seed=1))
+    record = train(TrainRequest("mappo", "generated:3", 192, tmp_path / "gen", cfg, "cfg.yaml", seed=1,
+                                init=str(tmp_path / "office")))
+    assert record["n_robots"] == 3 and record["init"]["critic"] is True and record["init"]["algo"] == "mappo"
