@@ -11,7 +11,8 @@ features (:mod:`parcover_env.envs.critic_state`). :class:`TokenCritic` values ro
    tokens (``torch.nn.MultiheadAttention`` with ``key_padding_mask`` = the padding), each a residual
    step followed by ``LayerNorm``;
 3. the mean of the real robots' outputs (the team), robot ``i``'s own output (its token is row ``i``:
-   agent order), the global features and robot ``i``'s own observation (the MAPPO paper's
+   agent order, so with ``N`` agents only the first ``N`` robot rows are read, the rest being padding by
+   the layout; their masks still apply), the global features and robot ``i``'s own observation (the MAPPO paper's
    agent-specific state, Yu et al. 2022), concatenated into a tanh MLP with one output.
 
 Nothing depends on the order of the other robots or of the KPOIs, nor on the contents of padded
@@ -84,7 +85,7 @@ class TokenCritic(nn.Module):
         state = state.reshape(-1, state.shape[-1])
         obs = obs.reshape(-1, n, obs.shape[-1])
         b = state.shape[0]
-        robots = state[:, :_R].reshape(b, MAX_ROBOTS, _RF)
+        robots = state[:, :_R].reshape(b, MAX_ROBOTS, _RF)[:, :n]  # robot i is row i: rows n.. are padding
         kpois = state[:, _R:_R + _K].reshape(b, MAX_KPOIS, _KF)
         robot_mask, kpoi_mask = robots[..., -1] > 0.5, kpois[..., -1] > 0.5
         r = self.robot_embed((robots[..., :-1] - self.robot_c) / self.robot_w)
@@ -95,5 +96,5 @@ class TokenCritic(nn.Module):
         team = (r * real).sum(dim=1) / real.sum(dim=1).clamp(min=1.0)
         glob = (state[:, _R + _K:] - self.glob_c) / self.glob_w
         own = self.obs_embed((obs - self.obs_c) / self.obs_w)
-        x = torch.cat([r[:, :n], own, team.unsqueeze(1).expand(b, n, -1), glob.unsqueeze(1).expand(b, n, -1)], dim=-1)
+        x = torch.cat([r, own, team.unsqueeze(1).expand(b, n, -1), glob.unsqueeze(1).expand(b, n, -1)], dim=-1)
         return self.head(x).reshape(*lead, n, 1)

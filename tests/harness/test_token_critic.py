@@ -95,8 +95,8 @@ def test_padded_tokens_contents_change_no_value_real_ones_and_masks_do():
     real_mask[:, KPOIS] = True
     assert np.abs(_values(critic, noisy._replace(kpoi_mask=real_mask), obs) - v).max() > 1e-4
     robot_mask = tok.robot_mask.copy()
-    robot_mask[:, N] = True
-    assert np.abs(_values(critic, noisy._replace(robot_mask=robot_mask), obs) - v).max() > 1e-4
+    robot_mask[:, N - 1] = False  # the robot mask is read: robot 2 counted as padding moves robot 0's value
+    assert np.abs(_values(critic, tok._replace(robot_mask=robot_mask), obs)[:, 0] - v[:, 0]).max() > 1e-4
     # a real KPOI's position and a teammate's token move robot 0's value
     for field_name, row in (("kpois", 0), ("robots", 2)):
         changed = getattr(tok, field_name).copy()
