@@ -65,6 +65,9 @@ def cmd_train(args) -> int:
     record = train(TrainRequest(args.algo, args.scenario, args.steps, Path(args.out), config, config_path,
                                 backend=args.backend, ray_address=args.ray_address, seed=args.seed,
                                 command=shlex.join(command), init=args.init))
+    if record["init"]:
+        critic = "and its critic" if record["init"]["critic"] else "(critic from scratch: another kind or size)"
+        print(f"started from {record['init']['path']} {critic}")
     print(f"{record['agent_steps']} agent-steps, {record['episodes']} episodes ended, {record['wall_time']:.1f} s; "
           f"wrote {Path(args.out) / 'run.json'}")
     print(f"evaluate: parcover bench {args.scenario} --policies {record['policy']}")

@@ -68,7 +68,7 @@ def test_init_from_a_run_and_from_a_misfit_network(tmp_path, capsys):
     record = json.loads((second / "run.json").read_text())
     assert record["init"] == {"path": str(first), "algo": "ippo", "init": None, "critic": True}
     assert record["command"].endswith(f"--init {first}")
-    capsys.readouterr()
+    assert f"started from {first} and its critic" in capsys.readouterr().out
     wide = tmp_path / "wide.yaml"
     wide.write_text(cfg.read_text().replace("hidden: [8]", "hidden: [16]"))
     assert main(["train", "ippo", "office", "--steps", "100", "--out", str(tmp_path / "third"), "--config",
