@@ -1,5 +1,6 @@
 """``parcover train ALGO SCENARIO --steps N --out DIR``: IPPO / MAPPO through TorchRL (see
-:mod:`parcover_env.harness.marl`); writes ``policy.pt``, ``run.json`` (the sidecar) and ``curve.csv``."""
+:mod:`parcover_env.harness.marl`); writes ``policy.pt``, ``critic.pt``, ``run.json`` (the sidecar), ``curve.csv`` and
+``curve.png``. ``--init PATH`` starts from a previous run (:mod:`parcover_env.harness.marl_init`)."""
 
 from __future__ import annotations
 
@@ -28,6 +29,8 @@ def add_train_parser(sub) -> None:
     t.add_argument("--ray-address", default=None, help="Ray cluster address (default: start a local Ray)")
     t.add_argument("--seed", type=non_negative_int, default=0, help="torch and env seed (default: 0)")
     t.add_argument("--config", default=None, help="settings YAML (default: configs/train/ALGO.yaml)")
+    t.add_argument("--init", default=None, metavar="PATH",
+                   help="start the actor (and the critic, when it fits) from a previous run's directory or policy.pt")
     t.set_defaults(func=cmd_train)
 
 
@@ -40,13 +43,19 @@ def cmd_train(args) -> int:
         raise ParcoverError("--ray-address needs --backend ray")
     config_path = str(args.config or default_config_path(args.algo))
     config = load_marl_config(args.algo, config_path)
-    load_scenario(args.scenario, preset=config.preset)  # an unknown scenario fails here, before any import
+    scenario = load_scenario(args.scenario, overrides=config.env or None, preset=config.preset)  # fails here
+    config.check_critic(args.algo, scenario.observation.version, config_path)  # before any heavy import
     for module in ("torch", "torchrl", *(("ray",) if args.backend == "ray" else ())):
         require(module, "train", f"parcover train --backend {args.backend}")
+    if args.init:
+        from parcover_env.harness.marl_init import find_init
+
+        find_init(args.init)  # a bad path is one line now (an incompatible network: once the env is built)
     check_writable_dir(args.out, "--out")
     command = ["parcover", "train", args.algo, args.scenario, "--steps", str(args.steps), "--out", args.out,
                "--backend", args.backend, *(["--ray-address", args.ray_address] if args.ray_address else []),
-               "--seed", str(args.seed), *(["--config", args.config] if args.config else [])]
+               "--seed", str(args.seed), *(["--config", args.config] if args.config else []),
+               *(["--init", args.init] if args.init else [])]
     import logging
 
     from parcover_env.harness.marl import TrainRequest, train
@@ -55,7 +64,10 @@ def cmd_train(args) -> int:
     print(f"training {args.algo} on {args.scenario} for {args.steps} agent-steps with TorchRL ({args.backend})")
     record = train(TrainRequest(args.algo, args.scenario, args.steps, Path(args.out), config, config_path,
                                 backend=args.backend, ray_address=args.ray_address, seed=args.seed,
-                                command=shlex.join(command)))
+                                command=shlex.join(command), init=args.init))
+    if record["init"]:
+        critic = "and its critic" if record["init"]["critic"] else "(critic from scratch: another kind or size)"
+        print(f"started from {record['init']['path']} {critic}")
     print(f"{record['agent_steps']} agent-steps, {record['episodes']} episodes ended, {record['wall_time']:.1f} s; "
           f"wrote {Path(args.out) / 'run.json'}")
     print(f"evaluate: parcover bench {args.scenario} --policies {record['policy']}")

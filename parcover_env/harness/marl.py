@@ -11,10 +11,15 @@ not, and the collector resets the env after either. ``PopArtValueNorm`` / ``Runn
 normalize the value targets; a ``ReplayBuffer`` without replacement serves the minibatches.
 
 The two algorithms differ only in the critic. IPPO (de Witt et al. 2020): each robot's value of
-its own observation. MAPPO (Yu et al. 2022): one critic on the global state ``env.state()``
-concatenated with the robot's own observation (the MAPPO paper's agent-specific global state);
-its size is read from ``env.state_space``. Actor and critic are each one network shared by every
-robot. Settings: :class:`~parcover_env.harness.marl_config.MarlConfig` (``configs/train/``).
+its own observation. MAPPO (Yu et al. 2022): one critic on the global state ``env.state()`` and the
+robot's own observation (the MAPPO paper's agent-specific global state): ``critic: mlp`` on their
+concatenation (its size read from ``env.state_space``), or ``critic: attention``, the permutation-
+invariant :class:`~parcover_env.harness.token_critic.TokenCritic` on the version-2 state tokens (one
+network for every map). Actor and critic are each one network shared by every robot. Settings:
+:class:`~parcover_env.harness.marl_config.MarlConfig` (``configs/train/``; its ``env`` mapping
+overrides the scenario, e.g. the observation version). A run saves the actor (``policy.pt``) and
+the critic with the value normalizer's statistics (``critic.pt``); ``--init`` starts from them
+(:mod:`~parcover_env.harness.marl_init`).
 
 torch, torchrl and ray are imported inside the functions (``pip install 'parcover_env[train]'``).
 """
@@ -24,14 +29,17 @@ from __future__ import annotations
 import json
 import math
 import time
+import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from parcover_env.harness.marl_config import MarlConfig
+from parcover_env.harness.marl_init import CRITIC_FILE, apply_init, critic_spec, find_init, save_critic
 from parcover_env.harness.training import git_commit, plot_curve, write_csv
 from parcover_env.policies.torchrl_policy import POLICY_FILE, actor_net
 
-__all__ = ["TrainRequest", "EnvMaker", "build_actor", "save_policy", "build_critic", "build_loss", "train", "GROUP"]
+__all__ = ["TrainRequest", "EnvMaker", "build_actor", "save_policy", "policy_net", "build_critic", "build_loss",
+           "train", "GROUP"]
 
 GROUP = "robot"
 """TorchRL's group of the robots (``robot_0``, ``robot_1``, ... share the prefix)."""
@@ -53,6 +61,8 @@ class TrainRequest:
     ray_address: str | None = None
     seed: int = 0
     command: str = ""
+    init: str | None = None
+    """``--init``: a previous run's directory or its ``policy.pt`` (:mod:`~parcover_env.harness.marl_init`)."""
 
 
 class EnvMaker:
@@ -63,18 +73,19 @@ class EnvMaker:
     torch's generator of the process that builds the env, which samples the collector's actions
     (in a Ray worker too)."""
 
-    def __init__(self, scenario: str, preset: str, episode_steps: int, seed: int | None = None):
+    def __init__(self, scenario: str, preset: str, episode_steps: int, seed: int | None = None,
+                 overrides: dict | None = None):
         self.scenario, self.preset, self.episode_steps, self.seed = scenario, preset, episode_steps, seed
+        self.overrides = overrides or None
 
     def parallel(self):
-        """The scenario's PettingZoo ParallelEnv, unwrapped and unseeded."""
+        """The scenario's PettingZoo ParallelEnv (with ``overrides``), unwrapped and unseeded."""
         from parcover_env import parallel_env
 
-        return parallel_env(self.scenario, preset=self.preset, max_cycles=self.episode_steps or None)
+        return parallel_env(self.scenario, preset=self.preset, max_cycles=self.episode_steps or None,
+                            overrides=self.overrides)
 
     def __call__(self):
-        import warnings
-
         from torchrl.envs import PettingZooWrapper, RewardSum, TransformedEnv
 
         env = self.parallel()
@@ -102,20 +113,28 @@ def build_actor(obs_low, obs_high, act_dim: int, hidden: tuple[int, ...]):
                               return_log_prob=True)
 
 
+def policy_net(actor):
+    """The :func:`actor_net` inside an actor of :func:`build_actor`."""
+    return actor.module[0].module[0]  # TensorDictModule -> Sequential(actor_net, NormalParamExtractor) -> actor_net
+
+
 def save_policy(actor, path: Path) -> None:
     """Write the actor's network as the ``policy.pt`` that
     :class:`~parcover_env.policies.torchrl_policy.TorchRLPolicy` loads (torch alone, no TorchRL)."""
     import torch
 
-    net = actor.module[0].module[0]  # TensorDictModule -> Sequential(actor_net, NormalParamExtractor) -> actor_net
+    net = policy_net(actor)
     linear = [m for m in net if isinstance(m, torch.nn.Linear)]
     torch.save({"state_dict": net.state_dict(), "obs_dim": linear[0].in_features,
                 "hidden": [m.out_features for m in linear[:-1]], "act_dim": linear[-1].out_features // 2}, path)
 
 
-def build_critic(algo: str, obs_dim: int, state_dim: int, hidden: tuple[int, ...]):
+def build_critic(algo: str, obs_space, state_space, cfg: MarlConfig):
     """The shared value network: ``(GROUP, "state_value")`` of shape ``[..., robots, 1]``. IPPO reads
-    ``(GROUP, "observation")``; MAPPO reads ``"state"`` (broadcast to every robot) and the observation."""
+    ``(GROUP, "observation")``; MAPPO reads ``"state"`` (broadcast to every robot) and the observation,
+    with ``cfg.critic`` ``mlp`` (an MLP on ``cat(state, obs_i)``) or ``attention``
+    (:class:`~parcover_env.harness.token_critic.TokenCritic` on the version-2 state tokens).
+    ``obs_space`` / ``state_space``: the env's Boxes."""
     import torch
     from tensordict.nn import TensorDictModule
     from torch import nn
@@ -132,12 +151,18 @@ def build_critic(algo: str, obs_dim: int, state_dim: int, hidden: tuple[int, ...
             state = state.unsqueeze(-2).expand(*obs.shape[:-1], state.shape[-1])
             return self.mlp(torch.cat([state, obs], dim=-1))
 
-    n_in = obs_dim + (state_dim if algo == "mappo" else 0)
-    mlp = MLP(in_features=n_in, out_features=1, num_cells=list(hidden), activation_class=nn.Tanh)
+    out = [(GROUP, "state_value")]
+    if algo == "mappo" and cfg.critic == "attention":
+        from parcover_env.harness.token_critic import TokenCritic
+
+        net = TokenCritic(state_low=state_space.low, state_high=state_space.high, obs_low=obs_space.low,
+                          obs_high=obs_space.high, embed=cfg.critic_embed, heads=cfg.critic_heads, hidden=cfg.hidden)
+        return TensorDictModule(net, in_keys=["state", (GROUP, "observation")], out_keys=out)
+    n_in = obs_space.shape[0] + (state_space.shape[0] if algo == "mappo" else 0)
+    mlp = MLP(in_features=n_in, out_features=1, num_cells=list(cfg.hidden), activation_class=nn.Tanh)
     if algo == "mappo":
-        return TensorDictModule(StateAndObservation(mlp), in_keys=["state", (GROUP, "observation")],
-                                out_keys=[(GROUP, "state_value")])
-    return TensorDictModule(mlp, in_keys=[(GROUP, "observation")], out_keys=[(GROUP, "state_value")])
+        return TensorDictModule(StateAndObservation(mlp), in_keys=["state", (GROUP, "observation")], out_keys=out)
+    return TensorDictModule(mlp, in_keys=[(GROUP, "observation")], out_keys=out)
 
 
 def build_loss(algo: str, cfg: MarlConfig, actor, critic):
@@ -168,8 +193,8 @@ def _collector(req: TrainRequest, make_env: EnvMaker, actor, total_frames: int):
         from torchrl.collectors.distributed import RayCollector
 
         k = cfg.ray_collectors
-        makers = [EnvMaker(make_env.scenario, make_env.preset, make_env.episode_steps, seed=req.seed + i)
-                  for i in range(k)]
+        makers = [EnvMaker(make_env.scenario, make_env.preset, make_env.episode_steps, seed=req.seed + i,
+                           overrides=make_env.overrides) for i in range(k)]
         init = {"address": req.ray_address} if req.ray_address else {"num_cpus": k, "include_dashboard": False}
         init["log_to_driver"] = False  # the workers' warnings would print the collector's repr
         collector = RayCollector(makers, actor, frames_per_batch=cfg.frames_per_batch, total_frames=total_frames,
@@ -211,13 +236,17 @@ def train(req: TrainRequest) -> dict:
     torch.set_num_threads(1)
     torch.manual_seed(req.seed)
     cfg, t0 = req.config, time.perf_counter()
-    make_env = EnvMaker(req.scenario, cfg.preset, cfg.episode_steps, seed=req.seed)
+    source = find_init(req.init) if req.init else None  # a bad path fails before the env is built
+    make_env = EnvMaker(req.scenario, cfg.preset, cfg.episode_steps, seed=req.seed, overrides=cfg.env)
     base = make_env.parallel()  # spaces, robot and KPOI counts
+    cfg.check_critic(req.algo, base.version, req.config_path)
     n_robots, n_kpois = base.n_robots, len(base.scenario.kpois)
     obs_space, act_dim = base.observation_space(base.possible_agents[0]), base.action_space("robot_0").shape[0]
     actor = build_actor(obs_space.low, obs_space.high, act_dim, cfg.hidden)
-    critic = build_critic(req.algo, obs_space.shape[0], base.state_space.shape[0], cfg.hidden)
+    critic = build_critic(req.algo, obs_space, base.state_space, cfg)
     loss = build_loss(req.algo, cfg, actor, critic)
+    spec = critic_spec(req.algo, cfg, obs_space.shape[0], base.state_space.shape[0])
+    init = apply_init(source, policy_net(actor), critic, loss.value_norm, spec) if source else None
     optim = torch.optim.Adam(loss.parameters(), lr=cfg.learning_rate)
     batches = max(1, math.ceil(req.steps / (n_robots * cfg.frames_per_batch)))
     collector = _collector(req, make_env, actor, batches * cfg.frames_per_batch)
@@ -230,7 +259,10 @@ def train(req: TrainRequest) -> dict:
             wall = time.perf_counter() - t0
             rows += [{"agent_steps": agent_steps, "wall_time": round(wall, 3), **ep}
                      for ep in _episodes(batch, n_kpois)]
-            with torch.no_grad():
+            with torch.no_grad(), warnings.catch_warnings():
+                # the estimator vmaps the critic over (params, target params); attention has no batching
+                # rule there, so torch loops over the two: same values, a "performance drop" warning
+                warnings.filterwarnings("ignore", message="There is a performance drop", category=UserWarning)
                 loss.value_estimator(batch, params=loss.critic_network_params,
                                      target_params=loss.target_critic_network_params)
             buffer.extend(batch.reshape(-1))
@@ -249,11 +281,12 @@ def train(req: TrainRequest) -> dict:
             ray.shutdown()
     req.out.mkdir(parents=True, exist_ok=True)
     save_policy(actor, req.out / POLICY_FILE)
+    save_critic(req.out / CRITIC_FILE, critic, loss.value_norm, spec)
     write_csv(req.out / CURVE_FILE, rows)
     plot_curve(req.out)  # curve.png: KPOI fraction of the training episodes against agent-steps and wall time
     sidecar = {
         "algo": req.algo, "library": {"name": "torchrl", "version": md.version("torchrl")},
-        "backend": req.backend, "ray_address": req.ray_address, "scenario": req.scenario, "init": None,
+        "backend": req.backend, "ray_address": req.ray_address, "scenario": req.scenario, "init": init,
         "agent_steps": agent_steps, "wall_time": round(time.perf_counter() - t0, 3), "seed": req.seed,
         "command": req.command, "commit": git_commit(Path(__file__).parent), "config_file": req.config_path,
         "config": asdict(cfg), "n_robots": n_robots, "episodes": len(rows),

@@ -8,9 +8,9 @@ TorchRL component (named beside it); the trainer only passes them on.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 from parcover_env.config import from_mapping, read_yaml
 from parcover_env.errors import ConfigError
@@ -51,10 +51,21 @@ class MarlConfig:
     """Standardize advantages per minibatch (over time, not across robots)."""
     hidden: tuple[int, ...] = (128, 128)
     """Hidden layer widths of the actor and the critic (tanh MLPs, shared by every robot)."""
+    critic: Literal["mlp", "attention"] = "mlp"
+    """MAPPO's critic: ``mlp`` on ``cat(state, obs_i)`` (any env version), or ``attention`` on the
+    version-2 state tokens (:class:`~parcover_env.harness.token_critic.TokenCritic`, permutation-
+    invariant, one network for every map; needs ``env: {observation: {version: 2}}``). IPPO: ``mlp``."""
+    critic_embed: int = 64
+    """``critic: attention``: token embedding width."""
+    critic_heads: int = 4
+    """``critic: attention``: attention heads (must divide ``critic_embed``)."""
     episode_steps: int = 0
     """Step limit of a training episode (0: the scenario's ``episode.max_steps``)."""
     preset: Literal["realistic", "ideal"] = "realistic"
     """Error models of the training env."""
+    env: dict[str, Any] = field(default_factory=dict)
+    """Scenario overrides of the training env (a nested mapping merged by ``load_scenario``), e.g.
+    ``{observation: {version: 2}}``; validated when the env is made."""
     ray_collectors: int = 1
     """``--backend ray``: remote collectors (``RayCollector(num_collectors=...)``), one env each (seeds
     SEED, SEED + 1, ...); each collects ``frames_per_batch / ray_collectors`` env steps of every batch."""
@@ -62,7 +73,7 @@ class MarlConfig:
     def check(self, source: str) -> MarlConfig:
         """Self, or ConfigError naming ``source`` and the first out-of-range key."""
         positive = ("frames_per_batch", "epochs", "minibatch_size", "learning_rate", "max_grad_norm", "clip_epsilon",
-                    "ray_collectors")
+                    "ray_collectors", "critic_embed", "critic_heads")
         for key in positive:
             if not getattr(self, key) > 0:
                 raise ConfigError(source, key, f"must be > 0, got {getattr(self, key)}")
@@ -80,7 +91,22 @@ class MarlConfig:
                               f"got {self.ray_collectors}")
         if not self.hidden or min(self.hidden) < 1:
             raise ConfigError(source, "hidden", f"expected one or more widths >= 1, got {list(self.hidden)}")
+        if self.critic_embed % self.critic_heads:
+            raise ConfigError(source, "critic_heads", f"must divide critic_embed ({self.critic_embed}), "
+                              f"got {self.critic_heads}")
         return self
+
+    def check_critic(self, algo: str, version: int, source: str) -> None:
+        """ConfigError naming ``source`` if the critic does not fit ``algo`` or an env of observation
+        ``version`` (``critic: attention`` reads the version-2 state tokens, and only MAPPO has a state critic)."""
+        if self.critic != "attention":
+            return
+        if algo != "mappo":
+            raise ConfigError(source, "critic", f"attention is MAPPO's critic on env.state(); {algo}'s critic sees "
+                              "only the robot's observation: use critic: mlp")
+        if version != 2:
+            raise ConfigError(source, "critic", f"attention reads the version-2 state tokens, but the training env "
+                              f"has observation version {version}: set env: {{observation: {{version: 2}}}}")
 
 
 def default_config_path(algo: str) -> Path:

@@ -1,15 +1,17 @@
 """Learning curves of training runs: ``curve.csv`` (training episodes) and ``eval.csv`` (periodic
 evaluation) written by ``baselines/train_ppo.py`` (agent-steps in ``timesteps``) and ``parcover train``
-(agent-steps in ``agent_steps``), against agent-steps and wall time."""
+(agent-steps in ``agent_steps``), against agent-steps and wall time: one figure, two panels sharing the y axis."""
 
 from __future__ import annotations
 
 import csv
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["read_rows", "smooth", "plot_learning_curves"]
+__all__ = ["read_rows", "smooth", "Series", "training_series", "eval_series", "learning_curve_figure",
+           "plot_learning_curves"]
 
 
 def read_rows(path: str | Path) -> list[dict[str, float]]:
@@ -38,11 +40,36 @@ def smooth(x: np.ndarray, window: int) -> np.ndarray:
     return (c[idx + 1] - c[lo]) / (idx + 1 - lo)
 
 
-def plot_learning_curves(runs: list[str | Path], path: str | Path, labels: list[str] | None = None,
-                         metric: str = "kpoi_fraction", window: int = 20) -> Path:
-    """One figure, two panels (x = agent-steps, x = wall time in minutes): the training episodes'
-    ``metric`` (moving average over ``window`` episodes, thin) and the periodic evaluation's mean
-    (markers) for every run directory."""
+class Series(NamedTuple):
+    """One curve, on both x axes."""
+
+    agent_steps: np.ndarray
+    wall_minutes: np.ndarray
+    value: np.ndarray
+
+
+def training_series(rows: list[dict], metric: str = "kpoi_fraction", window: int = 20) -> Series:
+    """The training episodes of a ``curve.csv`` (rows in order): ``metric`` as a trailing ``window``-episode
+    mean against agent-steps (``agent_steps``, or ``timesteps`` in older files) and wall time."""
+    steps = [r["agent_steps"] if "agent_steps" in r else r["timesteps"] for r in rows]
+    return Series(np.array(steps, dtype=float), np.array([r["wall_time"] for r in rows], dtype=float) / 60,
+                  smooth(np.array([r[metric] for r in rows], dtype=float), window))
+
+
+def eval_series(rows: list[dict], metric: str = "kpoi_fraction") -> Series:
+    """The periodic evaluations of an ``eval.csv``: the mean ``metric`` of each evaluation (rows sharing
+    ``timesteps``), at its agent-steps and at the wall time its last row was written."""
+    steps = sorted({r["timesteps"] for r in rows})
+    at = [[r for r in rows if r["timesteps"] == s] for s in steps]
+    return Series(np.array(steps, dtype=float), np.array([max(r["wall_time"] for r in g) for g in at]) / 60,
+                  np.array([np.mean([r[metric] for r in g]) for g in at]))
+
+
+def learning_curve_figure(runs: list[str | Path], labels: list[str] | None = None, metric: str = "kpoi_fraction",
+                          window: int = 20):
+    """A matplotlib figure, two panels (x = agent-steps, x = wall time in minutes) sharing the y axis:
+    per run directory, :func:`training_series` of its ``curve.csv`` (thin line) and :func:`eval_series`
+    of its ``eval.csv`` (markers), one colour per run."""
     from parcover_env.errors import require
 
     matplotlib = require("matplotlib", "viz", "learning curves")
@@ -52,22 +79,17 @@ def plot_learning_curves(runs: list[str | Path], path: str | Path, labels: list[
     labels = labels or [Path(r).name for r in runs]
     fig, axes = plt.subplots(1, 2, figsize=(11, 3.8), sharey=True)
     for k, (run, label) in enumerate(zip(runs, labels, strict=True)):
-        color = f"C{k}"
-        run = Path(run)
-        if (run / "curve.csv").is_file():
-            rows = read_rows(run / "curve.csv")
-            if rows:
-                y = smooth(np.array([r[metric] for r in rows]), window)
-                steps = [r["agent_steps"] if "agent_steps" in r else r["timesteps"] for r in rows]
-                axes[0].plot(steps, y, color=color, lw=1, alpha=0.6)
-                axes[1].plot([r["wall_time"] / 60 for r in rows], y, color=color, lw=1, alpha=0.6)
-        if (run / "eval.csv").is_file():
-            ev = read_rows(run / "eval.csv")
-            steps = sorted({r["timesteps"] for r in ev})
-            mean = [np.mean([r[metric] for r in ev if r["timesteps"] == s]) for s in steps]
-            wall = [max(r["wall_time"] for r in ev if r["timesteps"] == s) / 60 for s in steps]
-            axes[0].plot(steps, mean, "o--", color=color, label=f"{label} (eval)")
-            axes[1].plot(wall, mean, "o--", color=color)
+        color, run = f"C{k}", Path(run)
+        rows = read_rows(run / "curve.csv") if (run / "curve.csv").is_file() else []
+        if rows:
+            train = training_series(rows, metric, window)
+            axes[0].plot(train.agent_steps, train.value, color=color, lw=1, alpha=0.6, label=label)
+            axes[1].plot(train.wall_minutes, train.value, color=color, lw=1, alpha=0.6)
+        ev = read_rows(run / "eval.csv") if (run / "eval.csv").is_file() else []
+        if ev:
+            val = eval_series(ev, metric)
+            axes[0].plot(val.agent_steps, val.value, "o--", color=color, label=f"{label} (eval)")
+            axes[1].plot(val.wall_minutes, val.value, "o--", color=color)
     name = metric.replace("_", " ")
     axes[0].set(xlabel="agent-steps", ylabel=name, ylim=(-0.05, 1.05))
     axes[1].set(xlabel="wall time (min)")
@@ -75,8 +97,17 @@ def plot_learning_curves(runs: list[str | Path], path: str | Path, labels: list[
         axes[0].legend(fontsize=8, loc="best")
     for ax in axes:
         ax.grid(alpha=0.3)
-    fig.suptitle(f"{name}: training episodes ({window}-episode mean, lines), validation (markers)", fontsize=9)
+    fig.suptitle(f"{name}: training episodes ({window}-episode mean, lines), evaluation (markers)", fontsize=9)
     fig.tight_layout()
+    return fig
+
+
+def plot_learning_curves(runs: list[str | Path], path: str | Path, labels: list[str] | None = None,
+                         metric: str = "kpoi_fraction", window: int = 20) -> Path:
+    """Write :func:`learning_curve_figure` to ``path``."""
+    import matplotlib.pyplot as plt
+
+    fig = learning_curve_figure(runs, labels, metric, window)
     path = Path(path)
     fig.savefig(path, dpi=90)
     plt.close(fig)

@@ -17,27 +17,79 @@ from parcover_env.cli.main import main
     (["train", "ippo", "office", "--steps", "10", "--out", "x", "--ray-address", "h:1"], "needs --backend ray"),
     (["train", "ippo", "office", "--steps", "10", "--out", "x", "--config", "no.yaml"], "no.yaml: no such file"),
     (["train", "ippo", "office", "--out", "x"], "--steps"),
+    (["train", "ippo", "office", "--steps", "10", "--out", "x", "--init", "nowhere"],
+     "--init nowhere: no such file nowhere"),
+    (["train", "ippo", "office", "--steps", "10", "--out", "x", "--config", "attention.yaml"],
+     "attention.yaml: critic: attention is MAPPO's critic"),
+    (["train", "mappo", "office", "--steps", "10", "--out", "x", "--config", "attention.yaml"],
+     "the training env has observation version 1: set env: {observation: {version: 2}}"),
+    (["train", "mappo", "office", "--steps", "10", "--out", "x", "--config", "bad_env.yaml"], "nope"),
 ])
 def test_bad_arguments_one_line_exit_2(argv, words, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
+    (tmp_path / "attention.yaml").write_text("critic: attention\n")
+    (tmp_path / "bad_env.yaml").write_text("env: {nope: 1}\n")
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("parcover") and words in err[0]
     assert not (tmp_path / "x").exists()  # nothing written
 
 
-def test_train_then_bench_the_sidecar_policy(tmp_path, capsys):
+@pytest.mark.parametrize("backend", ["local", "ray"])
+def test_train_then_bench_the_sidecar_policy(backend, tmp_path, capsys):
     pytest.importorskip("torchrl")
+    if backend == "ray":
+        pytest.importorskip("ray")
     cfg = tmp_path / "tiny.yaml"
     cfg.write_text("frames_per_batch: 64\nminibatch_size: 32\nepochs: 1\nhidden: [8]\nepisode_steps: 40\n")
     out = tmp_path / "run"
-    argv = ["train", "ippo", "office", "--steps", "100", "--out", str(out), "--seed", "2", "--config", str(cfg)]
+    argv = ["train", "ippo", "office", "--steps", "100", "--out", str(out), "--backend", backend, "--seed", "2",
+            "--config", str(cfg)]
     assert main(argv) == 0
     record = json.loads((out / "run.json").read_text())
-    assert record["command"] == "parcover " + " ".join(argv[:-2]).replace(" --seed 2", " --backend local --seed 2") \
-        + f" --config {cfg}"
+    assert record["command"] == "parcover " + " ".join(argv)
     assert record["agent_steps"] == 128 and record["config"]["episode_steps"] == 40
+    assert record["backend"] == backend and record["init"] is None
     assert f"--policies {record['policy']}" in capsys.readouterr().out
-    code = main(["bench", "office", "--policies", record["policy"], "--seeds", "1", "--max-steps", "30",
+    code = main(["bench", "office", "--policies", record["policy"], "--seeds", "2", "--max-steps", "30",
                  "--workers", "1", "--out", str(tmp_path / "bench"), "--no-plots", "--quiet"])
     assert code == 0 and record["policy"] in (tmp_path / "bench" / "table.md").read_text()
+
+
+def test_init_from_a_run_and_from_a_misfit_network(tmp_path, capsys):
+    pytest.importorskip("torchrl")
+    cfg = tmp_path / "tiny.yaml"
+    cfg.write_text("frames_per_batch: 64\nminibatch_size: 32\nepochs: 1\nhidden: [8]\nepisode_steps: 40\n")
+    first, second = tmp_path / "first", tmp_path / "second"
+    assert main(["train", "ippo", "office", "--steps", "100", "--out", str(first), "--config", str(cfg)]) == 0
+    argv = ["train", "ippo", "office", "--steps", "100", "--out", str(second), "--config", str(cfg),
+            "--init", str(first)]
+    assert main(argv) == 0
+    record = json.loads((second / "run.json").read_text())
+    assert record["init"] == {"path": str(first), "algo": "ippo", "init": None, "critic": True}
+    assert record["command"].endswith(f"--init {first}")
+    assert f"started from {first} and its critic" in capsys.readouterr().out
+    wide = tmp_path / "wide.yaml"
+    wide.write_text(cfg.read_text().replace("hidden: [8]", "hidden: [16]"))
+    assert main(["train", "ippo", "office", "--steps", "100", "--out", str(tmp_path / "third"), "--config",
+                 str(wide), "--init", str(first / "policy.pt")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "hidden [8]" in err[0] and "does not fit this run's" in err[0] and "hidden [16]" in err[0]
+    assert not (tmp_path / "third" / "run.json").exists()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("backend", ["local", "ray"])
+def test_issue_done_when_train_ippo_office_4096_then_bench(backend, tmp_path, monkeypatch):
+    """The issue's check as written: ``parcover train ippo office --steps 4096`` (default settings), then
+    ``parcover bench office --policies <its policy spec> --seeds 2``."""
+    pytest.importorskip("torchrl")
+    if backend == "ray":
+        pytest.importorskip("ray")
+    monkeypatch.chdir(tmp_path)
+    assert main(["train", "ippo", "office", "--steps", "4096", "--out", "run", "--backend", backend]) == 0
+    record = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert record["agent_steps"] >= 4096 and record["backend"] == backend
+    assert main(["bench", "office", "--policies", record["policy"], "--seeds", "2", "--out", "bench",
+                 "--no-plots", "--quiet"]) == 0
+    assert record["policy"] in (tmp_path / "bench" / "table.md").read_text()

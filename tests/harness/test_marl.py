@@ -10,6 +10,7 @@ import json
 
 import numpy as np
 import pytest
+from gymnasium import spaces
 
 torch = pytest.importorskip("torch")
 pytest.importorskip("torchrl")
@@ -32,9 +33,13 @@ T, N, OBS, STATE = 3, 2, 4, 5
 GAMMA, LAMBDA, V = 0.9, 0.95, 10.0
 
 
+def _box(n: int) -> spaces.Box:
+    return spaces.Box(-np.ones(n, np.float32), np.ones(n, np.float32))
+
+
 def _constant_critic(algo: str):
     """The trainer's critic with its last layer set to output ``V`` everywhere."""
-    critic = build_critic(algo, OBS, STATE, (8,))
+    critic = build_critic(algo, _box(OBS), _box(STATE), MarlConfig(hidden=(8,)))
     last = [m for m in critic.module.modules() if isinstance(m, torch.nn.Linear)][-1]
     with torch.no_grad():
         last.weight.zero_()
@@ -150,7 +155,7 @@ def test_mappo_critic_reads_the_state_ippo_critic_does_not():
     torch.manual_seed(0)
     obs, state = torch.randn(N, OBS), torch.randn(STATE)
     for algo, reads_state in (("mappo", True), ("ippo", False)):
-        critic = build_critic(algo, OBS, STATE, (8,))
+        critic = build_critic(algo, _box(OBS), _box(STATE), MarlConfig(hidden=(8,)))
         values = [critic(TensorDict({GROUP: {"observation": obs}, "state": s}, batch_size=[]))[GROUP, "state_value"]
                   for s in (state, state + 1.0)]
         assert values[0].shape == (N, 1)

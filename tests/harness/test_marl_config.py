@@ -24,6 +24,10 @@ def test_shipped_configs_load(algo):
     ("learning_rate: 0\n", "learning_rate", "> 0"),
     ("hidden: []\n", "hidden", "widths"),
     ("ray_collectors: 3\n", "ray_collectors", "divide frames_per_batch"),
+    ("critic: gnn\n", "critic", "attention"),
+    ("critic_embed: 30\ncritic_heads: 4\n", "critic_heads", "divide critic_embed (30)"),
+    ("critic_heads: 0\n", "critic_heads", "> 0"),
+    ("env: [1]\n", "env", "mapping"),
 ])
 def test_bad_values_name_file_and_key(tmp_path, text, key, words):
     path = tmp_path / "bad.yaml"
@@ -38,3 +42,12 @@ def test_missing_file_and_empty_file(tmp_path):
         load_marl_config("ippo", tmp_path / "none.yaml")
     (tmp_path / "empty.yaml").write_text("")
     assert load_marl_config("ippo", tmp_path / "empty.yaml") == MarlConfig()
+
+
+def test_attention_config_and_env_overrides(tmp_path):
+    cfg = load_marl_config("mappo", default_config_path("mappo").with_name("mappo_attention.yaml"))
+    assert (cfg.critic, cfg.critic_embed, cfg.critic_heads) == ("attention", 64, 4)
+    assert cfg.env == {"observation": {"version": 2}}
+    assert load_marl_config("mappo").critic == "mlp" and load_marl_config("mappo").env == {}
+    (tmp_path / "a.yaml").write_text("env: {episode: {max_steps: 500}}\n")
+    assert load_marl_config("ippo", tmp_path / "a.yaml").env == {"episode": {"max_steps": 500}}

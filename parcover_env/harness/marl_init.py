@@ -1,0 +1,112 @@
+"""``parcover train --init PATH``: start a run from a previous run's networks.
+
+``PATH`` is a ``parcover train`` output directory or its ``policy.pt``. The actor always starts from
+that ``policy.pt`` (weights and observation box); it must have this run's observation size, hidden
+widths and action size, else one :class:`~parcover_env.errors.ParcoverError`. The critic starts from
+the ``critic.pt`` beside it when that critic has this run's :func:`critic_spec` (same algorithm,
+critic kind, input sizes, widths and value normalization, whose running statistics come with it),
+else from scratch. The new run's sidecar records :func:`init_record`: the path, the init run's own
+``algo`` and ``init`` (from its ``run.json``; ``None`` for a bare ``policy.pt``) and whether the critic
+was loaded, so a chain of runs says how its last network was made.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from parcover_env.errors import ParcoverError
+from parcover_env.harness.marl_config import MarlConfig
+from parcover_env.policies.torchrl_policy import POLICY_FILE, TorchRLPolicy
+
+__all__ = ["CRITIC_FILE", "InitSource", "find_init", "critic_spec", "save_critic", "apply_init"]
+
+CRITIC_FILE = "critic.pt"
+"""The critic checkpoint beside ``policy.pt``: ``spec`` (:func:`critic_spec`), ``state_dict``, ``value_norm``."""
+
+
+@dataclass(frozen=True)
+class InitSource:
+    """What ``--init PATH`` points at."""
+
+    path: str
+    """As given."""
+    policy: Path
+    critic: Path | None
+    """``critic.pt`` beside the policy, if there is one."""
+    run: dict | None
+    """The init run's sidecar ``run.json``, if there is one."""
+
+
+def find_init(path: str | Path) -> InitSource:
+    """The checkpoint files of ``path`` (a run directory or its ``policy.pt``), or a ParcoverError."""
+    given = Path(path)
+    policy = given / POLICY_FILE if given.is_dir() else given
+    if not policy.is_file():
+        raise ParcoverError(f"--init {path}: no such file {policy} (expected a parcover train output directory "
+                            f"or its {POLICY_FILE})")
+    sidecar, critic = policy.parent / "run.json", policy.parent / CRITIC_FILE
+    run = None
+    if sidecar.is_file():
+        try:
+            run = json.loads(sidecar.read_text())
+        except (OSError, ValueError) as exc:
+            raise ParcoverError(f"--init {path}: cannot read {sidecar}: {exc}") from None
+        if not isinstance(run, dict):
+            raise ParcoverError(f"--init {path}: {sidecar} is not a JSON object")
+    return InitSource(str(path), policy, critic if critic.is_file() else None, run)
+
+
+def critic_spec(algo: str, cfg: MarlConfig, obs_dim: int, state_dim: int) -> dict:
+    """What a saved critic must match to be loaded: its kind, input sizes, widths, value normalization."""
+    kind = cfg.critic if algo == "mappo" else "mlp"
+    spec = {"algo": algo, "critic": kind, "obs_dim": obs_dim, "state_dim": state_dim if algo == "mappo" else 0,
+            "hidden": list(cfg.hidden), "value_norm": cfg.value_norm}
+    if kind == "attention":
+        spec.update(embed=cfg.critic_embed, heads=cfg.critic_heads)
+    return spec
+
+
+def save_critic(path: Path, critic, value_norm, spec: dict) -> None:
+    """Write ``critic.pt``: the critic's weights, the value normalizer's statistics and ``spec``."""
+    import torch
+
+    torch.save({"spec": spec, "state_dict": critic.state_dict(),
+                "value_norm": value_norm.state_dict() if value_norm is not None else None}, path)
+
+
+def _shape(net) -> tuple[int, list[int], int]:
+    """(observation size, hidden widths, action size) of an :func:`actor_net`."""
+    import torch
+
+    linear = [m for m in net if isinstance(m, torch.nn.Linear)]
+    return linear[0].in_features, [m.out_features for m in linear[:-1]], linear[-1].out_features // 2
+
+
+def apply_init(src: InitSource, actor_net, critic, value_norm, spec: dict) -> dict:
+    """Load ``src`` into ``actor_net`` (an :func:`actor_net`, required to match) and, when its spec
+    equals ``spec``, into ``critic`` and ``value_norm``; returns the sidecar's ``init`` record."""
+    import torch
+
+    loaded = TorchRLPolicy(src.policy).net  # a corrupt or foreign file is a ParcoverError naming it
+    theirs, ours = _shape(loaded), _shape(actor_net)
+    if theirs != ours:
+        def show(s):
+            return f"observation {s[0]}, hidden {s[1]}, actions {s[2]}"
+
+        raise ParcoverError(f"--init {src.path}: its actor ({show(theirs)}) does not fit this run's ({show(ours)})")
+    actor_net.load_state_dict(loaded.state_dict())
+    critic_loaded = False
+    if src.critic is not None:
+        try:
+            ckpt = torch.load(src.critic, map_location="cpu", weights_only=True)
+        except Exception as exc:  # a corrupt file: name it
+            raise ParcoverError(f"--init {src.path}: cannot load {src.critic}: {type(exc).__name__}: {exc}") from None
+        if isinstance(ckpt, dict) and ckpt.get("spec") == spec:
+            critic.load_state_dict(ckpt["state_dict"])
+            if value_norm is not None and ckpt.get("value_norm") is not None:
+                value_norm.load_state_dict(ckpt["value_norm"])
+            critic_loaded = True
+    run = src.run or {}
+    return {"path": src.path, "algo": run.get("algo"), "init": run.get("init"), "critic": critic_loaded}
