@@ -1,7 +1,9 @@
-"""Compiled (numba) loops of an env step: the observation's scalar entries and the formation errors;
-import only through :mod:`parcover_env.envs.observations` and :mod:`parcover_env.envs.metrics`. The
-same float operations, in the same order, as the numpy formulas they replace
-(``tests/envs/test_observation_assembly.py`` and ``tests/envs/test_values.py`` keep references)."""
+"""Compiled (numba) loops of an env step: the observation's scalar entries, the formation errors and
+the test for teams that may split; import only through :mod:`parcover_env.envs.observations`,
+:mod:`parcover_env.envs.metrics` and :mod:`parcover_env.envs.handover`. The same float operations,
+in the same order, as the numpy formulas they replace (``tests/envs/test_observation_assembly.py``
+and ``tests/envs/test_values.py`` keep references). The ``*_many`` loops run a one-world loop over
+``K`` worlds (leading axis)."""
 
 from __future__ import annotations
 
@@ -78,6 +80,16 @@ def scalar_entries(out, cols, r, slot_div, max_fix_age, kpois, time):
 
 
 @njit(cache=True, nogil=True)
+def scalar_entries_many(out, cols, r, slot_div, max_fix_age, kpois, time):
+    """:func:`scalar_entries` of ``K`` worlds: ``out (K, N, D)``, the :class:`RobotRows` fields
+    ``(K, N, ...)``, the team fractions ``kpois`` and ``time`` ``(K,)``."""
+    for k in range(out.shape[0]):
+        rows = RobotRows(r.est[k], r.vel[k], r.leader[k], r.slot[k], r.fix_age[k], r.cov[k], r.goals[k], r.rel_xy[k],
+                         r.rel_heading[k], r.visible[k])
+        scalar_entries(out[k], cols, rows, slot_div, max_fix_age, kpois[k], time[k])
+
+
+@njit(cache=True, nogil=True)
 def formation_errors(poses, predecessor, offset, l_d, psi_d, dl, dpsi):
     """``dl[k], dpsi[k]`` of the ``k``-th follower (robot order): ``l - l_d`` and
     ``psi - psi_d`` (unwrapped) with ``l, psi`` the distance and bearing (in the predecessor's frame) of the
@@ -95,3 +107,34 @@ def formation_errors(poses, predecessor, offset, l_d, psi_d, dl, dpsi):
         dpsi[k] = math.atan2(dy, dx) - poses[j, 2] - psi_d  # wrapped by the caller (geometry.wrap_angle)
         k += 1
     return k
+
+
+@njit(cache=True, nogil=True)
+def formation_errors_many(poses, predecessor, offset, l_d, psi_d):
+    """:func:`formation_errors` of ``K`` worlds: ``poses (K, N, 3)``, ``predecessor (K, N)``; returns
+    ``dl, dpsi (K, N)`` (world ``k``'s followers in its first ``n[k]`` columns, 0 after) and ``n (K,)``."""
+    k_worlds, n_robots = predecessor.shape
+    dl, dpsi = np.zeros((k_worlds, n_robots)), np.zeros((k_worlds, n_robots))
+    n = np.zeros(k_worlds, dtype=np.int64)
+    for k in range(k_worlds):
+        n[k] = formation_errors(poses[k], predecessor[k], offset, l_d, psi_d, dl[k], dpsi[k])
+    return dl, dpsi, n
+
+
+@njit(cache=True, nogil=True)
+def may_split(tp, est, plan_progress, fix, tol, margin, out):
+    """``out[k]``: some robot ``i`` of world ``k`` heads for a TP (``tp[k, i] = (x, y, distance)``, NaN:
+    none) and has passed its distance (``plan_progress[k, i] >= distance - 1e-6``), or its estimate
+    ``est[k, i]`` or this step's fix ``fix[k, i]`` (NaN: none) lies within ``tol[k]`` of it; every test
+    widened by ``margin``."""
+    for k in range(tp.shape[0]):
+        out[k] = False
+        for i in range(tp.shape[1]):
+            x, y, d = tp[k, i, 0], tp[k, i, 1], tp[k, i, 2]
+            if math.isnan(d):
+                continue
+            reach = tol[k] + margin
+            if (plan_progress[k, i] >= d - 1e-6 - margin or math.hypot(est[k, i, 0] - x, est[k, i, 1] - y) <= reach
+                    or math.hypot(fix[k, i, 0] - x, fix[k, i, 1] - y) <= reach):
+                out[k] = True
+                break

@@ -3,6 +3,8 @@ progress, goals), public so that tests and other rooms may use them. Robot by ro
 operations in the same order as the vectorized numpy reference (``tests/references/progress.py``;
 a test compares them), no fast-math: the same floats. The routes are the padded tables of
 :class:`~parcover_env.scenarios.progress.RouteTable`; the constants a :data:`PROGRESS_RULES` record.
+The ``*_many`` kernels run the same bodies over ``K`` worlds of one mission (leading axis ``K``):
+world ``k``'s result is the one-world kernel's on its rows, bit for bit.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["PROGRESS_RULES", "advance_all", "goals", "visits"]
+__all__ = ["PROGRESS_RULES", "advance_all", "advance_many", "goals", "goals_many", "visits", "visits_many"]
 
 PROGRESS_RULES = np.dtype([
     ("window", "f8"),  # progress is searched this far ahead of the current progress (m)
@@ -150,4 +152,36 @@ def visits(kpois, xy, radius, time, visited, visit_time, visitor):
             visit_time[k] = time
             visitor[k] = who
             n_new += 1
+    return n_new
+
+
+@njit(cache=True)
+def advance_many(p, progress, waypoint, length, arc, must, pts, e, ee, seg_len, rules):
+    """:func:`advance_all` of ``K`` worlds sharing the routes: estimates ``p (K, N, 2)``, state
+    ``progress, waypoint (K, N)``; returns the new ``(progress, waypoint)`` ``(K, N)``."""
+    new_progress, new_waypoint = progress.copy(), waypoint.copy()
+    for k in range(p.shape[0]):
+        new_progress[k], new_waypoint[k] = advance_all(p[k], progress[k], waypoint[k], length, arc, must, pts, e, ee,
+                                                       seg_len, rules)
+    return new_progress, new_waypoint
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def goals_many(progress, lookahead, length, arc, must, arc_end, pts):
+    """:func:`goals` of ``K`` worlds sharing the routes: ``progress (K, N)`` -> goal points ``(K, N, 2)``
+    and their arc positions ``(K, N)``."""
+    k_worlds, n = progress.shape
+    goal, s_out = np.empty((k_worlds, n, 2)), np.empty((k_worlds, n))
+    for k in range(k_worlds):
+        goals(progress[k], lookahead, length, arc, must, arc_end, pts, goal[k], s_out[k])
+    return goal, s_out
+
+
+@njit(cache=True, nogil=True)
+def visits_many(kpois, xy, radius, time, visited, visit_time, visitor):
+    """:func:`visits` of ``K`` worlds sharing the KPOIs: points ``xy (K, N, 2)``, ``time (K,)``, state
+    ``visited, visit_time, visitor (K, n_kpois)`` updated in place; returns the counts ``(K,)``."""
+    n_new = np.zeros(xy.shape[0], dtype=np.int64)
+    for k in range(xy.shape[0]):
+        n_new[k] = visits(kpois, xy[k], radius, time[k], visited[k], visit_time[k], visitor[k])
     return n_new
