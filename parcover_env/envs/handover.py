@@ -65,7 +65,8 @@ def update_team(team: Team, kinects: KinectSystem | None, estimate: np.ndarray, 
 
 def update_teams(teams: Sequence[Team], kinects: Sequence[KinectSystem | None], estimates: np.ndarray,
                  plan_progress: np.ndarray, views: Sequence[CameraView | None]) -> None:
-    """:func:`update_team` of ``K`` worlds (estimates ``(K, N, 3)``, plan progress ``(K, N)``), run
+    """:func:`update_team` of the teams of ``K`` worlds of one mission (one ``tol``; estimates
+    ``(K, N, 3)``, plan progress ``(K, N)``), run
     only for the worlds where a leader heading for a TP (:attr:`Team.tp_ahead`) has passed its
     distance, or its estimate or this step's Kinect fix lies within the team's ``tol`` of it (one
     compiled test of all worlds, widened by :data:`SPLIT_MARGIN`): in every other world
@@ -79,9 +80,9 @@ def update_teams(teams: Sequence[Team], kinects: Sequence[KinectSystem | None], 
         if kin is not None:
             for i, pose in kin.last_fixes.items():
                 fix[j, i] = pose[:2]
-    maybe = np.empty(k, dtype=bool)
-    step_kernels.may_split(tp, np.ascontiguousarray(estimates, dtype=float),
-                           np.ascontiguousarray(plan_progress, dtype=float), fix,
-                           np.array([t.tol for t in teams], dtype=float), SPLIT_MARGIN, maybe)
-    for j in np.flatnonzero(maybe).tolist():
-        update_team(teams[j], kinects[j], estimates[j], plan_progress[j], views[j])
+    maybe = step_kernels.may_split(tp, np.ascontiguousarray(estimates, dtype=float),
+                                   np.ascontiguousarray(plan_progress, dtype=float), fix, float(teams[0].tol),
+                                   SPLIT_MARGIN)
+    for j, m in enumerate(maybe.tolist()):
+        if m:
+            update_team(teams[j], kinects[j], estimates[j], plan_progress[j], views[j])

@@ -8,8 +8,8 @@ info back into the metrics dict.
 :func:`record_steps` adds one step to the metrics of ``K`` worlds: the per-robot quantities (path
 steps, localization and formation errors, leaders out of the Kinects' view) as ``(K, N)`` arrays in
 a few calls, then each world's scalars; :func:`record_step` is its one-world call. The sums keep the
-one-world operations (the same numpy reductions per world, the same BLAS dot of each world's
-followers), so the metrics are the same floats.
+one-world operations (numpy's pairwise summation of the squared errors, the same BLAS dot of each
+world's followers), so the metrics are the same floats.
 """
 
 from __future__ import annotations
@@ -191,11 +191,14 @@ def record_steps(metrics: Sequence[EpisodeMetrics], before: np.ndarray, true: np
     ``true`` ``(K, N, 3)``, ``times``, route trackers (``progress``), estimates ``(K, N, 3)``, new
     wall and robot contacts ``(K, N)``, teams; ``kinects`` answers ``in_view`` for every world (the
     footprints are the scenario's) or is None."""
+    from parcover_env.envs import step_kernels
+
     k_worlds, n = true.shape[:2]
-    steps = np.hypot(true[..., 0] - before[..., 0], true[..., 1] - before[..., 1])
-    paths = (np.array([m.path_lengths for m in metrics], dtype=float).reshape(k_worlds, n) + steps).tolist()
-    err = true[..., :2] - estimates[..., :2]
-    sq_err = np.sum(err * err, axis=(1, 2)).tolist()
+    paths, sq_err = step_kernels.path_and_error_sums(
+        np.ascontiguousarray(before, dtype=float), np.ascontiguousarray(true, dtype=float),
+        np.ascontiguousarray(estimates, dtype=float),
+        np.array([m.path_lengths for m in metrics], dtype=float).reshape(k_worlds, n))
+    paths, sq_err = paths.tolist(), sq_err.tolist()
     wall, robot = new_contacts[0].sum(axis=1).tolist(), new_contacts[1].sum(axis=1).tolist()
     predecessor = _rows([t.predecessor for t in teams])
     dl, dpsi, n_followers = formation_errors_many(true, predecessor, formation.offset, formation.spacing,

@@ -81,10 +81,11 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     est = rows([w.estimate for w in worlds])
     was = gather([t.visited for t in trackers])
     times = [w.world.time for w in worlds]
-    n_new = update_many(trackers, true[..., :2], est[..., :2], times)
-    velocity = (true[..., :2] - before[..., :2]) / s.physics.control_dt
-    for w, v in zip(worlds, velocity, strict=True):
-        w.true_velocity = v
+    true_xy = np.ascontiguousarray(true[..., :2])
+    n_new = update_many(trackers, true_xy, est[..., :2], times)
+    velocity = (true_xy - before[..., :2]) / s.physics.control_dt
+    for k, w in enumerate(worlds):
+        w.true_velocity = velocity[k]
     count_waypoints_many(teams, rows([t.advanced for t in trackers]), rows([t.leader for t in teams]))
     progress = rows([t.progress for t in trackers])
     update_teams(teams, [w.kinects for w in worlds], est, progress - first.progress.offsets,
@@ -94,7 +95,7 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
         visited = rows([t.visited for t in trackers])
         own = own_visits(visited & ~was, rows([t.visitor for t in trackers]), first.kpoi_owner, first.n_robots)
     goals = goals_many(trackers)
-    remaining = remaining_many(trackers, true[..., :2], goals)
+    remaining = remaining_many(trackers, true_xy, goals)
     states = [w.score_state for w in worlds]
     gained = rows([st.remaining for st in states]) - remaining
     wall, robot = gather([w.world.wall_contacts for w in worlds]), gather([w.world.robot_contacts for w in worlds])
@@ -106,8 +107,8 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     record_steps([w.metrics for w in worlds], before, true, times=times, progress=trackers, estimates=est,
                  new_contacts=(new_wall, new_robot), teams=teams, formation=s.formation, kinects=first.kinects,
                  control_dt=s.physics.control_dt)
-    for w, poses in zip(worlds, true, strict=True):
+    for k, w in enumerate(worlds):
         if w.render_mode is not None:
-            for trail, p in zip(w.trails, poses, strict=True):
+            for trail, p in zip(w.trails, true[k], strict=True):
                 trail.append(p[:2].copy())
     return Scores(terms, goals[0])

@@ -156,8 +156,8 @@ def update_many(trackers: Sequence[RouteTracker], true_xy: np.ndarray, est_xy: n
     of each world ``(K,)`` int. Each tracker's ``visited``, ``visit_time`` and ``visitor`` are updated
     in place, its ``progress``, ``waypoint`` and ``advanced`` replaced (rows of ``(K, N)`` blocks)."""
     first, k = trackers[0], len(trackers)
-    visited, visit_time, visitor = (_rows([getattr(t, name) for t in trackers])
-                                    for name in ("visited", "visit_time", "visitor"))
+    visited, visit_time = _rows([t.visited for t in trackers]), _rows([t.visit_time for t in trackers])
+    visitor = _rows([t.visitor for t in trackers])
     n_new = progress_kernel.visits_many(first.kpois, np.ascontiguousarray(true_xy, dtype=float), first.kpoi_radius,
                                         np.asarray(times, dtype=float), visited, visit_time, visitor)
     progress, waypoint = _rows([t.progress for t in trackers]), _rows([t.waypoint for t in trackers])
