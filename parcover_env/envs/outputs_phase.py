@@ -12,11 +12,13 @@ array per world) except in a world whose episode ends this step, where they are 
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
+from parcover_env.envs.metrics import EpisodeMetrics
 from parcover_env.envs.obs_v2 import target_kpois
 from parcover_env.envs.score_phase import Scores, rows
 from parcover_env.geometry import wrap_angle
@@ -56,18 +58,11 @@ def infos(worlds: Sequence[Any], true: np.ndarray, terms: list[list[list[float]]
     est = rows([w.estimate for w in worlds])
     d = est[..., :2] - true[..., :2]
     columns = [np.hypot(d[..., 0], d[..., 1]).tolist(), np.abs(wrap_angle(est[..., 2] - true[..., 2])).tolist()]
-    reward_keys = tuple(f"reward_{t}" for t in first.terms)
-    keys = (*reward_keys, "pose_error", "heading_error")
-    base = dict.fromkeys(reward_keys, 0.0)
-    base.update(first.metrics.flat(ended=False))
-    base["pose_error"] = base["heading_error"] = 0.0
+    base, keys = _template(tuple(first.terms), first.version == 2, first.scanner is not None)
     if first.version == 2:
-        keys = (*keys, "route_done")
         visited = rows([w.progress.visited for w in worlds])
         columns.append(target_kpois(first.route_facts, visited)[1].astype(float).tolist())
     if first.scanner is not None:
-        base["sonar_fix"] = 0.0
-        keys = (*keys, "sonar_fix")
         columns.append(rows([w.scanner.outcome for w in worlds]).tolist())
     path_key = "metrics/path_lengths"
     out = []
@@ -83,3 +78,20 @@ def infos(worlds: Sequence[Any], true: np.ndarray, terms: list[list[list[float]]
             info.update(zip(keys, vals))
         out.append(world_infos)
     return out
+
+
+@functools.lru_cache(maxsize=16)
+def _template(terms: tuple[str, ...], route_done: bool, sonar_fix: bool) -> tuple[dict, tuple[str, ...]]:
+    """The info of an agent before its own values (zeros; ``metrics/path_lengths`` to be replaced by a
+    fresh array) and the keys of its own values, in order. Read only: copy it."""
+    reward_keys = tuple(f"reward_{t}" for t in terms)
+    keys = (*reward_keys, "pose_error", "heading_error")
+    base = dict.fromkeys(reward_keys, 0.0)
+    base.update(EpisodeMetrics(0, 0, 0.0, 0.0).flat(ended=False))
+    base["pose_error"] = base["heading_error"] = 0.0
+    if route_done:
+        keys = (*keys, "route_done")
+    if sonar_fix:
+        base["sonar_fix"] = 0.0
+        keys = (*keys, "sonar_fix")
+    return base, keys

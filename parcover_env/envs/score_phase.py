@@ -4,9 +4,8 @@ After the act phase has moved every world, :func:`score` tracks the mission, spl
 (Alg. 1), scores and records each world, gathering what it reads from the worlds into ``(K, N)``
 blocks and computing on the blocks:
 
-* route progress and KPOI visits: one compiled call each for all worlds
-  (:func:`parcover_env.scenarios.progress.update_many`), the route length to go likewise
-  (:func:`~parcover_env.scenarios.progress.remaining_many`);
+* route progress, KPOI visits, goals and the route length to go: one compiled call for all worlds
+  (:func:`parcover_env.scenarios.progress.step_many`);
 * the team update: waypoint messages counted over ``(K, N)``; only the worlds where a leader may
   have reached its TP run the (rare) Python split (:func:`parcover_env.envs.handover.update_teams`);
 * the reward terms as ``(K, N)`` arrays (:func:`parcover_env.envs.rewards.reward_terms`), returned
@@ -31,7 +30,7 @@ from parcover_env.envs.handover import update_teams
 from parcover_env.envs.metrics import record_steps
 from parcover_env.envs.rewards import own_visits, reward_terms
 from parcover_env.envs.team import count_waypoints_many
-from parcover_env.scenarios.progress import goals_many, remaining_many, update_many
+from parcover_env.scenarios.progress import step_many
 
 __all__ = ["ScoreState", "Scores", "score", "gather", "rows"]
 
@@ -82,7 +81,7 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     was = gather([t.visited for t in trackers])
     times = [w.world.time for w in worlds]
     true_xy = np.ascontiguousarray(true[..., :2])
-    n_new = update_many(trackers, true_xy, est[..., :2], times)
+    n_new, goals, remaining = step_many(trackers, true_xy, est[..., :2], times)
     velocity = (true_xy - before[..., :2]) / s.physics.control_dt
     for k, w in enumerate(worlds):
         w.true_velocity = velocity[k]
@@ -94,8 +93,6 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     if first.version == 2:
         visited = rows([t.visited for t in trackers])
         own = own_visits(visited & ~was, rows([t.visitor for t in trackers]), first.kpoi_owner, first.n_robots)
-    goals = goals_many(trackers)
-    remaining = remaining_many(trackers, true_xy, goals)
     states = [w.score_state for w in worlds]
     gained = rows([st.remaining for st in states]) - remaining
     wall, robot = gather([w.world.wall_contacts for w in worlds]), gather([w.world.robot_contacts for w in worlds])
@@ -111,4 +108,4 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
         if w.render_mode is not None:
             for trail, p in zip(w.trails, true[k], strict=True):
                 trail.append(p[:2].copy())
-    return Scores(terms, goals[0])
+    return Scores(terms, goals)

@@ -1,9 +1,9 @@
 """Route progress of one episode: KPOIs visited, and each robot's progress along its planned route.
 
-:class:`RouteTracker` is one world's tracker; :func:`update_many`, :func:`goals_many` and
-:func:`remaining_many` run the trackers of ``K`` worlds of one mission (the same KPOIs and routes)
-in one compiled call each, world ``k`` getting bit for bit what its tracker alone would
-(``RouteTracker.update`` is the one-world call of :func:`update_many`).
+:class:`RouteTracker` is one world's tracker; :func:`step_many` (and :func:`update_many`, the part
+of it that changes the trackers) and :func:`goals_many` run the trackers of ``K`` worlds of one
+mission (the same KPOIs and routes) in one compiled call, world ``k`` getting bit for bit what its
+tracker alone would (``RouteTracker.update`` is the one-world call of :func:`update_many`).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import numpy as np
 from parcover_env.geometry.records import record
 from parcover_env.scenarios import progress_kernel
 
-__all__ = ["RouteTracker", "RouteTable", "update_many", "goals_many", "remaining_many"]
+__all__ = ["RouteTracker", "RouteTable", "ProgressStep", "step_many", "update_many", "goals_many"]
 
 
 class RouteTable(NamedTuple):
@@ -149,31 +149,44 @@ def _rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
     return arrays[0][None] if len(arrays) == 1 else np.array(arrays)
 
 
-def update_many(trackers: Sequence[RouteTracker], true_xy: np.ndarray, est_xy: np.ndarray,
-                times: Sequence[float]) -> np.ndarray:
-    """:meth:`RouteTracker.update` of the trackers of ``K`` worlds of one mission at once: true and
-    estimated positions ``(K, N, 2)``, the worlds' ``times (K,)``; returns the newly visited KPOIs
-    of each world ``(K,)`` int. Each tracker's ``visited``, ``visit_time`` and ``visitor`` are updated
-    in place, its ``progress``, ``waypoint`` and ``advanced`` replaced (rows of ``(K, N)`` blocks)."""
+class ProgressStep(NamedTuple):
+    """What :func:`step_many` gives back besides the trackers' new state."""
+
+    n_new: np.ndarray
+    """``(K,)`` int: KPOIs newly visited in each world."""
+    goals: np.ndarray
+    """``(K, N, 2)``: each robot's lookahead goal point at its new progress (:meth:`RouteTracker.goals`)."""
+    remaining: np.ndarray
+    """``(K, N)``: route length to go from the true positions (m, :meth:`RouteTracker.remaining`)."""
+
+
+def step_many(trackers: Sequence[RouteTracker], true_xy: np.ndarray, est_xy: np.ndarray,
+              times: Sequence[float]) -> ProgressStep:
+    """:meth:`RouteTracker.update` of the trackers of ``K`` worlds of one mission at once (true and
+    estimated positions ``(K, N, 2)``, the worlds' ``times (K,)``), then their goals and the route
+    length to go from the true positions, in one compiled call. Each tracker's ``visited``,
+    ``visit_time`` and ``visitor`` are updated in place, its ``progress``, ``waypoint`` and ``advanced``
+    replaced (rows of ``(K, N)`` blocks)."""
     first, k = trackers[0], len(trackers)
     visited, visit_time = _rows([t.visited for t in trackers]), _rows([t.visit_time for t in trackers])
-    visitor = _rows([t.visitor for t in trackers])
-    n_new = progress_kernel.visits_many(first.kpois, np.ascontiguousarray(true_xy, dtype=float), first.kpoi_radius,
-                                        np.asarray(times, dtype=float), visited, visit_time, visitor)
-    progress, waypoint = _rows([t.progress for t in trackers]), _rows([t.waypoint for t in trackers])
-    if len(first.routes):
-        t = first.table
-        new_progress, new_waypoint = progress_kernel.advance_many(
-            np.ascontiguousarray(est_xy, dtype=float), progress, waypoint, t.length, t.arc, t.must, t.pts, t.e, t.ee,
-            t.seg_len, first.rules)
-    else:
-        new_progress, new_waypoint = progress.copy(), waypoint.copy()
+    visitor, waypoint = _rows([t.visitor for t in trackers]), _rows([t.waypoint for t in trackers])
+    state = progress_kernel.TrackerRows(visited, visit_time, visitor, _rows([t.progress for t in trackers]), waypoint)
+    n_new, new_progress, new_waypoint, goal, remaining = progress_kernel.step_many(
+        first.kpois, first.kpoi_radius, np.ascontiguousarray(true_xy, dtype=float),
+        np.ascontiguousarray(est_xy, dtype=float), np.asarray(times, dtype=float), state, first.table, first.rules,
+        first.lookahead)
     advanced = new_waypoint != waypoint
     for j, tr in enumerate(trackers):
         if k > 1 and n_new[j]:  # K = 1: the kernel wrote into the tracker's own arrays
             tr.visited[:], tr.visit_time[:], tr.visitor[:] = visited[j], visit_time[j], visitor[j]
         tr.progress, tr.waypoint, tr.advanced = new_progress[j], new_waypoint[j], advanced[j]
-    return n_new
+    return ProgressStep(n_new, goal, remaining)
+
+
+def update_many(trackers: Sequence[RouteTracker], true_xy: np.ndarray, est_xy: np.ndarray,
+                times: Sequence[float]) -> np.ndarray:
+    """The trackers' part of :func:`step_many`: the newly visited KPOIs of each world ``(K,)`` int."""
+    return step_many(trackers, true_xy, est_xy, times).n_new
 
 
 def goals_many(trackers: Sequence[RouteTracker]) -> tuple[np.ndarray, np.ndarray]:
@@ -183,14 +196,6 @@ def goals_many(trackers: Sequence[RouteTracker]) -> tuple[np.ndarray, np.ndarray
     t = first.table
     return progress_kernel.goals_many(_rows([tr.progress for tr in trackers]), first.lookahead, t.length, t.arc,
                                       t.must, t.arc_end, t.pts)
-
-
-def remaining_many(trackers: Sequence[RouteTracker], xy: np.ndarray,
-                   goals: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """:meth:`RouteTracker.remaining` of ``K`` worlds of one mission from ``xy (K, N, 2)``: ``(K, N)`` m.
-    ``goals``: their :func:`goals_many`, if already computed."""
-    g, s = goals_many(trackers) if goals is None else goals
-    return np.hypot(g[..., 0] - xy[..., 0], g[..., 1] - xy[..., 1]) + (trackers[0].table.arc_end - s)
 
 
 def _padded(routes: list[np.ndarray], arcs: list[np.ndarray], musts: list[np.ndarray]) -> RouteTable:

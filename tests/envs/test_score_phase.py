@@ -19,7 +19,7 @@ from parcover_env.envs.metrics import EpisodeMetrics, formation_errors, formatio
 from parcover_env.envs.observations import ScalarInputs
 from parcover_env.envs.rewards import own_visits, reward_terms
 from parcover_env.envs.team import Team, count_waypoints_many
-from parcover_env.scenarios.progress import RouteTracker, goals_many, remaining_many, update_many
+from parcover_env.scenarios.progress import RouteTracker, goals_many, step_many, update_many
 
 ROUTE = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.5], [2.0, 0.0], [4.0, 0.0]])
 KPOIS = np.array([[2.0, 1.5], [4.0, 0.0]])
@@ -47,15 +47,14 @@ def test_update_many_is_each_tracker_alone_and_visits_by_value():
     a1, b1 = copy.deepcopy(a), copy.deepcopy(b)
     true = np.array([[[2.0, 1.45], [0.5, 0.1]], [[0.4, 0.0], [0.2, 0.1]]])  # a's robot 0 reaches KPOI 0
     est = true + 0.01
-    n_new = update_many([a, b], true, est, [3.0, 4.0])
+    n_new, goal, rem = step_many([a, b], true, est, [3.0, 4.0])
     assert n_new.tolist() == [1, 0]
     assert a1.update(true[0], est[0], 3.0) == 1 and b1.update(true[1], est[1], 4.0) == 0
     assert _same(_state(a), _state(a1)) and _same(_state(b), _state(b1))
     assert a.visited.tolist() == [True, False] and a.visit_time[0] == 3.0 and a.visitor.tolist() == [0, -1]
-    goal, s = goals_many([a, b])
-    assert np.array_equal(goal, np.stack([a1.goals(), b1.goals()]))
-    rem = remaining_many([a, b], true)
+    assert np.array_equal(goal, np.stack([a1.goals(), b1.goals()])) and np.array_equal(goal, goals_many([a, b])[0])
     assert np.array_equal(rem, np.stack([a1.remaining(true[0]), b1.remaining(true[1])]))
+    assert update_many([a], true[:1], est[:1], [5.0]).tolist() == [0] and a.visit_time[0] == 3.0
     # robot 0 of b at (0.4, 0): goal 0.4 m ahead on the route, at (0.8, 0); route length 2 + 1.5 * 2 + 2 = 7 m
     assert rem[1, 0] == pytest.approx(0.4 + (7.0 - 0.8))
 
