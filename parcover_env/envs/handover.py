@@ -66,11 +66,10 @@ def update_team(team: Team, kinects: KinectSystem | None, estimate: np.ndarray, 
 def update_teams(teams: Sequence[Team], kinects: Sequence[KinectSystem | None], estimates: np.ndarray,
                  plan_progress: np.ndarray, views: Sequence[CameraView | None]) -> None:
     """:func:`update_team` of the teams of ``K`` worlds of one mission (one ``tol``; estimates
-    ``(K, N, 3)``, plan progress ``(K, N)``), run
-    only for the worlds where a leader heading for a TP (:attr:`Team.tp_ahead`) has passed its
-    distance, or its estimate or this step's Kinect fix lies within the team's ``tol`` of it (one
-    compiled test of all worlds, widened by :data:`SPLIT_MARGIN`): in every other world
-    :meth:`Team.update` would not split (its tests are a subset)."""
+    ``(K, N, 3)``, plan progress ``(K, N)``), run only for the worlds where a leader heading for a
+    TP (:attr:`Team.tp_ahead`) has passed its distance, or its estimate or this step's Kinect fix lies
+    within ``tol`` of it (one compiled test of all worlds, widened by :data:`SPLIT_MARGIN`): in every
+    other world :meth:`Team.update` would not split (its tests are a subset)."""
     from parcover_env.envs import step_kernels
 
     k = len(teams)

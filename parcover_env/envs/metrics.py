@@ -207,13 +207,15 @@ def record_steps(metrics: Sequence[EpisodeMetrics], before: np.ndarray, true: np
     seen = (kinects.in_view(true[leader][:, :2]) if kinects is not None
             else np.zeros(int(np.count_nonzero(leader)), dtype=bool))
     unseen = np.bincount(np.nonzero(leader)[0][~seen], minlength=k_worlds).tolist()
+    visited = _rows([p.visited for p in progress])
+    n_visited, done = np.add.reduce(visited, axis=1, dtype=np.int64).tolist(), visited.all(axis=1).tolist()
     for k, (m, prog, team, f) in enumerate(zip(metrics, progress, teams, n_followers.tolist(), strict=True)):
         m.path_lengths = paths[k]
-        m.add_step(times[k], int(prog.visited.sum()), sq_err[k], n, wall[k], robot[k] // 2)
+        m.add_step(times[k], n_visited[k], sq_err[k], n, wall[k], robot[k] // 2)
         if f:
             m.add_formation(float(dl[k, :f] @ dl[k, :f]), float(dpsi[k, :f] @ dpsi[k, :f]), f)
         m.messages = dict(sorted(team.messages.items()))
         m.kinect_splits, m.odometry_splits = team.splits["kinect"], team.splits["odometry"]
         m.unseen_leader_time += control_dt * unseen[k]
-        if m.makespan is None and prog.done:
+        if m.makespan is None and done[k]:
             m.makespan = float(np.nanmax(prog.visit_time))

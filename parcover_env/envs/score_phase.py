@@ -9,7 +9,7 @@ blocks and computing on the blocks:
 * the team update: waypoint messages counted over ``(K, N)``; only the worlds where a leader may
   have reached its TP run the (rare) Python split (:func:`parcover_env.envs.handover.update_teams`);
 * the reward terms as ``(K, N)`` arrays (:func:`parcover_env.envs.rewards.reward_terms`), returned
-  in a :class:`Scores` for the outputs phase;
+  in a :class:`Scores` for the outputs phase (with the goal points, for the observations);
 * the metrics of all worlds in one call (:func:`parcover_env.envs.metrics.record_steps`).
 
 Results go back into each world's own objects (trackers, teams, metrics, :class:`ScoreState`), so
@@ -73,7 +73,7 @@ class Scores(NamedTuple):
 
 def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores:
     """Part 1b of the ``K`` worlds at true poses ``before`` and ``true`` ``(K, N, 3)`` (see the module
-    docstring); returns their reward terms."""
+    docstring); returns their reward terms and goal points."""
     first = worlds[0]
     s = first.scenario
     trackers, teams = [w.progress for w in worlds], [w.team for w in worlds]

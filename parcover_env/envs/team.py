@@ -125,5 +125,5 @@ class Team:
 
 def count_waypoints_many(teams: list[Team], advanced: np.ndarray, leader: np.ndarray) -> None:
     """:meth:`Team.count_waypoints` of ``K`` teams: ``advanced`` and the teams' ``leader`` flags ``(K, N)``."""
-    for team, n in zip(teams, (advanced & leader).sum(axis=1).tolist(), strict=True):
+    for team, n in zip(teams, np.add.reduce(advanced & leader, axis=1, dtype=np.int64).tolist(), strict=True):
         team.messages["waypoint"] += n
