@@ -14,12 +14,13 @@ from layout_helpers import layout_of
 
 import parcover_env
 from parcover_env.envs import outputs_phase, score_phase, step_kernels, stepper
-from parcover_env.envs.handover import update_team, update_teams
+from parcover_env.envs.handover import CameraView, update_team, update_teams
 from parcover_env.envs.metrics import EpisodeMetrics, formation_errors, formation_errors_many, record_step, record_steps
 from parcover_env.envs.observations import ScalarInputs
 from parcover_env.envs.rewards import own_visits, reward_terms
 from parcover_env.envs.team import Team, count_waypoints_many
 from parcover_env.scenarios.progress import RouteTracker, goals_many, step_many, update_many
+from parcover_env.sensors.relative import RelativeReading
 
 ROUTE = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.5], [2.0, 0.0], [4.0, 0.0]])
 KPOIS = np.array([[2.0, 1.5], [4.0, 0.0]])
@@ -98,13 +99,18 @@ def test_update_teams_splits_exactly_the_worlds_update_team_splits():
     kin = [RecordingKinects(), RecordingKinects(), RecordingKinects({0: np.array([*tp.position, 0.0])})]
     ref = [copy.deepcopy(t) for t in (t_far, t_at, t_fix)]
     ref_kin = copy.deepcopy(kin)
-    update_teams([t_far, t_at, t_fix], kin, est, progress, [None] * 3)
-    for team, k, e in zip(ref, ref_kin, est, strict=True):
-        update_team(team, k, e, np.zeros(2), None)
+    reading = RelativeReading(np.array([[0.0, 0.0], [0.5, 0.0]]), np.zeros(2), np.array([False, True]))
+    views = [CameraView(np.array([-1, 0]), reading, e.copy()) for e in est]
+    update_teams([t_far, t_at, t_fix], kin, est, progress, views)
+    for team, k, e, v in zip(ref, ref_kin, est, views, strict=True):
+        update_team(team, k, e, np.zeros(2), v)
     assert [t.groups for t in (t_far, t_at, t_fix)] == [t.groups for t in ref] == [[(0, 2)], [(0, 1), (1, 2)],
                                                                                    [(0, 1), (1, 2)]]
     assert t_fix.splits == {"kinect": 1} and t_at.splits == {"odometry": 1}
     assert kin[0].asked == 0  # far from its TP, no fix: the world was not even looked at
+    # the promoted robot 1 is handed over 0.5 m behind its leader, where its camera view puts it
+    assert [len(k.handed) for k in kin] == [len(k.handed) for k in ref_kin] == [0, 1, 1]
+    assert kin[1].handed[0].keys() == {1} and kin[1].handed[0][1][0] == pytest.approx(tp.position[0] - 0.5)
 
 
 def test_may_split_by_distance_estimate_and_fix():
