@@ -8,7 +8,8 @@ measured in a fresh process per model and K (so that no freed memory of an earli
 its RSS growth from building, resetting and stepping the K worlds 5 times, over K, after a K = 1
 run loaded the imports and compiled kernels. Per model at the largest K, the breakdown of a
 world-step (physics = each world's ``World.step``, sonar = the rings' draws and their one compiled
-call, the rest = everything else), timed in a separate run with wrapped calls. The issue's K = 64
+call, score and outputs = those stepper phases of all worlds, the rest = everything else), timed in
+a separate run with wrapped calls. The issue's K = 64
 targets are printed beside the figures, met or not, from a paired run (specular K = 1 and 64, fast
 K = 64 and VMAS 64 built together and timed in turn, at least 3 times); a single ``tree`` env and
 MPE2 ``simple_spread`` N = 10 are measured here, alternately, for the single-env target.
@@ -90,7 +91,11 @@ def _row(model: str, k: int, steps: int, repeats: int) -> dict:
 
 
 def breakdown(model: str, k: int, steps: int) -> dict:
-    """Microseconds per world-step of physics, sonar and the rest, batched ``tree`` at ``k`` worlds."""
+    """Microseconds per world-step of physics, sonar, the stepper's score and outputs phases (all
+    worlds at once) and the rest, batched ``tree`` at ``k`` worlds."""
+    from parcover_env.envs import stepper
+
+    phases = {name: getattr(stepper, name) for name in ("score", "outputs")}
     venv = _venv(model, k)
     try:
         run = VecRunner(venv)
@@ -103,18 +108,24 @@ def breakdown(model: str, k: int, steps: int) -> dict:
                 seen.add(id(w.sonar))
                 clock.wrap(w.sonar, "draw", "sonar")
                 clock.wrap(w.sonar, "readings", "sonar")
+        for name in phases:
+            clock.wrap(stepper, name, name)
         t0 = time.perf_counter()
         for i in range(steps):
             run(i)
         total = time.perf_counter() - t0
     finally:
+        for name, fn in phases.items():
+            setattr(stepper, name, fn)
         venv.close()
     per = 1e6 / (steps * k)
-    out = {"model": model, "K": k, "total_us": total * per, "physics_us": clock.total.get("physics", 0.0) * per,
-           "sonar_us": clock.total.get("sonar", 0.0) * per}
-    out["rest_us"] = out["total_us"] - out["physics_us"] - out["sonar_us"]
+    out = {"model": model, "K": k, "total_us": total * per}
+    for part in ("physics", "sonar", *phases):
+        out[f"{part}_us"] = clock.total.get(part, 0.0) * per
+    out["rest_us"] = out["total_us"] - sum(out[f"{part}_us"] for part in ("physics", "sonar", *phases))
     print(f"  breakdown {model:8s} K={k:4d}: {out['total_us']:7.1f} us/world-step = physics {out['physics_us']:6.1f} "
-          f"+ sonar {out['sonar_us']:6.1f} + rest {out['rest_us']:6.1f} (wrapped calls)", flush=True)
+          f"+ sonar {out['sonar_us']:6.1f} + score {out['score_us']:6.1f} + outputs {out['outputs_us']:6.1f} "
+          f"+ rest {out['rest_us']:6.1f} (wrapped calls)", flush=True)
     return out
 
 

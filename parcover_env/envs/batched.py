@@ -128,12 +128,16 @@ class BatchedVecEnv(VecEnv):
         infos: list[dict] = []
         for k, (rew, term, trunc, inf) in enumerate(outs):
             o, rows = world_obs[k], slice(k * n, (k + 1) * n)
-            rewards[rows] = [rew[a] for a in names]
+            rewards[rows] = list(rew.values())  # the world's agents, in order
             t, tr = term[names[0]], trunc[names[0]]  # all robots of a world end together
-            infos += [stepper.slot_info(inf[a], o[i], t, tr) for i, a in enumerate(names)]
             if t or tr:
+                infos += [stepper.slot_info(inf[a], o[i], t, tr) for i, a in enumerate(names)]
                 dones[rows] = True
                 o = self._reset_world(k)
+            else:  # stepper.slot_info of a running episode: no metrics yet, only ``active``
+                for info in inf.values():
+                    info["active"] = True
+                infos += inf.values()
             obs[rows] = o
         return obs, rewards, dones, infos
 

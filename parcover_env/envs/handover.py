@@ -7,10 +7,16 @@ no fix yet: the Kinect system locates it by the formation, i.e. the pose of the 
 composed with the follower camera's last measurement of it (:func:`handover_poses`). That
 measurement is an explicit input here (:class:`CameraView`, what the stepper's last ``observe``
 measured), not state read behind the caller's back.
+
+:func:`update_teams` does this for ``K`` worlds: a few array operations over ``(K, N)`` find the
+worlds where some group leader may have reached its TP (by its estimate, its plan progress or a
+Kinect fix this step); only those run :func:`update_team` (splits are rare events), the others
+would not change.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -19,7 +25,11 @@ from parcover_env.envs.team import Team
 from parcover_env.localization.kinect.system import KinectSystem, handover_poses
 from parcover_env.sensors.relative import RelativeReading
 
-__all__ = ["CameraView", "update_team"]
+__all__ = ["CameraView", "SPLIT_MARGIN", "update_team", "update_teams"]
+
+SPLIT_MARGIN = 1e-9
+"""How much :func:`update_teams` widens its tests (m) so that a last-bit difference between its
+compiled distances and :meth:`Team.update`'s numpy ones can never skip a split."""
 
 
 class CameraView(NamedTuple):
@@ -51,3 +61,27 @@ def update_team(team: Team, kinects: KinectSystem | None, estimate: np.ndarray, 
         rel = view.reading
         kinects.hand_over(handover_poses(promoted, view.predecessor, rel.rel_xy, rel.rel_heading, rel.visible,
                                          view.estimates), view.estimates)
+
+
+def update_teams(teams: Sequence[Team], kinects: Sequence[KinectSystem | None], estimates: np.ndarray,
+                 plan_progress: np.ndarray, views: Sequence[CameraView | None]) -> None:
+    """:func:`update_team` of the teams of ``K`` worlds of one mission (one ``tol``; estimates
+    ``(K, N, 3)``, plan progress ``(K, N)``), run only for the worlds where a leader heading for a
+    TP (:attr:`Team.tp_ahead`) has passed its distance, or its estimate or this step's Kinect fix lies
+    within ``tol`` of it (one compiled test of all worlds, widened by :data:`SPLIT_MARGIN`): in every
+    other world :meth:`Team.update` would not split (its tests are a subset)."""
+    from parcover_env.envs import step_kernels
+
+    k = len(teams)
+    tp = teams[0].tp_ahead[None] if k == 1 else np.array([t.tp_ahead for t in teams])
+    fix = np.full((*tp.shape[:2], 2), np.nan)
+    for j, kin in enumerate(kinects):
+        if kin is not None:
+            for i, pose in kin.last_fixes.items():
+                fix[j, i] = pose[:2]
+    maybe = step_kernels.may_split(tp, np.ascontiguousarray(estimates, dtype=float),
+                                   np.ascontiguousarray(plan_progress, dtype=float), fix, float(teams[0].tol),
+                                   SPLIT_MARGIN)
+    for j, m in enumerate(maybe.tolist()):
+        if m:
+            update_team(teams[j], kinects[j], estimates[j], plan_progress[j], views[j])

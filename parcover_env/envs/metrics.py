@@ -4,18 +4,26 @@ Infos are flat (scalars and arrays only, the same keys at reset and at every ste
 PettingZoo wrapper builds its spec from the reset infos). ``metrics/*`` entries are 0 (and
 ``metrics/ended`` is 0) until the step that ends the episode; :func:`episode_metrics` turns an
 info back into the metrics dict.
+
+:func:`record_steps` adds one step to the metrics of ``K`` worlds: the per-robot quantities (path
+steps, localization and formation errors, leaders out of the Kinects' view) as ``(K, N)`` arrays in
+a few calls, then each world's scalars; :func:`record_step` is its one-world call. The sums keep the
+one-world operations (numpy's pairwise summation of the squared errors, the same BLAS dot of each
+world's followers), so the metrics are the same floats.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from parcover_env.geometry import wrap_angle
 
-__all__ = ["EpisodeMetrics", "formation_errors", "MESSAGE_KINDS", "METRICS_PREFIX", "episode_metrics", "record_step"]
+__all__ = ["EpisodeMetrics", "formation_errors", "formation_errors_many", "MESSAGE_KINDS", "METRICS_PREFIX",
+           "episode_metrics", "record_step", "record_steps"]
 
 MESSAGE_KINDS = ("split", "promotion", "waypoint", "pose")
 """Kinds of message the Kinect system sends (counted in ``messages``)."""
@@ -25,14 +33,21 @@ METRICS_PREFIX = "metrics/"
 def formation_errors(poses: np.ndarray, predecessor: np.ndarray, offset: float, l_d: float,
                      psi_d: float) -> tuple[np.ndarray, np.ndarray]:
     """(l - l_d, wrap(psi - psi_d)) of every follower from true poses (Min et al. / Das et al. l-psi)."""
+    dl, dpsi, n = formation_errors_many(np.asarray(poses, dtype=float)[None], np.asarray(predecessor)[None], offset,
+                                        l_d, psi_d)
+    return dl[0, :n[0]], dpsi[0, :n[0]]
+
+
+def formation_errors_many(poses: np.ndarray, predecessor: np.ndarray, offset: float, l_d: float,
+                          psi_d: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`formation_errors` of ``K`` worlds: true poses ``(K, N, 3)``, ``predecessor (K, N)``.
+    Returns ``dl, dpsi (K, N)``, world ``k``'s followers in its first ``n[k]`` columns (0 after), and ``n (K,)``."""
     from parcover_env.envs import step_kernels
 
-    predecessor = np.ascontiguousarray(predecessor, dtype=np.int64)
-    n = int(np.count_nonzero(predecessor >= 0))
-    dl, dpsi = np.empty(n), np.empty(n)
-    step_kernels.formation_errors(np.ascontiguousarray(poses, dtype=float), predecessor, float(offset), float(l_d),
-                                  float(psi_d), dl, dpsi)
-    return dl, wrap_angle(dpsi)
+    dl, dpsi, n = step_kernels.formation_errors_many(np.ascontiguousarray(poses, dtype=float),
+                                                     np.ascontiguousarray(predecessor, dtype=np.int64), float(offset),
+                                                     float(l_d), float(psi_d))
+    return dl, wrap_angle(dpsi), n
 
 
 @dataclass
@@ -69,24 +84,34 @@ class EpisodeMetrics:
     _sq_form: tuple[float, float, int] = (0.0, 0.0, 0)
 
     def record_formation(self, dl: np.ndarray, dpsi: np.ndarray) -> None:
+        """Add one step's formation errors ``l - l_d`` and ``psi - psi_d`` of the followers ``(n,)``."""
+        self.add_formation(float(dl @ dl), float(dpsi @ dpsi), len(dl))
+
+    def add_formation(self, sq_l: float, sq_psi: float, n_new: int) -> None:
+        """Add one step's sums of squared formation errors (m^2, rad^2) over its ``n_new`` followers."""
         sl, sp, n = self._sq_form
-        self._sq_form = (sl + float(dl @ dl), sp + float(dpsi @ dpsi), n + len(dl))
-        sl, sp, n = self._sq_form
+        self._sq_form = sl, sp, n = (sl + sq_l, sp + sq_psi, n + n_new)
         if n:
-            self.formation_error_l = float(np.sqrt(sl / n))
-            self.formation_error_psi = float(np.sqrt(sp / n))
+            self.formation_error_l = math.sqrt(sl / n)
+            self.formation_error_psi = math.sqrt(sp / n)
 
     def record_step(self, time: float, kpois_visited: int, true_poses: np.ndarray,
                     est_poses: np.ndarray, wall: int, robot: int) -> None:
+        """Add one step: its time, KPOIs visited, new contacts and the estimates' errors ``(N,)``."""
+        err = true_poses[:, :2] - est_poses[:, :2]
+        self.add_step(time, kpois_visited, float(np.sum(err * err)), len(err), wall, robot)
+
+    def add_step(self, time: float, kpois_visited: int, sq_err: float, n_err: int, wall: int, robot: int) -> None:
+        """Add one step: its time, KPOIs visited, the sum of squared position errors (m^2) of its
+        ``n_err`` estimates, and its new wall and robot contacts."""
         self.steps += 1
         self.time = time
         self.kpois_visited = kpois_visited
         self.wall_collisions += wall
         self.robot_collisions += robot
-        err = true_poses[:, :2] - est_poses[:, :2]
-        self._sq_err += float(np.sum(err * err))
-        self._n_err += len(err)
-        self.localization_error = float(np.sqrt(self._sq_err / max(self._n_err, 1)))
+        self._sq_err += sq_err
+        self._n_err += n_err
+        self.localization_error = math.sqrt(self._sq_err / max(self._n_err, 1))
 
     def summary(self) -> dict:
         """Plain-dict summary (JSON-friendly)."""
@@ -148,18 +173,49 @@ def record_step(m: EpisodeMetrics, before: np.ndarray, true: np.ndarray, *, time
     visited, localization error, new wall / robot contacts (``new_contacts``; a robot-robot contact
     counts for both robots, so halved), formation errors (l-psi, true poses), the team's messages and
     splits, the time leaders spend outside every Kinect footprint, and the makespan once ``progress``
-    is done (the last KPOI's visit time)."""
-    step = np.hypot(true[:, 0] - before[:, 0], true[:, 1] - before[:, 1]).tolist()
-    m.path_lengths = [total + d for total, d in zip(m.path_lengths, step, strict=True)]
-    m.record_step(time, int(progress.visited.sum()), true, estimate, int(new_contacts[0].sum()),
-                  int(new_contacts[1].sum()) // 2)
-    dl, dpsi = formation_errors(true, team.predecessor, formation.offset, formation.spacing,
-                                math.radians(formation.bearing_deg))
-    m.record_formation(dl, dpsi)
-    m.messages = dict(sorted(team.messages.items()))
-    m.kinect_splits, m.odometry_splits = team.splits["kinect"], team.splits["odometry"]
-    leaders = true[team.leader, :2]
-    seen = kinects.in_view(leaders) if kinects is not None else np.zeros(len(leaders), bool)
-    m.unseen_leader_time += control_dt * int(np.count_nonzero(~seen))
-    if progress.done and m.makespan is None:
-        m.makespan = float(np.nanmax(progress.visit_time))
+    is done (the last KPOI's visit time). The one-world call of :func:`record_steps`."""
+    record_steps([m], before[None], true[None], times=[time], progress=[progress], estimates=estimate[None],
+                 new_contacts=(new_contacts[0][None], new_contacts[1][None]), teams=[team], formation=formation,
+                 kinects=kinects, control_dt=control_dt)
+
+
+def _rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
+    """``(K, N)`` block of ``K`` worlds' ``(N,)`` arrays, to read (a view for ``K = 1``)."""
+    return arrays[0][None] if len(arrays) == 1 else np.array(arrays)
+
+
+def record_steps(metrics: Sequence[EpisodeMetrics], before: np.ndarray, true: np.ndarray, *, times: Sequence[float],
+                 progress: Sequence, estimates: np.ndarray, new_contacts: tuple[np.ndarray, np.ndarray],
+                 teams: Sequence, formation, kinects, control_dt: float) -> None:
+    """:func:`record_step` of ``K`` worlds of one scenario: their metrics, true poses ``before`` and
+    ``true`` ``(K, N, 3)``, ``times``, route trackers (``progress``), estimates ``(K, N, 3)``, new
+    wall and robot contacts ``(K, N)``, teams; ``kinects`` answers ``in_view`` for every world (the
+    footprints are the scenario's) or is None."""
+    from parcover_env.envs import step_kernels
+
+    k_worlds, n = true.shape[:2]
+    paths, sq_err = step_kernels.path_and_error_sums(
+        np.ascontiguousarray(before, dtype=float), np.ascontiguousarray(true, dtype=float),
+        np.ascontiguousarray(estimates, dtype=float),
+        np.array([m.path_lengths for m in metrics], dtype=float).reshape(k_worlds, n))
+    paths, sq_err = paths.tolist(), sq_err.tolist()
+    wall, robot = new_contacts[0].sum(axis=1).tolist(), new_contacts[1].sum(axis=1).tolist()
+    predecessor = _rows([t.predecessor for t in teams])
+    dl, dpsi, n_followers = formation_errors_many(true, predecessor, formation.offset, formation.spacing,
+                                                  math.radians(formation.bearing_deg))
+    leader = _rows([t.leader for t in teams])
+    seen = (kinects.in_view(true[leader][:, :2]) if kinects is not None
+            else np.zeros(int(np.count_nonzero(leader)), dtype=bool))
+    unseen = np.bincount(np.nonzero(leader)[0][~seen], minlength=k_worlds).tolist()
+    visited = _rows([p.visited for p in progress])
+    n_visited, done = np.add.reduce(visited, axis=1, dtype=np.int64).tolist(), visited.all(axis=1).tolist()
+    for k, (m, prog, team, f) in enumerate(zip(metrics, progress, teams, n_followers.tolist(), strict=True)):
+        m.path_lengths = paths[k]
+        m.add_step(times[k], n_visited[k], sq_err[k], n, wall[k], robot[k] // 2)
+        if f:
+            m.add_formation(float(dl[k, :f] @ dl[k, :f]), float(dpsi[k, :f] @ dpsi[k, :f]), f)
+        m.messages = dict(sorted(team.messages.items()))
+        m.kinect_splits, m.odometry_splits = team.splits["kinect"], team.splits["odometry"]
+        m.unseen_leader_time += control_dt * unseen[k]
+        if m.makespan is None and done[k]:
+            m.makespan = float(np.nanmax(prog.visit_time))

@@ -20,7 +20,8 @@ SCALAR_ENTRIES = KERNEL_ENTRIES
 
 
 class ScalarInputs(NamedTuple):
-    """What :meth:`ObservationLayout.fill_scalars` reads, per robot ``(N, ...)`` and team-wide."""
+    """What :meth:`ObservationLayout.fill_scalars` reads, per robot ``(N, ...)`` and team-wide (for
+    :meth:`ObservationLayout.fill_scalars_many`, every field with a leading worlds axis ``K``)."""
 
     est: np.ndarray
     """Pose estimates ``(N, 3)``."""
@@ -95,7 +96,8 @@ class ObservationLayout:
         return spaces.Box(self.low, self.high, dtype=np.float32)
 
     def clip(self, obs: np.ndarray) -> np.ndarray:
-        """Clip ``(N, D)`` observations into the bounds in place (NaN stays NaN, as with ``np.clip``)."""
+        """Clip observations ``(..., D)`` (one world's ``(N, D)``, ``K`` worlds' ``(K, N, D)``) into the
+        bounds in place (NaN stays NaN, as with ``np.clip``)."""
         return np.minimum(np.maximum(obs, self.low, out=obs), self.high, out=obs)
 
     def fill_scalars(self, obs: np.ndarray, inputs: ScalarInputs) -> None:
@@ -103,12 +105,18 @@ class ObservationLayout:
         pass: the pose estimate, encoder velocity, leader flag, slot (scaled by ``N - 1``), seconds
         since the last fix (capped at :data:`MAX_FIX_AGE`), the ellipse of the covariance
         (:func:`ellipse_entries`), the lookahead goal in the robot frame, the follower camera's
-        reading and the two team-wide fractions."""
+        reading and the two team-wide fractions. The one-world call of :meth:`fill_scalars_many`."""
+        self.fill_scalars_many(obs[None], ScalarInputs(*(np.asarray(x)[None] for x in inputs)))
+
+    def fill_scalars_many(self, obs: np.ndarray, inputs: ScalarInputs) -> None:
+        """:meth:`fill_scalars` of ``K`` worlds in one compiled call: ``obs (K, N, D)``, every field of
+        ``inputs`` with a leading ``K`` axis (the two fractions ``(K,)``)."""
         from parcover_env.envs import step_kernels
 
         rows = step_kernels.RobotRows(*inputs[:10])
-        step_kernels.scalar_entries(obs, self.columns, rows, float(max(len(obs) - 1, 1)), MAX_FIX_AGE,
-                                    float(inputs.kpois_visited), float(inputs.time))
+        step_kernels.scalar_entries_many(obs, self.columns, rows, float(max(obs.shape[1] - 1, 1)), MAX_FIX_AGE,
+                                         np.asarray(inputs.kpois_visited, dtype=float),
+                                         np.asarray(inputs.time, dtype=float))
 
     @property
     def columns(self) -> np.ndarray:

@@ -10,18 +10,18 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from parcover_env.config import Scenario, deep_merge
-from parcover_env.envs import critic_state, stepper
+from parcover_env.envs import critic_state, outputs_phase, stepper
 from parcover_env.envs.actions import to_commands
 from parcover_env.envs.estimator import FixRequest, KinectFixes, PoseEstimator
 from parcover_env.envs.handover import CameraView, update_team
-from parcover_env.envs.metrics import EpisodeMetrics, record_step
+from parcover_env.envs.metrics import EpisodeMetrics
 from parcover_env.envs.obs_spec import markdown_table
 from parcover_env.envs.obs_v2 import route_facts, target_kpois
 from parcover_env.envs.observations import ObservationLayout, build_sensors
-from parcover_env.envs.rewards import own_visits, reward_terms, terms_for
+from parcover_env.envs.rewards import terms_for
+from parcover_env.envs.score_phase import ScoreState
 from parcover_env.envs.sonar_fixes import SonarFixes
 from parcover_env.envs.team import Team
-from parcover_env.geometry import wrap_angle
 from parcover_env.localization.kinect.system import KinectSystem
 from parcover_env.scenarios import load_scenario, mission_for
 from parcover_env.sensors.relative import RelativeCamera
@@ -200,11 +200,12 @@ class ParallelCoverageEnv(ParallelEnv):
         """The reward terms, in summing order (``info[agent]["reward_<term>"]``)."""
         self.route_facts = None
         """Version 2: the routes' static facts the v2 entries and ``state()`` read (``obs_v2.RouteFacts``)."""
+        self.kpoi_owner = self.plan.kpoi_owner()
+        """``(n_kpois,)`` the robot whose route the plan credits with each KPOI (``own_kpoi`` term)."""
         if self.version == 2:
             critic_state.check_maxima(s, self.n_robots)
             table = self.mission.tracker().table
             self.route_facts = route_facts(self.plan, table.pts, table.length, self.mission.kpois)
-            self._owner = self.plan.kpoi_owner()
             self.state_space = critic_state.state_space(s, self.map.bounds)
         else:
             self.state_space = critic_state.state_space_v1(self.map.bounds, self.n_robots, len(s.kpois))
@@ -254,17 +255,16 @@ class ParallelCoverageEnv(ParallelEnv):
         self.true_velocity = np.zeros((self.n_robots, 2))
         """True world-frame velocity ``(N, 2)``: the last step's displacement / control period (m/s)."""
         self.steps = 0
-        self._contacts = (np.zeros(self.n_robots, dtype=np.int64),) * 2
-        """Wall and robot contacts of each robot counted so far (``World.wall_contacts`` etc.)."""
-        self._remaining = self.progress.remaining(true[:, :2])
+        self.score_state = ScoreState.start(self.progress.remaining(true[:, :2]))
+        """What the stepper's score phase carries over between steps (route to go, contacts so far)."""
         self.metrics = EpisodeMetrics(len(s.kpois), self.n_robots, self.plan.c_max, s.robot.max_speed,
                                       path_lengths=[0.0] * self.n_robots)
         self.trails = [[p[:2].copy()] for p in true]
         self.progress.update(true[:, :2], self.estimate[:, :2], 0.0)
         update_team(self.team, self.kinects, self.estimate, self.progress.plan_progress, self.camera_view)
         obs = self._as_dict(stepper.observe([self], true[None])[0])
-        zeros = np.zeros(self.n_robots).tolist()
-        return obs, self._infos(true, [zeros] * len(self.terms), self.metrics.flat(ended=False))
+        zeros = [[0.0] * self.n_robots]
+        return obs, outputs_phase.infos([self], true[None], [zeros] * len(self.terms), [False])[0]
 
     def step(self, actions: dict[str, Any]):
         obs, ((rewards, terminations, truncations, infos),) = stepper.step([self], [actions])
@@ -298,78 +298,6 @@ class ParallelCoverageEnv(ParallelEnv):
             self.scanner.fixes(FixRequest(self.world.time, true, self.estimate.copy(), self.team.leader,
                                           self.estimator.covariance), self._rng)
         return before, true
-
-    def score(self, before: np.ndarray, true: np.ndarray) -> None:
-        """Stepper part 1b: track the mission, split and hand over (Alg. 1, from the cameras' last
-        ``camera_view``), score and record, for true poses ``before`` and ``true`` ``(N, 3)``."""
-        s = self.scenario
-        was = self.progress.visited.copy()
-        n_new = self.progress.update(true[:, :2], self.estimate[:, :2], self.world.time)
-        self.true_velocity = (true[:, :2] - before[:, :2]) / s.physics.control_dt
-        self.team.count_waypoints(self.progress.advanced)
-        update_team(self.team, self.kinects, self.estimate, self.progress.plan_progress, self.camera_view)
-        own = None if self.version == 1 else own_visits(self.progress.visited & ~was, self.progress.visitor,
-                                                                 self._owner, self.n_robots)
-        self._terms = self._rewards(true, n_new, own)
-        self._record(before, true)
-
-    def outputs(self, true: np.ndarray) -> tuple[dict, dict, dict, dict]:
-        """Stepper part 3: rewards, terminations, truncations and infos as PettingZoo dicts (the
-        episode's agents are cleared when it ends)."""
-        terms = self._terms
-        done = self.progress.done
-        truncated = self.steps >= self.scenario.episode.max_steps and not done
-        total = 0
-        for t in self.terms:  # summed in terms order, as sum() over the terms of each agent would
-            total = total + terms[t]
-        rewards = dict(zip(self.agents, total.tolist(), strict=True))
-        infos = self._infos(true, [terms[t].tolist() for t in self.terms], self.metrics.flat(ended=done or truncated))
-        terminations = {a: done for a in self.agents}
-        truncations = {a: truncated for a in self.agents}
-        if done or truncated:
-            self.agents = []
-        return rewards, terminations, truncations, infos
-
-    def _infos(self, true: np.ndarray, terms: list[list[float]], metrics: dict) -> dict[str, dict]:
-        """``info[agent]``: the reward terms (one list per :attr:`terms` entry), the episode
-        ``metrics`` entries, the estimate errors and (version 2) ``route_done``, in that key order
-        (each agent's dict a copy of one template, then its own values)."""
-        pos_err = np.hypot(*(self.estimate[:, :2] - true[:, :2]).T).tolist()
-        head_err = np.abs(wrap_angle(self.estimate[:, 2] - true[:, 2])).tolist()
-        reward_keys = tuple(f"reward_{t}" for t in self.terms)
-        template = dict.fromkeys(reward_keys, 0.0)
-        template.update(metrics)
-        template["pose_error"] = template["heading_error"] = 0.0
-        keys = (*reward_keys, "pose_error", "heading_error")
-        columns = [pos_err, head_err]
-        if self.version == 2:
-            keys = (*keys, "route_done")
-            columns.append(self.route_done().astype(float).tolist())
-        if self.scanner is not None:
-            template["sonar_fix"] = 0.0
-            keys = (*keys, "sonar_fix")
-            columns.append(self.scanner.outcome.tolist())
-        infos = {}
-        for a, *vals in zip(self.agents, *terms, *columns, strict=True):
-            info = infos[a] = template.copy()
-            info.update(zip(keys, vals))
-        return infos
-
-    # ------------------------------------------------------------------ step parts
-    def _rewards(self, true: np.ndarray, n_new: int, own: np.ndarray | None) -> dict[str, np.ndarray]:
-        remaining = self.progress.remaining(true[:, :2])
-        progress, self._remaining = self._remaining - remaining, remaining
-        (wall0, robot0), wall, robot = self._contacts, self.world.wall_contacts, self.world.robot_contacts
-        self._new_contacts, self._contacts = (wall - wall0, robot - robot0), (wall.copy(), robot.copy())
-        return reward_terms(self.scenario.rewards, n_new, progress, self._new_contacts[0] + self._new_contacts[1], own)
-
-    def _record(self, before: np.ndarray, true: np.ndarray) -> None:
-        record_step(self.metrics, before, true, time=self.world.time, progress=self.progress, estimate=self.estimate,
-                    new_contacts=self._new_contacts, team=self.team, formation=self.scenario.formation,
-                    kinects=self.kinects, control_dt=self.scenario.physics.control_dt)
-        if self.render_mode is not None:
-            for trail, p in zip(self.trails, true):
-                trail.append(p[:2].copy())
 
     # ------------------------------------------------------------------ extras
     @property

@@ -1,4 +1,8 @@
-"""Named reward terms. Each agent's reward is the sum of its terms; the terms go into ``info``."""
+"""Named reward terms. Each agent's reward is the sum of its terms; the terms go into ``info``.
+
+The functions take one world's ``(N,)`` arrays or ``K`` worlds' ``(K, N)`` blocks (the stepper's
+score phase scores every world in one call); the numbers are the same either way.
+"""
 
 from __future__ import annotations
 
@@ -24,14 +28,19 @@ def terms_for(version: int) -> tuple[str, ...]:
 def own_visits(newly: np.ndarray, visitor: np.ndarray, owner: np.ndarray, n_robots: int) -> np.ndarray:
     """KPOIs of its own route each robot visited this step ``(N,)``: ``newly (n_kpois,)`` bool the
     KPOIs first visited this step, ``visitor`` the robot that visited each, ``owner`` the robot
-    whose route the plan credits with each."""
+    whose route the plan credits with each. ``K`` worlds: ``newly`` and ``visitor`` ``(K, n_kpois)``,
+    the result ``(K, N)``."""
+    lead = newly.shape[:-1]
     mine = newly & (visitor == owner) & (visitor >= 0)
-    return np.bincount(visitor[mine], minlength=n_robots).astype(float)
+    world = np.arange(int(np.prod(lead, dtype=np.int64))).reshape(*lead, 1)
+    counts = np.bincount((visitor + n_robots * world)[mine], minlength=world.size * n_robots)
+    return counts.reshape(*lead, n_robots).astype(float)
 
 
-def reward_terms(w: RewardConfig, n_new_kpois: int, progress: np.ndarray,
+def reward_terms(w: RewardConfig, n_new_kpois, progress: np.ndarray,
                  new_contacts: np.ndarray, own_new: np.ndarray | None = None) -> dict[str, np.ndarray]:
-    """Weighted terms per agent ``{name: (N,)}``.
+    """Weighted terms per agent ``{name: (N,)}`` (or ``(K, N)`` for ``K`` worlds: ``progress``,
+    ``new_contacts`` and ``own_new`` ``(K, N)``, ``n_new_kpois (K,)``).
 
     own_kpoi (only when ``own_new`` is given, version 2): ``w.own_kpoi`` per KPOI of the agent's own
     route that the agent itself visited this step (``own_new``, from :func:`own_visits`);
@@ -39,12 +48,14 @@ def reward_terms(w: RewardConfig, n_new_kpois: int, progress: np.ndarray,
     progress: ``w.progress`` per metre of route-length-to-go removed this step (potential-based);
     time: ``w.time`` every step; collision: ``w.collision`` per new contact of this agent.
     """
-    n = len(progress)
+    shape = np.shape(progress)
+    kpoi = np.empty(shape)
+    kpoi[...] = np.multiply(w.kpoi, n_new_kpois)[..., None]
     terms = {} if own_new is None else {"own_kpoi": w.own_kpoi * own_new}
     terms.update({
-        "kpoi": np.full(n, w.kpoi * n_new_kpois),
+        "kpoi": kpoi,
         "progress": w.progress * progress,
-        "time": np.full(n, w.time),
+        "time": np.full(shape, w.time),
         "collision": w.collision * new_contacts.astype(float),
     })
     return terms

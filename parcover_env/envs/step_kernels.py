@@ -1,7 +1,9 @@
-"""Compiled (numba) loops of an env step: the observation's scalar entries and the formation errors;
-import only through :mod:`parcover_env.envs.observations` and :mod:`parcover_env.envs.metrics`. The
-same float operations, in the same order, as the numpy formulas they replace
-(``tests/envs/test_observation_assembly.py`` and ``tests/envs/test_values.py`` keep references)."""
+"""Compiled (numba) loops of an env step: the observation's scalar entries, the formation errors and
+the test for teams that may split; import only through :mod:`parcover_env.envs.observations`,
+:mod:`parcover_env.envs.metrics` and :mod:`parcover_env.envs.handover`. The same float operations,
+in the same order, as the numpy formulas they replace (``tests/envs/test_observation_assembly.py``
+and ``tests/envs/test_values.py`` keep references). The ``*_many`` loops run a one-world loop over
+``K`` worlds (leading axis)."""
 
 from __future__ import annotations
 
@@ -78,6 +80,16 @@ def scalar_entries(out, cols, r, slot_div, max_fix_age, kpois, time):
 
 
 @njit(cache=True, nogil=True)
+def scalar_entries_many(out, cols, r, slot_div, max_fix_age, kpois, time):
+    """:func:`scalar_entries` of ``K`` worlds: ``out (K, N, D)``, the :class:`RobotRows` fields
+    ``(K, N, ...)``, the team fractions ``kpois`` and ``time`` ``(K,)``."""
+    for k in range(out.shape[0]):
+        rows = RobotRows(r.est[k], r.vel[k], r.leader[k], r.slot[k], r.fix_age[k], r.cov[k], r.goals[k], r.rel_xy[k],
+                         r.rel_heading[k], r.visible[k])
+        scalar_entries(out[k], cols, rows, slot_div, max_fix_age, kpois[k], time[k])
+
+
+@njit(cache=True, nogil=True)
 def formation_errors(poses, predecessor, offset, l_d, psi_d, dl, dpsi):
     """``dl[k], dpsi[k]`` of the ``k``-th follower (robot order): ``l - l_d`` and
     ``psi - psi_d`` (unwrapped) with ``l, psi`` the distance and bearing (in the predecessor's frame) of the
@@ -95,3 +107,107 @@ def formation_errors(poses, predecessor, offset, l_d, psi_d, dl, dpsi):
         dpsi[k] = math.atan2(dy, dx) - poses[j, 2] - psi_d  # wrapped by the caller (geometry.wrap_angle)
         k += 1
     return k
+
+
+@njit(cache=True, nogil=True)
+def formation_errors_many(poses, predecessor, offset, l_d, psi_d):
+    """:func:`formation_errors` of ``K`` worlds: ``poses (K, N, 3)``, ``predecessor (K, N)``; returns
+    ``dl, dpsi (K, N)`` (world ``k``'s followers in its first ``n[k]`` columns, 0 after) and ``n (K,)``."""
+    k_worlds, n_robots = predecessor.shape
+    dl, dpsi = np.zeros((k_worlds, n_robots)), np.zeros((k_worlds, n_robots))
+    n = np.zeros(k_worlds, dtype=np.int64)
+    for k in range(k_worlds):
+        n[k] = formation_errors(poses[k], predecessor[k], offset, l_d, psi_d, dl[k], dpsi[k])
+    return dl, dpsi, n
+
+
+@njit(cache=True, nogil=True)
+def may_split(tp, est, plan_progress, fix, tol, margin):
+    """``(K,)`` bool: some robot ``i`` of world ``k`` heads for a TP (``tp[k, i] = (x, y, distance)``,
+    NaN: none) and has passed its distance (``plan_progress[k, i] >= distance - 1e-6``), or its
+    estimate ``est[k, i]`` or this step's fix ``fix[k, i]`` (NaN: none) lies within ``tol`` of it;
+    every test widened by ``margin``."""
+    out = np.zeros(tp.shape[0], dtype=np.bool_)
+    reach = tol + margin
+    for k in range(tp.shape[0]):
+        for i in range(tp.shape[1]):
+            x, y, d = tp[k, i, 0], tp[k, i, 1], tp[k, i, 2]
+            if math.isnan(d):
+                continue
+            if (plan_progress[k, i] >= d - 1e-6 - margin or math.hypot(est[k, i, 0] - x, est[k, i, 1] - y) <= reach
+                    or math.hypot(fix[k, i, 0] - x, fix[k, i, 1] - y) <= reach):
+                out[k] = True
+                break
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _pairwise_block(a, lo, n):
+    """``a[lo:lo + n]``, ``n <= 128``, summed as numpy does (eight running sums from 8 values on)."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    r = a[lo:lo + 8].copy()
+    i = 8
+    while i < n - n % 8:
+        for j in range(8):
+            r[j] += a[lo + i + j]
+        i += 8
+    res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True, nogil=True)
+def pairwise_sum(a, lo, n):
+    """``a[lo:lo + n]`` summed as numpy sums a contiguous float64 run (its pairwise summation: blocks of
+    at most 128 values, longer runs halved at a multiple of 8 and the halves' sums added), so the same
+    float as ``np.sum``. The halving is walked with an explicit stack (no recursion: numba's cache)."""
+    if n <= 128:
+        return _pairwise_block(a, lo, n)
+    los, ns, stage = np.empty(128, np.int64), np.empty(128, np.int64), np.zeros(128, np.int64)
+    vals = np.empty(128)
+    top, nv = 0, 0
+    los[0], ns[0] = lo, n
+    while top >= 0:
+        at, m = los[top], ns[top]
+        if m <= 128:
+            vals[nv] = _pairwise_block(a, at, m)
+            nv += 1
+            top -= 1
+            continue
+        half = m // 2
+        half -= half % 8
+        if stage[top] < 2:  # push the left half, then the right one
+            first = stage[top] == 0
+            stage[top] += 1
+            top += 1
+            los[top], ns[top], stage[top] = (at, half, 0) if first else (at + half, m - half, 0)
+        else:  # both halves done: left + right
+            vals[nv - 2] = vals[nv - 2] + vals[nv - 1]
+            nv -= 1
+            top -= 1
+    return vals[0]
+
+
+@njit(cache=True, nogil=True)
+def path_and_error_sums(before, true, est, paths):
+    """Per world of ``K``: the path lengths ``paths (K, N)`` plus each robot's straight step
+    ``before -> true`` (``(K, N, 3)`` poses; ``hypot``), and the sum of squared position errors of the
+    estimates ``est`` over the world's robots (``np.sum`` of the ``(N, 2)`` squared differences)."""
+    k_worlds, n = paths.shape
+    new_paths, sq = np.empty((k_worlds, n)), np.empty(k_worlds)
+    sq_terms = np.empty(2 * n)
+    for k in range(k_worlds):
+        for i in range(n):
+            new_paths[k, i] = paths[k, i] + math.hypot(true[k, i, 0] - before[k, i, 0], true[k, i, 1] - before[k, i, 1])
+            ex = true[k, i, 0] - est[k, i, 0]
+            ey = true[k, i, 1] - est[k, i, 1]
+            sq_terms[2 * i] = ex * ex
+            sq_terms[2 * i + 1] = ey * ey
+        sq[k] = pairwise_sum(sq_terms, 0, 2 * n)
+    return new_paths, sq

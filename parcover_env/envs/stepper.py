@@ -4,16 +4,16 @@
 env all step through here, so the rules are written once:
 
 1. **act** (:func:`act`, per world :meth:`ParallelCoverageEnv.act`): act, integrate the physics, update
-   the pose estimator (odometry, fixes); **score** (:func:`score`, per world
-   :meth:`ParallelCoverageEnv.score`): track the mission, hand over at splits (Alg. 1), score, record;
+   the pose estimator (odometry, fixes); **score** (:func:`score`, all worlds at once,
+   :mod:`parcover_env.envs.score_phase`): track the mission, hand over at splits (Alg. 1), score, record;
 2. **sense and observe** (:func:`observe`, all worlds at once): one :class:`SensingState` of every
-   world; the follower cameras first, then the compiled pass writes every non-sensor entry of the
-   observation spec, then every ``sensor`` entry of the spec is filled by its sensor's ``sense`` for
+   world; the follower cameras first, then one compiled pass writes every non-sensor entry of the
+   observation spec of every world, then every ``sensor`` entry of the spec is filled by its sensor's ``sense`` for
    all worlds in one call (version 2's ``route`` and ``teammates`` entries too,
    :mod:`parcover_env.envs.obs_v2`); clipped into the bounds. World ``k`` draws from its own generator in the
    order a single world would, so it is bit for bit a separate env;
-3. **outputs** (:func:`outputs`, per world :meth:`ParallelCoverageEnv.outputs`): rewards, terminations, truncations,
-   infos;
+3. **outputs** (:func:`outputs`, all worlds at once, :mod:`parcover_env.envs.outputs_phase`): rewards,
+   terminations, truncations, infos;
 4. **slots** (:func:`slot_info`, :func:`with_metrics`): what a vectorized or single-agent view adds
    to an agent's info (``metrics``, ``terminal_observation``, ``TimeLimit.truncated``, ``active``);
    a world whose agents are all done is reset by the caller (auto-reset).
@@ -29,12 +29,14 @@ from typing import Any
 
 import numpy as np
 
-from parcover_env.envs import obs_v2
+from parcover_env.envs import obs_v2, outputs_phase, score_phase
 from parcover_env.envs.handover import CameraView
 from parcover_env.envs.metrics import episode_metrics
 from parcover_env.envs.observations import ScalarInputs
+from parcover_env.envs.score_phase import Scores, gather, rows
+from parcover_env.scenarios.progress import goals_many
 from parcover_env.sensors.base import SensingState
-from parcover_env.sensors.relative import RelativeCamera
+from parcover_env.sensors.relative import RelativeReading
 
 __all__ = ["sensing_state", "observe", "step", "act", "score", "outputs", "with_metrics", "slot_info"]
 
@@ -47,35 +49,38 @@ def sensing_state(worlds: Sequence[Any], true: np.ndarray) -> SensingState:
     return SensingState(true, first.map.segments, float(first.scenario.robot.radius), predecessor)
 
 
-def _scalar_inputs(w: Any, reading) -> ScalarInputs:
-    est, visited = w.estimator, w.progress.visited
-    return ScalarInputs(est.estimate, est.velocity, w.team.leader, w.team.slot, est.fix_age, est.covariance,
-                        w.progress.goals(), reading.rel_xy, reading.rel_heading, reading.visible,
-                        np.count_nonzero(visited) / len(visited), w.steps / w.scenario.episode.max_steps)
-
-
-def observe(worlds: Sequence[Any], true: np.ndarray) -> np.ndarray:
-    """Observations ``(K, N, D)`` float32 of every robot of the ``K`` worlds at true poses ``(K, N, 3)``.
+def observe(worlds: Sequence[Any], true: np.ndarray, goals: np.ndarray | None = None) -> np.ndarray:
+    """Observations ``(K, N, D)`` float32 of every robot of the ``K`` worlds at true poses ``(K, N, 3)``
+    (``goals``: the robots' lookahead goal points ``(K, N, 2)`` if known, see :class:`Scores`).
     Sets each world's ``camera_view`` (the cameras' measurements Alg. 1's next hand-over uses)."""
     first = worlds[0]
     state = sensing_state(worlds, true)
     rngs = [w.np_random for w in worlds]
     camera = first.camera.sense(state, rngs)
     obs = np.zeros((len(worlds), state.n_robots, first.layout.size), dtype=np.float32)
+    est, estimators = gather([w.estimate for w in worlds]), [w.estimator for w in worlds]
+    rel_xy, rel_heading, visible = camera[..., :2], camera[..., 2], camera[..., 3] > 0.5
     for k, w in enumerate(worlds):
-        reading = RelativeCamera.reading(camera[k])
-        w.camera_view = CameraView(w.team.predecessor, reading, w.estimator.estimate.copy())
-        w.layout.fill_scalars(obs[k], _scalar_inputs(w, reading))
-        for name, values in w.localization_entries().items():  # the ``scan`` entries of the spec
-            obs[k][:, w.layout.slices[name]] = values[:, None]
+        w.camera_view = CameraView(w.team.predecessor, RelativeReading(rel_xy[k], rel_heading[k], visible[k]), est[k])
+    visited, teams = rows([w.progress.visited for w in worlds]), [w.team for w in worlds]
+    if goals is None:
+        goals = goals_many([w.progress for w in worlds])[0]
+    first.layout.fill_scalars_many(obs, ScalarInputs(
+        est, rows([e.velocity for e in estimators]), rows([t.leader for t in teams]), rows([t.slot for t in teams]),
+        rows([e.fix_age for e in estimators]), rows([e.covariance for e in estimators]), goals, rel_xy, rel_heading,
+        visible, visited.sum(axis=1) / visited.shape[1],
+        np.array([w.steps for w in worlds]) / first.scenario.episode.max_steps))
+    if first.scanner is not None:  # the ``scan`` entries of the spec
+        for k, w in enumerate(worlds):
+            for name, values in w.localization_entries().items():
+                obs[k][:, w.layout.slices[name]] = values[:, None]
     if first.route_facts is not None:  # observation version 2: route and teammate entries, all worlds at once
         obs_v2.fill(obs, first.layout.slices, first.route_facts, obs_v2.team_rows(worlds),
                     first.scenario.observation.neighbours)
     for name, sensor in first.sensors.items():  # every sensor entry of the spec, all worlds in one call
         if sensor is not None:
             obs[..., first.layout.slices[name]] = sensor.sense(state, rngs)
-    for k, w in enumerate(worlds):
-        w.layout.clip(obs[k])
+    first.layout.clip(obs)
     return obs
 
 
@@ -83,9 +88,9 @@ def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.n
     """One step of every world (``actions[k]``: world ``k``'s action dict): the observations
     ``(K, N, D)`` and each world's ``(rewards, terminations, truncations, infos)``."""
     before, true = act(worlds, actions)
-    score(worlds, before, true)
-    obs = observe(worlds, true)
-    return obs, outputs(worlds, true)
+    scores = score(worlds, before, true)
+    obs = observe(worlds, true, scores.goals)
+    return obs, outputs(worlds, true, scores)
 
 
 def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.ndarray, np.ndarray]:
@@ -95,16 +100,16 @@ def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.nd
     return np.stack(before), np.stack(true)
 
 
-def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> None:
-    """Part 1b of every world (:meth:`ParallelCoverageEnv.score`) at true poses ``(K, N, 3)``."""
-    for k, w in enumerate(worlds):
-        w.score(before[k], true[k])
+def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores:
+    """Part 1b of every world at true poses ``before`` and ``true`` ``(K, N, 3)``, all worlds at once
+    (:func:`parcover_env.envs.score_phase.score`): their reward terms."""
+    return score_phase.score(worlds, before, true)
 
 
-def outputs(worlds: Sequence[Any], true: np.ndarray) -> list[tuple]:
-    """Part 3 of every world (:meth:`ParallelCoverageEnv.outputs`): ``(rewards, terminations,
-    truncations, infos)`` per world."""
-    return [w.outputs(true[k]) for k, w in enumerate(worlds)]
+def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores) -> list[tuple]:
+    """Part 3 of every world, all at once (:func:`parcover_env.envs.outputs_phase.outputs`):
+    ``(rewards, terminations, truncations, infos)`` per world."""
+    return outputs_phase.outputs(worlds, true, scores)
 
 
 def with_metrics(info: dict) -> dict:

@@ -18,6 +18,10 @@ leader), ``waypoint`` (next desired position sent to a leader), ``pose`` (a Kine
 a leader). In ``individual`` mode every robot is its own group: all are localized and messaged.
 This is environment infrastructure (what the overhead system does), so RL policies and the
 scripted expert observe the same roles; the expert implements the robots' controllers.
+
+:attr:`Team.tp_ahead` lists each group leader's pending TP as numbers, so that the worlds of a batch
+can tell in a few array operations which teams may split this step
+(:func:`parcover_env.envs.handover.update_teams`); only those run :meth:`Team.update`.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ import numpy as np
 
 from parcover_env.planning.plan import Plan
 
-__all__ = ["Team"]
+__all__ = ["Team", "count_waypoints_many"]
 
 
 class Team:
@@ -44,6 +48,18 @@ class Team:
                                               else [(0, self.n)])
         self._refresh()
 
+    def _pending(self) -> None:
+        """:attr:`tp_ahead` from the groups and the TPs not passed yet."""
+        self.tp_ahead = np.full((self.n, 3), np.nan)
+        """``(N, 3)``: ``(x, y, distance)`` of the TP each group leader heads for (m; its position
+        and its distance along the plan path), NaN for the other robots and in ``individual`` mode."""
+        if self.mode == "individual":
+            return
+        for g in self.groups:
+            tp = self._tps.get(g)
+            if tp is not None:
+                self.tp_ahead[g[0]] = (*tp.position, tp.distance)
+
     def _refresh(self) -> None:
         self.leader = np.zeros(self.n, dtype=bool)
         self.slot = np.zeros(self.n, dtype=np.int64)
@@ -52,6 +68,7 @@ class Team:
             self.leader[lo] = True
             self.slot[lo:hi] = np.arange(hi - lo)
             self.predecessor[lo + 1:hi] = np.arange(lo, hi - 1)
+        self._pending()
 
     def update(self, est_xy: np.ndarray, plan_progress: np.ndarray, fixes: dict[int, np.ndarray] | None = None,
                in_view: np.ndarray | None = None) -> list[dict]:
@@ -83,6 +100,7 @@ class Team:
                 new = [tuple(b.robots) for b in tp.branches if b.robots[1] > b.robots[0]]
                 if new == [g]:
                     del self._tps[g]
+                    self._pending()
                     continue
                 i = self.groups.index(g)
                 self.groups[i:i + 1] = new
@@ -103,3 +121,9 @@ class Team:
 
     def count_pose_fixes(self, n: int) -> None:
         self.messages["pose"] += int(n)
+
+
+def count_waypoints_many(teams: list[Team], advanced: np.ndarray, leader: np.ndarray) -> None:
+    """:meth:`Team.count_waypoints` of ``K`` teams: ``advanced`` and the teams' ``leader`` flags ``(K, N)``."""
+    for team, n in zip(teams, np.add.reduce(advanced & leader, axis=1, dtype=np.int64).tolist(), strict=True):
+        team.messages["waypoint"] += n

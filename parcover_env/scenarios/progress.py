@@ -1,7 +1,14 @@
-"""Route progress of one episode: KPOIs visited, and each robot's progress along its planned route."""
+"""Route progress of one episode: KPOIs visited, and each robot's progress along its planned route.
+
+:class:`RouteTracker` is one world's tracker; :func:`step_many` (and :func:`update_many`, the part
+of it that changes the trackers) and :func:`goals_many` run the trackers of ``K`` worlds of one
+mission (the same KPOIs and routes) in one compiled call, world ``k`` getting bit for bit what its
+tracker alone would (``RouteTracker.update`` is the one-world call of :func:`update_many`).
+"""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -9,7 +16,7 @@ import numpy as np
 from parcover_env.geometry.records import record
 from parcover_env.scenarios import progress_kernel
 
-__all__ = ["RouteTracker", "RouteTable"]
+__all__ = ["RouteTracker", "RouteTable", "ProgressStep", "step_many", "update_many", "goals_many"]
 
 
 class RouteTable(NamedTuple):
@@ -103,22 +110,8 @@ class RouteTracker:
 
     def update(self, true_xy: np.ndarray, est_xy: np.ndarray, time: float) -> int:
         """Mark KPOIs visited and advance progress; returns how many KPOIs were newly visited."""
-        n_new = progress_kernel.visits(self.kpois, np.ascontiguousarray(true_xy, dtype=float), self.kpoi_radius,
-                                       float(time), self.visited, self.visit_time, self.visitor)
-        before = self.waypoint.copy()
-        self._advance_all(np.asarray(est_xy, dtype=float))
-        self.advanced = self.waypoint != before
-        return n_new
-
-    def _advance_all(self, p: np.ndarray) -> None:
-        """Advance every robot's progress from its estimate ``p (N, 2)`` (see the class docstring):
-        a compiled loop over robots, the same floats as the numpy reference (``tests/references/progress.py``)."""
-        if len(self.routes) == 0:
-            return
-        t = self.table
-        self.progress, self.waypoint = progress_kernel.advance_all(
-            np.ascontiguousarray(p, dtype=float), self.progress, self.waypoint, t.length, t.arc, t.must, t.pts, t.e,
-            t.ee, t.seg_len, self.rules)
+        xy = np.asarray(true_xy, dtype=float).reshape(1, -1, 2)
+        return int(update_many([self], xy, np.asarray(est_xy, dtype=float).reshape(1, -1, 2), [time])[0])
 
     def _goals(self) -> tuple[np.ndarray, np.ndarray]:
         """Lookahead goal points ``(N, 2)`` and their arc positions ``(N,)``; cached per progress.
@@ -149,6 +142,60 @@ class RouteTracker:
         g, s = self._goals()
         xy = np.asarray(xy, dtype=float).reshape(-1, 2)
         return np.hypot(g[:, 0] - xy[:, 0], g[:, 1] - xy[:, 1]) + (self.table.arc_end - s)
+
+
+def _rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
+    """The ``(K, ...)`` block of ``K`` per-world arrays: a view of the one array for ``K = 1``, else a copy."""
+    return arrays[0][None] if len(arrays) == 1 else np.array(arrays)
+
+
+class ProgressStep(NamedTuple):
+    """What :func:`step_many` gives back besides the trackers' new state."""
+
+    n_new: np.ndarray
+    """``(K,)`` int: KPOIs newly visited in each world."""
+    goals: np.ndarray
+    """``(K, N, 2)``: each robot's lookahead goal point at its new progress (:meth:`RouteTracker.goals`)."""
+    remaining: np.ndarray
+    """``(K, N)``: route length to go from the true positions (m, :meth:`RouteTracker.remaining`)."""
+
+
+def step_many(trackers: Sequence[RouteTracker], true_xy: np.ndarray, est_xy: np.ndarray,
+              times: Sequence[float]) -> ProgressStep:
+    """:meth:`RouteTracker.update` of the trackers of ``K`` worlds of one mission at once (true and
+    estimated positions ``(K, N, 2)``, the worlds' ``times (K,)``), then their goals and the route
+    length to go from the true positions, in one compiled call. Each tracker's ``visited``,
+    ``visit_time`` and ``visitor`` are updated in place, its ``progress``, ``waypoint`` and ``advanced``
+    replaced (rows of ``(K, N)`` blocks)."""
+    first, k = trackers[0], len(trackers)
+    visited, visit_time = _rows([t.visited for t in trackers]), _rows([t.visit_time for t in trackers])
+    visitor, waypoint = _rows([t.visitor for t in trackers]), _rows([t.waypoint for t in trackers])
+    state = progress_kernel.TrackerRows(visited, visit_time, visitor, _rows([t.progress for t in trackers]), waypoint)
+    n_new, new_progress, new_waypoint, goal, remaining = progress_kernel.step_many(
+        first.kpois, first.kpoi_radius, np.ascontiguousarray(true_xy, dtype=float),
+        np.ascontiguousarray(est_xy, dtype=float), np.asarray(times, dtype=float), state, first.table, first.rules,
+        first.lookahead)
+    advanced = new_waypoint != waypoint
+    for j, tr in enumerate(trackers):
+        if k > 1 and n_new[j]:  # K = 1: the kernel wrote into the tracker's own arrays
+            tr.visited[:], tr.visit_time[:], tr.visitor[:] = visited[j], visit_time[j], visitor[j]
+        tr.progress, tr.waypoint, tr.advanced = new_progress[j], new_waypoint[j], advanced[j]
+    return ProgressStep(n_new, goal, remaining)
+
+
+def update_many(trackers: Sequence[RouteTracker], true_xy: np.ndarray, est_xy: np.ndarray,
+                times: Sequence[float]) -> np.ndarray:
+    """The trackers' part of :func:`step_many`: the newly visited KPOIs of each world ``(K,)`` int."""
+    return step_many(trackers, true_xy, est_xy, times).n_new
+
+
+def goals_many(trackers: Sequence[RouteTracker]) -> tuple[np.ndarray, np.ndarray]:
+    """The lookahead goal points ``(K, N, 2)`` and their arc positions ``(K, N)`` of the trackers of
+    ``K`` worlds of one mission (:meth:`RouteTracker.goals`, one compiled call, no cache)."""
+    first = trackers[0]
+    t = first.table
+    return progress_kernel.goals_many(_rows([tr.progress for tr in trackers]), first.lookahead, t.length, t.arc,
+                                      t.must, t.arc_end, t.pts)
 
 
 def _padded(routes: list[np.ndarray], arcs: list[np.ndarray], musts: list[np.ndarray]) -> RouteTable:

@@ -3,16 +3,20 @@ progress, goals), public so that tests and other rooms may use them. Robot by ro
 operations in the same order as the vectorized numpy reference (``tests/references/progress.py``;
 a test compares them), no fast-math: the same floats. The routes are the padded tables of
 :class:`~parcover_env.scenarios.progress.RouteTable`; the constants a :data:`PROGRESS_RULES` record.
+The ``*_many`` kernels run the same bodies over ``K`` worlds of one mission (leading axis ``K``):
+world ``k``'s result is the one-world kernel's on its rows, bit for bit.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-__all__ = ["PROGRESS_RULES", "advance_all", "goals", "visits"]
+__all__ = ["PROGRESS_RULES", "advance_all", "advance_many", "goals", "goals_many", "visits", "visits_many",
+           "step_many", "TrackerRows"]
 
 PROGRESS_RULES = np.dtype([
     ("window", "f8"),  # progress is searched this far ahead of the current progress (m)
@@ -151,3 +155,68 @@ def visits(kpois, xy, radius, time, visited, visit_time, visitor):
             visitor[k] = who
             n_new += 1
     return n_new
+
+
+@njit(cache=True)
+def advance_many(p, progress, waypoint, length, arc, must, pts, e, ee, seg_len, rules):
+    """:func:`advance_all` of ``K`` worlds sharing the routes: estimates ``p (K, N, 2)``, state
+    ``progress, waypoint (K, N)``; returns the new ``(progress, waypoint)`` ``(K, N)``."""
+    new_progress, new_waypoint = progress.copy(), waypoint.copy()
+    for k in range(p.shape[0]):
+        new_progress[k], new_waypoint[k] = advance_all(p[k], progress[k], waypoint[k], length, arc, must, pts, e, ee,
+                                                       seg_len, rules)
+    return new_progress, new_waypoint
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def goals_many(progress, lookahead, length, arc, must, arc_end, pts):
+    """:func:`goals` of ``K`` worlds sharing the routes: ``progress (K, N)`` -> goal points ``(K, N, 2)``
+    and their arc positions ``(K, N)``."""
+    k_worlds, n = progress.shape
+    goal, s_out = np.empty((k_worlds, n, 2)), np.empty((k_worlds, n))
+    for k in range(k_worlds):
+        goals(progress[k], lookahead, length, arc, must, arc_end, pts, goal[k], s_out[k])
+    return goal, s_out
+
+
+@njit(cache=True, nogil=True)
+def visits_many(kpois, xy, radius, time, visited, visit_time, visitor):
+    """:func:`visits` of ``K`` worlds sharing the KPOIs: points ``xy (K, N, 2)``, ``time (K,)``, state
+    ``visited, visit_time, visitor (K, n_kpois)`` updated in place; returns the counts ``(K,)``."""
+    n_new = np.zeros(xy.shape[0], dtype=np.int64)
+    for k in range(xy.shape[0]):
+        n_new[k] = visits(kpois, xy[k], radius, time[k], visited[k], visit_time[k], visitor[k])
+    return n_new
+
+
+class TrackerRows(NamedTuple):
+    """The trackers' state of ``K`` worlds as :func:`step_many` reads it (``visited``, ``visit_time``,
+    ``visitor`` ``(K, n_kpois)``, updated in place; ``progress``, ``waypoint`` ``(K, N)``, read)."""
+
+    visited: np.ndarray
+    visit_time: np.ndarray
+    visitor: np.ndarray
+    progress: np.ndarray
+    waypoint: np.ndarray
+
+
+@njit(cache=True)
+def step_many(kpois, radius, true_xy, est_xy, time, state, table, rules, lookahead):
+    """One step of the trackers of ``K`` worlds sharing the KPOIs and routes (``table``: a
+    :class:`~parcover_env.scenarios.progress.RouteTable`; ``state``: :class:`TrackerRows`):
+    :func:`visits_many` at the true positions ``true_xy (K, N, 2)`` at ``time (K,)``,
+    :func:`advance_many` from the estimates ``est_xy``, then :func:`goals_many` at the new progress
+    and the route length to go from ``true_xy`` (``hypot`` to the goal point, then along:
+    ``arc_end - s``). Returns ``(n_new (K,), progress (K, N), waypoint (K, N), goal (K, N, 2),
+    remaining (K, N))``."""
+    t = table
+    n_new = visits_many(kpois, true_xy, radius, time, state.visited, state.visit_time, state.visitor)
+    new_progress, new_waypoint = advance_many(est_xy, state.progress, state.waypoint, t.length, t.arc, t.must, t.pts,
+                                              t.e, t.ee, t.seg_len, rules)
+    goal, s = goals_many(new_progress, lookahead, t.length, t.arc, t.must, t.arc_end, t.pts)
+    remaining = np.empty(s.shape)
+    for k in range(s.shape[0]):
+        for i in range(s.shape[1]):
+            remaining[k, i] = (math.hypot(goal[k, i, 0] - true_xy[k, i, 0], goal[k, i, 1] - true_xy[k, i, 1])
+                               + (t.arc_end[i] - s[k, i]))
+    return n_new, new_progress, new_waypoint, goal, remaining

@@ -1,0 +1,97 @@
+"""The stepper's outputs phase (part 3) for ``K`` worlds of one scenario at once: each world's
+PettingZoo ``(rewards, terminations, truncations, infos)`` dicts.
+
+Rewards, estimate errors and the other per-agent info values are computed as ``(K, N)`` arrays and
+turned into Python floats once (``tolist``); each agent's info is a copy of its world's template
+(the reward terms, the ``metrics/*`` entries, ...) updated with its own values, the key order fixed:
+``reward_<term>`` (the world's terms order), ``metrics/*``, ``pose_error``, ``heading_error``, then
+``sonar_fix`` (with ``observation.scan``), then ``route_done`` (version 2). The ``metrics/*`` entries
+are the zeros of :meth:`~parcover_env.envs.metrics.EpisodeMetrics.flat` (a fresh ``path_lengths``
+array per world) except in a world whose episode ends this step, where they are its metrics.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from parcover_env.envs.metrics import EpisodeMetrics
+from parcover_env.envs.obs_v2 import target_kpois
+from parcover_env.envs.score_phase import Scores, rows
+from parcover_env.geometry import wrap_angle
+
+__all__ = ["outputs", "infos"]
+
+
+def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores) -> list[tuple[dict, dict, dict, dict]]:
+    """Part 3 of the ``K`` worlds at true poses ``(K, N, 3)`` with the score phase's ``scores``:
+    ``(rewards, terminations, truncations, infos)`` per world (a world's agents are cleared when
+    its episode ends)."""
+    first = worlds[0]
+    terms = scores.terms
+    total = 0
+    for t in first.terms:  # summed in terms order, as sum() over the terms of each agent would
+        total = total + terms[t]
+    max_steps = first.scenario.episode.max_steps
+    done = rows([w.progress.visited for w in worlds]).all(axis=1).tolist()
+    truncated = [w.steps >= max_steps and not d for w, d in zip(worlds, done, strict=True)]
+    ended = [d or t for d, t in zip(done, truncated, strict=True)]
+    all_infos = infos(worlds, true, [terms[t].tolist() for t in first.terms], ended)
+    out = []
+    for w, rewards, info, d, t, e in zip(worlds, total.tolist(), all_infos, done, truncated, ended, strict=True):
+        agents = w.agents
+        out.append((dict(zip(agents, rewards, strict=True)), dict.fromkeys(agents, d), dict.fromkeys(agents, t), info))
+        if e:
+            w.agents = []
+    return out
+
+
+def infos(worlds: Sequence[Any], true: np.ndarray, terms: list[list[list[float]]],
+          ended: Sequence[bool]) -> list[dict[str, dict]]:
+    """``info[agent]`` of every agent of the ``K`` worlds (see the module docstring): ``terms[i][k]``
+    the values of term ``i`` (the worlds' terms order) for world ``k``'s agents; ``ended[k]``: its
+    episode ends this step (its ``metrics/*`` entries are its metrics)."""
+    first = worlds[0]
+    est = rows([w.estimate for w in worlds])
+    d = est[..., :2] - true[..., :2]
+    columns = [np.hypot(d[..., 0], d[..., 1]).tolist(), np.abs(wrap_angle(est[..., 2] - true[..., 2])).tolist()]
+    base, keys = _template(tuple(first.terms), first.version == 2, first.scanner is not None)
+    if first.version == 2:
+        visited = rows([w.progress.visited for w in worlds])
+        columns.append(target_kpois(first.route_facts, visited)[1].astype(float).tolist())
+    if first.scanner is not None:
+        columns.append(rows([w.scanner.outcome for w in worlds]).tolist())
+    path_key = "metrics/path_lengths"
+    out = []
+    for k, w in enumerate(worlds):
+        template = base.copy()
+        if ended[k]:
+            template.update(w.metrics.flat(ended=True))
+        else:
+            template[path_key] = np.zeros(w.n_robots)
+        world_infos = {}
+        for a, *vals in zip(w.agents, *(t[k] for t in terms), *(c[k] for c in columns), strict=True):
+            info = world_infos[a] = template.copy()
+            info.update(zip(keys, vals))
+        out.append(world_infos)
+    return out
+
+
+@functools.lru_cache(maxsize=16)
+def _template(terms: tuple[str, ...], route_done: bool, sonar_fix: bool) -> tuple[dict, tuple[str, ...]]:
+    """The info of an agent before its own values (zeros; ``metrics/path_lengths`` to be replaced by a
+    fresh array) and the keys of its own values, in order. Read only: copy it."""
+    reward_keys = tuple(f"reward_{t}" for t in terms)
+    keys = (*reward_keys, "pose_error", "heading_error")
+    base = dict.fromkeys(reward_keys, 0.0)
+    base.update(EpisodeMetrics(0, 0, 0.0, 0.0).flat(ended=False))
+    base["pose_error"] = base["heading_error"] = 0.0
+    if route_done:
+        keys = (*keys, "route_done")
+    if sonar_fix:
+        base["sonar_fix"] = 0.0
+        keys = (*keys, "sonar_fix")
+    return base, keys

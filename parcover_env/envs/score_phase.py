@@ -1,0 +1,111 @@
+"""The stepper's score phase (part 1b) for ``K`` worlds of one scenario at once.
+
+After the act phase has moved every world, :func:`score` tracks the mission, splits and hands over
+(Alg. 1), scores and records each world, gathering what it reads from the worlds into ``(K, N)``
+blocks and computing on the blocks:
+
+* route progress, KPOI visits, goals and the route length to go: one compiled call for all worlds
+  (:func:`parcover_env.scenarios.progress.step_many`);
+* the team update: waypoint messages counted over ``(K, N)``; only the worlds where a leader may
+  have reached its TP run the (rare) Python split (:func:`parcover_env.envs.handover.update_teams`);
+* the reward terms as ``(K, N)`` arrays (:func:`parcover_env.envs.rewards.reward_terms`), returned
+  in a :class:`Scores` for the outputs phase (with the goal points, for the observations);
+* the metrics of all worlds in one call (:func:`parcover_env.envs.metrics.record_steps`).
+
+Results go back into each world's own objects (trackers, teams, metrics, :class:`ScoreState`), so
+worlds stay independent (deepcopy, pickle) and the ParallelEnv is the ``K = 1`` call; world ``k``
+gets bit for bit what it would alone (``tests/envs/test_batched.py``, ``tests/envs/test_score_phase.py``).
+No random numbers are drawn here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from parcover_env.envs.handover import update_teams
+from parcover_env.envs.metrics import record_steps
+from parcover_env.envs.rewards import own_visits, reward_terms
+from parcover_env.envs.team import count_waypoints_many
+from parcover_env.scenarios.progress import step_many
+
+__all__ = ["ScoreState", "Scores", "score", "gather", "rows"]
+
+
+def gather(arrays: Sequence[np.ndarray]) -> np.ndarray:
+    """The ``(K, ...)`` block of ``K`` worlds' arrays of one shape, a copy (never a world's own array)."""
+    return np.array(arrays)
+
+
+def rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
+    """The ``(K, ...)`` block of ``K`` worlds' arrays of one shape, to read only: for ``K = 1`` a
+    view of the world's array (no copy), else a copy."""
+    return arrays[0][None] if len(arrays) == 1 else np.array(arrays)
+
+
+@dataclass
+class ScoreState:
+    """What scoring carries over from one step of a world to the next."""
+
+    remaining: np.ndarray
+    """``(N,)`` route length to go at the last step (m): the ``progress`` term's potential."""
+    contacts: tuple[np.ndarray, np.ndarray]
+    """Wall and robot contacts of each robot counted up to the last step ``(N,)`` each."""
+
+    @classmethod
+    def start(cls, remaining: np.ndarray) -> ScoreState:
+        """At reset: the route length to go ``(N,)``, no contacts yet."""
+        zeros = np.zeros(len(remaining), dtype=np.int64)
+        return cls(remaining, (zeros, zeros))
+
+
+class Scores(NamedTuple):
+    """What the score phase hands to the outputs phase."""
+
+    terms: dict[str, np.ndarray]
+    """This step's reward terms ``(K, N)`` by name (every world's terms, in its summing order)."""
+    goals: np.ndarray
+    """The robots' lookahead goal points ``(K, N, 2)`` after this step's progress (the observations')."""
+
+
+def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores:
+    """Part 1b of the ``K`` worlds at true poses ``before`` and ``true`` ``(K, N, 3)`` (see the module
+    docstring); returns their reward terms and goal points."""
+    first = worlds[0]
+    s = first.scenario
+    trackers, teams = [w.progress for w in worlds], [w.team for w in worlds]
+    est = rows([w.estimate for w in worlds])
+    was = gather([t.visited for t in trackers])
+    times = [w.world.time for w in worlds]
+    true_xy = np.ascontiguousarray(true[..., :2])
+    n_new, goals, remaining = step_many(trackers, true_xy, est[..., :2], times)
+    velocity = (true_xy - before[..., :2]) / s.physics.control_dt
+    for k, w in enumerate(worlds):
+        w.true_velocity = velocity[k]
+    count_waypoints_many(teams, rows([t.advanced for t in trackers]), rows([t.leader for t in teams]))
+    progress = rows([t.progress for t in trackers])
+    update_teams(teams, [w.kinects for w in worlds], est, progress - first.progress.offsets,
+                 [w.camera_view for w in worlds])
+    own = None
+    if first.version == 2:
+        visited = rows([t.visited for t in trackers])
+        own = own_visits(visited & ~was, rows([t.visitor for t in trackers]), first.kpoi_owner, first.n_robots)
+    states = [w.score_state for w in worlds]
+    gained = rows([st.remaining for st in states]) - remaining
+    wall, robot = gather([w.world.wall_contacts for w in worlds]), gather([w.world.robot_contacts for w in worlds])
+    new_wall = wall - rows([st.contacts[0] for st in states])
+    new_robot = robot - rows([st.contacts[1] for st in states])
+    for j, st in enumerate(states):
+        st.remaining, st.contacts = remaining[j], (wall[j], robot[j])
+    terms = reward_terms(s.rewards, n_new, gained, new_wall + new_robot, own)
+    record_steps([w.metrics for w in worlds], before, true, times=times, progress=trackers, estimates=est,
+                 new_contacts=(new_wall, new_robot), teams=teams, formation=s.formation, kinects=first.kinects,
+                 control_dt=s.physics.control_dt)
+    for k, w in enumerate(worlds):
+        if w.render_mode is not None:
+            for trail, p in zip(w.trails, true[k], strict=True):
+                trail.append(p[:2].copy())
+    return Scores(terms, goals)
