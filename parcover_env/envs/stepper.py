@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from parcover_env.envs import obs_v2
+from parcover_env.envs import act_phase, obs_v2
 from parcover_env.envs.handover import CameraView
 from parcover_env.envs.metrics import episode_metrics
 from parcover_env.envs.observations import ScalarInputs
@@ -89,10 +89,9 @@ def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.n
 
 
 def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.ndarray, np.ndarray]:
-    """Part 1a of every world (:meth:`ParallelCoverageEnv.act`): the true poses ``(K, N, 3)`` before
-    and after the step."""
-    before, true = zip(*(w.act(a) for w, a in zip(worlds, actions, strict=True)), strict=True)
-    return np.stack(before), np.stack(true)
+    """Part 1a of every world (:func:`parcover_env.envs.act_phase.act`: act, physics, pose estimates):
+    the true poses ``(K, N, 3)`` before and after the step."""
+    return act_phase.act(worlds, actions)
 
 
 def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> None:

@@ -19,7 +19,7 @@ from numba import njit
 
 from parcover_env.geometry.angle_kernels import wrap
 
-__all__ = ["KINECT", "FAST_NOISE", "estimate"]
+__all__ = ["KINECT", "FAST_NOISE", "estimate", "candidates"]
 
 KINECT = np.dtype([
     ("box", "f8", (4,)),  # floor box (x0, y0, x1, y1) outside which no carrier is seen, if use_box (m)
@@ -158,5 +158,84 @@ def estimate(due, poses, carriers, kinects, pattern, depths, noise, rng, out_sen
             out_pose[n, 0] = bx + ex
             out_pose[n, 1] = by + ey
             out_pose[n, 2] = wrap(th)
+            n += 1
+    return n
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def candidates(rows, row_world, row_depth, poses, carriers, kinects, pattern, depths, noise, out_row, out_index,
+               out_geom):
+    """The random-free part of :func:`estimate` for many worlds at once: for every due Kinect (row
+    ``r``: :data:`KINECT` row ``kinects[rows[r]]``, marker pattern ``pattern[rows[r]]``, static depth
+    ``depths[row_depth[r]]``) of world ``row_world[r]`` and every carrier (``carriers (K, N)`` bool,
+    ascending) among that world's ``poses (K, N, 3)`` that the Kinect images whole and unhidden, fills
+    ``out_row[:n]`` (``r``), ``out_index[:n]`` (robot index) and ``out_geom[:n]``: detection
+    probability, merged (1.0: the markers merge in the closing, no draw), position and heading error
+    sigmas, and the pose ``(x, y, theta)`` the pipeline reconstructs before noise; returns ``n``.
+    The same float operations as :func:`estimate`; the caller draws
+    (:mod:`~parcover_env.localization.kinect.batch_update`)."""
+    nz = noise[0]
+    margin_px, close_px, r_px_min, r_px_full, pos_px, heading_px = nz.margin_px, nz.close_px, nz.r_px_min, \
+        nz.r_px_full, nz.pos_px, nz.heading_px
+    n = 0
+    for r in range(rows.shape[0]):
+        q = rows[r]
+        w = row_world[r]
+        kin = kinects[q]
+        radius, height, range_min, range_max = kin.marker_radius, kin.marker_height, kin.range_min, kin.range_max
+        gap, res_scale, span = kin.pattern_gap, kin.res_scale, kin.pattern_span
+        R, C = kin.R, kin.C
+        fu, fv, cu, cv = kin.K[0], kin.K[1], kin.K[2], kin.K[3]
+        static_depth = depths[row_depth[r]]
+        width, height_px = kin.width, kin.height
+        box = kin.box
+        k = pattern.shape[1]
+        for i in range(poses.shape[1]):
+            if not carriers[w, i]:
+                continue
+            x = poses[w, i, 0]
+            y = poses[w, i, 1]
+            if kin.use_box and not (x >= box[0] and x <= box[2] and y >= box[1] and y <= box[3]):
+                continue
+            c = math.cos(poses[w, i, 2])
+            s = math.sin(poses[w, i, 2])
+            ok = True
+            z_max = -np.inf
+            z_sum = 0.0
+            for j in range(k):
+                px = pattern[q, j, 0]
+                py = pattern[q, j, 1]
+                u, v, z = _project(R, C, fu, fv, cu, cv, x + c * px - s * py, y + s * px + c * py, height)
+                r_px = radius * fu / z + margin_px
+                if not (z > 0.0 and u - r_px >= 0.0 and u + r_px <= width - 1 and v - r_px >= 0.0
+                        and v + r_px <= height_px - 1 and z >= range_min and z <= range_max):
+                    ok = False
+                    break
+                if static_depth[int(np.rint(v)), int(np.rint(u))] < z - 1e-6:
+                    ok = False  # a wall top nearer than the marker hides it
+                    break
+                z_max = max(z_max, z)
+                z_sum += z
+            if not ok:
+                continue
+            p_det = min(max((radius * fu / z_max - r_px_min) / (r_px_full - r_px_min), 0.0), 1.0)
+            merged = gap * (kin.nominal_K[0] / z_max) < close_px
+            mpp = (z_sum / k) / fu * res_scale
+            bx, by, th = x, y, poses[w, i, 2]
+            if kin.remounted:  # the pose as the pipeline reconstructs it (see :func:`estimate`)
+                u0, v0, _ = _project(R, C, fu, fv, cu, cv, x, y, height)
+                u1, v1, _ = _project(R, C, fu, fv, cu, cv, x + 0.1 * c, y + 0.1 * s, height)
+                bx, by = _onto_plane(kin.nominal_R, kin.nominal_C, kin.nominal_K, u0, v0, height)
+                ax, ay = _onto_plane(kin.nominal_R, kin.nominal_C, kin.nominal_K, u1, v1, height)
+                th = math.atan2(ay - by, ax - bx)
+            out_row[n] = r
+            out_index[n] = i
+            out_geom[n, 0] = p_det
+            out_geom[n, 1] = 1.0 if merged else 0.0
+            out_geom[n, 2] = pos_px * mpp
+            out_geom[n, 3] = heading_px * mpp / span
+            out_geom[n, 4] = bx
+            out_geom[n, 5] = by
+            out_geom[n, 6] = th
             n += 1
     return n
