@@ -98,7 +98,7 @@ class PoseEstimator:
         :class:`~parcover_env.world.drive.DiffDrive`, or the ``commands (N, 2)`` for an instant
         drive; the true motion for the ``motion`` odometry model), then every source's fixes.
         Returns each source's fixes of this step by source name. :func:`update_all` with ``K = 1``."""
-        return update_all([self], true[None], commands[None], [drive], [time], leaders[None], [rng])[0]
+        return update_all([self], [true], [commands], [drive], [time], [leaders], [rng])[0]
 
     def fix(self, i: int, pose, cov: np.ndarray | None = None) -> None:
         """Reset robot ``i``'s belief to an absolute fix ``pose (3,)`` of covariance ``cov (3, 3)``."""
@@ -106,11 +106,13 @@ class PoseEstimator:
         self.fix_age[i] = 0.0
 
 
-def update_all(estimators: Sequence[PoseEstimator], true: np.ndarray, commands: np.ndarray, drives: Sequence,
-               times: Sequence[float], leaders: np.ndarray, rngs: Sequence[np.random.Generator]
+def update_all(estimators: Sequence[PoseEstimator], true: Sequence[np.ndarray], commands: Sequence[np.ndarray],
+               drives: Sequence, times: Sequence[float], leaders: Sequence[np.ndarray],
+               rngs: Sequence[np.random.Generator]
                ) -> list[dict[str, dict[int, np.ndarray]]]:
     """:meth:`PoseEstimator.update` of ``K`` estimators of one scenario (``N`` robots each) at once:
-    ``true`` ``(K, N, 3)``, ``commands`` ``(K, N, 2)``, ``leaders`` ``(K, N)``, and per estimator its
+    ``true`` ``(K, N, 3)``, ``commands`` ``(K, N, 2)``, ``leaders`` ``(K, N)`` (arrays, or sequences of
+    the ``K`` worlds' arrays: the sources see those very arrays), and per estimator its
     world's drive, time and generator. The wheel odometry of all ``K N`` robots runs in one compiled
     call and the Kinect systems in one batch (:func:`~parcover_env.localization.kinect.batch_update.update_systems`);
     estimator ``k`` draws from ``rngs[k]`` in the order it would alone (odometry, then each source in
@@ -155,9 +157,9 @@ def update_all(estimators: Sequence[PoseEstimator], true: np.ndarray, commands: 
     for j in range(len(estimators[0].sources)):  # each source in turn, all estimators
         sources = [e.sources[j] for e in estimators]
         if all(isinstance(src, KinectFixes) for src in sources):
-            fixes = update_systems([src.system for src in sources], list(times), true,
-                                   leaders & np.array([src.markers for src in sources])[:, None],
-                                   np.stack([e.estimate for e in estimators]), list(rngs))
+            markers = np.asarray(leaders, dtype=bool) & np.array([src.markers for src in sources])[:, None]
+            fixes = update_systems([src.system for src in sources], list(times), np.asarray(true, dtype=float),
+                                   markers, np.stack([e.estimate for e in estimators]), list(rngs))
         else:
             fixes = [src.fixes(FixRequest(time, t, e.estimate, lead, e.covariance), rng) for e, src, time, t, lead, rng
                      in zip(estimators, sources, times, true, leaders, rngs, strict=True)]

@@ -90,7 +90,7 @@ class Odometry:
         self.cfg = cfg
         n = len(true_poses)
         self.wheel_base = float(wheel_base)
-        self._errors = record(onboard_kernels.WHEEL_ERRORS, wheel_base=self.wheel_base, slip_accel=cfg.slip_accel,
+        self.wheel_errors = record(onboard_kernels.WHEEL_ERRORS, wheel_base=self.wheel_base, slip_accel=cfg.slip_accel,
                               slip_turn=cfg.slip_turn, wheel_variance=cfg.wheel_variance,
                               covariance_wheel_variance=cfg.covariance_wheel_variance)
         """The compiled wheels' random errors (:data:`~parcover_env.sensors.onboard_kernels.WHEEL_ERRORS`)."""
@@ -180,9 +180,8 @@ def measure_wheels_all(odometries: list[Odometry], travel: np.ndarray, speed_cha
     change = np.ascontiguousarray(speed_change, dtype=float).reshape(k * n, 2)
     first = odometries[0]
     if k == 1:  # one odometry: its own arrays, no gather
-        first_errors = first._errors
         onboard_kernels.wheel_odometry(first.estimate, first.covariance, first.travelled, first.turned, travel,
-                                       change, float(dt), z[0], first.factors, first.believed_base, first_errors)
+                                       change, float(dt), z[0], first.factors, first.believed_base, first.wheel_errors)
         return
     # the kernel reads the normals as (2, K N, 2): each odometry's (2, N, 2) block in its rows
     zs = np.stack(z).reshape(k, 2, n, 2).transpose(1, 0, 2, 3).reshape(-1)
@@ -193,7 +192,7 @@ def measure_wheels_all(odometries: list[Odometry], travel: np.ndarray, speed_cha
     factors = np.concatenate([o.factors for o in odometries])
     believed = np.concatenate([o.believed_base for o in odometries])
     onboard_kernels.wheel_odometry(est, cov, travelled, turned, travel, change, float(dt), zs, factors, believed,
-                                   first._errors)
+                                   first.wheel_errors)
     for j, o in enumerate(odometries):
         rows = slice(j * n, (j + 1) * n)
         o.estimate[:] = est[rows]

@@ -37,48 +37,51 @@ def update_systems(systems: Sequence[KinectSystem], times: Sequence[float], true
     at its world's time ``times[k]``, true poses ``true[k] (N, 3)``, marker carriers
     ``markers[k] (N,)`` and predicted poses ``predicted[k] (N, 3)``, drawing from ``rngs[k]``."""
     out: list[dict[int, np.ndarray]] = [{} for _ in systems]
-    batch: list[tuple[int, np.ndarray]] = []
+    now = np.asarray(times, dtype=float)[:, None]
+    ticks = np.stack([s.next_tick for s in systems])
+    due = ticks <= now + 1e-9
+    active = due.any(axis=1) & markers.any(axis=1)
+    new_ticks = np.where(due, now + systems[0].periods, ticks)  # each due Kinect's next frame
+    batch = []
     for k, s in enumerate(systems):
-        time = times[k]
-        due = np.flatnonzero(s.next_tick <= time + 1e-9)
+        s.next_tick[:] = new_ticks[k]
         s.last_fixes = {}
-        if len(due) == 0 or not markers[k].any():
-            s.next_tick[due] = time + s.periods[due]
-        elif s.fast is None:
-            per_kinect = s.frame_estimates(due, true[k], markers[k], rngs[k], time)
-            s.next_tick[due] = time + s.periods[due]
-            out[k] = s.track(per_kinect, markers[k], predicted[k], time)
-        else:
-            check_poses(true[k], markers[k])
-            batch.append((k, due))
-    groups: dict[tuple, list[tuple[int, np.ndarray]]] = {}
-    for item in batch:  # worlds sharing the static Kinect scenes (the batched worlds do) go together
-        groups.setdefault(tuple(map(id, systems[item[0]].fast.depths)), []).append(item)
-    for group in groups.values():
-        ks = [k for k, _ in group]
-        per = fast_estimates([systems[k] for k in ks], [due for _, due in group], true[ks], markers[ks],
-                             [times[k] for k in ks], [rngs[k] for k in ks])
-        for (k, due), per_kinect in zip(group, per, strict=True):
-            s = systems[k]
-            s.next_tick[due] = times[k] + s.periods[due]
+        if not active[k]:
+            continue
+        if s.fast is None:
+            per_kinect = s.frame_estimates(np.flatnonzero(due[k]), true[k], markers[k], rngs[k], times[k])
             out[k] = s.track(per_kinect, markers[k], predicted[k], times[k])
+        else:
+            batch.append(k)
+    groups: dict[tuple, list[int]] = {}
+    for k in batch:  # worlds sharing the static Kinect scenes (the batched worlds do) go together
+        groups.setdefault(tuple(map(id, systems[k].fast.depths)), []).append(k)
+    for ks in groups.values():
+        if not np.isfinite(true[ks]).all():
+            for k in ks:
+                check_poses(true[k], markers[k])  # the ValueError naming what is wrong
+        per = fast_estimates([systems[k] for k in ks], due[ks], true[ks], markers[ks], [times[k] for k in ks],
+                             [rngs[k] for k in ks])
+        for k, found in zip(ks, per, strict=True):
+            out[k] = systems[k].track([found], markers[k], predicted[k], times[k])
     return out
 
 
-def fast_estimates(systems: Sequence[KinectSystem], dues: Sequence[np.ndarray], true: np.ndarray,
-                   markers: np.ndarray, times: Sequence[float], rngs: Sequence[np.random.Generator]
-                   ) -> list[list[list[PoseEstimate]]]:
-    """The estimate model of the Kinects ``dues[b]`` of each system ``b`` (their estimate models
-    share one set of static depths) at true poses ``true[b] (N, 3)`` of the carriers ``markers[b]``:
-    per system, one list of estimates per due Kinect (as
-    :meth:`~parcover_env.localization.kinect.estimate_model.FastModel.estimate`)."""
+def fast_estimates(systems: Sequence[KinectSystem], due: np.ndarray, true: np.ndarray, markers: np.ndarray,
+                   times: Sequence[float], rngs: Sequence[np.random.Generator]) -> list[list[PoseEstimate]]:
+    """The estimate model of the due Kinects (``due (B, S)`` bool) of ``B`` systems (their estimate
+    models share one set of static depths) at true poses ``true[b] (N, 3)`` of the carriers
+    ``markers[b] (N,)``: per system, the estimates of its due Kinects in their order (as
+    :meth:`~parcover_env.localization.kinect.estimate_model.FastModel.estimate`, one list)."""
     models = [s.fast for s in systems]
-    n_kinects = len(models[0].sensors)
-    rows = np.concatenate([b * n_kinects + due for b, due in enumerate(dues)]).astype(np.int64)
-    row_world = np.repeat(np.arange(len(dues), dtype=np.int64), [len(due) for due in dues])
-    row_depth = rows - row_world * n_kinects
-    kinects = models[0].kinects if len(models) == 1 else np.concatenate([m.kinects for m in models])
-    pattern = models[0].pattern if len(models) == 1 else np.concatenate([m.pattern for m in models])
+    n_kinects = due.shape[1]
+    rows = np.flatnonzero(due)  # world b's Kinect q is row b S + q of the stacked tables
+    row_world, row_depth = rows // n_kinects, rows % n_kinects
+    if len(models) == 1:
+        kinects, pattern = models[0].kinects, models[0].pattern
+    else:  # structured rows concatenated as bytes (numpy's field promotion costs ~2 us a table)
+        kinects = np.concatenate([m.kinects.view(np.uint8) for m in models]).view(estimate_kernel.KINECT)
+        pattern = np.concatenate([m.pattern for m in models])
     poses = np.ascontiguousarray(true, dtype=float)
     cap = len(rows) * poses.shape[1]
     out_row, out_index, out_geom = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((cap, 7))
@@ -86,25 +89,21 @@ def fast_estimates(systems: Sequence[KinectSystem], dues: Sequence[np.ndarray], 
                                    kinects, pattern, models[0].depths, models[0].noise, out_row, out_index, out_geom)
     n_markers = pattern.shape[1]
     drop = kinects["drop_rate"][rows].tolist()
+    names = [s.name for s in models[0].sensors]
     cand_row, cand_index, geom = out_row[:n].tolist(), out_index[:n].tolist(), out_geom[:n].tolist()
-    per: list[list[list[PoseEstimate]]] = [[[] for _ in due] for due in dues]
+    per: list[list[PoseEstimate]] = [[] for _ in models]
     c = 0
-    row_start = 0
-    for b, due in enumerate(dues):
-        rng, names, stamp = rngs[b], [s.name for s in models[b].sensors], times[b]
-        for p in range(len(due)):
-            r = row_start + p
-            dropped = drop[r] > 0.0 and rng.random() < drop[r]
-            found = per[b][p]
-            while c < n and cand_row[c] == r:
-                i = cand_index[c]
-                p_det, merged, sigma_xy, sigma_th, x, y, th = geom[c]
-                c += 1
-                if dropped or merged or rng.random() >= p_det:
-                    continue  # the frame dropped, the markers merged, or too small to be found
-                z = rng.standard_normal(3).tolist()  # as rng.normal(0, sigma) three times
-                found.append(PoseEstimate(x + (0.0 + sigma_xy * z[0]), y + (0.0 + sigma_xy * z[1]),
-                                          wrap(th + (0.0 + sigma_th * z[2])), n_markers, kinect=names[due[p]],
-                                          stamp=stamp, truth_index=i))
-        row_start += len(due)
+    for r, (b, q) in enumerate(zip(row_world.tolist(), row_depth.tolist(), strict=True)):
+        rng, found = rngs[b], per[b]
+        dropped = drop[r] > 0.0 and rng.random() < drop[r]
+        while c < n and cand_row[c] == r:
+            i = cand_index[c]
+            p_det, merged, sigma_xy, sigma_th, x, y, th = geom[c]
+            c += 1
+            if dropped or merged or rng.random() >= p_det:
+                continue  # the frame dropped, the markers merged, or too small to be found
+            z = rng.standard_normal(3).tolist()  # as rng.normal(0, sigma) three times
+            found.append(PoseEstimate(x + (0.0 + sigma_xy * z[0]), y + (0.0 + sigma_xy * z[1]),
+                                      wrap(th + (0.0 + sigma_th * z[2])), n_markers, kinect=names[q],
+                                      stamp=times[b], truth_index=i))
     return per
