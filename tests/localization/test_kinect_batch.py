@@ -1,0 +1,105 @@
+"""The Kinect systems of K worlds in one batch (kinect/batch_update.py, estimate_kernel.candidates):
+the same estimates from the same draws as the per-world compiled model, and a pinned hand-built case."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+import parcover_env
+from parcover_env.localization.kinect import estimate_kernel
+from parcover_env.localization.kinect.batch_update import fast_estimates, update_systems
+from parcover_env.localization.kinect.estimate_model import FastModel, FastNoise
+
+
+def _systems(seeds):
+    """Kinect systems of ``tree`` worlds mounted by different seeds, sharing one static scene (as
+    the batched worlds do)."""
+    systems = []
+    for seed in seeds:
+        env = parcover_env.parallel_env("tree").unwrapped
+        env.reset(seed=seed)
+        systems.append(env.kinects)
+    for s in systems[1:]:
+        s.fast.depths = systems[0].fast.depths
+    return systems, env.map.bounds
+
+
+@pytest.mark.parametrize("drop_rate", [None, 0.3])
+def test_fast_estimates_of_two_worlds_are_the_per_world_model(drop_rate):
+    systems, bounds = _systems([4, 5])
+    if drop_rate is not None:
+        for s in systems:
+            s.fast.kinects = s.fast.kinects.copy()
+            s.fast.kinects["drop_rate"] = drop_rate
+    n_kinects = len(systems[0].sensors)
+    g = np.random.default_rng(1)
+    lo, hi = np.array(bounds[:2]), np.array(bounds[2:])
+    found = 0
+    for trial in range(100):
+        poses = np.stack([np.column_stack([g.uniform(lo, hi, (12, 2)), g.uniform(-3.2, 3.2, 12)]) for _ in range(2)])
+        mask = g.random((2, 12)) < 0.6
+        due = g.random((2, n_kinects)) < 0.7
+        rngs = [np.random.default_rng(trial), np.random.default_rng(1000 + trial)]
+        got = fast_estimates(systems, due, poses, mask, [0.5, 0.7], rngs)
+        for b, s in enumerate(systems):
+            ref = np.random.default_rng(trial if b == 0 else 1000 + trial)
+            want = [e for lst in s.fast.estimate(np.flatnonzero(due[b]), poses[b], mask[b], ref, stamp=[0.5, 0.7][b])
+                    for e in lst]
+            assert got[b] == want  # the same estimates (dataclasses: every field, exact floats)
+            assert rngs[b].random() == ref.random()  # the same draws
+            found += len(want)
+        alone = fast_estimates(systems[1:], due[1:], poses[1:], mask[1:], [0.7], [np.random.default_rng(1000 + trial)])
+        assert alone[0] == got[1]  # K = 1 of the same code
+    assert found > 40
+
+
+def test_update_systems_of_two_worlds_is_update_of_each():
+    systems, _ = _systems([6, 7])
+    alone = [copy.deepcopy(s) for s in systems]
+    poses = np.array([[[3.0, 4.0, 0.1], [5.0, 9.0, 1.0], [6.0, 9.5, -2.0]],
+                      [[3.2, 4.1, 0.2], [5.5, 9.0, 0.0], [7.0, 9.0, 3.0]]])
+    markers = np.array([[True, False, True], [True, True, False]])
+    predicted = poses + 0.02
+    fixes = 0
+    for step in range(10):
+        t = 0.1 * (step + 1)
+        rngs = [np.random.default_rng(step), np.random.default_rng(50 + step)]
+        got = update_systems(systems, [t, t], poses, markers, predicted, rngs)
+        for k, s in enumerate(alone):
+            want = s.update(t, poses[k], markers[k], predicted[k], np.random.default_rng(50 * k + step))
+            assert got[k].keys() == want.keys()
+            for i in want:
+                np.testing.assert_array_equal(got[k][i], want[i])
+            np.testing.assert_array_equal(systems[k].next_tick, s.next_tick)
+            fixes += len(want)
+    assert fixes > 0
+
+
+def test_candidates_pinned_under_a_downward_kinect():
+    """Office's Kinect A looks straight down from (1.6, 2.3, 3.9) m: a carrier in its view is seen at
+    its true pose (a nominal mount), with the error sigmas of the fast noise model at its depth (the
+    marker plane is parallel to the image: every marker at 3.6 m); a non-carrier, a carrier off the
+    image and one under the top of the office's wall block (x 1.4-3.2 m, y 1.8-3.2 m) are not."""
+    env = parcover_env.parallel_env("office").unwrapped
+    env.reset(seed=0)
+    sensor = env.kinects.sensors[0]
+    sensor.true_camera = sensor.camera  # nominal mount: the pipeline reconstructs the true pose
+    model = FastModel([sensor])
+    poses = np.array([[[0.8, 1.0, 0.3], [0.9, 1.2, -1.0], [40.0, 40.0, 0.0], [2.0, 2.4, 0.0]]])
+    carriers = np.array([[True, False, True, True]])
+    out_row, out_index, out_geom = np.empty(4, np.int64), np.empty(4, np.int64), np.empty((4, 7))
+    n = estimate_kernel.candidates(np.array([0]), np.array([0]), np.array([0]), poses, carriers, model.kinects,
+                                   model.pattern, model.depths, model.noise, out_row, out_index, out_geom)
+    assert n == 1 and out_row[0] == 0 and out_index[0] == 0
+    p_det, merged, sigma_xy, sigma_th, x, y, th = out_geom[0]
+    assert (x, y, th) == (0.8, 1.0, 0.3)
+    fu, depth, nz = sensor.camera.K[0, 0], 3.9 - sensor.robot_height, FastNoise()
+    mpp = depth / fu * (640 / sensor.shape[1]) ** nz.res_exponent  # metres per pixel at the markers
+    assert sigma_xy == pytest.approx(nz.pos_px * mpp, rel=1e-9)
+    assert sigma_th == pytest.approx(nz.heading_px * mpp / np.ptp(sensor.pattern[:, 0]), rel=1e-9)
+    r_px = sensor.marker_radius * fu / depth
+    assert p_det == pytest.approx(min(max((r_px - nz.r_px_min) / (nz.r_px_full - nz.r_px_min), 0.0), 1.0), rel=1e-9)
+    assert p_det > 0.5 and merged == 0.0
