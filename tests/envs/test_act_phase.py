@@ -114,7 +114,10 @@ def _envs(scenario: str, seeds, overrides=None):
     return envs
 
 
-@pytest.mark.parametrize("scenario, overrides", [("tree", None), ("office", {"observation": {"scan": {"enabled": True}}})])
+SCAN = {"observation": {"scan": {"enabled": True}}}
+
+
+@pytest.mark.parametrize("scenario, overrides", [("tree", None), ("office", SCAN)])
 def test_act_of_two_worlds_is_act_of_each_alone(scenario, overrides):
     """Drive, physics, odometry, Kinect fixes (and the scan fixes) of K = 2 worlds of different
     states: the same floats as each world acting alone."""
