@@ -19,6 +19,7 @@ import numpy as np
 
 from parcover_env.envs.actions import to_commands_all
 from parcover_env.envs.estimator import FixRequest, update_all
+from parcover_env.geometry.stacking import stack
 from parcover_env.world.drive import advance_steps_all, wheel_targets
 
 __all__ = ["act"]
@@ -41,14 +42,14 @@ def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.nd
         w.commands = commands[k]
         if scanning:
             w.scanner.request(raw[k, :, 2], w.commands)  # scanning robots are held still
-    before = np.stack([w.world.poses() for w in worlds])
+    before = stack([w.world.poses() for w in worlds])
     velocities = _drive(worlds, commands)
     for k, w in enumerate(worlds):
         w.world.step(w.commands, None if velocities is None else velocities[:, k])
         w.steps += 1
-    true = np.stack([w.world.poses() for w in worlds])
+    true = stack([w.world.poses() for w in worlds])
     fixes = update_all([w.estimator for w in worlds], true, commands, [w.world.drive for w in worlds],
-                       [w.world.time for w in worlds], np.stack([w.team.leader for w in worlds]),
+                       [w.world.time for w in worlds], stack([w.team.leader for w in worlds]),
                        [w.np_random for w in worlds])
     for k, w in enumerate(worlds):
         if "kinect" in fixes[k]:  # a Kinect fix is a message to a leader

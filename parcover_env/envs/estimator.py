@@ -18,6 +18,7 @@ import numpy as np
 
 from parcover_env.config import Scenario
 from parcover_env.geometry import wrap_angle
+from parcover_env.geometry.stacking import stack
 from parcover_env.localization.kinect.batch_update import update_systems
 from parcover_env.localization.kinect.system import KinectSystem
 from parcover_env.sensors.odometry import Odometry, measure_wheels_all
@@ -130,10 +131,10 @@ def update_all(estimators: Sequence[PoseEstimator], true: Sequence[np.ndarray], 
                 c = np.zeros_like(t)
             travel.append(t)
             change.append(c)
-        travel_all = np.stack(travel)
-        before = np.stack([e.odometry.estimate for e in estimators])
-        measure_wheels_all([e.odometry for e in estimators], travel_all, np.stack(change), dt, list(rngs))
-        est = np.stack([e.odometry.estimate for e in estimators])
+        travel_all = stack(travel)
+        before = stack([e.odometry.estimate for e in estimators], copy=True)
+        measure_wheels_all([e.odometry for e in estimators], travel_all, stack(change), dt, list(rngs))
+        est = stack([e.odometry.estimate for e in estimators])
         velocity = np.empty((k, est.shape[1], 2))  # (signed distance, heading change) over the step / dt
         np.multiply(np.hypot(est[..., 0] - before[..., 0], est[..., 1] - before[..., 1]),
                     np.sign(travel_all[..., 0] + travel_all[..., 1]), out=velocity[..., 0])
@@ -159,7 +160,7 @@ def update_all(estimators: Sequence[PoseEstimator], true: Sequence[np.ndarray], 
         if all(isinstance(src, KinectFixes) for src in sources):
             markers = np.asarray(leaders, dtype=bool) & np.array([src.markers for src in sources])[:, None]
             fixes = update_systems([src.system for src in sources], list(times), np.asarray(true, dtype=float),
-                                   markers, np.stack([e.estimate for e in estimators]), list(rngs))
+                                   markers, stack([e.estimate for e in estimators]), list(rngs))
         else:
             fixes = [src.fixes(FixRequest(time, t, e.estimate, lead, e.covariance), rng) for e, src, time, t, lead, rng
                      in zip(estimators, sources, times, true, leaders, rngs, strict=True)]

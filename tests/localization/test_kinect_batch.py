@@ -103,3 +103,33 @@ def test_candidates_pinned_under_a_downward_kinect():
     r_px = sensor.marker_radius * fu / depth
     assert p_det == pytest.approx(min(max((r_px - nz.r_px_min) / (nz.r_px_full - nz.r_px_min), 0.0), 1.0), rel=1e-9)
     assert p_det > 0.5 and merged == 0.0
+
+
+def test_tracker_matches_the_optimal_assignment_with_or_without_the_solver():
+    """The tracker skips the assignment solver when no estimate is within the gate of two robots (nor
+    a robot of two estimates): its matches stay those of the minimum-cost assignment."""
+    from scipy.optimize import linear_sum_assignment
+
+    from parcover_env.localization.kinect.pipeline import PoseEstimate
+    from parcover_env.localization.kinect.tracker import KinectTracker
+
+    g = np.random.default_rng(0)
+    crowded = 0
+    for _ in range(300):
+        n_est, n_ref = g.integers(1, 5), g.integers(1, 5)
+        xy = g.uniform(0, 1.5, (n_est, 2))
+        ests = [PoseEstimate(x, y, 0.0, 4) for x, y in xy]
+        ref = {int(i): np.array([*g.uniform(0, 1.5, 2), 0.0]) for i in g.choice(10, n_ref, replace=False)}
+        tracker = KinectTracker(gate=0.3, fuse_radius=0.01)
+        got = tracker.update([ests], ref)
+        fused = tracker.fuse(ests)
+        ids = list(ref)
+        cost = np.array([[np.hypot(*(f[:2] - ref[k][:2])) for k in ids] for f in fused])
+        rows, cols = linear_sum_assignment(np.where(cost <= 0.3, cost, 1e6))
+        want = {ids[c]: fused[r] for r, c in zip(rows, cols, strict=True) if cost[r, c] <= 0.3}
+        assert list(got) == list(want)  # the same robots, in the same order
+        for k in want:
+            np.testing.assert_array_equal(got[k], want[k])
+        inside = cost <= 0.3
+        crowded += bool(inside.sum(axis=0).max() > 1 or inside.sum(axis=1).max() > 1)
+    assert 20 < crowded < 280  # both paths taken

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from parcover_env.geometry.stacking import stack
 from parcover_env.geometry.wrap_formula import wrap
 from parcover_env.localization.kinect import estimate_kernel
 from parcover_env.localization.kinect.pipeline import PoseEstimate
@@ -38,7 +39,7 @@ def update_systems(systems: Sequence[KinectSystem], times: Sequence[float], true
     ``markers[k] (N,)`` and predicted poses ``predicted[k] (N, 3)``, drawing from ``rngs[k]``."""
     out: list[dict[int, np.ndarray]] = [{} for _ in systems]
     now = np.asarray(times, dtype=float)[:, None]
-    ticks = np.stack([s.next_tick for s in systems])
+    ticks = stack([s.next_tick for s in systems])
     due = ticks <= now + 1e-9
     active = due.any(axis=1) & markers.any(axis=1)
     new_ticks = np.where(due, now + systems[0].periods, ticks)  # each due Kinect's next frame
