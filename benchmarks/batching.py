@@ -8,7 +8,8 @@ measured in a fresh process per model and K (so that no freed memory of an earli
 its RSS growth from building, resetting and stepping the K worlds 5 times, over K, after a K = 1
 run loaded the imports and compiled kernels. Per model at the largest K, the breakdown of a
 world-step (physics = each world's ``World.step``, sonar = the rings' draws and their one compiled
-call, the rest = everything else), timed in a separate run with wrapped calls. The issue's K = 64
+call, the rest = everything else; and the act phase with its drives and pose estimators), timed in a
+separate run with wrapped calls. The issue's K = 64
 targets are printed beside the figures, met or not, from a paired run (specular K = 1 and 64, fast
 K = 64 and VMAS 64 built together and timed in turn, at least 3 times); a single ``tree`` env and
 MPE2 ``simple_spread`` N = 10 are measured here, alternately, for the single-env target.
@@ -91,6 +92,8 @@ def _row(model: str, k: int, steps: int, repeats: int) -> dict:
 
 def breakdown(model: str, k: int, steps: int) -> dict:
     """Microseconds per world-step of physics, sonar and the rest, batched ``tree`` at ``k`` worlds."""
+    from parcover_env.envs import act_phase, stepper
+
     venv = _venv(model, k)
     try:
         run = VecRunner(venv)
@@ -103,6 +106,9 @@ def breakdown(model: str, k: int, steps: int) -> dict:
                 seen.add(id(w.sonar))
                 clock.wrap(w.sonar, "draw", "sonar")
                 clock.wrap(w.sonar, "readings", "sonar")
+        clock.wrap(stepper, "act", "act")  # the act phase of all worlds: commands, drives, physics, estimators
+        clock.wrap(act_phase, "advance_steps_all", "drives")
+        clock.wrap(act_phase, "update_all", "estimators")
         t0 = time.perf_counter()
         for i in range(steps):
             run(i)
@@ -115,6 +121,11 @@ def breakdown(model: str, k: int, steps: int) -> dict:
     out["rest_us"] = out["total_us"] - out["physics_us"] - out["sonar_us"]
     print(f"  breakdown {model:8s} K={k:4d}: {out['total_us']:7.1f} us/world-step = physics {out['physics_us']:6.1f} "
           f"+ sonar {out['sonar_us']:6.1f} + rest {out['rest_us']:6.1f} (wrapped calls)", flush=True)
+    for part in ("act", "drives", "estimators"):
+        out[f"{part}_us"] = clock.total.get(part, 0.0) * per
+    print(f"    act phase {out['act_us']:6.1f} us/world-step: physics {out['physics_us']:6.1f}, drives "
+          f"{out['drives_us']:6.1f}, pose estimators (odometry, Kinect systems, fixes) {out['estimators_us']:6.1f}",
+          flush=True)
     return out
 
 
