@@ -109,8 +109,7 @@ class PoseEstimator:
 
 def update_all(estimators: Sequence[PoseEstimator], true: Sequence[np.ndarray], commands: Sequence[np.ndarray],
                drives: Sequence, times: Sequence[float], leaders: Sequence[np.ndarray],
-               rngs: Sequence[np.random.Generator]
-               ) -> list[dict[str, dict[int, np.ndarray]]]:
+               rngs: Sequence[np.random.Generator]) -> list[dict[str, dict[int, np.ndarray]]]:
     """:meth:`PoseEstimator.update` of ``K`` estimators of one scenario (``N`` robots each) at once:
     ``true`` ``(K, N, 3)``, ``commands`` ``(K, N, 2)``, ``leaders`` ``(K, N)`` (arrays, or sequences of
     the ``K`` worlds' arrays: the sources see those very arrays), and per estimator its

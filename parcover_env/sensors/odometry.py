@@ -90,9 +90,10 @@ class Odometry:
         self.cfg = cfg
         n = len(true_poses)
         self.wheel_base = float(wheel_base)
-        self.wheel_errors = record(onboard_kernels.WHEEL_ERRORS, wheel_base=self.wheel_base, slip_accel=cfg.slip_accel,
-                              slip_turn=cfg.slip_turn, wheel_variance=cfg.wheel_variance,
-                              covariance_wheel_variance=cfg.covariance_wheel_variance)
+        self.wheel_errors = record(onboard_kernels.WHEEL_ERRORS, wheel_base=self.wheel_base,
+                                   slip_accel=cfg.slip_accel, slip_turn=cfg.slip_turn,
+                                   wheel_variance=cfg.wheel_variance,
+                                   covariance_wheel_variance=cfg.covariance_wheel_variance)
         """The compiled wheels' random errors (:data:`~parcover_env.sensors.onboard_kernels.WHEEL_ERRORS`)."""
         self._last_true = np.array(true_poses, dtype=float)
         self.estimate = np.array(true_poses, dtype=float)
@@ -145,7 +146,8 @@ class Odometry:
         ``travel`` ``(N, 2)``: each wheel's true ground distance (m) over the step of ``dt`` s;
         ``speed_change`` ``(N, 2)``: the summed |speed changes| of each wheel (m/s) over it.
         """
-        measure_wheels_all([self], travel[None], speed_change[None], dt, [rng])
+        measure_wheels_all([self], np.asarray(travel, dtype=float)[None], np.asarray(speed_change, dtype=float)[None],
+                           dt, [rng])
         return self.estimate
 
     def _advance(self, ds: np.ndarray, dth: np.ndarray, q: np.ndarray) -> None:

@@ -104,10 +104,12 @@ def advance_steps_all(drives: list[DiffDrive], targets: np.ndarray, dt: float, s
     out = np.empty((steps, k * n, 2))
     lag_steps(wheels, travel, change, np.ascontiguousarray(targets, dtype=float).reshape(k * n, 2), gain,
               c.accel_max * dt, dt, c.wheel_base, out)
-    for j, d in enumerate(drives):
-        rows = slice(j * n, (j + 1) * n)
-        d.wheels = wheels[rows].copy() if k > 1 else wheels
-        if k > 1:
+    if k == 1:
+        drives[0].wheels = wheels
+    else:  # scatter each drive's rows back
+        for j, d in enumerate(drives):
+            rows = slice(j * n, (j + 1) * n)
+            d.wheels = wheels[rows].copy()
             d.travel[:] = travel[rows]
             d.speed_change[:] = change[rows]
     return out.reshape(steps, k, n, 2)
