@@ -133,3 +133,40 @@ def test_tracker_matches_the_optimal_assignment_with_or_without_the_solver():
         inside = cost <= 0.3
         crowded += bool(inside.sum(axis=0).max() > 1 or inside.sum(axis=1).max() > 1)
     assert 20 < crowded < 280  # both paths taken
+
+
+def _office_system(kinect: str = "estimate"):
+    """Office's Kinect system (one Kinect A at 15 Hz looking straight down), mounted as designed."""
+    a = {"name": "A", "position": [1.6, 2.3], "height": 3.9, "pitch_deg": 90, "yaw_deg": 0, "resolution": [640, 480],
+         "rate_hz": 15, "mount_tilt_std_deg": 0.0, "mount_yaw_std_deg": 0.0, "mount_height_std": 0.0}
+    env = parcover_env.parallel_env("office", overrides={"observation": {"kinect": kinect}, "kinects": [a]}).unwrapped
+    env.reset(seed=0)
+    assert all(s.true_camera is s.camera for s in env.kinects.sensors)
+    return env.kinects
+
+
+@pytest.mark.parametrize("kinect", ["estimate", "frames"])
+def test_update_systems_pinned_on_office(kinect):
+    """A due Kinect fixes the visible carrier matched by its predicted pose (to the fast model's sub-mm
+    noise, or the pipeline's mm) and schedules its next frame one period on; a Kinect not due, or no
+    carrier at all, draws nothing and fixes nobody."""
+    system = _office_system(kinect)
+    period = 1.0 / 15.0
+    true = np.array([[[0.8, 1.0, 0.3], [0.9, 1.6, -1.0]]])
+    predicted = true + np.array([0.05, -0.04, 0.02])  # dead reckoning a few cm off: within the gate
+    rng = np.random.default_rng(0)
+    fixes = update_systems([system], [0.1], true, np.array([[True, False]]), predicted, [rng])[0]
+    assert list(fixes) == [0] and system.last_fixes is fixes  # robot 1 carries no markers
+    np.testing.assert_allclose(fixes[0], true[0, 0], atol=5e-3 if kinect == "frames" else 1e-3)
+    assert system.next_tick.tolist() == [0.1 + period]
+    if system.fast is not None:  # frames may drop from now on: still no draw without a carrier
+        system.fast.kinects = system.fast.kinects.copy()
+        system.fast.kinects["drop_rate"] = 0.5
+    state = copy.deepcopy(rng.bit_generator.state)
+    assert update_systems([system], [0.15], true, np.array([[True, True]]), predicted, [rng]) == [{}]  # not due
+    assert system.next_tick.tolist() == [0.1 + period] and system.last_fixes == {}
+    assert update_systems([system], [0.2], true, np.zeros((1, 2), bool), predicted, [rng]) == [{}]  # no carrier
+    assert system.next_tick.tolist() == [0.2 + period]
+    assert rng.bit_generator.state == state  # nothing drawn
+    far = predicted + np.array([1.5, 0.0, 0.0])  # predicted beyond the gate (1 m): no match, no fix
+    assert update_systems([system], [0.3], true, np.array([[True, False]]), far, [rng]) == [{}]
