@@ -58,10 +58,11 @@ def update_systems(systems: Sequence[KinectSystem], times: Sequence[float], true
     for k in batch:  # worlds sharing the static Kinect scenes (the batched worlds do) go together
         groups.setdefault(tuple(map(id, systems[k].fast.depths)), []).append(k)
     for ks in groups.values():
-        if not np.isfinite(true[ks]).all():
+        rows = slice(None) if len(ks) == len(systems) else ks  # all worlds (the common case): no gather
+        if not np.isfinite(true[rows]).all():
             for k in ks:
                 check_poses(true[k], markers[k])  # the ValueError naming what is wrong
-        per = fast_estimates([systems[k] for k in ks], due[ks], true[ks], markers[ks], [times[k] for k in ks],
+        per = fast_estimates([systems[k] for k in ks], due[rows], true[rows], markers[rows], [times[k] for k in ks],
                              [rngs[k] for k in ks])
         for k, found in zip(ks, per, strict=True):
             out[k] = systems[k].track([found], markers[k], predicted[k], times[k])
@@ -77,7 +78,7 @@ def fast_estimates(systems: Sequence[KinectSystem], due: np.ndarray, true: np.nd
     models = [s.fast for s in systems]
     n_kinects = due.shape[1]
     rows = np.flatnonzero(due)  # world b's Kinect q is row b S + q of the stacked tables
-    row_world, row_depth = rows // n_kinects, rows % n_kinects
+    row_world, row_depth = np.divmod(rows, n_kinects)
     if len(models) == 1:
         kinects, pattern = models[0].kinects, models[0].pattern
     else:  # structured rows concatenated as bytes (numpy's field promotion costs ~2 us a table)
@@ -86,10 +87,12 @@ def fast_estimates(systems: Sequence[KinectSystem], due: np.ndarray, true: np.nd
     poses = np.ascontiguousarray(true, dtype=float)
     cap = len(rows) * poses.shape[1]
     out_row, out_index, out_geom = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((cap, 7))
+    row_drop = np.empty(len(rows))
     n = estimate_kernel.candidates(rows, row_world, row_depth, poses, np.ascontiguousarray(markers, dtype=bool),
-                                   kinects, pattern, models[0].depths, models[0].noise, out_row, out_index, out_geom)
+                                   kinects, pattern, models[0].depths, models[0].noise, row_drop, out_row, out_index,
+                                   out_geom)
     n_markers = pattern.shape[1]
-    drop = kinects["drop_rate"][rows].tolist()
+    drop = row_drop.tolist()
     names = [s.name for s in models[0].sensors]
     cand_row, cand_index, geom = out_row[:n].tolist(), out_index[:n].tolist(), out_geom[:n].tolist()
     per: list[list[PoseEstimate]] = [[] for _ in models]

@@ -177,13 +177,14 @@ def estimate(due, poses, carriers, kinects, pattern, depths, noise, rng, out_sen
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def candidates(rows, row_world, row_depth, poses, carriers, kinects, pattern, depths, noise, out_row, out_index,
-               out_geom):
+def candidates(rows, row_world, row_depth, poses, carriers, kinects, pattern, depths, noise, row_drop, out_row,
+               out_index, out_geom):
     """The random-free part of :func:`estimate` for many worlds at once: for every due Kinect (row
     ``r``: :data:`KINECT` row ``kinects[rows[r]]``, marker pattern ``pattern[rows[r]]``, static depth
     ``depths[row_depth[r]]``) of world ``row_world[r]`` and every carrier (``carriers (K, N)`` bool,
     ascending) among that world's ``poses (K, N, 3)`` that the Kinect images whole and unhidden, fills
-    ``out_row[:n]`` (``r``), ``out_index[:n]`` (robot index) and ``out_geom[:n]``: detection
+    ``row_drop[r]`` (the row's frame drop rate), ``out_row[:n]`` (``r``), ``out_index[:n]`` (robot index) and
+    ``out_geom[:n]``: detection
     probability, merged (1.0: the markers merge in the closing, no draw), position and heading error
     sigmas, and the pose ``(x, y, theta)`` the pipeline reconstructs before noise; returns ``n``.
     The same float operations as :func:`estimate`; the caller draws
@@ -195,6 +196,7 @@ def candidates(rows, row_world, row_depth, poses, carriers, kinects, pattern, de
         q = rows[r]
         w = row_world[r]
         kin = kinects[q]
+        row_drop[r] = kin.drop_rate
         fu = kin.K[0]
         for i in range(poses.shape[1]):
             if not carriers[w, i]:
