@@ -92,8 +92,8 @@ def test_candidates_pinned_under_a_downward_kinect():
     carriers = np.array([[True, False, True, True]])
     out_row, out_index, out_geom = np.empty(4, np.int64), np.empty(4, np.int64), np.empty((4, 7))
     row_drop = np.full(1, np.nan)
-    n = estimate_kernel.candidates(np.array([0]), np.array([0]), np.array([0]), poses, carriers, model.kinects,
-                                   model.pattern, model.depths, model.noise, row_drop, out_row, out_index, out_geom)
+    n = estimate_kernel.candidates(np.zeros((3, 1), np.int64), poses, carriers, model.kinects, model.pattern,
+                                   model.depths, model.noise, row_drop, out_row, out_index, out_geom)
     assert n == 1 and out_row[0] == 0 and out_index[0] == 0 and row_drop[0] == sensor.cfg.drop_rate
     p_det, merged, sigma_xy, sigma_th, x, y, th = out_geom[0]
     assert (x, y, th) == (0.8, 1.0, 0.3)

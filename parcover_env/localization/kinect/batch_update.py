@@ -78,7 +78,9 @@ def fast_estimates(systems: Sequence[KinectSystem], due: np.ndarray, true: np.nd
     models = [s.fast for s in systems]
     n_kinects = due.shape[1]
     rows = np.flatnonzero(due)  # world b's Kinect q is row b S + q of the stacked tables
-    row_world, row_depth = np.divmod(rows, n_kinects)
+    index = np.empty((3, len(rows)), np.int64)  # per row: table row, world, Kinect (its static depth)
+    index[0] = rows
+    row_world, row_depth = np.divmod(rows, n_kinects, out=(index[1], index[2]))
     if len(models) == 1:
         kinects, pattern = models[0].kinects, models[0].pattern
     else:  # structured rows concatenated as bytes (numpy's field promotion costs ~2 us a table)
@@ -88,9 +90,8 @@ def fast_estimates(systems: Sequence[KinectSystem], due: np.ndarray, true: np.nd
     cap = len(rows) * poses.shape[1]
     out_row, out_index, out_geom = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((cap, 7))
     row_drop = np.empty(len(rows))
-    n = estimate_kernel.candidates(rows, row_world, row_depth, poses, np.ascontiguousarray(markers, dtype=bool),
-                                   kinects, pattern, models[0].depths, models[0].noise, row_drop, out_row, out_index,
-                                   out_geom)
+    n = estimate_kernel.candidates(index, poses, np.ascontiguousarray(markers, dtype=bool), kinects, pattern,
+                                   models[0].depths, models[0].noise, row_drop, out_row, out_index, out_geom)
     n_markers = pattern.shape[1]
     drop = row_drop.tolist()
     names = [s.name for s in models[0].sensors]

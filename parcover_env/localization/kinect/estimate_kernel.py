@@ -177,24 +177,22 @@ def estimate(due, poses, carriers, kinects, pattern, depths, noise, rng, out_sen
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def candidates(rows, row_world, row_depth, poses, carriers, kinects, pattern, depths, noise, row_drop, out_row,
-               out_index, out_geom):
-    """The random-free part of :func:`estimate` for many worlds at once: for every due Kinect (row
-    ``r``: :data:`KINECT` row ``kinects[rows[r]]``, marker pattern ``pattern[rows[r]]``, static depth
-    ``depths[row_depth[r]]``) of world ``row_world[r]`` and every carrier (``carriers (K, N)`` bool,
-    ascending) among that world's ``poses (K, N, 3)`` that the Kinect images whole and unhidden, fills
-    ``row_drop[r]`` (the row's frame drop rate), ``out_row[:n]`` (``r``), ``out_index[:n]`` (robot index) and
-    ``out_geom[:n]``: detection
-    probability, merged (1.0: the markers merge in the closing, no draw), position and heading error
-    sigmas, and the pose ``(x, y, theta)`` the pipeline reconstructs before noise; returns ``n``.
-    The same float operations as :func:`estimate`; the caller draws
-    (:mod:`~parcover_env.localization.kinect.batch_update`)."""
+def candidates(rows, poses, carriers, kinects, pattern, depths, noise, row_drop, out_row, out_index, out_geom):
+    """The random-free part of :func:`estimate` for many worlds at once. For every due Kinect (row
+    ``r`` of ``rows (3, R)``: :data:`KINECT` row ``kinects[rows[0, r]]``, marker pattern
+    ``pattern[rows[0, r]]``, static depth ``depths[rows[2, r]]``) of world ``rows[1, r]``, writes its
+    frame drop rate to ``row_drop[r]``; for every carrier (``carriers (K, N)`` bool, ascending) among
+    that world's ``poses (K, N, 3)`` that the Kinect images whole and unhidden, fills ``out_row[:n]``
+    (``r``), ``out_index[:n]`` (robot index) and ``out_geom[:n]``: detection probability, merged (1.0:
+    the markers merge in the closing, no draw), position and heading error sigmas, and the pose
+    ``(x, y, theta)`` the pipeline reconstructs before noise; returns ``n``. The same float operations
+    as :func:`estimate`; the caller draws (:mod:`~parcover_env.localization.kinect.batch_update`)."""
     nz = noise[0]
     n = 0
     k = pattern.shape[1]
-    for r in range(rows.shape[0]):
-        q = rows[r]
-        w = row_world[r]
+    for r in range(rows.shape[1]):
+        q = rows[0, r]
+        w = rows[1, r]
         kin = kinects[q]
         row_drop[r] = kin.drop_rate
         fu = kin.K[0]
@@ -208,7 +206,7 @@ def candidates(rows, row_world, row_depth, poses, carriers, kinects, pattern, de
                 continue
             c = math.cos(poses[w, i, 2])
             s = math.sin(poses[w, i, 2])
-            seen, z_max, z_sum = _seen(kin, pattern[q], depths[row_depth[r]], x, y, c, s, nz.margin_px)
+            seen, z_max, z_sum = _seen(kin, pattern[q], depths[rows[2, r]], x, y, c, s, nz.margin_px)
             if not seen:
                 continue
             p_det = min(max((kin.marker_radius * fu / z_max - nz.r_px_min) / (nz.r_px_full - nz.r_px_min), 0.0), 1.0)
