@@ -3,7 +3,7 @@
 ``ParallelCoverageEnv``, the batched worlds (:mod:`parcover_env.envs.batched`) and the single-robot
 env all step through here, so the rules are written once:
 
-1. **act** (:func:`act`, per world :meth:`ParallelCoverageEnv.act`): act, integrate the physics, update
+1. **act** (:func:`act`, all worlds at once in :mod:`~parcover_env.envs.act_phase`): act, integrate the physics, update
    the pose estimator (odometry, fixes); **score** (:func:`score`, per world
    :meth:`ParallelCoverageEnv.score`): track the mission, hand over at splits (Alg. 1), score, record;
 2. **sense and observe** (:func:`observe`, all worlds at once): one :class:`SensingState` of every
