@@ -8,8 +8,9 @@ measured in a fresh process per model and K (so that no freed memory of an earli
 its RSS growth from building, resetting and stepping the K worlds 5 times, over K, after a K = 1
 run loaded the imports and compiled kernels. Per model at the largest K, the breakdown of a
 world-step (physics = each world's ``World.step``, sonar = the rings' draws and their one compiled
-call, score and outputs = those stepper phases of all worlds, the rest = everything else), timed in
-a separate run with wrapped calls. The issue's K = 64
+call, act = the stepper's act phase of all worlds (of it physics, the drives and the pose estimators),
+score and outputs = those stepper phases of all worlds, the rest = everything else), timed in a
+separate run with wrapped calls. The issue's K = 64
 targets are printed beside the figures, met or not, from a paired run (specular K = 1 and 64, fast
 K = 64 and VMAS 64 built together and timed in turn, at least 3 times); a single ``tree`` env and
 MPE2 ``simple_spread`` N = 10 are measured here, alternately, for the single-env target.
@@ -91,11 +92,13 @@ def _row(model: str, k: int, steps: int, repeats: int) -> dict:
 
 
 def breakdown(model: str, k: int, steps: int) -> dict:
-    """Microseconds per world-step of physics, sonar, the stepper's score and outputs phases (all
-    worlds at once) and the rest, batched ``tree`` at ``k`` worlds."""
-    from parcover_env.envs import stepper
+    """Microseconds per world-step of the stepper's act phase (physics, drives, pose estimators in
+    it), sonar, the score and outputs phases (all worlds at once) and the rest, batched ``tree`` at
+    ``k`` worlds."""
+    from parcover_env.envs import act_phase, stepper
 
-    phases = {name: getattr(stepper, name) for name in ("score", "outputs")}
+    phases = {name: getattr(stepper, name) for name in ("act", "score", "outputs")}
+    inner = {name: getattr(act_phase, name) for name in ("advance_steps_all", "update_all")}
     venv = _venv(model, k)
     try:
         run = VecRunner(venv)
@@ -110,6 +113,8 @@ def breakdown(model: str, k: int, steps: int) -> dict:
                 clock.wrap(w.sonar, "readings", "sonar")
         for name in phases:
             clock.wrap(stepper, name, name)
+        clock.wrap(act_phase, "advance_steps_all", "drives")
+        clock.wrap(act_phase, "update_all", "estimators")
         t0 = time.perf_counter()
         for i in range(steps):
             run(i)
@@ -117,15 +122,21 @@ def breakdown(model: str, k: int, steps: int) -> dict:
     finally:
         for name, fn in phases.items():
             setattr(stepper, name, fn)
+        for name, fn in inner.items():
+            setattr(act_phase, name, fn)
         venv.close()
     per = 1e6 / (steps * k)
     out = {"model": model, "K": k, "total_us": total * per}
-    for part in ("physics", "sonar", *phases):
+    for part in ("sonar", *phases):
         out[f"{part}_us"] = clock.total.get(part, 0.0) * per
-    out["rest_us"] = out["total_us"] - sum(out[f"{part}_us"] for part in ("physics", "sonar", *phases))
-    print(f"  breakdown {model:8s} K={k:4d}: {out['total_us']:7.1f} us/world-step = physics {out['physics_us']:6.1f} "
-          f"+ sonar {out['sonar_us']:6.1f} + score {out['score_us']:6.1f} + outputs {out['outputs_us']:6.1f} "
-          f"+ rest {out['rest_us']:6.1f} (wrapped calls)", flush=True)
+    out["rest_us"] = out["total_us"] - sum(out[f"{part}_us"] for part in ("sonar", *phases))
+    print(f"  breakdown {model:8s} K={k:4d}: {out['total_us']:7.1f} us/world-step "
+          f"= act {out['act_us']:6.1f} + sonar {out['sonar_us']:6.1f} + score {out['score_us']:6.1f} "
+          f"+ outputs {out['outputs_us']:6.1f} + rest {out['rest_us']:6.1f} (wrapped calls)", flush=True)
+    for part in ("physics", "drives", "estimators"):
+        out[f"{part}_us"] = clock.total.get(part, 0.0) * per
+    print(f"    act phase: physics {out['physics_us']:6.1f}, drives {out['drives_us']:6.1f}, pose estimators "
+          f"(odometry, Kinect systems, fixes) {out['estimators_us']:6.1f}", flush=True)
     return out
 
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from parcover_env.errors import ActionError
 
-__all__ = ["to_commands"]
+__all__ = ["to_commands", "to_commands_all"]
 
 
 def to_commands(actions: Mapping, agents: Sequence[str], max_speed: float,
@@ -27,6 +27,36 @@ def to_commands(actions: Mapping, agents: Sequence[str], max_speed: float,
     out[:, 0] *= max_speed
     out[:, 1] *= max_turn_rate
     return out
+
+
+def to_commands_all(actions: Sequence[Mapping], agents: Sequence[Sequence[str]], max_speed: float,
+                    max_turn_rate: float, width: int = 2) -> np.ndarray:
+    """:func:`to_commands` of ``K`` joint actions at once (``actions[k]`` for the agents
+    ``agents[k]``, ``N`` each): commands ``(K, N, width)``. The ``K`` action dicts are taken into one
+    array when every one is the common case; otherwise each is validated by :func:`to_commands`
+    (the same ActionError, raised before any command is returned)."""
+    vals: list = []
+    for acts, names in zip(actions, agents, strict=True):
+        if type(acts) is not dict or len(acts) != len(names):
+            vals = []
+            break
+        try:
+            vals += [acts[a] for a in names]
+        except KeyError:
+            vals = []
+            break
+    out = None
+    if vals and all(type(v) is np.ndarray and v.shape == (width,) and v.dtype.kind == "f" for v in vals):
+        out = np.array(vals, dtype=float)
+        if not np.isfinite(out).all():
+            out = None
+    if out is None:  # the uncommon case: each world's joint action checked on its own
+        return np.stack([to_commands(a, names, max_speed, max_turn_rate, width)
+                         for a, names in zip(actions, agents, strict=True)])
+    np.minimum(np.maximum(out, -1.0, out=out), 1.0, out=out)  # clip (the values are finite here)
+    out[:, 0] *= max_speed
+    out[:, 1] *= max_turn_rate
+    return out.reshape(len(actions), -1, width)
 
 
 def _common_case(actions, agents: Sequence[str], width: int = 2) -> np.ndarray | None:

@@ -18,11 +18,13 @@ import numpy as np
 
 from parcover_env.config import Scenario
 from parcover_env.geometry import wrap_angle
+from parcover_env.geometry.stacking import stack
+from parcover_env.localization.kinect.batch_update import update_systems
 from parcover_env.localization.kinect.system import KinectSystem
-from parcover_env.sensors.odometry import Odometry
+from parcover_env.sensors.odometry import Odometry, measure_wheels_all
 from parcover_env.world.drive import wheel_targets
 
-__all__ = ["FixRequest", "FixSource", "KinectFixes", "PoseEstimator"]
+__all__ = ["FixRequest", "FixSource", "KinectFixes", "PoseEstimator", "update_all"]
 
 
 class FixRequest(NamedTuple):
@@ -94,42 +96,75 @@ class PoseEstimator:
     def update(self, true: np.ndarray, commands: np.ndarray, drive, time: float, leaders: np.ndarray,
                rng: np.random.Generator) -> dict[str, dict[int, np.ndarray]]:
         """One control step: dead reckoning (the wheel travel of ``drive``, the world's
-        :class:`~parcover_env.world.drive.DriveTrain`, or the ``commands (N, 2)`` for an instant
+        :class:`~parcover_env.world.drive.DiffDrive`, or the ``commands (N, 2)`` for an instant
         drive; the true motion for the ``motion`` odometry model), then every source's fixes.
-        Returns each source's fixes of this step by source name."""
-        s = self.scenario
-        dt = s.physics.control_dt
-        if s.robot.odometry.model == "wheels":
-            if drive is not None:
-                travel, change = drive.take_travel()
-            else:  # instant drive: the wheels turned at the commanded speeds all step
-                travel = wheel_targets(commands, s.robot.drive.wheel_base, np.inf) * dt
-                change = np.zeros_like(travel)
-            before = self.odometry.estimate.copy()
-            est = self.odometry.measure_wheels(travel, change, dt, rng)
-            velocity = np.empty((len(est), 2))  # (signed distance, heading change) over the step / dt
-            np.multiply(np.hypot(est[:, 0] - before[:, 0], est[:, 1] - before[:, 1]),
-                        np.sign(travel[:, 0] + travel[:, 1]), out=velocity[:, 0])
-            velocity[:, 1] = wrap_angle(est[:, 2] - before[:, 2])
-            velocity /= dt
-            self.velocity = velocity
-        else:
-            est = self.odometry.measure(true, rng)
-            self.velocity = commands
-        self.fix_age += dt
-        self.estimate = est
-        fixed: dict[str, dict[int, np.ndarray]] = {}
-        if s.observation.pose_source == "ground_truth":
-            self.odometry.set_truth(true)
-            self.fix_age[:] = 0.0
-            return fixed
-        for source in self.sources:
-            fixes = fixed[source.name] = source.fixes(FixRequest(time, true, est, leaders, self.covariance), rng)
-            for i, pose in fixes.items():
-                self.fix(i, pose, source.covariance)
-        return fixed
+        Returns each source's fixes of this step by source name. :func:`update_all` with ``K = 1``."""
+        return update_all([self], [true], [commands], [drive], [time], [leaders], [rng])[0]
 
     def fix(self, i: int, pose, cov: np.ndarray | None = None) -> None:
         """Reset robot ``i``'s belief to an absolute fix ``pose (3,)`` of covariance ``cov (3, 3)``."""
         self.odometry.fix(i, pose, cov)
         self.fix_age[i] = 0.0
+
+
+def update_all(estimators: Sequence[PoseEstimator], true: Sequence[np.ndarray], commands: Sequence[np.ndarray],
+               drives: Sequence, times: Sequence[float], leaders: Sequence[np.ndarray],
+               rngs: Sequence[np.random.Generator]) -> list[dict[str, dict[int, np.ndarray]]]:
+    """:meth:`PoseEstimator.update` of ``K`` estimators of one scenario (``N`` robots each) at once:
+    ``true`` ``(K, N, 3)``, ``commands`` ``(K, N, 2)``, ``leaders`` ``(K, N)`` (arrays, or sequences of
+    the ``K`` worlds' arrays: the sources see those very arrays), and per estimator its
+    world's drive, time and generator. The wheel odometry of all ``K N`` robots runs in one compiled
+    call and the Kinect systems in one batch (:func:`~parcover_env.localization.kinect.batch_update.update_systems`);
+    estimator ``k`` draws from ``rngs[k]`` in the order it would alone (odometry, then each source in
+    turn), so its results are the same floats. Returns each estimator's fixes by source name."""
+    s = estimators[0].scenario
+    dt = s.physics.control_dt
+    k = len(estimators)
+    if s.robot.odometry.model == "wheels":
+        travel, change = [], []
+        for drive, cmd in zip(drives, commands, strict=True):
+            if drive is not None:
+                t, c = drive.take_travel()
+            else:  # instant drive: the wheels turned at the commanded speeds all step
+                t = wheel_targets(cmd, s.robot.drive.wheel_base, np.inf) * dt
+                c = np.zeros_like(t)
+            travel.append(t)
+            change.append(c)
+        travel_all = stack(travel)
+        before = stack([e.odometry.estimate for e in estimators], copy=True)
+        measure_wheels_all([e.odometry for e in estimators], travel_all, stack(change), dt, list(rngs))
+        est = stack([e.odometry.estimate for e in estimators])
+        velocity = np.empty((k, est.shape[1], 2))  # (signed distance, heading change) over the step / dt
+        np.multiply(np.hypot(est[..., 0] - before[..., 0], est[..., 1] - before[..., 1]),
+                    np.sign(travel_all[..., 0] + travel_all[..., 1]), out=velocity[..., 0])
+        velocity[..., 1] = wrap_angle(est[..., 2] - before[..., 2])
+        velocity /= dt
+        for e, v in zip(estimators, velocity, strict=True):
+            e.velocity = v
+    else:
+        for e, t, cmd, rng in zip(estimators, true, commands, rngs, strict=True):
+            e.odometry.measure(t, rng)
+            e.velocity = cmd
+    fixed: list[dict[str, dict[int, np.ndarray]]] = [{} for _ in estimators]
+    for e in estimators:
+        e.fix_age += dt
+        e.estimate = e.odometry.estimate
+    if s.observation.pose_source == "ground_truth":
+        for e, t in zip(estimators, true, strict=True):
+            e.odometry.set_truth(t)
+            e.fix_age[:] = 0.0
+        return fixed
+    for j in range(len(estimators[0].sources)):  # each source in turn, all estimators
+        sources = [e.sources[j] for e in estimators]
+        if all(isinstance(src, KinectFixes) for src in sources):
+            markers = np.asarray(leaders, dtype=bool) & np.array([src.markers for src in sources])[:, None]
+            fixes = update_systems([src.system for src in sources], list(times), np.asarray(true, dtype=float),
+                                   markers, stack([e.estimate for e in estimators]), list(rngs))
+        else:
+            fixes = [src.fixes(FixRequest(time, t, e.estimate, lead, e.covariance), rng) for e, src, time, t, lead, rng
+                     in zip(estimators, sources, times, true, leaders, rngs, strict=True)]
+        for e, src, f, out in zip(estimators, sources, fixes, fixed, strict=True):
+            out[src.name] = f
+            for i, pose in f.items():
+                e.fix(i, pose, src.covariance)
+    return fixed

@@ -11,8 +11,7 @@ from pettingzoo import ParallelEnv
 
 from parcover_env.config import Scenario, deep_merge
 from parcover_env.envs import critic_state, outputs_phase, stepper
-from parcover_env.envs.actions import to_commands
-from parcover_env.envs.estimator import FixRequest, KinectFixes, PoseEstimator
+from parcover_env.envs.estimator import KinectFixes, PoseEstimator
 from parcover_env.envs.handover import CameraView, update_team
 from parcover_env.envs.metrics import EpisodeMetrics
 from parcover_env.envs.obs_spec import markdown_table
@@ -274,30 +273,11 @@ class ParallelCoverageEnv(ParallelEnv):
         return dict(zip(self.possible_agents, obs, strict=True))  # all agents live or end together
 
     def act(self, actions: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
-        """Stepper part 1a (:mod:`~parcover_env.envs.stepper`): act, integrate the physics, update the
-        pose estimator (odometry, fixes).
+        """Stepper part 1a (:func:`parcover_env.envs.act_phase.act` of this world alone): act,
+        integrate the physics, update the pose estimator (odometry, fixes).
         Returns the true poses ``(N, 3)`` before and after the step."""
-        if not self.agents:
-            raise RuntimeError("step() called on a finished episode; call reset() first")
-        s = self.scenario
-        if self.scanner is None:
-            self.commands = to_commands(actions, self.agents, s.robot.max_speed, s.robot.max_turn_rate)
-        else:
-            raw = to_commands(actions, self.agents, s.robot.max_speed, s.robot.max_turn_rate, width=3)
-            self.commands = np.ascontiguousarray(raw[:, :2])
-            self.scanner.request(raw[:, 2], self.commands)  # scanning robots are held still
-        before = self.world.poses()
-        self.world.step(self.commands)
-        self.steps += 1
-        true = self.world.poses()
-        fixes = self.estimator.update(true, self.commands, self.world.drive, self.world.time, self.team.leader,
-                                      self._rng)
-        if "kinect" in fixes:  # a Kinect fix is a message to a leader
-            self.team.count_pose_fixes(len(fixes["kinect"]))
-        if self.scanner is not None and s.observation.pose_source == "ground_truth":  # no sources ran: scans end
-            self.scanner.fixes(FixRequest(self.world.time, true, self.estimate.copy(), self.team.leader,
-                                          self.estimator.covariance), self._rng)
-        return before, true
+        before, true = stepper.act([self], [actions])
+        return before[0], true[0]
 
     # ------------------------------------------------------------------ extras
     @property

@@ -3,8 +3,8 @@
 ``ParallelCoverageEnv``, the batched worlds (:mod:`parcover_env.envs.batched`) and the single-robot
 env all step through here, so the rules are written once:
 
-1. **act** (:func:`act`, per world :meth:`ParallelCoverageEnv.act`): act, integrate the physics, update
-   the pose estimator (odometry, fixes); **score** (:func:`score`, all worlds at once,
+1. **act** (:func:`act`, all worlds at once in :mod:`~parcover_env.envs.act_phase`): act, integrate the
+   physics, update the pose estimator (odometry, fixes); **score** (:func:`score`, all worlds at once,
    :mod:`parcover_env.envs.score_phase`): track the mission, hand over at splits (Alg. 1), score, record;
 2. **sense and observe** (:func:`observe`, all worlds at once): one :class:`SensingState` of every
    world; the follower cameras first, then one compiled pass writes every non-sensor entry of the
@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from parcover_env.envs import obs_v2, outputs_phase, score_phase
+from parcover_env.envs import act_phase, obs_v2, outputs_phase, score_phase
 from parcover_env.envs.handover import CameraView
 from parcover_env.envs.metrics import episode_metrics
 from parcover_env.envs.observations import ScalarInputs
@@ -94,10 +94,9 @@ def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.n
 
 
 def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.ndarray, np.ndarray]:
-    """Part 1a of every world (:meth:`ParallelCoverageEnv.act`): the true poses ``(K, N, 3)`` before
-    and after the step."""
-    before, true = zip(*(w.act(a) for w, a in zip(worlds, actions, strict=True)), strict=True)
-    return np.stack(before), np.stack(true)
+    """Part 1a of every world (:func:`parcover_env.envs.act_phase.act`: act, physics, pose estimates):
+    the true poses ``(K, N, 3)`` before and after the step."""
+    return act_phase.act(worlds, actions)
 
 
 def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores:

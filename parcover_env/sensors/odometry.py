@@ -22,7 +22,8 @@ from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.records import record
 from parcover_env.sensors import onboard_kernels
 
-__all__ = ["Odometry", "encoder_factors", "integrate", "propagate_covariance", "wheel_increment_cov"]
+__all__ = ["Odometry", "encoder_factors", "integrate", "propagate_covariance", "wheel_increment_cov",
+           "measure_wheels_all"]
 
 
 def encoder_factors(e_d: np.ndarray, scale: np.ndarray) -> np.ndarray:
@@ -89,9 +90,10 @@ class Odometry:
         self.cfg = cfg
         n = len(true_poses)
         self.wheel_base = float(wheel_base)
-        self._errors = record(onboard_kernels.WHEEL_ERRORS, wheel_base=self.wheel_base, slip_accel=cfg.slip_accel,
-                              slip_turn=cfg.slip_turn, wheel_variance=cfg.wheel_variance,
-                              covariance_wheel_variance=cfg.covariance_wheel_variance)
+        self.wheel_errors = record(onboard_kernels.WHEEL_ERRORS, wheel_base=self.wheel_base,
+                                   slip_accel=cfg.slip_accel, slip_turn=cfg.slip_turn,
+                                   wheel_variance=cfg.wheel_variance,
+                                   covariance_wheel_variance=cfg.covariance_wheel_variance)
         """The compiled wheels' random errors (:data:`~parcover_env.sensors.onboard_kernels.WHEEL_ERRORS`)."""
         self._last_true = np.array(true_poses, dtype=float)
         self.estimate = np.array(true_poses, dtype=float)
@@ -144,11 +146,8 @@ class Odometry:
         ``travel`` ``(N, 2)``: each wheel's true ground distance (m) over the step of ``dt`` s;
         ``speed_change`` ``(N, 2)``: the summed |speed changes| of each wheel (m/s) over it.
         """
-        onboard_kernels.wheel_odometry(self.estimate, self.covariance, self.travelled, self.turned,
-                                       np.ascontiguousarray(travel, dtype=float),
-                                       np.ascontiguousarray(speed_change, dtype=float), float(dt),
-                                       rng.standard_normal(4 * len(self.estimate)), self.factors, self.believed_base,
-                                       self._errors)
+        measure_wheels_all([self], np.asarray(travel, dtype=float)[None], np.asarray(speed_change, dtype=float)[None],
+                           dt, [rng])
         return self.estimate
 
     def _advance(self, ds: np.ndarray, dth: np.ndarray, q: np.ndarray) -> None:
@@ -169,3 +168,36 @@ class Odometry:
         """Estimates := ``true_poses`` with zero covariance (``pose_source: ground_truth``)."""
         self.estimate[:] = true_poses
         self.covariance[:] = 0.0
+
+
+def measure_wheels_all(odometries: list[Odometry], travel: np.ndarray, speed_change: np.ndarray, dt: float,
+                       rngs: list[np.random.Generator]) -> None:
+    """:meth:`Odometry.measure_wheels` of ``K`` odometries of ``N`` robots each (one configuration)
+    in one compiled call over all ``K N`` robots: ``travel`` and ``speed_change`` ``(K, N, 2)``.
+    Odometry ``k`` draws its ``4 N`` normals from ``rngs[k]`` as alone and its estimate, covariance,
+    ``travelled`` and ``turned`` arrays are updated in place (the same floats as alone)."""
+    k, n = len(odometries), len(odometries[0].estimate)
+    z = [rng.standard_normal(4 * n) for rng in rngs]
+    travel = np.ascontiguousarray(travel, dtype=float).reshape(k * n, 2)
+    change = np.ascontiguousarray(speed_change, dtype=float).reshape(k * n, 2)
+    first = odometries[0]
+    if k == 1:  # one odometry: its own arrays, no gather
+        onboard_kernels.wheel_odometry(first.estimate, first.covariance, first.travelled, first.turned, travel,
+                                       change, float(dt), z[0], first.factors, first.believed_base, first.wheel_errors)
+        return
+    # the kernel reads the normals as (2, K N, 2): each odometry's (2, N, 2) block in its rows
+    zs = np.stack(z).reshape(k, 2, n, 2).transpose(1, 0, 2, 3).reshape(-1)
+    est = np.concatenate([o.estimate for o in odometries])
+    cov = np.concatenate([o.covariance for o in odometries])
+    travelled = np.concatenate([o.travelled for o in odometries])
+    turned = np.concatenate([o.turned for o in odometries])
+    factors = np.concatenate([o.factors for o in odometries])
+    believed = np.concatenate([o.believed_base for o in odometries])
+    onboard_kernels.wheel_odometry(est, cov, travelled, turned, travel, change, float(dt), zs, factors, believed,
+                                   first.wheel_errors)
+    for j, o in enumerate(odometries):
+        rows = slice(j * n, (j + 1) * n)
+        o.estimate[:] = est[rows]
+        o.covariance[:] = cov[rows]
+        o.travelled[:] = travelled[rows]
+        o.turned[:] = turned[rows]

@@ -12,7 +12,7 @@ import numpy as np
 
 from parcover_env.config import DriveConfig
 
-__all__ = ["DiffDrive", "wheel_targets", "lag_step", "body_velocity"]
+__all__ = ["DiffDrive", "wheel_targets", "lag_step", "body_velocity", "advance_steps_all"]
 
 
 def wheel_targets(commands: np.ndarray, wheel_base: float, wheel_speed_max: float) -> np.ndarray:
@@ -74,16 +74,7 @@ class DiffDrive:
     def advance_steps(self, targets: np.ndarray, dt: float, steps: int) -> np.ndarray:
         """``steps`` calls of :meth:`advance` towards the same ``targets`` in one compiled loop (the
         same floats); returns the body velocities ``(steps, n, 2)`` of each call."""
-        from parcover_env.world.drive_kernels import lag_steps
-
-        c = self.cfg
-        gain = -math.expm1(-dt / c.tau)
-        wheels = self.wheels.copy()
-        out = np.empty((steps, len(wheels), 2))
-        lag_steps(wheels, self.travel, self.speed_change, np.ascontiguousarray(targets, dtype=float), gain,
-                  c.accel_max * dt, dt, c.wheel_base, out)
-        self.wheels = wheels
-        return out
+        return advance_steps_all([self], np.asarray(targets, dtype=float)[None], dt, steps)[:, 0]
 
     def take_travel(self) -> tuple[np.ndarray, np.ndarray]:
         """Wheel distances (m) and summed |speed changes| (m/s), each ``(n, 2)``, since the last call;
@@ -92,3 +83,33 @@ class DiffDrive:
         self.travel = np.zeros_like(travel)
         self.speed_change = np.zeros_like(change)
         return travel, change
+
+
+def advance_steps_all(drives: list[DiffDrive], targets: np.ndarray, dt: float, steps: int) -> np.ndarray:
+    """:meth:`DiffDrive.advance_steps` of ``K`` drives of ``n`` robots each (one configuration), in one
+    compiled loop over all ``K n`` robots: ``targets`` ``(K, n, 2)``; returns the body velocities
+    ``(steps, K, n, 2)``. Each drive's state is gathered, advanced and written back in place: drive
+    ``k`` ends as if it had been advanced alone (the same floats)."""
+    from parcover_env.world.drive_kernels import lag_steps
+
+    c = drives[0].cfg
+    gain = -math.expm1(-dt / c.tau)
+    k, n = targets.shape[:2]
+    if k == 1:  # one drive: its own arrays, no gather
+        wheels, travel, change = drives[0].wheels.copy(), drives[0].travel, drives[0].speed_change
+    else:
+        wheels = np.concatenate([d.wheels for d in drives])
+        travel = np.concatenate([d.travel for d in drives])
+        change = np.concatenate([d.speed_change for d in drives])
+    out = np.empty((steps, k * n, 2))
+    lag_steps(wheels, travel, change, np.ascontiguousarray(targets, dtype=float).reshape(k * n, 2), gain,
+              c.accel_max * dt, dt, c.wheel_base, out)
+    if k == 1:
+        drives[0].wheels = wheels
+    else:  # scatter each drive's rows back
+        for j, d in enumerate(drives):
+            rows = slice(j * n, (j + 1) * n)
+            d.wheels = wheels[rows].copy()
+            d.travel[:] = travel[rows]
+            d.speed_change[:] = change[rows]
+    return out.reshape(steps, k, n, 2)

@@ -195,13 +195,18 @@ class World:
         self.robot_contacts[a] += 1
         self.robot_contacts[b] += 1
 
-    def step(self, commands: np.ndarray) -> None:
-        """Apply ``(v, omega)`` per robot ``(N, 2)`` for one control step (all physics substeps)."""
+    def step(self, commands: np.ndarray, velocities: np.ndarray | None = None) -> None:
+        """Apply ``(v, omega)`` per robot ``(N, 2)`` for one control step (all physics substeps).
+
+        With a drive, ``velocities`` ``(substeps, N, 2)`` are the body velocities its
+        :meth:`~parcover_env.world.drive.DiffDrive.advance_steps` returns for these ``commands``, when
+        the caller advanced the drive already (the batched worlds advance all drives in one call,
+        :func:`~parcover_env.world.drive.advance_steps_all`); None: the drive is advanced here."""
         self._cmd[:] = commands
         dt = self.physics.dt
         if self.drive is None:
             self._rows.values[:] = self._cmd
-        else:
+        elif velocities is None:
             d = self.drive.cfg
             targets = wheel_targets(self._cmd, d.wheel_base, d.wheel_speed_max)
             velocities = self.drive.advance_steps(targets, dt, self.physics.substeps)

@@ -24,10 +24,11 @@ import shapely
 
 from parcover_env.config import Scenario
 from parcover_env.geometry.poses import compose, inverse
+from parcover_env.localization.kinect.batch_update import update_systems
 from parcover_env.localization.kinect.estimate_model import FastModel
-from parcover_env.localization.kinect.pipeline import PipelineParams, estimate_poses
+from parcover_env.localization.kinect.pipeline import PipelineParams, PoseEstimate, estimate_poses
 from parcover_env.localization.kinect.tracker import KinectTracker
-from parcover_env.sensors.kinect import KinectFrame, KinectSensor, check_poses, may_see_all
+from parcover_env.sensors.kinect import KinectFrame, KinectSensor, may_see_all
 from parcover_env.world.map_model import MapModel
 
 __all__ = ["KinectSystem", "handover_poses"]
@@ -97,27 +98,32 @@ class KinectSystem:
 
     def update(self, time: float, true_poses: np.ndarray, markers: np.ndarray, predicted: np.ndarray,
                rng: np.random.Generator) -> dict[int, np.ndarray]:
-        """Pose fixes ``{robot index: (x, y, theta)}`` for the marker carriers seen at this step."""
-        due = np.flatnonzero(self.next_tick <= time + 1e-9)
-        self.last_fixes = {}
-        if len(due) == 0 or not markers.any():
-            self.next_tick[due] = time + self.periods[due]
-            return {}
-        if self.fast is not None:
-            poses, mask = check_poses(true_poses, markers)
-            per_kinect = self.fast.estimate(due, poses, mask, rng, stamp=time)
-        else:
-            due_sensors = [self.sensors[k] for k in due]
-            per_kinect = []
-            for sensor, seeing in zip(due_sensors, may_see_all(due_sensors, true_poses, markers).tolist(),
-                                      strict=True):
-                if not seeing:  # no marker can be in this image: no frame
-                    self.frames.pop(sensor.name, None)
-                    continue
-                frame = sensor.measure(true_poses, markers, rng, stamp=time)
-                self.frames[sensor.name] = frame
-                per_kinect.append(estimate_poses(frame, sensor.camera, self.params))
-        self.next_tick[due] = time + self.periods[due]
+        """Pose fixes ``{robot index: (x, y, theta)}`` for the marker carriers seen at this step:
+        :func:`~parcover_env.localization.kinect.batch_update.update_systems` of this system alone."""
+        return update_systems([self], [time], np.asarray(true_poses, dtype=float)[None],
+                              np.asarray(markers, dtype=bool)[None],
+                              np.asarray(predicted, dtype=float)[None], [rng])[0]
+
+    def frame_estimates(self, due: np.ndarray, true_poses: np.ndarray, markers: np.ndarray,
+                        rng: np.random.Generator, time: float) -> list[list[PoseEstimate]]:
+        """``kinect: frames``: the estimates of the Kinects ``due`` (indices into ``sensors``) whose
+        view can hold a marker, each rendering a frame (kept in :attr:`frames`) for the full pipeline."""
+        due_sensors = [self.sensors[k] for k in due]
+        per_kinect = []
+        for sensor, seeing in zip(due_sensors, may_see_all(due_sensors, true_poses, markers).tolist(), strict=True):
+            if not seeing:  # no marker can be in this image: no frame
+                self.frames.pop(sensor.name, None)
+                continue
+            frame = sensor.measure(true_poses, markers, rng, stamp=time)
+            self.frames[sensor.name] = frame
+            per_kinect.append(estimate_poses(frame, sensor.camera, self.params))
+        return per_kinect
+
+    def track(self, per_kinect: list[list[PoseEstimate]], markers: np.ndarray, predicted: np.ndarray,
+              time: float) -> dict[int, np.ndarray]:
+        """Match the estimates of this step's Kinects to the marker carriers (``markers (N,)``) at
+        their ``predicted (N, 3)`` poses, a promoted robot at its hand-over pose until detected;
+        the matched robots' fixes (also :attr:`last_fixes`)."""
         ids = np.flatnonzero(markers)
         ref = {int(i): compose(self.handover[i], predicted[i]) if i in self.handover else predicted[i] for i in ids}
         self.last_fixes = self.tracker.update(per_kinect, ref, stamp=time)

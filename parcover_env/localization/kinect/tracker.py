@@ -71,10 +71,17 @@ class KinectTracker:
                 out[ids[0]] = fused[0]
                 used.add(0)
         elif fused and ids:
-            cost = np.array([[np.hypot(*(f[:2] - ref[k][:2])) for k in ids] for f in fused])
-            rows, cols = linear_sum_assignment(np.where(cost <= self.gate, cost, 1e6))
-            for r, c in zip(rows, cols, strict=True):
-                if cost[r, c] <= self.gate:
+            f, p = np.array(fused), np.array([ref[k] for k in ids])
+            cost = np.hypot(f[:, None, 0] - p[None, :, 0], f[:, None, 1] - p[None, :, 1])
+            inside = cost <= self.gate
+            if inside.sum(axis=0).max() <= 1 and inside.sum(axis=1).max() <= 1:
+                # no estimate within the gate of two robots, nor a robot of two: the optimal assignment
+                # holds every pair within the gate (any other pays 1e6), in ascending row order
+                rows, cols = np.nonzero(inside)
+            else:
+                rows, cols = linear_sum_assignment(np.where(inside, cost, 1e6))
+            for r, c in zip(rows.tolist(), cols.tolist(), strict=True):
+                if inside[r, c]:
                     out[ids[c]] = fused[r]
                     used.add(r)
         self.unassigned = [f for r, f in enumerate(fused) if r not in used]

@@ -1,0 +1,72 @@
+"""Stepper part 1a over ``K`` worlds (:func:`act`): actions -> commands, drive and physics, pose estimates.
+
+The worlds of one scenario act together; the single env is ``K = 1`` of the same code. The joint
+actions of all worlds become one ``(K, N, A)`` array of commands
+(:func:`~parcover_env.envs.actions.to_commands_all`), the drives of all worlds turn them into body
+velocities in one compiled call (:func:`~parcover_env.world.drive.advance_steps_all`), each world's
+pymunk space integrates its physics (one space per world), and the pose estimators of all worlds
+update together (:func:`~parcover_env.envs.estimator.update_all`: the wheel odometry of all ``K N``
+robots in one compiled call, the Kinect systems in one batch). World ``k`` draws from its own
+generator in the order it would alone, so every world is bit for bit a separate env.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from parcover_env.envs.actions import to_commands_all
+from parcover_env.envs.estimator import FixRequest, update_all
+from parcover_env.geometry.stacking import stack
+from parcover_env.world.drive import advance_steps_all, wheel_targets
+
+__all__ = ["act"]
+
+
+def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.ndarray, np.ndarray]:
+    """Act, integrate the physics and update the pose estimator of every world (``actions[k]``: world
+    ``k``'s joint action dict); returns the true poses ``(K, N, 3)`` before and after the step.
+    Bad actions raise :class:`~parcover_env.errors.ActionError` before any world changes."""
+    for w in worlds:
+        if not w.agents:
+            raise RuntimeError("step() called on a finished episode; call reset() first")
+    first = worlds[0]
+    s = first.scenario
+    scanning = first.scanner is not None
+    raw = to_commands_all(actions, [w.agents for w in worlds], s.robot.max_speed, s.robot.max_turn_rate,
+                          width=3 if scanning else 2)
+    commands = np.ascontiguousarray(raw[..., :2]) if scanning else raw
+    for k, w in enumerate(worlds):
+        w.commands = commands[k]
+        if scanning:
+            w.scanner.request(raw[k, :, 2], w.commands)  # scanning robots are held still
+    before = stack([w.world.poses() for w in worlds])
+    velocities = _drive(worlds, commands)
+    for k, w in enumerate(worlds):
+        w.world.step(w.commands, None if velocities is None else velocities[:, k])
+        w.steps += 1
+    true = stack([w.world.poses() for w in worlds])
+    fixes = update_all([w.estimator for w in worlds], true, commands, [w.world.drive for w in worlds],
+                       [w.world.time for w in worlds], stack([w.team.leader for w in worlds]),
+                       [w.np_random for w in worlds])
+    for k, w in enumerate(worlds):
+        if "kinect" in fixes[k]:  # a Kinect fix is a message to a leader
+            w.team.count_pose_fixes(len(fixes[k]["kinect"]))
+        if scanning and s.observation.pose_source == "ground_truth":  # no sources ran: scans end
+            w.scanner.fixes(FixRequest(w.world.time, true[k], w.estimate.copy(), w.team.leader,
+                                       w.estimator.covariance), w.np_random)
+    return before, true
+
+
+def _drive(worlds: Sequence[Any], commands: np.ndarray) -> np.ndarray | None:
+    """Body velocities ``(substeps, K, N, 2)`` of every world's drive for ``commands (K, N, 2)``
+    (advancing the drives), or None when the worlds have no drive (``drive: instant``)."""
+    drives = [w.world.drive for w in worlds]
+    if drives[0] is None:
+        return None
+    d, physics = drives[0].cfg, worlds[0].scenario.physics
+    k, n = commands.shape[:2]
+    targets = wheel_targets(commands.reshape(k * n, 2), d.wheel_base, d.wheel_speed_max).reshape(k, n, 2)
+    return advance_steps_all(drives, targets, physics.dt, physics.substeps)

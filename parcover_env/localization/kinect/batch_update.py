@@ -1,0 +1,114 @@
+"""The Kinect systems of ``K`` worlds in one step (:func:`update_systems`); one system is ``K = 1``.
+
+Min, Fehr & Papanikolopoulos localize the group leaders with overhead Kinects. Per world this is
+:meth:`KinectSystem.update <parcover_env.localization.kinect.system.KinectSystem.update>`: the
+Kinects due at the world's clock, their estimates of the marker carriers, and the tracker's match
+of those estimates to the carriers' predicted poses. Here the estimate model (``kinect: estimate``)
+of every due Kinect of every world runs in ONE compiled call over the (world, Kinect, robot) axis
+(:func:`~parcover_env.localization.kinect.estimate_kernel.candidates`: projection, visibility,
+wall occlusion, detection probability, the reconstructed pose), and then each world draws its
+random numbers from its own generator in the order the per-world model draws them (per due Kinect
+a frame-drop uniform if its drop rate is positive, then per visible carrier a detection uniform
+and, if detected, three normals), so world ``k`` gets the same floats as alone. ``kinect:
+frames`` (rendering) stays per world (:meth:`KinectSystem.frame_estimates`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from parcover_env.geometry.stacking import stack
+from parcover_env.geometry.wrap_formula import wrap
+from parcover_env.localization.kinect import estimate_kernel
+from parcover_env.localization.kinect.pipeline import PoseEstimate
+from parcover_env.sensors.kinect import check_poses
+
+if TYPE_CHECKING:
+    from parcover_env.localization.kinect.system import KinectSystem
+
+__all__ = ["update_systems", "fast_estimates"]
+
+
+def update_systems(systems: Sequence[KinectSystem], times: Sequence[float], true: np.ndarray, markers: np.ndarray,
+                   predicted: np.ndarray, rngs: Sequence[np.random.Generator]) -> list[dict[int, np.ndarray]]:
+    """Pose fixes ``{robot index: (x, y, theta)}`` of each of ``K`` Kinect systems (one scenario)
+    at its world's time ``times[k]``, true poses ``true[k] (N, 3)``, marker carriers
+    ``markers[k] (N,)`` and predicted poses ``predicted[k] (N, 3)``, drawing from ``rngs[k]``."""
+    out: list[dict[int, np.ndarray]] = [{} for _ in systems]
+    now = np.asarray(times, dtype=float)[:, None]
+    ticks = stack([s.next_tick for s in systems])
+    due = ticks <= now + 1e-9
+    active = due.any(axis=1) & markers.any(axis=1)
+    new_ticks = np.where(due, now + systems[0].periods, ticks)  # each due Kinect's next frame
+    batch = []
+    for k, s in enumerate(systems):
+        s.next_tick[:] = new_ticks[k]
+        s.last_fixes = {}
+        if not active[k]:
+            continue
+        if s.fast is None:
+            per_kinect = s.frame_estimates(np.flatnonzero(due[k]), true[k], markers[k], rngs[k], times[k])
+            out[k] = s.track(per_kinect, markers[k], predicted[k], times[k])
+        else:
+            batch.append(k)
+    groups: dict[tuple, list[int]] = {}
+    for k in batch:  # worlds sharing the static Kinect scenes (the batched worlds do) go together
+        groups.setdefault(tuple(map(id, systems[k].fast.depths)), []).append(k)
+    for ks in groups.values():
+        rows = slice(None) if len(ks) == len(systems) else ks  # all worlds (the common case): no gather
+        if not np.isfinite(true[rows]).all():
+            for k in ks:
+                check_poses(true[k], markers[k])  # the ValueError naming what is wrong
+        per = fast_estimates([systems[k] for k in ks], due[rows], true[rows], markers[rows], [times[k] for k in ks],
+                             [rngs[k] for k in ks])
+        for k, found in zip(ks, per, strict=True):
+            out[k] = systems[k].track([found], markers[k], predicted[k], times[k])
+    return out
+
+
+def fast_estimates(systems: Sequence[KinectSystem], due: np.ndarray, true: np.ndarray, markers: np.ndarray,
+                   times: Sequence[float], rngs: Sequence[np.random.Generator]) -> list[list[PoseEstimate]]:
+    """The estimate model of the due Kinects (``due (B, S)`` bool) of ``B`` systems (their estimate
+    models share one set of static depths) at true poses ``true[b] (N, 3)`` of the carriers
+    ``markers[b] (N,)``: per system, the estimates of its due Kinects in their order (as
+    :meth:`~parcover_env.localization.kinect.estimate_model.FastModel.estimate`, one list)."""
+    models = [s.fast for s in systems]
+    n_kinects = due.shape[1]
+    rows = np.flatnonzero(due)  # world b's Kinect q is row b S + q of the stacked tables
+    index = np.empty((3, len(rows)), np.int64)  # per row: table row, world, Kinect (its static depth)
+    index[0] = rows
+    row_world, row_depth = np.divmod(rows, n_kinects, out=(index[1], index[2]))
+    if len(models) == 1:
+        kinects, pattern = models[0].kinects, models[0].pattern
+    else:  # structured rows concatenated as bytes (numpy's field promotion costs ~2 us a table)
+        kinects = np.concatenate([m.kinects.view(np.uint8) for m in models]).view(estimate_kernel.KINECT)
+        pattern = np.concatenate([m.pattern for m in models])
+    poses = np.ascontiguousarray(true, dtype=float)
+    cap = len(rows) * poses.shape[1]
+    out_row, out_index, out_geom = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((cap, 7))
+    row_drop = np.empty(len(rows))
+    n = estimate_kernel.candidates(index, poses, np.ascontiguousarray(markers, dtype=bool), kinects, pattern,
+                                   models[0].depths, models[0].noise, row_drop, out_row, out_index, out_geom)
+    n_markers = pattern.shape[1]
+    drop = row_drop.tolist()
+    names = [s.name for s in models[0].sensors]
+    cand_row, cand_index, geom = out_row[:n].tolist(), out_index[:n].tolist(), out_geom[:n].tolist()
+    per: list[list[PoseEstimate]] = [[] for _ in models]
+    c = 0
+    for r, (b, q) in enumerate(zip(row_world.tolist(), row_depth.tolist(), strict=True)):
+        rng, found = rngs[b], per[b]
+        dropped = drop[r] > 0.0 and rng.random() < drop[r]
+        while c < n and cand_row[c] == r:
+            i = cand_index[c]
+            p_det, merged, sigma_xy, sigma_th, x, y, th = geom[c]
+            c += 1
+            if dropped or merged or rng.random() >= p_det:
+                continue  # the frame dropped, the markers merged, or too small to be found
+            z = rng.standard_normal(3).tolist()  # as rng.normal(0, sigma) three times
+            found.append(PoseEstimate(x + (0.0 + sigma_xy * z[0]), y + (0.0 + sigma_xy * z[1]),
+                                      wrap(th + (0.0 + sigma_th * z[2])), n_markers, kinect=names[q],
+                                      stamp=times[b], truth_index=i))
+    return per

@@ -1,0 +1,173 @@
+"""The Kinect systems of K worlds in one batch (kinect/batch_update.py, estimate_kernel.candidates):
+the same estimates from the same draws as the per-world compiled model, and a pinned hand-built case."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+import parcover_env
+from parcover_env.localization.kinect import estimate_kernel
+from parcover_env.localization.kinect.batch_update import fast_estimates, update_systems
+from parcover_env.localization.kinect.estimate_model import FastModel, FastNoise
+
+
+def _systems(seeds):
+    """Kinect systems of ``tree`` worlds mounted by different seeds, sharing one static scene (as
+    the batched worlds do)."""
+    systems = []
+    for seed in seeds:
+        env = parcover_env.parallel_env("tree").unwrapped
+        env.reset(seed=seed)
+        systems.append(env.kinects)
+    for s in systems[1:]:
+        s.fast.depths = systems[0].fast.depths
+    return systems, env.map.bounds
+
+
+@pytest.mark.parametrize("drop_rate", [None, 0.3])
+def test_fast_estimates_of_two_worlds_are_the_per_world_model(drop_rate):
+    systems, bounds = _systems([4, 5])
+    if drop_rate is not None:
+        for s in systems:
+            s.fast.kinects = s.fast.kinects.copy()
+            s.fast.kinects["drop_rate"] = drop_rate
+    n_kinects = len(systems[0].sensors)
+    g = np.random.default_rng(1)
+    lo, hi = np.array(bounds[:2]), np.array(bounds[2:])
+    found = 0
+    for trial in range(100):
+        poses = np.stack([np.column_stack([g.uniform(lo, hi, (12, 2)), g.uniform(-3.2, 3.2, 12)]) for _ in range(2)])
+        mask = g.random((2, 12)) < 0.6
+        due = g.random((2, n_kinects)) < 0.7
+        rngs = [np.random.default_rng(trial), np.random.default_rng(1000 + trial)]
+        got = fast_estimates(systems, due, poses, mask, [0.5, 0.7], rngs)
+        for b, s in enumerate(systems):
+            ref = np.random.default_rng(trial if b == 0 else 1000 + trial)
+            want = [e for lst in s.fast.estimate(np.flatnonzero(due[b]), poses[b], mask[b], ref, stamp=[0.5, 0.7][b])
+                    for e in lst]
+            assert got[b] == want  # the same estimates (dataclasses: every field, exact floats)
+            assert rngs[b].random() == ref.random()  # the same draws
+            found += len(want)
+        alone = fast_estimates(systems[1:], due[1:], poses[1:], mask[1:], [0.7], [np.random.default_rng(1000 + trial)])
+        assert alone[0] == got[1]  # K = 1 of the same code
+    assert found > 40
+
+
+def test_update_systems_of_two_worlds_is_update_of_each():
+    systems, _ = _systems([6, 7])
+    alone = [copy.deepcopy(s) for s in systems]
+    poses = np.array([[[3.0, 4.0, 0.1], [5.0, 9.0, 1.0], [6.0, 9.5, -2.0]],
+                      [[3.2, 4.1, 0.2], [5.5, 9.0, 0.0], [7.0, 9.0, 3.0]]])
+    markers = np.array([[True, False, True], [True, True, False]])
+    predicted = poses + 0.02
+    fixes = 0
+    for step in range(10):
+        t = 0.1 * (step + 1)
+        rngs = [np.random.default_rng(step), np.random.default_rng(50 + step)]
+        got = update_systems(systems, [t, t], poses, markers, predicted, rngs)
+        for k, s in enumerate(alone):
+            want = s.update(t, poses[k], markers[k], predicted[k], np.random.default_rng(50 * k + step))
+            assert got[k].keys() == want.keys()
+            for i in want:
+                np.testing.assert_array_equal(got[k][i], want[i])
+            np.testing.assert_array_equal(systems[k].next_tick, s.next_tick)
+            fixes += len(want)
+    assert fixes > 0
+
+
+def test_candidates_pinned_under_a_downward_kinect():
+    """Office's Kinect A looks straight down from (1.6, 2.3, 3.9) m: a carrier in its view is seen at
+    its true pose (a nominal mount), with the error sigmas of the fast noise model at its depth (the
+    marker plane is parallel to the image: every marker at 3.6 m); a non-carrier, a carrier off the
+    image and one under the top of the office's wall block (x 1.4-3.2 m, y 1.8-3.2 m) are not."""
+    env = parcover_env.parallel_env("office").unwrapped
+    env.reset(seed=0)
+    sensor = env.kinects.sensors[0]
+    sensor.true_camera = sensor.camera  # nominal mount: the pipeline reconstructs the true pose
+    model = FastModel([sensor])
+    poses = np.array([[[0.8, 1.0, 0.3], [0.9, 1.2, -1.0], [40.0, 40.0, 0.0], [2.0, 2.4, 0.0]]])
+    carriers = np.array([[True, False, True, True]])
+    out_row, out_index, out_geom = np.empty(4, np.int64), np.empty(4, np.int64), np.empty((4, 7))
+    row_drop = np.full(1, np.nan)
+    n = estimate_kernel.candidates(np.zeros((3, 1), np.int64), poses, carriers, model.kinects, model.pattern,
+                                   model.depths, model.noise, row_drop, out_row, out_index, out_geom)
+    assert n == 1 and out_row[0] == 0 and out_index[0] == 0 and row_drop[0] == sensor.cfg.drop_rate
+    p_det, merged, sigma_xy, sigma_th, x, y, th = out_geom[0]
+    assert (x, y, th) == (0.8, 1.0, 0.3)
+    fu, depth, nz = sensor.camera.K[0, 0], 3.9 - sensor.robot_height, FastNoise()
+    mpp = depth / fu * (640 / sensor.shape[1]) ** nz.res_exponent  # metres per pixel at the markers
+    assert sigma_xy == pytest.approx(nz.pos_px * mpp, rel=1e-9)
+    assert sigma_th == pytest.approx(nz.heading_px * mpp / np.ptp(sensor.pattern[:, 0]), rel=1e-9)
+    r_px = sensor.marker_radius * fu / depth
+    assert p_det == pytest.approx(min(max((r_px - nz.r_px_min) / (nz.r_px_full - nz.r_px_min), 0.0), 1.0), rel=1e-9)
+    assert p_det > 0.5 and merged == 0.0
+
+
+def test_tracker_matches_the_optimal_assignment_with_or_without_the_solver():
+    """The tracker skips the assignment solver when no estimate is within the gate of two robots (nor
+    a robot of two estimates): its matches stay those of the minimum-cost assignment."""
+    from scipy.optimize import linear_sum_assignment
+
+    from parcover_env.localization.kinect.pipeline import PoseEstimate
+    from parcover_env.localization.kinect.tracker import KinectTracker
+
+    g = np.random.default_rng(0)
+    crowded = 0
+    for _ in range(300):
+        n_est, n_ref = g.integers(1, 5), g.integers(1, 5)
+        xy = g.uniform(0, 1.5, (n_est, 2))
+        ests = [PoseEstimate(x, y, 0.0, 4) for x, y in xy]
+        ref = {int(i): np.array([*g.uniform(0, 1.5, 2), 0.0]) for i in g.choice(10, n_ref, replace=False)}
+        tracker = KinectTracker(gate=0.3, fuse_radius=0.01)
+        got = tracker.update([ests], ref)
+        fused = tracker.fuse(ests)
+        ids = list(ref)
+        cost = np.array([[np.hypot(*(f[:2] - ref[k][:2])) for k in ids] for f in fused])
+        rows, cols = linear_sum_assignment(np.where(cost <= 0.3, cost, 1e6))
+        want = {ids[c]: fused[r] for r, c in zip(rows, cols, strict=True) if cost[r, c] <= 0.3}
+        assert list(got) == list(want)  # the same robots, in the same order
+        for k in want:
+            np.testing.assert_array_equal(got[k], want[k])
+        inside = cost <= 0.3
+        crowded += bool(inside.sum(axis=0).max() > 1 or inside.sum(axis=1).max() > 1)
+    assert 20 < crowded < 280  # both paths taken
+
+
+def _office_system(kinect: str = "estimate"):
+    """Office's Kinect system (one Kinect A at 15 Hz looking straight down), mounted as designed."""
+    a = {"name": "A", "position": [1.6, 2.3], "height": 3.9, "pitch_deg": 90, "yaw_deg": 0, "resolution": [640, 480],
+         "rate_hz": 15, "mount_tilt_std_deg": 0.0, "mount_yaw_std_deg": 0.0, "mount_height_std": 0.0}
+    env = parcover_env.parallel_env("office", overrides={"observation": {"kinect": kinect}, "kinects": [a]}).unwrapped
+    env.reset(seed=0)
+    assert all(s.true_camera is s.camera for s in env.kinects.sensors)
+    return env.kinects
+
+
+@pytest.mark.parametrize("kinect", ["estimate", "frames"])
+def test_update_systems_pinned_on_office(kinect):
+    """A due Kinect fixes the visible carrier matched by its predicted pose (to the fast model's sub-mm
+    noise, or the pipeline's mm) and schedules its next frame one period on; a Kinect not due, or no
+    carrier at all, draws nothing and fixes nobody."""
+    system = _office_system(kinect)
+    period = 1.0 / 15.0
+    true = np.array([[[0.8, 1.0, 0.3], [0.9, 1.6, -1.0]]])
+    predicted = true + np.array([0.05, -0.04, 0.02])  # dead reckoning a few cm off: within the gate
+    rng = np.random.default_rng(0)
+    fixes = update_systems([system], [0.1], true, np.array([[True, False]]), predicted, [rng])[0]
+    assert list(fixes) == [0] and system.last_fixes is fixes  # robot 1 carries no markers
+    np.testing.assert_allclose(fixes[0], true[0, 0], atol=5e-3 if kinect == "frames" else 1e-3)
+    assert system.next_tick.tolist() == [0.1 + period]
+    if system.fast is not None:  # frames may drop from now on: still no draw without a carrier
+        system.fast.kinects = system.fast.kinects.copy()
+        system.fast.kinects["drop_rate"] = 0.5
+    state = copy.deepcopy(rng.bit_generator.state)
+    assert update_systems([system], [0.15], true, np.array([[True, True]]), predicted, [rng]) == [{}]  # not due
+    assert system.next_tick.tolist() == [0.1 + period] and system.last_fixes == {}
+    assert update_systems([system], [0.2], true, np.zeros((1, 2), bool), predicted, [rng]) == [{}]  # no carrier
+    assert system.next_tick.tolist() == [0.2 + period]
+    assert rng.bit_generator.state == state  # nothing drawn
+    far = predicted + np.array([1.5, 0.0, 0.0])  # predicted beyond the gate (1 m): no match, no fix
+    assert update_systems([system], [0.3], true, np.array([[True, False]]), far, [rng]) == [{}]
