@@ -77,6 +77,8 @@ class ScriptedExpert(Policy):
         self.blocked: dict[str, int] = {}
         self.unseen: dict[str, int] = {}  # steps since each follower last saw the robot ahead
         self.backing: dict[str, int] = {}
+        self.checked: set[tuple[str, int]] = set()
+        """(robot, KPOI index) pairs whose pose check before the KPOI is done (``kpoi_check_distance``)."""
         self._last_odom = np.zeros((mission.n_robots, 3))
 
     @classmethod
@@ -109,6 +111,7 @@ class ScriptedExpert(Policy):
         self.blocked.clear()
         self.backing.clear()
         self.unseen.clear()
+        self.checked.clear()
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         g = self.layout.get
@@ -250,8 +253,30 @@ class ScriptedExpert(Policy):
             names = ("sigma_major", "sigma_minor", "sigma_axis_cos2", "sigma_axis_sin2", "sigma_heading")
             cov = covariance_from_entries(np.array([g(obs, k)[0] for k in names], dtype=float), float(odom[2]))
         scanning = "scanning" in self.layout.slices and bool(g(obs, "scanning")[0] > 0.5)
-        return self.fixer.step(agent, odom, float(g(obs, "fix_age")[0]), float(g(obs, "v")[0]),
-                               g(obs, "sonar").astype(float), leader, at_end, cov, others, scanning)
+        check = self._kpoi_check(agent, obs, odom) if leader else None
+        out = self.fixer.step(agent, odom, float(g(obs, "fix_age")[0]), float(g(obs, "v")[0]),
+                              g(obs, "sonar").astype(float), leader, at_end, cov, others, scanning,
+                              check=check is not None)
+        if check is not None and self.fixer.scanning(agent):
+            self.checked.add((agent, check))
+        return out
+
+    def _kpoi_check(self, agent: str, obs: np.ndarray, odom: np.ndarray) -> int | None:
+        """The index of the KPOI at the robot's route point ahead (within ``waypoint_tol``), if the robot believes it is
+        within ``kpoi_check_distance`` of it and has not checked its pose before it yet; else None."""
+        reach = self.cfg.sonar_fix.kpoi_check_distance
+        if reach <= 0 or self.fixer.corrected(agent):
+            return None
+        rel = np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
+        if np.hypot(*rel) > reach:
+            return None
+        goal = odom[:2] + rotate(rel, odom[2])
+        kpois = self.mission.kpois
+        if not len(kpois):
+            return None
+        k = int(np.argmin(np.hypot(*(kpois - goal).T)))
+        near = np.hypot(*(kpois[k] - goal)) <= self.mission.waypoint_tol
+        return k if near and (agent, k) not in self.checked else None
 
     def _follow(self, agent: str, obs: np.ndarray) -> tuple[float, float]:
         g, f = self.layout.get, self.scenario.formation
