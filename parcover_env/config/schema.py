@@ -180,7 +180,8 @@ class ScanConfig:
     min_unmasked_share: float = 0.5
     """... provided at least this share of the readings is left (-)."""
     miss_inflation: float = 2.0
-    """Each rejected scan widens the robot's next search region and gate: the standard deviations
+    """Each rejected scan (unless rejected only by ``shift_test``: an uninformative scan says nothing
+    about the region) widens the robot's next search region and gate: the standard deviations
     are multiplied by this (-), until an accepted fix. Contacts push robots unseen by the encoders; a
     robot pushed outside its covariance is otherwise never found inside its search region."""
     max_inflation: float = 8.0

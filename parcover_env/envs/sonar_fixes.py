@@ -16,8 +16,9 @@ down (:meth:`SonarFixes.pins_down`: shifted by ``scan.shift_test`` it matches wo
 (``scan.gate_sigmas`` of the widened position covariance, heading within the heading gate, at most
 ``scan.gate_heading_max_deg``); the
 estimator then resets the robot's estimate to it with :attr:`SonarFixes.covariance`. A rejected scan
-leaves the estimate and covariance as they were; the robot's next scan searches a region whose
-sigmas are ``scan.miss_inflation`` times wider (at most ``scan.max_inflation``), until a fix.
+leaves the estimate and covariance as they were; unless the scan was merely uninformative (its pose
+matched but did not pin the pose down), the robot's next scan searches a region whose sigmas are
+``scan.miss_inflation`` times wider (at most ``scan.max_inflation``), until a fix.
 """
 
 from __future__ import annotations
@@ -111,17 +112,23 @@ class SonarFixes:
         self.remaining[active] -= 1
         out = {}
         for i in np.flatnonzero(active & (self.remaining == 0)).tolist():
-            pose = self.localize_scan(i, request, rng)
+            pose, informative = self.localize_scan(i, request, rng)
             self.outcome[i] = self.result[i] = REJECTED if pose is None else ACCEPTED
             c = self.cfg
-            self.inflation[i] = 1.0 if pose is not None else min(self.inflation[i] * c.miss_inflation, c.max_inflation)
+            if pose is not None:
+                self.inflation[i] = 1.0
+            elif informative:  # no match inside the region: the robot may lie outside it
+                self.inflation[i] = min(self.inflation[i] * c.miss_inflation, c.max_inflation)
             if pose is not None:
                 out[i] = pose
         return out
 
-    def localize_scan(self, i: int, request: FixRequest, rng: np.random.Generator) -> np.ndarray | None:
-        """Robot ``i``'s simulated scan localized in the region of its estimate and covariance; the
-        accepted pose (3,) or None."""
+    def localize_scan(self, i: int, request: FixRequest,
+                      rng: np.random.Generator) -> tuple[np.ndarray | None, bool]:
+        """Robot ``i``'s simulated scan localized in the region of its estimate and covariance: the
+        accepted pose (3,) or None, and whether the scan was informative (False: the localizer's pose
+        matched but the scan does not pin it down, :meth:`pins_down`; such a miss says nothing about
+        the region, which is then not widened)."""
         others = np.delete(np.arange(len(request.true)), i)
         ranges = self.ring.scan(request.true[i], self.segments, request.true[others, :2], self.radius, rng)
         prior = request.estimate[i]
@@ -132,12 +139,12 @@ class SonarFixes:
                        region, self.params, sonar=self.ring.cfg, features=self.features,
                        heading=float(prior[2]), heading_tol=turn)
         if res.pose is None or not (res.success or self.matches_unmasked(res.pose, ranges, request, others)):
-            return None
+            return None, True
         if not self.pins_down(res.pose, ranges, request.estimate[others, :2]):
-            return None
+            return None, False
         d = res.pose[:2] - prior[:2]
         inside = float(d @ np.linalg.solve(pos, d)) <= self.cfg.gate_sigmas**2
-        return res.pose.copy() if inside and abs(wrap_angle(res.pose[2] - prior[2])) <= turn else None
+        return (res.pose.copy() if inside and abs(wrap_angle(res.pose[2] - prior[2])) <= turn else None), True
 
     def matches_unmasked(self, pose: np.ndarray, ranges: np.ndarray, request: FixRequest,
                          others: np.ndarray) -> bool:

@@ -197,3 +197,16 @@ def test_a_scan_that_does_not_pin_the_pose_down_is_rejected():
     off = parcover_env.parallel_env("t_room", overrides={"observation": {"scan": {"enabled": True, "shift_test": 0.0}}})
     off.reset(seed=0)
     assert off.scanner.pins_down(pose, empty, others)
+
+
+def test_an_uninformative_scan_is_rejected_without_widening_the_next_region():
+    env = _env()
+    true = env.true_poses()[0].copy()
+    cov = np.diag([0.05**2, 0.05**2, 0.02**2])
+    env.estimator.fix(0, true + np.array([0.05, 0.0, 0.0]), cov)
+    env.scanner.pins_down = lambda *args: False  # the scan matched but pins nothing down
+    rows = _scan(env)
+    assert rows[-1][1] == REJECTED and env.scanner.inflation[0] == 1.0
+    env.estimator.fix(0, true + np.array([1.2, 0.8, 0.0]), np.diag([0.02**2, 0.02**2, 0.01**2]))
+    _scan(env)  # no match inside the small region around a far estimate: the robot may lie outside it
+    assert env.scanner.result[0] == REJECTED and env.scanner.inflation[0] == env.scenario.observation.scan.miss_inflation
