@@ -11,9 +11,12 @@ env internals. Roles (leader/follower), splits at TPs, and waypoints come from t
   measurement of the robot ahead, the leader's velocity estimated from successive measurements
   (limited information, ref. [8]);
   if the robot ahead is out of sight, it drives along its own route (same path up to its split);
-* with ``localization: both``, a leader out of Kinect view for a while stops, turns and localizes
-  with its sonar (Kim, Pearce & Amato's localizer, :mod:`parcover_env.expert.sonar_fix`) and steers by the
-  corrected pose toward the same route point;
+* with ``localization: both``, or with the env's sonar localization service (``observation.scan``,
+  how ``parcover run --policy expert`` builds the env) on a map without Kinects, a leader out of
+  Kinect view for a while stops and scans (the env's service: it asks with the ``scan`` action and
+  reads the env's estimate and covariance; without the service it turns and localizes its own scan
+  with Kim, Pearce & Amato's localizer, :mod:`parcover_env.expert.sonar_fix`), and checks its pose
+  by a scan before each KPOI and at its route's end;
 * leaders brake on their front sonar beams when a robot or wall is closer than ``stop_margin``
   (needed in ``individual`` mode, where all robots leave at once); a leader braked for longer than
   ``patience`` (plus ``patience_stagger`` per robot index, so two robots never give way together)
@@ -64,11 +67,13 @@ class ScriptedExpert(Policy):
         self.stop = r.radius + cfg.stop_margin
         self.slow = r.radius + cfg.slow_margin
         self.fixer = None
-        if scenario.localization == "both" and sonar_angles is not None:
+        env_scan = "scanning" in layout.slices
+        # sonar fixes with ``localization: both``, or through the env's service wherever no Kinect
+        # ever fixes a robot (the estimate is odometry alone otherwise)
+        if sonar_angles is not None and (scenario.localization == "both" or (env_scan and not scenario.kinects)):
             from parcover_env.expert.sonar_fix import SonarFixer
 
-            self.fixer = SonarFixer(scenario, sonar_angles, control_dt, cfg.sonar_fix,
-                                    env_scan="scanning" in layout.slices)
+            self.fixer = SonarFixer(scenario, sonar_angles, control_dt, cfg.sonar_fix, env_scan=env_scan)
         # with sonar fixes, the robots' progress along their routes is tracked on the corrected pose
         # (the env's waypoints follow its odometry estimate), from the start so that out-and-back
         # legs are never confused

@@ -209,4 +209,5 @@ def test_an_uninformative_scan_is_rejected_without_widening_the_next_region():
     assert rows[-1][1] == REJECTED and env.scanner.inflation[0] == 1.0
     env.estimator.fix(0, true + np.array([1.2, 0.8, 0.0]), np.diag([0.02**2, 0.02**2, 0.01**2]))
     _scan(env)  # no match inside the small region around a far estimate: the robot may lie outside it
-    assert env.scanner.result[0] == REJECTED and env.scanner.inflation[0] == env.scenario.observation.scan.miss_inflation
+    assert env.scanner.result[0] == REJECTED
+    assert env.scanner.inflation[0] == env.scenario.observation.scan.miss_inflation
