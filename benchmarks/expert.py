@@ -4,13 +4,14 @@
     python benchmarks/expert.py --seeds 5 --scenarios office tree
     python benchmarks/expert.py --scenarios generated --seeds 200 --preset ideal
     python benchmarks/expert.py --scenarios generated --seeds 60 --first-seed 1000
-    python benchmarks/expert.py --scenarios generated --seeds 200 --env-scan   # the env's sonar fixes
+    python benchmarks/expert.py --scenarios generated --seeds 200 --own-scan   # the expert's own sonar loop
 
 ``generated`` stands for the maps ``generated:SEED`` with SEED = the episode seed (one map per
-seed). ``--env-scan``: the env's sonar localization service (``observation.scan``) does the
-expert's stop-and-scan fixes (the scripted expert asks for a scan and reads the env's estimate),
-instead of the expert localizing its own scan. Prints one Markdown table (makespan ratio =
-makespan / (c_max / v_max): min / mean / p95 / max), failures by cause
+seed). The env is built as ``parcover run --policy expert`` builds it: with the env's sonar
+localization service (``observation.scan``), which does the experts' stop-and-scan fixes (they ask
+for a scan and read the env's estimate and covariance). ``--own-scan``: without it; the experts then
+turn, collect and localize their scans themselves (their former loop, kept for comparison). Prints
+one Markdown table (makespan ratio = makespan / (c_max / v_max): min / mean / p95 / max), failures by cause
 (``parcover_env.harness.failures``) with their seeds, for the sonar navigator its rearrangements,
 scan-angle bias and lateral offset, and, for the Kinect scenarios, the messages of formation mode
 vs every-robot-localized mode (``--messages``).
@@ -29,6 +30,7 @@ import numpy as np
 import parcover_env
 from parcover_env.expert import expert_for
 from parcover_env.harness.failures import CAUSES, run_diagnosed
+from parcover_env.policies.registry import policy_overrides
 
 
 def _name(scenario: str, seed: int) -> str:
@@ -40,7 +42,7 @@ def episode(job: tuple[str, int, str, str, bool]) -> dict:
     name = _name(scenario, seed)
     overrides = {"formation": {"mode": mode}}
     if env_scan:
-        overrides["observation"] = {"scan": {"enabled": True}}
+        overrides.update(policy_overrides("expert"))
     try:
         env = parcover_env.parallel_env(name, overrides=overrides, preset=preset)
     except Exception as exc:  # noqa: BLE001 - a map that cannot be built is reported, not fatal
@@ -74,8 +76,10 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--messages", action="store_true",
                     help="also run 10 seeds per Kinect scenario in 'individual' mode and compare messages")
-    ap.add_argument("--env-scan", action="store_true", help="the env's sonar localization service does the scans")
+    ap.add_argument("--own-scan", action="store_true",
+                    help="build the env without its sonar localization service: the experts localize their own scans")
     args = ap.parse_args()
+    args.env_scan = not args.own_scan
     seeds = range(args.first_seed, args.first_seed + args.seeds)
     jobs = [(s, k, "formation", args.preset, args.env_scan) for s in args.scenarios for k in seeds]
     kinect = [s for s in args.scenarios if args.messages and s != "generated" and parcover_env.load_scenario(s).kinects]

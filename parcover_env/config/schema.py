@@ -144,7 +144,8 @@ class ScanConfig:
     their estimates, inside the ``gate_sigmas`` ellipse of the robot's estimate and covariance (never
     the true pose). A fix is accepted when the localizer succeeds (or the scan matches on the readings
     no teammate explains, ``mask_sigmas``) inside that gate. An accepted fix resets the estimate to
-    the fix and the covariance to ``fix_sigma_xy`` / ``fix_sigma_heading_deg``; a rejected one changes
+    the fix and the covariance to ``fix_sigma_xy`` / ``fix_sigma_heading_deg``, provided the scan pins
+    the pose down (``shift_test``); a rejected one changes
     nothing but the next search region of that robot (``miss_inflation``)."""
 
     enabled: bool = False
@@ -161,7 +162,11 @@ class ScanConfig:
     """Floor of that region (m): the covariance is widened by (``gate_distance`` / ``gate_sigmas``)^2
     in every direction, so a fresh estimate's tiny covariance still admits the localizer's error."""
     gate_heading_deg: float = 30.0
-    """A fix is accepted only within this of the heading estimate plus ``gate_sigmas`` heading sigmas (deg)."""
+    """A fix is accepted only within this of the heading estimate plus ``gate_sigmas`` heading sigmas (deg) ..."""
+    gate_heading_max_deg: float = 40.0
+    """... at most this (deg; below 90): rooms are nearly symmetric, and a scan often matches the map
+    turned by 90 or 180 degrees about a nearby point; the heading sigma grows with each rejected
+    scan (``miss_inflation``), and an uncapped gate would soon admit those turned matches."""
     fix_sigma_xy: float = 0.05
     """Position standard deviation of an accepted sonar fix along x and y (m): the covariance the
     estimate restarts from (the localizer's error on the shipped maps, ``benchmarks/sonar_localization.py``)."""
@@ -175,19 +180,34 @@ class ScanConfig:
     min_unmasked_share: float = 0.5
     """... provided at least this share of the readings is left (-)."""
     miss_inflation: float = 2.0
-    """Each rejected scan widens the robot's next search region and gate: the standard deviations
+    """Each rejected scan (unless rejected only by ``shift_test``: an uninformative scan says nothing
+    about the region) widens the robot's next search region and gate: the standard deviations
     are multiplied by this (-), until an accepted fix. Contacts push robots unseen by the encoders; a
     robot pushed outside its covariance is otherwise never found inside its search region."""
     max_inflation: float = 8.0
     """Largest total factor of ``miss_inflation`` (-): the search region stays bounded."""
+    shift_test: float = 0.2
+    """A fix is accepted only if the scan pins the pose down: from the pose shifted by this distance
+    (m) in any of 8 directions, the scan must match the known map worse by at least
+    ``min_shift_increase`` (:mod:`~parcover_env.localization.sonar.pin_down`; the localizer's
+    clipped, trimmed scan error, the one that accepts the fix). A scan of open space (few echoes:
+    the trim drops them all) or along a straight corridor matches about as well shifted, and the
+    localizer's pose is then a guess along the free direction. 0 switches the test off."""
+    min_shift_increase: float = 0.003
+    """Smallest increase of the mean clipped scan error under that shift (m); the scripted expert's
+    own loop's value (``expert.sonar_fix.min_shift_increase``, measured there on generated maps)."""
 
     def __post_init__(self) -> None:
+        _check(self.shift_test >= 0, "shift_test", f"must be >= 0, got {self.shift_test}")
+        _check(self.min_shift_increase >= 0, "min_shift_increase", f"must be >= 0, got {self.min_shift_increase}")
         _check(self.miss_inflation >= 1, "miss_inflation", f"must be >= 1, got {self.miss_inflation}")
         _check(self.max_inflation >= 1, "max_inflation", f"must be >= 1, got {self.max_inflation}")
         _check(self.mask_sigmas >= 0, "mask_sigmas", f"must be >= 0, got {self.mask_sigmas}")
         _check(0 < self.min_unmasked_share <= 1, "min_unmasked_share",
                f"must be in (0, 1], got {self.min_unmasked_share}")
         _positive(self, "turn_rate", "gate_sigmas", "gate_heading_deg", "fix_sigma_xy", "fix_sigma_heading_deg")
+        _check(self.gate_heading_deg <= self.gate_heading_max_deg < 90, "gate_heading_max_deg",
+               f"must be >= gate_heading_deg ({self.gate_heading_deg}) and < 90, got {self.gate_heading_max_deg}")
         _check(self.gate_distance >= 0, "gate_distance", f"must be >= 0, got {self.gate_distance}")
 
 

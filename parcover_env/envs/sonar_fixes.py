@@ -11,11 +11,14 @@ positions), and the paper's localizer (:func:`~parcover_env.localization.sonar.l
 matches it against the known map, the teammates drawn in at their *estimates*, inside the region of
 the robot's own estimate and covariance (never its true pose). The fix is accepted when the
 localizer succeeds (mean clipped scan error below ``sonar_localizer.success_error``, or that error on
-the readings no teammate can explain, :meth:`SonarFixes.matches_unmasked`) inside the gate
-(``scan.gate_sigmas`` of the widened position covariance, heading within the heading gate); the
+the readings no teammate can explain, :meth:`SonarFixes.matches_unmasked`), the scan pins the pose
+down (:meth:`SonarFixes.pins_down`: shifted by ``scan.shift_test`` it matches worse) and it lies inside the gate
+(``scan.gate_sigmas`` of the widened position covariance, heading within the heading gate, at most
+``scan.gate_heading_max_deg``); the
 estimator then resets the robot's estimate to it with :attr:`SonarFixes.covariance`. A rejected scan
-leaves the estimate and covariance as they were; the robot's next scan searches a region whose
-sigmas are ``scan.miss_inflation`` times wider (at most ``scan.max_inflation``), until a fix.
+leaves the estimate and covariance as they were; unless the scan was merely uninformative (its pose
+matched but did not pin the pose down), the robot's next scan searches a region whose sigmas are
+``scan.miss_inflation`` times wider (at most ``scan.max_inflation``), until a fix.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from parcover_env.geometry import wrap_angle
 from parcover_env.localization.sonar.config import sonar_localizer_config
 from parcover_env.localization.sonar.known_map import known_map_features
 from parcover_env.localization.sonar.localizer import Ellipse, localize, scan_error
+from parcover_env.localization.sonar.pin_down import shift_increase, shifted_errors
 from parcover_env.localization.sonar.teammates import teammate_mask
 from parcover_env.sensors.sonar import SonarRing, simulate_beams
 from parcover_env.world.map_model import MapModel
@@ -108,17 +112,23 @@ class SonarFixes:
         self.remaining[active] -= 1
         out = {}
         for i in np.flatnonzero(active & (self.remaining == 0)).tolist():
-            pose = self.localize_scan(i, request, rng)
+            pose, informative = self.localize_scan(i, request, rng)
             self.outcome[i] = self.result[i] = REJECTED if pose is None else ACCEPTED
             c = self.cfg
-            self.inflation[i] = 1.0 if pose is not None else min(self.inflation[i] * c.miss_inflation, c.max_inflation)
+            if pose is not None:
+                self.inflation[i] = 1.0
+            elif informative:  # no match inside the region: the robot may lie outside it
+                self.inflation[i] = min(self.inflation[i] * c.miss_inflation, c.max_inflation)
             if pose is not None:
                 out[i] = pose
         return out
 
-    def localize_scan(self, i: int, request: FixRequest, rng: np.random.Generator) -> np.ndarray | None:
-        """Robot ``i``'s simulated scan localized in the region of its estimate and covariance; the
-        accepted pose (3,) or None."""
+    def localize_scan(self, i: int, request: FixRequest,
+                      rng: np.random.Generator) -> tuple[np.ndarray | None, bool]:
+        """Robot ``i``'s simulated scan localized in the region of its estimate and covariance: the
+        accepted pose (3,) or None, and whether the scan was informative (False: the localizer's pose
+        matched but the scan does not pin it down, :meth:`pins_down`; such a miss says nothing about
+        the region, which is then not widened)."""
         others = np.delete(np.arange(len(request.true)), i)
         ranges = self.ring.scan(request.true[i], self.segments, request.true[others, :2], self.radius, rng)
         prior = request.estimate[i]
@@ -129,10 +139,12 @@ class SonarFixes:
                        region, self.params, sonar=self.ring.cfg, features=self.features,
                        heading=float(prior[2]), heading_tol=turn)
         if res.pose is None or not (res.success or self.matches_unmasked(res.pose, ranges, request, others)):
-            return None
+            return None, True
+        if not self.pins_down(res.pose, ranges, request.estimate[others, :2]):
+            return None, False
         d = res.pose[:2] - prior[:2]
         inside = float(d @ np.linalg.solve(pos, d)) <= self.cfg.gate_sigmas**2
-        return res.pose.copy() if inside and abs(wrap_angle(res.pose[2] - prior[2])) <= turn else None
+        return (res.pose.copy() if inside and abs(wrap_angle(res.pose[2] - prior[2])) <= turn else None), True
 
     def matches_unmasked(self, pose: np.ndarray, ranges: np.ndarray, request: FixRequest,
                          others: np.ndarray) -> bool:
@@ -154,13 +166,25 @@ class SonarFixes:
         p = self.params
         return float(scan_error(ranges[keep], synth[keep], p.error_clip, p.error_trim)[0]) <= p.success_error
 
+    def pins_down(self, pose: np.ndarray, ranges: np.ndarray, others: np.ndarray) -> bool:
+        """Whether ``ranges`` pin ``pose`` down on the known map, the teammates ``others (M, 2)`` drawn
+        in at their estimates (``shift_test``, ``min_shift_increase``; always with ``shift_test`` 0)."""
+        c = self.cfg
+        if c.shift_test <= 0:
+            return True
+        errors = shifted_errors(ranges, self.ring.scan_angles, pose, segments=self.known.segments,
+                                sonar=self.ring.cfg, others=others, radius=self.radius,
+                                clip=self.params.error_clip, step=c.shift_test, trim=self.params.error_trim)
+        return shift_increase(errors) >= c.min_shift_increase
+
     def gate(self, cov: np.ndarray) -> tuple[np.ndarray, float]:
         """The region of a fix for an estimate of covariance ``cov (3, 3)``: the widened position
-        covariance (m^2) whose ``gate_sigmas`` ellipse the localizer searches, and the heading gate (rad)."""
+        covariance (m^2) whose ``gate_sigmas`` ellipse the localizer searches, and the heading gate (rad,
+        at most ``gate_heading_max_deg``)."""
         c = self.cfg
         pos = np.asarray(cov, dtype=float)[:2, :2] + (c.gate_distance / c.gate_sigmas) ** 2 * np.eye(2)
         turn = math.radians(c.gate_heading_deg) + c.gate_sigmas * math.sqrt(max(float(cov[2, 2]), 0.0))
-        return pos, min(turn, math.pi)
+        return pos, min(turn, math.radians(c.gate_heading_max_deg))
 
     def team_map(self, others: np.ndarray) -> MapModel:
         """The known map with the teammates as discs at their estimated positions ``others (M, 2)``."""

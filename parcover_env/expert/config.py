@@ -72,8 +72,9 @@ class SonarFixConfig:
     maps 5, 24, 117, 120 and 146: fixes 0.16-0.40 m off showed 0.000 (+-0.002), good fixes mostly
     0.01-0.09, a few 0.004."""
     refused_rescans: int = 2
-    """After a successful fix refused by the gate, or at what it believes is its route's end after any
-    scan without an accepted fix, the leader scans again at once (without driving
+    """After a successful fix refused by the gate, or after any scan without an accepted fix at what
+    it believes is its route's end (with the env's scans, ``observation.scan``: anywhere, as the
+    env's next search region is wider), the leader scans again at once (without driving
     ``rescan_distance`` first), up to this many times in a row: a second scan can confirm the refused
     fix (``confirm_distance``), or search the wider region of ``miss_inflation``, while the robot is
     still where it doubted its belief (-)."""
@@ -83,6 +84,11 @@ class SonarFixConfig:
     and a robot pushed outside its covariance is otherwise never found inside its search region."""
     max_inflation: float = 8.0
     """Largest total factor of ``miss_inflation`` (-): the search region stays bounded."""
+    kpoi_check_distance: float = 0.6
+    """A leader whose route point ahead is a KPOI and whose last fix is older than ``stale_after``
+    stops and scans once when it believes that KPOI is this close (m; 0: never): the env's route
+    follows its estimate and moves on once the estimate reaches the KPOI, so a drifted arrival at a
+    KPOI is never corrected afterwards (the same reason as ``final_rescan_distance``)."""
     fix_sigma: float = 0.05
     """Position standard deviation of an accepted sonar fix along x and y (m): the covariance the
     expert propagates the corrected belief from."""
@@ -103,6 +109,8 @@ class SonarFixConfig:
         check(self.miss_inflation >= 1, "miss_inflation", f"must be >= 1, got {self.miss_inflation}")
         check(self.max_inflation >= 1, "max_inflation", f"must be >= 1, got {self.max_inflation}")
         check(self.refused_rescans >= 0, "refused_rescans", f"must be >= 0, got {self.refused_rescans}")
+        check(self.kpoi_check_distance >= 0, "kpoi_check_distance",
+              f"must be >= 0, got {self.kpoi_check_distance}")
         check(self.rescan_distance >= 0, "rescan_distance", f"must be >= 0, got {self.rescan_distance}")
         check(self.final_rescan_distance >= 0, "final_rescan_distance",
               f"must be >= 0, got {self.final_rescan_distance}")

@@ -47,17 +47,16 @@ from parcover_env.envs.observations import ObservationLayout
 from parcover_env.expert.avoidance import brake_factor, lane_gap, sidestep, turn_away
 from parcover_env.expert.config import NavigatorConfig, expert_config
 from parcover_env.expert.horizon import RegionModel, collision_horizon
+from parcover_env.expert.navigator_scans import NavigatorScans
 from parcover_env.expert.rearrange import SubgoalRearranger
-from parcover_env.expert.sonar_fix import belief_covariance_step
+from parcover_env.expert.sonar_fix import belief_covariance_step, covariance_from_entries
 from parcover_env.expert.team_localizer import TeamLocalizer
 from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.poses import compose as _compose
-from parcover_env.geometry.poses import inverse as _inverse
 from parcover_env.localization.sonar.config import sonar_localizer_config
 from parcover_env.localization.sonar.localizer import Ellipse
 from parcover_env.localization.sonar.parallel_paths import lane_offsets, lateral_offset, parallel_path, with_start
 from parcover_env.localization.sonar.params import SonarLocalizerParams
-from parcover_env.localization.sonar.scan import ScanCollector
 from parcover_env.localization.sonar.subgoals import PathNodes, densify, score_nodes, team_subgoal
 
 NavigatorParams = NavigatorConfig
@@ -66,7 +65,7 @@ NavigatorParams = NavigatorConfig
 __all__ = ["NavigatorConfig", "NavigatorParams", "SonarNavigator"]
 
 
-class SonarNavigator:
+class SonarNavigator(NavigatorScans):
     """Kim, Pearce & Amato NAVIGATOR policy: ``for_env(env)``, ``reset(obs)``, ``act(obs) -> actions``, ``stats()``."""
 
     def __init__(self, layout: ObservationLayout, scenario: Scenario, paths: list[np.ndarray],
@@ -108,6 +107,11 @@ class SonarNavigator:
         self.lane_clearance = self.radius + self.p.slow_margin
         """A lane keeps this from the known map's walls, else it merges onto the route (m)."""
         self.region_model = RegionModel(self.p, self.fix_cov, self.odometry, self.wheel_base, self.map, self.radius)
+        self.env_scan = "scanning" in layout.slices
+        """Scan through the env's sonar localization service (``observation.scan``): the robot asks
+        with the ``scan`` action component, is held still while the ``scanning`` entry is 1, and the
+        env's estimate (the observed pose) and covariance (the ``sigma_*`` entries) carry the fix;
+        otherwise the navigator turns, collects and localizes each scan itself."""
         self.rearranger = SubgoalRearranger(self.features, self.team_loc.sectors, self.map, self.radius,
                                             r.sonar.range_max, self.incidence, self.cone, self.p)
         self.reset()
@@ -143,6 +147,8 @@ class SonarNavigator:
         self.drive_steps, self.drive_limit = 0, 0
         self.queue: list[int] = []
         self.scan: dict | None = None
+        self.request = np.zeros(n, dtype=bool)
+        """Robots that ask the env for a scan at this step (:attr:`env_scan`)."""
         self.fixes: list[dict] = []
         self._stats = {"scans": 0, "localized": 0, "failed": 0, "corrections": [], "scan_steps": 0,
                        "rearranged": 0, "iterations": 0, "bias": [], "lateral": [], "apart": 0}
@@ -198,6 +204,7 @@ class SonarNavigator:
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         self._ingest(observations)
         cmd = np.zeros((self.n, 2))
+        self.request[:] = False
         if self.phase == "plan" and not self.done.all():
             self._plan()
         if self.phase == "drive":
@@ -208,6 +215,8 @@ class SonarNavigator:
         for a in observations:
             i = int(a.rsplit("_", 1)[1])
             out[a] = np.array([cmd[i, 0] / self.v_max, cmd[i, 1] / self.w_max], dtype=np.float32)
+            if self.env_scan:  # the env's sonar localization service: (v, w, scan)
+                out[a] = np.append(out[a], np.float32(1.0 if self.request[i] else -1.0))
         return out
 
     def _ingest(self, observations: dict[str, np.ndarray]) -> None:
@@ -230,9 +239,16 @@ class SonarNavigator:
             else:
                 odom[i, :2] = raw[:2] + self.offset[i]
             odom[i, 2], self.raw[i] = raw[2], raw
+        if self.env_scan:  # the env's covariance of its estimate, from the observation
+            names = ("sigma_major", "sigma_minor", "sigma_axis_cos2", "sigma_axis_sin2", "sigma_heading")
+            for a, o in observations.items():
+                i = int(a.rsplit("_", 1)[1])
+                self.cov[i] = covariance_from_entries(np.array([g(o, k)[0] for k in names], dtype=float), odom[i, 2])
         if self.last_odom is not None:
-            heading = self.last_odom[:, 2] + self.correction[:, 2]
-            self.cov = belief_covariance_step(self.cov, self.last_odom, odom, heading, self.odometry, self.wheel_base)
+            if not self.env_scan:
+                heading = self.last_odom[:, 2] + self.correction[:, 2]
+                self.cov = belief_covariance_step(self.cov, self.last_odom, odom, heading, self.odometry,
+                                                  self.wheel_base)
             self.travelled += np.hypot(*(odom[:, :2] - self.last_odom[:, :2]).T)
             self.turned += np.abs(wrap_angle(odom[:, 2] - self.last_odom[:, 2]))
         self.last_odom = odom
@@ -381,66 +397,7 @@ class SonarNavigator:
         front = float(np.min(self.layout.get(obs, "sonar")[self.front]))
         return brake_factor(front, self.radius + self.p.stop_margin, self.radius + self.p.slow_margin)
 
-    # ------------------------------------------------------------------ Fig. 1 line 8
-    def _scan_step(self, observations, cmd: np.ndarray) -> None:
-        while self.queue and f"robot_{self.queue[0]}" not in observations:
-            self.queue.pop(0)
-        if not self.queue:
-            self._end_iteration()
-            return
-        i = self.queue[0]
-        odom = self.last_odom[i]
-        if self.scan is None:
-            if abs(float(self.layout.get(observations[f"robot_{i}"], "v")[0])) > self.p.stop_speed:
-                cmd[i] = 0.0  # still rolling: a scan is taken standing still
-                return
-            self.scan = {"robot": i, "start": odom.copy(),
-                         "col": ScanCollector(self.beams, self.n_bins, self.sonar_cfg.range_max, float(odom[2]),
-                                              self.p.bin_tol_deg)}
-            self._stats["scans"] += 1
-        ranges = self.layout.get(observations[f"robot_{i}"], "sonar").astype(float)
-        full = self.scan["col"].add(float(odom[2]), ranges)
-        if full:
-            self._finish_scan(i)
-            self.queue.pop(0)
-            self.scan = None
-            if not self.queue:
-                self._end_iteration()
-            return
-        self._stats["scan_steps"] += 1
-        cmd[i] = [0.0, self.p.scan_rate]
-
-    def _finish_scan(self, i: int) -> None:
-        ranges = self.scan["col"].ranges  # bins never reached keep the max range (no echo)
-        o = self.scan["start"]
-        prior = _compose(self.correction[i], o)
-        ell = self.region(i, prior[:2])
-        sigma = np.delete([max(self.ellipse(j).axes) for j in range(self.n)], i)
-        fix = self.team_loc.localize(ranges, ell, np.delete(self.belief()[:, :2], i, axis=0), heading=prior[2],
-                                     others_sigma=sigma)
-        res, ok, team_error = fix.result, fix.ok, fix.team_error
-        record = {"robot": i, "prior": prior, "ellipse": ell, "success": bool(ok), "error": res.error,
-                  "pose": None if res.pose is None else res.pose.copy(), "target": self.targets[i],
-                  "team_error": team_error}
-        self.fixes.append(record)
-        at_end = self.targets[i] >= self.paths[i].s[-1] - 1e-9
-        if at_end:
-            self.final_scans[i] += 1
-        if ok:
-            self._stats["localized"] += 1
-            self._stats["corrections"].append(float(np.hypot(*(res.pose[:2] - prior[:2]))))
-            self.correction[i] = _compose(res.pose, _inverse(o))
-            self.travelled[i] = self.turned[i] = 0.0
-            self.axis0[i] = self.p.initial_axis
-            self.cov[i] = self.fix_cov
-        else:
-            self._stats["failed"] += 1
-        if at_end:
-            bel = _compose(self.correction[i], self.last_odom[i])
-            close = np.hypot(*(bel[:2] - self.paths[i].xy[-1])) <= self.p.goal_tol
-            if (ok and close) or self.final_scans[i] >= self.p.max_final_scans:
-                self.done[i] = True
-
+    # ------------------------------------------------------------------ Fig. 1 line 9
     def _end_iteration(self) -> None:
         """Fig. 1 line 9: start again from the robots' corrected configurations."""
         self.phase = "plan"

@@ -11,9 +11,12 @@ env internals. Roles (leader/follower), splits at TPs, and waypoints come from t
   measurement of the robot ahead, the leader's velocity estimated from successive measurements
   (limited information, ref. [8]);
   if the robot ahead is out of sight, it drives along its own route (same path up to its split);
-* with ``localization: both``, a leader out of Kinect view for a while stops, turns and localizes
-  with its sonar (Kim, Pearce & Amato's localizer, :mod:`parcover_env.expert.sonar_fix`) and steers by the
-  corrected pose toward the same route point;
+* with ``localization: both``, or with the env's sonar localization service (``observation.scan``,
+  how ``parcover run --policy expert`` builds the env) on a map without Kinects, a leader out of
+  Kinect view for a while stops and scans (the env's service: it asks with the ``scan`` action and
+  reads the env's estimate and covariance; without the service it turns and localizes its own scan
+  with Kim, Pearce & Amato's localizer, :mod:`parcover_env.expert.sonar_fix`), and checks its pose
+  by a scan before each KPOI and at its route's end;
 * leaders brake on their front sonar beams when a robot or wall is closer than ``stop_margin``
   (needed in ``individual`` mode, where all robots leave at once); a leader braked for longer than
   ``patience`` (plus ``patience_stagger`` per robot index, so two robots never give way together)
@@ -64,11 +67,13 @@ class ScriptedExpert(Policy):
         self.stop = r.radius + cfg.stop_margin
         self.slow = r.radius + cfg.slow_margin
         self.fixer = None
-        if scenario.localization == "both" and sonar_angles is not None:
+        env_scan = "scanning" in layout.slices
+        # sonar fixes with ``localization: both``, or through the env's service wherever no Kinect
+        # ever fixes a robot (the estimate is odometry alone otherwise)
+        if sonar_angles is not None and (scenario.localization == "both" or (env_scan and not scenario.kinects)):
             from parcover_env.expert.sonar_fix import SonarFixer
 
-            self.fixer = SonarFixer(scenario, sonar_angles, control_dt, cfg.sonar_fix,
-                                    env_scan="scanning" in layout.slices)
+            self.fixer = SonarFixer(scenario, sonar_angles, control_dt, cfg.sonar_fix, env_scan=env_scan)
         # with sonar fixes, the robots' progress along their routes is tracked on the corrected pose
         # (the env's waypoints follow its odometry estimate), from the start so that out-and-back
         # legs are never confused
@@ -77,6 +82,8 @@ class ScriptedExpert(Policy):
         self.blocked: dict[str, int] = {}
         self.unseen: dict[str, int] = {}  # steps since each follower last saw the robot ahead
         self.backing: dict[str, int] = {}
+        self.checked: set[tuple[str, int]] = set()
+        """(robot, KPOI index) pairs whose pose check before the KPOI is done (``kpoi_check_distance``)."""
         self._last_odom = np.zeros((mission.n_robots, 3))
 
     @classmethod
@@ -109,6 +116,7 @@ class ScriptedExpert(Policy):
         self.blocked.clear()
         self.backing.clear()
         self.unseen.clear()
+        self.checked.clear()
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         g = self.layout.get
@@ -250,8 +258,30 @@ class ScriptedExpert(Policy):
             names = ("sigma_major", "sigma_minor", "sigma_axis_cos2", "sigma_axis_sin2", "sigma_heading")
             cov = covariance_from_entries(np.array([g(obs, k)[0] for k in names], dtype=float), float(odom[2]))
         scanning = "scanning" in self.layout.slices and bool(g(obs, "scanning")[0] > 0.5)
-        return self.fixer.step(agent, odom, float(g(obs, "fix_age")[0]), float(g(obs, "v")[0]),
-                               g(obs, "sonar").astype(float), leader, at_end, cov, others, scanning)
+        check = self._kpoi_check(agent, obs, odom) if leader else None
+        out = self.fixer.step(agent, odom, float(g(obs, "fix_age")[0]), float(g(obs, "v")[0]),
+                              g(obs, "sonar").astype(float), leader, at_end, cov, others, scanning,
+                              check=check is not None)
+        if check is not None and self.fixer.scanning(agent):
+            self.checked.add((agent, check))
+        return out
+
+    def _kpoi_check(self, agent: str, obs: np.ndarray, odom: np.ndarray) -> int | None:
+        """The index of the KPOI at the robot's route point ahead (within ``waypoint_tol``), if the robot believes it is
+        within ``kpoi_check_distance`` of it and has not checked its pose before it yet; else None."""
+        reach = self.cfg.sonar_fix.kpoi_check_distance
+        if reach <= 0 or self.fixer.corrected(agent):
+            return None
+        rel = np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
+        if np.hypot(*rel) > reach:
+            return None
+        goal = odom[:2] + rotate(rel, odom[2])
+        kpois = self.mission.kpois
+        if not len(kpois):
+            return None
+        k = int(np.argmin(np.hypot(*(kpois - goal).T)))
+        near = np.hypot(*(kpois[k] - goal)) <= self.mission.waypoint_tol
+        return k if near and (agent, k) not in self.checked else None
 
     def _follow(self, agent: str, obs: np.ndarray) -> tuple[float, float]:
         g, f = self.layout.get, self.scenario.formation

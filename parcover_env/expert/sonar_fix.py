@@ -186,6 +186,11 @@ class SonarFixer:
         st = self.states.get(agent)
         return st is not None and bool(np.any(st.correction != 0.0))
 
+    def scanning(self, agent: str) -> bool:
+        """Whether this robot's scan is under way (its own, or the env's on its request)."""
+        st = self.states.get(agent)
+        return st is not None and st.scan is not None
+
     def belief(self, agent: str, odom: np.ndarray) -> np.ndarray:
         st = self.states.get(agent)
         return odom if st is None else compose(st.correction, odom)
@@ -197,7 +202,8 @@ class SonarFixer:
 
     def step(self, agent: str, odom: np.ndarray, fix_age: float, speed: float, ranges: np.ndarray,
              is_leader: bool, at_end: bool = False, odom_cov: np.ndarray | None = None,
-             others: np.ndarray | None = None, scanning: bool = False) -> tuple[float, ...] | None:
+             others: np.ndarray | None = None, scanning: bool = False,
+             check: bool = False) -> tuple[float, ...] | None:
         """Advance this robot's scan logic; returns a (v, w) command while it is scanning. Only a robot
         that navigates by itself (``is_leader``: a leader, or a follower gone alone) starts a scan. ``at_end``:
         the robot believes it is at its route's end, where it checks its pose with a scan sooner
@@ -205,7 +211,9 @@ class SonarFixer:
         the observed covariance (3, 3) of the odometry pose, if the observation has one; otherwise
         the expert propagates it from the odometry increments. ``others`` ``(M, 2)``: the teammates'
         positions as the expert believes them, drawn into the map when a scan is localized.
-        ``scanning``: the observation's ``scanning`` entry (:attr:`env_scan` only)."""
+        ``scanning``: the observation's ``scanning`` entry (:attr:`env_scan` only). ``check``: the
+        robot is about to reach a KPOI (``kpoi_check_distance``): a stale leader scans now, whatever
+        it drove since its last scan."""
         st = self.states.setdefault(agent, _State(np.zeros(3), np.zeros((3, 3))))
         fresh = fix_age < 2 * self.dt  # a fresh Kinect (or env sonar) fix: the odometry pose is absolute again
         if fresh and st.scan == ENV_SCAN and not scanning:  # the env's fix of our scan
@@ -231,8 +239,11 @@ class SonarFixer:
         st.driven_since_scan += abs(speed) * self.dt
         if st.scan is None:
             rescan = self.cfg.final_rescan_distance if at_end else self.cfg.rescan_distance
-            retry = (st.refused is not None or (at_end and st.missed)) and st.retries < self.cfg.refused_rescans
-            if not (is_leader and fix_age > self.cfg.stale_after and (retry or st.driven_since_scan >= rescan)):
+            # with the env's scans a miss widens the env's next search region: scan again at once
+            missed = st.missed and (at_end or self.env_scan)
+            retry = (st.refused is not None or missed) and st.retries < self.cfg.refused_rescans
+            due = retry or check or st.driven_since_scan >= rescan
+            if not (is_leader and fix_age > self.cfg.stale_after and due):
                 return None
             if abs(speed) > self.cfg.stop_speed:
                 return 0.0, 0.0  # brake first: a scan is taken standing still

@@ -101,7 +101,9 @@ def _torchrl(env, seed: int | None, path: str) -> Policy:
 
 
 POLICIES: dict[str, PolicyEntry] = {
-    "expert": PolicyEntry(_expert, "the scripted expert of the scenario's localization mode"),
+    "expert": PolicyEntry(_expert, "the scripted expert of the scenario's localization mode; it stops and "
+                          "asks the env for sonar scans (the env's sonar localization)",
+                          env_overrides={"observation": {"scan": {"enabled": True}}}),
     "waypoint": PolicyEntry(_waypoint, "each robot drives to its observed route waypoint, alone, and stops "
                             "to scan (the env's sonar localization) when its uncertainty grows",
                             env_overrides={"observation": {"scan": {"enabled": True}}}),

@@ -167,3 +167,47 @@ def test_batched_worlds_scan_as_separate_envs():
             assert np.array_equal(obs[k * n:(k + 1) * n], np.stack([o[a] for a in e.possible_agents]))
             assert [infos[k * n + i]["sonar_fix"] for i in range(n)] == [inf[a]["sonar_fix"] for a in e.possible_agents]
     assert any(e.scanner.result.any() for e in refs)
+
+
+def test_heading_gate_is_capped_below_a_quarter_turn():
+    env = _env()
+    c = env.scenario.observation.scan
+    cov = np.diag([0.01, 0.01, math.radians(3.0) ** 2])
+    pos, turn = env.scanner.gate(cov)
+    assert turn == pytest.approx(math.radians(c.gate_heading_deg + c.gate_sigmas * 3.0))  # 30 + 3 x 3 deg
+    np.testing.assert_allclose(pos, cov[:2, :2] + (c.gate_distance / c.gate_sigmas) ** 2 * np.eye(2))
+    _, wide = env.scanner.gate(cov * 8.0**2)  # after rejected scans the heading sigma is inflated to 24 deg
+    assert wide == pytest.approx(math.radians(c.gate_heading_max_deg)) == pytest.approx(math.radians(40.0))
+    with pytest.raises(parcover_env.errors.ConfigError, match="gate_heading_max_deg"):
+        parcover_env.parallel_env("t_room", overrides={"observation": {"scan": {"enabled": True,
+                                                                             "gate_heading_max_deg": 95.0}}})
+
+
+def test_a_scan_that_does_not_pin_the_pose_down_is_rejected():
+    """In open space (every reading 'no echo') the localizer matches anywhere: no fix. With the shift
+    test off the same scan's pose is accepted."""
+    env = _env()
+    sc = env.scanner
+    pose = env.true_poses()[0]
+    empty = np.full(len(sc.ring.scan_angles), sc.ring.cfg.range_max)
+    others = env.pose_estimates()[1:, :2]
+    assert not sc.pins_down(pose, empty, others)
+    real = sc.ring.scan(pose, sc.segments, env.true_poses()[1:, :2], sc.radius, None)
+    assert sc.pins_down(pose, real, others)
+    off = parcover_env.parallel_env("t_room", overrides={"observation": {"scan": {"enabled": True, "shift_test": 0.0}}})
+    off.reset(seed=0)
+    assert off.scanner.pins_down(pose, empty, others)
+
+
+def test_an_uninformative_scan_is_rejected_without_widening_the_next_region():
+    env = _env()
+    true = env.true_poses()[0].copy()
+    cov = np.diag([0.05**2, 0.05**2, 0.02**2])
+    env.estimator.fix(0, true + np.array([0.05, 0.0, 0.0]), cov)
+    env.scanner.pins_down = lambda *args: False  # the scan matched but pins nothing down
+    rows = _scan(env)
+    assert rows[-1][1] == REJECTED and env.scanner.inflation[0] == 1.0
+    env.estimator.fix(0, true + np.array([1.2, 0.8, 0.0]), np.diag([0.02**2, 0.02**2, 0.01**2]))
+    _scan(env)  # no match inside the small region around a far estimate: the robot may lie outside it
+    assert env.scanner.result[0] == REJECTED
+    assert env.scanner.inflation[0] == env.scenario.observation.scan.miss_inflation

@@ -9,8 +9,10 @@ import pytest
 
 import parcover_env
 from parcover_env.expert.config import NavigatorConfig
-from parcover_env.expert.navigator import SonarNavigator, _compose, _inverse
+from parcover_env.expert.navigator import SonarNavigator
 from parcover_env.geometry import wrap_angle as wrap
+from parcover_env.geometry.poses import compose as _compose
+from parcover_env.geometry.poses import inverse as _inverse
 from parcover_env.harness.rollout import run_episode
 from parcover_env.localization.sonar.parallel_paths import lateral_offset
 

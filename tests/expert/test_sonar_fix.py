@@ -319,3 +319,73 @@ def test_localize_does_not_use_a_fix_the_scan_does_not_pin_down():
         st.scan, st.scan_cov = _scan_at(fixer, true), st.cov.copy()
         fixer._localize(st, np.zeros((0, 2)))
         assert bool(np.any(st.correction)) is used and st.missed is not used and st.refused is None
+
+
+def _env_fixer(cfg):
+    from parcover_env.expert.sonar_fix import SonarFixer
+
+    return SonarFixer(parcover_env.load_scenario("tree"), np.radians(np.arange(0, 360, 45.0)), 0.1, cfg, env_scan=True)
+
+
+def test_with_the_env_service_a_miss_or_a_kpoi_ahead_starts_the_next_scan_at_once():
+    """The env's scan ended without a fix (its next region is wider): the leader asks again at once, up
+    to ``refused_rescans`` times; a KPOI ahead (``check``) makes a stale leader scan whatever it drove."""
+    from parcover_env.expert.config import SonarFixConfig
+    from parcover_env.expert.sonar_fix import SCAN_REQUEST, _State
+
+    fixer = _env_fixer(SonarFixConfig(refused_rescans=2, rescan_distance=2.0))
+    odom, ranges = np.array([1.0, 1.0, 0.0]), np.full(len(fixer.beams), 1.0)
+
+    def asks(state: _State, check: bool = False, fix_age: float = 100.0):
+        fixer.states["robot_0"] = state
+        state.last_odom = odom.copy()
+        return fixer.step("robot_0", odom, fix_age=fix_age, speed=0.0, ranges=ranges, is_leader=True,
+                          check=check) == SCAN_REQUEST
+
+    def state(**kw):
+        return _State(np.zeros(3), np.eye(3) * 1e-3, driven_since_scan=0.0, **kw)
+
+    assert not asks(state())  # just scanned, no miss: drive rescan_distance first
+    assert asks(state(missed=True, retries=1))
+    assert not asks(state(missed=True, retries=2))
+    assert asks(state(), check=True)  # a KPOI ahead
+    assert not asks(state(), check=True, fix_age=1.0)  # ... unless a fix is recent
+    # the env's scan: held still while it lasts, then a miss without a fresh fix is booked
+    st = state(missed=False)
+    assert asks(st, check=True) and st.scan == "env"
+    assert fixer.step("robot_0", odom, fix_age=100.0, speed=0.0, ranges=ranges, is_leader=True,
+                      scanning=True) == (0.0, 0.0)
+    fixer.step("robot_0", odom, fix_age=100.0, speed=0.0, ranges=ranges, is_leader=True, scanning=False)
+    assert st.scan is None and st.missed and fixer.stats["sonar_failed"] == 1
+    # the own loop (no env service) keeps its rule: a miss away from the route's end waits for the drive
+    own = _fixer(SonarFixConfig(refused_rescans=2, rescan_distance=2.0))
+    own.states["robot_0"] = s = state(missed=True)
+    s.last_odom = odom.copy()
+    assert own.step("robot_0", odom, fix_age=100.0, speed=0.0, ranges=ranges, is_leader=True) is None
+
+
+def test_expert_checks_its_pose_by_a_scan_before_each_kpoi():
+    env = parcover_env.parallel_env("generated:3", overrides={"observation": {"scan": {"enabled": True}}})
+    expert = expert_for(env)
+    obs, _ = env.reset(seed=3)
+    expert.reset(obs)
+    lay, kpoi = env.layout, env.mission.kpois[0]
+    o = obs["robot_0"].copy()
+
+    def at(pose, goal):
+        rel = goal - pose[:2]
+        c, s = np.cos(pose[2]), np.sin(pose[2])
+        values = {"x": pose[0], "y": pose[1], "cos_theta": c, "sin_theta": s,
+                  "goal_dx": c * rel[0] + s * rel[1], "goal_dy": -s * rel[0] + c * rel[1]}
+        for name, value in values.items():
+            o[lay.slices[name]] = value
+        return o
+
+    pose = np.array([kpoi[0] - 0.5, kpoi[1], 0.3])
+    assert expert._kpoi_check("robot_0", at(pose, kpoi), pose) == 0  # 0.5 m before KPOI 0: check
+    far = np.array([kpoi[0] - 0.7, kpoi[1], 0.3])
+    assert expert._kpoi_check("robot_0", at(far, kpoi), far) is None  # beyond kpoi_check_distance
+    other = kpoi + np.array([0.0, 0.4])  # a route point that is not a KPOI
+    assert expert._kpoi_check("robot_0", at(pose, other), pose) is None
+    expert.checked.add(("robot_0", 0))
+    assert expert._kpoi_check("robot_0", at(pose, kpoi), pose) is None  # once per robot and KPOI
