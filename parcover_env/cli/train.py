@@ -19,7 +19,8 @@ def add_train_parser(sub) -> None:
     t = sub.add_parser("train", help="train IPPO or MAPPO with TorchRL (local or on Ray); writes a policy for "
                        "run/bench")
     t.add_argument("algo", choices=ALGOS, help="ippo (per-robot critic) or mappo (critic on env.state())")
-    t.add_argument("scenario", help="scenario name, YAML path or generated:SEED")
+    t.add_argument("scenario", help="scenario name, YAML path, generated:SEED, or generated:A-B (a pool of "
+                   "generated maps, seeds A..B < 1000, one drawn per episode)")
     t.add_argument("--steps", type=positive_int, required=True,
                    help="agent-steps to collect (env steps x robots; rounded up to whole batches)")
     t.add_argument("--out", required=True, help="output directory: policy.pt, run.json, curve.csv")
@@ -40,7 +41,12 @@ def cmd_train(args) -> int:
         raise ParcoverError("--ray-address needs --backend ray")
     config_path = str(args.config or default_config_path(args.algo))
     config = load_marl_config(args.algo, config_path)
-    load_scenario(args.scenario, preset=config.preset)  # an unknown scenario fails here, before any import
+    from parcover_env.harness.map_pool import is_pool, parse_pool
+
+    if is_pool(args.scenario):  # generated:A-B, a map pool (seeds < 1000)
+        parse_pool(args.scenario)
+    else:
+        load_scenario(args.scenario, preset=config.preset)  # an unknown scenario fails here, before any import
     for module in ("torch", "torchrl", *(("ray",) if args.backend == "ray" else ())):
         require(module, "train", f"parcover train --backend {args.backend}")
     check_writable_dir(args.out, "--out")
