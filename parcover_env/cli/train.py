@@ -64,5 +64,6 @@ def cmd_train(args) -> int:
                                 command=shlex.join(command)))
     print(f"{record['agent_steps']} agent-steps, {record['episodes']} episodes ended, {record['wall_time']:.1f} s; "
           f"wrote {Path(args.out) / 'run.json'}")
-    print(f"evaluate: parcover bench {args.scenario} --policies {record['policy']}")
+    maps = "generated:1000,generated:1001,..." if is_pool(args.scenario) else args.scenario  # unseen maps
+    print(f"evaluate: parcover bench {maps} --policies {record['policy']}")
     return 0
