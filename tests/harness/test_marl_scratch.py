@@ -25,7 +25,7 @@ V2 = {"observation": {"version": 2}, "rewards": {"own_kpoi": 10.0, "kpoi": 1.0}}
 def test_shipped_scratch_configs_train_env_v2(tmp_path):
     from parcover_env.scenarios.registry import configs_dir
 
-    for name in ("ippo_office_scratch", "ippo_generated_scratch"):
+    for name in ("ippo_office_scratch", "ippo_generated_scratch", "ippo_tree_scratch"):
         cfg = load_marl_config("ippo", configs_dir() / "train" / f"{name}.yaml")
         assert cfg.env == V2 and cfg.preset == "realistic" and cfg.wall_time > 0
     (tmp_path / "bad.yaml").write_text("env: [1, 2]\n")
