@@ -20,7 +20,8 @@ def add_train_parser(sub) -> None:
     t = sub.add_parser("train", help="train IPPO or MAPPO with TorchRL (local or on Ray); writes a policy for "
                        "run/bench")
     t.add_argument("algo", choices=ALGOS, help="ippo (per-robot critic) or mappo (critic on env.state())")
-    t.add_argument("scenario", help="scenario name, YAML path or generated:SEED")
+    t.add_argument("scenario", help="scenario name, YAML path, generated:SEED, or generated:A-B (a pool of "
+                   "generated maps, seeds A..B < 1000, one drawn per episode)")
     t.add_argument("--steps", type=positive_int, required=True,
                    help="agent-steps to collect (env steps x robots; rounded up to whole batches)")
     t.add_argument("--out", required=True, help="output directory: policy.pt, run.json, curve.csv")
@@ -43,8 +44,12 @@ def cmd_train(args) -> int:
         raise ParcoverError("--ray-address needs --backend ray")
     config_path = str(args.config or default_config_path(args.algo))
     config = load_marl_config(args.algo, config_path)
-    scenario = load_scenario(args.scenario, overrides=config.env or None, preset=config.preset)  # fails here
-    config.check_critic(args.algo, scenario.observation.version, config_path)  # before any heavy import
+    from parcover_env.harness.map_pool import is_pool, parse_pool
+
+    # an unknown scenario or a bad pool fails here, before any heavy import (a pool: its first map's settings)
+    first = f"generated:{parse_pool(args.scenario)[0]}" if is_pool(args.scenario) else args.scenario
+    scenario = load_scenario(first, overrides=config.env or None, preset=config.preset)
+    config.check_critic(args.algo, scenario.observation.version, config_path)
     for module in ("torch", "torchrl", *(("ray",) if args.backend == "ray" else ())):
         require(module, "train", f"parcover train --backend {args.backend}")
     if args.init:
@@ -70,5 +75,6 @@ def cmd_train(args) -> int:
         print(f"started from {record['init']['path']} {critic}")
     print(f"{record['agent_steps']} agent-steps, {record['episodes']} episodes ended, {record['wall_time']:.1f} s; "
           f"wrote {Path(args.out) / 'run.json'}")
-    print(f"evaluate: parcover bench {args.scenario} --policies {record['policy']}")
+    maps = "generated:1000,generated:1001,..." if is_pool(args.scenario) else args.scenario  # unseen maps
+    print(f"evaluate: parcover bench {maps} --policies {record['policy']}")
     return 0

@@ -36,14 +36,14 @@ from pathlib import Path
 from parcover_env.harness.marl_config import MarlConfig
 from parcover_env.harness.marl_init import CRITIC_FILE, apply_init, critic_spec, find_init, save_critic
 from parcover_env.harness.training import git_commit, plot_curve, write_csv
-from parcover_env.policies.torchrl_policy import POLICY_FILE, actor_net
+from parcover_env.policies.torchrl_policy import POLICY_FILE, SIDECAR_FILE, actor_net
 
 __all__ = ["TrainRequest", "EnvMaker", "build_actor", "save_policy", "policy_net", "build_critic", "build_loss",
            "train", "GROUP"]
 
 GROUP = "robot"
 """TorchRL's group of the robots (``robot_0``, ``robot_1``, ... share the prefix)."""
-CURVE_FILE, SIDECAR_FILE = "curve.csv", "run.json"
+CURVE_FILE = "curve.csv"
 
 
 @dataclass(frozen=True)
@@ -74,16 +74,23 @@ class EnvMaker:
     (in a Ray worker too)."""
 
     def __init__(self, scenario: str, preset: str, episode_steps: int, seed: int | None = None,
-                 overrides: dict | None = None):
+                 overrides: dict | None = None, max_robots: int = 12):
         self.scenario, self.preset, self.episode_steps, self.seed = scenario, preset, episode_steps, seed
         self.overrides = overrides or None
+        """Scenario overrides of the env (``MarlConfig.env``)."""
+        self.max_robots = max_robots
+        """Agents of a map pool (``generated:A-B``, :class:`~parcover_env.harness.map_pool.MapPoolEnv`)."""
 
     def parallel(self):
-        """The scenario's PettingZoo ParallelEnv (with ``overrides``), unwrapped and unseeded."""
+        """The scenario's PettingZoo ParallelEnv (a map pool's padded env for ``generated:A-B``),
+        unwrapped and unseeded."""
         from parcover_env import parallel_env
+        from parcover_env.harness.map_pool import MapPoolEnv, is_pool
 
-        return parallel_env(self.scenario, preset=self.preset, max_cycles=self.episode_steps or None,
-                            overrides=self.overrides)
+        kwargs = {"overrides": self.overrides, "preset": self.preset, "max_cycles": self.episode_steps or None}
+        if is_pool(self.scenario):
+            return MapPoolEnv(self.scenario, self.max_robots, **kwargs)
+        return parallel_env(self.scenario, **kwargs)
 
     def __call__(self):
         from torchrl.envs import PettingZooWrapper, RewardSum, TransformedEnv
@@ -194,7 +201,7 @@ def _collector(req: TrainRequest, make_env: EnvMaker, actor, total_frames: int):
 
         k = cfg.ray_collectors
         makers = [EnvMaker(make_env.scenario, make_env.preset, make_env.episode_steps, seed=req.seed + i,
-                           overrides=make_env.overrides) for i in range(k)]
+                           overrides=make_env.overrides, max_robots=make_env.max_robots) for i in range(k)]
         init = {"address": req.ray_address} if req.ray_address else {"num_cpus": k, "include_dashboard": False}
         init["log_to_driver"] = False  # the workers' warnings would print the collector's repr
         collector = RayCollector(makers, actor, frames_per_batch=cfg.frames_per_batch, total_frames=total_frames,
@@ -210,18 +217,61 @@ def _collector(req: TrainRequest, make_env: EnvMaker, actor, total_frames: int):
     return collector
 
 
-def _episodes(batch, n_kpois: int) -> list[dict]:
-    """Return, KPOI fraction and success of every episode that ended in ``batch``."""
+def _episodes(batch) -> list[dict]:
+    """Return (mean over the real robots), KPOI fraction and success of every episode that ended in ``batch``."""
+    import torch
+
     nxt = batch.reshape(-1)["next"]  # (time,), or (collectors, time) from RayCollector
     ended = nxt["done"].reshape(-1).nonzero().flatten().tolist()
     nxt = nxt[GROUP]
     out = []
     for t in ended:
         info = nxt["info"][t]
-        out.append({"episode_return": float(nxt["episode_reward"][t].mean()),
-                    "kpoi_fraction": float(info["metrics/kpois_visited"][0]) / max(n_kpois, 1),
+        visited, n_kpois = float(info["metrics/kpois_visited"][0]), float(info["metrics/n_kpois"][0])
+        real = (1.0 - info["pad"]) if "pad" in info else torch.ones(info.batch_size)
+        returns = nxt["episode_reward"][t].reshape(real.shape)
+        out.append({"episode_return": float((returns * real).sum() / real.sum()),
+                    "kpoi_fraction": visited / max(n_kpois, 1.0),
                     "success": float(info["metrics/success"][0])})
     return out
+
+
+class _StopOnSigterm:
+    """While installed (main thread only), SIGTERM (``kill PID``, ``timeout``) sets :attr:`requested`:
+    the run stops after the current batch and is saved as if ``--steps`` had been reached."""
+
+    def __init__(self):
+        import signal
+        import threading
+
+        self.requested, self._old = False, None
+        if threading.current_thread() is threading.main_thread():
+            self._old = signal.signal(signal.SIGTERM, self._handle)
+
+    def _handle(self, signum, frame) -> None:
+        self.requested = True
+
+    def restore(self) -> None:
+        import signal
+
+        if self._old is not None:
+            signal.signal(signal.SIGTERM, self._old)
+
+
+def _agent_steps(batch, n_robots: int) -> int:
+    """Real robots' steps in ``batch``: env steps x robots, less a map pool's padding (``info["pad"]``)."""
+    info = batch.get((GROUP, "info"), None)
+    if info is not None and "pad" in info:
+        return int((1.0 - info["pad"]).sum().item())
+    return batch.numel() * n_robots
+
+
+def _progress(agent_steps: int, wall: float, ended: list[dict]) -> None:
+    """One line per batch that ended episodes: mean return, KPOI fraction and success of those."""
+    if ended:
+        mean = {k: sum(e[k] for e in ended) / len(ended) for k in ("episode_return", "kpoi_fraction", "success")}
+        print(f"{agent_steps} agent-steps {wall:.0f} s: {len(ended)} episodes, return {mean['episode_return']:.2f}, "
+              f"KPOI {mean['kpoi_fraction']:.2f}, success {mean['success']:.2f}", flush=True)
 
 
 def train(req: TrainRequest) -> dict:
@@ -237,10 +287,11 @@ def train(req: TrainRequest) -> dict:
     torch.manual_seed(req.seed)
     cfg, t0 = req.config, time.perf_counter()
     source = find_init(req.init) if req.init else None  # a bad path fails before the env is built
-    make_env = EnvMaker(req.scenario, cfg.preset, cfg.episode_steps, seed=req.seed, overrides=cfg.env)
+    make_env = EnvMaker(req.scenario, cfg.preset, cfg.episode_steps, seed=req.seed, overrides=cfg.env,
+                        max_robots=cfg.max_robots)
     base = make_env.parallel()  # spaces, robot and KPOI counts
-    cfg.check_critic(req.algo, base.version, req.config_path)
-    n_robots, n_kpois = base.n_robots, len(base.scenario.kpois)
+    cfg.check_critic(req.algo, base.scenario.observation.version, req.config_path)
+    n_robots = base.n_robots
     obs_space, act_dim = base.observation_space(base.possible_agents[0]), base.action_space("robot_0").shape[0]
     actor = build_actor(obs_space.low, obs_space.high, act_dim, cfg.hidden)
     critic = build_critic(req.algo, obs_space, base.state_space, cfg)
@@ -253,12 +304,14 @@ def train(req: TrainRequest) -> dict:
     buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.frames_per_batch), sampler=SamplerWithoutReplacement(),
                           batch_size=cfg.minibatch_size)
     rows, agent_steps = [], 0
+    stop = _StopOnSigterm()
     try:
         for batch in collector:
-            agent_steps += batch.numel() * n_robots
+            agent_steps += _agent_steps(batch, n_robots)
             wall = time.perf_counter() - t0
-            rows += [{"agent_steps": agent_steps, "wall_time": round(wall, 3), **ep}
-                     for ep in _episodes(batch, n_kpois)]
+            ended = [{"agent_steps": agent_steps, "wall_time": round(wall, 3), **ep} for ep in _episodes(batch)]
+            rows += ended
+            _progress(agent_steps, wall, ended)
             with torch.no_grad(), warnings.catch_warnings():
                 # the estimator vmaps the critic over (params, target params); attention has no batching
                 # rule there, so torch loops over the two: same values, a "performance drop" warning
@@ -273,7 +326,10 @@ def train(req: TrainRequest) -> dict:
                 total.backward()
                 torch.nn.utils.clip_grad_norm_(loss.parameters(), cfg.max_grad_norm)
                 optim.step()
+            if stop.requested or (cfg.wall_time and time.perf_counter() - t0 > cfg.wall_time):
+                break
     finally:
+        stop.restore()
         collector.shutdown()
         if req.backend == "ray" and not req.ray_address:  # the local Ray this run started
             import ray
@@ -290,7 +346,7 @@ def train(req: TrainRequest) -> dict:
         "agent_steps": agent_steps, "wall_time": round(time.perf_counter() - t0, 3), "seed": req.seed,
         "command": req.command, "commit": git_commit(Path(__file__).parent), "config_file": req.config_path,
         "config": asdict(cfg), "n_robots": n_robots, "episodes": len(rows),
-        "policy": f"torchrl:{req.out / POLICY_FILE}", "curve": CURVE_FILE,
+        "policy": f"torchrl:{req.out / POLICY_FILE}", "env_overrides": cfg.env, "curve": CURVE_FILE,
     }
     (req.out / SIDECAR_FILE).write_text(json.dumps(sidecar, indent=2) + "\n")
     return sidecar

@@ -61,11 +61,18 @@ class MarlConfig:
     """``critic: attention``: attention heads (must divide ``critic_embed``)."""
     episode_steps: int = 0
     """Step limit of a training episode (0: the scenario's ``episode.max_steps``)."""
+    wall_time: float = 0.0
+    """Stop after the batch that ends past this many seconds of wall time (0: no limit); the run
+    is saved as if ``--steps`` had been reached (the sidecar's ``agent_steps`` is what was done)."""
     preset: Literal["realistic", "ideal"] = "realistic"
     """Error models of the training env."""
     env: dict[str, Any] = field(default_factory=dict)
-    """Scenario overrides of the training env (a nested mapping merged by ``load_scenario``), e.g.
-    ``{observation: {version: 2}}``; validated when the env is made."""
+    """Scenario overrides of the training env, merged over the scenario as the env's ``overrides``
+    (e.g. ``{observation: {version: 2}, rewards: {own_kpoi: 10.0, kpoi: 1.0}}`` for ``parcover_v2``);
+    written into the sidecar (``env_overrides``) so that the policy's spec builds the same env."""
+    max_robots: int = 12
+    """Agents of a map pool (``generated:A-B``): each map's robots, padded to this count
+    (:class:`~parcover_env.harness.map_pool.MapPoolEnv`)."""
     ray_collectors: int = 1
     """``--backend ray``: remote collectors (``RayCollector(num_collectors=...)``), one env each (seeds
     SEED, SEED + 1, ...); each collects ``frames_per_batch / ray_collectors`` env steps of every batch."""
@@ -73,14 +80,14 @@ class MarlConfig:
     def check(self, source: str) -> MarlConfig:
         """Self, or ConfigError naming ``source`` and the first out-of-range key."""
         positive = ("frames_per_batch", "epochs", "minibatch_size", "learning_rate", "max_grad_norm", "clip_epsilon",
-                    "ray_collectors", "critic_embed", "critic_heads")
+                    "ray_collectors", "critic_embed", "critic_heads", "max_robots")
         for key in positive:
             if not getattr(self, key) > 0:
                 raise ConfigError(source, key, f"must be > 0, got {getattr(self, key)}")
         for key in ("gamma", "gae_lambda"):
             if not 0.0 <= getattr(self, key) <= 1.0:
                 raise ConfigError(source, key, f"must be in [0, 1], got {getattr(self, key)}")
-        for key in ("entropy_coeff", "critic_coeff", "episode_steps"):
+        for key in ("entropy_coeff", "critic_coeff", "episode_steps", "wall_time"):
             if getattr(self, key) < 0:
                 raise ConfigError(source, key, f"must be >= 0, got {getattr(self, key)}")
         if self.minibatch_size > self.frames_per_batch:

@@ -45,6 +45,9 @@ class PolicyEntry:
     env_overrides: dict | None = None
     """Scenario overrides the env must be built with for this policy (e.g. the ``scan`` action of
     the sonar localization service); ``parcover run`` and ``parcover bench`` apply them."""
+    path_overrides: Callable[[str], dict | None] | None = None
+    """``path -> overrides``: those of one checkpoint (e.g. read from its sidecar); used instead of
+    :attr:`env_overrides` when set."""
 
 
 def _random(env, seed: int | None, path: str) -> Policy:
@@ -100,6 +103,12 @@ def _torchrl(env, seed: int | None, path: str) -> Policy:
     return policy
 
 
+def _torchrl_overrides(path: str) -> dict | None:
+    from parcover_env.policies.torchrl_policy import checkpoint_overrides
+
+    return checkpoint_overrides(path)
+
+
 POLICIES: dict[str, PolicyEntry] = {
     "expert": PolicyEntry(_expert, "the scripted expert of the scenario's localization mode; it stops and "
                           "asks the env for sonar scans (the env's sonar localization)",
@@ -111,7 +120,9 @@ POLICIES: dict[str, PolicyEntry] = {
     "ppo": PolicyEntry(_learned("ppo"), "a saved SB3 PPO model (model.zip + vecnormalize.pkl)", needs_path=True),
     "bc": PolicyEntry(_learned("bc"), "a behaviour-cloned MLP (bc.pt)", needs_path=True),
     "mappo": PolicyEntry(_learned("mappo"), "a MAPPO actor (actor.pt)", needs_path=True),
-    "torchrl": PolicyEntry(_torchrl, "an IPPO/MAPPO actor from parcover train (DIR/policy.pt)", needs_path=True),
+    "torchrl": PolicyEntry(_torchrl, "an IPPO/MAPPO actor from parcover train (DIR/policy.pt; the env "
+                           "overrides it was trained with come from DIR/run.json)", needs_path=True,
+                           path_overrides=_torchrl_overrides),
 }
 """Every policy by name; see the module docstring to add one."""
 
@@ -143,7 +154,9 @@ def check_policy_spec(spec: str) -> None:
 def policy_overrides(spec: str) -> dict | None:
     """The scenario overrides the env of policy ``spec`` needs (:attr:`PolicyEntry.env_overrides`)."""
     check_policy_spec(spec)
-    return POLICIES[spec.partition(":")[0]].env_overrides
+    name, _, path = spec.partition(":")
+    entry = POLICIES[name]
+    return entry.path_overrides(path) if entry.path_overrides is not None else entry.env_overrides
 
 
 def make_policy(spec: str, env, seed: int | None) -> Policy:

@@ -16,10 +16,33 @@ import numpy as np
 from parcover_env.errors import ParcoverError
 from parcover_env.policies.protocol import Policy
 
-__all__ = ["actor_net", "TorchRLPolicy", "POLICY_FILE"]
+__all__ = ["actor_net", "TorchRLPolicy", "POLICY_FILE", "SIDECAR_FILE", "checkpoint_overrides"]
 
 POLICY_FILE = "policy.pt"
 """The checkpoint's name in a ``parcover train`` output directory."""
+SIDECAR_FILE = "run.json"
+"""The run's sidecar beside the checkpoint (``parcover train``); its ``env_overrides`` are the
+scenario overrides the policy was trained with (e.g. ``observation.version: 2``)."""
+
+
+def checkpoint_overrides(path: str | Path) -> dict | None:
+    """The env overrides of the checkpoint at ``path`` (``DIR`` or ``DIR/policy.pt``): the sidecar's
+    ``env_overrides``, None when there is no sidecar or it has none (a run without overrides).
+    ParcoverError if the sidecar is not a JSON object or its ``env_overrides`` is not a mapping."""
+    import json
+
+    path = Path(path)
+    sidecar = (path if path.is_dir() else path.parent) / SIDECAR_FILE
+    if not sidecar.is_file():
+        return None
+    try:
+        data = json.loads(sidecar.read_text())
+    except (OSError, ValueError) as exc:
+        raise ParcoverError(f"cannot read the sidecar {sidecar}: {exc}") from None
+    overrides = data.get("env_overrides") if isinstance(data, dict) else None
+    if overrides is not None and not isinstance(overrides, dict):
+        raise ParcoverError(f"{sidecar}: env_overrides must be a mapping, got {type(overrides).__name__}")
+    return overrides or None
 
 
 def actor_net(obs_low: np.ndarray, obs_high: np.ndarray, hidden: tuple[int, ...], act_dim: int):
