@@ -16,7 +16,7 @@ frames`` (rendering) stays per world (:meth:`KinectSystem.frame_estimates`).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
@@ -26,17 +26,16 @@ from parcover_env.localization.kinect import estimate_kernel
 from parcover_env.localization.kinect.pipeline import PoseEstimate
 from parcover_env.sensors.kinect import check_poses
 
-if TYPE_CHECKING:
-    from parcover_env.localization.kinect.system import KinectSystem
-
 __all__ = ["update_systems", "fast_estimates"]
 
 
-def update_systems(systems: Sequence[KinectSystem], times: Sequence[float], true: np.ndarray, markers: np.ndarray,
+def update_systems(systems: Sequence[Any], times: Sequence[float], true: np.ndarray, markers: np.ndarray,
                    predicted: np.ndarray, rngs: Sequence[np.random.Generator]) -> list[dict[int, np.ndarray]]:
     """Pose fixes ``{robot index: (x, y, theta)}`` of each of ``K`` Kinect systems (one scenario)
     at its world's time ``times[k]``, true poses ``true[k] (N, 3)``, marker carriers
-    ``markers[k] (N,)`` and predicted poses ``predicted[k] (N, 3)``, drawing from ``rngs[k]``."""
+    ``markers[k] (N,)`` and predicted poses ``predicted[k] (N, 3)``, drawing from ``rngs[k]``
+    (``systems``: :class:`~parcover_env.localization.kinect.system.KinectSystem` s, typed ``Any`` because
+    ``system`` imports this module)."""
     out: list[dict[int, np.ndarray]] = [{} for _ in systems]
     now = np.asarray(times, dtype=float)[:, None]
     ticks = stack([s.next_tick for s in systems])
@@ -69,7 +68,7 @@ def update_systems(systems: Sequence[KinectSystem], times: Sequence[float], true
     return out
 
 
-def fast_estimates(systems: Sequence[KinectSystem], due: np.ndarray, true: np.ndarray, markers: np.ndarray,
+def fast_estimates(systems: Sequence[Any], due: np.ndarray, true: np.ndarray, markers: np.ndarray,
                    times: Sequence[float], rngs: Sequence[np.random.Generator]) -> list[list[PoseEstimate]]:
     """The estimate model of the due Kinects (``due (B, S)`` bool) of ``B`` systems (their estimate
     models share one set of static depths) at true poses ``true[b] (N, 3)`` of the carriers
