@@ -87,9 +87,10 @@ class SonarFixes:
         self.outcome = np.zeros(n_robots)
         self.inflation = np.ones(n_robots)
         """Factor on each robot's search-region sigmas after rejected scans (``miss_inflation``); 1 after a fix."""
-        self.held: list[np.ndarray | None] = [None] * n_robots
-        """Each robot's fix held for confirmation (:meth:`confirmed`) as the correction ``fix o estimate^-1``
-        of the estimate it was found from (carried to a later estimate ``e`` as ``correction o e``)."""
+        self.held: list[tuple[np.ndarray, np.ndarray] | None] = [None] * n_robots
+        """Each robot's fix held for confirmation (:meth:`confirmed`): the correction ``fix o estimate^-1``
+        of the estimate it was found from (carried to a later estimate ``e`` as ``correction o e``) and
+        that estimate (3,)."""
 
     @property
     def scanning(self) -> np.ndarray:
@@ -135,17 +136,19 @@ class SonarFixes:
 
         A fix inside the base gate (that of the estimate's own covariance, no ``miss_inflation``) is
         applied at once. One found only in a region widened by rejected scans is held (``confirm_widened``):
-        it is applied when a later scan's fix agrees with it, i.e. lies inside the base gate
-        (:meth:`gate`) of a fresh fix's covariance (:attr:`covariance`) around the held fix carried along by
-        the estimate's motion since its scan; a disagreeing fix replaces the held one."""
+        it is applied when a later scan's fix, taken at least ``shift_test`` from where the held one was
+        (by the estimates), agrees with it: lies inside the base gate (:meth:`gate`) of a fresh fix's
+        covariance (:attr:`covariance`) around the held fix carried along by the estimate's motion since its
+        scan. Any other fix found only in the widened region replaces the held one."""
         prior = request.estimate[i]
         cov = request.covariance[i] if request.covariance is not None else np.zeros((3, 3))
         if not self.cfg.confirm_widened or self.in_gate(pose, prior, cov):
             return True
         held = self.held[i]
-        if held is not None and self.in_gate(pose, compose(held, prior), self.covariance):
+        if (held is not None and float(np.hypot(*(prior[:2] - held[1][:2]))) >= self.cfg.shift_test
+                and self.in_gate(pose, compose(held[0], prior), self.covariance)):
             return True
-        self.held[i] = compose(pose, inverse(prior))
+        self.held[i] = (compose(pose, inverse(prior)), prior.copy())
         return False
 
     def in_gate(self, pose: np.ndarray, prior: np.ndarray, cov: np.ndarray) -> bool:
