@@ -18,7 +18,10 @@ down (:meth:`SonarFixes.pins_down`: shifted by ``scan.shift_test`` it matches wo
 estimator then resets the robot's estimate to it with :attr:`SonarFixes.covariance`. A rejected scan
 leaves the estimate and covariance as they were; unless the scan was merely uninformative (its pose
 matched but did not pin the pose down), the robot's next scan searches a region whose sigmas are
-``scan.miss_inflation`` times wider (at most ``scan.max_inflation``), until a fix.
+``scan.miss_inflation`` times wider (at most ``scan.max_inflation``), until a fix. A fix found there
+but outside the gate of the estimate's own covariance is held, not applied (``scan.confirm_widened``):
+a region several metres across holds look-alike places of the map. It is applied when a later scan,
+from at least ``scan.shift_test`` away, finds a fix that agrees with it (:meth:`SonarFixes.confirmed`).
 """
 
 from __future__ import annotations
