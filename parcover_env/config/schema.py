@@ -200,11 +200,9 @@ class ScanConfig:
     confirm_widened: bool = True
     """A fix found only in a region widened by ``miss_inflation`` (outside the gate of the estimate's
     own covariance) needs a second scan that agrees with it: it is held (the scan reports a rejection,
-    the region is not widened further) and applied when a later scan's fix, from at least ``shift_test``
-    away (by the estimates; a scan from the same place repeats the same look-alike match, while one
-    from ``shift_test`` away matches the map measurably differently), lies inside the gate of a fresh fix
-    (``fix_sigma_xy``, ``fix_sigma_heading_deg``, ``gate_sigmas``, ``gate_distance``) around the held fix
-    carried along by the estimate's motion; any other widened-region fix is held in its place. A
+    the region is not widened further) and applied when a later scan's fix lies inside the gate of a
+    fresh fix (``fix_sigma_xy``, ``fix_sigma_heading_deg``, ``gate_sigmas``, ``gate_distance``) around
+    the held fix carried along by the estimate's motion; a disagreeing fix is held in its place. A
     widened region several metres across holds look-alike places of the map; a fix within the
     estimate's own gate is applied at once. False applies every fix found in the region."""
 

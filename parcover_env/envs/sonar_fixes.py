@@ -20,8 +20,8 @@ leaves the estimate and covariance as they were; unless the scan was merely unin
 matched but did not pin the pose down), the robot's next scan searches a region whose sigmas are
 ``scan.miss_inflation`` times wider (at most ``scan.max_inflation``), until a fix. A fix found there
 but outside the gate of the estimate's own covariance is held, not applied (``scan.confirm_widened``):
-a region several metres across holds look-alike places of the map. It is applied when a later scan,
-from at least ``scan.shift_test`` away, finds a fix that agrees with it (:meth:`SonarFixes.confirmed`).
+a region several metres across holds look-alike places of the map. It is applied when a later scan
+finds a fix that agrees with it (:meth:`SonarFixes.confirmed`).
 """
 
 from __future__ import annotations
@@ -90,10 +90,9 @@ class SonarFixes:
         self.outcome = np.zeros(n_robots)
         self.inflation = np.ones(n_robots)
         """Factor on each robot's search-region sigmas after rejected scans (``miss_inflation``); 1 after a fix."""
-        self.held: list[tuple[np.ndarray, np.ndarray] | None] = [None] * n_robots
-        """Each robot's fix held for confirmation (:meth:`confirmed`): the correction ``fix o estimate^-1``
-        of the estimate it was found from (carried to a later estimate ``e`` as ``correction o e``) and
-        that estimate (3,)."""
+        self.held: list[np.ndarray | None] = [None] * n_robots
+        """Each robot's fix held for confirmation (:meth:`confirmed`) as the correction ``fix o estimate^-1``
+        of the estimate it was found from (carried to a later estimate ``e`` as ``correction o e``)."""
 
     @property
     def scanning(self) -> np.ndarray:
@@ -139,19 +138,17 @@ class SonarFixes:
 
         A fix inside the base gate (that of the estimate's own covariance, no ``miss_inflation``) is
         applied at once. One found only in a region widened by rejected scans is held (``confirm_widened``):
-        it is applied when a later scan's fix, taken at least ``shift_test`` from where the held one was
-        (by the estimates), agrees with it: lies inside the base gate (:meth:`gate`) of a fresh fix's
-        covariance (:attr:`covariance`) around the held fix carried along by the estimate's motion since its
-        scan. Any other fix found only in the widened region replaces the held one."""
+        it is applied when a later scan's fix agrees with it, i.e. lies inside the base gate
+        (:meth:`gate`) of a fresh fix's covariance (:attr:`covariance`) around the held fix carried along by
+        the estimate's motion since its scan; a disagreeing fix replaces the held one."""
         prior = request.estimate[i]
         cov = request.covariance[i] if request.covariance is not None else np.zeros((3, 3))
         if not self.cfg.confirm_widened or self.in_gate(pose, prior, cov):
             return True
         held = self.held[i]
-        if (held is not None and float(np.hypot(*(prior[:2] - held[1][:2]))) >= self.cfg.shift_test
-                and self.in_gate(pose, compose(held[0], prior), self.covariance)):
+        if held is not None and self.in_gate(pose, compose(held, prior), self.covariance):
             return True
-        self.held[i] = (compose(pose, inverse(prior)), prior.copy())
+        self.held[i] = compose(pose, inverse(prior))
         return False
 
     def in_gate(self, pose: np.ndarray, prior: np.ndarray, cov: np.ndarray) -> bool:

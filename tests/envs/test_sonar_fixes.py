@@ -224,7 +224,7 @@ def _widened(env, offset, inflation=8.0):
     return true, cov, true + np.asarray(offset)
 
 
-def test_a_fix_found_only_in_a_widened_region_is_held_until_a_second_scan_from_elsewhere_agrees():
+def test_a_fix_found_only_in_a_widened_region_is_held_until_a_second_scan_agrees():
     from parcover_env.geometry.poses import compose
 
     env = _env()
@@ -236,18 +236,15 @@ def test_a_fix_found_only_in_a_widened_region_is_held_until_a_second_scan_from_e
     np.testing.assert_array_equal(env.pose_estimates()[0], est)
     np.testing.assert_array_equal(env.pose_covariances()[0], cov)
     assert sc.inflation[0] == 8.0  # the region is not widened further: the second scan searches the same
-    carried = compose(sc.held[0][0], est)  # the held fix is the localized pose (near the truth)
+    carried = compose(sc.held[0], est)  # the held fix is the localized pose (near the truth)
     assert np.hypot(*(carried[:2] - true[:2])) < 0.05 and abs(carried[2] - true[2]) < math.radians(3)
-    assert _scan(env)[-1][1] == REJECTED  # a second scan from the same place agrees but confirms nothing
-    np.testing.assert_array_equal(env.pose_estimates()[0], est)
-    assert np.hypot(*(compose(sc.held[0][0], est)[:2] - true[:2])) < 0.05
-    for _ in range(30):  # drive on: the held fix is carried along by the estimate's motion
-        env.step(_act(env, v=0.6))
+    for _ in range(25):  # drive on: the held fix is carried along by the estimate's motion
+        env.step(_act(env, v=0.3))
     for _ in range(5):
         env.step(_act(env))
     moved = env.true_poses()[0].copy()
-    assert np.hypot(*(moved[:2] - true[:2])) > 1.5 * env.scenario.observation.scan.shift_test
-    carried = compose(sc.held[0][0], env.pose_estimates()[0])
+    assert np.hypot(*(moved[:2] - true[:2])) > 0.2
+    carried = compose(sc.held[0], env.pose_estimates()[0])
     assert np.hypot(*(carried[:2] - moved[:2])) < 0.05
     rows = _scan(env)  # the second scan's fix agrees with the carried held fix: applied
     assert rows[-1][1] == ACCEPTED and sc.held[0] is None and sc.inflation[0] == 1.0
@@ -261,16 +258,14 @@ def test_a_disagreeing_second_scan_drops_the_held_fix():
     env = _env()
     sc = env.scanner
     true, cov, est = _widened(env, [0.5, -0.3, 0.2])
-    elsewhere = est + np.array([1.0, 0.0, 0.0])  # held fixes found from an estimate 1 m away
     look_alike = true + np.array([0.0, 0.4, 0.0])  # an earlier held fix 0.4 m from where the scan matches
-    sc.held[0] = (compose(look_alike, inverse(est)), elsewhere)
+    sc.held[0] = compose(look_alike, inverse(est))
     rows = _scan(env)
     assert rows[-1][1] == REJECTED
     np.testing.assert_array_equal(env.pose_estimates()[0], est)
-    carried = compose(sc.held[0][0], est)  # the new fix replaced the old one: held in its place
+    carried = compose(sc.held[0], est)  # the new fix replaced the old one: held in its place
     assert np.hypot(*(carried[:2] - true[:2])) < 0.05
-    np.testing.assert_array_equal(sc.held[0][1], est)
-    sc.held[0] = (compose(true + np.array([0.0, 0.1, 0.0]), inverse(est)), elsewhere)  # 0.1 m: agrees
+    sc.held[0] = compose(true + np.array([0.0, 0.1, 0.0]), inverse(est))  # 0.1 m: inside a fresh fix's gate
     assert _scan(env)[-1][1] == ACCEPTED
 
 
