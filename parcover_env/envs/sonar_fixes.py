@@ -19,7 +19,7 @@ estimator then resets the robot's estimate to it with :attr:`SonarFixes.covarian
 leaves the estimate and covariance as they were; unless the scan was merely uninformative (its pose
 matched but did not pin the pose down), the robot's next scan searches a region whose sigmas are
 ``scan.miss_inflation`` times wider (at most ``scan.max_inflation``), until a fix. A fix found there
-but outside the gate of the estimate's own covariance is held, not applied (``scan.confirm_widened``):
+but outside the gate of the estimate's own covariance is, with ``scan.confirm_widened``, held, not applied:
 a region several metres across holds look-alike places of the map. It is applied when a later scan
 finds a fix that agrees with it (:meth:`SonarFixes.confirmed`).
 """

@@ -16,6 +16,7 @@ from parcover_env.envs.sonar_fixes import ACCEPTED, REJECTED, scan_steps, scan_t
 from parcover_env.errors import ActionError
 
 SCAN = {"observation": {"scan": {"enabled": True}, "pose_source": "odometry"}}
+CONFIRM = {"observation": {"scan": {"enabled": True, "confirm_widened": True}, "pose_source": "odometry"}}
 
 
 def _env(overrides=SCAN, scenario="t_room"):
@@ -227,7 +228,7 @@ def _widened(env, offset, inflation=8.0):
 def test_a_fix_found_only_in_a_widened_region_is_held_until_a_second_scan_agrees():
     from parcover_env.geometry.poses import compose
 
-    env = _env()
+    env = _env(CONFIRM)
     sc = env.scanner
     true, cov, est = _widened(env, [0.5, -0.3, 0.2])  # 0.58 m off: outside the base gate (3 x 0.071 m), in x 8
     assert not sc.in_gate(true, est, cov) and sc.in_gate(true, est, cov * 64.0)
@@ -255,7 +256,7 @@ def test_a_fix_found_only_in_a_widened_region_is_held_until_a_second_scan_agrees
 def test_a_disagreeing_second_scan_drops_the_held_fix():
     from parcover_env.geometry.poses import compose, inverse
 
-    env = _env()
+    env = _env(CONFIRM)
     sc = env.scanner
     true, cov, est = _widened(env, [0.5, -0.3, 0.2])
     look_alike = true + np.array([0.0, 0.4, 0.0])  # an earlier held fix 0.4 m from where the scan matches
@@ -270,11 +271,11 @@ def test_a_disagreeing_second_scan_drops_the_held_fix():
 
 
 def test_a_fix_inside_the_base_gate_or_with_confirmation_off_is_applied_at_once():
-    env = _env()
+    env = _env(CONFIRM)
     true, _, _ = _widened(env, [0.1, -0.05, 0.02])  # 0.11 m: inside the base gate of its own covariance
     assert _scan(env)[-1][1] == ACCEPTED and env.scanner.held[0] is None
     assert np.hypot(*(env.pose_estimates()[0][:2] - true[:2])) < 0.05
-    off = _env({"observation": {"scan": {"enabled": True, "confirm_widened": False}, "pose_source": "odometry"}})
+    off = _env()  # confirm_widened off (the default)
     true, _, _ = _widened(off, [0.5, -0.3, 0.2])
     assert _scan(off)[-1][1] == ACCEPTED and off.scanner.held[0] is None
     assert np.hypot(*(off.pose_estimates()[0][:2] - true[:2])) < 0.05
