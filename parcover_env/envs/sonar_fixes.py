@@ -18,7 +18,10 @@ down (:meth:`SonarFixes.pins_down`: shifted by ``scan.shift_test`` it matches wo
 estimator then resets the robot's estimate to it with :attr:`SonarFixes.covariance`. A rejected scan
 leaves the estimate and covariance as they were; unless the scan was merely uninformative (its pose
 matched but did not pin the pose down), the robot's next scan searches a region whose sigmas are
-``scan.miss_inflation`` times wider (at most ``scan.max_inflation``), until a fix.
+``scan.miss_inflation`` times wider (at most ``scan.max_inflation``), until a fix. A fix found there
+but outside the gate of the estimate's own covariance is, with ``scan.confirm_widened``, held, not applied:
+a region several metres across holds look-alike places of the map. It is applied when a later scan
+finds a fix that agrees with it (:meth:`SonarFixes.confirmed`).
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ import shapely
 from parcover_env.config import Scenario
 from parcover_env.envs.estimator import FixRequest
 from parcover_env.geometry import wrap_angle
+from parcover_env.geometry.poses import compose, inverse
 from parcover_env.localization.sonar.config import sonar_localizer_config
 from parcover_env.localization.sonar.known_map import known_map_features
 from parcover_env.localization.sonar.localizer import Ellipse, localize, scan_error
@@ -86,6 +90,9 @@ class SonarFixes:
         self.outcome = np.zeros(n_robots)
         self.inflation = np.ones(n_robots)
         """Factor on each robot's search-region sigmas after rejected scans (``miss_inflation``); 1 after a fix."""
+        self.held: list[np.ndarray | None] = [None] * n_robots
+        """Each robot's fix held for confirmation (:meth:`confirmed`) as the correction ``fix o estimate^-1``
+        of the estimate it was found from (carried to a later estimate ``e`` as ``correction o e``)."""
 
     @property
     def scanning(self) -> np.ndarray:
@@ -97,6 +104,7 @@ class SonarFixes:
         self.result[:] = 0.0
         self.outcome[:] = 0.0
         self.inflation[:] = 1.0
+        self.held = [None] * len(self.held)
 
     def request(self, scan: np.ndarray, commands: np.ndarray) -> None:
         """Start a scan for each robot with ``scan (N,) > 0`` not scanning yet, then zero the commands
@@ -111,17 +119,45 @@ class SonarFixes:
         active = self.remaining > 0
         self.remaining[active] -= 1
         out = {}
+        c = self.cfg
         for i in np.flatnonzero(active & (self.remaining == 0)).tolist():
             pose, informative = self.localize_scan(i, request, rng)
+            if pose is not None and not self.confirmed(i, pose, request):
+                pose, informative = None, False  # held: the region stays as wide for the confirming scan
             self.outcome[i] = self.result[i] = REJECTED if pose is None else ACCEPTED
-            c = self.cfg
             if pose is not None:
                 self.inflation[i] = 1.0
+                self.held[i] = None
+                out[i] = pose
             elif informative:  # no match inside the region: the robot may lie outside it
                 self.inflation[i] = min(self.inflation[i] * c.miss_inflation, c.max_inflation)
-            if pose is not None:
-                out[i] = pose
         return out
+
+    def confirmed(self, i: int, pose: np.ndarray, request: FixRequest) -> bool:
+        """Whether robot ``i``'s fix ``pose`` (3,), found in its search region, may be applied now.
+
+        A fix inside the base gate (that of the estimate's own covariance, no ``miss_inflation``) is
+        applied at once. One found only in a region widened by rejected scans is held (``confirm_widened``):
+        it is applied when a later scan's fix agrees with it, i.e. lies inside the base gate
+        (:meth:`gate`) of a fresh fix's covariance (:attr:`covariance`) around the held fix carried along by
+        the estimate's motion since its scan; a disagreeing fix replaces the held one."""
+        prior = request.estimate[i]
+        cov = request.covariance[i] if request.covariance is not None else np.zeros((3, 3))
+        if not self.cfg.confirm_widened or self.in_gate(pose, prior, cov):
+            return True
+        held = self.held[i]
+        if held is not None and self.in_gate(pose, compose(held, prior), self.covariance):
+            return True
+        self.held[i] = compose(pose, inverse(prior))
+        return False
+
+    def in_gate(self, pose: np.ndarray, prior: np.ndarray, cov: np.ndarray) -> bool:
+        """Whether ``pose`` (3,) lies inside the gate (:meth:`gate`) of an estimate ``prior`` (3,) of
+        covariance ``cov (3, 3)``: Mahalanobis distance and heading."""
+        pos, turn = self.gate(cov)
+        d = pose[:2] - prior[:2]
+        inside = float(d @ np.linalg.solve(pos, d)) <= self.cfg.gate_sigmas**2
+        return inside and abs(wrap_angle(pose[2] - prior[2])) <= turn
 
     def localize_scan(self, i: int, request: FixRequest,
                       rng: np.random.Generator) -> tuple[np.ndarray | None, bool]:
@@ -142,9 +178,7 @@ class SonarFixes:
             return None, True
         if not self.pins_down(res.pose, ranges, request.estimate[others, :2]):
             return None, False
-        d = res.pose[:2] - prior[:2]
-        inside = float(d @ np.linalg.solve(pos, d)) <= self.cfg.gate_sigmas**2
-        return (res.pose.copy() if inside and abs(wrap_angle(res.pose[2] - prior[2])) <= turn else None), True
+        return (res.pose.copy() if self.in_gate(res.pose, prior, cov * self.inflation[i] ** 2) else None), True
 
     def matches_unmasked(self, pose: np.ndarray, ranges: np.ndarray, request: FixRequest,
                          others: np.ndarray) -> bool:

@@ -16,6 +16,7 @@ from parcover_env.envs.sonar_fixes import ACCEPTED, REJECTED, scan_steps, scan_t
 from parcover_env.errors import ActionError
 
 SCAN = {"observation": {"scan": {"enabled": True}, "pose_source": "odometry"}}
+CONFIRM = {"observation": {"scan": {"enabled": True, "confirm_widened": True}, "pose_source": "odometry"}}
 
 
 def _env(overrides=SCAN, scenario="t_room"):
@@ -211,3 +212,70 @@ def test_an_uninformative_scan_is_rejected_without_widening_the_next_region():
     _scan(env)  # no match inside the small region around a far estimate: the robot may lie outside it
     assert env.scanner.result[0] == REJECTED
     assert env.scanner.inflation[0] == env.scenario.observation.scan.miss_inflation
+
+
+def _widened(env, offset, inflation=8.0):
+    """Robot 0's estimate put ``offset`` (dx, dy, dheading) off its true pose, with a fresh fix's small
+    covariance, after rejected scans widened its search region by ``inflation``."""
+    true = env.true_poses()[0].copy()
+    c = env.scenario.observation.scan
+    cov = np.diag([c.fix_sigma_xy**2, c.fix_sigma_xy**2, math.radians(c.fix_sigma_heading_deg) ** 2])
+    env.estimator.fix(0, true + np.asarray(offset), cov)
+    env.scanner.inflation[0] = inflation
+    return true, cov, true + np.asarray(offset)
+
+
+def test_a_fix_found_only_in_a_widened_region_is_held_until_a_second_scan_agrees():
+    from parcover_env.geometry.poses import compose
+
+    env = _env(CONFIRM)
+    sc = env.scanner
+    true, cov, est = _widened(env, [0.5, -0.3, 0.2])  # 0.58 m off: outside the base gate (3 x 0.071 m), in x 8
+    assert not sc.in_gate(true, est, cov) and sc.in_gate(true, est, cov * 64.0)
+    rows = _scan(env)
+    assert rows[-1][1] == REJECTED  # held, not applied: estimate and covariance unchanged
+    np.testing.assert_array_equal(env.pose_estimates()[0], est)
+    np.testing.assert_array_equal(env.pose_covariances()[0], cov)
+    assert sc.inflation[0] == 8.0  # the region is not widened further: the second scan searches the same
+    carried = compose(sc.held[0], est)  # the held fix is the localized pose (near the truth)
+    assert np.hypot(*(carried[:2] - true[:2])) < 0.05 and abs(carried[2] - true[2]) < math.radians(3)
+    for _ in range(25):  # drive on: the held fix is carried along by the estimate's motion
+        env.step(_act(env, v=0.3))
+    for _ in range(5):
+        env.step(_act(env))
+    moved = env.true_poses()[0].copy()
+    assert np.hypot(*(moved[:2] - true[:2])) > 0.2
+    carried = compose(sc.held[0], env.pose_estimates()[0])
+    assert np.hypot(*(carried[:2] - moved[:2])) < 0.05
+    rows = _scan(env)  # the second scan's fix agrees with the carried held fix: applied
+    assert rows[-1][1] == ACCEPTED and sc.held[0] is None and sc.inflation[0] == 1.0
+    est = env.pose_estimates()[0]
+    assert np.hypot(*(est[:2] - moved[:2])) < 0.05 and abs(est[2] - moved[2]) < math.radians(3)
+
+
+def test_a_disagreeing_second_scan_drops_the_held_fix():
+    from parcover_env.geometry.poses import compose, inverse
+
+    env = _env(CONFIRM)
+    sc = env.scanner
+    true, cov, est = _widened(env, [0.5, -0.3, 0.2])
+    look_alike = true + np.array([0.0, 0.4, 0.0])  # an earlier held fix 0.4 m from where the scan matches
+    sc.held[0] = compose(look_alike, inverse(est))
+    rows = _scan(env)
+    assert rows[-1][1] == REJECTED
+    np.testing.assert_array_equal(env.pose_estimates()[0], est)
+    carried = compose(sc.held[0], est)  # the new fix replaced the old one: held in its place
+    assert np.hypot(*(carried[:2] - true[:2])) < 0.05
+    sc.held[0] = compose(true + np.array([0.0, 0.1, 0.0]), inverse(est))  # 0.1 m: inside a fresh fix's gate
+    assert _scan(env)[-1][1] == ACCEPTED
+
+
+def test_a_fix_inside_the_base_gate_or_with_confirmation_off_is_applied_at_once():
+    env = _env(CONFIRM)
+    true, _, _ = _widened(env, [0.1, -0.05, 0.02])  # 0.11 m: inside the base gate of its own covariance
+    assert _scan(env)[-1][1] == ACCEPTED and env.scanner.held[0] is None
+    assert np.hypot(*(env.pose_estimates()[0][:2] - true[:2])) < 0.05
+    off = _env()  # confirm_widened off (the default)
+    true, _, _ = _widened(off, [0.5, -0.3, 0.2])
+    assert _scan(off)[-1][1] == ACCEPTED and off.scanner.held[0] is None
+    assert np.hypot(*(off.pose_estimates()[0][:2] - true[:2])) < 0.05
