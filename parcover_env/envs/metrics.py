@@ -83,10 +83,6 @@ class EpisodeMetrics:
     _n_err: int = 0
     _sq_form: tuple[float, float, int] = (0.0, 0.0, 0)
 
-    def record_formation(self, dl: np.ndarray, dpsi: np.ndarray) -> None:
-        """Add one step's formation errors ``l - l_d`` and ``psi - psi_d`` of the followers ``(n,)``."""
-        self.add_formation(float(dl @ dl), float(dpsi @ dpsi), len(dl))
-
     def add_formation(self, sq_l: float, sq_psi: float, n_new: int) -> None:
         """Add one step's sums of squared formation errors (m^2, rad^2) over its ``n_new`` followers."""
         sl, sp, n = self._sq_form

@@ -239,8 +239,8 @@ def test_episode_metrics_accumulate():
     m.record_step(0.2, 2, true, true, wall=1, robot=0)
     assert (m.steps, m.time, m.kpois_visited, m.wall_collisions, m.robot_collisions) == (2, 0.2, 2, 3, 1)
     assert m.localization_error == pytest.approx(math.sqrt(25 / 4))  # RMS over robots and steps
-    m.record_formation(np.array([0.3, 0.4]), np.array([0.0, 0.2]))
-    m.record_formation(np.array([0.0]), np.array([0.1]))
+    m.add_formation(0.3**2 + 0.4**2, 0.2**2, 2)  # followers' l - l_d (0.3, 0.4), psi - psi_d (0.0, 0.2)
+    m.add_formation(0.0, 0.1**2, 1)
     assert m.formation_error_l == pytest.approx(math.sqrt(0.25 / 3))
     assert m.formation_error_psi == pytest.approx(math.sqrt(0.05 / 3))
     m.makespan = 30.0
