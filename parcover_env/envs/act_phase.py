@@ -25,9 +25,10 @@ from parcover_env.world.drive import advance_steps_all, wheel_targets
 __all__ = ["act"]
 
 
-def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.ndarray, np.ndarray]:
+def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Act, integrate the physics and update the pose estimator of every world (``actions[k]``: world
-    ``k``'s joint action dict); returns the true poses ``(K, N, 3)`` before and after the step.
+    ``k``'s joint action dict, or ``actions`` one array ``(K, N, A)``: row ``[k, i]`` the action of
+    world ``k``'s ``i``-th agent); returns the true poses ``(K, N, 3)`` before and after the step.
     Bad actions raise :class:`~parcover_env.errors.ActionError` before any world changes."""
     for w in worlds:
         if not w.agents:

@@ -120,8 +120,8 @@ class BatchedVecEnv(VecEnv):
             raise RuntimeError("step_wait() without step_async()")
         acts, self._actions = self._actions, None
         n, names = self.n_robots, self.agents_per_world
-        world_obs, outs = stepper.step(self.worlds, [dict(zip(names, acts[k * n:(k + 1) * n], strict=True))
-                                                     for k in range(self.n_worlds)])
+        # the (K N, A) slots as the (K, N, A) block of the worlds' agents (validated by the act phase)
+        world_obs, outs = stepper.step(self.worlds, acts.reshape(self.n_worlds, n, *acts.shape[1:]))
         obs = np.empty((self.num_envs, *self._zero.shape), dtype=self._zero.dtype)
         rewards = np.empty(self.num_envs, dtype=np.float32)
         dones = np.zeros(self.num_envs, dtype=bool)

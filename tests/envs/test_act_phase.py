@@ -50,6 +50,31 @@ def test_to_commands_all_raises_to_commands_error_of_the_bad_world(bad, message)
     assert str(block.value) == str(alone.value) and message in str(block.value)
 
 
+def test_to_commands_all_of_an_action_block_is_that_of_its_dicts_and_pinned():
+    block = np.array([[[0.5, -0.25], [2.0, 1.0]], [[-1.0, 0.125], [0.0, -3.0]]], dtype=np.float32)
+    got = to_commands_all(block, [AGENTS, AGENTS], 0.3, 2.0)
+    dicts = [_joint(block[0]), _joint(block[1])]
+    np.testing.assert_array_equal(got, to_commands_all(dicts, [AGENTS, AGENTS], 0.3, 2.0))
+    np.testing.assert_array_equal(got, [[[0.15, -0.5], [0.3, 2.0]], [[-0.3, 0.25], [0.0, -2.0]]])
+    assert block[0, 1, 0] == 2.0  # the caller's block is not clipped in place
+    wide = to_commands_all(np.array([[[0.5, 0.5, 1.0], [0.0, 0.0, -1.0]]]), [AGENTS], 0.3, 2.0, width=3)
+    np.testing.assert_array_equal(wide[0], [[0.15, 1.0, 1.0], [0.0, 0.0, -1.0]])
+
+
+@pytest.mark.parametrize("block, message", [
+    (np.array([[[0.0, 0.0], [0.0, 0.0]], [[np.inf, 0.0], [0.0, 0.0]]]), "robot_0: action contains NaN or inf"),
+    (np.array([[[0.0, 0.0], [0.0, 0.0]], [[0.0, 0.0], [0.0, np.nan]]]), "robot_1: action contains NaN or inf"),
+    (np.zeros((2, 2, 3)), "robot_0: action must have shape (2,)"),
+    (np.zeros((2, 2, 2), dtype=complex), "robot_0: action is not numeric"),
+    (np.zeros((2, 2, 2), dtype=bool), "robot_0: action is not numeric"),
+    (np.zeros((3, 2, 2)), "expected an array (2, 2, 2) (worlds, agents, action), got shape (3, 2, 2)"),
+])
+def test_to_commands_all_of_a_bad_block_raises_the_bad_agents_error(block, message):
+    with pytest.raises(ActionError) as err:
+        to_commands_all(block, [AGENTS, AGENTS], 0.3, 2.0)
+    assert message in str(err.value)
+
+
 def test_advance_steps_all_is_advance_steps_per_drive_and_pinned():
     cfg = DriveConfig()
     a, b = DiffDrive(cfg, 2), DiffDrive(cfg, 2)
@@ -120,15 +145,16 @@ SCAN = {"observation": {"scan": {"enabled": True}}}
 @pytest.mark.parametrize("scenario, overrides", [("tree", None), ("office", SCAN)])
 def test_act_of_two_worlds_is_act_of_each_alone(scenario, overrides):
     """Drive, physics, odometry, Kinect fixes (and the scan fixes) of K = 2 worlds of different
-    states: the same floats as each world acting alone."""
+    states: the same floats as each world acting alone (the actions as dicts, or as one block)."""
     batch = _envs(scenario, [1, 2], overrides)
     alone = [copy.deepcopy(w) for w in batch]
     rng = np.random.default_rng(0)
     width = batch[0].action_space(batch[0].agents[0]).shape[0]
     fixed = 0
-    for _ in range(25):
-        actions = [{a: rng.uniform(-1, 1, width).astype(np.float32) for a in w.agents} for w in batch]
-        before, true = act_phase.act(batch, actions)
+    for step in range(25):
+        block = rng.uniform(-1, 1, (2, len(batch[0].agents), width)).astype(np.float32)
+        actions = [dict(zip(w.agents, rows, strict=True)) for w, rows in zip(batch, block, strict=True)]
+        before, true = act_phase.act(batch, block if step % 2 else actions)
         for k, w in enumerate(alone):
             b1, t1 = w.act(dict(actions[k]))
             np.testing.assert_array_equal(before[k], b1)
