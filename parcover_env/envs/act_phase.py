@@ -21,6 +21,7 @@ from parcover_env.envs.actions import to_commands_all
 from parcover_env.envs.estimator import FixRequest, update_all
 from parcover_env.geometry.stacking import stack
 from parcover_env.world.drive import advance_steps_all, wheel_targets
+from parcover_env.world.physics import poses_all
 
 __all__ = ["act"]
 
@@ -43,12 +44,13 @@ def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -
         w.commands = commands[k]
         if scanning:
             w.scanner.request(raw[k, :, 2], w.commands)  # scanning robots are held still
-    before = stack([w.world.poses() for w in worlds])
+    physics = [w.world for w in worlds]
+    before = poses_all(physics)
     velocities = _drive(worlds, commands)
     for k, w in enumerate(worlds):
         w.world.step(w.commands, None if velocities is None else velocities[:, k])
         w.steps += 1
-    true = stack([w.world.poses() for w in worlds])
+    true = poses_all(physics)
     fixes = update_all([w.estimator for w in worlds], true, commands, [w.world.drive for w in worlds],
                        [w.world.time for w in worlds], stack([w.team.leader for w in worlds]),
                        [w.np_random for w in worlds])

@@ -10,12 +10,14 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.config import DriveConfig, OdometryConfig
+from parcover_env.config import DriveConfig, MapConfig, OdometryConfig, PhysicsConfig
 from parcover_env.envs import act_phase
 from parcover_env.envs.actions import to_commands, to_commands_all
 from parcover_env.errors import ActionError
 from parcover_env.sensors.odometry import Odometry, measure_wheels_all
-from parcover_env.world.drive import DiffDrive, advance_steps_all
+from parcover_env.world.drive import DiffDrive, advance_steps_all, take_travel_all
+from parcover_env.world.map_model import MapModel
+from parcover_env.world.physics import World, poses_all
 
 AGENTS = ["robot_0", "robot_1"]
 
@@ -94,6 +96,40 @@ def test_advance_steps_all_is_advance_steps_per_drive_and_pinned():
     np.testing.assert_allclose(a.speed_change[0], [0.04, 0.04], rtol=0, atol=1e-15)
 
 
+def test_take_travel_all_is_take_travel_per_drive_and_pinned():
+    a, b = DiffDrive(DriveConfig(), 2), DiffDrive(DriveConfig(), 2)
+    a.travel[:] = [[0.01, 0.02], [0.0, -0.03]]
+    b.travel[:] = [[0.5, 0.25], [0.125, 0.0]]
+    b.speed_change[:] = [[0.1, 0.0], [0.0, 0.2]]
+    alone = [copy.deepcopy(a).take_travel(), copy.deepcopy(b).take_travel()]
+    travel, change = take_travel_all([a, b])
+    np.testing.assert_array_equal(travel, [alone[0][0], alone[1][0]])
+    np.testing.assert_array_equal(change, [alone[0][1], alone[1][1]])
+    np.testing.assert_array_equal(travel[1], [[0.5, 0.25], [0.125, 0.0]])
+    np.testing.assert_array_equal(change[1], [[0.1, 0.0], [0.0, 0.2]])
+    for d in (a, b):  # taken: the next step starts from zero
+        assert not d.travel.any() and not d.speed_change.any()
+
+
+def test_poses_all_is_poses_per_world_and_pinned(monkeypatch):
+    box = MapModel.from_config(MapConfig(size=(4.0, 3.0)))
+    physics = PhysicsConfig(dt=0.02, substeps=5)
+    a = World(box, 0.15, physics, np.array([[1.0, 1.5, 0.0], [3.0, 1.0, 3.0]]))
+    b = World(box, 0.15, physics, np.array([[2.0, 2.0, -1.0], [0.5, 0.5, 1.5]]))
+    a.step(np.array([[0.3, 0.0], [0.0, 2.0]]))  # robot 1 turns past pi: the heading wraps
+    b.step(np.array([[0.0, 0.0], [0.2, -0.5]]))
+    got = poses_all([a, b])
+    np.testing.assert_array_equal(got, [a.poses(), b.poses()])
+    np.testing.assert_array_equal(poses_all([b])[0], b.poses())
+    np.testing.assert_allclose(got[0, 0], [1.0 + 0.3 * 0.08, 1.5, 0.0], rtol=0, atol=1e-12)  # one substep late
+    np.testing.assert_allclose(got[0, 1], [3.0, 1.0, 3.0 + 0.16 - 2 * math.pi], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(got[1, 0], [2.0, 2.0, -1.0])
+    monkeypatch.setattr(World, "compiled", False)  # pymunk's Python bodies: the same floats
+    slow = World(box, 0.15, physics, np.array([[1.0, 1.5, 0.0], [3.0, 1.0, 3.0]]))
+    slow.step(np.array([[0.3, 0.0], [0.0, 2.0]]))
+    np.testing.assert_array_equal(poses_all([slow, b]), got)
+
+
 def _odometry(poses, rng=None) -> Odometry:
     return Odometry(OdometryConfig(), np.array(poses, dtype=float), 0.18, rng)
 
@@ -106,7 +142,8 @@ def test_measure_wheels_all_is_measure_wheels_per_odometry():
     change = np.array([[[0.1, 0.0], [0.2, 0.1]], [[0.0, 0.3], [0.0, 0.0]]])
     alone = [copy.deepcopy(a), copy.deepcopy(b)]
     rngs = [np.random.default_rng(10), np.random.default_rng(11)]
-    measure_wheels_all([a, b], travel, change, 0.1, rngs)
+    est = measure_wheels_all([a, b], travel, change, 0.1, rngs)
+    np.testing.assert_array_equal(est, [a.estimate, b.estimate])
     for k, (o, ref) in enumerate(zip([a, b], alone, strict=True)):
         ref.measure_wheels(travel[k], change[k], 0.1, np.random.default_rng(10 + k))
         for name in ("estimate", "covariance", "travelled", "turned"):
