@@ -219,6 +219,12 @@ class World:
                 self._suppress = set()
         self.time += self.physics.control_dt
 
+    @property
+    def body_addresses(self) -> np.ndarray | None:
+        """The chipmunk addresses ``(N,)`` of the robots' bodies, read by the compiled body access
+        (:mod:`parcover_env.world.body_kernels`); None where pymunk's Python callbacks run."""
+        return self._addresses
+
     def poses(self) -> np.ndarray:
         """Ground-truth poses ``(N, 3)``: x, y (m), theta (rad, wrapped to (-pi, pi])."""
         out = np.empty((self.n, 3))
@@ -239,7 +245,7 @@ def poses_all(worlds: Sequence[World]) -> np.ndarray:
     uses the compiled body access."""
     if len(worlds) == 1:
         return worlds[0].poses()[None]
-    addresses = [w._addresses for w in worlds]
+    addresses = [w.body_addresses for w in worlds]
     if any(a is None for a in addresses):
         return np.stack([w.poses() for w in worlds])
     flat = np.concatenate(addresses)
