@@ -28,6 +28,7 @@ them (and the Mission) between the worlds.
 from __future__ import annotations
 
 import copy
+from itertools import chain
 from typing import Any
 
 import numpy as np
@@ -122,23 +123,24 @@ class BatchedVecEnv(VecEnv):
         n, names = self.n_robots, self.agents_per_world
         # the (K N, A) slots as the (K, N, A) block of the worlds' agents (validated by the act phase)
         world_obs, outs = stepper.step(self.worlds, acts.reshape(self.n_worlds, n, *acts.shape[1:]))
-        obs = np.empty((self.num_envs, *self._zero.shape), dtype=self._zero.dtype)
-        rewards = np.empty(self.num_envs, dtype=np.float32)
+        obs = world_obs.reshape(self.num_envs, *world_obs.shape[2:])  # the slots, world by world (a view)
+        rewards = np.fromiter(chain.from_iterable(out[0].values() for out in outs), np.float32, self.num_envs)
         dones = np.zeros(self.num_envs, dtype=bool)
         infos: list[dict] = []
-        for k, (rew, term, trunc, inf) in enumerate(outs):
-            o, rows = world_obs[k], slice(k * n, (k + 1) * n)
-            rewards[rows] = list(rew.values())  # the world's agents, in order
+        copied = False
+        for k, (_, term, trunc, inf) in enumerate(outs):
             t, tr = term[names[0]], trunc[names[0]]  # all robots of a world end together
             if t or tr:
+                if not copied:  # the terminal observations stay the worlds' rows: reset into a copy
+                    obs, copied = obs.copy(), True
+                o, rows = world_obs[k], slice(k * n, (k + 1) * n)
                 infos += [stepper.slot_info(inf[a], o[i], t, tr) for i, a in enumerate(names)]
                 dones[rows] = True
-                o = self._reset_world(k)
+                obs[rows] = self._reset_world(k)
             else:  # stepper.slot_info of a running episode: no metrics yet, only ``active``
                 for info in inf.values():
                     info["active"] = True
                 infos += inf.values()
-            obs[rows] = o
         return obs, rewards, dones, infos
 
     def close(self) -> None:
