@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from parcover_env.config import DriveConfig
+from parcover_env.geometry.stacking import stack
 
 __all__ = ["DiffDrive", "wheel_targets", "lag_step", "body_velocity", "advance_steps_all", "take_travel_all"]
 
@@ -119,8 +120,8 @@ def take_travel_all(drives: list[DiffDrive]) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`DiffDrive.take_travel` of ``K`` drives of ``n`` robots each: their wheel distances and
     summed |speed changes| as two ``(K, n, 2)`` blocks (copies); each drive's own arrays are
     zeroed in place."""
-    travel = np.stack([d.travel for d in drives])
-    change = np.stack([d.speed_change for d in drives])
+    travel = stack([d.travel for d in drives], copy=True)
+    change = stack([d.speed_change for d in drives], copy=True)
     for d in drives:
         d.travel.fill(0.0)
         d.speed_change.fill(0.0)

@@ -43,11 +43,11 @@ def update_systems(systems: Sequence[Any], times: Sequence[float], true: np.ndar
     now = np.asarray(times, dtype=float)[:, None]
     ticks = stack([s.next_tick for s in systems])
     due = ticks <= now + 1e-9
-    active = due.any(axis=1) & markers.any(axis=1)
+    active = (due.any(axis=1) & markers.any(axis=1)).tolist()
     new_ticks = np.where(due, now + systems[0].periods, ticks)  # each due Kinect's next frame
     batch = []
-    for k, s in enumerate(systems):
-        s.next_tick[:] = new_ticks[k]
+    for k, (s, tick) in enumerate(zip(systems, new_ticks, strict=True)):
+        s.next_tick[:] = tick
         s.last_fixes = {}
         if not active[k]:
             continue
@@ -168,12 +168,12 @@ def track_all(systems: Sequence[Any], found: Detections, markers: np.ndarray, pr
     fused, robot, status = np.empty((len(est), 3)), np.empty(len(est), np.int64), np.empty(b_count, np.int64)
     track_kernel.match(est, starts, np.ascontiguousarray(ref[..., :2]), np.ascontiguousarray(markers, dtype=bool),
                        float(t.gate), float(t.fuse_radius), fused, robot, status)
-    bounds, robots, flagged = starts.tolist(), robot.tolist(), status.tolist()
+    bounds, robots, flagged, poses = starts.tolist(), robot.tolist(), status.tolist(), list(fused)
     out = []
     for b, s in enumerate(systems):
         lo, hi = bounds[b], bounds[b + 1]
         if flagged[b]:  # outside the common case: the system's own tracking
             out.append(s.track([_estimates(s, found, range(lo, hi), times)], markers[b], predicted[b], times[b]))
         else:
-            out.append(s.tracked(s.tracker.assign(list(fused[lo:hi]), robots[lo:hi], times[b]), markers[b]))
+            out.append(s.tracked(s.tracker.assign(poses[lo:hi], robots[lo:hi], times[b]), markers[b]))
     return out

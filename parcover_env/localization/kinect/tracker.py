@@ -102,11 +102,16 @@ class KinectTracker:
         :func:`~parcover_env.localization.kinect.track_kernel.match`): ``fused`` poses ``(3,)`` in the
         tracker's order and the robot each was matched to (``robots``, -1: none). Returns the fixes
         ``{robot: pose}`` (in that order), as :meth:`update` with those matches."""
-        out = {r: f for f, r in zip(fused, robots, strict=True) if r >= 0}
-        self.unassigned = [f for f, r in zip(fused, robots, strict=True) if r < 0]
-        for k, v in out.items():
-            self.poses[k] = v
-            self.last_seen[k] = stamp
+        out: dict[int, np.ndarray] = {}
+        unassigned = []
+        poses, last_seen = self.poses, self.last_seen
+        for f, r in zip(fused, robots, strict=True):
+            if r >= 0:
+                out[r] = poses[r] = f
+                last_seen[r] = stamp
+            else:
+                unassigned.append(f)
+        self.unassigned = unassigned
         return out
 
     def age(self, robot_id: int, stamp: float) -> float:
