@@ -58,7 +58,10 @@ def test_to_commands_all_of_an_action_block_is_that_of_its_dicts_and_pinned():
     dicts = [_joint(block[0]), _joint(block[1])]
     np.testing.assert_array_equal(got, to_commands_all(dicts, [AGENTS, AGENTS], 0.3, 2.0))
     np.testing.assert_array_equal(got, [[[0.15, -0.5], [0.3, 2.0]], [[-0.3, 0.25], [0.0, -2.0]]])
-    assert block[0, 1, 0] == 2.0  # the caller's block is not clipped in place
+    assert block[0, 1, 0] == 2.0  # the caller's block is not clipped in place, float32 ...
+    wide = block.astype(float)
+    to_commands_all(wide, [AGENTS, AGENTS], 0.3, 2.0)
+    assert wide[0, 1, 0] == 2.0  # ... nor float64
     wide = to_commands_all(np.array([[[0.5, 0.5, 1.0], [0.0, 0.0, -1.0]]]), [AGENTS], 0.3, 2.0, width=3)
     np.testing.assert_array_equal(wide[0], [[0.15, 1.0, 1.0], [0.0, 0.0, -1.0]])
 

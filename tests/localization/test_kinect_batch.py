@@ -216,32 +216,32 @@ def test_track_all_is_each_systems_track_on_random_worlds():
     from parcover_env.localization.kinect.pipeline import PoseEstimate
 
     systems, _ = _systems([8, 9, 10])
+    gate, fuse_radius = systems[0].tracking.gate, systems[0].tracking.fuse_radius  # 1 m, 0.12 m
     g = np.random.default_rng(5)
-    n, flagged, kernel_fixed = 6, 0, 0
+    n, flagged, kernel_fixed, handed = 6, 0, 0, 0
     for step in range(150):
         alone = [copy.deepcopy(s) for s in systems]
         markers = g.random((3, n)) < 0.5
         markers[:, 0] = True
-        predicted = np.column_stack([g.uniform(0, 3, (3 * n, 2)), g.uniform(-3, 3, 3 * n)]).reshape(3, n, 3)
+        predicted = np.column_stack([g.uniform(0, 9, (3 * n, 2)), g.uniform(-3, 3, 3 * n)]).reshape(3, n, 3)
         world, pose = [], []
         for b in range(3):
             for i in np.flatnonzero(markers[b]):
                 for _ in range(g.integers(0, 3)):  # 0, 1 or 2 Kinects see it
                     world.append(b)
-                    pose.append(tuple(predicted[b, i] + g.normal(0, [0.1, 0.1, 0.5])))
+                    pose.append(tuple(predicted[b, i] + g.normal(0, [0.5, 0.5, 0.5])))
         n_markers = int(g.integers(3, 6))
         found = batch_update.Detections(world, [0] * len(world), [0] * len(world), pose, n_markers)
-        if step % 5 == 0:  # a promoted robot awaits its first detection
-            for s in systems:
-                s.hand_over({0: predicted[0, 0] + 0.05}, predicted[0])
-            for s in alone:
-                s.hand_over({0: predicted[0, 0] + 0.05}, predicted[0])
+        if step % 3 == 0:  # promoted robots (a carrier now or not) await their first detection
+            promoted = {0: predicted[0, 0] + [0.8, 0.0, 0.0], 1: predicted[0, 1] + [0.0, -0.8, 0.0]}
+            for s in [*systems, *alone]:
+                s.hand_over(promoted, predicted[0])
         times = [0.1 * step] * 3
         got = batch_update.track_all(systems, found, markers, predicted, times)
         est = np.array([(*p, n_markers) for p in pose], dtype=float).reshape(-1, 4)
         starts = np.searchsorted(world, np.arange(4))
         status = np.empty(3, np.int64)
-        track_kernel.match(est, starts, np.ascontiguousarray(predicted[..., :2]), markers, 0.3, 0.12,
+        track_kernel.match(est, starts, np.ascontiguousarray(predicted[..., :2]), markers, gate, fuse_radius,
                            np.empty((len(est), 3)), np.empty(len(est), np.int64), status)
         flagged += int(status.sum())
         for b, s in enumerate(alone):
@@ -258,4 +258,8 @@ def test_track_all_is_each_systems_track_on_random_worlds():
             np.testing.assert_array_equal(np.reshape(t.unassigned, (-1, 3)), np.reshape(u.unassigned, (-1, 3)))
             assert systems[b].last_fixes.keys() == s.last_fixes.keys()
             assert systems[b].handover.keys() == s.handover.keys()
-    assert 50 < flagged < 400 and kernel_fixed > 100  # both paths taken
+            # a promoted robot stays in the hand-over while it carries markers and is not detected
+            assert set(systems[b].handover) <= set(np.flatnonzero(markers[b]).tolist()) - set(got[b])
+            handed += len(systems[b].handover)
+    assert 50 < flagged < 400 and kernel_fixed > 100, (flagged, kernel_fixed)  # both paths taken
+    assert handed > 10

@@ -163,7 +163,7 @@ def track_all(systems: Sequence[Any], found: Detections, markers: np.ndarray, pr
         est[:, :3] = found.pose
     est[:, 3] = found.n_markers
     starts = np.searchsorted(np.asarray(found.world, dtype=np.int64), np.arange(b_count + 1))
-    ref = np.stack([s.references(m, p) for s, m, p in zip(systems, markers, predicted, strict=True)]) \
+    ref = np.stack([s.references(p) for s, p in zip(systems, predicted, strict=True)]) \
         if any(s.handover for s in systems) else predicted
     fused, robot, status = np.empty((len(est), 3)), np.empty(len(est), np.int64), np.empty(b_count, np.int64)
     track_kernel.match(est, starts, np.ascontiguousarray(ref[..., :2]), np.ascontiguousarray(markers, dtype=bool),

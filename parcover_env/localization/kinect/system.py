@@ -128,16 +128,15 @@ class KinectSystem:
         ref = {int(i): compose(self.handover[i], predicted[i]) if i in self.handover else predicted[i] for i in ids}
         return self.tracked(self.tracker.update(per_kinect, ref, stamp=time), markers)
 
-    def references(self, markers: np.ndarray, predicted: np.ndarray) -> np.ndarray:
-        """The poses ``(N, 3)`` :meth:`track` matches the carriers (``markers (N,)``) by: ``predicted``
-        (not copied when no promoted robot awaits its first detection), a promoted carrier's row at
-        its hand-over pose."""
+    def references(self, predicted: np.ndarray) -> np.ndarray:
+        """The poses ``(N, 3)`` :meth:`track` matches the marker carriers by: ``predicted`` (not copied
+        when no promoted robot awaits its first detection), a promoted robot's row at its hand-over
+        pose (only the carriers' rows are matched)."""
         if not self.handover:
             return predicted
         ref = np.array(predicted, dtype=float)
         for i, correction in self.handover.items():
-            if markers[i]:
-                ref[i] = compose(correction, predicted[i])
+            ref[i] = compose(correction, predicted[i])
         return ref
 
     def tracked(self, fixes: dict[int, np.ndarray], markers: np.ndarray) -> dict[int, np.ndarray]:
