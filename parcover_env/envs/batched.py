@@ -7,8 +7,11 @@ seeding, ``terminal_observation`` / ``TimeLimit.truncated`` / ``metrics`` in the
 policy trained on one trains on the other. The worlds step through the same public stepper as
 the ParallelEnv (:mod:`parcover_env.envs.stepper`), with ``K`` worlds instead of one:
 
-* each world steps its own pymunk space, pose estimator, Kinect system, mission and team (one
-  Python call per world, none per robot);
+* the ``(K n_robots, A)`` actions go to the stepper as one ``(K, n_robots, A)`` block (validated
+  there: a bad action raises the ActionError naming the agent before any world steps);
+* each world steps its own pymunk space (one space per world); the drives, the wheel odometry
+  and the Kinect systems (estimate model, tracker) of all worlds run in compiled calls over the
+  ``(K, n_robots)`` axis, writing back into each world's own state;
 * the sensors measure **all robots of all worlds** in one call each (the follower cameras' lines
   of sight, the sonar rings' casts, cross-talk and noise, and any other ``sensor`` entry of the
   observation spec): the worlds share the static walls, each robot sees the robots of its own
