@@ -21,13 +21,15 @@ from parcover_env.envs.actions import to_commands_all
 from parcover_env.envs.estimator import FixRequest, update_all
 from parcover_env.geometry.stacking import stack
 from parcover_env.world.drive import advance_steps_all, wheel_targets
+from parcover_env.world.physics import poses_all
 
 __all__ = ["act"]
 
 
-def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.ndarray, np.ndarray]:
+def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Act, integrate the physics and update the pose estimator of every world (``actions[k]``: world
-    ``k``'s joint action dict); returns the true poses ``(K, N, 3)`` before and after the step.
+    ``k``'s joint action dict, or ``actions`` one array ``(K, N, A)``: row ``[k, i]`` the action of
+    world ``k``'s ``i``-th agent); returns the true poses ``(K, N, 3)`` before and after the step.
     Bad actions raise :class:`~parcover_env.errors.ActionError` before any world changes."""
     for w in worlds:
         if not w.agents:
@@ -42,12 +44,13 @@ def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.nd
         w.commands = commands[k]
         if scanning:
             w.scanner.request(raw[k, :, 2], w.commands)  # scanning robots are held still
-    before = stack([w.world.poses() for w in worlds])
+    physics = [w.world for w in worlds]
+    before = poses_all(physics)
     velocities = _drive(worlds, commands)
     for k, w in enumerate(worlds):
         w.world.step(w.commands, None if velocities is None else velocities[:, k])
         w.steps += 1
-    true = stack([w.world.poses() for w in worlds])
+    true = poses_all(physics)
     fixes = update_all([w.estimator for w in worlds], true, commands, [w.world.drive for w in worlds],
                        [w.world.time for w in worlds], stack([w.team.leader for w in worlds]),
                        [w.np_random for w in worlds])

@@ -29,34 +29,58 @@ def to_commands(actions: Mapping, agents: Sequence[str], max_speed: float,
     return out
 
 
-def to_commands_all(actions: Sequence[Mapping], agents: Sequence[Sequence[str]], max_speed: float,
+def to_commands_all(actions: Sequence[Mapping] | np.ndarray, agents: Sequence[Sequence[str]], max_speed: float,
                     max_turn_rate: float, width: int = 2) -> np.ndarray:
     """:func:`to_commands` of ``K`` joint actions at once (``actions[k]`` for the agents
-    ``agents[k]``, ``N`` each): commands ``(K, N, width)``. The ``K`` action dicts are taken into one
-    array when every one is the common case; otherwise each is validated by :func:`to_commands`
-    (the same ActionError, raised before any command is returned)."""
-    vals: list = []
-    for acts, names in zip(actions, agents, strict=True):
-        if type(acts) is not dict or len(acts) != len(names):
-            vals = []
-            break
-        try:
-            vals += [acts[a] for a in names]
-        except KeyError:
-            vals = []
-            break
-    out = None
-    if vals and all(type(v) is np.ndarray and v.shape == (width,) and v.dtype.kind == "f" for v in vals):
-        out = np.array(vals, dtype=float)
-        if not np.isfinite(out).all():
-            out = None
+    ``agents[k]``, ``N`` each): commands ``(K, N, width)``. ``actions`` is either ``K`` action dicts
+    or one array ``(K, N, width)`` whose row ``actions[k, i]`` is the action of ``agents[k][i]`` (the
+    batched worlds pass their action block as it is). A float block of that shape with finite
+    values, or ``K`` dicts that are each the common case, are taken into one array; otherwise each
+    world's joint action is validated by :func:`to_commands` (the same ActionError, raised before
+    any command is returned)."""
+    if isinstance(actions, np.ndarray):
+        out = _common_block(actions, len(agents), len(agents[0]) if agents else 0, width)
+        if out is None:  # the uncommon case: each world's rows as its action dict, validated
+            if actions.shape[:2] != (len(agents), len(agents[0]) if agents else 0):
+                raise ActionError(f"actions: expected an array ({len(agents)}, {len(agents[0]) if agents else 0}, "
+                                  f"{width}) (worlds, agents, action), got shape {actions.shape}")
+            actions = [dict(zip(names, rows, strict=True)) for names, rows in zip(agents, actions, strict=True)]
+    else:
+        out = _common_dicts(actions, agents, width)
     if out is None:  # the uncommon case: each world's joint action checked on its own
         return np.stack([to_commands(a, names, max_speed, max_turn_rate, width)
                          for a, names in zip(actions, agents, strict=True)])
     np.minimum(np.maximum(out, -1.0, out=out), 1.0, out=out)  # clip (the values are finite here)
-    out[:, 0] *= max_speed
-    out[:, 1] *= max_turn_rate
-    return out.reshape(len(actions), -1, width)
+    out[..., 0] *= max_speed
+    out[..., 1] *= max_turn_rate
+    return out.reshape(len(agents), -1, width)
+
+
+def _common_block(actions: np.ndarray, k: int, n: int, width: int) -> np.ndarray | None:
+    """Raw ``(K, N, width)`` float64 actions (a copy) when the block is the common case (a real
+    floating array of exactly that shape, every value finite); None otherwise."""
+    if actions.shape != (k, n, width) or actions.dtype.kind != "f":
+        return None
+    out = actions.astype(float)
+    return out if np.isfinite(out).all() else None
+
+
+def _common_dicts(actions: Sequence[Mapping], agents: Sequence[Sequence[str]], width: int) -> np.ndarray | None:
+    """Raw ``(K N, width)`` actions when every one of the ``K`` joint actions is the common case
+    (see :func:`_common_case`); None otherwise."""
+    vals: list = []
+    for acts, names in zip(actions, agents, strict=True):
+        if type(acts) is not dict or len(acts) != len(names):
+            return None
+        try:
+            vals += [acts[a] for a in names]
+        except KeyError:
+            return None
+    if vals and all(type(v) is np.ndarray and v.shape == (width,) and v.dtype.kind == "f" for v in vals):
+        out = np.array(vals, dtype=float)
+        if np.isfinite(out).all():
+            return out
+    return None
 
 
 def _common_case(actions, agents: Sequence[str], width: int = 2) -> np.ndarray | None:

@@ -7,8 +7,11 @@ seeding, ``terminal_observation`` / ``TimeLimit.truncated`` / ``metrics`` in the
 policy trained on one trains on the other. The worlds step through the same public stepper as
 the ParallelEnv (:mod:`parcover_env.envs.stepper`), with ``K`` worlds instead of one:
 
-* each world steps its own pymunk space, pose estimator, Kinect system, mission and team (one
-  Python call per world, none per robot);
+* the ``(K n_robots, A)`` actions go to the stepper as one ``(K, n_robots, A)`` block (validated
+  there: a bad action raises the ActionError naming the agent before any world steps);
+* each world steps its own pymunk space (one space per world); the drives, the wheel odometry
+  and the Kinect systems (estimate model, tracker) of all worlds run in compiled calls over the
+  ``(K, n_robots)`` axis, writing back into each world's own state;
 * the sensors measure **all robots of all worlds** in one call each (the follower cameras' lines
   of sight, the sonar rings' casts, cross-talk and noise, and any other ``sensor`` entry of the
   observation spec): the worlds share the static walls, each robot sees the robots of its own
@@ -28,6 +31,7 @@ them (and the Mission) between the worlds.
 from __future__ import annotations
 
 import copy
+from itertools import chain
 from typing import Any
 
 import numpy as np
@@ -120,25 +124,26 @@ class BatchedVecEnv(VecEnv):
             raise RuntimeError("step_wait() without step_async()")
         acts, self._actions = self._actions, None
         n, names = self.n_robots, self.agents_per_world
-        world_obs, outs = stepper.step(self.worlds, [dict(zip(names, acts[k * n:(k + 1) * n], strict=True))
-                                                     for k in range(self.n_worlds)])
-        obs = np.empty((self.num_envs, *self._zero.shape), dtype=self._zero.dtype)
-        rewards = np.empty(self.num_envs, dtype=np.float32)
+        # the (K N, A) slots as the (K, N, A) block of the worlds' agents (validated by the act phase)
+        world_obs, outs = stepper.step(self.worlds, acts.reshape(self.n_worlds, n, *acts.shape[1:]))
+        obs = world_obs.reshape(self.num_envs, *world_obs.shape[2:])  # the slots, world by world (a view)
+        rewards = np.fromiter(chain.from_iterable(out[0].values() for out in outs), np.float32, self.num_envs)
         dones = np.zeros(self.num_envs, dtype=bool)
         infos: list[dict] = []
-        for k, (rew, term, trunc, inf) in enumerate(outs):
-            o, rows = world_obs[k], slice(k * n, (k + 1) * n)
-            rewards[rows] = list(rew.values())  # the world's agents, in order
+        copied = False
+        for k, (_, term, trunc, inf) in enumerate(outs):
             t, tr = term[names[0]], trunc[names[0]]  # all robots of a world end together
             if t or tr:
+                if not copied:  # the terminal observations stay the worlds' rows: reset into a copy
+                    obs, copied = obs.copy(), True
+                o, rows = world_obs[k], slice(k * n, (k + 1) * n)
                 infos += [stepper.slot_info(inf[a], o[i], t, tr) for i, a in enumerate(names)]
                 dones[rows] = True
-                o = self._reset_world(k)
+                obs[rows] = self._reset_world(k)
             else:  # stepper.slot_info of a running episode: no metrics yet, only ``active``
                 for info in inf.values():
                     info["active"] = True
                 infos += inf.values()
-            obs[rows] = o
         return obs, rewards, dones, infos
 
     def close(self) -> None:

@@ -22,7 +22,7 @@ from parcover_env.geometry.stacking import stack
 from parcover_env.localization.kinect.batch_update import update_systems
 from parcover_env.localization.kinect.system import KinectSystem
 from parcover_env.sensors.odometry import Odometry, measure_wheels_all
-from parcover_env.world.drive import wheel_targets
+from parcover_env.world.drive import take_travel_all, wheel_targets
 
 __all__ = ["FixRequest", "FixSource", "KinectFixes", "PoseEstimator", "update_all"]
 
@@ -121,19 +121,14 @@ def update_all(estimators: Sequence[PoseEstimator], true: Sequence[np.ndarray], 
     dt = s.physics.control_dt
     k = len(estimators)
     if s.robot.odometry.model == "wheels":
-        travel, change = [], []
-        for drive, cmd in zip(drives, commands, strict=True):
-            if drive is not None:
-                t, c = drive.take_travel()
-            else:  # instant drive: the wheels turned at the commanded speeds all step
-                t = wheel_targets(cmd, s.robot.drive.wheel_base, np.inf) * dt
-                c = np.zeros_like(t)
-            travel.append(t)
-            change.append(c)
-        travel_all = stack(travel)
+        if drives[0] is not None:
+            travel_all, change_all = take_travel_all(list(drives))
+        else:  # instant drive: the wheels turned at the commanded speeds all step
+            cmd = np.asarray(commands, dtype=float)
+            travel_all = wheel_targets(cmd.reshape(-1, 2), s.robot.drive.wheel_base, np.inf).reshape(cmd.shape) * dt
+            change_all = np.zeros_like(travel_all)
         before = stack([e.odometry.estimate for e in estimators], copy=True)
-        measure_wheels_all([e.odometry for e in estimators], travel_all, stack(change), dt, list(rngs))
-        est = stack([e.odometry.estimate for e in estimators])
+        est = measure_wheels_all([e.odometry for e in estimators], travel_all, change_all, dt, list(rngs))
         velocity = np.empty((k, est.shape[1], 2))  # (signed distance, heading change) over the step / dt
         np.multiply(np.hypot(est[..., 0] - before[..., 0], est[..., 1] - before[..., 1]),
                     np.sign(travel_all[..., 0] + travel_all[..., 1]), out=velocity[..., 0])

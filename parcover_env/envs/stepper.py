@@ -84,8 +84,9 @@ def observe(worlds: Sequence[Any], true: np.ndarray, goals: np.ndarray | None = 
     return obs
 
 
-def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.ndarray, list[tuple]]:
-    """One step of every world (``actions[k]``: world ``k``'s action dict): the observations
+def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -> tuple[np.ndarray, list[tuple]]:
+    """One step of every world (``actions[k]``: world ``k``'s action dict, or one array ``(K, N, A)``
+    of every world's agents' actions in agent order, as :func:`act` takes them): the observations
     ``(K, N, D)`` and each world's ``(rewards, terminations, truncations, infos)``."""
     before, true = act(worlds, actions)
     scores = score(worlds, before, true)
@@ -93,7 +94,7 @@ def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.n
     return obs, outputs(worlds, true, scores)
 
 
-def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]]) -> tuple[np.ndarray, np.ndarray]:
+def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Part 1a of every world (:func:`parcover_env.envs.act_phase.act`: act, physics, pose estimates):
     the true poses ``(K, N, 3)`` before and after the step."""
     return act_phase.act(worlds, actions)

@@ -171,11 +171,12 @@ class Odometry:
 
 
 def measure_wheels_all(odometries: list[Odometry], travel: np.ndarray, speed_change: np.ndarray, dt: float,
-                       rngs: list[np.random.Generator]) -> None:
+                       rngs: list[np.random.Generator]) -> np.ndarray:
     """:meth:`Odometry.measure_wheels` of ``K`` odometries of ``N`` robots each (one configuration)
     in one compiled call over all ``K N`` robots: ``travel`` and ``speed_change`` ``(K, N, 2)``.
     Odometry ``k`` draws its ``4 N`` normals from ``rngs[k]`` as alone and its estimate, covariance,
-    ``travelled`` and ``turned`` arrays are updated in place (the same floats as alone)."""
+    ``travelled`` and ``turned`` arrays are updated in place (the same floats as alone). Returns the
+    new estimates ``(K, N, 3)`` (a copy for ``K > 1``, a view of the odometry's own for ``K = 1``)."""
     k, n = len(odometries), len(odometries[0].estimate)
     z = [rng.standard_normal(4 * n) for rng in rngs]
     travel = np.ascontiguousarray(travel, dtype=float).reshape(k * n, 2)
@@ -184,7 +185,7 @@ def measure_wheels_all(odometries: list[Odometry], travel: np.ndarray, speed_cha
     if k == 1:  # one odometry: its own arrays, no gather
         onboard_kernels.wheel_odometry(first.estimate, first.covariance, first.travelled, first.turned, travel,
                                        change, float(dt), z[0], first.factors, first.believed_base, first.wheel_errors)
-        return
+        return first.estimate[None]
     # the kernel reads the normals as (2, K N, 2): each odometry's (2, N, 2) block in its rows
     zs = np.stack(z).reshape(k, 2, n, 2).transpose(1, 0, 2, 3).reshape(-1)
     est = np.concatenate([o.estimate for o in odometries])
@@ -201,3 +202,4 @@ def measure_wheels_all(odometries: list[Odometry], travel: np.ndarray, speed_cha
         o.covariance[:] = cov[rows]
         o.travelled[:] = travelled[rows]
         o.turned[:] = turned[rows]
+    return est.reshape(k, n, 3)

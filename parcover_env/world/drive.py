@@ -11,8 +11,9 @@ import math
 import numpy as np
 
 from parcover_env.config import DriveConfig
+from parcover_env.geometry.stacking import stack
 
-__all__ = ["DiffDrive", "wheel_targets", "lag_step", "body_velocity", "advance_steps_all"]
+__all__ = ["DiffDrive", "wheel_targets", "lag_step", "body_velocity", "advance_steps_all", "take_travel_all"]
 
 
 def wheel_targets(commands: np.ndarray, wheel_base: float, wheel_speed_max: float) -> np.ndarray:
@@ -113,3 +114,15 @@ def advance_steps_all(drives: list[DiffDrive], targets: np.ndarray, dt: float, s
             d.travel[:] = travel[rows]
             d.speed_change[:] = change[rows]
     return out.reshape(steps, k, n, 2)
+
+
+def take_travel_all(drives: list[DiffDrive]) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`DiffDrive.take_travel` of ``K`` drives of ``n`` robots each: their wheel distances and
+    summed |speed changes| as two ``(K, n, 2)`` blocks (copies); each drive's own arrays are
+    zeroed in place."""
+    travel = stack([d.travel for d in drives], copy=True)
+    change = stack([d.speed_change for d in drives], copy=True)
+    for d in drives:
+        d.travel.fill(0.0)
+        d.speed_change.fill(0.0)
+    return travel, change

@@ -18,6 +18,7 @@ physics step; the body velocity it returns is what ``velocity_func`` applies. ``
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 import pymunk
@@ -33,7 +34,7 @@ from parcover_env.geometry import wrap_angle
 from parcover_env.world.drive import DiffDrive, wheel_targets
 from parcover_env.world.map_model import MapModel
 
-__all__ = ["World"]
+__all__ = ["World", "poses_all"]
 
 _COMPILED: dict = {}
 
@@ -218,6 +219,12 @@ class World:
                 self._suppress = set()
         self.time += self.physics.control_dt
 
+    @property
+    def body_addresses(self) -> np.ndarray | None:
+        """The chipmunk addresses ``(N,)`` of the robots' bodies, read by the compiled body access
+        (:mod:`parcover_env.world.body_kernels`); None where pymunk's Python callbacks run."""
+        return self._addresses
+
     def poses(self) -> np.ndarray:
         """Ground-truth poses ``(N, 3)``: x, y (m), theta (rad, wrapped to (-pi, pi])."""
         out = np.empty((self.n, 3))
@@ -230,6 +237,22 @@ class World:
             out[i, 2] = b.angle
         out[:, 2] = wrap_angle(out[:, 2])
         return out
+
+
+def poses_all(worlds: Sequence[World]) -> np.ndarray:
+    """Ground-truth poses ``(K, N, 3)`` of ``K`` worlds of ``N`` robots each (:meth:`World.poses` of
+    each, the same floats): the bodies of all worlds read in one compiled call when every world
+    uses the compiled body access."""
+    if len(worlds) == 1:
+        return worlds[0].poses()[None]
+    addresses = [w.body_addresses for w in worlds]
+    if any(a is None for a in addresses):
+        return np.stack([w.poses() for w in worlds])
+    flat = np.concatenate(addresses)
+    out = np.empty((len(flat), 3))
+    _kernels().read_poses(flat, out)
+    out[:, 2] = wrap_angle(out[:, 2])
+    return out.reshape(len(worlds), -1, 3)
 
 
 class _CommandRows:

@@ -10,12 +10,14 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.config import DriveConfig, OdometryConfig
+from parcover_env.config import DriveConfig, MapConfig, OdometryConfig, PhysicsConfig
 from parcover_env.envs import act_phase
 from parcover_env.envs.actions import to_commands, to_commands_all
 from parcover_env.errors import ActionError
 from parcover_env.sensors.odometry import Odometry, measure_wheels_all
-from parcover_env.world.drive import DiffDrive, advance_steps_all
+from parcover_env.world.drive import DiffDrive, advance_steps_all, take_travel_all
+from parcover_env.world.map_model import MapModel
+from parcover_env.world.physics import World, poses_all
 
 AGENTS = ["robot_0", "robot_1"]
 
@@ -50,6 +52,34 @@ def test_to_commands_all_raises_to_commands_error_of_the_bad_world(bad, message)
     assert str(block.value) == str(alone.value) and message in str(block.value)
 
 
+def test_to_commands_all_of_an_action_block_is_that_of_its_dicts_and_pinned():
+    block = np.array([[[0.5, -0.25], [2.0, 1.0]], [[-1.0, 0.125], [0.0, -3.0]]], dtype=np.float32)
+    got = to_commands_all(block, [AGENTS, AGENTS], 0.3, 2.0)
+    dicts = [_joint(block[0]), _joint(block[1])]
+    np.testing.assert_array_equal(got, to_commands_all(dicts, [AGENTS, AGENTS], 0.3, 2.0))
+    np.testing.assert_array_equal(got, [[[0.15, -0.5], [0.3, 2.0]], [[-0.3, 0.25], [0.0, -2.0]]])
+    assert block[0, 1, 0] == 2.0  # the caller's block is not clipped in place, float32 ...
+    wide = block.astype(float)
+    to_commands_all(wide, [AGENTS, AGENTS], 0.3, 2.0)
+    assert wide[0, 1, 0] == 2.0  # ... nor float64
+    wide = to_commands_all(np.array([[[0.5, 0.5, 1.0], [0.0, 0.0, -1.0]]]), [AGENTS], 0.3, 2.0, width=3)
+    np.testing.assert_array_equal(wide[0], [[0.15, 1.0, 1.0], [0.0, 0.0, -1.0]])
+
+
+@pytest.mark.parametrize("block, message", [
+    (np.array([[[0.0, 0.0], [0.0, 0.0]], [[np.inf, 0.0], [0.0, 0.0]]]), "robot_0: action contains NaN or inf"),
+    (np.array([[[0.0, 0.0], [0.0, 0.0]], [[0.0, 0.0], [0.0, np.nan]]]), "robot_1: action contains NaN or inf"),
+    (np.zeros((2, 2, 3)), "robot_0: action must have shape (2,)"),
+    (np.zeros((2, 2, 2), dtype=complex), "robot_0: action is not numeric"),
+    (np.zeros((2, 2, 2), dtype=bool), "robot_0: action is not numeric"),
+    (np.zeros((3, 2, 2)), "expected an array (2, 2, 2) (worlds, agents, action), got shape (3, 2, 2)"),
+])
+def test_to_commands_all_of_a_bad_block_raises_the_bad_agents_error(block, message):
+    with pytest.raises(ActionError) as err:
+        to_commands_all(block, [AGENTS, AGENTS], 0.3, 2.0)
+    assert message in str(err.value)
+
+
 def test_advance_steps_all_is_advance_steps_per_drive_and_pinned():
     cfg = DriveConfig()
     a, b = DiffDrive(cfg, 2), DiffDrive(cfg, 2)
@@ -69,6 +99,40 @@ def test_advance_steps_all_is_advance_steps_per_drive_and_pinned():
     np.testing.assert_allclose(a.speed_change[0], [0.04, 0.04], rtol=0, atol=1e-15)
 
 
+def test_take_travel_all_is_take_travel_per_drive_and_pinned():
+    a, b = DiffDrive(DriveConfig(), 2), DiffDrive(DriveConfig(), 2)
+    a.travel[:] = [[0.01, 0.02], [0.0, -0.03]]
+    b.travel[:] = [[0.5, 0.25], [0.125, 0.0]]
+    b.speed_change[:] = [[0.1, 0.0], [0.0, 0.2]]
+    alone = [copy.deepcopy(a).take_travel(), copy.deepcopy(b).take_travel()]
+    travel, change = take_travel_all([a, b])
+    np.testing.assert_array_equal(travel, [alone[0][0], alone[1][0]])
+    np.testing.assert_array_equal(change, [alone[0][1], alone[1][1]])
+    np.testing.assert_array_equal(travel[1], [[0.5, 0.25], [0.125, 0.0]])
+    np.testing.assert_array_equal(change[1], [[0.1, 0.0], [0.0, 0.2]])
+    for d in (a, b):  # taken: the next step starts from zero
+        assert not d.travel.any() and not d.speed_change.any()
+
+
+def test_poses_all_is_poses_per_world_and_pinned(monkeypatch):
+    box = MapModel.from_config(MapConfig(size=(4.0, 3.0)))
+    physics = PhysicsConfig(dt=0.02, substeps=5)
+    a = World(box, 0.15, physics, np.array([[1.0, 1.5, 0.0], [3.0, 1.0, 3.0]]))
+    b = World(box, 0.15, physics, np.array([[2.0, 2.0, -1.0], [0.5, 0.5, 1.5]]))
+    a.step(np.array([[0.3, 0.0], [0.0, 2.0]]))  # robot 1 turns past pi: the heading wraps
+    b.step(np.array([[0.0, 0.0], [0.2, -0.5]]))
+    got = poses_all([a, b])
+    np.testing.assert_array_equal(got, [a.poses(), b.poses()])
+    np.testing.assert_array_equal(poses_all([b])[0], b.poses())
+    np.testing.assert_allclose(got[0, 0], [1.0 + 0.3 * 0.08, 1.5, 0.0], rtol=0, atol=1e-12)  # one substep late
+    np.testing.assert_allclose(got[0, 1], [3.0, 1.0, 3.0 + 0.16 - 2 * math.pi], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(got[1, 0], [2.0, 2.0, -1.0])
+    monkeypatch.setattr(World, "compiled", False)  # pymunk's Python bodies: the same floats
+    slow = World(box, 0.15, physics, np.array([[1.0, 1.5, 0.0], [3.0, 1.0, 3.0]]))
+    slow.step(np.array([[0.3, 0.0], [0.0, 2.0]]))
+    np.testing.assert_array_equal(poses_all([slow, b]), got)
+
+
 def _odometry(poses, rng=None) -> Odometry:
     return Odometry(OdometryConfig(), np.array(poses, dtype=float), 0.18, rng)
 
@@ -81,7 +145,8 @@ def test_measure_wheels_all_is_measure_wheels_per_odometry():
     change = np.array([[[0.1, 0.0], [0.2, 0.1]], [[0.0, 0.3], [0.0, 0.0]]])
     alone = [copy.deepcopy(a), copy.deepcopy(b)]
     rngs = [np.random.default_rng(10), np.random.default_rng(11)]
-    measure_wheels_all([a, b], travel, change, 0.1, rngs)
+    est = measure_wheels_all([a, b], travel, change, 0.1, rngs)
+    np.testing.assert_array_equal(est, [a.estimate, b.estimate])
     for k, (o, ref) in enumerate(zip([a, b], alone, strict=True)):
         ref.measure_wheels(travel[k], change[k], 0.1, np.random.default_rng(10 + k))
         for name in ("estimate", "covariance", "travelled", "turned"):
@@ -120,15 +185,16 @@ SCAN = {"observation": {"scan": {"enabled": True}}}
 @pytest.mark.parametrize("scenario, overrides", [("tree", None), ("office", SCAN)])
 def test_act_of_two_worlds_is_act_of_each_alone(scenario, overrides):
     """Drive, physics, odometry, Kinect fixes (and the scan fixes) of K = 2 worlds of different
-    states: the same floats as each world acting alone."""
+    states: the same floats as each world acting alone (the actions as dicts, or as one block)."""
     batch = _envs(scenario, [1, 2], overrides)
     alone = [copy.deepcopy(w) for w in batch]
     rng = np.random.default_rng(0)
     width = batch[0].action_space(batch[0].agents[0]).shape[0]
     fixed = 0
-    for _ in range(25):
-        actions = [{a: rng.uniform(-1, 1, width).astype(np.float32) for a in w.agents} for w in batch]
-        before, true = act_phase.act(batch, actions)
+    for step in range(25):
+        block = rng.uniform(-1, 1, (2, len(batch[0].agents), width)).astype(np.float32)
+        actions = [dict(zip(w.agents, rows, strict=True)) for w, rows in zip(batch, block, strict=True)]
+        before, true = act_phase.act(batch, block if step % 2 else actions)
         for k, w in enumerate(alone):
             b1, t1 = w.act(dict(actions[k]))
             np.testing.assert_array_equal(before[k], b1)

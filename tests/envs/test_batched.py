@@ -16,6 +16,7 @@ import parcover_env  # noqa: E402
 from parcover_env.envs.batched import BatchedVecEnv  # noqa: E402
 from parcover_env.envs.metrics import episode_metrics  # noqa: E402
 from parcover_env.envs.vec_env import ParallelVecEnv, make_vec_env  # noqa: E402
+from parcover_env.errors import ActionError  # noqa: E402
 
 
 def _equal(a, b) -> bool:
@@ -161,6 +162,15 @@ def test_vec_env_api():
     assert frames[0].dtype == np.uint8 and not np.array_equal(frames[0], frames[n])
     with pytest.raises(ValueError, match="rows"):
         venv.step(np.zeros((2 * n + 1, 2), np.float32))
+    bad = np.zeros((2 * n, 2), np.float32)
+    bad[n + 1, 1] = np.nan  # world 1's second robot
+    with pytest.raises(ActionError, match=f"{venv.agents_per_world[1]}: action contains NaN"):
+        venv.step(bad)
+    with pytest.raises(ActionError, match=r"must have shape \(2,\)"):
+        venv.step(np.zeros((2 * n, 3), np.float32))
+    assert venv.get_attr("steps", indices=[0, n]) == [11, 11]  # no world stepped
+    venv.step(np.zeros((2 * n, 2), np.int64))  # integers: validated, then taken as they are
+    assert venv.get_attr("steps", indices=[0, n]) == [12, 12]
     venv.close()
 
 

@@ -171,3 +171,95 @@ def test_update_systems_pinned_on_office(kinect):
     assert rng.bit_generator.state == state  # nothing drawn
     far = predicted + np.array([1.5, 0.0, 0.0])  # predicted beyond the gate (1 m): no match, no fix
     assert update_systems([system], [0.3], true, np.array([[True, False]]), far, [rng]) == [{}]
+
+
+def test_match_kernel_pinned_on_hand_built_worlds():
+    """World 0: two estimates far apart (the 4-marker one first: the tracker's order), each fused to
+    itself (``(w x) / w``, heading wrapped) and matched to the carrier within the gate; world 1: two
+    estimates within the fuse radius, world 2: one within the gate of two carriers, world 3: one at the
+    gate to 1e-12, world 4: two at the fuse radius to 1e-12: left to the tracker."""
+    from parcover_env.localization.kinect import track_kernel
+
+    est = np.array([[0.1, 1.0, 0.5, 3], [4.0, 4.0, 3.5, 4],  # world 0
+                    [2.0, 2.0, 0.0, 4], [2.05, 2.0, 0.0, 4],  # world 1
+                    [3.0, 3.0, 0.0, 4],  # world 2
+                    [5.0, 5.0, 0.0, 4],  # world 3
+                    [6.0, 6.0, 0.0, 4], [6.0, 6.0 + 0.12 * (1 + 1e-12), 0.0, 4]], dtype=float)  # world 4
+    starts = np.array([0, 2, 4, 5, 6, 8])
+    ref = np.zeros((5, 3, 2))
+    ref[0] = [[0.1 + 0.2995, 1.0], [9.0, 9.0], [4.0, 3.8]]
+    ref[1] = [[2.0, 2.0], [0.0, 0.0], [0.0, 0.0]]
+    ref[2] = [[3.1, 3.0], [2.9, 3.0], [0.0, 0.0]]
+    ref[3] = [[5.3 + 1e-12, 5.0], [0.0, 0.0], [0.0, 0.0]]
+    ref[4] = [[9.0, 9.0], [0.0, 0.0], [0.0, 0.0]]
+    carriers = np.array([[True, True, True], [True, False, False], [True, True, False], [True, False, False],
+                         [True, False, False]])
+    fused, robot, status = np.full((8, 3), np.nan), np.full(8, -9), np.full(5, -9)
+    track_kernel.match(est, starts, ref, carriers, 0.3, 0.12, fused, robot, status)
+    assert status.tolist() == [0, 1, 1, 1, 1]
+    assert fused[1, 0] == (3.0 * 0.1) / 3.0 != 0.1  # the tracker's weighted mean, in its floats
+    np.testing.assert_allclose(fused[:2], [[4.0, 4.0, 3.5 - 2 * np.pi], [0.1, 1.0, 0.5]], rtol=0, atol=1e-15)
+    assert robot[:2].tolist() == [2, 0]
+    ref[0, 2] = [4.0, 3.69]  # beyond the gate: unmatched
+    track_kernel.match(est, starts, ref, carriers, 0.3, 0.12, fused, robot, status)
+    assert robot[:2].tolist() == [-1, 0] and status[0] == 0
+    carriers[0, 0] = False  # not a carrier: never matched
+    track_kernel.match(est, starts, ref, carriers, 0.3, 0.12, fused, robot, status)
+    assert robot[:2].tolist() == [-1, -1]
+
+
+def test_track_all_is_each_systems_track_on_random_worlds():
+    """The compiled fusion and matching of B worlds (or the tracker where a world leaves the common
+    case: fused clusters, crowded gates, promoted robots at their hand-over poses) gives each system's
+    ``track``: the same fixes, tracker state and hand-over."""
+    from parcover_env.localization.kinect import batch_update, track_kernel
+    from parcover_env.localization.kinect.pipeline import PoseEstimate
+
+    systems, _ = _systems([8, 9, 10])
+    gate, fuse_radius = systems[0].tracking.gate, systems[0].tracking.fuse_radius  # 1 m, 0.12 m
+    g = np.random.default_rng(5)
+    n, flagged, kernel_fixed, handed = 6, 0, 0, 0
+    for step in range(150):
+        alone = [copy.deepcopy(s) for s in systems]
+        markers = g.random((3, n)) < 0.5
+        markers[:, 0] = True
+        predicted = np.column_stack([g.uniform(0, 9, (3 * n, 2)), g.uniform(-3, 3, 3 * n)]).reshape(3, n, 3)
+        world, pose = [], []
+        for b in range(3):
+            for i in np.flatnonzero(markers[b]):
+                for _ in range(g.integers(0, 3)):  # 0, 1 or 2 Kinects see it
+                    world.append(b)
+                    pose.append(tuple(predicted[b, i] + g.normal(0, [0.5, 0.5, 0.5])))
+        n_markers = int(g.integers(3, 6))
+        found = batch_update.Detections(world, [0] * len(world), [0] * len(world), pose, n_markers)
+        if step % 3 == 0:  # promoted robots (a carrier now or not) await their first detection
+            promoted = {0: predicted[0, 0] + [0.8, 0.0, 0.0], 1: predicted[0, 1] + [0.0, -0.8, 0.0]}
+            for s in [*systems, *alone]:
+                s.hand_over(promoted, predicted[0])
+        times = [0.1 * step] * 3
+        got = batch_update.track_all(systems, found, markers, predicted, times)
+        est = np.array([(*p, n_markers) for p in pose], dtype=float).reshape(-1, 4)
+        starts = np.searchsorted(world, np.arange(4))
+        status = np.empty(3, np.int64)
+        track_kernel.match(est, starts, np.ascontiguousarray(predicted[..., :2]), markers, gate, fuse_radius,
+                           np.empty((len(est), 3)), np.empty(len(est), np.int64), status)
+        flagged += int(status.sum())
+        for b, s in enumerate(alone):
+            per = [PoseEstimate(*p, n_markers) for w, p in zip(world, pose, strict=True) if w == b]
+            want = s.track([per], markers[b], predicted[b], times[b])
+            assert list(got[b]) == list(want)
+            for i in want:
+                np.testing.assert_array_equal(got[b][i], want[i])
+            kernel_fixed += len(want) if not status[b] else 0
+            t, u = systems[b].tracker, s.tracker
+            assert list(t.poses) == list(u.poses) and t.last_seen == u.last_seen
+            for i in u.poses:
+                np.testing.assert_array_equal(t.poses[i], u.poses[i])
+            np.testing.assert_array_equal(np.reshape(t.unassigned, (-1, 3)), np.reshape(u.unassigned, (-1, 3)))
+            assert systems[b].last_fixes.keys() == s.last_fixes.keys()
+            assert systems[b].handover.keys() == s.handover.keys()
+            # a promoted robot stays in the hand-over while it carries markers and is not detected
+            assert set(systems[b].handover) <= set(np.flatnonzero(markers[b]).tolist()) - set(got[b])
+            handed += len(systems[b].handover)
+    assert 50 < flagged < 400 and kernel_fixed > 100, (flagged, kernel_fixed)  # both paths taken
+    assert handed > 10

@@ -9,24 +9,27 @@ of every due Kinect of every world runs in ONE compiled call over the (world, Ki
 wall occlusion, detection probability, the reconstructed pose), and then each world draws its
 random numbers from its own generator in the order the per-world model draws them (per due Kinect
 a frame-drop uniform if its drop rate is positive, then per visible carrier a detection uniform
-and, if detected, three normals), so world ``k`` gets the same floats as alone. ``kinect:
-frames`` (rendering) stays per world (:meth:`KinectSystem.frame_estimates`).
+and, if detected, three normals), so world ``k`` gets the same floats as alone. The trackers of
+all those worlds then fuse and match in ONE compiled call (:func:`track_all`,
+:func:`~parcover_env.localization.kinect.track_kernel.match`); a world outside the common case
+(estimates to fuse, a crowded gate) goes through its own tracker. ``kinect: frames`` (rendering)
+stays per world (:meth:`KinectSystem.frame_estimates`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from parcover_env.geometry.stacking import stack
 from parcover_env.geometry.wrap_formula import wrap
-from parcover_env.localization.kinect import estimate_kernel
+from parcover_env.localization.kinect import estimate_kernel, track_kernel
 from parcover_env.localization.kinect.pipeline import PoseEstimate
 from parcover_env.sensors.kinect import check_poses
 
-__all__ = ["update_systems", "fast_estimates"]
+__all__ = ["update_systems", "fast_estimates", "track_all", "Detections"]
 
 
 def update_systems(systems: Sequence[Any], times: Sequence[float], true: np.ndarray, markers: np.ndarray,
@@ -40,11 +43,11 @@ def update_systems(systems: Sequence[Any], times: Sequence[float], true: np.ndar
     now = np.asarray(times, dtype=float)[:, None]
     ticks = stack([s.next_tick for s in systems])
     due = ticks <= now + 1e-9
-    active = due.any(axis=1) & markers.any(axis=1)
+    active = (due.any(axis=1) & markers.any(axis=1)).tolist()
     new_ticks = np.where(due, now + systems[0].periods, ticks)  # each due Kinect's next frame
     batch = []
-    for k, s in enumerate(systems):
-        s.next_tick[:] = new_ticks[k]
+    for k, (s, tick) in enumerate(zip(systems, new_ticks, strict=True)):
+        s.next_tick[:] = tick
         s.last_fixes = {}
         if not active[k]:
             continue
@@ -61,11 +64,28 @@ def update_systems(systems: Sequence[Any], times: Sequence[float], true: np.ndar
         if not np.isfinite(true[rows]).all():
             for k in ks:
                 check_poses(true[k], markers[k])  # the ValueError naming what is wrong
-        per = fast_estimates([systems[k] for k in ks], due[rows], true[rows], markers[rows], [times[k] for k in ks],
-                             [rngs[k] for k in ks])
-        for k, found in zip(ks, per, strict=True):
-            out[k] = systems[k].track([found], markers[k], predicted[k], times[k])
+        found = _detections([systems[k] for k in ks], due[rows], true[rows], markers[rows], [times[k] for k in ks],
+                            [rngs[k] for k in ks])
+        fixes = track_all([systems[k] for k in ks], found, markers[rows], predicted[rows], [times[k] for k in ks])
+        for k, f in zip(ks, fixes, strict=True):
+            out[k] = f
     return out
+
+
+class Detections(NamedTuple):
+    """The detections of one step's due Kinects in ``B`` worlds, world by world (each in its
+    Kinects' order): flat lists, one entry per detection."""
+
+    world: list[int]
+    """The world (``0 .. B - 1``) of each detection, ascending."""
+    kinect: list[int]
+    """The Kinect that saw it (index into the system's sensors)."""
+    robot: list[int]
+    """The carrier it was sampled from (do not use for association)."""
+    pose: list[tuple[float, float, float]]
+    """The estimated pose ``(x, y, theta)``."""
+    n_markers: int
+    """The markers of every estimate (the pattern's)."""
 
 
 def fast_estimates(systems: Sequence[Any], due: np.ndarray, true: np.ndarray, markers: np.ndarray,
@@ -74,6 +94,22 @@ def fast_estimates(systems: Sequence[Any], due: np.ndarray, true: np.ndarray, ma
     models share one set of static depths) at true poses ``true[b] (N, 3)`` of the carriers
     ``markers[b] (N,)``: per system, the estimates of its due Kinects in their order (as
     :meth:`~parcover_env.localization.kinect.estimate_model.FastModel.estimate`, one list)."""
+    found = _detections(systems, due, true, markers, times, rngs)
+    return [_estimates(systems[0], found, range(len(found.world)), times) if len(systems) == 1 else
+            _estimates(systems[b], found, [d for d, w in enumerate(found.world) if w == b], times)
+            for b in range(len(systems))]
+
+
+def _estimates(system: Any, found: Detections, which: Sequence[int], times: Sequence[float]) -> list[PoseEstimate]:
+    """The detections ``which`` (indices into ``found``) of ``system`` as PoseEstimates."""
+    names = [s.name for s in system.fast.sensors]
+    return [PoseEstimate(*found.pose[d], found.n_markers, kinect=names[found.kinect[d]],
+                         stamp=times[found.world[d]], truth_index=found.robot[d]) for d in which]
+
+
+def _detections(systems: Sequence[Any], due: np.ndarray, true: np.ndarray, markers: np.ndarray,
+                times: Sequence[float], rngs: Sequence[np.random.Generator]) -> Detections:
+    """:func:`fast_estimates` as flat lists (every world's draws, in its order)."""
     models = [s.fast for s in systems]
     n_kinects = due.shape[1]
     rows = np.flatnonzero(due)  # world b's Kinect q is row b S + q of the stacked tables
@@ -91,14 +127,12 @@ def fast_estimates(systems: Sequence[Any], due: np.ndarray, true: np.ndarray, ma
     row_drop = np.empty(len(rows))
     n = estimate_kernel.candidates(index, poses, np.ascontiguousarray(markers, dtype=bool), kinects, pattern,
                                    models[0].depths, models[0].noise, row_drop, out_row, out_index, out_geom)
-    n_markers = pattern.shape[1]
     drop = row_drop.tolist()
-    names = [s.name for s in models[0].sensors]
     cand_row, cand_index, geom = out_row[:n].tolist(), out_index[:n].tolist(), out_geom[:n].tolist()
-    per: list[list[PoseEstimate]] = [[] for _ in models]
+    found = Detections([], [], [], [], pattern.shape[1])
     c = 0
     for r, (b, q) in enumerate(zip(row_world.tolist(), row_depth.tolist(), strict=True)):
-        rng, found = rngs[b], per[b]
+        rng = rngs[b]
         dropped = drop[r] > 0.0 and rng.random() < drop[r]
         while c < n and cand_row[c] == r:
             i = cand_index[c]
@@ -107,7 +141,39 @@ def fast_estimates(systems: Sequence[Any], due: np.ndarray, true: np.ndarray, ma
             if dropped or merged or rng.random() >= p_det:
                 continue  # the frame dropped, the markers merged, or too small to be found
             z = rng.standard_normal(3).tolist()  # as rng.normal(0, sigma) three times
-            found.append(PoseEstimate(x + (0.0 + sigma_xy * z[0]), y + (0.0 + sigma_xy * z[1]),
-                                      wrap(th + (0.0 + sigma_th * z[2])), n_markers, kinect=names[q],
-                                      stamp=times[b], truth_index=i))
-    return per
+            found.world.append(b)
+            found.kinect.append(q)
+            found.robot.append(i)
+            found.pose.append((x + (0.0 + sigma_xy * z[0]), y + (0.0 + sigma_xy * z[1]),
+                               wrap(th + (0.0 + sigma_th * z[2]))))
+    return found
+
+
+def track_all(systems: Sequence[Any], found: Detections, markers: np.ndarray, predicted: np.ndarray,
+              times: Sequence[float]) -> list[dict[int, np.ndarray]]:
+    """:meth:`KinectSystem.track <parcover_env.localization.kinect.system.KinectSystem.track>` of ``B``
+    systems (one scenario) for their ``found`` detections, carriers ``markers (B, N)`` and predicted
+    poses ``predicted (B, N, 3)``: every world's fusion and matching in one compiled call
+    (:func:`~parcover_env.localization.kinect.track_kernel.match`), a world outside its common
+    case through its own tracker; the same fixes (and tracker state) as ``track`` of each."""
+    b_count = len(systems)
+    t = systems[0].tracking
+    est = np.empty((len(found.world), 4))
+    if found.world:
+        est[:, :3] = found.pose
+    est[:, 3] = found.n_markers
+    starts = np.searchsorted(np.asarray(found.world, dtype=np.int64), np.arange(b_count + 1))
+    ref = np.stack([s.references(p) for s, p in zip(systems, predicted, strict=True)]) \
+        if any(s.handover for s in systems) else predicted
+    fused, robot, status = np.empty((len(est), 3)), np.empty(len(est), np.int64), np.empty(b_count, np.int64)
+    track_kernel.match(est, starts, np.ascontiguousarray(ref[..., :2]), np.ascontiguousarray(markers, dtype=bool),
+                       float(t.gate), float(t.fuse_radius), fused, robot, status)
+    bounds, robots, flagged, poses = starts.tolist(), robot.tolist(), status.tolist(), list(fused)
+    out = []
+    for b, s in enumerate(systems):
+        lo, hi = bounds[b], bounds[b + 1]
+        if flagged[b]:  # outside the common case: the system's own tracking
+            out.append(s.track([_estimates(s, found, range(lo, hi), times)], markers[b], predicted[b], times[b]))
+        else:
+            out.append(s.tracked(s.tracker.assign(poses[lo:hi], robots[lo:hi], times[b]), markers[b]))
+    return out

@@ -126,11 +126,27 @@ class KinectSystem:
         the matched robots' fixes (also :attr:`last_fixes`)."""
         ids = np.flatnonzero(markers)
         ref = {int(i): compose(self.handover[i], predicted[i]) if i in self.handover else predicted[i] for i in ids}
-        self.last_fixes = self.tracker.update(per_kinect, ref, stamp=time)
+        return self.tracked(self.tracker.update(per_kinect, ref, stamp=time), markers)
+
+    def references(self, predicted: np.ndarray) -> np.ndarray:
+        """The poses ``(N, 3)`` :meth:`track` matches the marker carriers by: ``predicted`` (not copied
+        when no promoted robot awaits its first detection), a promoted robot's row at its hand-over
+        pose (only the carriers' rows are matched)."""
+        if not self.handover:
+            return predicted
+        ref = np.array(predicted, dtype=float)
+        for i, correction in self.handover.items():
+            ref[i] = compose(correction, predicted[i])
+        return ref
+
+    def tracked(self, fixes: dict[int, np.ndarray], markers: np.ndarray) -> dict[int, np.ndarray]:
+        """Take the tracker's ``fixes`` of this step (carriers ``markers (N,)``) as :attr:`last_fixes`;
+        a promoted robot detected, or no longer a carrier, leaves the hand-over. Returns ``fixes``."""
+        self.last_fixes = fixes
         for i in list(self.handover):
-            if i in self.last_fixes or not markers[i]:
+            if i in fixes or not markers[i]:
                 del self.handover[i]
-        return self.last_fixes
+        return fixes
 
     def render_frames(self, true_poses: np.ndarray, markers: np.ndarray, seed: int) -> dict[str, KinectFrame]:
         """Frames of every Kinect now, from a separate generator (never disturbs the episode RNG)."""

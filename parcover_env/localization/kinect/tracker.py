@@ -97,6 +97,23 @@ class KinectTracker:
             self.last_seen[k] = stamp
         return out
 
+    def assign(self, fused: Sequence[np.ndarray], robots: Sequence[int], stamp: float = 0.0) -> dict[int, np.ndarray]:
+        """Record an update whose fusion and matching were done elsewhere (the compiled common case,
+        :func:`~parcover_env.localization.kinect.track_kernel.match`): ``fused`` poses ``(3,)`` in the
+        tracker's order and the robot each was matched to (``robots``, -1: none). Returns the fixes
+        ``{robot: pose}`` (in that order), as :meth:`update` with those matches."""
+        out: dict[int, np.ndarray] = {}
+        unassigned = []
+        poses, last_seen = self.poses, self.last_seen
+        for f, r in zip(fused, robots, strict=True):
+            if r >= 0:
+                out[r] = poses[r] = f
+                last_seen[r] = stamp
+            else:
+                unassigned.append(f)
+        self.unassigned = unassigned
+        return out
+
     def age(self, robot_id: int, stamp: float) -> float:
         """Time since ``robot_id`` was last seen (inf if never): > the Kinect period means stale."""
         return stamp - self.last_seen[robot_id] if robot_id in self.last_seen else math.inf
