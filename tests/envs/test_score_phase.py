@@ -16,6 +16,7 @@ import parcover_env
 from parcover_env.envs import outputs_phase, score_phase, step_kernels, stepper
 from parcover_env.envs.handover import CameraView, update_team, update_teams
 from parcover_env.envs.metrics import EpisodeMetrics, formation_errors, formation_errors_many, record_step, record_steps
+from parcover_env.envs.obs_v2 import target_kpois
 from parcover_env.envs.observations import ScalarInputs
 from parcover_env.envs.rewards import own_visits, reward_terms
 from parcover_env.envs.team import Team, count_waypoints_many
@@ -293,6 +294,33 @@ def test_info_keys_in_their_fixed_order():
     assert info["reward_time"] == 0.5 and info["pose_error"] == pytest.approx(error)
     ended = outputs_phase.infos([env], true, terms, [True])[0]["robot_0"]
     assert list(ended) == keys and ended["metrics/ended"] == 1.0
+
+
+def test_infos_of_two_worlds_by_value_one_dict_per_agent():
+    envs = _two_worlds("office", {"observation": {"version": 2, "scan": {"enabled": True}}})
+    k_worlds, n = len(envs), envs[0].n_robots
+    true = np.stack([e.true_poses() for e in envs]) + [0.03, -0.04, 0.5]  # off the estimates by hand
+    terms = [100.0 * i + 10.0 * np.arange(k_worlds)[:, None] + np.arange(n) for i in range(len(envs[0].terms))]
+    infos = outputs_phase.infos(envs, true, terms, [False, True])
+    assert len({id(info) for world in infos for info in world.values()}) == k_worlds * n  # SB3 writes into each
+    for k, (e, world) in enumerate(zip(envs, infos, strict=True)):
+        assert list(world) == e.agents
+        alone = outputs_phase.infos([e], true[k:k + 1], [t[k:k + 1] for t in terms], [k == 1])[0]
+        for j, (a, info) in enumerate(world.items()):
+            assert [info[f"reward_{t}"] for t in e.terms] == [100.0 * i + 10.0 * k + j for i in range(len(e.terms))]
+            d = e.estimate[j] - true[k, j]
+            assert info["pose_error"] == math.hypot(d[0], d[1])
+            assert info["heading_error"] == pytest.approx(abs(math.remainder(d[2], 2 * math.pi)), abs=1e-12)
+            assert info["sonar_fix"] == e.scanner.outcome[j] and info["metrics/ended"] == float(k == 1)
+            assert list(info) == list(alone[a])
+            assert all(np.array_equal(info[x], alone[a][x], equal_nan=True) for x in info)
+        paths = [info["metrics/path_lengths"] for info in world.values()]
+        assert all(p is paths[0] for p in paths)  # one array per world, its agents share it
+        np.testing.assert_array_equal(paths[0], e.metrics.path_lengths if k == 1 else np.zeros(n))
+    assert infos[0]["robot_0"]["metrics/path_lengths"] is not infos[1]["robot_0"]["metrics/path_lengths"]
+    assert [w["robot_1"]["route_done"] for w in infos] == [float(x) for x in
+                                                           target_kpois(envs[0].route_facts, np.stack(
+                                                               [e.progress.visited for e in envs]))[1][:, 1]]
 
 
 def test_score_state_starts_without_contacts_and_gather_copies():
