@@ -56,10 +56,10 @@ def observe(worlds: Sequence[Any], true: np.ndarray, goals: np.ndarray | None = 
     first = worlds[0]
     state = sensing_state(worlds, true)
     rngs = [w.np_random for w in worlds]
-    camera = first.camera.sense(state, rngs)
+    seen = first.camera.measure_many(true, state.predecessor, state.segments, rngs)
     obs = np.zeros((len(worlds), state.n_robots, first.layout.size), dtype=np.float32)
     est, estimators = gather([w.estimate for w in worlds]), [w.estimator for w in worlds]
-    rel_xy, rel_heading, visible = camera[..., :2], camera[..., 2], camera[..., 3] > 0.5
+    rel_xy, rel_heading, visible = seen.rel_xy, seen.rel_heading, seen.visible
     for k, w in enumerate(worlds):
         w.camera_view = CameraView(w.team.predecessor, RelativeReading(rel_xy[k], rel_heading[k], visible[k]), est[k])
     visited, teams = rows([w.progress.visited for w in worlds]), [w.team for w in worlds]
