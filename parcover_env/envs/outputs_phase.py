@@ -72,17 +72,19 @@ def infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray],
     if first.version == 2:
         visited = rows([w.progress.visited for w in worlds])
         columns.append(target_kpois(first.route_facts, visited)[1].astype(float))
-    flat: list[dict] = []
+    out, flat = [], []
     for w, e in zip(worlds, ended, strict=True):
         template = base.copy()
         if e:
             template.update(w.metrics.flat(ended=True))
         else:
             template[_PATH_KEY] = np.zeros(n)
-        flat += map(dict.copy, repeat(template, n))
+        world_infos = dict(zip(w.agents, map(dict.copy, repeat(template, n)), strict=True))
+        out.append(world_infos)
+        flat += world_infos.values()
     for key, column in zip(keys, columns, strict=True):
         _consume(map(setitem, flat, repeat(key), np.asarray(column).reshape(-1).tolist()))
-    return [dict(zip(w.agents, flat[k * n:(k + 1) * n], strict=True)) for k, w in enumerate(worlds)]
+    return out
 
 
 _PATH_KEY = "metrics/path_lengths"

@@ -171,7 +171,7 @@ def _world(seed):
     progress = SimpleNamespace(visited=np.array([True, seed % 2 == 0]), done=seed % 2 == 0,
                                visit_time=np.array([1.0, 2.5]))
     pred = np.array([-1, 0, 1, -1]) if seed % 2 else np.array([-1, 0, -1, 2])
-    team = SimpleNamespace(predecessor=pred, leader=pred < 0, messages=Counter({"pose": seed}),
+    team = SimpleNamespace(predecessor=pred, leader=pred < 0, messages=Counter({"split": 0, "pose": seed}),
                            splits=Counter({"kinect": seed}))
     contacts = (g.integers(0, 3, n), g.integers(0, 2, n))
     return m, before, true, est, progress, team, contacts
@@ -185,6 +185,7 @@ class HalfPlane:
 def test_record_steps_of_two_worlds_are_two_record_step_calls():
     formation = SimpleNamespace(offset=0.1, spacing=0.6, bearing_deg=180.0)
     worlds = [_world(1), _world(2)]
+    worlds[1][2][[0, 2], 0] = [3.0, 4.0]  # both leaders of world 1 out of the Kinects' view
     alone = copy.deepcopy(worlds)
     for m, before, true, est, progress, team, contacts in alone:
         for _ in range(2):
@@ -197,7 +198,15 @@ def test_record_steps_of_two_worlds_are_two_record_step_calls():
                      teams=teams, formation=formation, kinects=HalfPlane(), control_dt=0.1)
     for m, ref in zip(ms, alone, strict=True):
         assert m.summary() == ref[0].summary() and m.unseen_leader_time == ref[0].unseen_leader_time
-    assert ms[0].makespan is None and ms[1].makespan == 2.5 and ms[1].messages == {"pose": 2}
+    assert ms[0].makespan is None and ms[1].makespan == 2.5
+    assert list(ms[1].messages.items()) == [("pose", 2), ("split", 0)]  # sorted, a zero count kept
+    for m, before, true, est, progress, team, contacts in worlds:  # by value: 2 equal steps
+        dl, dpsi = formation_errors(true, team.predecessor, 0.1, 0.6, math.pi)
+        assert m.formation_error_l == pytest.approx(math.sqrt(np.mean(dl ** 2)), rel=1e-12)
+        assert m.formation_error_psi == pytest.approx(math.sqrt(np.mean(dpsi ** 2)), rel=1e-12)
+        unseen = np.count_nonzero(team.leader & (true[:, 0] >= 2.5))
+        assert m.unseen_leader_time == pytest.approx(2 * 0.1 * unseen) and m.kinect_splits == team.splits["kinect"]
+    assert round(ms[1].unseen_leader_time / 0.2) == 2
 
 
 def test_path_and_error_sums_by_value_and_as_numpy_sums():
