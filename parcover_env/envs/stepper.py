@@ -45,7 +45,7 @@ def sensing_state(worlds: Sequence[Any], true: np.ndarray) -> SensingState:
     """What the sensors read: ``true (K, N, 3)`` poses of the worlds, their shared walls and radius,
     and who follows whom in each world."""
     first = worlds[0]
-    predecessor = first.team.predecessor[None] if len(worlds) == 1 else np.stack([w.team.predecessor for w in worlds])
+    predecessor = rows([w.team.predecessor for w in worlds])
     return SensingState(true, first.map.segments, float(first.scenario.robot.radius), predecessor)
 
 
@@ -59,9 +59,9 @@ def observe(worlds: Sequence[Any], true: np.ndarray, goals: np.ndarray | None = 
     seen = first.camera.measure_many(true, state.predecessor, state.segments, rngs)
     obs = np.zeros((len(worlds), state.n_robots, first.layout.size), dtype=np.float32)
     est, estimators = gather([w.estimate for w in worlds]), [w.estimator for w in worlds]
-    rel_xy, rel_heading, visible = seen.rel_xy, seen.rel_heading, seen.visible
-    for k, w in enumerate(worlds):
-        w.camera_view = CameraView(w.team.predecessor, RelativeReading(rel_xy[k], rel_heading[k], visible[k]), est[k])
+    rel_xy, rel_heading, visible = seen
+    for w, *reading, e in zip(worlds, rel_xy, rel_heading, visible, est, strict=True):  # row views of the blocks
+        w.camera_view = CameraView(w.team.predecessor, RelativeReading(*reading), e)
     visited, teams = rows([w.progress.visited for w in worlds]), [w.team for w in worlds]
     if goals is None:
         goals = goals_many([w.progress for w in worlds])[0]
