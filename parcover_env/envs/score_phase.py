@@ -83,8 +83,6 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     true_xy = np.ascontiguousarray(true[..., :2])
     n_new, goals, remaining = step_many(trackers, true_xy, est[..., :2], times)
     velocity = (true_xy - before[..., :2]) / s.physics.control_dt
-    for k, w in enumerate(worlds):
-        w.true_velocity = velocity[k]
     count_waypoints_many(teams, rows([t.advanced for t in trackers]), rows([t.leader for t in teams]))
     progress = rows([t.progress for t in trackers])
     update_teams(teams, [w.kinects for w in worlds], est, progress - first.progress.offsets,
@@ -98,8 +96,9 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     wall, robot = gather([w.world.wall_contacts for w in worlds]), gather([w.world.robot_contacts for w in worlds])
     new_wall = wall - rows([st.contacts[0] for st in states])
     new_robot = robot - rows([st.contacts[1] for st in states])
-    for j, st in enumerate(states):
-        st.remaining, st.contacts = remaining[j], (wall[j], robot[j])
+    for w, st, v, rem, wall_k, robot_k in zip(worlds, states, velocity, remaining, wall, robot, strict=True):
+        w.true_velocity = v  # row views of the blocks, as the world's own arrays
+        st.remaining, st.contacts = rem, (wall_k, robot_k)
     terms = reward_terms(s.rewards, n_new, gained, new_wall + new_robot, own)
     record_steps([w.metrics for w in worlds], before, true, times=times, progress=trackers, estimates=est,
                  new_contacts=(new_wall, new_robot), teams=teams, formation=s.formation, kinects=first.kinects,
