@@ -200,7 +200,7 @@ def test_record_steps_of_two_worlds_are_two_record_step_calls():
         assert m.summary() == ref[0].summary() and m.unseen_leader_time == ref[0].unseen_leader_time
     assert ms[0].makespan is None and ms[1].makespan == 2.5
     assert list(ms[1].messages.items()) == [("pose", 2), ("split", 0)]  # sorted, a zero count kept
-    for m, before, true, est, progress, team, contacts in worlds:  # by value: 2 equal steps
+    for m, _, true, _, _, team, _ in worlds:  # by value: 2 equal steps
         dl, dpsi = formation_errors(true, team.predecessor, 0.1, 0.6, math.pi)
         assert m.formation_error_l == pytest.approx(math.sqrt(np.mean(dl ** 2)), rel=1e-12)
         assert m.formation_error_psi == pytest.approx(math.sqrt(np.mean(dpsi ** 2)), rel=1e-12)
@@ -308,6 +308,7 @@ def test_info_keys_in_their_fixed_order():
 def test_infos_of_two_worlds_by_value_one_dict_per_agent():
     envs = _two_worlds("office", {"observation": {"version": 2, "scan": {"enabled": True}}})
     k_worlds, n = len(envs), envs[0].n_robots
+    envs[1].progress.visited[:] = True  # by hand: every route of world 1 done
     true = np.stack([e.true_poses() for e in envs]) + [0.03, -0.04, 0.5]  # off the estimates by hand
     terms = [100.0 * i + 10.0 * np.arange(k_worlds)[:, None] + np.arange(n) for i in range(len(envs[0].terms))]
     infos = outputs_phase.infos(envs, true, terms, [False, True])
@@ -327,9 +328,9 @@ def test_infos_of_two_worlds_by_value_one_dict_per_agent():
         assert all(p is paths[0] for p in paths)  # one array per world, its agents share it
         np.testing.assert_array_equal(paths[0], e.metrics.path_lengths if k == 1 else np.zeros(n))
     assert infos[0]["robot_0"]["metrics/path_lengths"] is not infos[1]["robot_0"]["metrics/path_lengths"]
-    assert [w["robot_1"]["route_done"] for w in infos] == [float(x) for x in
-                                                           target_kpois(envs[0].route_facts, np.stack(
-                                                               [e.progress.visited for e in envs]))[1][:, 1]]
+    done = [[info["route_done"] for info in w.values()] for w in infos]
+    assert done[1] == [1.0] * n and done[0] != done[1]
+    assert done == target_kpois(envs[0].route_facts, np.stack([e.progress.visited for e in envs]))[1].tolist()
 
 
 def test_score_state_starts_without_contacts_and_gather_copies():
