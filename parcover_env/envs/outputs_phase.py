@@ -39,10 +39,11 @@ def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores) -> list[tup
     for t in first.terms:  # summed in terms order, as sum() over the terms of each agent would
         total = total + terms[t]
     max_steps = first.scenario.episode.max_steps
-    done = rows([w.progress.visited for w in worlds]).all(axis=1).tolist()
+    done = scores.visited.all(axis=1).tolist()
     truncated = [w.steps >= max_steps and not d for w, d in zip(worlds, done, strict=True)]
     ended = [d or t for d, t in zip(done, truncated, strict=True)]
-    all_infos = infos(worlds, true, [terms[t] for t in first.terms], ended)
+    all_infos = infos(worlds, true, [terms[t] for t in first.terms], ended, estimates=scores.estimates,
+                      visited=scores.visited)
     out = []
     for w, rewards, info, d, t, e in zip(worlds, total.tolist(), all_infos, done, truncated, ended, strict=True):
         agents = w.agents
@@ -52,25 +53,26 @@ def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores) -> list[tup
     return out
 
 
-def infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray],
-          ended: Sequence[bool]) -> list[dict[str, dict]]:
+def infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray], ended: Sequence[bool], *,
+          estimates: np.ndarray | None = None, visited: np.ndarray | None = None) -> list[dict[str, dict]]:
     """``info[agent]`` of every agent of the ``K`` worlds (see the module docstring): ``terms[i]`` the
     values ``(K, N)`` of term ``i`` (the worlds' terms order); ``ended[k]``: world ``k``'s episode
-    ends this step (its ``metrics/*`` entries are its metrics).
+    ends this step (its ``metrics/*`` entries are its metrics). ``estimates (K, N, 3)``, ``visited
+    (K, M)``: the worlds' pose estimates and visited KPOIs if already gathered (read from the worlds if not).
 
     Built with the fewest Python operations: each per-agent column becomes Python floats once for
     all worlds (one ``tolist``), every agent's dict is a C-level copy of its world's template, and
     each column is written into all ``K N`` dicts by one C-level ``map`` (no loop per agent)."""
     first = worlds[0]
     n = first.n_robots
-    est = rows([w.estimate for w in worlds])
+    est = rows([w.estimate for w in worlds]) if estimates is None else estimates
     d = est[..., :2] - true[..., :2]
     columns = [*terms, np.hypot(d[..., 0], d[..., 1]), np.abs(wrap_angle(est[..., 2] - true[..., 2]))]
     base, keys = _template(tuple(first.terms), first.version == 2, first.scanner is not None)
     if first.scanner is not None:
         columns.append(rows([w.scanner.outcome for w in worlds]))
     if first.version == 2:
-        visited = rows([w.progress.visited for w in worlds])
+        visited = rows([w.progress.visited for w in worlds]) if visited is None else visited
         columns.append(target_kpois(first.route_facts, visited)[1].astype(float))
     out, flat = [], []
     for w, e in zip(worlds, ended, strict=True):

@@ -69,6 +69,10 @@ class Scores(NamedTuple):
     """This step's reward terms ``(K, N)`` by name (every world's terms, in its summing order)."""
     goals: np.ndarray
     """The robots' lookahead goal points ``(K, N, 2)`` after this step's progress (the observations')."""
+    estimates: np.ndarray
+    """The pose estimates ``(K, N, 3)`` of this step (a copy; scoring does not move them)."""
+    visited: np.ndarray
+    """The KPOIs visited ``(K, M)`` after this step's progress (to read only)."""
 
 
 def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores:
@@ -77,7 +81,7 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     first = worlds[0]
     s = first.scenario
     trackers, teams = [w.progress for w in worlds], [w.team for w in worlds]
-    est = rows([w.estimate for w in worlds])
+    est = gather([w.estimate for w in worlds])
     was = gather([t.visited for t in trackers])
     times = [w.world.time for w in worlds]
     true_xy = np.ascontiguousarray(true[..., :2])
@@ -88,8 +92,8 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     update_teams(teams, [w.kinects for w in worlds], est, progress - first.progress.offsets,
                  [w.camera_view for w in worlds])
     own = None
+    visited = rows([t.visited for t in trackers])
     if first.version == 2:
-        visited = rows([t.visited for t in trackers])
         own = own_visits(visited & ~was, rows([t.visitor for t in trackers]), first.kpoi_owner, first.n_robots)
     states = [w.score_state for w in worlds]
     gained = rows([st.remaining for st in states]) - remaining
@@ -107,4 +111,4 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
         if w.render_mode is not None:
             for trail, p in zip(w.trails, true[k], strict=True):
                 trail.append(p[:2].copy())
-    return Scores(terms, goals)
+    return Scores(terms, goals, est, visited)

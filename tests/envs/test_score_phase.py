@@ -339,3 +339,16 @@ def test_score_state_starts_without_contacts_and_gather_copies():
     a = np.zeros(2)
     assert score_phase.gather([a])[0] is not a and not np.shares_memory(score_phase.gather([a]), a)
     assert np.shares_memory(score_phase.rows([a]), a) and not np.shares_memory(score_phase.rows([a, a]), a)
+
+
+def test_scores_carry_a_copy_of_the_estimates_and_the_visits_to_the_later_phases():
+    env = parcover_env.parallel_env("office")
+    env.reset(seed=1)
+    before, true = stepper.act([env], [{a: np.array([0.5, 0.1], np.float32) for a in env.agents}])
+    scores = stepper.score([env], before, true)
+    assert np.array_equal(scores.estimates[0], env.estimate) and not np.shares_memory(scores.estimates, env.estimate)
+    assert np.array_equal(scores.visited[0], env.progress.visited)
+    twin = copy.deepcopy(env)
+    obs = stepper.observe([env], true, scores)
+    assert not np.shares_memory(env.camera_view.estimates, env.estimate)
+    assert np.array_equal(obs, stepper.observe([twin], true))  # read from the worlds: the same
