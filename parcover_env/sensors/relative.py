@@ -65,7 +65,8 @@ class RelativeCamera:
         target = _flat_targets(predecessor)
         px, py, pth = (np.ascontiguousarray(poses[..., c].ravel()) for c in range(3))
         blocked = sight_lines_blocked(px, py, target, np.ascontiguousarray(segments, dtype=float).reshape(-1, 4))
-        followers = np.count_nonzero(target.reshape(k, n) >= 0, axis=1).tolist()
+        follows = target >= 0
+        followers = [int(np.count_nonzero(follows))] if k == 1 else follows.reshape(k, n).sum(axis=1).tolist()
         z = [rng.standard_normal((3, f)) for rng, f in zip(rngs, followers, strict=True)]  # range, bearing, heading
         rel_xy, rel_heading, visible = np.empty((k * n, 2)), np.empty(k * n), np.empty(k * n, dtype=bool)
         onboard_kernels.camera_view(px, py, pth, target, blocked, z[0] if k == 1 else np.concatenate(z, axis=1),
