@@ -205,13 +205,17 @@ def record_steps(metrics: Sequence[EpisodeMetrics], before: np.ndarray, true: np
     unseen = np.bincount(np.nonzero(leader)[0][~seen], minlength=k_worlds).tolist()
     visited = _rows([p.visited for p in progress])
     n_visited, done = np.add.reduce(visited, axis=1, dtype=np.int64).tolist(), visited.all(axis=1).tolist()
-    for k, (m, prog, team, f) in enumerate(zip(metrics, progress, teams, n_followers.tolist(), strict=True)):
+    for k, (m, prog, team, f, l_row, psi_row) in enumerate(zip(metrics, progress, teams, n_followers.tolist(), dl,
+                                                                dpsi, strict=True)):
         m.path_lengths = paths[k]
         m.add_step(times[k], n_visited[k], sq_err[k], n, wall[k], robot[k] // 2)
         if f:
-            m.add_formation(float(dl[k, :f] @ dl[k, :f]), float(dpsi[k, :f] @ dpsi[k, :f]), f)
-        m.messages = dict(sorted(team.messages.items()))
-        m.kinect_splits, m.odometry_splits = team.splits["kinect"], team.splits["odometry"]
-        m.unseen_leader_time += control_dt * unseen[k]
+            l_err, psi_err = l_row[:f], psi_row[:f]
+            m.add_formation(float(l_err.dot(l_err)), float(psi_err.dot(psi_err)), f)  # BLAS dots, as one world's
+        if m.messages.items() != team.messages.items():  # exact (zero counts too); unchanged most steps
+            m.messages = dict(sorted(team.messages.items()))
+        m.kinect_splits, m.odometry_splits = team.splits.get("kinect", 0), team.splits.get("odometry", 0)
+        if unseen[k]:
+            m.unseen_leader_time += control_dt * unseen[k]
         if m.makespan is None and done[k]:
             m.makespan = float(np.nanmax(prog.visit_time))

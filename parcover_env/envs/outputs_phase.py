@@ -13,7 +13,10 @@ array per world) except in a world whose episode ends this step, where they are 
 from __future__ import annotations
 
 import functools
+from collections import deque
 from collections.abc import Sequence
+from itertools import repeat
+from operator import setitem
 from typing import Any
 
 import numpy as np
@@ -36,10 +39,11 @@ def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores) -> list[tup
     for t in first.terms:  # summed in terms order, as sum() over the terms of each agent would
         total = total + terms[t]
     max_steps = first.scenario.episode.max_steps
-    done = rows([w.progress.visited for w in worlds]).all(axis=1).tolist()
+    done = scores.visited.all(axis=1).tolist()
     truncated = [w.steps >= max_steps and not d for w, d in zip(worlds, done, strict=True)]
     ended = [d or t for d, t in zip(done, truncated, strict=True)]
-    all_infos = infos(worlds, true, [terms[t].tolist() for t in first.terms], ended)
+    all_infos = infos(worlds, true, [terms[t] for t in first.terms], ended, estimates=scores.estimates,
+                      visited=scores.visited)
     out = []
     for w, rewards, info, d, t, e in zip(worlds, total.tolist(), all_infos, done, truncated, ended, strict=True):
         agents = w.agents
@@ -49,49 +53,61 @@ def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores) -> list[tup
     return out
 
 
-def infos(worlds: Sequence[Any], true: np.ndarray, terms: list[list[list[float]]],
-          ended: Sequence[bool]) -> list[dict[str, dict]]:
-    """``info[agent]`` of every agent of the ``K`` worlds (see the module docstring): ``terms[i][k]``
-    the values of term ``i`` (the worlds' terms order) for world ``k``'s agents; ``ended[k]``: its
-    episode ends this step (its ``metrics/*`` entries are its metrics)."""
+def infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray], ended: Sequence[bool], *,
+          estimates: np.ndarray | None = None, visited: np.ndarray | None = None) -> list[dict[str, dict]]:
+    """``info[agent]`` of every agent of the ``K`` worlds (see the module docstring): ``terms[i]`` the
+    values ``(K, N)`` of term ``i`` (the worlds' terms order); ``ended[k]``: world ``k``'s episode
+    ends this step (its ``metrics/*`` entries are its metrics). ``estimates (K, N, 3)``, ``visited
+    (K, M)``: the worlds' pose estimates and visited KPOIs if already gathered (read from the worlds if not).
+
+    Built with the fewest Python operations: each per-agent column becomes Python floats once for
+    all worlds (one ``tolist``), every agent's dict is a C-level copy of its world's template, and
+    each column is written into all ``K N`` dicts by one C-level ``map`` (no loop per agent)."""
     first = worlds[0]
-    est = rows([w.estimate for w in worlds])
+    n = first.n_robots
+    est = rows([w.estimate for w in worlds]) if estimates is None else estimates
     d = est[..., :2] - true[..., :2]
-    columns = [np.hypot(d[..., 0], d[..., 1]).tolist(), np.abs(wrap_angle(est[..., 2] - true[..., 2])).tolist()]
+    columns = [*terms, np.hypot(d[..., 0], d[..., 1]), np.abs(wrap_angle(est[..., 2] - true[..., 2]))]
     base, keys = _template(tuple(first.terms), first.version == 2, first.scanner is not None)
-    if first.version == 2:
-        visited = rows([w.progress.visited for w in worlds])
-        columns.append(target_kpois(first.route_facts, visited)[1].astype(float).tolist())
     if first.scanner is not None:
-        columns.append(rows([w.scanner.outcome for w in worlds]).tolist())
-    path_key = "metrics/path_lengths"
-    out = []
-    for k, w in enumerate(worlds):
+        columns.append(rows([w.scanner.outcome for w in worlds]))
+    if first.version == 2:
+        visited = rows([w.progress.visited for w in worlds]) if visited is None else visited
+        columns.append(target_kpois(first.route_facts, visited)[1].astype(float))
+    out, flat = [], []
+    for w, e in zip(worlds, ended, strict=True):
         template = base.copy()
-        if ended[k]:
+        if e:
             template.update(w.metrics.flat(ended=True))
         else:
-            template[path_key] = np.zeros(w.n_robots)
-        world_infos = {}
-        for a, *vals in zip(w.agents, *(t[k] for t in terms), *(c[k] for c in columns), strict=True):
-            info = world_infos[a] = template.copy()
-            info.update(zip(keys, vals))
+            template[_PATH_KEY] = np.zeros(n)
+        world_infos = dict(zip(w.agents, map(dict.copy, repeat(template, n)), strict=True))
         out.append(world_infos)
+        flat += world_infos.values()
+    for key, column in zip(keys, columns, strict=True):
+        _consume(map(setitem, flat, repeat(key), np.asarray(column).reshape(-1).tolist()))
     return out
+
+
+_PATH_KEY = "metrics/path_lengths"
+_consume = deque(maxlen=0).extend
+"""Runs an iterator to its end at C speed, keeping nothing."""
 
 
 @functools.lru_cache(maxsize=16)
 def _template(terms: tuple[str, ...], route_done: bool, sonar_fix: bool) -> tuple[dict, tuple[str, ...]]:
     """The info of an agent before its own values (zeros; ``metrics/path_lengths`` to be replaced by a
-    fresh array) and the keys of its own values, in order. Read only: copy it."""
+    fresh array) and the keys of its own values, in the order :func:`infos` builds its columns.
+    Read only: copy it."""
     reward_keys = tuple(f"reward_{t}" for t in terms)
     keys = (*reward_keys, "pose_error", "heading_error")
     base = dict.fromkeys(reward_keys, 0.0)
     base.update(EpisodeMetrics(0, 0, 0.0, 0.0).flat(ended=False))
     base["pose_error"] = base["heading_error"] = 0.0
-    if route_done:
-        keys = (*keys, "route_done")
     if sonar_fix:
         base["sonar_fix"] = 0.0
         keys = (*keys, "sonar_fix")
+    if route_done:
+        base["route_done"] = 0.0
+        keys = (*keys, "route_done")
     return base, keys

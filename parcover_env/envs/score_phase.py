@@ -69,6 +69,10 @@ class Scores(NamedTuple):
     """This step's reward terms ``(K, N)`` by name (every world's terms, in its summing order)."""
     goals: np.ndarray
     """The robots' lookahead goal points ``(K, N, 2)`` after this step's progress (the observations')."""
+    estimates: np.ndarray
+    """The pose estimates ``(K, N, 3)`` of this step (a copy; scoring does not move them)."""
+    visited: np.ndarray
+    """The KPOIs visited ``(K, M)`` after this step's progress (to read only)."""
 
 
 def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores:
@@ -77,29 +81,28 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     first = worlds[0]
     s = first.scenario
     trackers, teams = [w.progress for w in worlds], [w.team for w in worlds]
-    est = rows([w.estimate for w in worlds])
+    est = gather([w.estimate for w in worlds])
     was = gather([t.visited for t in trackers])
     times = [w.world.time for w in worlds]
     true_xy = np.ascontiguousarray(true[..., :2])
     n_new, goals, remaining = step_many(trackers, true_xy, est[..., :2], times)
     velocity = (true_xy - before[..., :2]) / s.physics.control_dt
-    for k, w in enumerate(worlds):
-        w.true_velocity = velocity[k]
     count_waypoints_many(teams, rows([t.advanced for t in trackers]), rows([t.leader for t in teams]))
     progress = rows([t.progress for t in trackers])
     update_teams(teams, [w.kinects for w in worlds], est, progress - first.progress.offsets,
                  [w.camera_view for w in worlds])
     own = None
+    visited = rows([t.visited for t in trackers])
     if first.version == 2:
-        visited = rows([t.visited for t in trackers])
         own = own_visits(visited & ~was, rows([t.visitor for t in trackers]), first.kpoi_owner, first.n_robots)
     states = [w.score_state for w in worlds]
     gained = rows([st.remaining for st in states]) - remaining
     wall, robot = gather([w.world.wall_contacts for w in worlds]), gather([w.world.robot_contacts for w in worlds])
     new_wall = wall - rows([st.contacts[0] for st in states])
     new_robot = robot - rows([st.contacts[1] for st in states])
-    for j, st in enumerate(states):
-        st.remaining, st.contacts = remaining[j], (wall[j], robot[j])
+    for w, st, v, rem, wall_k, robot_k in zip(worlds, states, velocity, remaining, wall, robot, strict=True):
+        w.true_velocity = v  # row views of the blocks, as the world's own arrays
+        st.remaining, st.contacts = rem, (wall_k, robot_k)
     terms = reward_terms(s.rewards, n_new, gained, new_wall + new_robot, own)
     record_steps([w.metrics for w in worlds], before, true, times=times, progress=trackers, estimates=est,
                  new_contacts=(new_wall, new_robot), teams=teams, formation=s.formation, kinects=first.kinects,
@@ -108,4 +111,4 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
         if w.render_mode is not None:
             for trail, p in zip(w.trails, true[k], strict=True):
                 trail.append(p[:2].copy())
-    return Scores(terms, goals)
+    return Scores(terms, goals, est, visited)

@@ -45,26 +45,30 @@ def sensing_state(worlds: Sequence[Any], true: np.ndarray) -> SensingState:
     """What the sensors read: ``true (K, N, 3)`` poses of the worlds, their shared walls and radius,
     and who follows whom in each world."""
     first = worlds[0]
-    predecessor = first.team.predecessor[None] if len(worlds) == 1 else np.stack([w.team.predecessor for w in worlds])
+    predecessor = rows([w.team.predecessor for w in worlds])
     return SensingState(true, first.map.segments, float(first.scenario.robot.radius), predecessor)
 
 
-def observe(worlds: Sequence[Any], true: np.ndarray, goals: np.ndarray | None = None) -> np.ndarray:
+def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = None) -> np.ndarray:
     """Observations ``(K, N, D)`` float32 of every robot of the ``K`` worlds at true poses ``(K, N, 3)``
-    (``goals``: the robots' lookahead goal points ``(K, N, 2)`` if known, see :class:`Scores`).
-    Sets each world's ``camera_view`` (the cameras' measurements Alg. 1's next hand-over uses)."""
+    (``scores``: this step's score phase, whose goal points, estimates and visits it reads instead of
+    gathering them again). Sets each world's ``camera_view`` (the cameras' measurements Alg. 1's next
+    hand-over uses)."""
     first = worlds[0]
     state = sensing_state(worlds, true)
     rngs = [w.np_random for w in worlds]
-    camera = first.camera.sense(state, rngs)
+    seen = first.camera.measure_many(true, state.predecessor, state.segments, rngs)
     obs = np.zeros((len(worlds), state.n_robots, first.layout.size), dtype=np.float32)
-    est, estimators = gather([w.estimate for w in worlds]), [w.estimator for w in worlds]
-    rel_xy, rel_heading, visible = camera[..., :2], camera[..., 2], camera[..., 3] > 0.5
-    for k, w in enumerate(worlds):
-        w.camera_view = CameraView(w.team.predecessor, RelativeReading(rel_xy[k], rel_heading[k], visible[k]), est[k])
-    visited, teams = rows([w.progress.visited for w in worlds]), [w.team for w in worlds]
-    if goals is None:
-        goals = goals_many([w.progress for w in worlds])[0]
+    estimators = [w.estimator for w in worlds]
+    if scores is None:
+        goals, est, visited = (goals_many([w.progress for w in worlds])[0], gather([w.estimate for w in worlds]),
+                               rows([w.progress.visited for w in worlds]))
+    else:
+        goals, est, visited = scores.goals, scores.estimates, scores.visited
+    rel_xy, rel_heading, visible = seen
+    for w, *reading, e in zip(worlds, rel_xy, rel_heading, visible, est, strict=True):  # row views of the blocks
+        w.camera_view = CameraView(w.team.predecessor, RelativeReading(*reading), e)
+    teams = [w.team for w in worlds]
     first.layout.fill_scalars_many(obs, ScalarInputs(
         est, rows([e.velocity for e in estimators]), rows([t.leader for t in teams]), rows([t.slot for t in teams]),
         rows([e.fix_age for e in estimators]), rows([e.covariance for e in estimators]), goals, rel_xy, rel_heading,
@@ -90,7 +94,7 @@ def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) 
     ``(K, N, D)`` and each world's ``(rewards, terminations, truncations, infos)``."""
     before, true = act(worlds, actions)
     scores = score(worlds, before, true)
-    obs = observe(worlds, true, scores.goals)
+    obs = observe(worlds, true, scores)
     return obs, outputs(worlds, true, scores)
 
 

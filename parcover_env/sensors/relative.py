@@ -11,6 +11,7 @@ import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -22,9 +23,9 @@ from parcover_env.sensors.base import SensingState
 __all__ = ["RelativeCamera", "RelativeReading", "lines_of_sight_blocked"]
 
 
-@dataclass(frozen=True)
-class RelativeReading:
-    """Per follower: predecessor position in the follower frame (m), relative heading (rad), seen."""
+class RelativeReading(NamedTuple):
+    """Per follower: predecessor position in the follower frame (m), relative heading (rad), seen
+    (a read-only record, made for every world every step, hence a NamedTuple)."""
 
     rel_xy: np.ndarray
     rel_heading: np.ndarray
@@ -45,22 +46,32 @@ class RelativeCamera:
     """Relative-heading sigma (rad)."""
 
     def measure(self, poses: np.ndarray, predecessor: np.ndarray, segments: np.ndarray,
-                rng: np.random.Generator, blocked: np.ndarray | None = None) -> RelativeReading:
+                rng: np.random.Generator) -> RelativeReading:
         """``poses (N, 3)`` true poses; ``predecessor (N,)`` index of the robot each one follows, -1 none.
-        ``blocked (N,)``: whether a wall cuts each robot's line of sight to its predecessor, if
-        already computed (:func:`lines_of_sight_blocked` over batched worlds)."""
+        The one-world call of :meth:`measure_many`."""
+        r = self.measure_many(np.asarray(poses, dtype=float)[None], np.asarray(predecessor)[None], segments, [rng])
+        return RelativeReading(r.rel_xy[0], r.rel_heading[0], r.visible[0])
+
+    def measure_many(self, poses: np.ndarray, predecessor: np.ndarray, segments: np.ndarray,
+                     rngs: Sequence[np.random.Generator]) -> RelativeReading:
+        """:meth:`measure` of ``K`` worlds sharing the walls ``segments``: true poses ``(K, N, 3)``,
+        ``predecessor (K, N)`` (within each world); a reading of ``(K, N, ...)`` arrays. Each world
+        draws its followers' normals from its own generator (``rngs[k]``, as alone), then one line
+        of sight test and one compiled pass cover every robot of every world (the worlds side by
+        side on one robot axis; the predecessor indices moved with them), so world ``k`` reads
+        bit for bit what it reads alone."""
         poses = np.asarray(poses, dtype=float)
-        predecessor = np.ascontiguousarray(predecessor, dtype=np.int64)
-        n = len(poses)
-        px, py, pth = (np.ascontiguousarray(poses[:, c]) for c in range(3))
-        if blocked is None:
-            walls = np.ascontiguousarray(segments, dtype=float).reshape(-1, 4)
-            blocked = sight_lines_blocked(px, py, predecessor, walls)
-        rel_xy, rel_heading, visible = np.empty((n, 2)), np.empty(n), np.empty(n, dtype=bool)
-        z = rng.standard_normal((3, int(np.count_nonzero(predecessor >= 0))))  # range, bearing, heading
-        onboard_kernels.camera_view(px, py, pth, predecessor, np.ascontiguousarray(blocked, dtype=bool), z,
+        k, n = poses.shape[:2]
+        target = _flat_targets(predecessor)
+        px, py, pth = (np.ascontiguousarray(poses[..., c].ravel()) for c in range(3))
+        blocked = sight_lines_blocked(px, py, target, np.ascontiguousarray(segments, dtype=float).reshape(-1, 4))
+        follows = target >= 0
+        followers = [int(np.count_nonzero(follows))] if k == 1 else follows.reshape(k, n).sum(axis=1).tolist()
+        z = [rng.standard_normal((3, f)) for rng, f in zip(rngs, followers, strict=True)]  # range, bearing, heading
+        rel_xy, rel_heading, visible = np.empty((k * n, 2)), np.empty(k * n), np.empty(k * n, dtype=bool)
+        onboard_kernels.camera_view(px, py, pth, target, blocked, z[0] if k == 1 else np.concatenate(z, axis=1),
                                     self.record, rel_xy, rel_heading, visible)
-        return RelativeReading(rel_xy, rel_heading, visible)
+        return RelativeReading(rel_xy.reshape(k, n, 2), rel_heading.reshape(k, n), visible.reshape(k, n))
 
     @functools.cached_property
     def record(self) -> np.ndarray:
@@ -75,16 +86,10 @@ class RelativeCamera:
     relative heading (rad), seen (1) or not (0)."""
 
     def sense(self, state: SensingState, rngs: Sequence[np.random.Generator]) -> np.ndarray:
-        """The :class:`~parcover_env.sensors.base.Sensor` reading ``(K, N, 4)`` (see :attr:`size`):
-        every world's lines of sight in one test (one world: :meth:`measure` tests them), then
-        :meth:`measure` of each world with its own generator."""
-        k = state.n_worlds
-        blocked = lines_of_sight_blocked(state.poses, state.predecessor, state.segments) if k > 1 else [None]
-        out = np.empty((k, state.n_robots, self.size))
-        for w, rng in enumerate(rngs):
-            r = self.measure(state.poses[w], state.predecessor[w], state.segments, rng, blocked[w])
-            np.concatenate([r.rel_xy, r.rel_heading[:, None], r.visible[:, None]], axis=1, out=out[w])
-        return out
+        """The :class:`~parcover_env.sensors.base.Sensor` reading ``(K, N, 4)`` (see :attr:`size`) of
+        :meth:`measure_many`."""
+        r = self.measure_many(state.poses, state.predecessor, state.segments, rngs)
+        return np.concatenate([r.rel_xy, r.rel_heading[..., None], r.visible[..., None]], axis=2)
 
     @staticmethod
     def reading(row: np.ndarray) -> RelativeReading:
@@ -95,10 +100,18 @@ class RelativeCamera:
 def lines_of_sight_blocked(poses: np.ndarray, predecessor: np.ndarray, segments: np.ndarray) -> np.ndarray:
     """``(K, N)``: whether a wall cuts the line from each robot to its predecessor, for ``K`` worlds
     sharing the walls (``poses (K, N, 3)``, ``predecessor (K, N)`` indices within the world, -1 none:
-    False) in one call; equal to what :meth:`RelativeCamera.measure` tests for each world alone."""
+    False) in one call; what :meth:`RelativeCamera.measure_many` tests."""
     poses = np.asarray(poses, dtype=float)
+    px, py = (np.ascontiguousarray(poses[..., c].ravel()) for c in range(2))
+    walls = np.ascontiguousarray(segments, dtype=float).reshape(-1, 4)
+    return sight_lines_blocked(px, py, _flat_targets(predecessor), walls).reshape(poses.shape[:2])
+
+
+def _flat_targets(predecessor: np.ndarray) -> np.ndarray:
+    """``(K N,)`` int64: the predecessors ``(K, N)`` (within each world, -1 none) as indices into the
+    worlds' robots side by side (world ``k``'s robots at ``k N ... (k + 1) N - 1``)."""
     predecessor = np.asarray(predecessor, dtype=np.int64)
     k, n = predecessor.shape
-    target = np.where(predecessor >= 0, predecessor + n * np.arange(k)[:, None], -1).ravel()  # into the flat worlds
-    px, py = (np.ascontiguousarray(poses[..., c].ravel()) for c in range(2))
-    return sight_lines_blocked(px, py, target, np.ascontiguousarray(segments, dtype=float).reshape(-1, 4)).reshape(k, n)
+    if k == 1:
+        return np.ascontiguousarray(predecessor[0])
+    return np.where(predecessor >= 0, predecessor + n * np.arange(k)[:, None], -1).ravel()

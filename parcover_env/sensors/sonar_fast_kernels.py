@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from parcover_env.geometry.ray_kernels import disc_hit, near_segments, segment_hit
+from parcover_env.geometry.ray_kernels import disc_hit_from, near_segments, segment_hit
 from parcover_env.sensors.sonar_ring_kernels import Draws, ring_noise
 
 __all__ = ["FastDraws", "fast_noise", "fast_ring_readings"]
@@ -61,8 +61,10 @@ def fast_ring_readings(px, py, pth, radius2, beams, segs, draws, rules, out):
     robot frame) of every robot of ``K`` worlds sharing the walls ``segs (S, 4)``, poses ``px, py,
     pth (K, N)``: per beam, the nearest hit within ``range_max`` of one ray along its axis on the
     walls (those within ``range_max`` of the robot, :func:`near_segments`) and on the other robots
-    of its world (discs of squared radius ``radius2``), inf if none; then :func:`fast_noise` with
-    the :class:`FastDraws`. Row ``k * N + i`` equals what world ``k`` alone reads."""
+    of its world (discs of squared radius ``radius2``; those within ``range_max`` of the robot,
+    their terms computed once for all its beams, :func:`disc_hit_from`), inf if none; then
+    :func:`fast_noise` with the :class:`FastDraws`. Row ``k * N + i`` equals what world ``k`` alone
+    reads."""
     rule = rules[0]
     rmax = rule.range_max
     cull = rule.box_cull and math.isfinite(rmax)
@@ -73,7 +75,11 @@ def fast_ring_readings(px, py, pth, radius2, beams, segs, draws, rules, out):
     idx = np.empty((k * n, segs.shape[0]), dtype=np.int64)
     cnt = np.empty(k * n, dtype=np.int64)
     near_segments(ox, oy, segs, rmax + rule.near_slack, idx, cnt)
-    r2 = np.full(n, radius2)
+    # a disc farther than range_max + its radius (c above ``reach_c``) cannot be hit within range_max
+    reach_c = ((rmax + math.sqrt(radius2)) ** 2 - radius2) * (1.0 + 1e-9) + 1e-9
+    bx = np.empty(n)
+    by = np.empty(n)
+    bc = np.empty(n)
     ideal = np.empty((k * n, nb))
     for w in range(k):
         for i in range(n):
@@ -81,6 +87,18 @@ def fast_ring_readings(px, py, pth, radius2, beams, segs, draws, rules, out):
             x0 = ox[o]
             y0 = oy[o]
             near = idx[o, :cnt[o]]
+            m = 0  # the discs of the other robots of world w in reach, in robot order (disc_hit's terms)
+            for d in range(n):
+                if d == i:
+                    continue
+                ocx = x0 - px[w, d]
+                ocy = y0 - py[w, d]
+                c = (ocx * ocx + ocy * ocy) - radius2
+                if c <= reach_c:
+                    bx[m] = ocx
+                    by[m] = ocy
+                    bc[m] = c
+                    m += 1
             for b in range(nb):
                 a = pth[w, i] + beams[b]
                 ddx = math.cos(a)
@@ -88,7 +106,7 @@ def fast_ring_readings(px, py, pth, radius2, beams, segs, draws, rules, out):
                 t1, i1, _ = segment_hit(x0, y0, ddx, ddy, segs, near, rmax, cull, False)
                 if not (i1 >= 0 and t1 <= rmax):
                     t1 = np.inf
-                td = disc_hit(x0, y0, ddx, ddy, px, py, w, r2, i)
+                td = disc_hit_from(ddx, ddy, bx[:m], by[:m], bc[:m])
                 if not td <= rmax:
                     td = np.inf
                 ideal[o, b] = min(t1, td)

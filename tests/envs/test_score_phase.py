@@ -16,6 +16,7 @@ import parcover_env
 from parcover_env.envs import outputs_phase, score_phase, step_kernels, stepper
 from parcover_env.envs.handover import CameraView, update_team, update_teams
 from parcover_env.envs.metrics import EpisodeMetrics, formation_errors, formation_errors_many, record_step, record_steps
+from parcover_env.envs.obs_v2 import target_kpois
 from parcover_env.envs.observations import ScalarInputs
 from parcover_env.envs.rewards import own_visits, reward_terms
 from parcover_env.envs.team import Team, count_waypoints_many
@@ -170,7 +171,7 @@ def _world(seed):
     progress = SimpleNamespace(visited=np.array([True, seed % 2 == 0]), done=seed % 2 == 0,
                                visit_time=np.array([1.0, 2.5]))
     pred = np.array([-1, 0, 1, -1]) if seed % 2 else np.array([-1, 0, -1, 2])
-    team = SimpleNamespace(predecessor=pred, leader=pred < 0, messages=Counter({"pose": seed}),
+    team = SimpleNamespace(predecessor=pred, leader=pred < 0, messages=Counter({"split": 0, "pose": seed}),
                            splits=Counter({"kinect": seed}))
     contacts = (g.integers(0, 3, n), g.integers(0, 2, n))
     return m, before, true, est, progress, team, contacts
@@ -184,6 +185,7 @@ class HalfPlane:
 def test_record_steps_of_two_worlds_are_two_record_step_calls():
     formation = SimpleNamespace(offset=0.1, spacing=0.6, bearing_deg=180.0)
     worlds = [_world(1), _world(2)]
+    worlds[1][2][[0, 2], 0] = [3.0, 4.0]  # both leaders of world 1 out of the Kinects' view
     alone = copy.deepcopy(worlds)
     for m, before, true, est, progress, team, contacts in alone:
         for _ in range(2):
@@ -196,7 +198,15 @@ def test_record_steps_of_two_worlds_are_two_record_step_calls():
                      teams=teams, formation=formation, kinects=HalfPlane(), control_dt=0.1)
     for m, ref in zip(ms, alone, strict=True):
         assert m.summary() == ref[0].summary() and m.unseen_leader_time == ref[0].unseen_leader_time
-    assert ms[0].makespan is None and ms[1].makespan == 2.5 and ms[1].messages == {"pose": 2}
+    assert ms[0].makespan is None and ms[1].makespan == 2.5
+    assert list(ms[1].messages.items()) == [("pose", 2), ("split", 0)]  # sorted, a zero count kept
+    for m, _, true, _, _, team, _ in worlds:  # by value: 2 equal steps
+        dl, dpsi = formation_errors(true, team.predecessor, 0.1, 0.6, math.pi)
+        assert m.formation_error_l == pytest.approx(math.sqrt(np.mean(dl ** 2)), rel=1e-12)
+        assert m.formation_error_psi == pytest.approx(math.sqrt(np.mean(dpsi ** 2)), rel=1e-12)
+        unseen = np.count_nonzero(team.leader & (true[:, 0] >= 2.5))
+        assert m.unseen_leader_time == pytest.approx(2 * 0.1 * unseen) and m.kinect_splits == team.splits["kinect"]
+    assert round(ms[1].unseen_leader_time / 0.2) == 2
 
 
 def test_path_and_error_sums_by_value_and_as_numpy_sums():
@@ -295,9 +305,50 @@ def test_info_keys_in_their_fixed_order():
     assert list(ended) == keys and ended["metrics/ended"] == 1.0
 
 
+def test_infos_of_two_worlds_by_value_one_dict_per_agent():
+    envs = _two_worlds("office", {"observation": {"version": 2, "scan": {"enabled": True}}})
+    k_worlds, n = len(envs), envs[0].n_robots
+    envs[1].progress.visited[:] = True  # by hand: every route of world 1 done
+    true = np.stack([e.true_poses() for e in envs]) + [0.03, -0.04, 0.5]  # off the estimates by hand
+    terms = [100.0 * i + 10.0 * np.arange(k_worlds)[:, None] + np.arange(n) for i in range(len(envs[0].terms))]
+    infos = outputs_phase.infos(envs, true, terms, [False, True])
+    assert len({id(info) for world in infos for info in world.values()}) == k_worlds * n  # SB3 writes into each
+    for k, (e, world) in enumerate(zip(envs, infos, strict=True)):
+        assert list(world) == e.agents
+        alone = outputs_phase.infos([e], true[k:k + 1], [t[k:k + 1] for t in terms], [k == 1])[0]
+        for j, (a, info) in enumerate(world.items()):
+            assert [info[f"reward_{t}"] for t in e.terms] == [100.0 * i + 10.0 * k + j for i in range(len(e.terms))]
+            d = e.estimate[j] - true[k, j]
+            assert info["pose_error"] == math.hypot(d[0], d[1])
+            assert info["heading_error"] == pytest.approx(abs(math.remainder(d[2], 2 * math.pi)), abs=1e-12)
+            assert info["sonar_fix"] == e.scanner.outcome[j] and info["metrics/ended"] == float(k == 1)
+            assert list(info) == list(alone[a])
+            assert all(np.array_equal(info[x], alone[a][x], equal_nan=True) for x in info)
+        paths = [info["metrics/path_lengths"] for info in world.values()]
+        assert all(p is paths[0] for p in paths)  # one array per world, its agents share it
+        np.testing.assert_array_equal(paths[0], e.metrics.path_lengths if k == 1 else np.zeros(n))
+    assert infos[0]["robot_0"]["metrics/path_lengths"] is not infos[1]["robot_0"]["metrics/path_lengths"]
+    done = [[info["route_done"] for info in w.values()] for w in infos]
+    assert done[1] == [1.0] * n and done[0] != done[1]
+    assert done == target_kpois(envs[0].route_facts, np.stack([e.progress.visited for e in envs]))[1].tolist()
+
+
 def test_score_state_starts_without_contacts_and_gather_copies():
     st = score_phase.ScoreState.start(np.array([3.0, 4.0]))
     assert st.contacts[0].tolist() == [0, 0] and st.remaining.tolist() == [3.0, 4.0]
     a = np.zeros(2)
     assert score_phase.gather([a])[0] is not a and not np.shares_memory(score_phase.gather([a]), a)
     assert np.shares_memory(score_phase.rows([a]), a) and not np.shares_memory(score_phase.rows([a, a]), a)
+
+
+def test_scores_carry_a_copy_of_the_estimates_and_the_visits_to_the_later_phases():
+    env = parcover_env.parallel_env("office")
+    env.reset(seed=1)
+    before, true = stepper.act([env], [{a: np.array([0.5, 0.1], np.float32) for a in env.agents}])
+    scores = stepper.score([env], before, true)
+    assert np.array_equal(scores.estimates[0], env.estimate) and not np.shares_memory(scores.estimates, env.estimate)
+    assert np.array_equal(scores.visited[0], env.progress.visited)
+    twin = copy.deepcopy(env)
+    obs = stepper.observe([env], true, scores)
+    assert not np.shares_memory(env.camera_view.estimates, env.estimate)
+    assert np.array_equal(obs, stepper.observe([twin], true))  # read from the worlds: the same

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from parcover_env.sensors.relative import RelativeCamera, lines_of_sight_blocked
@@ -20,17 +22,35 @@ def test_lines_of_sight_blocked_per_world_by_hand():
     assert swapped.tolist() == [[False, False, False], [False, True, False]]
 
 
-def test_precomputed_lines_of_sight_give_the_same_reading_and_draws():
-    rng = np.random.default_rng(0)
-    walls = np.array([[1.0, -1.0, 1.0, 1.0], [3.0, 0.0, 4.0, 2.0]])
-    poses = np.concatenate([rng.uniform(0, 4, (6, 2)), rng.uniform(-3, 3, (6, 1))], axis=1)
-    pred = np.array([-1, 0, 1, 2, 3, 4])
-    cam = RelativeCamera(fov_deg=360.0, max_range=10.0)
-    a = cam.measure(poses, pred, walls, np.random.default_rng(1))
-    blocked = lines_of_sight_blocked(poses[None], pred[None], walls)[0]
-    assert 0 < blocked.sum() < 5
-    b = cam.measure(poses, pred, walls, np.random.default_rng(1), blocked)
-    assert np.array_equal(a.visible, b.visible) and np.array_equal(a.rel_xy, b.rel_xy)
-    assert np.array_equal(a.visible[1:], ~blocked[1:])
-    c = cam.measure(poses, pred, walls, np.random.default_rng(1), np.zeros(6, bool))  # a lie: all clear
-    assert c.visible[1:].all()
+def _expected(cam, poses, pred, seen, rng):
+    """The camera's reading of one world by its formula, from ``rng``'s normals (one triple per follower)."""
+    z = rng.standard_normal((3, int((pred >= 0).sum())))
+    rel_xy, heading = np.zeros((len(poses), 2)), np.zeros(len(poses))
+    for f, i in enumerate(np.flatnonzero(pred >= 0)):
+        j = pred[i]
+        d = poses[j, :2] - poses[i, :2]
+        if seen[i]:
+            r = np.hypot(*d) * (1 + cam.range_noise * z[0, f])
+            b = math.atan2(d[1], d[0]) - poses[i, 2] + cam.bearing_noise * z[1, f]
+            rel_xy[i] = r * math.cos(b), r * math.sin(b)
+            heading[i] = math.remainder(poses[j, 2] - poses[i, 2] + cam.heading_noise * z[2, f], 2 * math.pi)
+    return rel_xy, heading
+
+
+def test_measure_many_of_two_worlds_by_value_each_world_its_own_draws():
+    walls = np.array([[3.0, 0.0, 3.0, 2.5]])  # x = 3, from y = 0 to 2.5
+    poses = np.array([
+        [[1.0, 1.0, 0.0], [2.0, 1.0, math.pi], [4.0, 1.0, math.pi]],  # 1 sees 0; 2 -> 1 crosses the wall
+        [[1.0, 1.5, 0.0], [5.0, 3.0, 0.0], [1.0, 3.0, -math.pi / 2]],  # 1 leads; 2 sees 0, 1.5 m below it
+    ])
+    pred = np.array([[-1, 0, 1], [-1, -1, 0]])
+    cam = RelativeCamera(fov_deg=120.0, max_range=2.5, range_noise=0.05, bearing_noise=0.1, heading_noise=0.2)
+    got = cam.measure_many(poses, pred, walls, [np.random.default_rng(1), np.random.default_rng(2)])
+    assert got.visible.tolist() == [[False, True, False], [False, False, True]]
+    for k, seed in enumerate((1, 2)):
+        rel_xy, heading = _expected(cam, poses[k], pred[k], got.visible[k], np.random.default_rng(seed))
+        np.testing.assert_allclose(got.rel_xy[k], rel_xy, atol=1e-12)
+        np.testing.assert_allclose(got.rel_heading[k], heading, atol=1e-12)
+        alone = cam.measure(poses[k], pred[k], walls, np.random.default_rng(seed))
+        assert all(np.array_equal(a, b[k]) for a, b in zip(alone, got, strict=True))  # bit for bit
+    assert abs(got.rel_xy[1, 2, 0] - 1.5) < 0.5 and abs(got.rel_xy[0, 1, 0] - 1.0) < 0.5  # its own world's robot

@@ -99,3 +99,24 @@ def test_noise_free_fast_readings_are_the_ideal_ray_bit_for_bit():
     want = ray.measure(poses, room.segments, 0.165, None)
     assert np.array_equal(got, want)
     assert np.mean(got < 2.54) > 0.5  # mostly echoes: the room is 4 m wide
+
+
+def test_robots_beyond_reach_are_skipped_without_changing_a_bit():
+    from parcover_env.config import MapConfig
+    from parcover_env.world.map_model import MapModel
+
+    room = MapModel.from_config(MapConfig(size=(9.0, 9.0)))
+    rng = np.random.default_rng(11)
+    k, n, r = 3, 12, 0.165
+    poses = np.column_stack([rng.uniform(0.5, 8.5, (k * n, 2)), rng.uniform(-math.pi, math.pi, k * n)]).reshape(k, n, 3)
+    poses[0, 2:, 1] = rng.uniform(6.0, 8.5, n - 2)  # world 0: robots 2... away from robots 0 and 1
+    poses[0, 0], poses[0, 1] = [1.0, 3.0, 0.0], [1.0 + 2.54 + r - 0.05, 3.0, 1.0]  # 1 is 2.49 m ahead of 0
+    poses[1, 2, :2] = poses[1, 3, :2] + [0.2, 0.1]  # two discs overlapping
+    fast = _ring(model="fast", n_beams=16, below_min="clip")
+    ray = _ring(model="ray", n_beams=16, below_min="clip", crosstalk_prob=0.0)
+    draws = [fast.draw(n, np.random.default_rng(w)) for w in range(k)]
+    got = fast.readings(poses, room.segments, r, draws)
+    for w in range(k):
+        assert np.array_equal(got[w], ray.measure(poses[w], room.segments, r, None))
+    assert got[0, 0, 0] == pytest.approx(2.49, abs=1e-6) and got[1, 2].min() == np.float32(0.15)  # inside: clipped
+    assert np.mean(got < 2.54) > 0.1  # robots and walls echo
