@@ -74,7 +74,8 @@ class SonarFixConfig:
     refused_rescans: int = 2
     """After a successful fix refused by the gate, or after any scan without an accepted fix at what
     it believes is its route's end (with the env's scans, ``observation.scan``: anywhere, as the
-    env's next search region is wider), the leader scans again at once (without driving
+    env's next search region is wider; not after a held or uninformative one, ``relocate_distance``),
+    the leader scans again at once (without driving
     ``rescan_distance`` first), up to this many times in a row: a second scan can confirm the refused
     fix (``confirm_distance``), or search the wider region of ``miss_inflation``, while the robot is
     still where it doubted its belief (-)."""
