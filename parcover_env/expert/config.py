@@ -174,11 +174,6 @@ class NavigatorConfig:
     """A robot is done when a successful fix puts it within this of its route's end (m)."""
     max_final_scans: int = 3
     """A robot at its route's end stops after this many scans even without a good fix."""
-    relocate_distance: float = 0.5
-    """With the env's scans: a robot at its route's end whose scan's fix the env holds for
-    confirmation or that was uninformative (``scan_result`` 0.5 / -0.5) backs this far along its path
-    for its next scan (from there the env can confirm the held fix), then drives to the end again; a
-    scan there repeats a look-alike match and never confirms it (m; 0: rescan in place)."""
     scan_rate: float = 0.5
     """Turn rate while scanning (rad/s); keep rate * dt below the 5 deg bin."""
     stop_speed: float = 0.005
@@ -234,7 +229,6 @@ class NavigatorConfig:
         check(self.min_walls_seen in (0, 1, 2), "min_walls_seen", f"must be 0, 1 or 2, got {self.min_walls_seen}")
         check(self.min_readings >= 1, "min_readings", f"must be >= 1, got {self.min_readings}")
         check(self.max_final_scans >= 1, "max_final_scans", f"must be >= 1, got {self.max_final_scans}")
-        check(self.relocate_distance >= 0, "relocate_distance", f"must be >= 0, got {self.relocate_distance}")
         check(self.initial_axis < self.max_axis, "initial_axis",
               f"must be < max_axis ({self.max_axis} m), got {self.initial_axis}")
         check(self.slow_margin > self.stop_margin, "slow_margin",

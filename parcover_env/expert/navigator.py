@@ -142,8 +142,6 @@ class SonarNavigator(NavigatorScans):
         self.sigma = 0.0
         self.done = np.zeros(n, dtype=bool)
         self.final_scans = np.zeros(n, dtype=int)
-        self.elsewhere = np.zeros(n, dtype=bool)
-        """Robots whose last env scan was held or uninformative (``relocate_distance``)."""
         self.phase = "plan"
         self.arrived = np.zeros(n, dtype=bool)
         self.drive_steps, self.drive_limit = 0, 0
@@ -321,7 +319,6 @@ class SonarNavigator(NavigatorScans):
         windows = np.stack([self.progress, np.minimum(self.progress + horizon, ends)], axis=1)
         res = self.rearranger.rearrange(self.paths, self.scores, targets, windows, active) if self.n > 1 else None
         self.targets = targets if res is None else res.targets
-        self._back_off(ends, starts)
         self.goal_xy = np.full((self.n, 2), np.nan) if res is None else res.goals
         self._stats["rearranged"] += 0 if res is None else res.pairs
         self._stats["apart"] += 0 if res is None else res.apart

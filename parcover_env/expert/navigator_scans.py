@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from parcover_env.envs.sonar_fixes import HELD, UNINFORMATIVE
 from parcover_env.geometry.poses import compose as _compose
 from parcover_env.geometry.poses import inverse as _inverse
 from parcover_env.localization.sonar.scan import ScanCollector
@@ -70,23 +69,11 @@ class NavigatorScans:
         if g(obs, "scanning")[0] > 0.5:
             self._stats["scan_steps"] += 1
             return
-        result = float(g(obs, "scan_result")[0])
-        self.elsewhere[i] = result in (HELD, UNINFORMATIVE)
-        self._finish(i, self.scan["start"], result > 0.75, None)
+        self._finish(i, self.scan["start"], bool(g(obs, "scan_result")[0] > 0.5), None)
         self.queue.pop(0)
         self.scan = None
         if not self.queue:
             self._end_iteration()
-
-    def _back_off(self, ends: np.ndarray, starts: np.ndarray) -> None:
-        """Robots at their route's end whose last env scan was held or uninformative get a target
-        ``relocate_distance`` back along their path (their next scan is from elsewhere; the plan after
-        it sends them to the end again)."""
-        back = self.p.relocate_distance
-        for i in np.flatnonzero(self.elsewhere & ~self.done):
-            if back > 0 and self.targets[i] >= ends[i] - 1e-9 and self.progress[i] >= ends[i] - back:
-                self.targets[i] = max(starts[i], ends[i] - back)
-        self.elsewhere[:] = False
 
     def _finish(self, i: int, prior: np.ndarray, ok: bool, fix: np.ndarray | None) -> None:
         """Book a scan of robot ``i`` from belief ``prior``: accepted (``ok``) or not; ``fix`` the

@@ -176,26 +176,3 @@ def test_the_expert_away_from_its_route_end_scans_at_the_next_informative_place_
 
 def test_outcome_values_keep_a_miss_negative():
     assert (ACCEPTED, HELD, UNINFORMATIVE, REJECTED) == (1.0, 0.5, -0.5, -1.0)
-
-
-def test_the_sonar_navigator_backs_off_along_its_path_after_a_held_scan_at_its_routes_end():
-    from parcover_env.expert import expert_for
-    from parcover_env.policies.registry import policy_overrides
-
-    env = parcover_env.parallel_env("hallway", overrides=policy_overrides("expert"))
-    nav = expert_for(env)
-    obs, _ = env.reset(seed=0)
-    nav.reset(obs)
-    assert nav.env_scan and nav.p.relocate_distance == 0.5
-    nav.act(obs)  # builds the paths
-    ends = np.array([p.s[-1] for p in nav.paths])
-    starts = np.array([p.s[0] for p in nav.paths])
-    nav.targets, nav.progress = ends.copy(), ends - np.array([0.05, 0.0])
-    nav.elsewhere[:] = [True, False]  # robot 0's last scan at its end was held
-    nav._back_off(ends, starts)
-    np.testing.assert_allclose(nav.targets, [ends[0] - 0.5, ends[1]])
-    assert not nav.elsewhere.any()  # once: the plan after its next scan sends it to the end again
-    nav.targets, nav.progress = ends.copy(), ends - 1.0  # not at its end yet: the plan moves it anyway
-    nav.elsewhere[:] = True
-    nav._back_off(ends, starts)
-    np.testing.assert_allclose(nav.targets, ends)
