@@ -42,7 +42,7 @@ def episode(job: tuple[str, int, str, str, bool]) -> dict:
     name = _name(scenario, seed)
     overrides = {"formation": {"mode": mode}}
     if env_scan:
-        overrides.update(policy_overrides("expert", name))
+        overrides.update(policy_overrides("expert"))
     try:
         env = parcover_env.parallel_env(name, overrides=overrides, preset=preset)
     except Exception as exc:  # noqa: BLE001 - a map that cannot be built is reported, not fatal

@@ -135,7 +135,7 @@ def _expert_at(env, pose):
 def test_the_expert_at_its_route_end_drives_back_to_an_informative_place_and_scans_there():
     from parcover_env.policies.registry import policy_overrides
 
-    env = parcover_env.parallel_env("generated:3", overrides=policy_overrides("expert", "generated:3"))
+    env = parcover_env.parallel_env("generated:3", overrides=policy_overrides("expert"))
     assert env.scenario.observation.scan.confirm_widened  # the registered expert holds widened fixes
     route = env.mission.routes[0]
     end = route[-1]
@@ -161,7 +161,7 @@ def test_the_expert_at_its_route_end_drives_back_to_an_informative_place_and_sca
 def test_the_expert_away_from_its_route_end_scans_at_the_next_informative_place_ahead():
     from parcover_env.policies.registry import policy_overrides
 
-    env = parcover_env.parallel_env("generated:3", overrides=policy_overrides("expert", "generated:3"))
+    env = parcover_env.parallel_env("generated:3", overrides=policy_overrides("expert"))
     route = env.mission.routes[0]
     pose = np.array([route[0][0], route[0][1], 0.0])
     expert, _ = _expert_at(env, pose)
@@ -176,14 +176,3 @@ def test_the_expert_away_from_its_route_end_scans_at_the_next_informative_place_
 
 def test_outcome_values_keep_a_miss_negative():
     assert (ACCEPTED, HELD, UNINFORMATIVE, REJECTED) == (1.0, 0.5, -0.5, -1.0)
-
-
-def test_the_registered_expert_holds_widened_fixes_except_for_the_sonar_navigator():
-    from parcover_env.policies.registry import policy_overrides
-
-    held = {"observation": {"scan": {"enabled": True, "confirm_widened": True}}}
-    assert policy_overrides("expert", "generated:3") == held
-    assert policy_overrides("expert", "t_room") == held
-    assert policy_overrides("expert", "hallway") == {"observation": {"scan": {"enabled": True}}}  # navigator
-    assert policy_overrides("expert") == {"observation": {"scan": {"enabled": True}}}  # no scenario named
-    assert policy_overrides("waypoint", "generated:3") == {"observation": {"scan": {"enabled": True}}}
