@@ -16,9 +16,10 @@ env internals. Roles (leader/follower), splits at TPs, and waypoints come from t
   Kinect view for a while stops and scans (the env's service: it asks with the ``scan`` action and
   reads the env's estimate and covariance; without the service it turns and localizes its own scan
   with Kim, Pearce & Amato's localizer, :mod:`parcover_env.expert.sonar_fix`), and checks its pose
-  by a scan before each KPOI and at its route's end; after a scan whose fix the env holds for
-  confirmation or that was uninformative (``scan_result`` 0.5 / -0.5) it scans next from elsewhere,
-  where the known map predicts an informative scan (:mod:`parcover_env.expert.scan_places`);
+  by a scan before each KPOI and at its route's end; with ``expert.sonar_fix.relocate_distance`` > 0
+  (opt-in), after a scan whose fix the env holds for confirmation or that was uninformative
+  (``scan_result`` 0.5 / -0.5) it scans next from elsewhere, where the known map predicts an
+  informative scan (:mod:`parcover_env.expert.scan_places`);
 * leaders brake on their front sonar beams when a robot or wall is closer than ``stop_margin``
   (needed in ``individual`` mode, where all robots leave at once); a leader braked for longer than
   ``patience`` (plus ``patience_stagger`` per robot index, so two robots never give way together)

@@ -111,9 +111,8 @@ def _torchrl_overrides(path: str) -> dict | None:
 
 POLICIES: dict[str, PolicyEntry] = {
     "expert": PolicyEntry(_expert, "the scripted expert of the scenario's localization mode; it stops and "
-                          "asks the env for sonar scans (the env's sonar localization; a fix found only in a "
-                          "widened region is held until a scan from elsewhere agrees)",
-                          env_overrides={"observation": {"scan": {"enabled": True, "confirm_widened": True}}}),
+                          "asks the env for sonar scans (the env's sonar localization)",
+                          env_overrides={"observation": {"scan": {"enabled": True}}}),
     "waypoint": PolicyEntry(_waypoint, "each robot drives to its observed route waypoint, alone, and stops "
                             "to scan (the env's sonar localization) when its uncertainty grows",
                             env_overrides={"observation": {"scan": {"enabled": True}}}),

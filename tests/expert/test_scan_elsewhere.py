@@ -59,6 +59,7 @@ def _fixer(**cfg):
     from parcover_env.expert.config import SonarFixConfig
     from parcover_env.expert.sonar_fix import SonarFixer
 
+    cfg = {"relocate_distance": 0.5, **cfg}
     return SonarFixer(parcover_env.load_scenario("tree"), np.radians(np.arange(0, 360, 45.0)), 0.1,
                       SonarFixConfig(refused_rescans=2, rescan_distance=2.0, **cfg), env_scan=True)
 
@@ -104,6 +105,9 @@ def test_a_rejected_scan_is_still_repeated_at_once_and_relocation_off_treats_all
     st, odom, kw = _after_scan(fixer, REJECTED)
     assert st.missed and not st.relocate
     assert fixer.step("robot_0", odom, **kw) == SCAN_REQUEST  # the env searches a wider region now
+    from parcover_env.expert.config import SonarFixConfig
+
+    assert SonarFixConfig().relocate_distance == 0.0  # opt-in: off by default
     off = _fixer(relocate_distance=0.0)
     st, odom, kw = _after_scan(off, HELD)
     assert st.missed and not st.relocate
@@ -116,6 +120,11 @@ def test_a_fresh_fix_ends_the_relocation():
     fixer.scan_after("robot_0", 0.6)
     assert fixer.step("robot_0", odom, **dict(kw, fix_age=0.0)) is None
     assert not st.relocate and st.move is None
+
+
+RELOCATE = {"observation": {"scan": {"enabled": True, "confirm_widened": True}},
+            "expert": {"sonar_fix": {"relocate_distance": 0.5}}}
+"""The measured opt-in variant: held fixes (``confirm_widened``) and the expert's relocation."""
 
 
 def _expert_at(env, pose):
@@ -133,10 +142,8 @@ def _expert_at(env, pose):
 
 
 def test_the_expert_at_its_route_end_drives_back_to_an_informative_place_and_scans_there():
-    from parcover_env.policies.registry import policy_overrides
-
-    env = parcover_env.parallel_env("generated:3", overrides=policy_overrides("expert"))
-    assert env.scenario.observation.scan.confirm_widened  # the registered expert holds widened fixes
+    env = parcover_env.parallel_env("generated:3", overrides=RELOCATE)
+    assert env.scenario.observation.scan.confirm_widened
     route = env.mission.routes[0]
     end = route[-1]
     pose = np.array([end[0], end[1], 0.0])
@@ -159,9 +166,7 @@ def test_the_expert_at_its_route_end_drives_back_to_an_informative_place_and_sca
 
 
 def test_the_expert_away_from_its_route_end_scans_at_the_next_informative_place_ahead():
-    from parcover_env.policies.registry import policy_overrides
-
-    env = parcover_env.parallel_env("generated:3", overrides=policy_overrides("expert"))
+    env = parcover_env.parallel_env("generated:3", overrides=RELOCATE)
     route = env.mission.routes[0]
     pose = np.array([route[0][0], route[0][1], 0.0])
     expert, _ = _expert_at(env, pose)
