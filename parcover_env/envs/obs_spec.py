@@ -166,7 +166,9 @@ ENTRIES: tuple[Entry, ...] = (
           _covariance, presets=("realistic",), bounds_doc="[0, pi]"),
     Entry("scanning", "-", "1 while this robot's sonar scan is under way (held still; ``observation.scan``)",
           _flag, "scan", _scan, presets=(), size_doc="1 (opt-in)"),
-    Entry("scan_result", "-", "outcome of this robot's last scan: 1 fix accepted, -1 rejected, 0 no scan yet",
+    Entry("scan_result", "-", "outcome of this robot's last scan: 1 fix accepted; 0.5 fix held until a scan from "
+          "elsewhere agrees (``confirm_widened``); -0.5 uninformative (matched, but nothing pins the pose down "
+          "here: scan elsewhere); -1 rejected (no match in the region: the next one is wider); 0 no scan yet",
           _unit, "scan", _scan, presets=(), size_doc="1 (opt-in)"),
     Entry("goal_dx", "m", "current route waypoint in the robot frame, x ahead (from the estimate)", _goal, "mission"),
     Entry("goal_dy", "m", "current route waypoint in the robot frame, y left", _goal, "mission"),

@@ -64,9 +64,13 @@ class ParallelCoverageEnv(ParallelEnv):
     estimate and its covariance (``scan.fix_sigma_xy``, ``scan.fix_sigma_heading_deg``) and
     ``fix_age``; a rejected scan changes nothing but that robot's next search region, which widens
     (``scan.miss_inflation``). The ``scanning`` entry is 1 while the scan is under way, ``scan_result`` holds
-    the last outcome (1 accepted, -1 rejected, 0 none yet) and ``info[agent]["sonar_fix"]`` this step's
-    (0 on other steps). Off by default, so the v1 action and observation spaces (and checkpoints)
-    are unchanged; the ``waypoint`` policy turns it on (``parcover_env.policies.registry``).
+    the last outcome and ``info[agent]["sonar_fix"]`` this step's (0 on other steps): 1 accepted; 0.5
+    held (``scan.confirm_widened``: a fix found only in a widened region waits for a scan from at least
+    ``scan.shift_test`` away that agrees: drive on and scan again); -0.5 uninformative (the pose matched
+    but the scan does not pin it down, e.g. along a corridor: the region is not widened, a scan from the
+    same spot will not pin it either); -1 rejected (the next region is wider); 0 none yet. Off by
+    default, so the v1 action and observation spaces (and checkpoints) are unchanged; the ``waypoint``
+    policy turns it on (``parcover_env.policies.registry``).
     Module: ``parcover_env.envs.sonar_fixes``; a test with a known answer: ``tests/envs/test_sonar_fixes.py``.
 
     ## Observation space
@@ -148,8 +152,8 @@ class ParallelCoverageEnv(ParallelEnv):
       ``k`` nearest teammates); the ``own_kpoi`` reward term with ``kpoi`` as a team bonus;
       ``info[agent]["route_done"]``; ``state()`` of one fixed shape as robot and KPOI tokens.
     * v1, opt-in ``observation.scan`` (unreleased): the sonar localization service (``scan`` action
-      component, ``scanning`` / ``scan_result`` entries, ``info[agent]["sonar_fix"]``); without it
-      v1 is unchanged.
+      component, ``scanning`` / ``scan_result`` entries, ``info[agent]["sonar_fix"]``; outcomes 1, -1,
+      then 0.5 held and -0.5 uninformative, which were -1 before); without it v1 is unchanged.
     * v1 (0.2.0): realistic motion and covariance observations (differential-drive dynamics, UMBmark
       odometry, encoder ``v, omega``, ``sigma_*`` entries, realistic Kinect and sonar errors, the
       formation hand-over of promoted followers); flat ``info[agent]["metrics/<name>"]`` and

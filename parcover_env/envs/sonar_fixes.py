@@ -20,8 +20,16 @@ leaves the estimate and covariance as they were; unless the scan was merely unin
 matched but did not pin the pose down), the robot's next scan searches a region whose sigmas are
 ``scan.miss_inflation`` times wider (at most ``scan.max_inflation``), until a fix. A fix found there
 but outside the gate of the estimate's own covariance is, with ``scan.confirm_widened``, held, not applied:
-a region several metres across holds look-alike places of the map. It is applied when a later scan
-finds a fix that agrees with it (:meth:`SonarFixes.confirmed`).
+a region several metres across holds look-alike places of the map. It is applied when a later scan,
+taken at least ``scan.shift_test`` from where the held one was (a scan from the same spot repeats a
+look-alike match), finds a fix that agrees with it (:meth:`SonarFixes.confirmed`).
+
+Each scan's outcome (the ``scan_result`` entry and ``info[agent]["sonar_fix"]``) tells a policy what
+to do next: :data:`ACCEPTED` (the estimate was reset), :data:`HELD` (a fix awaits a confirming scan
+from elsewhere: drive on a short way and scan again), :data:`UNINFORMATIVE` (the scan matched but
+does not pin the pose down here, e.g. along a straight corridor: a scan from the same spot will not
+either, scan where the map has features; the region is not widened) or :data:`REJECTED` (no match
+inside the region or outside the gate: the next region is wider, scanning again at once is useful).
 """
 
 from __future__ import annotations
@@ -43,10 +51,13 @@ from parcover_env.localization.sonar.teammates import teammate_mask
 from parcover_env.sensors.sonar import SonarRing, simulate_beams
 from parcover_env.world.map_model import MapModel
 
-__all__ = ["ACCEPTED", "REJECTED", "SonarFixes", "scan_steps", "scan_turn"]
+__all__ = ["ACCEPTED", "HELD", "REJECTED", "UNINFORMATIVE", "SonarFixes", "scan_steps", "scan_turn"]
 
-ACCEPTED, REJECTED = 1.0, -1.0
-"""Outcomes of a scan (``scan_result`` observation entry, ``info[agent]["sonar_fix"]``); 0 = none."""
+ACCEPTED, HELD, UNINFORMATIVE, REJECTED = 1.0, 0.5, -0.5, -1.0
+"""Outcomes of a scan (``scan_result`` observation entry, ``info[agent]["sonar_fix"]``; 0 = none): fix
+applied; fix held for a confirming scan from elsewhere (``confirm_widened``); matched but not pinned
+down (``shift_test``); rejected. Only :data:`ACCEPTED` changes the estimate; ``< 0``: the scan found no
+usable fix (as before the two middle values existed: a policy's ``< 0`` test reads both as a miss)."""
 
 
 def scan_turn(beam_angles: np.ndarray) -> float:
@@ -71,7 +82,7 @@ class SonarFixes:
     ``segments``: the true walls the simulated sonar sees; ``n_robots``: the team size.
     :attr:`remaining` ``(N,)`` counts the steps left of each robot's scan (0 = not scanning),
     :attr:`result` ``(N,)`` holds each robot's last outcome and :attr:`outcome` ``(N,)`` this step's
-    (:data:`ACCEPTED`, :data:`REJECTED` or 0)."""
+    (:data:`ACCEPTED`, :data:`HELD`, :data:`UNINFORMATIVE`, :data:`REJECTED` or 0)."""
 
     name = "sonar"
 
@@ -93,6 +104,8 @@ class SonarFixes:
         self.held: list[np.ndarray | None] = [None] * n_robots
         """Each robot's fix held for confirmation (:meth:`confirmed`) as the correction ``fix o estimate^-1``
         of the estimate it was found from (carried to a later estimate ``e`` as ``correction o e``)."""
+        self.held_from: list[np.ndarray | None] = [None] * n_robots
+        """The estimate (3,) each robot's held fix was found from (a confirming scan must be from elsewhere)."""
 
     @property
     def scanning(self) -> np.ndarray:
@@ -105,6 +118,7 @@ class SonarFixes:
         self.outcome[:] = 0.0
         self.inflation[:] = 1.0
         self.held = [None] * len(self.held)
+        self.held_from = [None] * len(self.held)
 
     def request(self, scan: np.ndarray, commands: np.ndarray) -> None:
         """Start a scan for each robot with ``scan (N,) > 0`` not scanning yet, then zero the commands
@@ -122,15 +136,18 @@ class SonarFixes:
         c = self.cfg
         for i in np.flatnonzero(active & (self.remaining == 0)).tolist():
             pose, informative = self.localize_scan(i, request, rng)
-            if pose is not None and not self.confirmed(i, pose, request):
-                pose, informative = None, False  # held: the region stays as wide for the confirming scan
-            self.outcome[i] = self.result[i] = REJECTED if pose is None else ACCEPTED
-            if pose is not None:
+            if pose is None:
+                outcome = REJECTED if informative else UNINFORMATIVE
+            else:
+                outcome = ACCEPTED if self.confirmed(i, pose, request) else HELD
+            self.outcome[i] = self.result[i] = outcome
+            if outcome == ACCEPTED:
                 self.inflation[i] = 1.0
-                self.held[i] = None
+                self.held[i] = self.held_from[i] = None
                 out[i] = pose
-            elif informative:  # no match inside the region: the robot may lie outside it
+            elif outcome == REJECTED:  # no match inside the region: the robot may lie outside it
                 self.inflation[i] = min(self.inflation[i] * c.miss_inflation, c.max_inflation)
+            # held: the region stays as wide for the confirming scan; uninformative: says nothing of it
         return out
 
     def confirmed(self, i: int, pose: np.ndarray, request: FixRequest) -> bool:
@@ -138,17 +155,21 @@ class SonarFixes:
 
         A fix inside the base gate (that of the estimate's own covariance, no ``miss_inflation``) is
         applied at once. One found only in a region widened by rejected scans is held (``confirm_widened``):
-        it is applied when a later scan's fix agrees with it, i.e. lies inside the base gate
-        (:meth:`gate`) of a fresh fix's covariance (:attr:`covariance`) around the held fix carried along by
-        the estimate's motion since its scan; a disagreeing fix replaces the held one."""
+        it is applied when a later scan, taken with the estimate at least ``shift_test`` from where it was
+        at the held scan, finds a fix that agrees with it, i.e. lies inside the base gate (:meth:`gate`)
+        of a fresh fix's covariance (:attr:`covariance`) around the held fix carried along by the
+        estimate's motion since its scan. A disagreeing fix from elsewhere replaces the held one; a fix
+        from closer than ``shift_test`` (the same scene: a look-alike repeats) leaves it as it is."""
         prior = request.estimate[i]
         cov = request.covariance[i] if request.covariance is not None else np.zeros((3, 3))
         if not self.cfg.confirm_widened or self.in_gate(pose, prior, cov):
             return True
-        held = self.held[i]
+        held, held_from = self.held[i], self.held_from[i]
+        if held is not None and held_from is not None and np.hypot(*(prior[:2] - held_from[:2])) < self.cfg.shift_test:
+            return False
         if held is not None and self.in_gate(pose, compose(held, prior), self.covariance):
             return True
-        self.held[i] = compose(pose, inverse(prior))
+        self.held[i], self.held_from[i] = compose(pose, inverse(prior)), prior.copy()
         return False
 
     def in_gate(self, pose: np.ndarray, prior: np.ndarray, cov: np.ndarray) -> bool:

@@ -74,7 +74,8 @@ class SonarFixConfig:
     refused_rescans: int = 2
     """After a successful fix refused by the gate, or after any scan without an accepted fix at what
     it believes is its route's end (with the env's scans, ``observation.scan``: anywhere, as the
-    env's next search region is wider), the leader scans again at once (without driving
+    env's next search region is wider; not after a held or uninformative one, ``relocate_distance``),
+    the leader scans again at once (without driving
     ``rescan_distance`` first), up to this many times in a row: a second scan can confirm the refused
     fix (``confirm_distance``), or search the wider region of ``miss_inflation``, while the robot is
     still where it doubted its belief (-)."""
@@ -89,6 +90,17 @@ class SonarFixConfig:
     stops and scans once when it believes that KPOI is this close (m; 0: never): the env's route
     follows its estimate and moves on once the estimate reaches the KPOI, so a drifted arrival at a
     KPOI is never corrected afterwards (the same reason as ``final_rescan_distance``)."""
+    relocate_distance: float = 0.0
+    """Opt-in (0 = off, the default). With the env's scans: after a scan whose fix is held for
+    confirmation (``scan_result`` 0.5) or that was uninformative (-0.5), the leader does not scan again
+    where it stands (a look-alike match
+    repeats there, and an uninformative scene stays uninformative) but at the first place at least this
+    far along its route, at most ``rescan_distance``, where the known map predicts an informative
+    scan (:class:`~parcover_env.expert.scan_places.ScanPlaces`; none: after ``rescan_distance``); at
+    its route's end, at such a place back along its route in its sight, then it returns (none: it
+    scans no more). Short against ``rescan_distance``: a held fix may be right and the estimate
+    wrong. 0: such scans count as rejected ones (m). Measured with 0.5 m and ``confirm_widened`` on:
+    generated seeds 0-199 192 / 200 (off: 195 / 200), ``docs/expert_benchmark.md``."""
     fix_sigma: float = 0.05
     """Position standard deviation of an accepted sonar fix along x and y (m): the covariance the
     expert propagates the corrected belief from."""
@@ -105,6 +117,7 @@ class SonarFixConfig:
         positive(self, "stale_after", "scan_rate", "stop_speed", "gate_distance", "gate_heading_deg", "gate_sigmas",
                  "fix_sigma", "fix_sigma_heading_deg", "confirm_distance")
         check(self.shift_test >= 0, "shift_test", f"must be >= 0, got {self.shift_test}")
+        check(self.relocate_distance >= 0, "relocate_distance", f"must be >= 0, got {self.relocate_distance}")
         check(self.min_shift_increase >= 0, "min_shift_increase", f"must be >= 0, got {self.min_shift_increase}")
         check(self.miss_inflation >= 1, "miss_inflation", f"must be >= 1, got {self.miss_inflation}")
         check(self.max_inflation >= 1, "max_inflation", f"must be >= 1, got {self.max_inflation}")

@@ -16,7 +16,10 @@ env internals. Roles (leader/follower), splits at TPs, and waypoints come from t
   Kinect view for a while stops and scans (the env's service: it asks with the ``scan`` action and
   reads the env's estimate and covariance; without the service it turns and localizes its own scan
   with Kim, Pearce & Amato's localizer, :mod:`parcover_env.expert.sonar_fix`), and checks its pose
-  by a scan before each KPOI and at its route's end;
+  by a scan before each KPOI and at its route's end; with ``expert.sonar_fix.relocate_distance`` > 0
+  (opt-in), after a scan whose fix the env holds for confirmation or that was uninformative
+  (``scan_result`` 0.5 / -0.5) it scans next from elsewhere, where the known map predicts an
+  informative scan (:mod:`parcover_env.expert.scan_places`);
 * leaders brake on their front sonar beams when a robot or wall is closer than ``stop_margin``
   (needed in ``individual`` mode, where all robots leave at once); a leader braked for longer than
   ``patience`` (plus ``patience_stagger`` per robot index, so two robots never give way together)
@@ -74,6 +77,13 @@ class ScriptedExpert(Policy):
             from parcover_env.expert.sonar_fix import SonarFixer
 
             self.fixer = SonarFixer(scenario, sonar_angles, control_dt, cfg.sonar_fix, env_scan=env_scan)
+        self.places = None
+        if self.fixer is not None and env_scan:
+            from parcover_env.expert.scan_places import ScanPlaces
+
+            self.places = ScanPlaces(scenario, mission.known_map.segments)
+        self.detours: dict[str, np.ndarray] = {}
+        """Where a robot at its route's end drives back to scan from (after a held or uninformative scan)."""
         # with sonar fixes, the robots' progress along their routes is tracked on the corrected pose
         # (the env's waypoints follow its odometry estimate), from the start so that out-and-back
         # legs are never confused
@@ -117,6 +127,7 @@ class ScriptedExpert(Policy):
         self.backing.clear()
         self.unseen.clear()
         self.checked.clear()
+        self.detours.clear()
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         g = self.layout.get
@@ -166,6 +177,9 @@ class ScriptedExpert(Policy):
         tracker's from the corrected pose (identical while there is no correction); see
         :meth:`_visible_goal` for a robot off its route."""
         i = int(agent.rsplit("_", 1)[1])
+        if agent in self.detours:
+            pose = self._odom(obs) if bel is None else bel[i]
+            return rotate(self.detours[agent] - pose[:2], -pose[2])
         if bel is None or not self.fixer.corrected(agent):
             pose = self._odom(obs)
             rel = np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
@@ -259,12 +273,40 @@ class ScriptedExpert(Policy):
             cov = covariance_from_entries(np.array([g(obs, k)[0] for k in names], dtype=float), float(odom[2]))
         scanning = "scanning" in self.layout.slices and bool(g(obs, "scanning")[0] > 0.5)
         check = self._kpoi_check(agent, obs, odom) if leader else None
+        result = float(g(obs, "scan_result")[0]) if "scan_result" in self.layout.slices else 0.0
         out = self.fixer.step(agent, odom, float(g(obs, "fix_age")[0]), float(g(obs, "v")[0]),
                               g(obs, "sonar").astype(float), leader, at_end, cov, others, scanning,
-                              check=check is not None)
+                              check=check is not None, result=result)
         if check is not None and self.fixer.scanning(agent):
             self.checked.add((agent, check))
+        self._relocate(agent, i, odom, at_end)
         return out
+
+    def _relocate(self, agent: str, i: int, odom: np.ndarray, at_end: bool) -> None:
+        """After a held or uninformative env scan, choose where the robot scans next
+        (``expert.sonar_fix.relocate_distance``): the first place ahead along its route where the known map
+        predicts an informative scan; at its route's end, such a place back along it (a detour, scanned on
+        arrival). Drops the detour once the robot scans or is fixed."""
+        if self.fixer.scanning(agent) or not self.fixer.relocating(agent):
+            self.detours.pop(agent, None)
+            return
+        bel = self.fixer.belief(agent, odom)[:2]
+        if agent in self.detours and np.hypot(*(bel - self.detours[agent])) <= self.mission.waypoint_tol:
+            self.fixer.scan_after(agent, 0.0)  # arrived: scan now
+        if self.places is None or not self.fixer.needs_place(agent):
+            return
+        c = self.cfg.sonar_fix
+        near, far = c.relocate_distance, max(c.relocate_distance, c.rescan_distance)
+        route = self.mission.routes[i]
+        if at_end:
+            place = self.places.behind(route, bel, near, far)
+            if place is not None:
+                self.detours[agent] = place
+            self.fixer.scan_after(agent, np.inf)
+            return
+        progress = float(self.track.progress[i]) if self.track is not None else 0.0
+        d = self.places.ahead(route, progress, near, far)
+        self.fixer.scan_after(agent, c.rescan_distance if d is None else d)
 
     def _kpoi_check(self, agent: str, obs: np.ndarray, odom: np.ndarray) -> int | None:
         """The index of the KPOI at the robot's route point ahead (within ``waypoint_tol``), if the robot believes it is

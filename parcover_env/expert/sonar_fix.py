@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from parcover_env.config import OdometryConfig
+from parcover_env.envs.sonar_fixes import HELD, UNINFORMATIVE
 from parcover_env.expert.config import SonarFixConfig, expert_config
 from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.poses import compose, inverse
@@ -149,6 +150,11 @@ class _State:
     inflation: float = 1.0
     """Factor on the standard deviations of the gate after scans in a row without an accepted fix
     (``miss_inflation``); 1 after a fix."""
+    relocate: bool = False
+    """The env's last scan was held or uninformative: the next scan is taken elsewhere (``relocate_distance``)."""
+    move: float | None = None
+    """While relocating: the distance (m) to drive since that scan before the next one; None until the
+    expert has chosen the place (:meth:`SonarFixer.scan_after`)."""
 
 
 class SonarFixer:
@@ -203,7 +209,7 @@ class SonarFixer:
     def step(self, agent: str, odom: np.ndarray, fix_age: float, speed: float, ranges: np.ndarray,
              is_leader: bool, at_end: bool = False, odom_cov: np.ndarray | None = None,
              others: np.ndarray | None = None, scanning: bool = False,
-             check: bool = False) -> tuple[float, ...] | None:
+             check: bool = False, result: float = 0.0) -> tuple[float, ...] | None:
         """Advance this robot's scan logic; returns a (v, w) command while it is scanning. Only a robot
         that navigates by itself (``is_leader``: a leader, or a follower gone alone) starts a scan. ``at_end``:
         the robot believes it is at its route's end, where it checks its pose with a scan sooner
@@ -213,7 +219,10 @@ class SonarFixer:
         positions as the expert believes them, drawn into the map when a scan is localized.
         ``scanning``: the observation's ``scanning`` entry (:attr:`env_scan` only). ``check``: the
         robot is about to reach a KPOI (``kpoi_check_distance``): a stale leader scans now, whatever
-        it drove since its last scan."""
+        it drove since its last scan. ``result``: the observation's ``scan_result`` (:attr:`env_scan`
+        only): after a held or uninformative scan (``relocate_distance`` > 0) the robot does not scan
+        again where it stands but once it has driven the distance the expert chose
+        (:meth:`needs_place`, :meth:`scan_after`)."""
         st = self.states.setdefault(agent, _State(np.zeros(3), np.zeros((3, 3))))
         fresh = fix_age < 2 * self.dt  # a fresh Kinect (or env sonar) fix: the odometry pose is absolute again
         if fresh and st.scan == ENV_SCAN and not scanning:  # the env's fix of our scan
@@ -224,7 +233,7 @@ class SonarFixer:
             # ``rescan_distance`` first, as after a fix of its own
             driven = 0.0 if st.env_fixed else math.inf
             st.correction, st.scan, st.driven_since_scan, st.refused = np.zeros(3), None, driven, None
-            st.missed, st.inflation = False, 1.0
+            st.missed, st.inflation, st.relocate, st.move = False, 1.0, False, None
             st.cov = self.kinect_cov.copy() if odom_cov is None else odom_cov
         elif odom_cov is not None and not self.corrected(agent):
             st.cov = odom_cov
@@ -243,6 +252,8 @@ class SonarFixer:
             missed = st.missed and (at_end or self.env_scan)
             retry = (st.refused is not None or missed) and st.retries < self.cfg.refused_rescans
             due = retry or check or st.driven_since_scan >= rescan
+            if st.relocate:  # scan again only where the expert chose (never where it stands)
+                retry, due = False, check or (st.move is not None and st.driven_since_scan >= st.move)
             if not (is_leader and fix_age > self.cfg.stale_after and due):
                 return None
             if abs(speed) > self.cfg.stop_speed:
@@ -258,8 +269,11 @@ class SonarFixer:
         if st.scan == ENV_SCAN:
             if scanning:
                 return 0.0, 0.0
-            # the env's scan ended without a fix (a fix is fresh above): search wider next time
-            st.missed, st.scan, st.driven_since_scan = True, None, 0.0
+            # the env's scan ended without a fix (a fix is fresh above): search wider next time, or,
+            # after a held or uninformative scan, scan next from elsewhere
+            st.scan, st.driven_since_scan = None, 0.0
+            elsewhere = self.cfg.relocate_distance > 0 and result in (HELD, UNINFORMATIVE)
+            st.missed, st.relocate, st.move = not elsewhere, elsewhere, None
             self.stats["sonar_failed"] += 1
             return None
         if not st.scan.add(float(odom[2]), ranges):
@@ -267,6 +281,23 @@ class SonarFixer:
         self._localize(st, np.zeros((0, 2)) if others is None else np.asarray(others, dtype=float))
         st.scan, st.driven_since_scan = None, 0.0
         return None
+
+    def needs_place(self, agent: str) -> bool:
+        """Whether this robot's last env scan was held or uninformative and the expert has not yet
+        chosen where it scans next (:meth:`scan_after`)."""
+        st = self.states.get(agent)
+        return st is not None and st.relocate and st.move is None
+
+    def relocating(self, agent: str) -> bool:
+        """Whether this robot waits to scan from elsewhere (after a held or uninformative scan)."""
+        st = self.states.get(agent)
+        return st is not None and st.relocate
+
+    def scan_after(self, agent: str, distance: float) -> None:
+        """A relocating robot scans next once it has driven ``distance`` (m) since its last scan
+        (``math.inf``: not before a fix from elsewhere; 0: now)."""
+        st = self.states[agent]
+        st.move = float(distance)
 
     def relative_update(self, agent: str, odom: np.ndarray, measured: np.ndarray, measured_cov: np.ndarray) -> None:
         """Fuse a pose measured relative to a teammate (:func:`chain_pose`) into this robot's belief;

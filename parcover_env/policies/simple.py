@@ -30,11 +30,12 @@ class WaypointPolicy(Policy):
 
     With the env's sonar localization service (``observation.scan``: the observation has a
     ``scanning`` entry and the action a ``scan`` component), a robot stops and scans when its
-    uncertainty ellipse's major axis ``sigma_major`` exceeds ``scan_sigma`` (m). After a rejected
-    scan (``scan_result`` -1) it scans again at once, up to ``retries`` times in a row (the env
-    searches a wider region after each rejection, ``observation.scan.miss_inflation``); after that it
-    scans again only once ``sigma_major`` has grown ``retry_growth`` times its value at the last
-    scan (it has driven on, so the next scan sees another place). ``scan_sigma`` defaults to
+    uncertainty ellipse's major axis ``sigma_major`` exceeds ``scan_sigma`` (m). After a scan without
+    a fix (``scan_result`` < 0: rejected -1 or uninformative -0.5) it scans again at once, up to
+    ``retries`` times in a row (the env searches a wider region after each rejection,
+    ``observation.scan.miss_inflation``); after that it scans again only once ``sigma_major`` has
+    grown ``retry_growth`` times its value at the last scan (it has driven on, so the next scan sees
+    another place). ``scan_sigma`` defaults to
     :func:`default_scan_sigma`; ``retries`` = 2 as the scripted expert's ``refused_rescans``.
     """
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.envs.sonar_fixes import ACCEPTED, REJECTED, scan_steps, scan_turn
+from parcover_env.envs.sonar_fixes import ACCEPTED, HELD, REJECTED, UNINFORMATIVE, scan_steps, scan_turn
 from parcover_env.errors import ActionError
 
 SCAN = {"observation": {"scan": {"enabled": True}, "pose_source": "odometry"}}
@@ -207,7 +207,7 @@ def test_an_uninformative_scan_is_rejected_without_widening_the_next_region():
     env.estimator.fix(0, true + np.array([0.05, 0.0, 0.0]), cov)
     env.scanner.pins_down = lambda *args: False  # the scan matched but pins nothing down
     rows = _scan(env)
-    assert rows[-1][1] == REJECTED and env.scanner.inflation[0] == 1.0
+    assert rows[-1][1] == UNINFORMATIVE and rows[-1][1] < 0 and env.scanner.inflation[0] == 1.0
     env.estimator.fix(0, true + np.array([1.2, 0.8, 0.0]), np.diag([0.02**2, 0.02**2, 0.01**2]))
     _scan(env)  # no match inside the small region around a far estimate: the robot may lie outside it
     assert env.scanner.result[0] == REJECTED
@@ -233,7 +233,7 @@ def test_a_fix_found_only_in_a_widened_region_is_held_until_a_second_scan_agrees
     true, cov, est = _widened(env, [0.5, -0.3, 0.2])  # 0.58 m off: outside the base gate (3 x 0.071 m), in x 8
     assert not sc.in_gate(true, est, cov) and sc.in_gate(true, est, cov * 64.0)
     rows = _scan(env)
-    assert rows[-1][1] == REJECTED  # held, not applied: estimate and covariance unchanged
+    assert rows[-1][1] == HELD  # held, not applied: estimate and covariance unchanged
     np.testing.assert_array_equal(env.pose_estimates()[0], est)
     np.testing.assert_array_equal(env.pose_covariances()[0], cov)
     assert sc.inflation[0] == 8.0  # the region is not widened further: the second scan searches the same
@@ -261,13 +261,35 @@ def test_a_disagreeing_second_scan_drops_the_held_fix():
     true, cov, est = _widened(env, [0.5, -0.3, 0.2])
     look_alike = true + np.array([0.0, 0.4, 0.0])  # an earlier held fix 0.4 m from where the scan matches
     sc.held[0] = compose(look_alike, inverse(est))
+    sc.held_from[0] = est + np.array([0.3, 0.0, 0.0])  # found from 0.3 m away (>= shift_test 0.2)
     rows = _scan(env)
-    assert rows[-1][1] == REJECTED
+    assert rows[-1][1] == HELD
     np.testing.assert_array_equal(env.pose_estimates()[0], est)
     carried = compose(sc.held[0], est)  # the new fix replaced the old one: held in its place
     assert np.hypot(*(carried[:2] - true[:2])) < 0.05
+    np.testing.assert_array_equal(sc.held_from[0], est)
     sc.held[0] = compose(true + np.array([0.0, 0.1, 0.0]), inverse(est))  # 0.1 m: inside a fresh fix's gate
+    sc.held_from[0] = est + np.array([0.0, 0.25, 0.0])
     assert _scan(env)[-1][1] == ACCEPTED
+
+
+def test_a_scan_from_where_the_held_fix_was_found_neither_confirms_nor_replaces_it():
+    from parcover_env.geometry.poses import compose, inverse
+
+    env = _env(CONFIRM)
+    sc = env.scanner
+    true, cov, est = _widened(env, [0.5, -0.3, 0.2])
+    assert _scan(env)[-1][1] == HELD
+    first = sc.held[0].copy()
+    np.testing.assert_array_equal(sc.held_from[0], est)
+    assert _scan(env)[-1][1] == HELD  # agrees, but from the same spot: a look-alike would repeat too
+    np.testing.assert_array_equal(sc.held[0], first)
+    look_alike = compose(true + np.array([0.0, 0.4, 0.0]), inverse(est))
+    sc.held[0] = look_alike
+    sc.held_from[0] = est + np.array([0.15, 0.0, 0.0])  # 0.15 m away: still closer than shift_test
+    assert _scan(env)[-1][1] == HELD  # disagrees from the same scene: the held fix is kept
+    np.testing.assert_array_equal(sc.held[0], look_alike)
+    np.testing.assert_array_equal(env.pose_estimates()[0], est)
 
 
 def test_a_fix_inside_the_base_gate_or_with_confirmation_off_is_applied_at_once():

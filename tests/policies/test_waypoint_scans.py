@@ -37,14 +37,15 @@ def test_scans_above_the_threshold_only(layout):
     assert pol.stats() == {"scans": 1}
 
 
-def test_rejected_scan_is_retried_twice_then_waits_for_more_drift(layout):
+@pytest.mark.parametrize("miss", [-1.0, -0.5])  # rejected, uninformative: both a miss to this policy
+def test_rejected_scan_is_retried_twice_then_waits_for_more_drift(layout, miss):
     pol = WaypointPolicy(layout)
     scans = []
     sigma = 0.2
     assert pol.act(_obs(layout, sigma))["robot_0"][2] == 1.0
     for _ in range(3):  # three rejections in a row: two immediate retries, then none
         pol.act(_obs(layout, sigma, scanning=1.0))
-        scans.append(pol.act(_obs(layout, sigma, result=-1.0))["robot_0"][2])
+        scans.append(pol.act(_obs(layout, sigma, result=miss))["robot_0"][2])
     assert scans == [1.0, 1.0, -1.0]
     assert pol.act(_obs(layout, 1.5 * sigma - 0.01, result=-1.0))["robot_0"][2] == -1.0
     assert pol.act(_obs(layout, 1.5 * sigma + 0.01, result=-1.0))["robot_0"][2] == 1.0

@@ -1,0 +1,183 @@
+"""After a held or uninformative env scan the expert scans next from elsewhere: where the known map
+predicts an informative scan (``expert/scan_places.py``), never again where it stands."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import parcover_env
+from parcover_env.config.schema import MapConfig
+from parcover_env.envs.sonar_fixes import ACCEPTED, HELD, REJECTED, UNINFORMATIVE
+from parcover_env.expert.scan_places import ScanPlaces
+from parcover_env.localization.sonar.known_map import known_map_features
+
+
+def _corridor_places():
+    """A 12 x 1.2 m corridor (sonar range 2.5 m, shift test 0.2 m / 0.003 m)."""
+    sc = parcover_env.load_scenario("generated:120")
+    assert sc.robot.sonar.range_max == 2.5
+    assert (sc.observation.scan.shift_test, sc.observation.scan.min_shift_increase) == (0.2, 0.003)
+    segments = known_map_features(MapConfig(size=(12.0, 1.2)), sc.robot.sonar.range_max)[0].segments
+    return ScanPlaces(sc, segments)
+
+
+def test_a_scan_is_predicted_informative_only_within_sonar_range_of_a_corridor_end():
+    places = _corridor_places()
+    informative = {x: places.informative(np.array([x, 0.6, 0.0])) for x in (0.5, 2.0, 3.0, 6.0, 9.0, 10.0, 11.5)}
+    # the end walls at x = 0 and 12 are seen within 2.5 m: shifted along the corridor the scan changes
+    assert informative == {0.5: True, 2.0: True, 3.0: False, 6.0: False, 9.0: False, 10.0: True, 11.5: True}
+    assert places.informative(np.array([6.0, 0.6, 1.0])) is False  # whatever the heading
+
+
+def test_the_next_scan_place_ahead_is_where_the_end_wall_comes_in_range():
+    places = _corridor_places()
+    route = np.array([[3.0, 0.6], [11.5, 0.6]])
+    # from x = 9 (progress 6 m): the first informative place at least 0.5 m on is x = 9.6 (2.4 m from the wall)
+    assert places.ahead(route, 6.0, 0.5, 2.0) == pytest.approx(0.6)
+    assert places.ahead(route, 0.0, 0.5, 2.0) is None  # x 3.5-5: the middle of the corridor
+    assert places.ahead(route, 8.0, 0.5, 2.0) == pytest.approx(0.5)  # near the end: 0.5 m on already is
+    # a route end closer than ``near`` still counts: the robot scans there
+    assert places.ahead(route, 8.3, 0.5, 2.0) == pytest.approx(0.2)
+
+
+def test_the_place_behind_a_route_end_in_a_corridor_is_back_where_the_far_wall_is_in_range():
+    places = _corridor_places()
+    route = np.array([[1.0, 0.6], [6.0, 0.6]])
+    np.testing.assert_allclose(places.behind(route, np.array([6.0, 0.6]), 0.5, 5.0), [2.4, 0.6], atol=1e-9)
+    assert places.behind(route, np.array([6.0, 0.6]), 0.5, 2.0) is None  # x 4-5.5: nothing within 2 m
+    assert places.behind(route, np.array([6.0, 0.6]), 0.5, 6.0) is not None
+    # a wall between the robot and the route: not a place it can drive back to in a straight line
+    walled = _corridor_places()
+    walled.segments = np.vstack([walled.segments, [[5.8, 0.0, 5.8, 1.2]]])  # right behind the robot
+    assert walled.behind(route, np.array([6.0, 0.6]), 0.5, 5.0) is None
+
+
+def _fixer(**cfg):
+    from parcover_env.expert.config import SonarFixConfig
+    from parcover_env.expert.sonar_fix import SonarFixer
+
+    cfg = {"relocate_distance": 0.5, **cfg}
+    return SonarFixer(parcover_env.load_scenario("tree"), np.radians(np.arange(0, 360, 45.0)), 0.1,
+                      SonarFixConfig(refused_rescans=2, rescan_distance=2.0, **cfg), env_scan=True)
+
+
+def _after_scan(fixer, result):
+    """Robot 0 asked for an env scan, which ended (no fresh fix) with ``result``; returns its state."""
+    from parcover_env.expert.sonar_fix import SCAN_REQUEST, _State
+
+    odom, ranges = np.array([1.0, 1.0, 0.0]), np.full(len(fixer.beams), 1.0)
+    st = _State(np.zeros(3), np.eye(3) * 1e-3, driven_since_scan=0.0, last_odom=odom.copy())
+    fixer.states["robot_0"] = st
+    kw = {"fix_age": 100.0, "speed": 0.0, "ranges": ranges, "is_leader": True}
+    assert fixer.step("robot_0", odom, check=True, **kw) == SCAN_REQUEST
+    assert fixer.step("robot_0", odom, scanning=True, **kw) == (0.0, 0.0)
+    assert fixer.step("robot_0", odom, scanning=False, result=result, **kw) is None
+    return st, odom, kw
+
+
+@pytest.mark.parametrize("result", [HELD, UNINFORMATIVE])
+def test_a_held_or_uninformative_scan_is_not_repeated_in_place_but_after_the_chosen_drive(result):
+    from parcover_env.expert.sonar_fix import SCAN_REQUEST
+
+    fixer = _fixer()
+    st, odom, kw = _after_scan(fixer, result)
+    assert st.relocate and not st.missed and fixer.needs_place("robot_0")
+    for _ in range(5):  # a rejected scan would be repeated at once (refused_rescans); this one is not
+        assert fixer.step("robot_0", odom, **kw) is None
+    fixer.scan_after("robot_0", 0.6)
+    assert not fixer.needs_place("robot_0") and fixer.relocating("robot_0")
+    moving = dict(kw, speed=0.25)  # 0.025 m per 0.1 s step
+    steps = 0
+    while fixer.step("robot_0", odom, **moving) is None:
+        steps += 1
+    assert steps == 23  # 24 x 0.025 m = 0.6 m driven: due; still rolling, so it brakes first
+    assert fixer.step("robot_0", odom, **kw) == SCAN_REQUEST
+    assert st.scan == "env"
+
+
+def test_a_rejected_scan_is_still_repeated_at_once_and_relocation_off_treats_all_alike():
+    from parcover_env.expert.sonar_fix import SCAN_REQUEST
+
+    fixer = _fixer()
+    st, odom, kw = _after_scan(fixer, REJECTED)
+    assert st.missed and not st.relocate
+    assert fixer.step("robot_0", odom, **kw) == SCAN_REQUEST  # the env searches a wider region now
+    from parcover_env.expert.config import SonarFixConfig
+
+    assert SonarFixConfig().relocate_distance == 0.0  # opt-in: off by default
+    off = _fixer(relocate_distance=0.0)
+    st, odom, kw = _after_scan(off, HELD)
+    assert st.missed and not st.relocate
+    assert off.step("robot_0", odom, **kw) == SCAN_REQUEST
+
+
+def test_a_fresh_fix_ends_the_relocation():
+    fixer = _fixer()
+    st, odom, kw = _after_scan(fixer, UNINFORMATIVE)
+    fixer.scan_after("robot_0", 0.6)
+    assert fixer.step("robot_0", odom, **dict(kw, fix_age=0.0)) is None
+    assert not st.relocate and st.move is None
+
+
+RELOCATE = {"observation": {"scan": {"enabled": True, "confirm_widened": True}},
+            "expert": {"sonar_fix": {"relocate_distance": 0.5}}}
+"""The measured opt-in variant: held fixes (``confirm_widened``) and the expert's relocation."""
+
+
+def _expert_at(env, pose):
+    """The registered expert after reset, robot 0's observation put at ``pose`` (leader, stale)."""
+    from parcover_env.expert import expert_for
+
+    expert = expert_for(env)
+    obs, _ = env.reset(seed=3)
+    expert.reset(obs)
+    o = obs["robot_0"].copy()
+    for name, value in {"x": pose[0], "y": pose[1], "cos_theta": math.cos(pose[2]),
+                        "sin_theta": math.sin(pose[2])}.items():
+        o[env.layout.slices[name]] = value
+    return expert, o
+
+
+def test_the_expert_at_its_route_end_drives_back_to_an_informative_place_and_scans_there():
+    env = parcover_env.parallel_env("generated:3", overrides=RELOCATE)
+    assert env.scenario.observation.scan.confirm_widened
+    route = env.mission.routes[0]
+    end = route[-1]
+    pose = np.array([end[0], end[1], 0.0])
+    expert, o = _expert_at(env, pose)
+    _after_scan(expert.fixer, UNINFORMATIVE)
+    expert.fixer.states["robot_0"].last_odom = pose.copy()
+    expert._relocate("robot_0", 0, pose, at_end=True)
+    place = expert.places.behind(route, pose[:2], 0.5, 2.0)
+    assert place is not None and 0.5 - 1e-9 <= np.hypot(*(place - end)) <= 2.0
+    np.testing.assert_array_equal(expert.detours["robot_0"], place)
+    assert expert.fixer.states["robot_0"].move == math.inf  # not before it gets there
+    goal = expert._goal(o, "robot_0", None)  # it steers to the place (robot frame)
+    np.testing.assert_allclose(goal, place - pose[:2], atol=1e-6)  # float32 observation
+    there = np.array([place[0], place[1], 0.0])
+    expert._relocate("robot_0", 0, there, at_end=False)  # arrived: the scan is due now
+    assert expert.fixer.states["robot_0"].move == 0.0
+    expert.fixer.states["robot_0"].scan = "env"
+    expert._relocate("robot_0", 0, there, at_end=False)  # scanning: the detour is done
+    assert "robot_0" not in expert.detours
+
+
+def test_the_expert_away_from_its_route_end_scans_at_the_next_informative_place_ahead():
+    env = parcover_env.parallel_env("generated:3", overrides=RELOCATE)
+    route = env.mission.routes[0]
+    pose = np.array([route[0][0], route[0][1], 0.0])
+    expert, _ = _expert_at(env, pose)
+    _after_scan(expert.fixer, HELD)
+    expert._relocate("robot_0", 0, pose, at_end=False)
+    ahead = expert.places.ahead(route, float(expert.track.progress[0]), 0.5, 2.0)
+    expected = 2.0 if ahead is None else ahead
+    assert 0.5 - 1e-9 <= expected <= 2.0
+    assert expert.fixer.states["robot_0"].move == pytest.approx(expected)
+    assert "robot_0" not in expert.detours
+
+
+def test_outcome_values_keep_a_miss_negative():
+    assert (ACCEPTED, HELD, UNINFORMATIVE, REJECTED) == (1.0, 0.5, -0.5, -1.0)
