@@ -38,16 +38,13 @@ import numpy as np
 
 from parcover_env.harness.marl_config import MarlConfig
 from parcover_env.harness.marl_init import CRITIC_FILE, apply_init, critic_spec, find_init, save_critic
+from parcover_env.harness.marl_loss import GROUP, REAL, build_loss, prepare_minibatch, standardize_advantage
 from parcover_env.harness.training import git_commit, plot_curve, write_csv
 from parcover_env.policies.torchrl_policy import POLICY_FILE, SIDECAR_FILE, actor_net
 
 __all__ = ["TrainRequest", "EnvMaker", "build_actor", "save_policy", "policy_net", "build_critic", "build_loss",
-           "train", "GROUP", "REAL", "standardize_advantage", "RunWriter"]
+           "train", "GROUP", "REAL", "standardize_advantage", "prepare_minibatch", "RunWriter"]
 
-GROUP = "robot"
-"""TorchRL's group of the robots (``robot_0``, ``robot_1``, ... share the prefix)."""
-REAL = (GROUP, "real")
-"""``[..., robots, 1]`` bool: a map's robot, not a map pool's padding (:mod:`~parcover_env.harness.marl_env`)."""
 CURVE_FILE = "curve.csv"
 
 
@@ -196,49 +193,6 @@ def build_critic(algo: str, obs_space, state_space, cfg: MarlConfig):
     return TensorDictModule(mlp, in_keys=[(GROUP, "observation")], out_keys=out)
 
 
-def build_loss(algo: str, cfg: MarlConfig, actor, critic):
-    """``IPPOLoss`` or ``MAPPOLoss`` with the group's keys, the configured value normalization and
-    ``MultiAgentGAE(gamma, lmbda)`` as its value estimator. Its ``loss_mask_key`` is :data:`REAL`:
-    the objective, critic and entropy terms are means over the real robots of a minibatch (all
-    agents when the batch has no such entry); its own advantage normalization is off
-    (:func:`standardize_advantage` replaces it)."""
-    from torchrl.modules import PopArtValueNorm, RunningValueNorm
-    from torchrl.objectives import ValueEstimators
-    from torchrl.objectives.multiagent import IPPOLoss, MAPPOLoss
-
-    norm = {"popart": PopArtValueNorm, "running": RunningValueNorm}.get(cfg.value_norm)
-    cls = MAPPOLoss if algo == "mappo" else IPPOLoss
-    loss = cls(actor, critic, value_norm=norm(shape=1) if norm else None, clip_epsilon=cfg.clip_epsilon,
-               entropy_coeff=cfg.entropy_coeff, critic_coeff=cfg.critic_coeff,
-               normalize_advantage=False)  # standardize_advantage does it, over the real robots only
-    loss.loss_mask_key = REAL  # a map pool's padding agents add nothing to the loss terms
-    loss.set_keys(reward=(GROUP, "reward"), action=(GROUP, "action"), value=(GROUP, "state_value"),
-                  done=(GROUP, "done"), terminated=(GROUP, "terminated"),
-                  sample_log_prob=(GROUP, "action_log_prob"), advantage=(GROUP, "advantage"),
-                  value_target=(GROUP, "value_target"))
-    loss.make_value_estimator(ValueEstimators.MAGAE, gamma=cfg.gamma, lmbda=cfg.gae_lambda)
-    return loss
-
-
-def standardize_advantage(td, enabled: bool = True):
-    """``td`` with its ``(robot, "advantage")`` standardized over the real robots of every step
-    (mean 0, standard deviation 1 over the entries where :data:`REAL` is true, or over all entries
-    without it) and set to 0 on padding agents; unchanged when not ``enabled``. PPO's per-minibatch
-    normalization, with padding left out of the statistics."""
-    import torch
-
-    if not enabled:
-        return td
-    adv = td.get((GROUP, "advantage"))
-    real = td.get(REAL, None)
-    real = torch.ones_like(adv, dtype=torch.bool) if real is None else real.reshape(adv.shape)
-    n = real.sum().clamp_min(1)
-    mean = torch.where(real, adv, 0.0).sum() / n
-    std = (torch.where(real, adv - mean, 0.0).pow(2).sum() / n).sqrt().clamp_min(1e-4)
-    td.set((GROUP, "advantage"), torch.where(real, (adv - mean) / std, 0.0))
-    return td
-
-
 def _collector(req: TrainRequest, make_env: EnvMaker, actor, total_frames: int):
     """TorchRL's single-process ``Collector``, or its ``RayCollector`` with ``ray_collectors`` remote
     collectors (env seeds ``seed + k``) whose batches are stacked (``sync=True``)."""
@@ -368,7 +322,7 @@ def train(req: TrainRequest) -> dict:
                                      target_params=loss.target_critic_network_params)
             buffer.extend(batch.reshape(-1))
             for _ in range(cfg.epochs * (cfg.frames_per_batch // cfg.minibatch_size)):
-                parts = loss(standardize_advantage(buffer.sample(), cfg.normalize_advantage))
+                parts = loss(prepare_minibatch(loss, buffer.sample(), cfg.normalize_advantage))
                 total = parts["loss_objective"] + parts["loss_critic"] + parts.get("loss_entropy", 0.0)
                 optim.zero_grad()
                 total.backward()
@@ -395,6 +349,8 @@ class RunWriter:
     def __init__(self, req: TrainRequest, actor, critic, value_norm, spec, init, n_robots: int, t0: float):
         self.req, self.actor, self.critic, self.value_norm, self.spec = req, actor, critic, value_norm, spec
         self.init, self.n_robots, self.t0 = init, n_robots, t0
+        self.commit = git_commit(Path(__file__).parent)
+        """The code the run started with (the checkout may change while it runs)."""
         self.rows: list[dict] = []
         self.agent_steps = 0
 
@@ -417,7 +373,7 @@ class RunWriter:
             "algo": req.algo, "library": {"name": "torchrl", "version": md.version("torchrl")},
             "backend": req.backend, "ray_address": req.ray_address, "scenario": req.scenario, "init": self.init,
             "agent_steps": self.agent_steps, "wall_time": round(time.perf_counter() - self.t0, 3), "seed": req.seed,
-            "command": req.command, "commit": git_commit(Path(__file__).parent), "config_file": req.config_path,
+            "command": req.command, "commit": self.commit, "config_file": req.config_path,
             "config": asdict(req.config), "n_robots": self.n_robots, "episodes": len(self.rows),
             "policy": f"torchrl:{out / POLICY_FILE}", "env_overrides": req.config.env, "curve": CURVE_FILE,
         }

@@ -26,6 +26,7 @@ from parcover_env.harness.marl import (  # noqa: E402
     build_actor,
     build_critic,
     build_loss,
+    prepare_minibatch,
     standardize_advantage,
     train,
 )
@@ -187,6 +188,43 @@ def test_checkpoint_every_saves_after_each_batch_past_it(tmp_path, monkeypatch):
     assert saves == [3 * 64]  # checkpoint_every 0: once, at the end
     saves.clear()
     cfg = dataclasses.replace(cfg, checkpoint_every=1e-9)
+    commits = iter(["at-start", "later", "later", "later", "later"])
+    monkeypatch.setattr(marl, "git_commit", lambda where: next(commits))  # the checkout moves during the run
     record = train(TrainRequest("ippo", "office", 3 * 32 * 2, tmp_path / "b", cfg, "x"))
     assert saves == [64, 128, 192, 192] and record["agent_steps"] == 192
+    assert record["commit"] == "at-start"  # the sidecar names the code the run started with
     assert (tmp_path / "b" / "policy.pt").is_file() and not list((tmp_path / "b").glob(".*.tmp"))
+
+
+@pytest.mark.parametrize("kind", ["popart", "running"])
+def test_value_normalizer_learns_from_the_real_robots_only(kind):
+    box = spaces.Box(-np.ones(3, np.float32), np.ones(3, np.float32))
+    cfg = MarlConfig(hidden=(8,), value_norm=kind)
+
+    def norm_after(td):
+        loss = build_loss("ippo", cfg, build_actor(box.low, box.high, 2, (8,)), build_critic("ippo", box, box, cfg))
+        prepare_minibatch(loss, td)
+        loss(td)  # the loss's own update call changes nothing
+        return loss.value_norm.denormalize(torch.tensor([0.0, 1.0]).unsqueeze(-1))
+
+    def batch(pad_target: float, n: int):
+        td = _minibatch(n, pad_target)
+        td[GROUP, "value_target"][:, 0] = torch.tensor([[2.0], [4.0], [6.0], [8.0]])
+        return td
+
+    alone, padded, wild = norm_after(batch(0.0, 1)), norm_after(batch(1000.0, 3)), norm_after(batch(-5.0, 3))
+    assert torch.allclose(padded, alone) and torch.allclose(wild, alone)
+    if kind == "popart":  # one update of a debiased EMA: the minibatch's mean 5 and variance 5 exactly
+        assert torch.allclose(alone[:, 0], torch.tensor([5.0, 5.0 + 5.0 ** 0.5]), atol=1e-3)
+    td = batch(1000.0, 3)
+    del td[GROUP, "real"]  # without the mask the padding's targets move the statistics
+    assert not torch.allclose(norm_after(td), alone)
+
+
+def test_the_generated_worlds_config_loads_with_its_stated_changes():
+    from parcover_env.scenarios.registry import configs_dir
+
+    cfg = load_marl_config("ippo", configs_dir() / "train" / "ippo_generated_worlds.yaml")
+    assert (cfg.worlds, cfg.frames_per_batch, cfg.minibatch_size, cfg.entropy_coeff) == (8, 4096, 512, 0.005)
+    assert cfg.env == {**V2, "rewards": {**V2["rewards"], "collision": -0.25}} and cfg.preset == "realistic"
+    assert cfg.checkpoint_every > 0 and cfg.wall_time > 0 and cfg.episode_steps == 800
