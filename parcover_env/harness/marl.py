@@ -26,6 +26,7 @@ torch, torchrl and ray are imported inside the functions (``pip install 'parcove
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import time
@@ -33,16 +34,17 @@ import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import numpy as np
+
 from parcover_env.harness.marl_config import MarlConfig
 from parcover_env.harness.marl_init import CRITIC_FILE, apply_init, critic_spec, find_init, save_critic
+from parcover_env.harness.marl_loss import GROUP, REAL, build_loss, prepare_minibatch, standardize_advantage
 from parcover_env.harness.training import git_commit, plot_curve, write_csv
 from parcover_env.policies.torchrl_policy import POLICY_FILE, SIDECAR_FILE, actor_net
 
 __all__ = ["TrainRequest", "EnvMaker", "build_actor", "save_policy", "policy_net", "build_critic", "build_loss",
-           "train", "GROUP"]
+           "train", "GROUP", "REAL", "standardize_advantage", "prepare_minibatch", "RunWriter"]
 
-GROUP = "robot"
-"""TorchRL's group of the robots (``robot_0``, ``robot_1``, ... share the prefix)."""
 CURVE_FILE = "curve.csv"
 
 
@@ -66,20 +68,26 @@ class TrainRequest:
 
 
 class EnvMaker:
-    """Picklable ``() -> TorchRL env`` (Ray workers build their own): the scenario's ParallelEnv in a
-    ``PettingZooWrapper`` with the global state, plus ``RewardSum`` of each robot's reward. With a
-    ``seed``, the env's generator is seeded before the wrapper's first reset (every later reset
-    continues that one stream: a ParallelEnv reset without a seed keeps its generator), and so is
-    torch's generator of the process that builds the env, which samples the collector's actions
-    (in a Ray worker too)."""
+    """Picklable ``() -> TorchRL env`` (Ray workers build their own): ``worlds`` copies of the
+    scenario's ParallelEnv, each a :class:`~parcover_env.harness.marl_env.RobotsEnv` (with the global
+    state when ``state``), side by side in TorchRL's ``SerialEnv`` when ``worlds > 1`` (batch
+    ``[worlds]``: the policy runs once for all), plus ``RewardSum`` of each robot's reward. With a
+    ``seed``, world 0's generator is seeded ``seed`` and world ``k``'s by ``SeedSequence([seed, k])``
+    before the first reset (every later reset continues that stream: a ParallelEnv reset without a
+    seed keeps its generator), and torch's generator of the process that builds the env, which samples
+    the collector's actions (in a Ray worker too), is seeded ``seed``."""
 
     def __init__(self, scenario: str, preset: str, episode_steps: int, seed: int | None = None,
-                 overrides: dict | None = None, max_robots: int = 12):
+                 overrides: dict | None = None, max_robots: int = 12, worlds: int = 1, state: bool = True):
         self.scenario, self.preset, self.episode_steps, self.seed = scenario, preset, episode_steps, seed
         self.overrides = overrides or None
         """Scenario overrides of the env (``MarlConfig.env``)."""
         self.max_robots = max_robots
         """Agents of a map pool (``generated:A-B``, :class:`~parcover_env.harness.map_pool.MapPoolEnv`)."""
+        self.worlds = worlds
+        """Worlds stepped side by side (``MarlConfig.worlds``)."""
+        self.state = state
+        """Whether the env carries ``"state"`` (``env.state()``, MAPPO's critic input)."""
 
     def parallel(self):
         """The scenario's PettingZoo ParallelEnv (a map pool's padded env for ``generated:A-B``),
@@ -92,19 +100,32 @@ class EnvMaker:
             return MapPoolEnv(self.scenario, self.max_robots, **kwargs)
         return parallel_env(self.scenario, **kwargs)
 
-    def __call__(self):
-        from torchrl.envs import PettingZooWrapper, RewardSum, TransformedEnv
+    def world_seed(self, k: int) -> int | None:
+        """The reset seed of world ``k`` (``None`` without a seed)."""
+        if self.seed is None or k == 0:
+            return self.seed
+        return int(np.random.SeedSequence([self.seed, k]).generate_state(1)[0])
+
+    def world(self, k: int = 0):
+        """World ``k``: the ParallelEnv, seeded, as a :class:`~parcover_env.harness.marl_env.RobotsEnv`."""
+        from parcover_env.harness.marl_env import RobotsEnv
 
         env = self.parallel()
         if self.seed is not None:
-            import torch
+            env.reset(seed=self.world_seed(k))
+        return RobotsEnv(env, with_state=self.state)
 
-            env.reset(seed=self.seed)
+    def __call__(self):
+        import torch
+        from torchrl.envs import RewardSum, SerialEnv, TransformedEnv
+
+        if self.worlds > 1:
+            env = SerialEnv(self.worlds, [functools.partial(self.world, k) for k in range(self.worlds)])
+        else:
+            env = self.world(0)
+        if self.seed is not None:
             torch.manual_seed(self.seed)
-        with warnings.catch_warnings():  # "tested using PettingZoo 1.24.3": ours is checked by tests/harness
-            warnings.filterwarnings("ignore", message="PettingZoo in TorchRL is tested", category=UserWarning)
-            wrapped = PettingZooWrapper(env, return_state=True, categorical_actions=False)
-        return TransformedEnv(wrapped, RewardSum(in_keys=[(GROUP, "reward")], out_keys=[(GROUP, "episode_reward")]))
+        return TransformedEnv(env, RewardSum(in_keys=[(GROUP, "reward")], out_keys=[(GROUP, "episode_reward")]))
 
 
 def build_actor(obs_low, obs_high, act_dim: int, hidden: tuple[int, ...]):
@@ -172,26 +193,6 @@ def build_critic(algo: str, obs_space, state_space, cfg: MarlConfig):
     return TensorDictModule(mlp, in_keys=[(GROUP, "observation")], out_keys=out)
 
 
-def build_loss(algo: str, cfg: MarlConfig, actor, critic):
-    """``IPPOLoss`` or ``MAPPOLoss`` with the group's keys, the configured value normalization and
-    ``MultiAgentGAE(gamma, lmbda)`` as its value estimator."""
-    from torchrl.modules import PopArtValueNorm, RunningValueNorm
-    from torchrl.objectives import ValueEstimators
-    from torchrl.objectives.multiagent import IPPOLoss, MAPPOLoss
-
-    norm = {"popart": PopArtValueNorm, "running": RunningValueNorm}.get(cfg.value_norm)
-    cls = MAPPOLoss if algo == "mappo" else IPPOLoss
-    loss = cls(actor, critic, value_norm=norm(shape=1) if norm else None, clip_epsilon=cfg.clip_epsilon,
-               entropy_coeff=cfg.entropy_coeff, critic_coeff=cfg.critic_coeff,
-               normalize_advantage=cfg.normalize_advantage)
-    loss.set_keys(reward=(GROUP, "reward"), action=(GROUP, "action"), value=(GROUP, "state_value"),
-                  done=(GROUP, "done"), terminated=(GROUP, "terminated"),
-                  sample_log_prob=(GROUP, "action_log_prob"), advantage=(GROUP, "advantage"),
-                  value_target=(GROUP, "value_target"))
-    loss.make_value_estimator(ValueEstimators.MAGAE, gamma=cfg.gamma, lmbda=cfg.gae_lambda)
-    return loss
-
-
 def _collector(req: TrainRequest, make_env: EnvMaker, actor, total_frames: int):
     """TorchRL's single-process ``Collector``, or its ``RayCollector`` with ``ray_collectors`` remote
     collectors (env seeds ``seed + k``) whose batches are stacked (``sync=True``)."""
@@ -201,7 +202,8 @@ def _collector(req: TrainRequest, make_env: EnvMaker, actor, total_frames: int):
 
         k = cfg.ray_collectors
         makers = [EnvMaker(make_env.scenario, make_env.preset, make_env.episode_steps, seed=req.seed + i,
-                           overrides=make_env.overrides, max_robots=make_env.max_robots) for i in range(k)]
+                           overrides=make_env.overrides, max_robots=make_env.max_robots, worlds=make_env.worlds,
+                           state=make_env.state) for i in range(k)]
         init = {"address": req.ray_address} if req.ray_address else {"num_cpus": k, "include_dashboard": False}
         init["log_to_driver"] = False  # the workers' warnings would print the collector's repr
         collector = RayCollector(makers, actor, frames_per_batch=cfg.frames_per_batch, total_frames=total_frames,
@@ -275,10 +277,9 @@ def _progress(agent_steps: int, wall: float, ended: list[dict]) -> None:
 
 
 def train(req: TrainRequest) -> dict:
-    """Train, then write ``policy.pt``, ``run.json``, ``curve.csv`` and ``curve.png`` into ``req.out``;
-    returns the sidecar."""
-    import importlib.metadata as md
-
+    """Train, then write ``policy.pt``, ``critic.pt``, ``run.json``, ``curve.csv`` and ``curve.png``
+    into ``req.out`` (also every ``checkpoint_every`` seconds of wall time during the run, the files
+    replaced whole); returns the sidecar."""
     import torch
     from torchrl.data import LazyTensorStorage, ReplayBuffer
     from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
@@ -288,7 +289,7 @@ def train(req: TrainRequest) -> dict:
     cfg, t0 = req.config, time.perf_counter()
     source = find_init(req.init) if req.init else None  # a bad path fails before the env is built
     make_env = EnvMaker(req.scenario, cfg.preset, cfg.episode_steps, seed=req.seed, overrides=cfg.env,
-                        max_robots=cfg.max_robots)
+                        max_robots=cfg.max_robots, worlds=cfg.worlds, state=req.algo == "mappo")
     base = make_env.parallel()  # spaces, robot and KPOI counts
     cfg.check_critic(req.algo, base.scenario.observation.version, req.config_path)
     n_robots = base.n_robots
@@ -303,15 +304,16 @@ def train(req: TrainRequest) -> dict:
     collector = _collector(req, make_env, actor, batches * cfg.frames_per_batch)
     buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.frames_per_batch), sampler=SamplerWithoutReplacement(),
                           batch_size=cfg.minibatch_size)
-    rows, agent_steps = [], 0
+    run = RunWriter(req, actor, critic, loss.value_norm, spec, init, n_robots, t0)
+    last_save = t0
     stop = _StopOnSigterm()
     try:
         for batch in collector:
-            agent_steps += _agent_steps(batch, n_robots)
+            run.agent_steps += _agent_steps(batch, n_robots)
             wall = time.perf_counter() - t0
-            ended = [{"agent_steps": agent_steps, "wall_time": round(wall, 3), **ep} for ep in _episodes(batch)]
-            rows += ended
-            _progress(agent_steps, wall, ended)
+            ended = [{"agent_steps": run.agent_steps, "wall_time": round(wall, 3), **ep} for ep in _episodes(batch)]
+            run.rows += ended
+            _progress(run.agent_steps, wall, ended)
             with torch.no_grad(), warnings.catch_warnings():
                 # the estimator vmaps the critic over (params, target params); attention has no batching
                 # rule there, so torch loops over the two: same values, a "performance drop" warning
@@ -320,7 +322,7 @@ def train(req: TrainRequest) -> dict:
                                      target_params=loss.target_critic_network_params)
             buffer.extend(batch.reshape(-1))
             for _ in range(cfg.epochs * (cfg.frames_per_batch // cfg.minibatch_size)):
-                parts = loss(buffer.sample())
+                parts = loss(prepare_minibatch(loss, buffer.sample(), cfg.normalize_advantage))
                 total = parts["loss_objective"] + parts["loss_critic"] + parts.get("loss_entropy", 0.0)
                 optim.zero_grad()
                 total.backward()
@@ -328,6 +330,9 @@ def train(req: TrainRequest) -> dict:
                 optim.step()
             if stop.requested or (cfg.wall_time and time.perf_counter() - t0 > cfg.wall_time):
                 break
+            if cfg.checkpoint_every and time.perf_counter() - last_save > cfg.checkpoint_every:
+                run.save()
+                last_save = time.perf_counter()
     finally:
         stop.restore()
         collector.shutdown()
@@ -335,18 +340,44 @@ def train(req: TrainRequest) -> dict:
             import ray
 
             ray.shutdown()
-    req.out.mkdir(parents=True, exist_ok=True)
-    save_policy(actor, req.out / POLICY_FILE)
-    save_critic(req.out / CRITIC_FILE, critic, loss.value_norm, spec)
-    write_csv(req.out / CURVE_FILE, rows)
-    plot_curve(req.out)  # curve.png: KPOI fraction of the training episodes against agent-steps and wall time
-    sidecar = {
-        "algo": req.algo, "library": {"name": "torchrl", "version": md.version("torchrl")},
-        "backend": req.backend, "ray_address": req.ray_address, "scenario": req.scenario, "init": init,
-        "agent_steps": agent_steps, "wall_time": round(time.perf_counter() - t0, 3), "seed": req.seed,
-        "command": req.command, "commit": git_commit(Path(__file__).parent), "config_file": req.config_path,
-        "config": asdict(cfg), "n_robots": n_robots, "episodes": len(rows),
-        "policy": f"torchrl:{req.out / POLICY_FILE}", "env_overrides": cfg.env, "curve": CURVE_FILE,
-    }
-    (req.out / SIDECAR_FILE).write_text(json.dumps(sidecar, indent=2) + "\n")
-    return sidecar
+    return run.save()
+
+
+class RunWriter:
+    """What a run writes: the networks, the curve and the sidecar, each file replaced whole."""
+
+    def __init__(self, req: TrainRequest, actor, critic, value_norm, spec, init, n_robots: int, t0: float):
+        self.req, self.actor, self.critic, self.value_norm, self.spec = req, actor, critic, value_norm, spec
+        self.init, self.n_robots, self.t0 = init, n_robots, t0
+        self.commit = git_commit(Path(__file__).parent)
+        """The code the run started with (the checkout may change while it runs)."""
+        self.rows: list[dict] = []
+        self.agent_steps = 0
+
+    def save(self) -> dict:
+        """Write ``policy.pt``, ``critic.pt``, ``curve.csv``, ``curve.png`` and ``run.json``; returns the sidecar."""
+        import importlib.metadata as md
+        import os
+
+        req, out = self.req, self.req.out
+        out.mkdir(parents=True, exist_ok=True)
+        for name, write in ((POLICY_FILE, lambda p: save_policy(self.actor, p)),
+                            (CRITIC_FILE, lambda p: save_critic(p, self.critic, self.value_norm, self.spec)),
+                            (CURVE_FILE, lambda p: write_csv(p, self.rows))):
+            tmp = out / f".{name}.tmp"
+            write(tmp)
+            if tmp.exists():  # write_csv writes nothing before the first episode ends
+                os.replace(tmp, out / name)
+        plot_curve(out)  # curve.png: KPOI fraction of the training episodes against agent-steps and wall time
+        sidecar = {
+            "algo": req.algo, "library": {"name": "torchrl", "version": md.version("torchrl")},
+            "backend": req.backend, "ray_address": req.ray_address, "scenario": req.scenario, "init": self.init,
+            "agent_steps": self.agent_steps, "wall_time": round(time.perf_counter() - self.t0, 3), "seed": req.seed,
+            "command": req.command, "commit": self.commit, "config_file": req.config_path,
+            "config": asdict(req.config), "n_robots": self.n_robots, "episodes": len(self.rows),
+            "policy": f"torchrl:{out / POLICY_FILE}", "env_overrides": req.config.env, "curve": CURVE_FILE,
+        }
+        tmp = out / f".{SIDECAR_FILE}.tmp"
+        tmp.write_text(json.dumps(sidecar, indent=2) + "\n")
+        os.replace(tmp, out / SIDECAR_FILE)
+        return sidecar

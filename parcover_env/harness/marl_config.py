@@ -73,6 +73,13 @@ class MarlConfig:
     max_robots: int = 12
     """Agents of a map pool (``generated:A-B``): each map's robots, padded to this count
     (:class:`~parcover_env.harness.map_pool.MapPoolEnv`)."""
+    worlds: int = 1
+    """Worlds collected side by side in one process (TorchRL ``SerialEnv``; each its own generator and,
+    in a map pool, its own map): the policy runs once for all of them. ``frames_per_batch`` counts
+    the env steps of all worlds (each world runs ``frames_per_batch / worlds`` steps per batch)."""
+    checkpoint_every: float = 0.0
+    """Save the run (policy, critic, curve, sidecar) after the batch that ends past every this many
+    seconds of wall time since the last save (0: only at the end)."""
     ray_collectors: int = 1
     """``--backend ray``: remote collectors (``RayCollector(num_collectors=...)``), one env each (seeds
     SEED, SEED + 1, ...); each collects ``frames_per_batch / ray_collectors`` env steps of every batch."""
@@ -80,14 +87,14 @@ class MarlConfig:
     def check(self, source: str) -> MarlConfig:
         """Self, or ConfigError naming ``source`` and the first out-of-range key."""
         positive = ("frames_per_batch", "epochs", "minibatch_size", "learning_rate", "max_grad_norm", "clip_epsilon",
-                    "ray_collectors", "critic_embed", "critic_heads", "max_robots")
+                    "ray_collectors", "critic_embed", "critic_heads", "max_robots", "worlds")
         for key in positive:
             if not getattr(self, key) > 0:
                 raise ConfigError(source, key, f"must be > 0, got {getattr(self, key)}")
         for key in ("gamma", "gae_lambda"):
             if not 0.0 <= getattr(self, key) <= 1.0:
                 raise ConfigError(source, key, f"must be in [0, 1], got {getattr(self, key)}")
-        for key in ("entropy_coeff", "critic_coeff", "episode_steps", "wall_time"):
+        for key in ("entropy_coeff", "critic_coeff", "episode_steps", "wall_time", "checkpoint_every"):
             if getattr(self, key) < 0:
                 raise ConfigError(source, key, f"must be >= 0, got {getattr(self, key)}")
         if self.minibatch_size > self.frames_per_batch:
@@ -96,6 +103,9 @@ class MarlConfig:
         if self.frames_per_batch % self.ray_collectors:
             raise ConfigError(source, "ray_collectors", f"must divide frames_per_batch ({self.frames_per_batch}), "
                               f"got {self.ray_collectors}")
+        if self.frames_per_batch % (self.ray_collectors * self.worlds):
+            raise ConfigError(source, "worlds", f"worlds x ray_collectors ({self.worlds} x {self.ray_collectors}) "
+                              f"must divide frames_per_batch ({self.frames_per_batch})")
         if not self.hidden or min(self.hidden) < 1:
             raise ConfigError(source, "hidden", f"expected one or more widths >= 1, got {list(self.hidden)}")
         if self.critic_embed % self.critic_heads:

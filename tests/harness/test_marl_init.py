@@ -53,7 +53,7 @@ def _equal(a: dict, b: dict) -> bool:
 def _saved_run(tmp_path, run: dict | None = None):
     """A run directory with policy.pt, critic.pt (PopArt statistics updated once) and run.json."""
     actor, critic, loss = _nets(1)
-    loss.value_norm.update(torch.tensor([[5.0], [9.0]]))
+    loss.value_norm.update_real(torch.tensor([[5.0], [9.0]]), None)  # the trainer's update (marl_loss)
     out = tmp_path / "a"
     out.mkdir()
     save_policy(actor, out / "policy.pt")
