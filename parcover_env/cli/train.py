@@ -23,7 +23,8 @@ def add_train_parser(sub) -> None:
     t.add_argument("scenario", help="scenario name, YAML path, generated:SEED, or generated:A-B (a pool of "
                    "generated maps, seeds A..B < 1000, one drawn per episode)")
     t.add_argument("--steps", type=positive_int, required=True,
-                   help="agent-steps to collect (env steps x robots; rounded up to whole batches)")
+                   help="agent-steps of real robots to collect at least (whole batches; a map pool's "
+                        "padding robots do not count)")
     t.add_argument("--out", required=True, help="output directory: policy.pt, run.json, curve.csv")
     t.add_argument("--backend", choices=("local", "ray"), default="local",
                    help="local: TorchRL Collector in this process; ray: TorchRL RayCollector on Ray core")

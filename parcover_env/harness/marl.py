@@ -300,7 +300,9 @@ def train(req: TrainRequest) -> dict:
     spec = critic_spec(req.algo, cfg, obs_space.shape[0], base.state_space.shape[0])
     init = apply_init(source, policy_net(actor), critic, loss.value_norm, spec) if source else None
     optim = torch.optim.Adam(loss.parameters(), lr=cfg.learning_rate)
-    batches = max(1, math.ceil(req.steps / (n_robots * cfg.frames_per_batch)))
+    # at least one real robot per env step: enough frames for ``req.steps`` real agent-steps; the loop
+    # stops at the first batch that reaches them (a map pool's padding robots do not count)
+    batches = max(1, math.ceil(req.steps / cfg.frames_per_batch))
     collector = _collector(req, make_env, actor, batches * cfg.frames_per_batch)
     buffer = ReplayBuffer(storage=LazyTensorStorage(cfg.frames_per_batch), sampler=SamplerWithoutReplacement(),
                           batch_size=cfg.minibatch_size)
@@ -328,7 +330,8 @@ def train(req: TrainRequest) -> dict:
                 total.backward()
                 torch.nn.utils.clip_grad_norm_(loss.parameters(), cfg.max_grad_norm)
                 optim.step()
-            if stop.requested or (cfg.wall_time and time.perf_counter() - t0 > cfg.wall_time):
+            if (run.agent_steps >= req.steps or stop.requested
+                    or (cfg.wall_time and time.perf_counter() - t0 > cfg.wall_time)):
                 break
             if cfg.checkpoint_every and time.perf_counter() - last_save > cfg.checkpoint_every:
                 run.save()

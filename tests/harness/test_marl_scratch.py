@@ -57,10 +57,17 @@ def test_pool_run_counts_real_robots_only_and_records_its_overrides(tmp_path):
     out = tmp_path / "pool"
     record = train(TrainRequest("ippo", "generated:3-4", 100, out, _cfg(max_robots=5), "x", seed=2))
     # maps 3 and 4 have 3 robots each, padded to 5 agents: 64 env steps x 3 real robots per batch;
-    # 100 agent-steps are planned as whole batches of 64 x 5 (one batch)
+    # 100 agent-steps: the first batch (64 x 3 real) reaches them
     assert record["agent_steps"] == 64 * 3 and record["n_robots"] == 5
     assert record["env_overrides"] == V2 and json.loads((out / "run.json").read_text())["env_overrides"] == V2
     assert policy_overrides(record["policy"]) == V2
+
+
+def test_steps_count_real_robots_so_a_pool_run_collects_them_all(tmp_path):
+    # one agent-step more than a batch of 64 env steps x 3 real robots: a second batch, although
+    # 193 < 64 x 5 padded agents (the old plan collected one batch only)
+    record = train(TrainRequest("ippo", "generated:3-4", 64 * 3 + 1, tmp_path / "more", _cfg(max_robots=5), "x"))
+    assert record["agent_steps"] == 64 * 3 * 2
 
 
 def test_wall_time_and_sigterm_stop_after_a_batch_and_save(tmp_path):
