@@ -65,6 +65,10 @@ def eval_series(rows: list[dict], metric: str = "kpoi_fraction") -> Series:
                   np.array([np.mean([r[metric] for r in g]) for g in at]))
 
 
+FRACTIONS = ("kpoi_fraction", "success")
+"""Metrics in [0, 1]: their curves are drawn on that whole range."""
+
+
 def learning_curve_figure(runs: list[str | Path], labels: list[str] | None = None, metric: str = "kpoi_fraction",
                           window: int = 20):
     """A matplotlib figure, two panels (x = agent-steps, x = wall time in minutes) sharing the y axis:
@@ -91,7 +95,9 @@ def learning_curve_figure(runs: list[str | Path], labels: list[str] | None = Non
             axes[0].plot(val.agent_steps, val.value, "o--", color=color, label=f"{label} (eval)")
             axes[1].plot(val.wall_minutes, val.value, "o--", color=color)
     name = metric.replace("_", " ")
-    axes[0].set(xlabel="agent-steps", ylabel=name, ylim=(-0.05, 1.05))
+    axes[0].set(xlabel="agent-steps", ylabel=name)
+    if metric in FRACTIONS:  # a fraction keeps its whole range in view; a return scales to its data
+        axes[0].set_ylim(-0.05, 1.05)
     axes[1].set(xlabel="wall time (min)")
     if axes[0].get_legend_handles_labels()[0]:
         axes[0].legend(fontsize=8, loc="best")

@@ -60,3 +60,20 @@ def test_figure_draws_each_run_against_agent_steps_and_wall_time(tmp_path):
     plt.close(fig)
     out = plot_learning_curves([run], tmp_path / "c.png", window=2)
     assert out.stat().st_size > 0
+
+
+def test_a_fraction_is_drawn_on_its_whole_range_and_a_return_on_its_data(tmp_path):
+    import matplotlib.pyplot as plt
+
+    run = tmp_path / "run"
+    run.mkdir()
+    _write(run / "curve.csv", ["agent_steps", "wall_time", "episode_return", "kpoi_fraction", "success"],
+           [[100, 60, -12.0, 0.2, 0], [200, 120, 30.0, 0.4, 0]])
+    fig = learning_curve_figure([run], window=1)
+    assert fig.axes[0].get_ylim() == pytest.approx((-0.05, 1.05))
+    plt.close(fig)
+    fig = learning_curve_figure([run], metric="episode_return", window=1)
+    low, high = fig.axes[0].get_ylim()
+    assert low <= -12.0 and high >= 30.0  # the returns are in view, not clipped to [0, 1]
+    assert fig.axes[0].get_ylabel() == "episode return"
+    plt.close(fig)
