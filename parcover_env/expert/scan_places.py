@@ -20,8 +20,9 @@ import shapely
 from parcover_env.config import Scenario
 from parcover_env.geometry import segments_blocked
 from parcover_env.localization.sonar.config import sonar_localizer_config
+from parcover_env.localization.sonar.localizer import synthetic_scans
 from parcover_env.localization.sonar.pin_down import shift_increase, shifted_errors
-from parcover_env.sensors.sonar import SonarRing, simulate_beams
+from parcover_env.sensors.sonar import SonarRing
 
 __all__ = ["ScanPlaces"]
 
@@ -46,12 +47,10 @@ class ScanPlaces:
         shifted by ``shift_test`` in each of 8 directions. Always True with ``shift_test`` 0."""
         if self.step <= 0:
             return True
-        pose = np.asarray(pose)  # simulate_beams and shifted_errors compute in float
-        none = np.zeros((0, 2))
-        synth = simulate_beams(self.sonar, pose[None, :2], (pose[2] + self.angles)[None, :], self.segments,
-                               none, 0.0, np.array([-1]))[0]
-        errors = shifted_errors(synth, self.angles, pose, segments=self.segments, sonar=self.sonar, others=none,
-                                radius=0.0, clip=self.clip, step=self.step, trim=self.trim)
+        pose = np.asarray(pose)  # synthetic_scans and shifted_errors compute in float
+        synth = synthetic_scans(pose, self.angles, self.segments, self.sonar)[0]
+        errors = shifted_errors(synth, self.angles, pose, segments=self.segments, sonar=self.sonar,
+                                others=np.zeros((0, 2)), radius=0.0, clip=self.clip, step=self.step, trim=self.trim)
         return shift_increase(errors) >= self.threshold
 
     def ahead(self, route: np.ndarray, progress: float, near: float, far: float) -> float | None:
