@@ -20,8 +20,9 @@ import shapely
 from parcover_env.config import Scenario
 from parcover_env.geometry import segments_blocked
 from parcover_env.localization.sonar.config import sonar_localizer_config
+from parcover_env.localization.sonar.localizer import synthetic_scans
 from parcover_env.localization.sonar.pin_down import shift_increase, shifted_errors
-from parcover_env.sensors.sonar import simulate_beams
+from parcover_env.sensors.sonar import SonarRing
 
 __all__ = ["ScanPlaces"]
 
@@ -37,8 +38,7 @@ class ScanPlaces:
         self.clip, self.trim = params.error_clip, params.error_trim
         self.sonar = scenario.robot.sonar
         self.segments = np.asarray(segments, dtype=float)
-        n = round(360.0 / self.sonar.scan_step_deg)
-        self.angles = np.radians(np.arange(n) * self.sonar.scan_step_deg)
+        self.angles = SonarRing(self.sonar).scan_angles  # the env's 360-degree scan
         self.sample = float(sample)
 
     def informative(self, pose: np.ndarray) -> bool:
@@ -47,12 +47,10 @@ class ScanPlaces:
         shifted by ``shift_test`` in each of 8 directions. Always True with ``shift_test`` 0."""
         if self.step <= 0:
             return True
-        pose = np.asarray(pose, dtype=float)
-        none = np.zeros((0, 2))
-        synth = simulate_beams(self.sonar, pose[None, :2], (pose[2] + self.angles)[None, :], self.segments,
-                               none, 0.0, np.array([-1]))[0]
-        errors = shifted_errors(synth, self.angles, pose, segments=self.segments, sonar=self.sonar, others=none,
-                                radius=0.0, clip=self.clip, step=self.step, trim=self.trim)
+        pose = np.asarray(pose)  # synthetic_scans and shifted_errors compute in float
+        synth = synthetic_scans(pose, self.angles, self.segments, self.sonar)[0]
+        errors = shifted_errors(synth, self.angles, pose, segments=self.segments, sonar=self.sonar,
+                                others=np.zeros((0, 2)), radius=0.0, clip=self.clip, step=self.step, trim=self.trim)
         return shift_increase(errors) >= self.threshold
 
     def ahead(self, route: np.ndarray, progress: float, near: float, far: float) -> float | None:
@@ -79,7 +77,7 @@ class ScanPlaces:
             if s <= 0:
                 return None
             pose = _pose_on(line, s, -1.0)
-            if segments_blocked(np.asarray(xy, dtype=float)[None, :2], pose[None, :2], self.segments)[0]:
+            if segments_blocked(xy, pose[:2], self.segments)[0]:
                 return None
             if self.informative(pose):
                 return pose[:2]

@@ -63,9 +63,10 @@ def build_loss(algo: str, cfg: MarlConfig, actor, critic):
                entropy_coeff=cfg.entropy_coeff, critic_coeff=cfg.critic_coeff,
                normalize_advantage=False)  # standardize_advantage does it, over the real robots only
     loss.loss_mask_key = REAL  # a map pool's padding agents add nothing to the loss terms
-    loss.set_keys(reward=(GROUP, "reward"), action=(GROUP, "action"), value=(GROUP, "state_value"),
-                  done=(GROUP, "done"), terminated=(GROUP, "terminated"),
-                  sample_log_prob=(GROUP, "action_log_prob"), advantage=(GROUP, "advantage"),
+    # the action and log-prob keys are the actor's ((GROUP, "action"), (GROUP, "action_log_prob")):
+    # ClipPPOLoss takes them from it
+    loss.set_keys(reward=(GROUP, "reward"), value=(GROUP, "state_value"), done=(GROUP, "done"),
+                  terminated=(GROUP, "terminated"), advantage=(GROUP, "advantage"),
                   value_target=(GROUP, "value_target"))
     loss.make_value_estimator(ValueEstimators.MAGAE, gamma=cfg.gamma, lmbda=cfg.gae_lambda)
     return loss
@@ -81,7 +82,7 @@ def standardize_advantage(td, enabled: bool = True):
     if not enabled:
         return td
     adv = td.get((GROUP, "advantage"))
-    real = td.get(REAL, None)
+    real = td.get(REAL)
     real = torch.ones_like(adv, dtype=torch.bool) if real is None else real.reshape(adv.shape)
     n = real.sum().clamp_min(1)
     mean = torch.where(real, adv, 0.0).sum() / n
@@ -90,10 +91,10 @@ def standardize_advantage(td, enabled: bool = True):
     return td
 
 
-def prepare_minibatch(loss, td, normalize_advantage: bool = True):
+def prepare_minibatch(loss, td, normalize_advantage: bool):
     """``td`` (a sampled minibatch with advantages and value targets) made ready for ``loss``: the
     value normalizer (if any) updated from the real robots' value targets, then the advantages
     standardized (:func:`standardize_advantage`, when ``normalize_advantage``)."""
     if loss.value_norm is not None:
-        loss.value_norm.update_real(td.get((GROUP, "value_target")), td.get(REAL, None))
+        loss.value_norm.update_real(td.get((GROUP, "value_target")), td.get(REAL))
     return standardize_advantage(td, normalize_advantage)

@@ -30,6 +30,13 @@ def test_a_scan_is_predicted_informative_only_within_sonar_range_of_a_corridor_e
     # the end walls at x = 0 and 12 are seen within 2.5 m: shifted along the corridor the scan changes
     assert informative == {0.5: True, 2.0: True, 3.0: False, 6.0: False, 9.0: False, 10.0: True, 11.5: True}
     assert places.informative(np.array([6.0, 0.6, 1.0])) is False  # whatever the heading
+    assert places.informative(np.array([2.0, 0.6, 1.0])) is True
+    # the service's trimmed error decides: near the edge of range (x = 2.45) the untrimmed error would
+    # still rise by 0.006 m under the shifts, the best 90 % of the readings only by 0.0016 m < 0.003 m
+    assert places.informative(np.array([2.45, 0.6, 0.0])) is False
+    np.testing.assert_allclose(places.angles, np.radians(np.arange(0.0, 360.0, 5.0)))  # the env's scan, 5 deg
+    places.step = 0.0  # shift test off: every scan passes, even mid-corridor
+    assert places.informative(np.array([6.0, 0.6, 0.0])) is True
 
 
 def test_the_next_scan_place_ahead_is_where_the_end_wall_comes_in_range():
@@ -41,6 +48,7 @@ def test_the_next_scan_place_ahead_is_where_the_end_wall_comes_in_range():
     assert places.ahead(route, 8.0, 0.5, 2.0) == pytest.approx(0.5)  # near the end: 0.5 m on already is
     # a route end closer than ``near`` still counts: the robot scans there
     assert places.ahead(route, 8.3, 0.5, 2.0) == pytest.approx(0.2)
+    assert places.ahead(route, 6.0, 0.5, 0.6) == pytest.approx(0.6)  # ``far`` itself is a candidate
 
 
 def test_the_place_behind_a_route_end_in_a_corridor_is_back_where_the_far_wall_is_in_range():
@@ -49,6 +57,12 @@ def test_the_place_behind_a_route_end_in_a_corridor_is_back_where_the_far_wall_i
     np.testing.assert_allclose(places.behind(route, np.array([6.0, 0.6]), 0.5, 5.0), [2.4, 0.6], atol=1e-9)
     assert places.behind(route, np.array([6.0, 0.6]), 0.5, 2.0) is None  # x 4-5.5: nothing within 2 m
     assert places.behind(route, np.array([6.0, 0.6]), 0.5, 6.0) is not None
+    # ``far`` itself is a candidate, nothing beyond it is
+    np.testing.assert_allclose(places.behind(route, np.array([6.0, 0.6]), 0.5, 3.6), [2.4, 0.6], atol=1e-9)
+    assert places.behind(route, np.array([6.0, 0.6]), 0.5, 3.5) is None
+    # a route starting at x = 2: the place 0.4 m after its start
+    short = np.array([[2.0, 0.6], [6.0, 0.6]])
+    np.testing.assert_allclose(places.behind(short, np.array([6.0, 0.6]), 0.5, 5.0), [2.4, 0.6], atol=1e-9)
     # a wall between the robot and the route: not a place it can drive back to in a straight line
     walled = _corridor_places()
     walled.segments = np.vstack([walled.segments, [[5.8, 0.0, 5.8, 1.2]]])  # right behind the robot

@@ -14,6 +14,7 @@ torch = pytest.importorskip("torch")
 pytest.importorskip("torchrl")
 
 from tensordict import TensorDict  # noqa: E402
+from torchrl.objectives.multiagent import IPPOLoss, MAPPOLoss  # noqa: E402
 
 from parcover_env.errors import ConfigError  # noqa: E402
 from parcover_env.harness import marl  # noqa: E402
@@ -123,6 +124,18 @@ def test_standardize_advantage_uses_the_real_robots_only():
     assert torch.equal(same[GROUP, "advantage"], adv)
 
 
+def test_standardize_advantage_on_small_spreads_and_a_single_real_robot():
+    def standardized(values, real):
+        td = TensorDict({GROUP: {"advantage": torch.tensor(values).view(1, -1, 1),
+                                 "real": torch.tensor(real).view(1, -1, 1)}}, batch_size=[1])
+        return standardize_advantage(td)[GROUP, "advantage"].view(-1).tolist()
+
+    # a spread below 1 is scaled up: mean 0.2, standard deviation 0.1
+    assert standardized([0.1, 0.3, 9.0], [True, True, False]) == pytest.approx([-1.0, 1.0, 0.0], rel=1e-5)
+    # one real robot: its advantage minus its own mean, 0 (the deviation's floor keeps it finite)
+    assert standardized([0.5, 9.0, 9.0], [True, False, False]) == [0.0, 0.0, 0.0]
+
+
 def _minibatch(n_agents: int, pad_values: float) -> TensorDict:
     """A hand-built minibatch of 4 steps; agent 0 real, agents 1.. padding filled with ``pad_values``."""
     g = torch.Generator().manual_seed(0)
@@ -173,6 +186,73 @@ def test_padding_agents_add_nothing_to_the_loss_or_its_gradient():
     assert terms(td)[0][:2] != pytest.approx(alone[:2], rel=1e-3)
 
 
+def _small_nets(seed: int = 1):
+    torch.manual_seed(seed)
+    box = spaces.Box(-np.ones(3, np.float32), np.ones(3, np.float32))
+    return build_actor(box.low, box.high, 2, (8,)), build_critic("ippo", box, box, MarlConfig(hidden=(8,)))
+
+
+def test_build_loss_uses_the_configured_clip_and_coefficients():
+    actor, critic = _small_nets()
+    assert type(build_loss("mappo", MarlConfig(), actor, critic)) is MAPPOLoss
+    assert type(build_loss("ippo", MarlConfig(), actor, critic)) is IPPOLoss
+    td = _minibatch(1, 0.0)
+    td[GROUP, "advantage"][:, 0] = torch.tensor([[1.0], [2.0], [3.0], [4.0]])
+    td[GROUP, "action_log_prob"][:, 0] = -50.0  # the old policy: ratio far above 1 + clip_epsilon
+
+    def terms(**knobs):
+        loss = build_loss("ippo", MarlConfig(value_norm="none", **knobs), actor, critic)
+        torch.manual_seed(7)  # the same Monte Carlo entropy draws for each call
+        parts = loss(td.clone())
+        return [parts[k].item() for k in ("loss_objective", "loss_critic", "loss_entropy")]
+
+    base = terms(clip_epsilon=0.3, entropy_coeff=0.01, critic_coeff=1.0)
+    # every ratio clipped at 1.3; the advantages used as given (mean 2.5, not standardized again)
+    assert base[0] == pytest.approx(-1.3 * 2.5, rel=1e-5)
+    assert terms(clip_epsilon=0.1, entropy_coeff=0.01, critic_coeff=1.0)[0] == pytest.approx(-1.1 * 2.5, rel=1e-5)
+    scaled = terms(clip_epsilon=0.3, entropy_coeff=0.03, critic_coeff=0.5)
+    assert base[1] > 0.0 and scaled[1] == pytest.approx(0.5 * base[1], rel=1e-5)
+    assert base[2] != 0.0 and scaled[2] == pytest.approx(3.0 * base[2], rel=1e-5)
+
+
+def test_value_estimator_is_gae_over_each_robots_own_flags():
+    actor, critic = _small_nets()
+    loss = build_loss("ippo", MarlConfig(value_norm="none", gamma=0.5, gae_lambda=0.8), actor, critic)
+    g = torch.Generator().manual_seed(0)
+    steps, robots = 3, 2
+    obs, next_obs = torch.randn(steps, robots, 3, generator=g), torch.randn(steps, robots, 3, generator=g)
+    reward = torch.randn(steps, robots, 1, generator=g)
+    # robot 0: truncated after step 1 (trace cut, next value kept), terminated at step 2; robot 1:
+    # terminated after step 0 (trace cut, next value dropped)
+    done = torch.tensor([[False, True], [True, False], [True, True]]).unsqueeze(-1)
+    terminated = torch.tensor([[False, True], [False, False], [True, True]]).unsqueeze(-1)
+    td = TensorDict({GROUP: {"observation": obs}, "next": {GROUP: {
+        "observation": next_obs, "reward": reward, "done": done, "terminated": terminated}}}, batch_size=[steps])
+    with torch.no_grad():
+        loss.value_estimator(td, params=loss.critic_network_params,
+                             target_params=loss.target_critic_network_params)
+        value = critic(TensorDict({GROUP: {"observation": obs}}, [steps]))[GROUP, "state_value"]
+        next_value = critic(TensorDict({GROUP: {"observation": next_obs}}, [steps]))[GROUP, "state_value"]
+    delta = reward + 0.5 * next_value * ~terminated - value
+    expected, trace = torch.zeros_like(delta), torch.zeros_like(delta[0])
+    for t in reversed(range(steps)):
+        trace = delta[t] + 0.5 * 0.8 * ~done[t] * trace
+        expected[t] = trace
+    assert torch.allclose(td[GROUP, "advantage"], expected, atol=1e-6)
+    assert torch.allclose(td[GROUP, "value_target"], expected + value, atol=1e-6)
+
+
+def test_prepare_minibatch_standardizes_the_advantages_only_when_asked():
+    actor, critic = _small_nets()
+    loss = build_loss("ippo", MarlConfig(value_norm="none"), actor, critic)
+    td = _minibatch(1, 0.0)
+    td[GROUP, "advantage"][:, 0] = torch.tensor([[1.0], [3.0], [5.0], [7.0]])
+    kept = prepare_minibatch(loss, td.clone(), False)[GROUP, "advantage"][:, 0, 0]
+    assert kept.tolist() == [1.0, 3.0, 5.0, 7.0]
+    scaled = prepare_minibatch(loss, td.clone(), True)[GROUP, "advantage"][:, 0, 0]
+    assert torch.allclose(scaled, (torch.tensor([1.0, 3.0, 5.0, 7.0]) - 4.0) / torch.tensor(5.0).sqrt())
+
+
 def test_checkpoint_every_saves_after_each_batch_past_it(tmp_path, monkeypatch):
     saves = []
     original = marl.RunWriter.save
@@ -203,7 +283,7 @@ def test_value_normalizer_learns_from_the_real_robots_only(kind):
 
     def norm_after(td):
         loss = build_loss("ippo", cfg, build_actor(box.low, box.high, 2, (8,)), build_critic("ippo", box, box, cfg))
-        prepare_minibatch(loss, td)
+        prepare_minibatch(loss, td, True)
         loss(td)  # the loss's own update call changes nothing
         return loss.value_norm.denormalize(torch.tensor([0.0, 1.0]).unsqueeze(-1))
 
