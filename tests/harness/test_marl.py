@@ -151,6 +151,19 @@ def test_short_run_writes_policy_sidecar_and_curve(backend, tmp_path):
     assert metrics["steps"] == 20
 
 
+def test_ray_collectors_each_step_several_worlds(tmp_path):
+    pytest.importorskip("ray")
+    cfg = dataclasses.replace(load_marl_config("ippo"), frames_per_batch=128, minibatch_size=64, epochs=1,
+                              hidden=(16,), episode_steps=50, ray_collectors=2, worlds=2)
+    record = train(TrainRequest("ippo", "office", 500, tmp_path / "rw", cfg, "x", backend="ray", seed=1))
+    assert record["agent_steps"] == 512 and record["backend"] == "ray"
+    with open(tmp_path / "rw" / "curve.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    # 2 collectors x 2 worlds, 32 env steps of each world per batch of 128: no 50-step episode ends in the
+    # first batch; in the second, each of the 4 worlds ends one (its step 50)
+    assert [int(r["agent_steps"]) for r in rows] == [512] * 4
+
+
 def test_mappo_critic_reads_the_state_ippo_critic_does_not():
     torch.manual_seed(0)
     obs, state = torch.randn(N, OBS), torch.randn(STATE)
