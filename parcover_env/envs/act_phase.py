@@ -3,11 +3,13 @@
 The worlds of one scenario act together; the single env is ``K = 1`` of the same code. The joint
 actions of all worlds become one ``(K, N, A)`` array of commands
 (:func:`~parcover_env.envs.actions.to_commands_all`), the drives of all worlds turn them into body
-velocities in one compiled call (:func:`~parcover_env.world.drive.advance_steps_all`), each world's
-pymunk space integrates its physics (one space per world), and the pose estimators of all worlds
-update together (:func:`~parcover_env.envs.estimator.update_all`: the wheel odometry of all ``K N``
-robots in one compiled call, the Kinect systems in one batch). World ``k`` draws from its own
-generator in the order it would alone, so every world is bit for bit a separate env.
+velocities in one compiled call (:func:`~parcover_env.world.drive.command_steps_all`), each world's
+pymunk space integrates its physics (one space per world; :func:`~parcover_env.world.physics.step_all`
+points the compiled velocity callbacks of all worlds' bodies at their rows in one call), and the
+pose estimators of all worlds update together (:func:`~parcover_env.envs.estimator.update_all`: the
+wheel odometry of all ``K N`` robots in one compiled call, the Kinect systems in one batch). World
+``k`` draws from its own generator in the order it would alone, so every world is bit for bit a
+separate env.
 """
 
 from __future__ import annotations
@@ -20,8 +22,8 @@ import numpy as np
 from parcover_env.envs.actions import to_commands_all
 from parcover_env.envs.estimator import FixRequest, update_all
 from parcover_env.geometry.stacking import stack
-from parcover_env.world.drive import advance_steps_all, wheel_targets
-from parcover_env.world.physics import poses_all
+from parcover_env.world.drive import command_steps_all
+from parcover_env.world.physics import poses_all, step_all
 
 __all__ = ["act"]
 
@@ -46,9 +48,8 @@ def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -
             w.scanner.request(raw[k, :, 2], w.commands)  # scanning robots are held still
     physics = [w.world for w in worlds]
     before = poses_all(physics)
-    velocities = _drive(worlds, commands)
-    for k, w in enumerate(worlds):
-        w.world.step(w.commands, None if velocities is None else velocities[:, k])
+    step_all(physics, commands, _drive(worlds, commands))
+    for w in worlds:
         w.steps += 1
     true = poses_all(physics)
     fixes = update_all([w.estimator for w in worlds], true, commands, [w.world.drive for w in worlds],
@@ -64,12 +65,10 @@ def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -
 
 
 def _drive(worlds: Sequence[Any], commands: np.ndarray) -> np.ndarray | None:
-    """Body velocities ``(substeps, K, N, 2)`` of every world's drive for ``commands (K, N, 2)``
+    """Body velocities ``(K, N, substeps, 2)`` of every world's drive for ``commands (K, N, 2)``
     (advancing the drives), or None when the worlds have no drive (``drive: instant``)."""
     drives = [w.world.drive for w in worlds]
     if drives[0] is None:
         return None
-    d, physics = drives[0].cfg, worlds[0].scenario.physics
-    k, n = commands.shape[:2]
-    targets = wheel_targets(commands.reshape(k * n, 2), d.wheel_base, d.wheel_speed_max).reshape(k, n, 2)
-    return advance_steps_all(drives, targets, physics.dt, physics.substeps)
+    physics = worlds[0].scenario.physics
+    return command_steps_all(drives, commands, physics.dt, physics.substeps)
