@@ -98,7 +98,7 @@ def breakdown(model: str, k: int, steps: int) -> dict:
     from parcover_env.envs import act_phase, stepper
 
     phases = {name: getattr(stepper, name) for name in ("act", "score", "outputs")}
-    inner = {name: getattr(act_phase, name) for name in ("command_steps_all", "update_all")}
+    inner = {name: getattr(act_phase, name) for name in ("command_steps_rows", "update_all")}
     venv = _venv(model, k)
     try:
         run = VecRunner(venv)
@@ -113,7 +113,7 @@ def breakdown(model: str, k: int, steps: int) -> dict:
                 clock.wrap(w.sonar, "readings", "sonar")
         for name in phases:
             clock.wrap(stepper, name, name)
-        clock.wrap(act_phase, "command_steps_all", "drives")
+        clock.wrap(act_phase, "command_steps_rows", "drives")
         clock.wrap(act_phase, "update_all", "estimators")
         t0 = time.perf_counter()
         for i in range(steps):

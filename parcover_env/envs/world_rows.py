@@ -1,0 +1,126 @@
+"""The per-robot arrays of ``K`` worlds as rows of shared blocks, so that compiled calls work on all
+worlds without gathering and scattering them every step.
+
+Each world keeps owning its state: its objects' attributes (an odometry's ``estimate``, a drive's
+``wheels``, ...) stay arrays of that world's values. Here they are *views* of row ``k`` of one
+``(K, ...)`` block per attribute: a compiled call on the block updates every world in place. A
+copy or pickle of a world holds plain arrays of its own (numpy copies a view's values), and an
+object that is not attached (a world reset since, an attribute rebound by a per-world method) is
+adopted again before the blocks are used: :meth:`SharedRows.attach` copies its values into its row
+and gives it that row's views, after detaching the row's previous owner (which gets copies of its
+values). So the blocks and the worlds' attributes always hold the same values, whoever wrote them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+
+__all__ = ["SharedRows", "ActRows", "act_rows"]
+
+
+class SharedRows:
+    """The attributes ``names`` of ``K`` owners as rows of one block per name: ``blocks[name]``
+    ``(K, ...)``; owner ``k``'s attribute ``name`` is the view ``blocks[name][k]`` once attached.
+    Shapes and dtypes are those of ``template``'s attributes (every owner's must match)."""
+
+    def __init__(self, k: int, names: Sequence[str], template: Any):
+        self.names = tuple(names)
+        self.blocks: dict[str, np.ndarray] = {}
+        self.views: dict[str, list[np.ndarray]] = {}
+        for name in self.names:
+            value = np.asarray(getattr(template, name))
+            block = np.empty((k, *value.shape), dtype=value.dtype)
+            self.blocks[name] = block
+            self.views[name] = list(block)
+        self.flat = {name: b.reshape(-1, *b.shape[2:]) for name, b in self.blocks.items()}
+        """Each block with its first two axes (worlds, robots) as one (a view)."""
+        self.owners: list[Any] = [None] * k
+
+    def fits(self, k: int, template: Any) -> bool:
+        """True if these rows can hold ``k`` owners like ``template`` (the same shapes and dtypes)."""
+        if k != len(self.owners):
+            return False
+        for name in self.names:
+            value, view = getattr(template, name), self.views[name][0]
+            if not isinstance(value, np.ndarray) or value.shape != view.shape or value.dtype != view.dtype:
+                return False
+        return True
+
+    @property
+    def size(self) -> int:
+        """The number of rows ``K``."""
+        return len(self.owners)
+
+    def attached(self, k: int, owner: Any) -> bool:
+        """True if ``owner`` holds the views of row ``k`` in every attribute."""
+        if self.owners[k] is not owner:
+            return False
+        views = self.views
+        return all(getattr(owner, name) is views[name][k] for name in self.names)
+
+    def attach(self, owners: Sequence[Any]) -> None:
+        """Make owner ``k`` the owner of row ``k`` for every ``k`` (``len(owners) == K``): an owner not
+        attached yet has its values copied into its row and gets the row's views; a previous owner
+        of that row that still holds its views gets copies of them instead (it keeps its values)."""
+        for k, owner in enumerate(owners):
+            if not self.attached(k, owner):
+                self._adopt(k, owner)
+
+    def _adopt(self, k: int, owner: Any) -> None:
+        old = self.owners[k]
+        for name in self.names:
+            view = self.views[name][k]
+            if old is not None and old is not owner and getattr(old, name) is view:
+                setattr(old, name, view.copy())
+            value = getattr(owner, name)
+            if value is not view:
+                value = np.asarray(value)
+                if value.shape != view.shape:
+                    raise ValueError(f"{type(owner).__name__}.{name}: shape {value.shape}, the rows hold {view.shape}")
+                view[...] = value
+                setattr(owner, name, view)
+        self.owners[k] = owner
+
+
+class ActRows(NamedTuple):
+    """The act phase's per-robot state of ``K`` worlds as shared rows (:func:`act_rows`)."""
+
+    estimators: SharedRows
+    """The pose estimators' :data:`ESTIMATOR` arrays."""
+    odometry: SharedRows
+    """Their wheel odometries' :data:`ODOMETRY` arrays."""
+    drives: SharedRows | None
+    """The worlds' drives' :data:`DRIVE` arrays (None: no drive, ``drive: instant``)."""
+
+
+ESTIMATOR = ("velocity", "fix_age")
+"""Rows of :class:`~parcover_env.envs.estimator.PoseEstimator`."""
+ODOMETRY = ("estimate", "covariance", "travelled", "turned", "factors", "believed_base")
+"""Rows of :class:`~parcover_env.sensors.odometry.Odometry`."""
+DRIVE = ("wheels", "travel", "speed_change")
+"""Rows of :class:`~parcover_env.world.drive.DiffDrive`."""
+
+
+def act_rows(estimators: Sequence[Any], drives: Sequence[Any]) -> ActRows:
+    """The shared rows of ``K`` worlds' pose ``estimators`` (of one scenario) and their ``drives``
+    (``None`` s for ``drive: instant``), every array attached (:meth:`SharedRows.attach`). The rows
+    are kept on the estimators (``act_rows``, never copied or pickled) and reused while they fit."""
+    first = estimators[0]
+    rows = first.act_rows
+    k = len(estimators)
+    if (rows is None or not rows.estimators.fits(k, first) or not rows.odometry.fits(k, first.odometry)
+            or (rows.drives is None) != (drives[0] is None)
+            or (rows.drives is not None and not rows.drives.fits(k, drives[0]))):
+        rows = ActRows(SharedRows(k, ESTIMATOR, first), SharedRows(k, ODOMETRY, first.odometry),
+                       None if drives[0] is None else SharedRows(k, DRIVE, drives[0]))
+    rows.estimators.attach(estimators)
+    rows.odometry.attach([e.odometry for e in estimators])
+    if rows.drives is not None:
+        rows.drives.attach(drives)
+    for e in estimators:
+        if e.act_rows is not rows:
+            e.act_rows = rows
+    return rows
