@@ -14,6 +14,7 @@ values). So the blocks and the worlds' attributes always hold the same values, w
 from __future__ import annotations
 
 from collections.abc import Sequence
+from operator import attrgetter, is_
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -35,6 +36,8 @@ class SharedRows:
             block = np.empty((k, *value.shape), dtype=value.dtype)
             self.blocks[name] = block
             self.views[name] = list(block)
+        self._get = attrgetter(*self.names) if len(self.names) > 1 else (lambda o, g=attrgetter(self.names[0]): (g(o),))
+        self._rows = [tuple(self.views[name][k] for name in self.names) for k in range(k)]
         self.flat = {name: b.reshape(-1, *b.shape[2:]) for name, b in self.blocks.items()}
         """Each block with its first two axes (worlds, robots) as one (a view)."""
         self.owners: list[Any] = [None] * k
@@ -56,17 +59,15 @@ class SharedRows:
 
     def attached(self, k: int, owner: Any) -> bool:
         """True if ``owner`` holds the views of row ``k`` in every attribute."""
-        if self.owners[k] is not owner:
-            return False
-        views = self.views
-        return all(getattr(owner, name) is views[name][k] for name in self.names)
+        return self.owners[k] is owner and all(map(is_, self._get(owner), self._rows[k]))
 
     def attach(self, owners: Sequence[Any]) -> None:
         """Make owner ``k`` the owner of row ``k`` for every ``k`` (``len(owners) == K``): an owner not
         attached yet has its values copied into its row and gets the row's views; a previous owner
         of that row that still holds its views gets copies of them instead (it keeps its values)."""
+        get, rows, current = self._get, self._rows, self.owners
         for k, owner in enumerate(owners):
-            if not self.attached(k, owner):
+            if current[k] is not owner or not all(map(is_, get(owner), rows[k])):
                 self._adopt(k, owner)
 
     def _adopt(self, k: int, owner: Any) -> None:

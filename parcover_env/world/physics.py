@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from operator import is_
 
 import numpy as np
 import pymunk
@@ -243,13 +244,29 @@ def poses_all(worlds: Sequence[World]) -> np.ndarray:
     uses the compiled body access."""
     if len(worlds) == 1:
         return worlds[0].poses()[None]
-    addresses = [w.body_addresses for w in worlds]
-    if any(a is None for a in addresses):
+    flat = _flat_addresses(worlds)
+    if flat is None:
         return np.stack([w.poses() for w in worlds])
-    flat = np.concatenate(addresses)
     out = np.empty((len(flat), 3))
     _kernels().read_poses(flat, out)  # the angles wrapped there
     return out.reshape(len(worlds), -1, 3)
+
+
+_FLAT: list = []
+"""The worlds' body addresses last concatenated, and the arrays they came from (kept alive, so
+compared by identity: a world's addresses change only when it rebuilds its space)."""
+
+
+def _flat_addresses(worlds: Sequence[World]) -> np.ndarray | None:
+    """The body addresses of all ``worlds`` end to end, or None if some world has none (pymunk's
+    Python callbacks)."""
+    addresses = [w.body_addresses for w in worlds]
+    if _FLAT and len(_FLAT[0]) == len(addresses) and all(map(is_, addresses, _FLAT[0])):
+        return _FLAT[1]
+    if any(a is None for a in addresses):
+        return None
+    _FLAT[:] = [addresses, np.concatenate(addresses)]
+    return _FLAT[1]
 
 
 def step_all(worlds: Sequence[World], commands: np.ndarray, velocities: np.ndarray | None = None) -> None:
@@ -270,15 +287,13 @@ def step_all(worlds: Sequence[World], commands: np.ndarray, velocities: np.ndarr
             velocities = command_steps_all([w.drive for w in worlds], commands, physics.dt, physics.substeps)
         else:  # the commands at every substep
             velocities = np.repeat(np.asarray(commands, dtype=float).reshape(k, n, 1, 2), physics.substeps, axis=2)
-    addresses = [w.body_addresses for w in worlds]
-    if k == 1 and addresses[0] is not None:
-        _kernels().bind_rows(addresses[0], velocities[0])
-    elif all(a is not None for a in addresses):
-        _kernels().bind_rows(np.concatenate(addresses), velocities.reshape(k * n, *velocities.shape[2:]))
+    flat = first.body_addresses if k == 1 else _flat_addresses(worlds)
+    if flat is not None:
+        _kernels().bind_rows(flat, velocities.reshape(k * n, *velocities.shape[2:]))
     else:
-        for a, v in zip(addresses, velocities, strict=True):
-            if a is not None:
-                _kernels().bind_rows(a, v)
+        for w, v in zip(worlds, velocities, strict=True):
+            if w.body_addresses is not None:
+                _kernels().bind_rows(w.body_addresses, v)
     for w, c, v in zip(worlds, commands, velocities, strict=True):
         w.integrate(c, v)
 
