@@ -167,7 +167,9 @@ def update_all(estimators: Sequence[PoseEstimator], true: Sequence[np.ndarray], 
         sources = [e.sources[j] for e in estimators]
         estimates = rows.odometry.blocks["estimate"]
         if all(isinstance(src, KinectFixes) for src in sources):
-            markers = np.asarray(leaders, dtype=bool) & np.array([src.markers for src in sources])[:, None]
+            markers = np.asarray(leaders, dtype=bool)
+            if not all(src.markers for src in sources):  # the leaders that carry markers
+                markers = markers & np.array([src.markers for src in sources])[:, None]
             fixes = update_systems([src.system for src in sources], list(times), np.asarray(true, dtype=float),
                                    markers, estimates, list(rngs))
         else:
@@ -190,11 +192,21 @@ def _apply_fixes(rows: ActRows, fixes: Sequence[dict[int, np.ndarray]], cov: np.
             worlds += [k] * len(f)
             robots += f.keys()
             poses += f.values()
-    if not worlds:
+    o, fix_age = rows.odometry.blocks, rows.estimators.blocks["fix_age"]
+    est, covariance, travelled, turned = o["estimate"], o["covariance"], o["travelled"], o["turned"]
+    cov = 0.0 if cov is None else cov
+    if len(worlds) <= _FEW_FIXES:  # a few rows: written one by one (numpy's fancy indexing costs more)
+        for k, i, pose in zip(worlds, robots, poses, strict=True):
+            est[k, i] = pose
+            covariance[k, i] = cov
+            travelled[k, i] = turned[k, i] = fix_age[k, i] = 0.0
         return
-    o = rows.odometry.blocks
-    o["estimate"][worlds, robots] = poses
-    o["covariance"][worlds, robots] = 0.0 if cov is None else cov
-    o["travelled"][worlds, robots] = 0.0
-    o["turned"][worlds, robots] = 0.0
-    rows.estimators.blocks["fix_age"][worlds, robots] = 0.0
+    est[worlds, robots] = poses
+    covariance[worlds, robots] = cov
+    travelled[worlds, robots] = 0.0
+    turned[worlds, robots] = 0.0
+    fix_age[worlds, robots] = 0.0
+
+
+_FEW_FIXES = 4
+"""Up to this many fixes are written row by row."""

@@ -112,9 +112,8 @@ def act_rows(estimators: Sequence[Any], drives: Sequence[Any]) -> ActRows:
     first = estimators[0]
     rows = first.act_rows
     k = len(estimators)
-    if (rows is None or not rows.estimators.fits(k, first) or not rows.odometry.fits(k, first.odometry)
-            or (rows.drives is None) != (drives[0] is None)
-            or (rows.drives is not None and not rows.drives.fits(k, drives[0]))):
+    if rows is None or rows.estimators.size != k or not (_holds(rows, first, drives[0])
+                                                         or _fits(rows, k, first, drives[0])):
         rows = ActRows(SharedRows(k, ESTIMATOR, first), SharedRows(k, ODOMETRY, first.odometry),
                        None if drives[0] is None else SharedRows(k, DRIVE, drives[0]))
     rows.estimators.attach(estimators)
@@ -125,3 +124,15 @@ def act_rows(estimators: Sequence[Any], drives: Sequence[Any]) -> ActRows:
         if e.act_rows is not rows:
             e.act_rows = rows
     return rows
+
+
+def _holds(rows: ActRows, estimator: Any, drive: Any) -> bool:
+    """True if ``estimator`` (and its odometry and ``drive``) hold row 0 of ``rows`` (so they fit)."""
+    return (rows.estimators.attached(0, estimator) and rows.odometry.attached(0, estimator.odometry)
+            and (drive is None if rows.drives is None else rows.drives.attached(0, drive)))
+
+
+def _fits(rows: ActRows, k: int, estimator: Any, drive: Any) -> bool:
+    """True if ``rows`` can hold ``k`` worlds like ``estimator``'s (and its odometry's and ``drive``'s)."""
+    return (rows.estimators.fits(k, estimator) and rows.odometry.fits(k, estimator.odometry)
+            and (rows.drives is None) == (drive is None) and (drive is None or rows.drives.fits(k, drive)))

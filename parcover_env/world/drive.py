@@ -115,12 +115,18 @@ def command_steps_rows(cfg: DriveConfig, wheels: np.ndarray, travel: np.ndarray,
     return out.reshape(k, n, steps, 2)
 
 
+_KERNELS: list = []
+
+
 def _advance(cfg: DriveConfig, wheels: np.ndarray, travel: np.ndarray, change: np.ndarray, block: np.ndarray,
              dt: float, steps: int, wheel_speed_max: float | None) -> np.ndarray:
     """The compiled drive steps on the flat state ``(M, 2)`` in place, towards ``block``: wheel targets,
     or unicycle commands when ``wheel_speed_max`` is given; the body velocities ``(M, steps, 2)``."""
-    from parcover_env.world import drive_kernels
+    if not _KERNELS:  # numba is imported on first use
+        from parcover_env.world import drive_kernels
 
+        _KERNELS.append(drive_kernels)
+    drive_kernels = _KERNELS[0]
     gain = -math.expm1(-dt / cfg.tau)
     out = np.empty((len(wheels), steps, 2))
     flat = np.ascontiguousarray(block, dtype=float).reshape(len(wheels), 2)

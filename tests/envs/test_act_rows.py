@@ -196,7 +196,8 @@ def test_wheel_odometry_rows_is_measure_wheels_plus_velocity_fix_age_and_taken_t
     assert not t.any() and not c.any()  # the travel was taken
 
 
-def test_update_all_of_two_worlds_applies_each_sources_fixes_to_its_own_rows():
+@pytest.mark.parametrize("many", [False, True])  # a few fixes are written row by row, more by fancy indexing
+def test_update_all_of_two_worlds_applies_each_sources_fixes_to_its_own_rows(many):
     class Fixed:
         name = "test"
         covariance = np.diag([0.01, 0.02, 0.03])
@@ -210,11 +211,12 @@ def test_update_all_of_two_worlds_applies_each_sources_fixes_to_its_own_rows():
         def fixes(self, request, rng):
             return dict(self.out)
 
-    env = parcover_env.parallel_env("office", overrides={"observation": {"pose_source": "odometry"}})
+    env = parcover_env.parallel_env("tree", overrides={"observation": {"pose_source": "odometry"}})
     env.reset(seed=0)
     s, true = env.scenario, env.true_poses()
-    ests = [PoseEstimator(s, true, np.random.default_rng(k), [Fixed(f)]) for k, f in
-            enumerate([{1: np.array([1.0, 2.0, 0.5])}, {}])]
+    pose = np.array([1.0, 2.0, 0.5])
+    wanted = [{1: pose, 2: pose + 1, 3: pose + 2}, {0: pose + 3, 3: pose + 4}] if many else [{1: pose}, {}]
+    ests = [PoseEstimator(s, true, np.random.default_rng(k), [Fixed(f)]) for k, f in enumerate(wanted)]
     for e in ests:
         e.odometry.travelled[:] = 3.0
         e.odometry.turned[:] = 2.0
@@ -225,13 +227,15 @@ def test_update_all_of_two_worlds_applies_each_sources_fixes_to_its_own_rows():
     commands = np.zeros((2, len(true), 2))
     update_all(ests, np.stack([true, true]), commands, drives, [0.1, 0.1], np.zeros((2, len(true)), bool),
                [np.random.default_rng(5), np.random.default_rng(6)])
-    fixed, other = ests[0], ests[1]
-    np.testing.assert_array_equal(fixed.estimate[1], [1.0, 2.0, 0.5])
-    np.testing.assert_array_equal(fixed.covariance[1], Fixed.covariance)
-    assert fixed.odometry.travelled[1] == 0.0 and fixed.odometry.turned[1] == 0.0 and fixed.fix_age[1] == 0.0
-    assert fixed.odometry.travelled[0] > 3.0 and fixed.odometry.turned[0] >= 2.0
-    assert fixed.fix_age[0] == pytest.approx(4.0 + s.physics.control_dt)
-    assert (other.odometry.travelled > 3.0).all() and (other.fix_age > 4.0).all()
-    assert not np.allclose(other.estimate[1], [1.0, 2.0, 0.5])
+    for e, fixes in zip(ests, wanted, strict=True):
+        for i in range(len(true)):
+            if i in fixes:
+                np.testing.assert_array_equal(e.estimate[i], fixes[i])
+                np.testing.assert_array_equal(e.covariance[i], Fixed.covariance)
+                assert e.odometry.travelled[i] == e.odometry.turned[i] == e.fix_age[i] == 0.0
+            else:
+                assert e.odometry.travelled[i] > 3.0 and e.odometry.turned[i] >= 2.0
+                assert e.fix_age[i] == pytest.approx(4.0 + s.physics.control_dt)
+                assert not np.allclose(e.estimate[i], pose) and e.covariance[i].any()
+        assert (e.velocity[:, 0] > 0).all()  # both wheels turned forwards: a forward encoder velocity
     assert not drives[0].travel.any() and not drives[1].travel.any()  # taken by the odometry
-    assert (other.velocity[:, 0] > 0).all()  # both wheels turned forwards: a forward encoder velocity
