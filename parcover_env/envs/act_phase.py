@@ -44,17 +44,17 @@ def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -
     raw = to_commands_all(actions, [w.agents for w in worlds], s.robot.max_speed, s.robot.max_turn_rate,
                           width=3 if scanning else 2)
     commands = np.ascontiguousarray(raw[..., :2]) if scanning else raw
-    for k, w in enumerate(worlds):
-        w.commands = commands[k]
-        if scanning:
-            w.scanner.request(raw[k, :, 2], w.commands)  # scanning robots are held still
+    for w, c in zip(worlds, commands, strict=True):
+        w.commands = c
+        w.steps += 1
+    if scanning:
+        for w, r in zip(worlds, raw, strict=True):
+            w.scanner.request(r[:, 2], w.commands)  # scanning robots are held still
     physics = [w.world for w in worlds]
     estimators, drives = [w.estimator for w in worlds], [w.drive for w in physics]
     rows = act_rows(estimators, drives)  # the drives' and estimators' arrays as rows of shared blocks
     before = poses_all(physics)
     step_all(physics, commands, _drive(rows, s.physics, commands))
-    for w in worlds:
-        w.steps += 1
     true = poses_all(physics)
     fixes = update_all(estimators, true, commands, drives, [w.time for w in physics],
                        stack([w.team.leader for w in worlds]), [w.np_random for w in worlds], rows)
