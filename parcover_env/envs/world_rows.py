@@ -110,7 +110,9 @@ def act_rows(estimators: Sequence[Any], drives: Sequence[Any]) -> ActRows:
     (``None`` s for ``drive: instant``), every array attached (:meth:`SharedRows.attach`). The rows
     are kept on the estimators (``act_rows``, never copied or pickled) and reused while they fit."""
     first = estimators[0]
-    rows = first.act_rows
+    rows = first.act_rows  # after world 0's reset: the rows another world holds
+    if rows is None:
+        rows = next((e.act_rows for e in estimators if e.act_rows is not None), None)
     k = len(estimators)
     if rows is None or rows.estimators.size != k or not (_holds(rows, first, drives[0])
                                                          or _fits(rows, k, first, drives[0])):

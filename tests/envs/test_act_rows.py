@@ -83,6 +83,9 @@ def test_act_rows_are_reused_and_a_copy_or_pickle_owns_plain_arrays():
     again = act_rows([e.estimator for e in envs], [e.world.drive for e in envs])
     assert again is rows and envs[1].estimator.odometry.estimate is rows.odometry.views["estimate"][1]
     assert envs[0].estimator.odometry.estimate is rows.odometry.views["estimate"][0]
+    envs[0].reset(seed=6)  # world 0's new estimator holds no rows yet: world 1's are found and reused
+    assert act_rows([e.estimator for e in envs], [e.world.drive for e in envs]) is rows
+    assert envs[0].estimator.odometry.estimate is rows.odometry.views["estimate"][0]
     assert act_rows(estimators[:1], drives[:1]) is not rows  # another K: rows of its own
 
 
