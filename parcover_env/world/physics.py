@@ -6,8 +6,10 @@ and other robots are resolved by pymunk while the robots follow their commands i
 (Kinematic bodies would pass through walls.) pymunk moves bodies before it calls
 ``velocity_func``, so a new command takes effect after one physics step (``physics.dt``), like
 an actuator delay; the velocity the contact solver corrected is what moves the body. The
-``velocity_func`` is a compiled C callback (:mod:`parcover_env.world.body_kernels`) reading the
-commands from one array; where that is not available, a Python callable computing the same floats.
+``velocity_func`` is a compiled C callback (:mod:`parcover_env.world.body_kernels`) that reads
+each substep's body velocity from the rows ``(substeps, 2)`` :func:`step_all` points the body at
+(the worlds of a batch in one call, no Python between substeps); where that is not available, a
+Python callable computing the same floats from rows written before each substep.
 
 With a ``DriveConfig`` of ``model: wheels`` the commands are wheel-speed targets for a
 :class:`~parcover_env.world.drive.DiffDrive` (limits, lag, bounded acceleration) advanced once per
