@@ -153,7 +153,7 @@ def update_all(estimators: Sequence[PoseEstimator], true: Sequence[np.ndarray], 
     else:
         for e, t, cmd, rng in zip(estimators, true, commands, rngs, strict=True):
             e.odometry.measure(t, rng)
-            e.velocity = cmd
+            e.velocity[:] = cmd  # in place: the shared rows stay attached
             e.fix_age += dt
     fixed: list[dict[str, dict[int, np.ndarray]]] = [{} for _ in estimators]
     for e in estimators:
