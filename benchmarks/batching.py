@@ -98,22 +98,22 @@ def breakdown(model: str, k: int, steps: int) -> dict:
     from parcover_env.envs import act_phase, stepper
 
     phases = {name: getattr(stepper, name) for name in ("act", "score", "outputs")}
-    inner = {name: getattr(act_phase, name) for name in ("advance_steps_all", "update_all")}
+    inner = {name: getattr(act_phase, name) for name in ("step_all", "command_steps_rows", "update_all")}
     venv = _venv(model, k)
     try:
         run = VecRunner(venv)
         for i in range(5):
             run(i)
         clock, seen = Timers(), set()
+        clock.wrap(act_phase, "step_all", "physics")  # every world's pymunk substeps
         for w in venv.worlds:
-            clock.wrap(w.world, "step", "physics")
             if w.sonar is not None and id(w.sonar) not in seen:
                 seen.add(id(w.sonar))
                 clock.wrap(w.sonar, "draw", "sonar")
                 clock.wrap(w.sonar, "readings", "sonar")
         for name in phases:
             clock.wrap(stepper, name, name)
-        clock.wrap(act_phase, "advance_steps_all", "drives")
+        clock.wrap(act_phase, "command_steps_rows", "drives")
         clock.wrap(act_phase, "update_all", "estimators")
         t0 = time.perf_counter()
         for i in range(steps):

@@ -3,11 +3,13 @@
 The worlds of one scenario act together; the single env is ``K = 1`` of the same code. The joint
 actions of all worlds become one ``(K, N, A)`` array of commands
 (:func:`~parcover_env.envs.actions.to_commands_all`), the drives of all worlds turn them into body
-velocities in one compiled call (:func:`~parcover_env.world.drive.advance_steps_all`), each world's
-pymunk space integrates its physics (one space per world), and the pose estimators of all worlds
-update together (:func:`~parcover_env.envs.estimator.update_all`: the wheel odometry of all ``K N``
-robots in one compiled call, the Kinect systems in one batch). World ``k`` draws from its own
-generator in the order it would alone, so every world is bit for bit a separate env.
+velocities in one compiled call (:func:`~parcover_env.world.drive.command_steps_rows`), each world's
+pymunk space integrates its physics (one space per world; :func:`~parcover_env.world.physics.step_all`
+points the compiled velocity callbacks of all worlds' bodies at their rows in one call), and the
+pose estimators of all worlds update together (:func:`~parcover_env.envs.estimator.update_all`: the
+wheel odometry of all ``K N`` robots in one compiled call, the Kinect systems in one batch). World
+``k`` draws from its own generator in the order it would alone, so every world is bit for bit a
+separate env.
 """
 
 from __future__ import annotations
@@ -17,11 +19,13 @@ from typing import Any
 
 import numpy as np
 
+from parcover_env.config import PhysicsConfig
 from parcover_env.envs.actions import to_commands_all
 from parcover_env.envs.estimator import FixRequest, update_all
+from parcover_env.envs.world_rows import ActRows, act_rows
 from parcover_env.geometry.stacking import stack
-from parcover_env.world.drive import advance_steps_all, wheel_targets
-from parcover_env.world.physics import poses_all
+from parcover_env.world.drive import command_steps_rows
+from parcover_env.world.physics import poses_all, step_all
 
 __all__ = ["act"]
 
@@ -40,20 +44,20 @@ def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -
     raw = to_commands_all(actions, [w.agents for w in worlds], s.robot.max_speed, s.robot.max_turn_rate,
                           width=3 if scanning else 2)
     commands = np.ascontiguousarray(raw[..., :2]) if scanning else raw
-    for k, w in enumerate(worlds):
-        w.commands = commands[k]
-        if scanning:
-            w.scanner.request(raw[k, :, 2], w.commands)  # scanning robots are held still
-    physics = [w.world for w in worlds]
-    before = poses_all(physics)
-    velocities = _drive(worlds, commands)
-    for k, w in enumerate(worlds):
-        w.world.step(w.commands, None if velocities is None else velocities[:, k])
+    for w, c in zip(worlds, commands, strict=True):
+        w.commands = c
         w.steps += 1
+    if scanning:
+        for w, r in zip(worlds, raw, strict=True):
+            w.scanner.request(r[:, 2], w.commands)  # scanning robots are held still
+    physics = [w.world for w in worlds]
+    estimators, drives = [w.estimator for w in worlds], [w.drive for w in physics]
+    rows = act_rows(estimators, drives)  # the drives' and estimators' arrays as rows of shared blocks
+    before = poses_all(physics)
+    step_all(physics, commands, _drive(rows, s.physics, commands))
     true = poses_all(physics)
-    fixes = update_all([w.estimator for w in worlds], true, commands, [w.world.drive for w in worlds],
-                       [w.world.time for w in worlds], stack([w.team.leader for w in worlds]),
-                       [w.np_random for w in worlds])
+    fixes = update_all(estimators, true, commands, drives, [w.time for w in physics],
+                       stack([w.team.leader for w in worlds]), [w.np_random for w in worlds], rows)
     for k, w in enumerate(worlds):
         if "kinect" in fixes[k]:  # a Kinect fix is a message to a leader
             w.team.count_pose_fixes(len(fixes[k]["kinect"]))
@@ -63,13 +67,12 @@ def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -
     return before, true
 
 
-def _drive(worlds: Sequence[Any], commands: np.ndarray) -> np.ndarray | None:
-    """Body velocities ``(substeps, K, N, 2)`` of every world's drive for ``commands (K, N, 2)``
-    (advancing the drives), or None when the worlds have no drive (``drive: instant``)."""
-    drives = [w.world.drive for w in worlds]
-    if drives[0] is None:
+def _drive(rows: ActRows, physics: PhysicsConfig, commands: np.ndarray) -> np.ndarray | None:
+    """Body velocities ``(K, N, substeps, 2)`` of every world's drive for ``commands (K, N, 2)``
+    (advancing the drives in their shared rows), or None when the worlds have no drive
+    (``drive: instant``)."""
+    if rows.drives is None:
         return None
-    d, physics = drives[0].cfg, worlds[0].scenario.physics
-    k, n = commands.shape[:2]
-    targets = wheel_targets(commands.reshape(k * n, 2), d.wheel_base, d.wheel_speed_max).reshape(k, n, 2)
-    return advance_steps_all(drives, targets, physics.dt, physics.substeps)
+    b = rows.drives.blocks
+    return command_steps_rows(rows.drives.owners[0].cfg, b["wheels"], b["travel"], b["speed_change"], commands,
+                              physics.dt, physics.substeps)

@@ -38,36 +38,49 @@ def to_commands_all(actions: Sequence[Mapping] | np.ndarray, agents: Sequence[Se
     values, or ``K`` dicts that are each the common case, are taken into one array; otherwise each
     world's joint action is validated by :func:`to_commands` (the same ActionError, raised before
     any command is returned)."""
+    k, n = len(agents), len(agents[0]) if agents else 0
     if isinstance(actions, np.ndarray):
-        out = _common_block(actions, len(agents), len(agents[0]) if agents else 0, width)
-        if out is None:  # the uncommon case: each world's rows as its action dict, validated
-            if actions.shape[:2] != (len(agents), len(agents[0]) if agents else 0):
-                raise ActionError(f"actions: expected an array ({len(agents)}, {len(agents[0]) if agents else 0}, "
-                                  f"{width}) (worlds, agents, action), got shape {actions.shape}")
-            actions = [dict(zip(names, rows, strict=True)) for names, rows in zip(agents, actions, strict=True)]
+        out = _scaled_block(actions, (k, n, width), max_speed, max_turn_rate)
+        if out is not None:
+            return out
+        if actions.shape[:2] != (k, n):  # the uncommon case: each world's rows as its action dict, validated
+            raise ActionError(f"actions: expected an array ({k}, {n}, {width}) (worlds, agents, action), "
+                              f"got shape {actions.shape}")
+        actions = [dict(zip(names, rows, strict=True)) for names, rows in zip(agents, actions, strict=True)]
     else:
-        out = _common_dicts(actions, agents, width)
-    if out is None:  # the uncommon case: each world's joint action checked on its own
-        return np.stack([to_commands(a, names, max_speed, max_turn_rate, width)
-                         for a, names in zip(actions, agents, strict=True)])
-    np.minimum(np.maximum(out, -1.0, out=out), 1.0, out=out)  # clip (the values are finite here)
-    out[..., 0] *= max_speed
-    out[..., 1] *= max_turn_rate
-    return out.reshape(len(agents), -1, width)
+        raw = _common_dicts(actions, agents, width)
+        out = None if raw is None else _scaled_block(raw, raw.shape, max_speed, max_turn_rate)
+        if out is not None:
+            return out.reshape(k, n, width)
+    # the uncommon case: each world's joint action checked on its own
+    return np.stack([to_commands(a, names, max_speed, max_turn_rate, width)
+                     for a, names in zip(actions, agents, strict=True)])
 
 
-def _common_block(actions: np.ndarray, k: int, n: int, width: int) -> np.ndarray | None:
-    """Raw ``(K, N, width)`` float64 actions (a copy) when the block is the common case (a real
-    floating array of exactly that shape, every value finite); None otherwise."""
-    if actions.shape != (k, n, width) or actions.dtype.kind != "f":
+_KERNELS: list = []
+
+
+def _scaled_block(actions: np.ndarray, shape: tuple, max_speed: float, max_turn_rate: float) -> np.ndarray | None:
+    """The commands of raw actions of exactly ``shape`` (float32 or float64, every value finite),
+    clipped and scaled in one compiled pass into a new array; None when the block is not that
+    common case (another shape or dtype, or a value not finite)."""
+    if actions.shape != shape or actions.dtype not in (np.float32, np.float64):
         return None
-    out = actions.astype(float)
-    return out if np.isfinite(out).all() else None
+    if not _KERNELS:  # numba is imported on first use, not with the package
+        from parcover_env.envs.action_kernels import scaled_commands
+
+        _KERNELS.append(scaled_commands)
+    out = np.empty(shape)
+    width = shape[-1]
+    if _KERNELS[0](actions.reshape(-1, width), float(max_speed), float(max_turn_rate), out.reshape(-1, width)):
+        return out
+    return None
 
 
 def _common_dicts(actions: Sequence[Mapping], agents: Sequence[Sequence[str]], width: int) -> np.ndarray | None:
-    """Raw ``(K N, width)`` actions when every one of the ``K`` joint actions is the common case
-    (see :func:`_common_case`); None otherwise."""
+    """Raw ``(K N, width)`` actions (not yet checked for finite values) when every one of the ``K``
+    joint actions holds exactly its agents' actions, each a float ndarray of shape ``(width,)``;
+    None otherwise."""
     vals: list = []
     for acts, names in zip(actions, agents, strict=True):
         if type(acts) is not dict or len(acts) != len(names):
@@ -77,9 +90,7 @@ def _common_dicts(actions: Sequence[Mapping], agents: Sequence[Sequence[str]], w
         except KeyError:
             return None
     if vals and all(type(v) is np.ndarray and v.shape == (width,) and v.dtype.kind == "f" for v in vals):
-        out = np.array(vals, dtype=float)
-        if np.isfinite(out).all():
-            return out
+        return np.array(vals)
     return None
 
 

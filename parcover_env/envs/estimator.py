@@ -17,12 +17,12 @@ from typing import NamedTuple, Protocol
 import numpy as np
 
 from parcover_env.config import Scenario
-from parcover_env.geometry import wrap_angle
-from parcover_env.geometry.stacking import stack
+from parcover_env.envs.world_rows import ActRows, act_rows
 from parcover_env.localization.kinect.batch_update import update_systems
 from parcover_env.localization.kinect.system import KinectSystem
-from parcover_env.sensors.odometry import Odometry, measure_wheels_all
-from parcover_env.world.drive import take_travel_all, wheel_targets
+from parcover_env.sensors.odometry import Odometry
+from parcover_env.sensors.onboard_kernels import OdometryState, wheel_odometry_rows
+from parcover_env.world.drive import wheel_targets
 
 __all__ = ["FixRequest", "FixSource", "KinectFixes", "PoseEstimator", "update_all"]
 
@@ -88,6 +88,14 @@ class PoseEstimator:
         self.estimate = true.copy()
         self.velocity = np.zeros((len(true), 2))
         self.fix_age = np.zeros(len(true))
+        self.act_rows: ActRows | None = None
+        """The shared rows this estimator's arrays are views of, when it steps with others
+        (:func:`~parcover_env.envs.world_rows.act_rows`); not copied, not pickled."""
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["act_rows"] = None  # a copy owns plain arrays (numpy copies the views' values)
+        return state
 
     @property
     def covariance(self) -> np.ndarray:
@@ -109,40 +117,46 @@ class PoseEstimator:
 
 def update_all(estimators: Sequence[PoseEstimator], true: Sequence[np.ndarray], commands: Sequence[np.ndarray],
                drives: Sequence, times: Sequence[float], leaders: Sequence[np.ndarray],
-               rngs: Sequence[np.random.Generator]) -> list[dict[str, dict[int, np.ndarray]]]:
+               rngs: Sequence[np.random.Generator],
+               rows: ActRows | None = None) -> list[dict[str, dict[int, np.ndarray]]]:
     """:meth:`PoseEstimator.update` of ``K`` estimators of one scenario (``N`` robots each) at once:
     ``true`` ``(K, N, 3)``, ``commands`` ``(K, N, 2)``, ``leaders`` ``(K, N)`` (arrays, or sequences of
     the ``K`` worlds' arrays: the sources see those very arrays), and per estimator its
-    world's drive, time and generator. The wheel odometry of all ``K N`` robots runs in one compiled
-    call and the Kinect systems in one batch (:func:`~parcover_env.localization.kinect.batch_update.update_systems`);
-    estimator ``k`` draws from ``rngs[k]`` in the order it would alone (odometry, then each source in
-    turn), so its results are the same floats. Returns each estimator's fixes by source name."""
+    world's drive, time and generator; ``rows``: their shared rows
+    (:func:`~parcover_env.envs.world_rows.act_rows`, made here if not given). The wheel odometry of
+    all ``K N`` robots (dead reckoning, encoder velocity, fix age) runs in one compiled call on the
+    rows, the Kinect systems in one batch
+    (:func:`~parcover_env.localization.kinect.batch_update.update_systems`), and each source's fixes
+    are written into the rows together; estimator ``k`` draws from ``rngs[k]`` in the order it
+    would alone (odometry, then each source in turn), so its results are the same floats. Returns
+    each estimator's fixes by source name."""
     s = estimators[0].scenario
     dt = s.physics.control_dt
     k = len(estimators)
+    rows = act_rows(estimators, drives) if rows is None else rows
     if s.robot.odometry.model == "wheels":
-        if drives[0] is not None:
-            travel_all, change_all = take_travel_all(list(drives))
+        if rows.drives is not None:
+            travel, change = rows.drives.flat["travel"], rows.drives.flat["speed_change"]
         else:  # instant drive: the wheels turned at the commanded speeds all step
-            cmd = np.asarray(commands, dtype=float)
-            travel_all = wheel_targets(cmd.reshape(-1, 2), s.robot.drive.wheel_base, np.inf).reshape(cmd.shape) * dt
-            change_all = np.zeros_like(travel_all)
-        before = stack([e.odometry.estimate for e in estimators], copy=True)
-        est = measure_wheels_all([e.odometry for e in estimators], travel_all, change_all, dt, list(rngs))
-        velocity = np.empty((k, est.shape[1], 2))  # (signed distance, heading change) over the step / dt
-        np.multiply(np.hypot(est[..., 0] - before[..., 0], est[..., 1] - before[..., 1]),
-                    np.sign(travel_all[..., 0] + travel_all[..., 1]), out=velocity[..., 0])
-        velocity[..., 1] = wrap_angle(est[..., 2] - before[..., 2])
-        velocity /= dt
-        for e, v in zip(estimators, velocity, strict=True):
-            e.velocity = v
+            cmd = np.asarray(commands, dtype=float).reshape(-1, 2)
+            travel = wheel_targets(cmd, s.robot.drive.wheel_base, np.inf) * dt
+            change = np.zeros_like(travel)
+        n = rows.odometry.views["estimate"][0].shape[0]
+        z = np.empty((k, 4 * n))
+        for row, rng in zip(z, rngs, strict=True):  # each odometry's normals from its own generator
+            rng.standard_normal(out=row)
+        o, mine = rows.odometry.flat, rows.estimators.flat
+        state = OdometryState(o["estimate"], o["covariance"], o["travelled"], o["turned"], o["factors"],
+                              o["believed_base"])
+        wheel_odometry_rows(state, travel, change, float(dt), z, estimators[0].odometry.wheel_errors, mine["velocity"],
+                            mine["fix_age"])
     else:
         for e, t, cmd, rng in zip(estimators, true, commands, rngs, strict=True):
             e.odometry.measure(t, rng)
-            e.velocity = cmd
+            e.velocity[:] = cmd  # in place: the shared rows stay attached
+            e.fix_age += dt
     fixed: list[dict[str, dict[int, np.ndarray]]] = [{} for _ in estimators]
     for e in estimators:
-        e.fix_age += dt
         e.estimate = e.odometry.estimate
     if s.observation.pose_source == "ground_truth":
         for e, t in zip(estimators, true, strict=True):
@@ -151,15 +165,48 @@ def update_all(estimators: Sequence[PoseEstimator], true: Sequence[np.ndarray], 
         return fixed
     for j in range(len(estimators[0].sources)):  # each source in turn, all estimators
         sources = [e.sources[j] for e in estimators]
+        estimates = rows.odometry.blocks["estimate"]
         if all(isinstance(src, KinectFixes) for src in sources):
-            markers = np.asarray(leaders, dtype=bool) & np.array([src.markers for src in sources])[:, None]
+            markers = np.asarray(leaders, dtype=bool)
+            if not all(src.markers for src in sources):  # the leaders that carry markers
+                markers = markers & np.array([src.markers for src in sources])[:, None]
             fixes = update_systems([src.system for src in sources], list(times), np.asarray(true, dtype=float),
-                                   markers, stack([e.estimate for e in estimators]), list(rngs))
+                                   markers, estimates, list(rngs))
         else:
             fixes = [src.fixes(FixRequest(time, t, e.estimate, lead, e.covariance), rng) for e, src, time, t, lead, rng
                      in zip(estimators, sources, times, true, leaders, rngs, strict=True)]
-        for e, src, f, out in zip(estimators, sources, fixes, fixed, strict=True):
+        for f, src, out in zip(fixes, sources, fixed, strict=True):
             out[src.name] = f
-            for i, pose in f.items():
-                e.fix(i, pose, src.covariance)
+        _apply_fixes(rows, fixes, sources[0].covariance)
     return fixed
+
+
+def _apply_fixes(rows: ActRows, fixes: Sequence[dict[int, np.ndarray]], cov: np.ndarray | None) -> None:
+    """:meth:`PoseEstimator.fix` of every ``fixes[k]`` ``{robot: pose}`` of estimator ``k`` (one
+    source, its fix covariance ``cov``), on the shared rows in a few numpy calls."""
+    worlds: list[int] = []
+    robots: list[int] = []
+    poses: list = []
+    for k, f in enumerate(fixes):
+        if f:
+            worlds += [k] * len(f)
+            robots += f.keys()
+            poses += f.values()
+    o, fix_age = rows.odometry.blocks, rows.estimators.blocks["fix_age"]
+    est, covariance, travelled, turned = o["estimate"], o["covariance"], o["travelled"], o["turned"]
+    cov = 0.0 if cov is None else cov
+    if len(worlds) <= _FEW_FIXES:  # a few rows: written one by one (numpy's fancy indexing costs more)
+        for k, i, pose in zip(worlds, robots, poses, strict=True):
+            est[k, i] = pose
+            covariance[k, i] = cov
+            travelled[k, i] = turned[k, i] = fix_age[k, i] = 0.0
+        return
+    est[worlds, robots] = poses
+    covariance[worlds, robots] = cov
+    travelled[worlds, robots] = 0.0
+    turned[worlds, robots] = 0.0
+    fix_age[worlds, robots] = 0.0
+
+
+_FEW_FIXES = 4
+"""Up to this many fixes are written row by row."""

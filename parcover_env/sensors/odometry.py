@@ -152,7 +152,7 @@ class Odometry:
 
     def _advance(self, ds: np.ndarray, dth: np.ndarray, q: np.ndarray) -> None:
         est = self.estimate
-        self.covariance = propagate_covariance(self.covariance, est[:, 2], ds, dth, q)
+        self.covariance[:] = propagate_covariance(self.covariance, est[:, 2], ds, dth, q)
         integrate(est, ds, dth)
         self.travelled += np.abs(ds)
         self.turned += np.abs(dth)
@@ -178,24 +178,25 @@ def measure_wheels_all(odometries: list[Odometry], travel: np.ndarray, speed_cha
     ``travelled`` and ``turned`` arrays are updated in place (the same floats as alone). Returns the
     new estimates ``(K, N, 3)`` (a copy for ``K > 1``, a view of the odometry's own for ``K = 1``)."""
     k, n = len(odometries), len(odometries[0].estimate)
-    z = [rng.standard_normal(4 * n) for rng in rngs]
+    z = np.empty((k, 4 * n))
+    for row, rng in zip(z, rngs, strict=True):
+        rng.standard_normal(out=row)
     travel = np.ascontiguousarray(travel, dtype=float).reshape(k * n, 2)
     change = np.ascontiguousarray(speed_change, dtype=float).reshape(k * n, 2)
     first = odometries[0]
     if k == 1:  # one odometry: its own arrays, no gather
-        onboard_kernels.wheel_odometry(first.estimate, first.covariance, first.travelled, first.turned, travel,
-                                       change, float(dt), z[0], first.factors, first.believed_base, first.wheel_errors)
+        state = onboard_kernels.OdometryState(first.estimate, first.covariance, first.travelled, first.turned,
+                                              first.factors, first.believed_base)
+        onboard_kernels.wheel_odometry(state, travel, change, float(dt), z, first.wheel_errors)
         return first.estimate[None]
-    # the kernel reads the normals as (2, K N, 2): each odometry's (2, N, 2) block in its rows
-    zs = np.stack(z).reshape(k, 2, n, 2).transpose(1, 0, 2, 3).reshape(-1)
     est = np.concatenate([o.estimate for o in odometries])
     cov = np.concatenate([o.covariance for o in odometries])
     travelled = np.concatenate([o.travelled for o in odometries])
     turned = np.concatenate([o.turned for o in odometries])
     factors = np.concatenate([o.factors for o in odometries])
     believed = np.concatenate([o.believed_base for o in odometries])
-    onboard_kernels.wheel_odometry(est, cov, travelled, turned, travel, change, float(dt), zs, factors, believed,
-                                   first.wheel_errors)
+    onboard_kernels.wheel_odometry(onboard_kernels.OdometryState(est, cov, travelled, turned, factors, believed),
+                                   travel, change, float(dt), z, first.wheel_errors)
     for j, o in enumerate(odometries):
         rows = slice(j * n, (j + 1) * n)
         o.estimate[:] = est[rows]

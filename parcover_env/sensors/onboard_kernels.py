@@ -12,13 +12,14 @@ about 5 us per call. ``tests/references/onboard.py`` keeps the numpy references.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from parcover_env.geometry.angle_kernels import wrap
 
-__all__ = ["CAMERA", "WHEEL_ERRORS", "camera_view", "wheel_odometry"]
+__all__ = ["CAMERA", "WHEEL_ERRORS", "OdometryState", "camera_view", "wheel_odometry", "wheel_odometry_rows"]
 
 CAMERA = np.dtype([
     ("max_range", "f8"),  # (m)
@@ -77,50 +78,100 @@ def camera_view(px, py, pth, predecessor, blocked, z, camera, rel_xy, rel_headin
         k += 1
 
 
+class OdometryState(NamedTuple):
+    """The wheel odometry's per-robot arrays of ``M`` robots
+    (:class:`parcover_env.sensors.odometry.Odometry`'s attributes of the same names)."""
+
+    estimate: np.ndarray
+    """``(M, 3)`` pose estimates, updated in place."""
+    covariance: np.ndarray
+    """``(M, 3, 3)`` their covariances, updated in place."""
+    travelled: np.ndarray
+    """``(M,)`` distance since the last fix, updated in place."""
+    turned: np.ndarray
+    """``(M,)`` angle turned since the last fix, updated in place."""
+    factors: np.ndarray
+    """``(M, 2)`` the systematic encoder factors (read)."""
+    believed_base: np.ndarray
+    """``(M,)`` the wheel base the odometry divides by (read)."""
+
+
 @njit(cache=True, nogil=True)
-def wheel_odometry(est, cov, travelled, turned, travel, speed_change, dt, z, factors, believed_base, errors):
+def wheel_odometry(state, travel, speed_change, dt, z, errors):
     """One control step of the ``wheels`` odometry
-    (:meth:`parcover_env.sensors.odometry.Odometry.measure_wheels`), in place on the estimates
-    ``est (N, 3)``, covariances ``cov (N, 3, 3)`` and the ``travelled``/``turned`` sums, from each
-    wheel's true distance ``travel (N, 2)`` and summed speed changes ``speed_change (N, 2)`` over
-    ``dt``, the systematic encoder ``factors (N, 2)`` and ``believed_base (N,)``, and the
-    :data:`WHEEL_ERRORS` record ``errors``. ``z``: the standard normals, flat ``(2, N, 2)``: the slip
-    factors, then the random wheel errors."""
+    (:meth:`parcover_env.sensors.odometry.Odometry.measure_wheels`) of ``K`` worlds of ``N`` robots,
+    robot by robot (``M = K N`` rows, world ``k``'s robots ``k N ... k N + N - 1``), in place on the
+    :class:`OdometryState` ``state``, from each wheel's true distance ``travel (M, 2)`` and summed
+    speed changes ``speed_change (M, 2)`` over ``dt`` and the :data:`WHEEL_ERRORS` record ``errors``.
+    ``z (K, 4 N)``: world ``k``'s standard normals, flat ``(2, N, 2)``: the slip factors, then the
+    random wheel errors."""
+    for m in range(state.estimate.shape[0]):
+        _wheel_step(m, z, state, travel, speed_change, dt, errors)
+
+
+@njit(cache=True, nogil=True)
+def wheel_odometry_rows(state, travel, speed_change, dt, z, errors, velocity, fix_age):
+    """:func:`wheel_odometry` (the same arguments and floats), and per robot: the encoder velocity
+    ``velocity (M, 2)`` over the step (the signed distance between the estimates before and after,
+    signed by the wheels' true travel, and the wrapped heading change, each over ``dt``), its
+    ``fix_age (M,)`` plus ``dt``; the wheel distances and speed changes read are then zeroed (taken
+    from the drive, :meth:`~parcover_env.world.drive.DiffDrive.take_travel`)."""
+    est = state.estimate
+    for m in range(est.shape[0]):
+        x0 = est[m, 0]
+        y0 = est[m, 1]
+        th0 = est[m, 2]
+        _wheel_step(m, z, state, travel, speed_change, dt, errors)
+        forward = travel[m, 0] + travel[m, 1]
+        sign = 1.0 if forward > 0.0 else (-1.0 if forward < 0.0 else 0.0)
+        velocity[m, 0] = math.hypot(est[m, 0] - x0, est[m, 1] - y0) * sign / dt
+        velocity[m, 1] = wrap(est[m, 2] - th0) / dt
+        fix_age[m] += dt
+        for w in range(2):
+            travel[m, w] = 0.0
+            speed_change[m, w] = 0.0
+
+
+@njit(cache=True, inline="always")
+def _wheel_step(m, z, state, travel, speed_change, dt, errors):
+    """Robot ``m`` of :func:`wheel_odometry`."""
+    est, factors, believed_base = state.estimate, state.factors, state.believed_base
     err = errors[0]
     wheel_base, slip_accel, slip_turn = err.wheel_base, err.slip_accel, err.slip_turn
     wheel_variance, cov_wheel_variance = err.wheel_variance, err.covariance_wheel_variance
-    n = est.shape[0]
-    for i in range(n):
-        d0 = travel[i, 0]
-        d1 = travel[i, 1]
-        turn_rate = abs(d1 - d0) / (wheel_base * dt)
-        read0 = 0.0
-        read1 = 0.0
-        for w in range(2):
-            d = travel[i, w]
-            slip = abs(z[2 * i + w]) * (slip_accel * speed_change[i, w] / dt + slip_turn * turn_rate)
-            read = d * factors[i, w] * (1.0 + slip) + math.sqrt(wheel_variance * abs(d)) * z[2 * n + 2 * i + w]
-            if w == 0:
-                read0 = read
-            else:
-                read1 = read
-        base = believed_base[i]
-        ds = 0.5 * (read0 + read1)
-        dth = (read1 - read0) / base
-        var_l = cov_wheel_variance * abs(read0)
-        var_r = cov_wheel_variance * abs(read1)
-        q00 = 0.25 * (var_l + var_r)
-        q11 = (var_l + var_r) / (base * base)
-        q01 = 0.5 * (var_r - var_l) / base
-        mid = est[i, 2] + 0.5 * dth
-        c = math.cos(mid)
-        s = math.sin(mid)
-        _propagate(cov[i], -ds * s, ds * c, c, -0.5 * ds * s, s, 0.5 * ds * c, q00, q01, q11)
-        est[i, 0] += ds * c
-        est[i, 1] += ds * s
-        est[i, 2] = wrap(est[i, 2] + dth)
-        travelled[i] += abs(ds)
-        turned[i] += abs(dth)
+    n = z.shape[1] // 4
+    k = m // n
+    i = m - k * n
+    d0 = travel[m, 0]
+    d1 = travel[m, 1]
+    turn_rate = abs(d1 - d0) / (wheel_base * dt)
+    read0 = 0.0
+    read1 = 0.0
+    for w in range(2):
+        d = travel[m, w]
+        slip = abs(z[k, 2 * i + w]) * (slip_accel * speed_change[m, w] / dt + slip_turn * turn_rate)
+        read = d * factors[m, w] * (1.0 + slip) + math.sqrt(wheel_variance * abs(d)) * z[k, 2 * n + 2 * i + w]
+        if w == 0:
+            read0 = read
+        else:
+            read1 = read
+    base = believed_base[m]
+    ds = 0.5 * (read0 + read1)
+    dth = (read1 - read0) / base
+    var_l = cov_wheel_variance * abs(read0)
+    var_r = cov_wheel_variance * abs(read1)
+    q00 = 0.25 * (var_l + var_r)
+    q11 = (var_l + var_r) / (base * base)
+    q01 = 0.5 * (var_r - var_l) / base
+    mid = est[m, 2] + 0.5 * dth
+    c = math.cos(mid)
+    s = math.sin(mid)
+    _propagate(state.covariance[m], -ds * s, ds * c, c, -0.5 * ds * s, s, 0.5 * ds * c, q00, q01, q11)
+    est[m, 0] += ds * c
+    est[m, 1] += ds * s
+    est[m, 2] = wrap(est[m, 2] + dth)
+    state.travelled[m] += abs(ds)
+    state.turned[m] += abs(dth)
 
 
 @njit(cache=True, inline="always")

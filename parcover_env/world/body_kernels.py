@@ -8,7 +8,9 @@ callback: ``v = (v_cmd cos a, v_cmd sin a)``, ``omega = omega_cmd`` with ``a`` t
 after the position update, the same IEEE operations as the Python callback (``math.cos``/``sin``
 of the C library, no fast-math), so trajectories are bit-identical. Each body finds its command row
 ``(v_cmd, omega_cmd)`` through an address kept in its torque slot (a body of infinite moment,
-whose velocity update is this callback, never reads its torque).
+whose velocity update is this callback, never reads its torque) and moves that address on to the
+next row: :func:`bind_rows` points every body at the first of its rows ``(substeps, 2)``, one per
+physics substep of the control step, so the substeps of a step need no writes from Python.
 
 chipmunk's ``cpBody`` is opaque to pymunk's cffi layer; the slots used here follow the field order
 of chipmunk's ``cpBody`` (function pointers, mass, moment, centre of gravity, position, velocity,
@@ -24,12 +26,16 @@ import numpy as np
 from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
-__all__ = ["N_SLOTS", "layout_matches", "velocity_update", "bind_commands", "read_poses"]
+from parcover_env.geometry.angle_kernels import wrap
+
+__all__ = ["N_SLOTS", "ROW_BYTES", "layout_matches", "velocity_update", "bind_commands", "bind_rows", "read_poses"]
 
 N_SLOTS = 17
 """8-byte slots of ``cpBody`` read or written here (up to the torque)."""
 _PX, _PY, _VX, _VY, _A, _W, _T = 8, 9, 10, 11, 14, 15, 16
 """Slot indices: position, velocity, angle, angular velocity, torque (holds the command address)."""
+ROW_BYTES = 16
+"""Bytes of one command row ``(v_cmd, omega_cmd)`` (two float64)."""
 
 
 @intrinsic
@@ -45,14 +51,18 @@ def _pointer(typingctx, address):
 
 @cfunc(types.void(types.voidptr), cache=True)
 def velocity_update(body):
-    """``cpBodyVelocityFunc`` (only the body argument is read): velocity from the body's command row."""
+    """``cpBodyVelocityFunc`` (only the body argument is read): velocity from the body's command row;
+    the body's command address then moves on to its next row (the next substep's)."""
     b = carray(body, N_SLOTS, dtype=np.float64)
-    row = carray(_pointer(carray(body, N_SLOTS, dtype=np.int64)[_T]), 2, dtype=np.float64)
+    slots = carray(body, N_SLOTS, dtype=np.int64)
+    address = slots[_T]
+    row = carray(_pointer(address), 2, dtype=np.float64)
     v = row[0]
     a = b[_A]
     b[_VX] = v * math.cos(a)
     b[_VY] = v * math.sin(a)
     b[_W] = row[1]
+    slots[_T] = address + ROW_BYTES
 
 
 @njit(cache=True)
@@ -60,17 +70,29 @@ def bind_commands(bodies, commands_address):
     """Point body ``i`` (addresses ``bodies``) at row ``i`` of the C-contiguous ``(n, 2)`` float64
     command array starting at ``commands_address``."""
     for i in range(bodies.shape[0]):
-        carray(_pointer(bodies[i]), N_SLOTS, dtype=np.int64)[_T] = commands_address + 16 * i
+        carray(_pointer(bodies[i]), N_SLOTS, dtype=np.int64)[_T] = commands_address + ROW_BYTES * i
+
+
+@njit(cache=True)
+def bind_rows(bodies, rows):
+    """Point body ``j`` (addresses ``bodies``) at ``rows[j, 0]`` of the C-contiguous float64 command
+    rows ``rows (n, substeps, 2)``: the callback then reads ``rows[j, s]`` at substep ``s``."""
+    first = rows.ctypes.data
+    stride = rows.shape[1] * ROW_BYTES
+    for j in range(bodies.shape[0]):
+        carray(_pointer(bodies[j]), N_SLOTS, dtype=np.int64)[_T] = first + stride * j
 
 
 @njit(cache=True)
 def read_poses(bodies, out):
-    """Write ``x, y, angle`` (unwrapped) of the bodies at addresses ``bodies`` into ``out`` ``(n, 3)``."""
+    """Write ``x, y, angle`` of the bodies at addresses ``bodies`` into ``out`` ``(n, 3)``, the angle
+    wrapped to (-pi, pi] (:func:`~parcover_env.geometry.angle_kernels.wrap`, the floats of
+    :func:`~parcover_env.geometry.angles.wrap_angle`)."""
     for i in range(bodies.shape[0]):
         b = carray(_pointer(bodies[i]), N_SLOTS, dtype=np.float64)
         out[i, 0] = b[_PX]
         out[i, 1] = b[_PY]
-        out[i, 2] = b[_A]
+        out[i, 2] = wrap(b[_A])
 
 
 def layout_matches(ffi, lib) -> bool:

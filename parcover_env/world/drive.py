@@ -13,7 +13,8 @@ import numpy as np
 from parcover_env.config import DriveConfig
 from parcover_env.geometry.stacking import stack
 
-__all__ = ["DiffDrive", "wheel_targets", "lag_step", "body_velocity", "advance_steps_all", "take_travel_all"]
+__all__ = ["DiffDrive", "wheel_targets", "lag_step", "body_velocity", "advance_steps_all", "command_steps_all",
+           "command_steps_rows", "take_travel_all"]
 
 
 def wheel_targets(commands: np.ndarray, wheel_base: float, wheel_speed_max: float) -> np.ndarray:
@@ -89,22 +90,66 @@ class DiffDrive:
 def advance_steps_all(drives: list[DiffDrive], targets: np.ndarray, dt: float, steps: int) -> np.ndarray:
     """:meth:`DiffDrive.advance_steps` of ``K`` drives of ``n`` robots each (one configuration), in one
     compiled loop over all ``K n`` robots: ``targets`` ``(K, n, 2)``; returns the body velocities
-    ``(steps, K, n, 2)``. Each drive's state is gathered, advanced and written back in place: drive
-    ``k`` ends as if it had been advanced alone (the same floats)."""
-    from parcover_env.world.drive_kernels import lag_steps
+    ``(steps, K, n, 2)`` (a view). Each drive's state is gathered, advanced and written back in place:
+    drive ``k`` ends as if it had been advanced alone (the same floats)."""
+    return _advance_all(drives, targets, dt, steps, None).transpose(2, 0, 1, 3)
 
-    c = drives[0].cfg
-    gain = -math.expm1(-dt / c.tau)
-    k, n = targets.shape[:2]
+
+def command_steps_all(drives: list[DiffDrive], commands: np.ndarray, dt: float, steps: int) -> np.ndarray:
+    """:func:`advance_steps_all` towards the :func:`wheel_targets` of the unicycle ``commands``
+    ``(K, n, 2)`` (within the drives' ``wheel_speed_max``), the targets computed in the same
+    compiled call (the same floats); the body velocities robot by robot: ``(K, n, steps, 2)``
+    (C-contiguous, as :func:`~parcover_env.world.physics.step_all` takes them)."""
+    return _advance_all(drives, commands, dt, steps, drives[0].cfg.wheel_speed_max)
+
+
+def command_steps_rows(cfg: DriveConfig, wheels: np.ndarray, travel: np.ndarray, speed_change: np.ndarray,
+                       commands: np.ndarray, dt: float, steps: int) -> np.ndarray:
+    """:func:`command_steps_all` of ``K`` drives of ``n`` robots each (configuration ``cfg``) whose
+    state is held as rows of C-contiguous float64 blocks ``wheels``, ``travel`` and
+    ``speed_change`` ``(K, n, 2)``, advanced in place (no gather, no scatter); returns the body
+    velocities ``(K, n, steps, 2)``."""
+    k, n = wheels.shape[:2]
+    out = _advance(cfg, wheels.reshape(k * n, 2), travel.reshape(k * n, 2), speed_change.reshape(k * n, 2),
+                   commands, dt, steps, cfg.wheel_speed_max)
+    return out.reshape(k, n, steps, 2)
+
+
+_KERNELS: list = []
+
+
+def _advance(cfg: DriveConfig, wheels: np.ndarray, travel: np.ndarray, change: np.ndarray, block: np.ndarray,
+             dt: float, steps: int, wheel_speed_max: float | None) -> np.ndarray:
+    """The compiled drive steps on the flat state ``(M, 2)`` in place, towards ``block``: wheel targets,
+    or unicycle commands when ``wheel_speed_max`` is given; the body velocities ``(M, steps, 2)``."""
+    if not _KERNELS:  # numba is imported on first use
+        from parcover_env.world import drive_kernels
+
+        _KERNELS.append(drive_kernels)
+    drive_kernels = _KERNELS[0]
+    gain = -math.expm1(-dt / cfg.tau)
+    out = np.empty((len(wheels), steps, 2))
+    flat = np.ascontiguousarray(block, dtype=float).reshape(len(wheels), 2)
+    if wheel_speed_max is None:
+        drive_kernels.lag_steps(wheels, travel, change, flat, gain, cfg.accel_max * dt, dt, cfg.wheel_base, out)
+    else:
+        drive_kernels.command_steps(flat, float(wheel_speed_max), wheels, travel, change, gain, cfg.accel_max * dt, dt,
+                                    cfg.wheel_base, out)
+    return out
+
+
+def _advance_all(drives: list[DiffDrive], block: np.ndarray, dt: float, steps: int,
+                 wheel_speed_max: float | None) -> np.ndarray:
+    """The body velocities ``(K, n, steps, 2)`` of the drives advanced towards ``block`` ``(K, n, 2)``:
+    wheel targets, or unicycle commands when ``wheel_speed_max`` is given (gathered and scattered)."""
+    k, n = block.shape[:2]
     if k == 1:  # one drive: its own arrays, no gather
         wheels, travel, change = drives[0].wheels.copy(), drives[0].travel, drives[0].speed_change
     else:
         wheels = np.concatenate([d.wheels for d in drives])
         travel = np.concatenate([d.travel for d in drives])
         change = np.concatenate([d.speed_change for d in drives])
-    out = np.empty((steps, k * n, 2))
-    lag_steps(wheels, travel, change, np.ascontiguousarray(targets, dtype=float).reshape(k * n, 2), gain,
-              c.accel_max * dt, dt, c.wheel_base, out)
+    out = _advance(drives[0].cfg, wheels, travel, change, block, dt, steps, wheel_speed_max)
     if k == 1:
         drives[0].wheels = wheels
     else:  # scatter each drive's rows back
@@ -113,7 +158,7 @@ def advance_steps_all(drives: list[DiffDrive], targets: np.ndarray, dt: float, s
             d.wheels = wheels[rows].copy()
             d.travel[:] = travel[rows]
             d.speed_change[:] = change[rows]
-    return out.reshape(steps, k, n, 2)
+    return out.reshape(k, n, steps, 2)
 
 
 def take_travel_all(drives: list[DiffDrive]) -> tuple[np.ndarray, np.ndarray]:

@@ -6,8 +6,10 @@ and other robots are resolved by pymunk while the robots follow their commands i
 (Kinematic bodies would pass through walls.) pymunk moves bodies before it calls
 ``velocity_func``, so a new command takes effect after one physics step (``physics.dt``), like
 an actuator delay; the velocity the contact solver corrected is what moves the body. The
-``velocity_func`` is a compiled C callback (:mod:`parcover_env.world.body_kernels`) reading the
-commands from one array; where that is not available, a Python callable computing the same floats.
+``velocity_func`` is a compiled C callback (:mod:`parcover_env.world.body_kernels`) that reads
+each substep's body velocity from the rows ``(substeps, 2)`` :func:`step_all` points the body at
+(the worlds of a batch in one call, no Python between substeps); where that is not available, a
+Python callable computing the same floats from rows written before each substep.
 
 With a ``DriveConfig`` of ``model: wheels`` the commands are wheel-speed targets for a
 :class:`~parcover_env.world.drive.DiffDrive` (limits, lag, bounded acceleration) advanced once per
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from operator import is_
 
 import numpy as np
 import pymunk
@@ -31,10 +34,10 @@ except ImportError:  # pragma: no cover - other pymunk builds: the public proper
 
 from parcover_env.config import DriveConfig, PhysicsConfig
 from parcover_env.geometry import wrap_angle
-from parcover_env.world.drive import DiffDrive, wheel_targets
+from parcover_env.world.drive import DiffDrive, command_steps_all
 from parcover_env.world.map_model import MapModel
 
-__all__ = ["World", "poses_all"]
+__all__ = ["World", "poses_all", "step_all"]
 
 _COMPILED: dict = {}
 
@@ -61,7 +64,7 @@ def _cp_body(body: pymunk.Body):
 
 ROBOT, WALL = 1, 2
 # World attributes rebuilt from a snapshot, never copied
-_REBUILT = ("space", "bodies", "_rows", "_suppress", "_addresses")
+_REBUILT = ("space", "bodies", "_rows", "_suppress", "_addresses", "_bound")
 _WALL_RADIUS = 0.005  # m, collision skin of the static boundary segments
 
 
@@ -196,24 +199,23 @@ class World:
         self.robot_contacts[a] += 1
         self.robot_contacts[b] += 1
 
-    def step(self, commands: np.ndarray, velocities: np.ndarray | None = None) -> None:
-        """Apply ``(v, omega)`` per robot ``(N, 2)`` for one control step (all physics substeps).
+    def step(self, commands: np.ndarray) -> None:
+        """Apply ``(v, omega)`` per robot ``(N, 2)`` for one control step (all physics substeps;
+        a drive advanced here): :func:`step_all` of this world alone."""
+        step_all([self], np.asarray(commands, dtype=float)[None])
 
-        With a drive, ``velocities`` ``(substeps, N, 2)`` are the body velocities its
-        :meth:`~parcover_env.world.drive.DiffDrive.advance_steps` returns for these ``commands``, when
-        the caller advanced the drive already (the batched worlds advance all drives in one call,
-        :func:`~parcover_env.world.drive.advance_steps_all`); None: the drive is advanced here."""
+    def integrate(self, commands: np.ndarray, velocities: np.ndarray) -> None:
+        """The physics substeps of one control step, the body velocities of substep ``s`` being
+        ``velocities[:, s]`` ``(N, substeps, 2)`` (the commands ``(N, 2)`` as given are kept).
+        Part of :func:`step_all`, which binds the compiled callbacks to ``velocities`` first: call
+        that. The world keeps ``velocities`` until its next step (its bodies point into them)."""
         self._cmd[:] = commands
+        self._bound = velocities
         dt = self.physics.dt
-        if self.drive is None:
-            self._rows.values[:] = self._cmd
-        elif velocities is None:
-            d = self.drive.cfg
-            targets = wheel_targets(self._cmd, d.wheel_base, d.wheel_speed_max)
-            velocities = self.drive.advance_steps(targets, dt, self.physics.substeps)
+        python = self._addresses is None
         for k in range(self.physics.substeps):
-            if self.drive is not None:
-                self._rows.values[:] = velocities[k]
+            if python:  # the compiled callbacks read their rows from ``velocities`` themselves
+                self._rows.values[:] = velocities[:, k]
             self.space.step(dt)
             if self._suppress:  # only the first step of a rebuilt space re-reports contacts in progress
                 self._suppress = set()
@@ -229,8 +231,7 @@ class World:
         """Ground-truth poses ``(N, 3)``: x, y (m), theta (rad, wrapped to (-pi, pi])."""
         out = np.empty((self.n, 3))
         if self._addresses is not None:
-            _kernels().read_poses(self._addresses, out)
-            out[:, 2] = wrap_angle(out[:, 2])
+            _kernels().read_poses(self._addresses, out)  # the angles wrapped there
             return out
         for i, b in enumerate(self.bodies):
             out[i, 0], out[i, 1] = b.position
@@ -245,14 +246,58 @@ def poses_all(worlds: Sequence[World]) -> np.ndarray:
     uses the compiled body access."""
     if len(worlds) == 1:
         return worlds[0].poses()[None]
-    addresses = [w.body_addresses for w in worlds]
-    if any(a is None for a in addresses):
+    flat = _flat_addresses(worlds)
+    if flat is None:
         return np.stack([w.poses() for w in worlds])
-    flat = np.concatenate(addresses)
     out = np.empty((len(flat), 3))
-    _kernels().read_poses(flat, out)
-    out[:, 2] = wrap_angle(out[:, 2])
+    _kernels().read_poses(flat, out)  # the angles wrapped there
     return out.reshape(len(worlds), -1, 3)
+
+
+_FLAT: list = []
+"""The worlds' body addresses last concatenated, and the arrays they came from (kept alive, so
+compared by identity: a world's addresses change only when it rebuilds its space)."""
+
+
+def _flat_addresses(worlds: Sequence[World]) -> np.ndarray | None:
+    """The body addresses of all ``worlds`` end to end, or None if some world has none (pymunk's
+    Python callbacks)."""
+    addresses = [w.body_addresses for w in worlds]
+    if _FLAT and len(_FLAT[0]) == len(addresses) and all(map(is_, addresses, _FLAT[0])):
+        return _FLAT[1]
+    if any(a is None for a in addresses):
+        return None
+    _FLAT[:] = [addresses, np.concatenate(addresses)]
+    return _FLAT[1]
+
+
+def step_all(worlds: Sequence[World], commands: np.ndarray, velocities: np.ndarray | None = None) -> None:
+    """:meth:`World.step` of ``K`` worlds of ``N`` robots each (one physics configuration):
+    ``commands`` ``(K, N, 2)``; ``velocities`` ``(K, N, substeps, 2)`` the body velocities of each
+    substep when the caller advanced the worlds' drives already
+    (:func:`~parcover_env.world.drive.command_steps_all`), None: the drives are advanced here (or the
+    commands apply as they are, ``drive: instant``). The compiled callbacks of all worlds' bodies are
+    pointed at their rows in one call, then each world runs its substeps (:meth:`World.integrate`):
+    the same floats as each world stepped alone."""
+    first = worlds[0]
+    physics = first.physics
+    k, n = commands.shape[:2]
+    if velocities is not None:  # the compiled callbacks walk through C-contiguous float64 rows
+        velocities = np.ascontiguousarray(velocities, dtype=float)
+    else:
+        if first.drive is not None:
+            velocities = command_steps_all([w.drive for w in worlds], commands, physics.dt, physics.substeps)
+        else:  # the commands at every substep
+            velocities = np.repeat(np.asarray(commands, dtype=float).reshape(k, n, 1, 2), physics.substeps, axis=2)
+    flat = first.body_addresses if k == 1 else _flat_addresses(worlds)
+    if flat is not None:
+        _kernels().bind_rows(flat, velocities.reshape(k * n, *velocities.shape[2:]))
+    else:
+        for w, v in zip(worlds, velocities, strict=True):
+            if w.body_addresses is not None:
+                _kernels().bind_rows(w.body_addresses, v)
+    for w, c, v in zip(worlds, commands, velocities, strict=True):
+        w.integrate(c, v)
 
 
 class _CommandRows:

@@ -263,3 +263,24 @@ def test_track_all_is_each_systems_track_on_random_worlds():
             handed += len(systems[b].handover)
     assert 50 < flagged < 400 and kernel_fixed > 100, (flagged, kernel_fixed)  # both paths taken
     assert handed > 10
+
+
+def test_update_systems_names_non_finite_poses_and_schedules_by_value():
+    from parcover_env.localization.kinect.batch_kernels import schedule
+
+    systems, _ = _systems([6, 7])
+    poses = np.array([[[3.0, 4.0, 0.1], [5.0, 9.0, 1.0]], [[3.2, 4.1, 0.2], [np.nan, 9.0, 0.0]]])
+    markers = np.array([[True, False], [True, True]])
+    rngs = [np.random.default_rng(0), np.random.default_rng(1)]
+    with pytest.raises(ValueError, match="poses contain NaN or inf"):
+        update_systems(systems, [0.1, 0.1], poses, markers, poses, rngs)
+    # the schedule by value: Kinect q due when its tick is within 1e-9 s of the clock, then one period on
+    ticks = np.array([[0.1 + 5e-10, 0.1 + 2e-9, 0.0], [0.5, 0.3, 0.3]])
+    due, active = np.empty((2, 3), bool), np.empty(2, bool)
+    finite = schedule(ticks, np.array([0.1, 0.3]), np.array([0.25, 0.5, 1.0]), np.array([[True], [False]]),
+                      np.zeros((2, 1, 3)), due, active)
+    assert finite and due.tolist() == [[True, False, True], [False, True, True]]
+    assert active.tolist() == [True, False]  # world 1 carries no markers
+    np.testing.assert_allclose(ticks, [[0.35, 0.1 + 2e-9, 1.1], [0.5, 0.8, 1.3]], rtol=0, atol=1e-15)
+    assert not schedule(ticks, np.zeros(2), np.ones(3), np.ones((2, 1), bool), np.full((2, 1, 3), np.inf), due,
+                        active)

@@ -25,7 +25,7 @@ import numpy as np
 
 from parcover_env.geometry.stacking import stack
 from parcover_env.geometry.wrap_formula import wrap
-from parcover_env.localization.kinect import estimate_kernel, track_kernel
+from parcover_env.localization.kinect import batch_kernels, estimate_kernel, track_kernel
 from parcover_env.localization.kinect.pipeline import PoseEstimate
 from parcover_env.sensors.kinect import check_poses
 
@@ -40,16 +40,20 @@ def update_systems(systems: Sequence[Any], times: Sequence[float], true: np.ndar
     (``systems``: :class:`~parcover_env.localization.kinect.system.KinectSystem` s, typed ``Any`` because
     ``system`` imports this module)."""
     out: list[dict[int, np.ndarray]] = [{} for _ in systems]
-    now = np.asarray(times, dtype=float)[:, None]
-    ticks = stack([s.next_tick for s in systems])
-    due = ticks <= now + 1e-9
-    active = (due.any(axis=1) & markers.any(axis=1)).tolist()
-    new_ticks = np.where(due, now + systems[0].periods, ticks)  # each due Kinect's next frame
+    k_count = len(systems)
+    ticks = stack([s.next_tick for s in systems])  # K = 1: the system's own array, updated in place
+    due = np.empty(ticks.shape, dtype=bool)
+    active = np.empty(k_count, dtype=bool)
+    true = np.ascontiguousarray(true, dtype=float)
+    markers = np.ascontiguousarray(markers, dtype=bool)
+    finite = batch_kernels.schedule(ticks, np.asarray(times, dtype=float), systems[0].periods, markers, true, due,
+                                    active)
     batch = []
-    for k, (s, tick) in enumerate(zip(systems, new_ticks, strict=True)):
-        s.next_tick[:] = tick
+    for k, (s, on) in enumerate(zip(systems, active.tolist(), strict=True)):
+        if k_count > 1:
+            s.next_tick[:] = ticks[k]
         s.last_fixes = {}
-        if not active[k]:
+        if not on:
             continue
         if s.fast is None:
             per_kinect = s.frame_estimates(np.flatnonzero(due[k]), true[k], markers[k], rngs[k], times[k])
@@ -60,8 +64,8 @@ def update_systems(systems: Sequence[Any], times: Sequence[float], true: np.ndar
     for k in batch:  # worlds sharing the static Kinect scenes (the batched worlds do) go together
         groups.setdefault(tuple(map(id, systems[k].fast.depths)), []).append(k)
     for ks in groups.values():
-        rows = slice(None) if len(ks) == len(systems) else ks  # all worlds (the common case): no gather
-        if not np.isfinite(true[rows]).all():
+        rows = slice(None) if len(ks) == k_count else ks  # all worlds (the common case): no gather
+        if not (finite if len(ks) == k_count else np.isfinite(true[rows]).all()):
             for k in ks:
                 check_poses(true[k], markers[k])  # the ValueError naming what is wrong
         found = _detections([systems[k] for k in ks], due[rows], true[rows], markers[rows], [times[k] for k in ks],
@@ -111,24 +115,12 @@ def _detections(systems: Sequence[Any], due: np.ndarray, true: np.ndarray, marke
                 times: Sequence[float], rngs: Sequence[np.random.Generator]) -> Detections:
     """:func:`fast_estimates` as flat lists (every world's draws, in its order)."""
     models = [s.fast for s in systems]
-    n_kinects = due.shape[1]
-    rows = np.flatnonzero(due)  # world b's Kinect q is row b S + q of the stacked tables
-    index = np.empty((3, len(rows)), np.int64)  # per row: table row, world, Kinect (its static depth)
-    index[0] = rows
-    row_world, row_depth = np.divmod(rows, n_kinects, out=(index[1], index[2]))
-    if len(models) == 1:
-        kinects, pattern = models[0].kinects, models[0].pattern
-    else:  # structured rows concatenated as bytes (numpy's field promotion costs ~2 us a table)
-        kinects = np.concatenate([m.kinects.view(np.uint8) for m in models]).view(estimate_kernel.KINECT)
-        pattern = np.concatenate([m.pattern for m in models])
-    poses = np.ascontiguousarray(true, dtype=float)
-    cap = len(rows) * poses.shape[1]
-    out_row, out_index, out_geom = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((cap, 7))
-    row_drop = np.empty(len(rows))
-    n = estimate_kernel.candidates(index, poses, np.ascontiguousarray(markers, dtype=bool), kinects, pattern,
-                                   models[0].depths, models[0].noise, row_drop, out_row, out_index, out_geom)
+    kinects, pattern = _tables(models)
+    row_world, row_depth, n, row_drop, out_row, out_index, out_geom = batch_kernels.due_candidates(
+        np.ascontiguousarray(due, dtype=bool), np.ascontiguousarray(true, dtype=float),
+        np.ascontiguousarray(markers, dtype=bool), kinects, pattern, models[0].depths, models[0].noise)
     drop = row_drop.tolist()
-    cand_row, cand_index, geom = out_row[:n].tolist(), out_index[:n].tolist(), out_geom[:n].tolist()
+    cand_row, cand_index, geom = out_row.tolist(), out_index.tolist(), out_geom.tolist()
     found = Detections([], [], [], [], pattern.shape[1])
     c = 0
     for r, (b, q) in enumerate(zip(row_world.tolist(), row_depth.tolist(), strict=True)):
@@ -149,6 +141,28 @@ def _detections(systems: Sequence[Any], due: np.ndarray, true: np.ndarray, marke
     return found
 
 
+_TABLES: list = []
+"""The last stacked tables and the models' tables they were stacked from (kept alive, so compared by
+identity): the batched worlds' tables change only when a world remounts its Kinects (a reset)."""
+
+
+def _tables(models: Sequence[Any]) -> tuple[np.ndarray, np.ndarray]:
+    """The :data:`~parcover_env.localization.kinect.estimate_kernel.KINECT` rows and marker patterns
+    of the estimate ``models``' Kinects, model after model."""
+    if len(models) == 1:
+        return models[0].kinects, models[0].pattern
+    if _TABLES:
+        parts, kinects, pattern = _TABLES
+        if len(parts) == 2 * len(models) and all(p is m.kinects and q is m.pattern for p, q, m in
+                                                  zip(parts[::2], parts[1::2], models, strict=True)):
+            return kinects, pattern
+    # structured rows concatenated as bytes (numpy's field promotion costs ~2 us a table)
+    kinects = np.concatenate([m.kinects.view(np.uint8) for m in models]).view(estimate_kernel.KINECT)
+    pattern = np.concatenate([m.pattern for m in models])
+    _TABLES[:] = [[x for m in models for x in (m.kinects, m.pattern)], kinects, pattern]
+    return kinects, pattern
+
+
 def track_all(systems: Sequence[Any], found: Detections, markers: np.ndarray, predicted: np.ndarray,
               times: Sequence[float]) -> list[dict[int, np.ndarray]]:
     """:meth:`KinectSystem.track <parcover_env.localization.kinect.system.KinectSystem.track>` of ``B``
@@ -158,16 +172,12 @@ def track_all(systems: Sequence[Any], found: Detections, markers: np.ndarray, pr
     case through its own tracker; the same fixes (and tracker state) as ``track`` of each."""
     b_count = len(systems)
     t = systems[0].tracking
-    est = np.empty((len(found.world), 4))
-    if found.world:
-        est[:, :3] = found.pose
-    est[:, 3] = found.n_markers
-    starts = np.searchsorted(np.asarray(found.world, dtype=np.int64), np.arange(b_count + 1))
     ref = np.stack([s.references(p) for s, p in zip(systems, predicted, strict=True)]) \
         if any(s.handover for s in systems) else predicted
-    fused, robot, status = np.empty((len(est), 3)), np.empty(len(est), np.int64), np.empty(b_count, np.int64)
-    track_kernel.match(est, starts, np.ascontiguousarray(ref[..., :2]), np.ascontiguousarray(markers, dtype=bool),
-                       float(t.gate), float(t.fuse_radius), fused, robot, status)
+    starts, fused, robot, status = track_kernel.track_rows(
+        np.array(found.world, dtype=np.int64), np.array(found.pose, dtype=float).reshape(-1, 3),
+        float(found.n_markers), b_count, np.asarray(ref, dtype=float), np.ascontiguousarray(markers, dtype=bool),
+        float(t.gate), float(t.fuse_radius))
     bounds, robots, flagged, poses = starts.tolist(), robot.tolist(), status.tolist(), list(fused)
     out = []
     for b, s in enumerate(systems):

@@ -19,7 +19,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["match"]
+__all__ = ["match", "track_rows"]
 
 _BAND = 1e-9
 """Relative margin around the fuse radius and the gate inside which a world is left to the tracker."""
@@ -75,3 +75,24 @@ def match(est, starts, ref, carriers, gate, fuse_radius, fused, robot, status):
         for c in range(n):
             if per_robot[c] > 1:
                 status[b] = 1
+
+
+@njit(cache=True)
+def track_rows(world, pose, n_markers, b_count, ref, carriers, gate, fuse_radius):
+    """:func:`match` of the detections of ``b_count`` worlds: ``world (E,)`` ascending (the world of
+    each detection), ``pose (E, 3)``, each of ``n_markers`` markers; ``ref (B, N, >= 2)`` (only x, y
+    read). Returns ``(starts (B + 1,), fused (E, 3), robot (E,), status (B,))``: world ``b``'s rows
+    ``starts[b]:starts[b + 1]`` and :func:`match`'s outputs."""
+    e = pose.shape[0]
+    est = np.empty((e, 4))
+    for r in range(e):
+        est[r, 0] = pose[r, 0]
+        est[r, 1] = pose[r, 1]
+        est[r, 2] = pose[r, 2]
+        est[r, 3] = n_markers
+    starts = np.searchsorted(world, np.arange(b_count + 1))
+    fused = np.empty((e, 3))
+    robot = np.empty(e, np.int64)
+    status = np.empty(b_count, np.int64)
+    match(est, starts, ref, carriers, gate, fuse_radius, fused, robot, status)
+    return starts, fused, robot, status

@@ -1,0 +1,140 @@
+"""The per-robot arrays of ``K`` worlds as rows of shared blocks, so that compiled calls work on all
+worlds without gathering and scattering them every step.
+
+Each world keeps owning its state: its objects' attributes (an odometry's ``estimate``, a drive's
+``wheels``, ...) stay arrays of that world's values. Here they are *views* of row ``k`` of one
+``(K, ...)`` block per attribute: a compiled call on the block updates every world in place. A
+copy or pickle of a world holds plain arrays of its own (numpy copies a view's values), and an
+object that is not attached (a world reset since, an attribute rebound by a per-world method) is
+adopted again before the blocks are used: :meth:`SharedRows.attach` copies its values into its row
+and gives it that row's views, after detaching the row's previous owner (which gets copies of its
+values). So the blocks and the worlds' attributes always hold the same values, whoever wrote them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from operator import attrgetter, is_
+from typing import Any, NamedTuple
+
+import numpy as np
+
+__all__ = ["SharedRows", "ActRows", "act_rows"]
+
+
+class SharedRows:
+    """The attributes ``names`` of ``K`` owners as rows of one block per name: ``blocks[name]``
+    ``(K, ...)``; owner ``k``'s attribute ``name`` is the view ``blocks[name][k]`` once attached.
+    Shapes and dtypes are those of ``template``'s attributes (every owner's must match)."""
+
+    def __init__(self, k: int, names: Sequence[str], template: Any):
+        self.names = tuple(names)
+        self.blocks: dict[str, np.ndarray] = {}
+        self.views: dict[str, list[np.ndarray]] = {}
+        for name in self.names:
+            value = np.asarray(getattr(template, name))
+            block = np.empty((k, *value.shape), dtype=value.dtype)
+            self.blocks[name] = block
+            self.views[name] = list(block)
+        self._get = attrgetter(*self.names) if len(self.names) > 1 else (lambda o, g=attrgetter(self.names[0]): (g(o),))
+        self._rows = [tuple(self.views[name][k] for name in self.names) for k in range(k)]
+        self.flat = {name: b.reshape(-1, *b.shape[2:]) for name, b in self.blocks.items()}
+        """Each block with its first two axes (worlds, robots) as one (a view)."""
+        self.owners: list[Any] = [None] * k
+
+    def fits(self, k: int, template: Any) -> bool:
+        """True if these rows can hold ``k`` owners like ``template`` (the same shapes and dtypes)."""
+        if k != len(self.owners):
+            return False
+        for name in self.names:
+            value, view = getattr(template, name), self.views[name][0]
+            if not isinstance(value, np.ndarray) or value.shape != view.shape or value.dtype != view.dtype:
+                return False
+        return True
+
+    @property
+    def size(self) -> int:
+        """The number of rows ``K``."""
+        return len(self.owners)
+
+    def attached(self, k: int, owner: Any) -> bool:
+        """True if ``owner`` holds the views of row ``k`` in every attribute."""
+        return self.owners[k] is owner and all(map(is_, self._get(owner), self._rows[k]))
+
+    def attach(self, owners: Sequence[Any]) -> None:
+        """Make owner ``k`` the owner of row ``k`` for every ``k`` (``len(owners) == K``): an owner not
+        attached yet has its values copied into its row and gets the row's views; a previous owner
+        of that row that still holds its views gets copies of them instead (it keeps its values)."""
+        get, rows, current = self._get, self._rows, self.owners
+        for k, owner in enumerate(owners):
+            if current[k] is not owner or not all(map(is_, get(owner), rows[k])):
+                self._adopt(k, owner)
+
+    def _adopt(self, k: int, owner: Any) -> None:
+        old = self.owners[k]
+        for name in self.names:
+            view = self.views[name][k]
+            if old is not None and old is not owner and getattr(old, name) is view:
+                setattr(old, name, view.copy())
+            value = getattr(owner, name)
+            if value is not view:
+                value = np.asarray(value)
+                if value.shape != view.shape:
+                    raise ValueError(f"{type(owner).__name__}.{name}: shape {value.shape}, the rows hold {view.shape}")
+                view[...] = value
+                setattr(owner, name, view)
+        self.owners[k] = owner
+
+
+class ActRows(NamedTuple):
+    """The act phase's per-robot state of ``K`` worlds as shared rows (:func:`act_rows`)."""
+
+    estimators: SharedRows
+    """The pose estimators' :data:`ESTIMATOR` arrays."""
+    odometry: SharedRows
+    """Their wheel odometries' :data:`ODOMETRY` arrays."""
+    drives: SharedRows | None
+    """The worlds' drives' :data:`DRIVE` arrays (None: no drive, ``drive: instant``)."""
+
+
+ESTIMATOR = ("velocity", "fix_age")
+"""Rows of :class:`~parcover_env.envs.estimator.PoseEstimator`."""
+ODOMETRY = ("estimate", "covariance", "travelled", "turned", "factors", "believed_base")
+"""Rows of :class:`~parcover_env.sensors.odometry.Odometry`."""
+DRIVE = ("wheels", "travel", "speed_change")
+"""Rows of :class:`~parcover_env.world.drive.DiffDrive`."""
+
+
+def act_rows(estimators: Sequence[Any], drives: Sequence[Any]) -> ActRows:
+    """The shared rows of ``K`` worlds' pose ``estimators`` (of one scenario) and their ``drives``
+    (``None`` s for ``drive: instant``), every array attached (:meth:`SharedRows.attach`). The rows
+    are kept on the estimators (``act_rows``, never copied or pickled) and reused while they fit."""
+    first = estimators[0]
+    rows = first.act_rows  # after world 0's reset: the rows another world holds
+    if rows is None:
+        rows = next((e.act_rows for e in estimators if e.act_rows is not None), None)
+    k = len(estimators)
+    if rows is None or rows.estimators.size != k or not (_holds(rows, first, drives[0])
+                                                         or _fits(rows, k, first, drives[0])):
+        rows = ActRows(SharedRows(k, ESTIMATOR, first), SharedRows(k, ODOMETRY, first.odometry),
+                       None if drives[0] is None else SharedRows(k, DRIVE, drives[0]))
+    rows.estimators.attach(estimators)
+    rows.odometry.attach([e.odometry for e in estimators])
+    if rows.drives is not None:
+        rows.drives.attach(drives)
+    for e in estimators:
+        if e.act_rows is not rows:
+            e.act_rows = rows
+    return rows
+
+
+def _holds(rows: ActRows, estimator: Any, drive: Any) -> bool:
+    """True if ``estimator`` (and its odometry and ``drive``) hold row 0 of ``rows`` (so they fit)."""
+    return (rows.estimators.attached(0, estimator) and rows.odometry.attached(0, estimator.odometry)
+            and (drive is None if rows.drives is None else rows.drives.attached(0, drive)))
+
+
+def _fits(rows: ActRows, k: int, estimator: Any, drive: Any) -> bool:
+    """True if ``rows`` can hold ``k`` worlds like ``estimator``'s (and its odometry's and ``drive``'s)."""
+    return (rows.estimators.fits(k, estimator) and rows.odometry.fits(k, estimator.odometry)
+            and (rows.drives is None) == (drive is None) and (drive is None or rows.drives.fits(k, drive)))
