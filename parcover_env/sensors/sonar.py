@@ -407,10 +407,9 @@ def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segm
     want = np.ones((k, n, nb), dtype=bool) if want is None else np.ascontiguousarray(want, dtype=bool)
     segments = _walls(segments).segments
     px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
-    idx, cnt = rays.near_segments(px.reshape(-1), py.reshape(-1), segments, 2 * float(cfg.range_max))
     beams = np.ascontiguousarray(beam_angles, dtype=float)
-    ring_kern.sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments, idx,
-                              cnt, _rules(cfg), want, out)
+    ring_kern.sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments,
+                              _rules(cfg), want, out)
     return out
 
 

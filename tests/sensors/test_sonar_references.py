@@ -59,21 +59,23 @@ def test_disc_culls_change_no_reading():
     assert hits[-1] == 0.0  # inside a disc: an echo at once
 
 
-def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit():
+@pytest.mark.parametrize("range_max", [3.0, 1.2])
+def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit(range_max):
     """The compiled cone (near-wall lists, box and best-echo culls, direct echoes before mirrored
-    legs, disc culls) reads bit for bit what tracing every sub-ray's two legs against every wall and
-    robot reads, in a room of oblique walls with a crowd of robots."""
+    legs, disc culls of both legs) reads bit for bit what tracing every sub-ray's two legs against
+    every wall and robot reads, in a room of oblique walls with a crowd of robots (a short range:
+    many robots beyond it, left out of the second legs too)."""
     from parcover_env.geometry import rays
     from parcover_env.sensors import sonar_kernels as kern
     from parcover_env.sensors.sonar import _NUDGE, _rules, _share, _subray_offsets, _walls
 
-    cfg = SonarConfig()
+    cfg = SonarConfig(range_max=range_max)
     ring = SonarRing(cfg)
     walls = _walls(_oblique_room())
     offsets = _subray_offsets(cfg.cone_deg, 5)
     cos_min = math.cos(math.radians(cfg.incidence_max_deg)) - 1e-12
     rng = np.random.default_rng(12)
-    n_mirrored = 0
+    n_mirrored = far = 0
     for _ in range(3):
         xy = np.column_stack([rng.uniform(0.3, 3.5, 10), rng.uniform(0.3, 2.8, 10)])
         axes = np.ascontiguousarray(rng.uniform(-4, 4, (10, 1)) + ring.beam_angles[None, :])
@@ -88,8 +90,9 @@ def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit():
             want = reference.specular_echoes(ox[n], oy[n], axes[n], offsets, walls.segments, walls.kernel.lengths,
                                              others, 0.15 * 0.15, cfg.range_max, cos_min, _NUDGE)
             assert got[n].tobytes() == np.array(want).tobytes(), n
-        n_mirrored += int(((got > 2.0) & np.isfinite(got)).sum())
-    assert n_mirrored > 0  # some readings are two-leg paths
+        n_mirrored += int(((got > 2.0 * range_max / 3.0) & np.isfinite(got)).sum())
+        far += int((np.hypot(*(xy[:, None] - xy[None]).T) > range_max + 0.15).sum())
+    assert n_mirrored > 0 and (far > 0) == (range_max < 3.0)  # two-leg paths; at the short range, far robots
 
 
 @pytest.mark.parametrize("layout", ["ring", "amigobot"])
@@ -117,6 +120,13 @@ def test_crosstalk_equals_a_plain_reference_at_the_cone_edges(layout):
                     inside += np.isfinite(got[0, 1])
                     outside += np.isinf(got[0, 1])
     assert inside > 4 and outside > 4
+    rmax = cfg.range_max  # robots facing each other at twice the range, give or take a little
+    for eps in (-1e-9, -1e-13, 0.0, 1e-13, 1e-9):
+        d = 2 * rmax + eps
+        poses = np.array([[0.3, 0.1, 0.0], [0.3 + d, 0.1, math.pi]])
+        got = crosstalk(cfg, poses, beams, none)
+        assert np.array_equal(got, reference.crosstalk(cfg, poses, beams, none)), eps
+        assert np.isfinite(got[0]).any() == (poses[1, 0] - poses[0, 0] <= 2 * rmax), eps
     walls = _oblique_room()
     rng = np.random.default_rng(3)
     for _ in range(5):
