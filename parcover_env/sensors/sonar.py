@@ -77,29 +77,33 @@ class _Walls:
 def _walls_of(seg_bytes: bytes, n: int) -> _Walls:
     segs = np.frombuffer(seg_bytes, dtype=float).reshape(n, 4)
     lengths = np.hypot(segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1])
-    ends: dict[tuple[float, float], list[np.ndarray]] = {}
-    for x1, y1, x2, y2 in segs:
+    ends: dict[tuple[float, float], list[tuple[np.ndarray, int]]] = {}  # vertex: (other end, segment index)
+    for i, (x1, y1, x2, y2) in enumerate(segs):
         a, b = (round(x1, 9), round(y1, 9)), (round(x2, 9), round(y2, 9))
         if a == b:
             continue
-        ends.setdefault(a, []).append(np.array(b))
-        ends.setdefault(b, []).append(np.array(a))
+        ends.setdefault(a, []).append((np.array(b), i))
+        ends.setdefault(b, []).append((np.array(a), i))
     pts, u1s, u2s = [], [], []
+    owned = np.full((n, 2), -1, dtype=np.int64)  # a corner is listed at the first of its two walls
     for v, others in ends.items():
         if len(others) != 2:
             continue
         vv = np.array(v)
-        u1, u2 = others[0] - vv, others[1] - vv
+        (end1, i1), (end2, i2) = others
+        u1, u2 = end1 - vv, end2 - vv
         u1, u2 = u1 / np.linalg.norm(u1), u2 / np.linalg.norm(u2)
         if abs(u1[0] * u2[1] - u1[1] * u2[0]) < 1e-9:  # collinear: not a corner
             continue
+        first = min(i1, i2)
+        owned[first, int(owned[first, 0] >= 0)] = len(pts)
         pts.append(vv)
         u1s.append(u1)
         u2s.append(u2)
     corners = (np.array(pts), np.array(u1s), np.array(u2s)) if pts else (np.zeros((0, 2)),) * 3
-    for a in (lengths, *corners):
+    for a in (lengths, *corners, owned):
         a.setflags(write=False)
-    return _Walls(kern.WallSet(segs, lengths, *corners))
+    return _Walls(kern.WallSet(segs, lengths, *corners, owned))
 
 
 def _walls(segments: np.ndarray) -> _Walls:

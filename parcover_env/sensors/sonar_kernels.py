@@ -57,6 +57,10 @@ class WallSet(NamedTuple):
     """``(C, 2)`` unit direction of a corner's first wall."""
     u2: np.ndarray
     """``(C, 2)`` unit direction of its second wall."""
+    owned: np.ndarray
+    """``(S, 2)`` int64: the corners listed at each segment (-1: none), each corner at the first
+    (lowest index) of its two walls, so that the corners within a range are found from the walls
+    within it (a corner lies on both of its walls)."""
 
 
 class Discs(NamedTuple):
@@ -301,8 +305,10 @@ def sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading):
     wedge, within ``range_max``, with no wall (nor one of the :class:`Discs`) in between, and inside
     beam ``b``'s cone (``|bearing - axis| <= half_cone``); the concave-corner rule of
     :func:`parcover_env.sensors.sonar.simulate_beams`. Walls are looked up in the origin's list
-    ``idx[n, :cnt[n]]`` of those within ``range_max`` (:func:`near_segments`)."""
-    segs, pts, u1, u2 = walls.segments, walls.points, walls.u1, walls.u2
+    ``idx[n, :cnt[n]]`` of those within ``range_max`` (:func:`near_segments`), and so are the
+    corners (those listed at these walls, ``owned``: a corner within range lies on a wall within
+    it). A reading is the nearest qualifying corner whatever the order they come in."""
+    segs, pts, u1, u2, owned = walls.segments, walls.points, walls.u1, walls.u2, walls.owned
     cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
     rmax, half = rules[0].range_max, rules[0].half_cone
     has_discs = cx.shape[1] > 0
@@ -311,7 +317,10 @@ def sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading):
         x0 = ox[n]
         y0 = oy[n]
         near = idx[n, :cnt[n]]
-        for c in range(pts.shape[0]):
+        for q in range(2 * near.shape[0]):
+            c = owned[near[q // 2], q % 2]
+            if c < 0:
+                continue
             vx = pts[c, 0] - x0
             vy = pts[c, 1] - y0
             dist = math.sqrt(vx * vx + vy * vy)

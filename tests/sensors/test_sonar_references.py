@@ -159,3 +159,33 @@ def test_overlapping_cones_share_their_common_sub_rays():
     assert np.array_equal(_share(amigo.beam_angles[None], offsets), identity)
     mixed = np.stack([amigo.beam_angles, amigo.beam_angles[::-1]])  # rows of different patterns
     assert np.array_equal(_share(mixed, offsets), identity)
+
+
+def test_each_corner_is_listed_once_at_the_first_of_its_two_walls():
+    """A square room (walls 0-3 in order) with a free wall ending on nothing: its four corners are
+    listed at walls 0, 0, 1, 2 (the lower index of the two walls meeting there), the free wall lists
+    none; the corner echoes found through the near-wall lists equal those with every wall listed."""
+    from parcover_env.geometry import rays
+    from parcover_env.sensors import sonar_kernels as kern
+    from parcover_env.sensors.sonar import _rules, _walls
+
+    square = np.array([[0.0, 0.0, 2.0, 0.0], [2.0, 0.0, 2.0, 2.0], [2.0, 2.0, 0.0, 2.0], [0.0, 2.0, 0.0, 0.0],
+                       [0.6, 0.7, 1.1, 1.3]])
+    walls = _walls(square)
+    owned = walls.kernel.owned
+    points = walls.kernel.points
+    listed = {tuple(points[c]): s for s in range(len(square)) for c in owned[s] if c >= 0}
+    assert listed == {(2.0, 0.0): 0, (0.0, 0.0): 0, (2.0, 2.0): 1, (0.0, 2.0): 2}
+    assert (owned[3:] == -1).all() and (owned >= -1).all()
+    cfg = SonarConfig(range_max=1.5)
+    ox, oy = np.array([0.4, 1.5, 1.0]), np.array([0.3, 1.6, 1.0])
+    axes = np.ascontiguousarray(np.linspace(-4, 4, 3)[:, None] + SonarRing(cfg).beam_angles[None, :])
+    discs = kern.Discs(*rays.disc_planes(np.zeros((0, 2)), 0.1, np.full(3, -1), 3))
+    idx, cnt = rays.near_segments(ox, oy, walls.segments, cfg.range_max)
+    got = np.full((3, axes.shape[1]), np.inf)
+    kern.sonar_corner_echoes(ox, oy, axes, walls.kernel, idx, cnt, discs, _rules(cfg), got)
+    every = np.full((3, axes.shape[1]), np.inf)
+    kern.sonar_corner_echoes(ox, oy, axes, walls.kernel, np.tile(np.arange(5), (3, 1)), np.full(3, 5), discs,
+                             _rules(cfg), every)
+    assert np.array_equal(got, every) and np.isfinite(got).sum() >= 3
+    assert np.isclose(got[0][np.isfinite(got[0])], 0.5).all()  # (0.4, 0.3): the corner (0, 0) at 0.5 m
