@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -42,6 +42,7 @@ from parcover_env.config import SonarConfig
 from parcover_env.geometry import rays
 from parcover_env.geometry.angles import wrap_angle
 from parcover_env.geometry.records import record
+from parcover_env.geometry.wall_grid import WallGrid, build_wall_grid
 from parcover_env.sensors import sonar_fast_kernels as fast_kern
 from parcover_env.sensors import sonar_kernels as kern
 from parcover_env.sensors import sonar_ring_kernels as ring_kern
@@ -62,6 +63,16 @@ class _Walls:
 
     kernel: kern.WallSet
     """Segments ``(S, 4)`` C-contiguous, their lengths (m), the corners and their wall directions."""
+    grids: dict[float, WallGrid] = field(default_factory=dict, repr=False)
+    """The :class:`~parcover_env.geometry.wall_grid.WallGrid` of each reach asked for (:meth:`grid`)."""
+
+    def grid(self, reach: float) -> WallGrid:
+        """The walls' grid for near-wall lists of ``reach`` (m), built once (an infinite reach: a grid
+        whose every lookup tests every wall)."""
+        found = self.grids.get(reach)
+        if found is None:
+            found = self.grids[reach] = build_wall_grid(self.segments, reach if math.isfinite(reach) else 0.0)
+        return found
 
     @property
     def segments(self) -> np.ndarray:
@@ -75,35 +86,7 @@ class _Walls:
 
 @lru_cache(maxsize=32)
 def _walls_of(seg_bytes: bytes, n: int) -> _Walls:
-    segs = np.frombuffer(seg_bytes, dtype=float).reshape(n, 4)
-    lengths = np.hypot(segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1])
-    ends: dict[tuple[float, float], list[tuple[np.ndarray, int]]] = {}  # vertex: (other end, segment index)
-    for i, (x1, y1, x2, y2) in enumerate(segs):
-        a, b = (round(x1, 9), round(y1, 9)), (round(x2, 9), round(y2, 9))
-        if a == b:
-            continue
-        ends.setdefault(a, []).append((np.array(b), i))
-        ends.setdefault(b, []).append((np.array(a), i))
-    pts, u1s, u2s = [], [], []
-    owned = np.full((n, 2), -1, dtype=np.int64)  # a corner is listed at the first of its two walls
-    for v, others in ends.items():
-        if len(others) != 2:
-            continue
-        vv = np.array(v)
-        (end1, i1), (end2, i2) = others
-        u1, u2 = end1 - vv, end2 - vv
-        u1, u2 = u1 / np.linalg.norm(u1), u2 / np.linalg.norm(u2)
-        if abs(u1[0] * u2[1] - u1[1] * u2[0]) < 1e-9:  # collinear: not a corner
-            continue
-        first = min(i1, i2)
-        owned[first, int(owned[first, 0] >= 0)] = len(pts)
-        pts.append(vv)
-        u1s.append(u1)
-        u2s.append(u2)
-    corners = (np.array(pts), np.array(u1s), np.array(u2s)) if pts else (np.zeros((0, 2)),) * 3
-    for a in (lengths, *corners, owned):
-        a.setflags(write=False)
-    return _Walls(kern.WallSet(segs, lengths, *corners, owned))
+    return _Walls(kern.wall_set(np.frombuffer(seg_bytes, dtype=float).reshape(n, 4)))
 
 
 def _walls(segments: np.ndarray) -> _Walls:
@@ -334,13 +317,17 @@ class SonarRing:
         px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
         r = float(robot_radius)
         if self.cfg.model == "fast":
-            fast_kern.fast_ring_readings(px, py, pth, r * r, self._beams, walls.segments, fast_kern.FastDraws(*joined),
-                                         self._rules, out)
+            fast_kern.fast_ring_readings(px, py, pth, r * r, self._beams, walls.segments, self._grid(walls),
+                                         fast_kern.FastDraws(*joined), self._rules, out)
             return out.reshape(k, n, nb)
         flat = ring_kern.Draws(*joined)
-        ring_kern.ring_readings(px, py, pth, r * r, self._beams, self._offsets, self._share, walls.kernel, flat,
-                                self._rules, out)
+        ring_kern.ring_readings(px, py, pth, r * r, self._beams, self._offsets, self._share, walls.kernel,
+                                self._grid(walls), flat, self._rules, out)
         return out.reshape(k, n, nb)
+
+    def _grid(self, walls: _Walls) -> WallGrid:
+        """The grid of ``walls`` for this ring's near-wall lists (``range_max`` plus the slack)."""
+        return walls.grid(float(self.cfg.range_max) + rays.NEAR_SLACK)
 
     def ideal_batch(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float) -> np.ndarray:
         """Noise-free readings ``(K, N, B)`` of ``K`` worlds sharing the walls ``segments``, robots

@@ -20,7 +20,7 @@ from numba import njit
 
 from parcover_env.geometry.ray_kernels import COS_FLOOR, disc_hit, disc_hit_from, in_cone, near_segments, segment_hit
 
-__all__ = ["SONAR_RULES", "WallSet", "Discs", "sonar_echoes", "sonar_corner_echoes", "beam_readings"]
+__all__ = ["SONAR_RULES", "WallSet", "wall_set", "Discs", "sonar_echoes", "sonar_corner_echoes", "beam_readings"]
 
 SONAR_RULES = np.dtype([
     ("range_max", "f8"),  # a path longer than this returns nothing; no echo reads this (m)
@@ -61,6 +61,41 @@ class WallSet(NamedTuple):
     """``(S, 2)`` int64: the corners listed at each segment (-1: none), each corner at the first
     (lowest index) of its two walls, so that the corners within a range are found from the walls
     within it (a corner lies on both of its walls)."""
+
+
+def wall_set(segs: np.ndarray) -> WallSet:
+    """The :class:`WallSet` of ``segs (S, 4)`` (float64, C-contiguous, read-only: kept as is): the
+    lengths, and the vertices shared by exactly two non-collinear segments (ends rounded to 1e-9 m)
+    with their unit wall directions, each listed at the first of its two walls (``owned``)."""
+    n = len(segs)
+    lengths = np.hypot(segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1])
+    ends: dict[tuple[float, float], list[tuple[np.ndarray, int]]] = {}  # vertex: (other end, segment index)
+    for i, (x1, y1, x2, y2) in enumerate(segs):
+        a, b = (round(x1, 9), round(y1, 9)), (round(x2, 9), round(y2, 9))
+        if a == b:
+            continue
+        ends.setdefault(a, []).append((np.array(b), i))
+        ends.setdefault(b, []).append((np.array(a), i))
+    pts, u1s, u2s = [], [], []
+    owned = np.full((n, 2), -1, dtype=np.int64)  # a corner is listed at the first of its two walls
+    for v, others in ends.items():
+        if len(others) != 2:
+            continue
+        vv = np.array(v)
+        (end1, i1), (end2, i2) = others
+        u1, u2 = end1 - vv, end2 - vv
+        u1, u2 = u1 / np.linalg.norm(u1), u2 / np.linalg.norm(u2)
+        if abs(u1[0] * u2[1] - u1[1] * u2[0]) < 1e-9:  # collinear: not a corner
+            continue
+        first = min(i1, i2)
+        owned[first, int(owned[first, 0] >= 0)] = len(pts)
+        pts.append(vv)
+        u1s.append(u1)
+        u2s.append(u2)
+    corners = (np.array(pts), np.array(u1s), np.array(u2s)) if pts else (np.zeros((0, 2)),) * 3
+    for a in (lengths, *corners, owned):
+        a.setflags(write=False)
+    return WallSet(segs, lengths, *corners, owned)
 
 
 class Discs(NamedTuple):

@@ -18,7 +18,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from parcover_env.geometry.ray_kernels import in_cone, near_segments, segment_hit
+from parcover_env.geometry.ray_kernels import in_cone, segment_hit
+from parcover_env.geometry.wall_grid import near_segments_grid
 from parcover_env.sensors.sonar_kernels import Discs, sonar_corner_echoes, sonar_echoes
 
 __all__ = ["Draws", "sonar_crosstalk", "ring_noise", "ring_readings"]
@@ -163,9 +164,10 @@ def ring_noise(ideal, heard, talk_prob, draws, rules, out):
 
 
 @njit(cache=True, nogil=True)
-def ring_readings(px, py, pth, radius2, beams, offsets, share, walls, draws, rules, out):
+def ring_readings(px, py, pth, radius2, beams, offsets, share, walls, grid, draws, rules, out):
     """The rings (beam axes ``beams (B,)`` in the robot frame, sub-rays ``offsets`` shared as
-    ``share`` says) of every robot of ``K`` worlds sharing the :class:`WallSet`, ``px, py, pth
+    ``share`` says) of every robot of ``K`` worlds sharing the :class:`WallSet` (its near-wall lists
+    from the :class:`~parcover_env.geometry.wall_grid.WallGrid` ``grid``), ``px, py, pth
     (K, N)``, in one pass: what :meth:`parcover_env.sensors.sonar.SonarRing.measure` composes from its
     parts for each world alone. The noise-free echoes (:func:`sonar_echoes`, its concave corners;
     the discs are the other robots of the robot's world, of squared radius ``radius2``), the
@@ -198,7 +200,7 @@ def ring_readings(px, py, pth, radius2, beams, offsets, share, walls, draws, rul
     discs = Discs(cx, cy, r2, owner)
     idx = np.empty((k * n, segs.shape[0]), dtype=np.int64)
     cnt = np.empty(k * n, dtype=np.int64)
-    near_segments(ox, oy, segs, rmax + slack, idx, cnt)
+    near_segments_grid(ox, oy, segs, rmax + slack, grid, idx, cnt)
     ideal = np.empty((k * n, nb))
     sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, ideal)
     if rule.specular and walls.points.shape[0] > 0:
