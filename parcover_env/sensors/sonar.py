@@ -232,6 +232,8 @@ class SonarRing:
         self.scan_angles = np.radians(np.arange(n_scan) * cfg.scan_step_deg)
         """Robot-frame angles of the 360-degree scan (72 readings at 5 deg)."""
         self._checked: np.ndarray | None = None
+        self._last_grid: tuple = (None, None)
+        """The walls :meth:`_grid` last served and their grid."""
         """The last wall array :meth:`measure` checked, if frozen (:func:`_frozen`)."""
         self._beams = np.ascontiguousarray(self.beam_angles, dtype=float)
         self._offsets = _offsets(cfg, self.n_subrays)
@@ -314,20 +316,22 @@ class SonarRing:
         k, n, nb = poses.shape[0], poses.shape[1], self.n_beams
         joined = (np.concatenate(parts) if k > 1 else parts[0] for parts in zip(*draws, strict=True))
         out = np.empty((k * n, nb), dtype=np.float32)
-        px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
+        poses = np.ascontiguousarray(poses)
         r = float(robot_radius)
         if self.cfg.model == "fast":
-            fast_kern.fast_ring_readings(px, py, pth, r * r, self._beams, walls.segments, self._grid(walls),
+            fast_kern.fast_ring_readings(poses, r * r, self._beams, walls.segments, self._grid(walls),
                                          fast_kern.FastDraws(*joined), self._rules, out)
             return out.reshape(k, n, nb)
         flat = ring_kern.Draws(*joined)
-        ring_kern.ring_readings(px, py, pth, r * r, self._beams, self._offsets, self._share, walls.kernel,
+        ring_kern.ring_readings(poses, r * r, self._beams, self._offsets, self._share, walls.kernel,
                                 self._grid(walls), flat, self._rules, out)
         return out.reshape(k, n, nb)
 
     def _grid(self, walls: _Walls) -> WallGrid:
         """The grid of ``walls`` for this ring's near-wall lists (``range_max`` plus the slack)."""
-        return walls.grid(float(self.cfg.range_max) + rays.NEAR_SLACK)
+        if walls is not self._last_grid[0]:
+            self._last_grid = (walls, walls.grid(float(self.cfg.range_max) + rays.NEAR_SLACK))
+        return self._last_grid[1]
 
     def ideal_batch(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float) -> np.ndarray:
         """Noise-free readings ``(K, N, B)`` of ``K`` worlds sharing the walls ``segments``, robots

@@ -57,10 +57,10 @@ def fast_noise(ideal, draws, rules, out):
 
 
 @njit(cache=True, nogil=True)
-def fast_ring_readings(px, py, pth, radius2, beams, segs, grid, draws, rules, out):
+def fast_ring_readings(poses, radius2, beams, segs, grid, draws, rules, out):
     """Readings ``out (K * N, B) float32`` of the ``fast`` rings (beam axes ``beams (B,)`` in the
-    robot frame) of every robot of ``K`` worlds sharing the walls ``segs (S, 4)``, poses ``px, py,
-    pth (K, N)``: per beam, the nearest hit within ``range_max`` of one ray along its axis on the
+    robot frame) of every robot of ``K`` worlds sharing the walls ``segs (S, 4)``, poses ``(K, N, 3)``
+    (C-contiguous): per beam, the nearest hit within ``range_max`` of one ray along its axis on the
     walls (those within ``range_max`` of the robot, :func:`near_segments_grid` with the walls'
     :class:`~parcover_env.geometry.wall_grid.WallGrid` ``grid``) and on the other robots
     of its world (discs of squared radius ``radius2``; those within ``range_max`` of the robot,
@@ -70,6 +70,9 @@ def fast_ring_readings(px, py, pth, radius2, beams, segs, grid, draws, rules, ou
     rule = rules[0]
     rmax = rule.range_max
     cull = rule.box_cull and math.isfinite(rmax)
+    px = np.ascontiguousarray(poses[:, :, 0])
+    py = np.ascontiguousarray(poses[:, :, 1])
+    pth = np.ascontiguousarray(poses[:, :, 2])
     k, n = px.shape
     nb = beams.shape[0]
     ox = px.reshape(k * n)

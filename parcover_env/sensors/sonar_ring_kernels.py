@@ -164,11 +164,11 @@ def ring_noise(ideal, heard, talk_prob, draws, rules, out):
 
 
 @njit(cache=True, nogil=True)
-def ring_readings(px, py, pth, radius2, beams, offsets, share, walls, grid, draws, rules, out):
+def ring_readings(poses, radius2, beams, offsets, share, walls, grid, draws, rules, out):
     """The rings (beam axes ``beams (B,)`` in the robot frame, sub-rays ``offsets`` shared as
     ``share`` says) of every robot of ``K`` worlds sharing the :class:`WallSet` (its near-wall lists
-    from the :class:`~parcover_env.geometry.wall_grid.WallGrid` ``grid``), ``px, py, pth
-    (K, N)``, in one pass: what :meth:`parcover_env.sensors.sonar.SonarRing.measure` composes from its
+    from the :class:`~parcover_env.geometry.wall_grid.WallGrid` ``grid``), ``poses (K, N, 3)``
+    (C-contiguous), in one pass: what :meth:`parcover_env.sensors.sonar.SonarRing.measure` composes from its
     parts for each world alone. The noise-free echoes (:func:`sonar_echoes`, its concave corners;
     the discs are the other robots of the robot's world, of squared radius ``radius2``), the
     cross-talk of the beams whose uniform ``draws.talk`` is below its probability (``talk`` empty:
@@ -178,6 +178,9 @@ def ring_readings(px, py, pth, radius2, beams, offsets, share, walls, grid, draw
     rmax, slack = rule.range_max, rule.near_slack
     segs = walls.segments
     talk = draws.talk
+    px = np.ascontiguousarray(poses[:, :, 0])
+    py = np.ascontiguousarray(poses[:, :, 1])
+    pth = np.ascontiguousarray(poses[:, :, 2])
     k, n = px.shape
     nb = beams.shape[0]
     ox = px.reshape(k * n)
