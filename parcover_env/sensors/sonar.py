@@ -232,8 +232,8 @@ class SonarRing:
         self.scan_angles = np.radians(np.arange(n_scan) * cfg.scan_step_deg)
         """Robot-frame angles of the 360-degree scan (72 readings at 5 deg)."""
         self._checked: np.ndarray | None = None
-        self._last_grid: tuple = (None, None)
-        """The walls :meth:`_grid` last served and their grid."""
+        self._reach = float(cfg.range_max) + rays.NEAR_SLACK
+        """The reach of the rings' near-wall lists (m)."""
         """The last wall array :meth:`measure` checked, if frozen (:func:`_frozen`)."""
         self._beams = np.ascontiguousarray(self.beam_angles, dtype=float)
         self._offsets = _offsets(cfg, self.n_subrays)
@@ -328,10 +328,9 @@ class SonarRing:
         return out.reshape(k, n, nb)
 
     def _grid(self, walls: _Walls) -> WallGrid:
-        """The grid of ``walls`` for this ring's near-wall lists (``range_max`` plus the slack)."""
-        if walls is not self._last_grid[0]:
-            self._last_grid = (walls, walls.grid(float(self.cfg.range_max) + rays.NEAR_SLACK))
-        return self._last_grid[1]
+        """The grid of ``walls`` for this ring's near-wall lists (``range_max`` plus the slack; kept
+        with the walls, shared by every ring and world)."""
+        return walls.grid(self._reach)
 
     def ideal_batch(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float) -> np.ndarray:
         """Noise-free readings ``(K, N, B)`` of ``K`` worlds sharing the walls ``segments``, robots
