@@ -183,6 +183,7 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     return np.minimum(reading, rmax, out=reading)
 
 
+_NONE = np.empty(0)  # an empty draw (that step is off); never written
 _AXIS_ONLY = np.zeros(1)
 """Sub-ray offsets of the ``ray`` model: the beam axis alone."""
 
@@ -272,10 +273,14 @@ class SonarRing:
         return self.n_beams
 
     def sense(self, state: SensingState, rngs: Sequence[np.random.Generator]) -> np.ndarray:
-        """The :class:`~parcover_env.sensors.base.Sensor` reading ``(K, N, B)`` float32: each world's
-        :meth:`draw` from its own generator, then every ring of every world in one :meth:`readings`."""
-        draws = [self.draw(state.n_robots, rng) for rng in rngs]
-        return self.readings(state.poses, state.segments, state.robot_radius, draws)
+        """The :class:`~parcover_env.sensors.base.Sensor` reading ``(K, N, B)`` float32: each world's :meth:`draw`
+        (written into one flat array per kind, world after world), then one :meth:`readings` of all."""
+        n, size = state.n_robots, state.n_robots * self.n_beams
+        kinds = self._kinds(n > 1)
+        flat = [np.empty(len(rngs) * size) if kind else _NONE for kind in kinds]
+        for k, rng in enumerate(rngs):
+            self._fill(kinds, rng, [f[k * size:(k + 1) * size] if kind else f for kind, f in zip(kinds, flat)])
+        return self.readings(state.poses, state.segments, state.robot_radius, [flat])
 
     def draw(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
         """The random numbers :meth:`measure` draws for ``n`` robots that see each other, in its order:
@@ -284,47 +289,52 @@ class SonarRing:
         uniforms, garbage uniforms and ranges (:class:`~.sonar_fast_kernels.FastDraws`)."""
         return self._draws(n * self.n_beams, rng, n > 1)
 
-    def _draws(self, size: int, rng: np.random.Generator | None, talk: bool) -> tuple[np.ndarray, ...]:
-        """``size`` of each of :meth:`draw`'s numbers (cross-talk ones only if ``talk``); all empty
-        without a generator. ``model: fast``: a :class:`~.sonar_fast_kernels.FastDraws` (noise
-        normals, dropout uniforms, garbage uniforms and ranges; never cross-talk)."""
-        cfg, none = self.cfg, np.empty(0)
+    def _kinds(self, talk: bool) -> tuple[str | None, ...]:
+        """What :meth:`draw`'s four arrays hold (``random``, ``normal``, ``uniform``, None: off)."""
+        cfg = self.cfg
+        noise = "normal" if cfg.noise_std > 0 or cfg.noise_rel > 0 else None
+        bad = "random" if cfg.garbage_rate > 0 else None
+        junk = "uniform" if bad else None
         if cfg.model == "fast":
-            if rng is None:
-                return fast_kern.FastDraws(none, none, none, none)
-            z = rng.standard_normal(size) if cfg.noise_std > 0 or cfg.noise_rel > 0 else none
-            drop = rng.random(size) if cfg.dropout_prob > 0 else none
-            bad = rng.random(size) if cfg.garbage_rate > 0 else none
-            junk = rng.uniform(cfg.range_min, cfg.range_max, size) if len(bad) else none
-            return fast_kern.FastDraws(z, drop, bad, junk)
-        if rng is None:
-            return none, none, none, none
-        talk_u = rng.random(size) if talk and cfg.crosstalk_prob > 0 else none
-        z = rng.standard_normal(size) if cfg.noise_std > 0 or cfg.noise_rel > 0 else none
-        bad = rng.random(size) if cfg.garbage_rate > 0 else none
-        junk = rng.uniform(cfg.range_min, cfg.range_max, size) if len(bad) else none
-        return talk_u, z, bad, junk
+            return noise, "random" if cfg.dropout_prob > 0 else None, bad, junk
+        return "random" if talk and cfg.crosstalk_prob > 0 else None, noise, bad, junk
+
+    def _fill(self, kinds: tuple[str | None, ...], rng: np.random.Generator, outs: list[np.ndarray]) -> None:
+        """Draw ``outs`` from ``rng`` as ``kinds`` says, in order (``out=``: a fresh array's numbers)."""
+        for kind, out in zip(kinds, outs, strict=True):
+            if kind == "random":
+                rng.random(out=out)
+            elif kind == "normal":
+                rng.standard_normal(out=out)
+            elif kind == "uniform":
+                out[:] = rng.uniform(self.cfg.range_min, self.cfg.range_max, len(out))
+
+    def _draws(self, size: int, rng: np.random.Generator | None, talk: bool) -> tuple[np.ndarray, ...]:
+        """``size`` of each of :meth:`draw`'s numbers (cross-talk only if ``talk``; none without ``rng``)."""
+        kinds = self._kinds(talk) if rng is not None else (None,) * 4
+        outs = [np.empty(size) if kind else _NONE for kind in kinds]
+        self._fill(kinds, rng, outs)
+        return fast_kern.FastDraws(*outs) if self.cfg.model == "fast" else tuple(outs)
 
     def readings(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float,
                  draws: list[tuple[np.ndarray, ...]]) -> np.ndarray:
         """Readings ``(K, N, B)`` float32 of ``K`` worlds sharing the walls ``segments``, robots ``poses
         (K, N, 3)`` that see the robots of their own world, with each world's :meth:`draw`: one
-        compiled call (:func:`~parcover_env.sensors.sonar_ring_kernels.ring_readings`). World ``k``
-        reads what :meth:`measure` reads for it alone with a generator that gives those draws."""
+        compiled call (:func:`~parcover_env.sensors.sonar_ring_kernels.ring_readings`; one entry in
+        ``draws``: every world's draws joined, world after world). World ``k`` reads what
+        :meth:`measure` reads for it alone with a generator that gives those draws."""
+        flat = [np.concatenate(parts) for parts in zip(*draws, strict=True)] if len(draws) > 1 else draws[0]
         walls = _walls(segments)
-        poses = np.asarray(poses, dtype=float)
+        poses = np.ascontiguousarray(poses, dtype=float)
         k, n, nb = poses.shape[0], poses.shape[1], self.n_beams
-        joined = (np.concatenate(parts) if k > 1 else parts[0] for parts in zip(*draws, strict=True))
         out = np.empty((k * n, nb), dtype=np.float32)
-        poses = np.ascontiguousarray(poses)
         r = float(robot_radius)
         if self.cfg.model == "fast":
             fast_kern.fast_ring_readings(poses, r * r, self._beams, walls.segments, self._grid(walls),
-                                         fast_kern.FastDraws(*joined), self._rules, out)
-            return out.reshape(k, n, nb)
-        flat = ring_kern.Draws(*joined)
-        ring_kern.ring_readings(poses, r * r, self._beams, self._offsets, self._share, walls.kernel,
-                                self._grid(walls), flat, self._rules, out)
+                                         fast_kern.FastDraws(*flat), self._rules, out)
+        else:
+            ring_kern.ring_readings(poses, r * r, self._beams, self._offsets, self._share, walls.kernel,
+                                    self._grid(walls), ring_kern.Draws(*flat), self._rules, out)
         return out.reshape(k, n, nb)
 
     def _grid(self, walls: _Walls) -> WallGrid:

@@ -189,3 +189,29 @@ def test_each_corner_is_listed_once_at_the_first_of_its_two_walls():
                              _rules(cfg), every)
     assert np.array_equal(got, every) and np.isfinite(got).sum() >= 3
     assert np.isclose(got[0][np.isfinite(got[0])], 0.5).all()  # (0.4, 0.3): the corner (0, 0) at 0.5 m
+
+
+@pytest.mark.parametrize("change", [{}, {"model": "fast", "dropout_prob": 0.2}, {"garbage_rate": 0.3}])
+def test_sense_draws_each_world_into_one_array_as_its_own_draw(change):
+    """``sense`` of K = 2 worlds (different poses) writes each world's draws into one flat array per
+    kind: the readings of each world's own ``draw`` (and of each world alone, K = 1), and every
+    generator ends where its own draw leaves it."""
+    import copy
+
+    from parcover_env.sensors.base import SensingState
+
+    ring = SonarRing(SonarConfig(**change))
+    walls = _oblique_room()
+    rng = np.random.default_rng(9)
+    poses = np.concatenate([rng.uniform(0.5, 3.0, (2, 4, 2)), rng.uniform(-3, 3, (2, 4, 1))], axis=2)
+    gens = [np.random.default_rng(s) for s in (1, 2)]
+    mine = [copy.deepcopy(g) for g in gens]
+    got = ring.sense(SensingState(poses, walls, 0.15, np.full((2, 4), -1)), gens)
+    want = ring.readings(poses, walls, 0.15, [ring.draw(4, g) for g in mine])
+    assert np.array_equal(got, want) and got.shape == (2, 4, ring.n_beams)
+    for k in range(2):
+        alone = ring.sense(SensingState(poses[k:k + 1], walls, 0.15, np.full((1, 4), -1)),
+                           [np.random.default_rng(k + 1)])
+        assert np.array_equal(alone[0], got[k])
+    assert [g.random() for g in gens] == [g.random() for g in mine]
+    assert (got < ring.cfg.range_max).sum() > 4
