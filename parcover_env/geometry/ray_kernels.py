@@ -183,20 +183,27 @@ def near_segments(ox, oy, segs, reach, idx, cnt):
     for o in range(ox.shape[0]):
         c = 0
         for s in range(segs.shape[0]):
-            ax = segs[s, 0]
-            ay = segs[s, 1]
-            ex = segs[s, 2] - ax
-            ey = segs[s, 3] - ay
-            wx = ox[o] - ax
-            wy = oy[o] - ay
-            ll = ex * ex + ey * ey
-            u = min(max((wx * ex + wy * ey) / ll, 0.0), 1.0) if ll > 0.0 else 0.0
-            px = wx - u * ex
-            py = wy - u * ey
-            if px * px + py * py <= reach * reach:
+            if segment_within(ox[o], oy[o], segs, s, reach):
                 idx[o, c] = s
                 c += 1
         cnt[o] = c
+
+
+@njit(cache=True, inline="always")
+def segment_within(x, y, segs, s, reach):
+    """Whether segment ``s`` of ``segs`` lies within ``reach`` of the point ``(x, y)`` (point-to-segment
+    distance; the test of :func:`near_segments`)."""
+    ax = segs[s, 0]
+    ay = segs[s, 1]
+    ex = segs[s, 2] - ax
+    ey = segs[s, 3] - ay
+    wx = x - ax
+    wy = y - ay
+    ll = ex * ex + ey * ey
+    u = min(max((wx * ex + wy * ey) / ll, 0.0), 1.0) if ll > 0.0 else 0.0
+    px = wx - u * ex
+    py = wy - u * ey
+    return px * px + py * py <= reach * reach
 
 
 @njit(cache=True, inline="always")

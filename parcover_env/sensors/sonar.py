@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -42,6 +42,7 @@ from parcover_env.config import SonarConfig
 from parcover_env.geometry import rays
 from parcover_env.geometry.angles import wrap_angle
 from parcover_env.geometry.records import record
+from parcover_env.geometry.wall_grid import WallGrid, build_wall_grid
 from parcover_env.sensors import sonar_fast_kernels as fast_kern
 from parcover_env.sensors import sonar_kernels as kern
 from parcover_env.sensors import sonar_ring_kernels as ring_kern
@@ -62,6 +63,16 @@ class _Walls:
 
     kernel: kern.WallSet
     """Segments ``(S, 4)`` C-contiguous, their lengths (m), the corners and their wall directions."""
+    grids: dict[float, WallGrid] = field(default_factory=dict, repr=False)
+    """The :class:`~parcover_env.geometry.wall_grid.WallGrid` of each reach asked for (:meth:`grid`)."""
+
+    def grid(self, reach: float) -> WallGrid:
+        """The walls' grid for near-wall lists of ``reach`` (m), built once (an infinite reach: a grid
+        whose every lookup tests every wall)."""
+        found = self.grids.get(reach)
+        if found is None:
+            found = self.grids[reach] = build_wall_grid(self.segments, reach if math.isfinite(reach) else 0.0)
+        return found
 
     @property
     def segments(self) -> np.ndarray:
@@ -75,31 +86,7 @@ class _Walls:
 
 @lru_cache(maxsize=32)
 def _walls_of(seg_bytes: bytes, n: int) -> _Walls:
-    segs = np.frombuffer(seg_bytes, dtype=float).reshape(n, 4)
-    lengths = np.hypot(segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1])
-    ends: dict[tuple[float, float], list[np.ndarray]] = {}
-    for x1, y1, x2, y2 in segs:
-        a, b = (round(x1, 9), round(y1, 9)), (round(x2, 9), round(y2, 9))
-        if a == b:
-            continue
-        ends.setdefault(a, []).append(np.array(b))
-        ends.setdefault(b, []).append(np.array(a))
-    pts, u1s, u2s = [], [], []
-    for v, others in ends.items():
-        if len(others) != 2:
-            continue
-        vv = np.array(v)
-        u1, u2 = others[0] - vv, others[1] - vv
-        u1, u2 = u1 / np.linalg.norm(u1), u2 / np.linalg.norm(u2)
-        if abs(u1[0] * u2[1] - u1[1] * u2[0]) < 1e-9:  # collinear: not a corner
-            continue
-        pts.append(vv)
-        u1s.append(u1)
-        u2s.append(u2)
-    corners = (np.array(pts), np.array(u1s), np.array(u2s)) if pts else (np.zeros((0, 2)),) * 3
-    for a in (lengths, *corners):
-        a.setflags(write=False)
-    return _Walls(kern.WallSet(segs, lengths, *corners))
+    return _Walls(kern.wall_set(np.frombuffer(seg_bytes, dtype=float).reshape(n, 4)))
 
 
 def _walls(segments: np.ndarray) -> _Walls:
@@ -196,6 +183,7 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     return np.minimum(reading, rmax, out=reading)
 
 
+_NONE = np.empty(0)  # an empty draw (that step is off); never written
 _AXIS_ONLY = np.zeros(1)
 """Sub-ray offsets of the ``ray`` model: the beam axis alone."""
 
@@ -245,6 +233,8 @@ class SonarRing:
         self.scan_angles = np.radians(np.arange(n_scan) * cfg.scan_step_deg)
         """Robot-frame angles of the 360-degree scan (72 readings at 5 deg)."""
         self._checked: np.ndarray | None = None
+        self._reach = float(cfg.range_max) + rays.NEAR_SLACK
+        """The reach of the rings' near-wall lists (m)."""
         """The last wall array :meth:`measure` checked, if frozen (:func:`_frozen`)."""
         self._beams = np.ascontiguousarray(self.beam_angles, dtype=float)
         self._offsets = _offsets(cfg, self.n_subrays)
@@ -283,10 +273,14 @@ class SonarRing:
         return self.n_beams
 
     def sense(self, state: SensingState, rngs: Sequence[np.random.Generator]) -> np.ndarray:
-        """The :class:`~parcover_env.sensors.base.Sensor` reading ``(K, N, B)`` float32: each world's
-        :meth:`draw` from its own generator, then every ring of every world in one :meth:`readings`."""
-        draws = [self.draw(state.n_robots, rng) for rng in rngs]
-        return self.readings(state.poses, state.segments, state.robot_radius, draws)
+        """The :class:`~parcover_env.sensors.base.Sensor` reading ``(K, N, B)`` float32: each world's :meth:`draw`
+        (written into one flat array per kind, world after world), then one :meth:`readings` of all."""
+        n, size = state.n_robots, state.n_robots * self.n_beams
+        kinds = self._kinds(n > 1)
+        flat = [np.empty(len(rngs) * size) if kind else _NONE for kind in kinds]
+        for k, rng in enumerate(rngs):
+            self._fill(kinds, rng, [f[k * size:(k + 1) * size] if kind else f for kind, f in zip(kinds, flat)])
+        return self.readings(state.poses, state.segments, state.robot_radius, [flat])
 
     def draw(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
         """The random numbers :meth:`measure` draws for ``n`` robots that see each other, in its order:
@@ -295,48 +289,58 @@ class SonarRing:
         uniforms, garbage uniforms and ranges (:class:`~.sonar_fast_kernels.FastDraws`)."""
         return self._draws(n * self.n_beams, rng, n > 1)
 
-    def _draws(self, size: int, rng: np.random.Generator | None, talk: bool) -> tuple[np.ndarray, ...]:
-        """``size`` of each of :meth:`draw`'s numbers (cross-talk ones only if ``talk``); all empty
-        without a generator. ``model: fast``: a :class:`~.sonar_fast_kernels.FastDraws` (noise
-        normals, dropout uniforms, garbage uniforms and ranges; never cross-talk)."""
-        cfg, none = self.cfg, np.empty(0)
+    def _kinds(self, talk: bool) -> tuple[str | None, ...]:
+        """What :meth:`draw`'s four arrays hold (``random``, ``normal``, ``uniform``, None: off)."""
+        cfg = self.cfg
+        noise = "normal" if cfg.noise_std > 0 or cfg.noise_rel > 0 else None
+        bad = "random" if cfg.garbage_rate > 0 else None
+        junk = "uniform" if bad else None
         if cfg.model == "fast":
-            if rng is None:
-                return fast_kern.FastDraws(none, none, none, none)
-            z = rng.standard_normal(size) if cfg.noise_std > 0 or cfg.noise_rel > 0 else none
-            drop = rng.random(size) if cfg.dropout_prob > 0 else none
-            bad = rng.random(size) if cfg.garbage_rate > 0 else none
-            junk = rng.uniform(cfg.range_min, cfg.range_max, size) if len(bad) else none
-            return fast_kern.FastDraws(z, drop, bad, junk)
-        if rng is None:
-            return none, none, none, none
-        talk_u = rng.random(size) if talk and cfg.crosstalk_prob > 0 else none
-        z = rng.standard_normal(size) if cfg.noise_std > 0 or cfg.noise_rel > 0 else none
-        bad = rng.random(size) if cfg.garbage_rate > 0 else none
-        junk = rng.uniform(cfg.range_min, cfg.range_max, size) if len(bad) else none
-        return talk_u, z, bad, junk
+            return noise, "random" if cfg.dropout_prob > 0 else None, bad, junk
+        return "random" if talk and cfg.crosstalk_prob > 0 else None, noise, bad, junk
+
+    def _fill(self, kinds: tuple[str | None, ...], rng: np.random.Generator, outs: list[np.ndarray]) -> None:
+        """Draw ``outs`` from ``rng`` as ``kinds`` says, in order (``out=``: a fresh array's numbers)."""
+        for kind, out in zip(kinds, outs, strict=True):
+            if kind == "random":
+                rng.random(out=out)
+            elif kind == "normal":
+                rng.standard_normal(out=out)
+            elif kind == "uniform":
+                out[:] = rng.uniform(self.cfg.range_min, self.cfg.range_max, len(out))
+
+    def _draws(self, size: int, rng: np.random.Generator | None, talk: bool) -> tuple[np.ndarray, ...]:
+        """``size`` of each of :meth:`draw`'s numbers (cross-talk only if ``talk``; none without ``rng``)."""
+        kinds = self._kinds(talk) if rng is not None else (None,) * 4
+        outs = [np.empty(size) if kind else _NONE for kind in kinds]
+        self._fill(kinds, rng, outs)
+        return fast_kern.FastDraws(*outs) if self.cfg.model == "fast" else tuple(outs)
 
     def readings(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float,
                  draws: list[tuple[np.ndarray, ...]]) -> np.ndarray:
         """Readings ``(K, N, B)`` float32 of ``K`` worlds sharing the walls ``segments``, robots ``poses
         (K, N, 3)`` that see the robots of their own world, with each world's :meth:`draw`: one
-        compiled call (:func:`~parcover_env.sensors.sonar_ring_kernels.ring_readings`). World ``k``
-        reads what :meth:`measure` reads for it alone with a generator that gives those draws."""
+        compiled call (:func:`~parcover_env.sensors.sonar_ring_kernels.ring_readings`; one entry in
+        ``draws``: every world's draws joined, world after world). World ``k`` reads what
+        :meth:`measure` reads for it alone with a generator that gives those draws."""
+        flat = [np.concatenate(parts) for parts in zip(*draws, strict=True)] if len(draws) > 1 else draws[0]
         walls = _walls(segments)
-        poses = np.asarray(poses, dtype=float)
+        poses = np.ascontiguousarray(poses, dtype=float)
         k, n, nb = poses.shape[0], poses.shape[1], self.n_beams
-        joined = (np.concatenate(parts) if k > 1 else parts[0] for parts in zip(*draws, strict=True))
         out = np.empty((k * n, nb), dtype=np.float32)
-        px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
         r = float(robot_radius)
         if self.cfg.model == "fast":
-            fast_kern.fast_ring_readings(px, py, pth, r * r, self._beams, walls.segments, fast_kern.FastDraws(*joined),
-                                         self._rules, out)
-            return out.reshape(k, n, nb)
-        flat = ring_kern.Draws(*joined)
-        ring_kern.ring_readings(px, py, pth, r * r, self._beams, self._offsets, self._share, walls.kernel, flat,
-                                self._rules, out)
+            fast_kern.fast_ring_readings(poses, r * r, self._beams, walls.segments, self._grid(walls),
+                                         fast_kern.FastDraws(*flat), self._rules, out)
+        else:
+            ring_kern.ring_readings(poses, r * r, self._beams, self._offsets, self._share, walls.kernel,
+                                    self._grid(walls), ring_kern.Draws(*flat), self._rules, out)
         return out.reshape(k, n, nb)
+
+    def _grid(self, walls: _Walls) -> WallGrid:
+        """The grid of ``walls`` for this ring's near-wall lists (``range_max`` plus the slack; kept
+        with the walls, shared by every ring and world)."""
+        return walls.grid(self._reach)
 
     def ideal_batch(self, poses: np.ndarray, segments: np.ndarray, robot_radius: float) -> np.ndarray:
         """Noise-free readings ``(K, N, B)`` of ``K`` worlds sharing the walls ``segments``, robots
@@ -407,10 +411,9 @@ def crosstalk(cfg: SonarConfig, poses: np.ndarray, beam_angles: np.ndarray, segm
     want = np.ones((k, n, nb), dtype=bool) if want is None else np.ascontiguousarray(want, dtype=bool)
     segments = _walls(segments).segments
     px, py, pth = (np.ascontiguousarray(poses[..., c]) for c in range(3))
-    idx, cnt = rays.near_segments(px.reshape(-1), py.reshape(-1), segments, 2 * float(cfg.range_max))
     beams = np.ascontiguousarray(beam_angles, dtype=float)
-    ring_kern.sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments, idx,
-                              cnt, _rules(cfg), want, out)
+    ring_kern.sonar_crosstalk(px, py, pth, beams, _covers_circle(beams.tobytes(), _half_cone(cfg)), segments,
+                              _rules(cfg), want, out)
     return out
 
 

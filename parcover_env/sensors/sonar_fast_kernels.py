@@ -17,7 +17,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from parcover_env.geometry.ray_kernels import disc_hit_from, near_segments, segment_hit
+from parcover_env.geometry.ray_kernels import disc_hit_from, segment_hit
+from parcover_env.geometry.wall_grid import near_segments_grid
 from parcover_env.sensors.sonar_ring_kernels import Draws, ring_noise
 
 __all__ = ["FastDraws", "fast_noise", "fast_ring_readings"]
@@ -56,11 +57,12 @@ def fast_noise(ideal, draws, rules, out):
 
 
 @njit(cache=True, nogil=True)
-def fast_ring_readings(px, py, pth, radius2, beams, segs, draws, rules, out):
+def fast_ring_readings(poses, radius2, beams, segs, grid, draws, rules, out):
     """Readings ``out (K * N, B) float32`` of the ``fast`` rings (beam axes ``beams (B,)`` in the
-    robot frame) of every robot of ``K`` worlds sharing the walls ``segs (S, 4)``, poses ``px, py,
-    pth (K, N)``: per beam, the nearest hit within ``range_max`` of one ray along its axis on the
-    walls (those within ``range_max`` of the robot, :func:`near_segments`) and on the other robots
+    robot frame) of every robot of ``K`` worlds sharing the walls ``segs (S, 4)``, poses ``(K, N, 3)``
+    (C-contiguous): per beam, the nearest hit within ``range_max`` of one ray along its axis on the
+    walls (those within ``range_max`` of the robot, :func:`near_segments_grid` with the walls'
+    :class:`~parcover_env.geometry.wall_grid.WallGrid` ``grid``) and on the other robots
     of its world (discs of squared radius ``radius2``; those within ``range_max`` of the robot,
     their terms computed once for all its beams, :func:`disc_hit_from`), inf if none; then
     :func:`fast_noise` with the :class:`FastDraws`. Row ``k * N + i`` equals what world ``k`` alone
@@ -68,13 +70,16 @@ def fast_ring_readings(px, py, pth, radius2, beams, segs, draws, rules, out):
     rule = rules[0]
     rmax = rule.range_max
     cull = rule.box_cull and math.isfinite(rmax)
+    px = np.ascontiguousarray(poses[:, :, 0])
+    py = np.ascontiguousarray(poses[:, :, 1])
+    pth = np.ascontiguousarray(poses[:, :, 2])
     k, n = px.shape
     nb = beams.shape[0]
     ox = px.reshape(k * n)
     oy = py.reshape(k * n)
     idx = np.empty((k * n, segs.shape[0]), dtype=np.int64)
     cnt = np.empty(k * n, dtype=np.int64)
-    near_segments(ox, oy, segs, rmax + rule.near_slack, idx, cnt)
+    near_segments_grid(ox, oy, segs, rmax + rule.near_slack, grid, idx, cnt)
     # a disc farther than range_max + its radius (c above ``reach_c``) cannot be hit within range_max
     reach_c = ((rmax + math.sqrt(radius2)) ** 2 - radius2) * (1.0 + 1e-9) + 1e-9
     bx = np.empty(n)

@@ -20,7 +20,7 @@ from numba import njit
 
 from parcover_env.geometry.ray_kernels import COS_FLOOR, disc_hit, disc_hit_from, in_cone, near_segments, segment_hit
 
-__all__ = ["SONAR_RULES", "WallSet", "Discs", "sonar_echoes", "sonar_corner_echoes", "beam_readings"]
+__all__ = ["SONAR_RULES", "WallSet", "wall_set", "Discs", "sonar_echoes", "sonar_corner_echoes", "beam_readings"]
 
 SONAR_RULES = np.dtype([
     ("range_max", "f8"),  # a path longer than this returns nothing; no echo reads this (m)
@@ -57,6 +57,45 @@ class WallSet(NamedTuple):
     """``(C, 2)`` unit direction of a corner's first wall."""
     u2: np.ndarray
     """``(C, 2)`` unit direction of its second wall."""
+    owned: np.ndarray
+    """``(S, 2)`` int64: the corners listed at each segment (-1: none), each corner at the first
+    (lowest index) of its two walls, so that the corners within a range are found from the walls
+    within it (a corner lies on both of its walls)."""
+
+
+def wall_set(segs: np.ndarray) -> WallSet:
+    """The :class:`WallSet` of ``segs (S, 4)`` (float64, C-contiguous, read-only: kept as is): the
+    lengths, and the vertices shared by exactly two non-collinear segments (ends rounded to 1e-9 m)
+    with their unit wall directions, each listed at the first of its two walls (``owned``)."""
+    n = len(segs)
+    lengths = np.hypot(segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1])
+    ends: dict[tuple[float, float], list[tuple[np.ndarray, int]]] = {}  # vertex: (other end, segment index)
+    for i, (x1, y1, x2, y2) in enumerate(segs):
+        a, b = (round(x1, 9), round(y1, 9)), (round(x2, 9), round(y2, 9))
+        if a == b:
+            continue
+        ends.setdefault(a, []).append((np.array(b), i))
+        ends.setdefault(b, []).append((np.array(a), i))
+    pts, u1s, u2s = [], [], []
+    owned = np.full((n, 2), -1, dtype=np.int64)  # a corner is listed at the first of its two walls
+    for v, others in ends.items():
+        if len(others) != 2:
+            continue
+        vv = np.array(v)
+        (end1, i1), (end2, i2) = others
+        u1, u2 = end1 - vv, end2 - vv
+        u1, u2 = u1 / np.linalg.norm(u1), u2 / np.linalg.norm(u2)
+        if abs(u1[0] * u2[1] - u1[1] * u2[0]) < 1e-9:  # collinear: not a corner
+            continue
+        first = min(i1, i2)
+        owned[first, int(owned[first, 0] >= 0)] = len(pts)
+        pts.append(vv)
+        u1s.append(u1)
+        u2s.append(u2)
+    corners = (np.array(pts), np.array(u1s), np.array(u2s)) if pts else (np.zeros((0, 2)),) * 3
+    for a in (lengths, *corners, owned):
+        a.setflags(write=False)
+    return WallSet(segs, lengths, *corners, owned)
 
 
 class Discs(NamedTuple):
@@ -81,6 +120,10 @@ class _DiscTerms(NamedTuple):
     ux: np.ndarray
     uy: np.ndarray
     cos_w: np.ndarray
+    cx: np.ndarray
+    """``(1, D)``: the discs' centres and squared radii, for the second legs (:func:`_second_leg`)."""
+    cy: np.ndarray
+    r2: np.ndarray
 
 
 @njit(cache=True, inline="always")
@@ -144,23 +187,24 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
     bx = np.empty(n_discs)  # per beam: those a sub-ray of its cone can hit
     by = np.empty(n_discs)
     bc = np.empty(n_discs)
-    terms = _DiscTerms(ocx, ocy, cc, ux, uy, cos_w)
+    terms = _DiscTerms(ocx, ocy, cc, ux, uy, cos_w, np.empty((1, n_discs)), np.empty((1, n_discs)), np.empty(n_discs))
+    normals = _normals(segs)
     for n in range(ox.shape[0]):
         x0 = ox[n]
         y0 = oy[n]
         row = n if per_origin else 0
         near = idx[n, :cnt[n]]
         m = _near_discs(x0, y0, cx[row], cy[row], r2, owner[n], rmax, cos_spread, sin_spread, terms)
+        leg_discs = Discs(terms.cx[:, :m], terms.cy[:, :m], terms.r2[:m], owner)  # a second leg stays within rmax
         for b in range(axes.shape[1]):
             ax = math.cos(axes[n, b])
             ay = math.sin(axes[n, b])
             nb = 0
-            for d in range(m):
-                if ax * ux[d] + ay * uy[d] >= cos_w[d]:
-                    bx[nb] = ocx[d]
-                    by[nb] = ocy[d]
-                    bc[nb] = cc[d]
-                    nb += 1
+            for d in range(m):  # compacted without a branch: written, kept only if in the cone
+                bx[nb] = ocx[d]
+                by[nb] = ocy[d]
+                bc[nb] = cc[d]
+                nb += ax * ux[d] + ay * uy[d] >= cos_w[d]
             best = np.inf
             for j in range(n_sub):  # first legs: direct echoes (walls near the normal, discs)
                 u = share[b, j]
@@ -198,8 +242,8 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
                 u = share[b, j]
                 if leg_t[u] < best:
                     if math.isnan(leg_echo[u]):
-                        leg_echo[u] = _second_leg(x0, y0, leg_x[u], leg_y[u], leg_t[u], leg_i[u], walls, near, discs, n,
-                                                  rules)
+                        leg_echo[u] = _second_leg(x0, y0, leg_x[u], leg_y[u], leg_t[u], leg_i[u], walls, normals, near,
+                                                  leg_discs, rules)
                     best = min(best, leg_echo[u])
             reading[n, b] = best
 
@@ -215,7 +259,7 @@ def _near_discs(x0, y0, cx, cy, r2, mine, rmax, cos_spread, sin_spread, terms):
     the disc spans (-2 if the origin is inside it: every ray hits). A ray hits a disc outside it only
     within that half-angle of ``u`` (at a distance >= ``|oc| - r``), so a cone of half-angle
     ``spread`` about a unit axis ``a`` can hit it only if ``a . u >= cos_w``."""
-    ocx, ocy, cc, ux, uy, cos_w = terms
+    ocx, ocy, cc, ux, uy, cos_w, kept_x, kept_y, kept_r2 = terms
     m = 0
     for d in range(cx.shape[0]):
         if d == mine:
@@ -239,25 +283,40 @@ def _near_discs(x0, y0, cx, cy, r2, mine, rmax, cos_spread, sin_spread, terms):
         ocx[m] = dx
         ocy[m] = dy
         cc[m] = c
+        kept_x[0, m] = cx[d]
+        kept_y[0, m] = cy[d]
+        kept_r2[m] = r2[d]
         m += 1
     return m
 
 
+@njit(cache=True)
+def _normals(segs):
+    """``(S, 2)`` unit normals ``(-e_y, e_x) / |e|`` of the segments ``e = (x2 - x1, y2 - y1)``."""
+    out = np.empty((segs.shape[0], 2))
+    for i in range(segs.shape[0]):
+        ex = segs[i, 2] - segs[i, 0]
+        ey = segs[i, 3] - segs[i, 1]
+        norm = math.sqrt(ex * ex + ey * ey)
+        if norm > 0.0:  # (a degenerate segment is never hit: no normal needed)
+            out[i, 0] = -ey / norm
+            out[i, 1] = ex / norm
+        else:
+            out[i, 0] = out[i, 1] = 0.0
+    return out
+
+
 @njit(cache=True, inline="always")
-def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, near, discs, n, rules):
-    """Echo length ``t1 + t2`` of a sub-ray of origin ``n`` mirrored at ``t1`` by segment ``i1``, inf if
-    its second leg finds no echoing surface within ``rmax - t1`` (walls ``near``, the discs of ``n``)."""
+def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, normals, near, discs, rules):
+    """Echo length ``t1 + t2`` of a sub-ray from ``(x0, y0)`` mirrored at ``t1`` by segment ``i1`` (unit
+    normals ``normals``), inf if its second leg finds no echoing surface within ``rmax - t1`` (walls
+    ``near``; the :class:`Discs` ``discs``, one set (row 0), none skipped: the origin's discs within
+    ``rmax``, :func:`_near_discs`, as a path of length <= ``rmax`` meets no other)."""
     segs, seg_len = walls.segments, walls.lengths
-    cx, cy, r2 = discs.cx, discs.cy, discs.r2
-    row = n if cx.shape[0] > 1 else 0
-    mine = discs.owner[n]
     rule = rules[0]
     rmax, cos_min, nudge, box_cull = rule.range_max, rule.cos_min, rule.nudge, rule.box_cull
-    ex = segs[i1, 2] - segs[i1, 0]
-    ey = segs[i1, 3] - segs[i1, 1]
-    norm = math.sqrt(ex * ex + ey * ey)
-    nx = -ey / norm
-    ny = ex / norm
+    nx = normals[i1, 0]
+    ny = normals[i1, 1]
     f = 2.0 * (ddx * nx + ddy * ny)
     d2x = ddx - f * nx
     d2y = ddy - f * ny
@@ -269,7 +328,7 @@ def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, near, discs, n, rules):
         t2w = np.inf
         i2 = -1
     wall2 = t2w if _incidence(den2, seg_len, i2) >= cos_min else np.inf
-    td2 = disc_hit(px, py, d2x, d2y, cx, cy, row, r2, mine)
+    td2 = disc_hit(px, py, d2x, d2y, discs.cx, discs.cy, 0, discs.r2, -1)
     t2 = (td2 if td2 < t2w else wall2) + nudge
     return t1 + t2 if t2 <= rmax - t1 else np.inf
 
@@ -281,8 +340,10 @@ def sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading):
     wedge, within ``range_max``, with no wall (nor one of the :class:`Discs`) in between, and inside
     beam ``b``'s cone (``|bearing - axis| <= half_cone``); the concave-corner rule of
     :func:`parcover_env.sensors.sonar.simulate_beams`. Walls are looked up in the origin's list
-    ``idx[n, :cnt[n]]`` of those within ``range_max`` (:func:`near_segments`)."""
-    segs, pts, u1, u2 = walls.segments, walls.points, walls.u1, walls.u2
+    ``idx[n, :cnt[n]]`` of those within ``range_max`` (:func:`near_segments`), and so are the
+    corners (those listed at these walls, ``owned``: a corner within range lies on a wall within
+    it). A reading is the nearest qualifying corner whatever the order they come in."""
+    segs, pts, u1, u2, owned = walls.segments, walls.points, walls.u1, walls.u2, walls.owned
     cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
     rmax, half = rules[0].range_max, rules[0].half_cone
     has_discs = cx.shape[1] > 0
@@ -291,7 +352,10 @@ def sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading):
         x0 = ox[n]
         y0 = oy[n]
         near = idx[n, :cnt[n]]
-        for c in range(pts.shape[0]):
+        for q in range(2 * near.shape[0]):
+            c = owned[near[q // 2], q % 2]
+            if c < 0:
+                continue
             vx = pts[c, 0] - x0
             vy = pts[c, 1] - y0
             dist = math.sqrt(vx * vx + vy * vy)

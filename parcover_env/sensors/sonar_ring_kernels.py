@@ -18,7 +18,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from parcover_env.geometry.ray_kernels import in_cone, near_segments, segment_hit
+from parcover_env.geometry.ray_kernels import in_cone, segment_hit
+from parcover_env.geometry.wall_grid import near_segments_grid
 from parcover_env.sensors.sonar_kernels import Discs, sonar_corner_echoes, sonar_echoes
 
 __all__ = ["Draws", "sonar_crosstalk", "ring_noise", "ring_readings"]
@@ -44,23 +45,27 @@ outside every wanted cone skips the exact bearing test, which rounding never mak
 
 
 @njit(cache=True, nogil=True)
-def sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, rules, want, out):
+def sonar_crosstalk(px, py, pth, beams, all_round, segs, rules, want, out):
     """Cross-talk readings ``out (K, N, B)`` (left inf where none) of robots ``(K, N)`` poses
     ``px, py, pth``: beam ``b`` of robot ``i`` reads ``d / 2`` from the nearest robot ``j`` of its world
     inside that beam's cone (``half_cone``) with a beam of ``j`` pointing back at ``i``, ``0 < d / 2 <= range_max``
     and no wall between them; the rules of :func:`parcover_env.sensors.sonar.crosstalk`.
-    ``all_round``: the cones cover every direction (a beam always points back). Walls are looked up
-    in robot ``k * N + i``'s list ``idx`` of those within ``2 range_max`` (:func:`near_segments`).
-    Only the beams ``want (K, N, B)`` are computed (the others stay inf). A robot ``j`` more than
-    ``_CONE_SLACK`` outside every wanted cone of ``i`` (a dot product with the axes) skips the exact
-    bearing test."""
+    ``all_round``: the cones cover every direction (a beam always points back). The wall test of a
+    pair box-culls the walls (few pairs come to it: a near-wall list per robot would cost more).
+    Only the beams ``want (K, N, B)`` are computed (the others stay inf). A robot ``j`` beyond ``2
+    range_max`` (squared distances, with a relative slack of 1e-9) or more than ``_CONE_SLACK``
+    outside every wanted cone of ``i`` (squared dot products with the axes, when the cones are
+    narrower than a half turn) skips the exact tests, which rounding never makes pass."""
     half, rmax = rules[0].half_cone, rules[0].range_max
     nb = beams.shape[0]
     n_robots = px.shape[1]
     cos_lim = math.cos(min(half + _CONE_SLACK, math.pi))
+    cos2 = cos_lim * cos_lim * (1.0 - 1e-9)  # the pre-test: dot >= 0 and dot^2 >= cos2 d^2 (if cos_lim > 0)
+    reach2 = 4.0 * rmax * rmax * (1.0 + 1e-9)
     wb = np.empty(nb, dtype=np.int64)  # per robot: its wanted beams and their unit axes
     wx = np.empty(nb)
     wy = np.empty(nb)
+    every = np.arange(segs.shape[0])
     for k in range(px.shape[0]):
         for i in range(n_robots):
             nw = 0
@@ -72,21 +77,24 @@ def sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, rules, want, 
                     nw += 1
             if nw == 0:
                 continue
-            near = idx[k * n_robots + i, :cnt[k * n_robots + i]]
             for j in range(n_robots):
                 if i == j:
                     continue
                 dx = px[k, j] - px[k, i]
                 dy = py[k, j] - py[k, i]
-                d = math.hypot(dx, dy)
-                if not (d / 2 <= rmax and d > 0):
+                d2 = dx * dx + dy * dy
+                if not d2 <= reach2:
                     continue
-                near_axis = False  # a wanted beam whose axis is within the cone (plus a slack) of j
-                for q in range(nw):
-                    if d / 2 < out[k, i, wb[q]] and dx * wx[q] + dy * wy[q] >= cos_lim * d:
+                near_axis = cos_lim <= 0.0  # a wanted beam whose axis is within the cone (plus a slack) of j
+                for q in range(0 if near_axis else nw):
+                    dot = dx * wx[q] + dy * wy[q]
+                    if dot >= 0.0 and dot * dot >= cos2 * d2:
                         near_axis = True
                         break
                 if not near_axis:
+                    continue
+                d = math.hypot(dx, dy)
+                if not (d / 2 <= rmax and d > 0):
                     continue
                 bearing = math.atan2(dy, dx)
                 gain = False  # does a beam of i hold j nearer than what it heard so far?
@@ -103,7 +111,7 @@ def sonar_crosstalk(px, py, pth, beams, all_round, segs, idx, cnt, rules, want, 
                         break
                 if not back:
                     continue
-                _, hit, _ = segment_hit(px[k, i], py[k, i], dx, dy, segs, near, 1.0, True, True)
+                _, hit, _ = segment_hit(px[k, i], py[k, i], dx, dy, segs, every, 1.0, True, True)
                 if hit >= 0:
                     continue  # a wall between them
                 for b in range(nb):
@@ -156,10 +164,11 @@ def ring_noise(ideal, heard, talk_prob, draws, rules, out):
 
 
 @njit(cache=True, nogil=True)
-def ring_readings(px, py, pth, radius2, beams, offsets, share, walls, draws, rules, out):
+def ring_readings(poses, radius2, beams, offsets, share, walls, grid, draws, rules, out):
     """The rings (beam axes ``beams (B,)`` in the robot frame, sub-rays ``offsets`` shared as
-    ``share`` says) of every robot of ``K`` worlds sharing the :class:`WallSet`, ``px, py, pth
-    (K, N)``, in one pass: what :meth:`parcover_env.sensors.sonar.SonarRing.measure` composes from its
+    ``share`` says) of every robot of ``K`` worlds sharing the :class:`WallSet` (its near-wall lists
+    from the :class:`~parcover_env.geometry.wall_grid.WallGrid` ``grid``), ``poses (K, N, 3)``
+    (C-contiguous), in one pass: what :meth:`parcover_env.sensors.sonar.SonarRing.measure` composes from its
     parts for each world alone. The noise-free echoes (:func:`sonar_echoes`, its concave corners;
     the discs are the other robots of the robot's world, of squared radius ``radius2``), the
     cross-talk of the beams whose uniform ``draws.talk`` is below its probability (``talk`` empty:
@@ -169,6 +178,9 @@ def ring_readings(px, py, pth, radius2, beams, offsets, share, walls, draws, rul
     rmax, slack = rule.range_max, rule.near_slack
     segs = walls.segments
     talk = draws.talk
+    px = np.ascontiguousarray(poses[:, :, 0])
+    py = np.ascontiguousarray(poses[:, :, 1])
+    pth = np.ascontiguousarray(poses[:, :, 2])
     k, n = px.shape
     nb = beams.shape[0]
     ox = px.reshape(k * n)
@@ -191,7 +203,7 @@ def ring_readings(px, py, pth, radius2, beams, offsets, share, walls, draws, rul
     discs = Discs(cx, cy, r2, owner)
     idx = np.empty((k * n, segs.shape[0]), dtype=np.int64)
     cnt = np.empty(k * n, dtype=np.int64)
-    near_segments(ox, oy, segs, rmax + slack, idx, cnt)
+    near_segments_grid(ox, oy, segs, rmax + slack, grid, idx, cnt)
     ideal = np.empty((k * n, nb))
     sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, ideal)
     if rule.specular and walls.points.shape[0] > 0:
@@ -202,8 +214,7 @@ def ring_readings(px, py, pth, radius2, beams, offsets, share, walls, draws, rul
         for r in range(k * n):
             for b in range(nb):
                 want[r // n, r % n, b] = talk[r * nb + b] < rule.crosstalk_prob
-        near_segments(ox, oy, segs, 2.0 * rmax + slack, idx, cnt)
         heard3 = np.full((k, n, nb), np.inf)
-        sonar_crosstalk(px, py, pth, beams, rule.all_round, segs, idx, cnt, rules, want, heard3)
+        sonar_crosstalk(px, py, pth, beams, rule.all_round, segs, rules, want, heard3)
         heard = heard3.reshape(k * n, nb)
     ring_noise(ideal, heard, rule.crosstalk_prob if talk.shape[0] else 0.0, draws, rules, out)

@@ -59,21 +59,23 @@ def test_disc_culls_change_no_reading():
     assert hits[-1] == 0.0  # inside a disc: an echo at once
 
 
-def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit():
+@pytest.mark.parametrize("range_max", [3.0, 1.2])
+def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit(range_max):
     """The compiled cone (near-wall lists, box and best-echo culls, direct echoes before mirrored
-    legs, disc culls) reads bit for bit what tracing every sub-ray's two legs against every wall and
-    robot reads, in a room of oblique walls with a crowd of robots."""
+    legs, disc culls of both legs) reads bit for bit what tracing every sub-ray's two legs against
+    every wall and robot reads, in a room of oblique walls with a crowd of robots (a short range:
+    many robots beyond it, left out of the second legs too)."""
     from parcover_env.geometry import rays
     from parcover_env.sensors import sonar_kernels as kern
     from parcover_env.sensors.sonar import _NUDGE, _rules, _share, _subray_offsets, _walls
 
-    cfg = SonarConfig()
+    cfg = SonarConfig(range_max=range_max)
     ring = SonarRing(cfg)
     walls = _walls(_oblique_room())
     offsets = _subray_offsets(cfg.cone_deg, 5)
     cos_min = math.cos(math.radians(cfg.incidence_max_deg)) - 1e-12
     rng = np.random.default_rng(12)
-    n_mirrored = 0
+    n_mirrored = far = 0
     for _ in range(3):
         xy = np.column_stack([rng.uniform(0.3, 3.5, 10), rng.uniform(0.3, 2.8, 10)])
         axes = np.ascontiguousarray(rng.uniform(-4, 4, (10, 1)) + ring.beam_angles[None, :])
@@ -88,8 +90,9 @@ def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit():
             want = reference.specular_echoes(ox[n], oy[n], axes[n], offsets, walls.segments, walls.kernel.lengths,
                                              others, 0.15 * 0.15, cfg.range_max, cos_min, _NUDGE)
             assert got[n].tobytes() == np.array(want).tobytes(), n
-        n_mirrored += int(((got > 2.0) & np.isfinite(got)).sum())
-    assert n_mirrored > 0  # some readings are two-leg paths
+        n_mirrored += int(((got > 2.0 * range_max / 3.0) & np.isfinite(got)).sum())
+        far += int((np.hypot(*(xy[:, None] - xy[None]).T) > range_max + 0.15).sum())
+    assert n_mirrored > 0 and (far > 0) == (range_max < 3.0)  # two-leg paths; at the short range, far robots
 
 
 @pytest.mark.parametrize("layout", ["ring", "amigobot"])
@@ -117,6 +120,13 @@ def test_crosstalk_equals_a_plain_reference_at_the_cone_edges(layout):
                     inside += np.isfinite(got[0, 1])
                     outside += np.isinf(got[0, 1])
     assert inside > 4 and outside > 4
+    rmax = cfg.range_max  # robots facing each other at twice the range, give or take a little
+    for eps in (-1e-9, -1e-13, 0.0, 1e-13, 1e-9):
+        d = 2 * rmax + eps
+        poses = np.array([[0.3, 0.1, 0.0], [0.3 + d, 0.1, math.pi]])
+        got = crosstalk(cfg, poses, beams, none)
+        assert np.array_equal(got, reference.crosstalk(cfg, poses, beams, none)), eps
+        assert np.isfinite(got[0]).any() == (poses[1, 0] - poses[0, 0] <= 2 * rmax), eps
     walls = _oblique_room()
     rng = np.random.default_rng(3)
     for _ in range(5):
@@ -149,3 +159,59 @@ def test_overlapping_cones_share_their_common_sub_rays():
     assert np.array_equal(_share(amigo.beam_angles[None], offsets), identity)
     mixed = np.stack([amigo.beam_angles, amigo.beam_angles[::-1]])  # rows of different patterns
     assert np.array_equal(_share(mixed, offsets), identity)
+
+
+def test_each_corner_is_listed_once_at_the_first_of_its_two_walls():
+    """A square room (walls 0-3 in order) with a free wall ending on nothing: its four corners are
+    listed at walls 0, 0, 1, 2 (the lower index of the two walls meeting there), the free wall lists
+    none; the corner echoes found through the near-wall lists equal those with every wall listed."""
+    from parcover_env.geometry import rays
+    from parcover_env.sensors import sonar_kernels as kern
+    from parcover_env.sensors.sonar import _rules, _walls
+
+    square = np.array([[0.0, 0.0, 2.0, 0.0], [2.0, 0.0, 2.0, 2.0], [2.0, 2.0, 0.0, 2.0], [0.0, 2.0, 0.0, 0.0],
+                       [0.6, 0.7, 1.1, 1.3]])
+    walls = _walls(square)
+    owned = walls.kernel.owned
+    points = walls.kernel.points
+    listed = {tuple(points[c]): s for s in range(len(square)) for c in owned[s] if c >= 0}
+    assert listed == {(2.0, 0.0): 0, (0.0, 0.0): 0, (2.0, 2.0): 1, (0.0, 2.0): 2}
+    assert (owned[3:] == -1).all() and (owned >= -1).all()
+    cfg = SonarConfig(range_max=1.5)
+    ox, oy = np.array([0.4, 1.5, 1.0]), np.array([0.3, 1.6, 1.0])
+    axes = np.ascontiguousarray(np.linspace(-4, 4, 3)[:, None] + SonarRing(cfg).beam_angles[None, :])
+    discs = kern.Discs(*rays.disc_planes(np.zeros((0, 2)), 0.1, np.full(3, -1), 3))
+    idx, cnt = rays.near_segments(ox, oy, walls.segments, cfg.range_max)
+    got = np.full((3, axes.shape[1]), np.inf)
+    kern.sonar_corner_echoes(ox, oy, axes, walls.kernel, idx, cnt, discs, _rules(cfg), got)
+    every = np.full((3, axes.shape[1]), np.inf)
+    kern.sonar_corner_echoes(ox, oy, axes, walls.kernel, np.tile(np.arange(5), (3, 1)), np.full(3, 5), discs,
+                             _rules(cfg), every)
+    assert np.array_equal(got, every) and np.isfinite(got).sum() >= 3
+    assert np.isclose(got[0][np.isfinite(got[0])], 0.5).all()  # (0.4, 0.3): the corner (0, 0) at 0.5 m
+
+
+@pytest.mark.parametrize("change", [{}, {"model": "fast", "dropout_prob": 0.2}, {"garbage_rate": 0.3}])
+def test_sense_draws_each_world_into_one_array_as_its_own_draw(change):
+    """``sense`` of K = 2 worlds (different poses) writes each world's draws into one flat array per
+    kind: the readings of each world's own ``draw`` (and of each world alone, K = 1), and every
+    generator ends where its own draw leaves it."""
+    import copy
+
+    from parcover_env.sensors.base import SensingState
+
+    ring = SonarRing(SonarConfig(**change))
+    walls = _oblique_room()
+    rng = np.random.default_rng(9)
+    poses = np.concatenate([rng.uniform(0.5, 3.0, (2, 4, 2)), rng.uniform(-3, 3, (2, 4, 1))], axis=2)
+    gens = [np.random.default_rng(s) for s in (1, 2)]
+    mine = [copy.deepcopy(g) for g in gens]
+    got = ring.sense(SensingState(poses, walls, 0.15, np.full((2, 4), -1)), gens)
+    want = ring.readings(poses, walls, 0.15, [ring.draw(4, g) for g in mine])
+    assert np.array_equal(got, want) and got.shape == (2, 4, ring.n_beams)
+    for k in range(2):
+        alone = ring.sense(SensingState(poses[k:k + 1], walls, 0.15, np.full((1, 4), -1)),
+                           [np.random.default_rng(k + 1)])
+        assert np.array_equal(alone[0], got[k])
+    assert [g.random() for g in gens] == [g.random() for g in mine]
+    assert (got < ring.cfg.range_max).sum() > 4
