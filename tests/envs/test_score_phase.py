@@ -313,6 +313,9 @@ def test_info_keys_in_their_fixed_order():
     assert info["reward_time"] == 0.5 and info["pose_error"] == pytest.approx(error)
     ended = outputs_phase.infos([env], true, terms, [True])[0]["robot_0"]
     assert list(ended) == keys and ended["metrics/ended"] == 1.0
+    assert "active" not in info
+    slot = outputs_phase.infos([env], true, terms, [False], active=True)[0]["robot_1"]  # a VecEnv's slot
+    assert list(slot) == [*keys, "active"] and slot["active"] is True and slot["pose_error"] == info["pose_error"]
 
 
 def test_infos_of_two_worlds_by_value_one_dict_per_agent():
