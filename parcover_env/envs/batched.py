@@ -125,7 +125,7 @@ class BatchedVecEnv(VecEnv):
         acts, self._actions = self._actions, None
         n, names = self.n_robots, self.agents_per_world
         # the (K N, A) slots as the (K, N, A) block of the worlds' agents (validated by the act phase)
-        world_obs, outs = stepper.step(self.worlds, acts.reshape(self.n_worlds, n, *acts.shape[1:]))
+        world_obs, outs = stepper.step(self.worlds, acts.reshape(self.n_worlds, n, *acts.shape[1:]), active=True)
         obs = world_obs.reshape(self.num_envs, *world_obs.shape[2:])  # the slots, world by world (a view)
         rewards = np.fromiter(chain.from_iterable(out[0].values() for out in outs), np.float32, self.num_envs)
         dones = np.zeros(self.num_envs, dtype=bool)
@@ -140,9 +140,7 @@ class BatchedVecEnv(VecEnv):
                 infos += [stepper.slot_info(inf[a], o[i], t, tr) for i, a in enumerate(names)]
                 dones[rows] = True
                 obs[rows] = self._reset_world(k)
-            else:  # stepper.slot_info of a running episode: no metrics yet, only ``active``
-                for info in inf.values():
-                    info["active"] = True
+            else:  # stepper.slot_info of a running episode: no metrics yet, ``active`` already set
                 infos += inf.values()
         return obs, rewards, dones, infos
 

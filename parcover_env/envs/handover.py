@@ -79,9 +79,10 @@ def update_teams(teams: Sequence[Team], kinects: Sequence[KinectSystem | None], 
         if kin is not None:
             for i, pose in kin.last_fixes.items():
                 fix[j, i] = pose[:2]
-    maybe = step_kernels.may_split(tp, np.ascontiguousarray(estimates, dtype=float),
-                                   np.ascontiguousarray(plan_progress, dtype=float), fix, float(teams[0].tol),
-                                   SPLIT_MARGIN)
+    maybe = np.empty(k, dtype=bool)
+    step_kernels.may_split(tp, np.ascontiguousarray(estimates, dtype=float),
+                           np.ascontiguousarray(plan_progress, dtype=float), fix, float(teams[0].tol), SPLIT_MARGIN,
+                           maybe)
     for j, m in enumerate(maybe.tolist()):
         if m:
             update_team(teams[j], kinects[j], estimates[j], plan_progress[j], views[j])

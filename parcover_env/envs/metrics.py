@@ -44,9 +44,10 @@ def formation_errors_many(poses: np.ndarray, predecessor: np.ndarray, offset: fl
     Returns ``dl, dpsi (K, N)``, world ``k``'s followers in its first ``n[k]`` columns (0 after), and ``n (K,)``."""
     from parcover_env.envs import step_kernels
 
-    dl, dpsi, n = step_kernels.formation_errors_many(np.ascontiguousarray(poses, dtype=float),
-                                                     np.ascontiguousarray(predecessor, dtype=np.int64), float(offset),
-                                                     float(l_d), float(psi_d))
+    predecessor = np.ascontiguousarray(predecessor, dtype=np.int64)
+    dl, dpsi, n = np.empty(predecessor.shape), np.empty(predecessor.shape), np.empty(len(predecessor), dtype=np.int64)
+    step_kernels.formation_errors_many(np.ascontiguousarray(poses, dtype=float), predecessor, float(offset),
+                                       float(l_d), float(psi_d), dl, dpsi, n)
     return dl, wrap_angle(dpsi), n
 
 
@@ -190,10 +191,9 @@ def record_steps(metrics: Sequence[EpisodeMetrics], before: np.ndarray, true: np
     from parcover_env.envs import step_kernels
 
     k_worlds, n = true.shape[:2]
-    paths, sq_err = step_kernels.path_and_error_sums(
-        np.ascontiguousarray(before, dtype=float), np.ascontiguousarray(true, dtype=float),
-        np.ascontiguousarray(estimates, dtype=float),
-        np.array([m.path_lengths for m in metrics], dtype=float).reshape(k_worlds, n))
+    paths, sq_err = np.array([m.path_lengths for m in metrics], dtype=float).reshape(k_worlds, n), np.empty(k_worlds)
+    step_kernels.path_and_error_sums(np.ascontiguousarray(before, dtype=float), np.ascontiguousarray(true, dtype=float),
+                                     np.ascontiguousarray(estimates, dtype=float), paths, sq_err)
     paths, sq_err = paths.tolist(), sq_err.tolist()
     wall, robot = new_contacts[0].sum(axis=1).tolist(), new_contacts[1].sum(axis=1).tolist()
     predecessor = _rows([t.predecessor for t in teams])

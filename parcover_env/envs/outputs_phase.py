@@ -29,10 +29,11 @@ from parcover_env.geometry import wrap_angle
 __all__ = ["outputs", "infos"]
 
 
-def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores) -> list[tuple[dict, dict, dict, dict]]:
+def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *,
+            active: bool = False) -> list[tuple[dict, dict, dict, dict]]:
     """Part 3 of the ``K`` worlds at true poses ``(K, N, 3)`` with the score phase's ``scores``:
     ``(rewards, terminations, truncations, infos)`` per world (a world's agents are cleared when
-    its episode ends)."""
+    its episode ends); ``active``: every info has ``"active": True`` (a VecEnv's agent slots)."""
     first = worlds[0]
     terms = scores.terms
     total = 0
@@ -43,7 +44,7 @@ def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores) -> list[tup
     truncated = [w.steps >= max_steps and not d for w, d in zip(worlds, done, strict=True)]
     ended = [d or t for d, t in zip(done, truncated, strict=True)]
     all_infos = infos(worlds, true, [terms[t] for t in first.terms], ended, estimates=scores.estimates,
-                      visited=scores.visited)
+                      visited=scores.visited, active=active)
     out = []
     for w, rewards, info, d, t, e in zip(worlds, total.tolist(), all_infos, done, truncated, ended, strict=True):
         agents = w.agents
@@ -54,11 +55,13 @@ def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores) -> list[tup
 
 
 def infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray], ended: Sequence[bool], *,
-          estimates: np.ndarray | None = None, visited: np.ndarray | None = None) -> list[dict[str, dict]]:
+          estimates: np.ndarray | None = None, visited: np.ndarray | None = None,
+          active: bool = False) -> list[dict[str, dict]]:
     """``info[agent]`` of every agent of the ``K`` worlds (see the module docstring): ``terms[i]`` the
     values ``(K, N)`` of term ``i`` (the worlds' terms order); ``ended[k]``: world ``k``'s episode
     ends this step (its ``metrics/*`` entries are its metrics). ``estimates (K, N, 3)``, ``visited
-    (K, M)``: the worlds' pose estimates and visited KPOIs if already gathered (read from the worlds if not).
+    (K, M)``: the worlds' pose estimates and visited KPOIs if already gathered (read from the worlds if not);
+    ``active``: every info also has ``"active": True`` (its last key; a VecEnv's agent slots).
 
     Built with the fewest Python operations: each per-agent column becomes Python floats once for
     all worlds (one ``tolist``), every agent's dict is a C-level copy of its world's template, and
@@ -68,7 +71,7 @@ def infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray], 
     est = rows([w.estimate for w in worlds]) if estimates is None else estimates
     d = est[..., :2] - true[..., :2]
     columns = [*terms, np.hypot(d[..., 0], d[..., 1]), np.abs(wrap_angle(est[..., 2] - true[..., 2]))]
-    base, keys = _template(tuple(first.terms), first.version == 2, first.scanner is not None)
+    base, keys = _template(tuple(first.terms), first.version == 2, first.scanner is not None, active)
     if first.scanner is not None:
         columns.append(rows([w.scanner.outcome for w in worlds]))
     if first.version == 2:
@@ -95,7 +98,8 @@ _consume = deque(maxlen=0).extend
 
 
 @functools.lru_cache(maxsize=16)
-def _template(terms: tuple[str, ...], route_done: bool, sonar_fix: bool) -> tuple[dict, tuple[str, ...]]:
+def _template(terms: tuple[str, ...], route_done: bool, sonar_fix: bool,
+              active: bool) -> tuple[dict, tuple[str, ...]]:
     """The info of an agent before its own values (zeros; ``metrics/path_lengths`` to be replaced by a
     fresh array) and the keys of its own values, in the order :func:`infos` builds its columns.
     Read only: copy it."""
@@ -110,4 +114,6 @@ def _template(terms: tuple[str, ...], route_done: bool, sonar_fix: bool) -> tupl
     if route_done:
         base["route_done"] = 0.0
         keys = (*keys, "route_done")
+    if active:
+        base["active"] = True
     return base, keys

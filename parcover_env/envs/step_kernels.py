@@ -110,26 +110,25 @@ def formation_errors(poses, predecessor, offset, l_d, psi_d, dl, dpsi):
 
 
 @njit(cache=True, nogil=True)
-def formation_errors_many(poses, predecessor, offset, l_d, psi_d):
-    """:func:`formation_errors` of ``K`` worlds: ``poses (K, N, 3)``, ``predecessor (K, N)``; returns
-    ``dl, dpsi (K, N)`` (world ``k``'s followers in its first ``n[k]`` columns, 0 after) and ``n (K,)``."""
-    k_worlds, n_robots = predecessor.shape
-    dl, dpsi = np.zeros((k_worlds, n_robots)), np.zeros((k_worlds, n_robots))
-    n = np.zeros(k_worlds, dtype=np.int64)
-    for k in range(k_worlds):
+def formation_errors_many(poses, predecessor, offset, l_d, psi_d, dl, dpsi, n):
+    """:func:`formation_errors` of ``K`` worlds: ``poses (K, N, 3)``, ``predecessor (K, N)``; writes
+    ``dl, dpsi (K, N)`` (world ``k``'s followers in its first ``n[k]`` columns, 0 after) and ``n (K,)``
+    (the caller's arrays: a compiled call that returns arrays pays for boxing each one)."""
+    dl[...] = 0.0
+    dpsi[...] = 0.0
+    for k in range(predecessor.shape[0]):
         n[k] = formation_errors(poses[k], predecessor[k], offset, l_d, psi_d, dl[k], dpsi[k])
-    return dl, dpsi, n
 
 
 @njit(cache=True, nogil=True)
-def may_split(tp, est, plan_progress, fix, tol, margin):
-    """``(K,)`` bool: some robot ``i`` of world ``k`` heads for a TP (``tp[k, i] = (x, y, distance)``,
-    NaN: none) and has passed its distance (``plan_progress[k, i] >= distance - 1e-6``), or its
-    estimate ``est[k, i]`` or this step's fix ``fix[k, i]`` (NaN: none) lies within ``tol`` of it;
+def may_split(tp, est, plan_progress, fix, tol, margin, out):
+    """Writes ``out (K,)`` bool: some robot ``i`` of world ``k`` heads for a TP (``tp[k, i] = (x, y,
+    distance)``, NaN: none) and has passed its distance (``plan_progress[k, i] >= distance - 1e-6``), or
+    its estimate ``est[k, i]`` or this step's fix ``fix[k, i]`` (NaN: none) lies within ``tol`` of it;
     every test widened by ``margin``."""
-    out = np.zeros(tp.shape[0], dtype=np.bool_)
     reach = tol + margin
     for k in range(tp.shape[0]):
+        out[k] = False
         for i in range(tp.shape[1]):
             x, y, d = tp[k, i, 0], tp[k, i, 1], tp[k, i, 2]
             if math.isnan(d):
@@ -138,7 +137,6 @@ def may_split(tp, est, plan_progress, fix, tol, margin):
                     or math.hypot(fix[k, i, 0] - x, fix[k, i, 1] - y) <= reach):
                 out[k] = True
                 break
-    return out
 
 
 @njit(cache=True, nogil=True)
@@ -195,19 +193,18 @@ def pairwise_sum(a, lo, n):
 
 
 @njit(cache=True, nogil=True)
-def path_and_error_sums(before, true, est, paths):
-    """Per world of ``K``: the path lengths ``paths (K, N)`` plus each robot's straight step
-    ``before -> true`` (``(K, N, 3)`` poses; ``hypot``), and the sum of squared position errors of the
-    estimates ``est`` over the world's robots (``np.sum`` of the ``(N, 2)`` squared differences)."""
+def path_and_error_sums(before, true, est, paths, sq):
+    """Per world of ``K``: adds to the path lengths ``paths (K, N)`` (in place) each robot's straight
+    step ``before -> true`` (``(K, N, 3)`` poses; ``hypot``), and writes into ``sq (K,)`` the sum of
+    squared position errors of the estimates ``est`` over the world's robots (``np.sum`` of the
+    ``(N, 2)`` squared differences)."""
     k_worlds, n = paths.shape
-    new_paths, sq = np.empty((k_worlds, n)), np.empty(k_worlds)
     sq_terms = np.empty(2 * n)
     for k in range(k_worlds):
         for i in range(n):
-            new_paths[k, i] = paths[k, i] + math.hypot(true[k, i, 0] - before[k, i, 0], true[k, i, 1] - before[k, i, 1])
+            paths[k, i] = paths[k, i] + math.hypot(true[k, i, 0] - before[k, i, 0], true[k, i, 1] - before[k, i, 1])
             ex = true[k, i, 0] - est[k, i, 0]
             ey = true[k, i, 1] - est[k, i, 1]
             sq_terms[2 * i] = ex * ex
             sq_terms[2 * i + 1] = ey * ey
         sq[k] = pairwise_sum(sq_terms, 0, 2 * n)
-    return new_paths, sq

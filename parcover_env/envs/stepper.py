@@ -88,14 +88,16 @@ def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = Non
     return obs
 
 
-def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -> tuple[np.ndarray, list[tuple]]:
+def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray, *,
+         active: bool = False) -> tuple[np.ndarray, list[tuple]]:
     """One step of every world (``actions[k]``: world ``k``'s action dict, or one array ``(K, N, A)``
     of every world's agents' actions in agent order, as :func:`act` takes them): the observations
-    ``(K, N, D)`` and each world's ``(rewards, terminations, truncations, infos)``."""
+    ``(K, N, D)`` and each world's ``(rewards, terminations, truncations, infos)`` (``active``: every
+    info with ``"active": True``, as a VecEnv's slots have it)."""
     before, true = act(worlds, actions)
     scores = score(worlds, before, true)
     obs = observe(worlds, true, scores)
-    return obs, outputs(worlds, true, scores)
+    return obs, outputs(worlds, true, scores, active=active)
 
 
 def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -110,10 +112,10 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     return score_phase.score(worlds, before, true)
 
 
-def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores) -> list[tuple]:
+def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *, active: bool = False) -> list[tuple]:
     """Part 3 of every world, all at once (:func:`parcover_env.envs.outputs_phase.outputs`):
     ``(rewards, terminations, truncations, infos)`` per world."""
-    return outputs_phase.outputs(worlds, true, scores)
+    return outputs_phase.outputs(worlds, true, scores, active=active)
 
 
 def with_metrics(info: dict) -> dict:

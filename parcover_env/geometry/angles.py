@@ -38,8 +38,15 @@ def atan2(y, x):
     return out
 
 
-def _kernels():
-    """:mod:`parcover_env.geometry.angle_kernels` (numba is imported on first use, not with the package)."""
-    from parcover_env.geometry import angle_kernels
+_LOADED: dict = {}
 
-    return angle_kernels
+
+def _kernels():
+    """:mod:`parcover_env.geometry.angle_kernels` (numba is imported on first use, not with the package;
+    kept after that, so a call costs a dict lookup, not an import statement)."""
+    kernels = _LOADED.get("k")
+    if kernels is None:
+        from parcover_env.geometry import angle_kernels as kernels
+
+        _LOADED["k"] = kernels
+    return kernels

@@ -67,7 +67,8 @@ class RelativeCamera:
         blocked = sight_lines_blocked(px, py, target, np.ascontiguousarray(segments, dtype=float).reshape(-1, 4))
         follows = target >= 0
         followers = [int(np.count_nonzero(follows))] if k == 1 else follows.reshape(k, n).sum(axis=1).tolist()
-        z = [rng.standard_normal((3, f)) for rng, f in zip(rngs, followers, strict=True)]  # range, bearing, heading
+        # range, bearing, heading; a world without followers draws nothing (its generator is left as is)
+        z = [rng.standard_normal((3, f)) if f else _NO_DRAWS for rng, f in zip(rngs, followers, strict=True)]
         rel_xy, rel_heading, visible = np.empty((k * n, 2)), np.empty(k * n), np.empty(k * n, dtype=bool)
         onboard_kernels.camera_view(px, py, pth, target, blocked, z[0] if k == 1 else np.concatenate(z, axis=1),
                                     self.record, rel_xy, rel_heading, visible)
@@ -105,6 +106,10 @@ def lines_of_sight_blocked(poses: np.ndarray, predecessor: np.ndarray, segments:
     px, py = (np.ascontiguousarray(poses[..., c].ravel()) for c in range(2))
     walls = np.ascontiguousarray(segments, dtype=float).reshape(-1, 4)
     return sight_lines_blocked(px, py, _flat_targets(predecessor), walls).reshape(poses.shape[:2])
+
+
+_NO_DRAWS = np.empty((3, 0))
+"""The normals of a world without followers (shared, never written)."""
 
 
 def _flat_targets(predecessor: np.ndarray) -> np.ndarray:

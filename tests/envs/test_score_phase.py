@@ -114,20 +114,26 @@ def test_update_teams_splits_exactly_the_worlds_update_team_splits():
     assert kin[1].handed[0].keys() == {1} and kin[1].handed[0][1][0] == pytest.approx(tp.position[0] - 0.5)
 
 
+def _may_split(*args) -> np.ndarray:
+    out = np.ones(len(args[0]), dtype=bool)  # every entry is written
+    step_kernels.may_split(*args, out)
+    return out
+
+
 def test_may_split_by_distance_estimate_and_fix():
     tp = np.array([[[1.0, 0.0, 5.0], [np.nan] * 3]])
     est = np.zeros((1, 2, 3))
     no_fix = np.full((1, 2, 2), np.nan)
-    assert step_kernels.may_split(tp, est, np.array([[4.9, 0.0]]), no_fix, 0.2, 0.0).tolist() == [False]
-    assert step_kernels.may_split(tp, est, np.array([[5.0 - 1e-6, 0.0]]), no_fix, 0.2, 0.0).tolist() == [True]
-    assert step_kernels.may_split(tp, est, np.zeros((1, 2)), no_fix, 1.0, 0.0).tolist() == [True]  # 1 m off
-    assert step_kernels.may_split(tp, est, np.zeros((1, 2)), no_fix, 0.999, 0.0).tolist() == [False]
+    assert _may_split(tp, est, np.array([[4.9, 0.0]]), no_fix, 0.2, 0.0).tolist() == [False]
+    assert _may_split(tp, est, np.array([[5.0 - 1e-6, 0.0]]), no_fix, 0.2, 0.0).tolist() == [True]
+    assert _may_split(tp, est, np.zeros((1, 2)), no_fix, 1.0, 0.0).tolist() == [True]  # 1 m off
+    assert _may_split(tp, est, np.zeros((1, 2)), no_fix, 0.999, 0.0).tolist() == [False]
     fix = no_fix.copy()
     fix[0, 0] = [1.1, 0.0]
-    assert step_kernels.may_split(tp, est, np.zeros((1, 2)), fix, 0.2, 0.0).tolist() == [True]
+    assert _may_split(tp, est, np.zeros((1, 2)), fix, 0.2, 0.0).tolist() == [True]
     fix[0, 0] = [np.nan, np.nan]
     fix[0, 1] = [1.0, 0.0]  # a fix of a robot heading for no TP
-    assert step_kernels.may_split(tp, est, np.zeros((1, 2)), fix, 0.2, 0.0).tolist() == [False]
+    assert _may_split(tp, est, np.zeros((1, 2)), fix, 0.2, 0.0).tolist() == [False]
 
 
 def test_count_waypoints_many_counts_leaders_only():
@@ -213,7 +219,8 @@ def test_path_and_error_sums_by_value_and_as_numpy_sums():
     before = np.zeros((2, 2, 3))
     true = np.array([[[3.0, 4.0, 0.0], [0.0, 1.0, 0.0]], [[0.0, 0.0, 0.0], [1.0, 1.0, 0.0]]])
     est = true + np.array([[[0.3, 0.4, 9.0], [0.0, 0.0, 0.0]], [[1.0, 0.0, 0.0], [0.0, 2.0, 0.0]]])
-    paths, sq = step_kernels.path_and_error_sums(before, true, est, np.array([[1.0, 2.0], [0.0, 0.5]]))
+    paths, sq = np.array([[1.0, 2.0], [0.0, 0.5]]), np.full(2, np.nan)
+    step_kernels.path_and_error_sums(before, true, est, paths, sq)  # paths in place, sq written
     assert paths.tolist() == [[6.0, 3.0], [0.0, 0.5 + math.sqrt(2.0)]] and sq.tolist() == pytest.approx([0.25, 5.0])
     g = np.random.default_rng(3)
     for n in (1, 5, 8, 15, 64, 65, 100, 129, 300, 1000, 5000):
@@ -227,6 +234,9 @@ def test_formation_errors_many_is_each_world_alone():
     pred = np.array([[-1, 0, 1, 2, -1, 4], [-1, -1, -1, -1, -1, -1]])
     dl, dpsi, n = formation_errors_many(poses, pred, 0.1, 0.5, math.pi)
     assert n.tolist() == [4, 0] and not dl[1].any() and not dl[0, 4:].any()
+    raw = np.full((2, 6), 7.0), np.full((2, 6), 7.0), np.full(2, 9)  # the kernel writes every entry
+    step_kernels.formation_errors_many(poses, pred, 0.1, 0.5, math.pi, *raw)
+    assert raw[2].tolist() == [4, 0] and np.array_equal(raw[0], dl) and not raw[1][1].any() and not raw[1][0, 4:].any()
     for k in range(2):
         one = formation_errors(poses[k], pred[k], 0.1, 0.5, math.pi)
         assert np.array_equal(one[0], dl[k, :n[k]]) and np.array_equal(one[1], dpsi[k, :n[k]])
@@ -303,6 +313,9 @@ def test_info_keys_in_their_fixed_order():
     assert info["reward_time"] == 0.5 and info["pose_error"] == pytest.approx(error)
     ended = outputs_phase.infos([env], true, terms, [True])[0]["robot_0"]
     assert list(ended) == keys and ended["metrics/ended"] == 1.0
+    assert "active" not in info
+    slot = outputs_phase.infos([env], true, terms, [False], active=True)[0]["robot_1"]  # a VecEnv's slot
+    assert list(slot) == [*keys, "active"] and slot["active"] is True and slot["pose_error"] == info["pose_error"]
 
 
 def test_infos_of_two_worlds_by_value_one_dict_per_agent():

@@ -8,6 +8,8 @@ import numpy as np
 
 from parcover_env.sensors.relative import RelativeCamera, lines_of_sight_blocked
 
+NO_WALLS = np.zeros((0, 4))
+
 
 def test_lines_of_sight_blocked_per_world_by_hand():
     wall = np.array([[1.0, -1.0, 1.0, 1.0]])  # x = 1, from y = -1 to 1
@@ -54,3 +56,26 @@ def test_measure_many_of_two_worlds_by_value_each_world_its_own_draws():
         alone = cam.measure(poses[k], pred[k], walls, np.random.default_rng(seed))
         assert all(np.array_equal(a, b[k]) for a, b in zip(alone, got, strict=True))  # bit for bit
     assert abs(got.rel_xy[1, 2, 0] - 1.5) < 0.5 and abs(got.rel_xy[0, 1, 0] - 1.0) < 0.5  # its own world's robot
+
+
+def test_a_world_without_followers_draws_nothing_and_the_others_read_as_alone():
+    poses = np.array([
+        [[1.0, 1.0, 0.0], [2.0, 1.0, math.pi], [0.0, 0.0, 0.0]],  # 1 sees 0, 1 m ahead
+        [[1.0, 1.0, 0.0], [2.0, 1.0, math.pi], [0.0, 0.0, 0.0]],  # the same robots, nobody follows
+        [[0.0, 0.0, 0.0], [0.0, 2.0, 0.0], [1.0, 0.0, math.pi]],  # 2 sees 0, 1 m ahead
+    ])
+    pred = np.array([[-1, 0, -1], [-1, -1, -1], [-1, -1, 0]])
+    cam = RelativeCamera(fov_deg=120.0, max_range=2.5, range_noise=0.05, bearing_noise=0.1, heading_noise=0.2)
+    rngs = [np.random.default_rng(s) for s in (1, 2, 3)]
+    got = cam.measure_many(poses, pred, NO_WALLS, rngs)
+    assert rngs[1].bit_generator.state == np.random.default_rng(2).bit_generator.state  # untouched
+    assert rngs[1].random() == np.random.default_rng(2).random()
+    assert got.visible.tolist() == [[False, True, False], [False, False, False], [False, False, True]]
+    assert not got.rel_xy[1].any() and not got.rel_heading[1].any()
+    for k in (0, 2):
+        alone = cam.measure(poses[k], pred[k], NO_WALLS, np.random.default_rng(k + 1))
+        assert all(np.array_equal(a, b[k]) for a, b in zip(alone, got, strict=True))  # bit for bit
+    z = np.random.default_rng(3).standard_normal(3)  # world 2's one follower: range, bearing, heading
+    r, b = 1.0 + 0.05 * z[0], 0.1 * z[1]
+    np.testing.assert_allclose(got.rel_xy[2, 2], [r * math.cos(b), r * math.sin(b)], atol=1e-12)
+    np.testing.assert_allclose(got.rel_heading[2, 2], math.remainder(-math.pi + 0.2 * z[2], 2 * math.pi), atol=1e-12)
