@@ -49,6 +49,11 @@ class MarlConfig:
     """Value-target normalization: ``PopArtValueNorm`` (MAPPO paper), ``RunningValueNorm`` or none."""
     normalize_advantage: bool = True
     """Standardize advantages per minibatch (over time, not across robots)."""
+    obs_scale: Literal["box", "rollout"] = "box"
+    """Input scale of the actor (and of IPPO's critic): ``box`` scales each observation entry by the
+    env's observation box to [-1, 1]; ``rollout`` by the mean and standard deviation of the first
+    batch's observations, which is not learned from (:mod:`~parcover_env.harness.marl_scale`; a run
+    with ``--init`` keeps the init's scale)."""
     hidden: tuple[int, ...] = (128, 128)
     """Hidden layer widths of the actor and the critic (tanh MLPs, shared by every robot)."""
     critic: Literal["mlp", "attention"] = "mlp"
