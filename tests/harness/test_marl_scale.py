@@ -108,3 +108,13 @@ def test_box_scale_is_the_default_and_untouched(tmp_path):
     net = TorchRLPolicy(tmp_path / "policy.pt").net
     box = marl.EnvMaker("office", "realistic", 20, overrides=V2).parallel().observation_space("robot_0")
     assert np.allclose(net[0].centre.numpy(), (box.low + box.high) / 2)
+
+
+def test_the_generated_scaled_config_loads_with_its_stated_changes():
+    from parcover_env.scenarios.registry import configs_dir
+
+    base = load_marl_config("ippo", configs_dir() / "train" / "ippo_generated_worlds.yaml")
+    cfg = load_marl_config("ippo", configs_dir() / "train" / "ippo_generated_scaled.yaml")
+    assert (cfg.obs_scale, cfg.episode_steps) == ("rollout", 0)  # the two changes its comments give
+    same = {f.name for f in dataclasses.fields(MarlConfig)} - {"obs_scale", "episode_steps", "wall_time"}
+    assert all(getattr(cfg, k) == getattr(base, k) for k in same)
