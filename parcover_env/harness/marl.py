@@ -97,7 +97,7 @@ class EnvMaker:
         from parcover_env import parallel_env
         from parcover_env.harness.map_pool import MapPoolEnv, is_pool
 
-        kwargs = {"overrides": self.overrides, "preset": self.preset, "max_cycles": self.episode_steps or None}
+        kwargs = {"overrides": self.overrides, "preset": self.preset}  # its own step limit (see :meth:`world`)
         if is_pool(self.scenario):
             return MapPoolEnv(self.scenario, self.max_robots, **kwargs)
         return parallel_env(self.scenario, **kwargs)
@@ -109,13 +109,15 @@ class EnvMaker:
         return int(np.random.SeedSequence([self.seed, k]).generate_state(1)[0])
 
     def world(self, k: int = 0):
-        """World ``k``: the ParallelEnv, seeded, as a :class:`~parcover_env.harness.marl_env.RobotsEnv`."""
+        """World ``k``: the ParallelEnv, seeded, as a :class:`~parcover_env.harness.marl_env.RobotsEnv`
+        that truncates at ``episode_steps`` (the ParallelEnv keeps the scenario's step limit, so its
+        ``time`` observation is the fraction of that limit, as in evaluation)."""
         from parcover_env.harness.marl_env import RobotsEnv
 
         env = self.parallel()
         if self.seed is not None:
             env.reset(seed=self.world_seed(k))
-        return RobotsEnv(env, with_state=self.state)
+        return RobotsEnv(env, with_state=self.state, max_steps=self.episode_steps)
 
     def __call__(self):
         import torch

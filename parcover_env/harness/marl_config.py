@@ -65,7 +65,9 @@ class MarlConfig:
     critic_heads: int = 4
     """``critic: attention``: attention heads (must divide ``critic_embed``)."""
     episode_steps: int = 0
-    """Step limit of a training episode (0: the scenario's ``episode.max_steps``)."""
+    """Step limit of a training episode (0: the scenario's ``episode.max_steps``): the TorchRL env
+    truncates there while the env keeps the scenario's limit, so the ``time`` observation means the
+    same in training and evaluation (:class:`~parcover_env.harness.marl_env.RobotsEnv`)."""
     wall_time: float = 0.0
     """Stop after the batch that ends past this many seconds of wall time (0: no limit); the run
     is saved as if ``--steps`` had been reached (the sidecar's ``agent_steps`` is what was done)."""
