@@ -118,3 +118,25 @@ def test_the_generated_scaled_config_loads_with_its_stated_changes():
     assert (cfg.obs_scale, cfg.episode_steps) == ("rollout", 0)  # the two changes its comments give
     same = {f.name for f in dataclasses.fields(MarlConfig)} - {"obs_scale", "episode_steps", "wall_time"}
     assert all(getattr(cfg, k) == getattr(base, k) for k in same)
+
+
+def test_shipped_scaled_checkpoint_loads_with_its_fitted_input_scale():
+    import json
+    from pathlib import Path
+
+    import parcover_env
+    from parcover_env.harness.map_pool import MapPoolEnv
+
+    root = Path(parcover_env.__file__).resolve().parent.parent / "baselines" / "checkpoints" / "ippo_generated_scaled"
+    if not root.is_dir():
+        pytest.skip("source checkout only")
+    run = json.loads((root / "run.json").read_text())
+    assert run["policy"] == "torchrl:baselines/checkpoints/ippo_generated_scaled/policy.pt"
+    assert run["config"]["obs_scale"] == "rollout" and run["init"]["init"] is None  # from scratch, curriculum
+    assert run["init_run"]["init"] is None and run["init_run"]["config"]["entropy_coeff"] == 0.005
+    scale = TorchRLPolicy(root / "policy.pt").net[0]
+    pool = MapPoolEnv("generated:3-4", overrides=run["env_overrides"])
+    box = pool.observation_space("robot_0")
+    goal = pool.env.layout.slices["goal_dx"]
+    assert (box.high - box.low)[goal][0] / 2 == pytest.approx(21.8, abs=0.1)  # the box's half-width
+    assert 0.1 < scale.half_width[goal].item() < 1.0  # fitted: the goal's spread, well under the box's
