@@ -39,10 +39,12 @@ import numpy as np
 from parcover_env.harness.marl_config import MarlConfig
 from parcover_env.harness.marl_init import CRITIC_FILE, apply_init, critic_spec, find_init, save_critic
 from parcover_env.harness.marl_loss import GROUP, REAL, build_loss, prepare_minibatch, standardize_advantage
+from parcover_env.harness.marl_scale import fit_scale
 from parcover_env.harness.training import git_commit, plot_curve, write_csv
-from parcover_env.policies.torchrl_policy import POLICY_FILE, SIDECAR_FILE, actor_net
+from parcover_env.policies.torchrl_policy import POLICY_FILE, SIDECAR_FILE, actor_net, box_scale
 
-__all__ = ["TrainRequest", "EnvMaker", "build_actor", "save_policy", "policy_net", "build_critic", "build_loss",
+__all__ = ["TrainRequest", "EnvMaker", "build_actor", "save_policy", "policy_net", "build_critic", "critic_scale",
+           "build_loss",
            "train", "GROUP", "REAL", "standardize_advantage", "prepare_minibatch", "RunWriter"]
 
 CURVE_FILE = "curve.csv"
@@ -95,7 +97,7 @@ class EnvMaker:
         from parcover_env import parallel_env
         from parcover_env.harness.map_pool import MapPoolEnv, is_pool
 
-        kwargs = {"overrides": self.overrides, "preset": self.preset, "max_cycles": self.episode_steps or None}
+        kwargs = {"overrides": self.overrides, "preset": self.preset}  # its own step limit (see :meth:`world`)
         if is_pool(self.scenario):
             return MapPoolEnv(self.scenario, self.max_robots, **kwargs)
         return parallel_env(self.scenario, **kwargs)
@@ -107,13 +109,15 @@ class EnvMaker:
         return int(np.random.SeedSequence([self.seed, k]).generate_state(1)[0])
 
     def world(self, k: int = 0):
-        """World ``k``: the ParallelEnv, seeded, as a :class:`~parcover_env.harness.marl_env.RobotsEnv`."""
+        """World ``k``: the ParallelEnv, seeded, as a :class:`~parcover_env.harness.marl_env.RobotsEnv`
+        that truncates at ``episode_steps`` (the ParallelEnv keeps the scenario's step limit, so its
+        ``time`` observation is the fraction of that limit, as in evaluation)."""
         from parcover_env.harness.marl_env import RobotsEnv
 
         env = self.parallel()
         if self.seed is not None:
             env.reset(seed=self.world_seed(k))
-        return RobotsEnv(env, with_state=self.state)
+        return RobotsEnv(env, with_state=self.state, max_steps=self.episode_steps)
 
     def __call__(self):
         import torch
@@ -190,7 +194,18 @@ def build_critic(algo: str, obs_space, state_space, cfg: MarlConfig):
     mlp = MLP(in_features=n_in, out_features=1, num_cells=list(cfg.hidden), activation_class=nn.Tanh)
     if algo == "mappo":
         return TensorDictModule(StateAndObservation(mlp), in_keys=["state", (GROUP, "observation")], out_keys=out)
+    if cfg.obs_scale != "box":  # the actor's input scale in front (fitted with it, :func:`critic_scale`)
+        mlp = nn.Sequential(box_scale(obs_space.low, obs_space.high), mlp)
     return TensorDictModule(mlp, in_keys=[(GROUP, "observation")], out_keys=out)
+
+
+def critic_scale(critic):
+    """The input scale module of an IPPO critic of :func:`build_critic` with ``obs_scale`` other than
+    ``box``; None for any other critic."""
+    from torch import nn
+
+    net = critic.module
+    return net[0] if isinstance(net, nn.Sequential) and hasattr(net[0], "half_width") else None
 
 
 def _collector(req: TrainRequest, make_env: EnvMaker, actor, total_frames: int):
@@ -309,6 +324,7 @@ def train(req: TrainRequest) -> dict:
     run = RunWriter(req, actor, critic, loss.value_norm, spec, init, n_robots, t0)
     last_save = t0
     stop = _StopOnSigterm()
+    fit_pending = cfg.obs_scale == "rollout" and source is None  # an init run keeps its init's scale
     try:
         for batch in collector:
             run.agent_steps += _agent_steps(batch, n_robots)
@@ -316,6 +332,13 @@ def train(req: TrainRequest) -> dict:
             ended = [{"agent_steps": run.agent_steps, "wall_time": round(wall, 3), **ep} for ep in _episodes(batch)]
             run.rows += ended
             _progress(run.agent_steps, wall, ended)
+            if fit_pending:  # the first batch sets the input scale; its log-probs were taken under the box scale
+                with torch.no_grad():
+                    for scale in (policy_net(actor)[0], critic_scale(critic)):
+                        if scale is not None:
+                            fit_scale(scale, batch.get((GROUP, "observation")), batch.get(REAL, None))
+                fit_pending = False
+                continue
             with torch.no_grad(), warnings.catch_warnings():
                 # the estimator vmaps the critic over (params, target params); attention has no batching
                 # rule there, so torch loops over the two: same values, a "performance drop" warning

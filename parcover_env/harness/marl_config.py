@@ -49,6 +49,11 @@ class MarlConfig:
     """Value-target normalization: ``PopArtValueNorm`` (MAPPO paper), ``RunningValueNorm`` or none."""
     normalize_advantage: bool = True
     """Standardize advantages per minibatch (over time, not across robots)."""
+    obs_scale: Literal["box", "rollout"] = "box"
+    """Input scale of the actor (and of IPPO's critic): ``box`` scales each observation entry by the
+    env's observation box to [-1, 1]; ``rollout`` by the mean and standard deviation of the first
+    batch's observations, which is not learned from (:mod:`~parcover_env.harness.marl_scale`; a run
+    with ``--init`` keeps the init's scale)."""
     hidden: tuple[int, ...] = (128, 128)
     """Hidden layer widths of the actor and the critic (tanh MLPs, shared by every robot)."""
     critic: Literal["mlp", "attention"] = "mlp"
@@ -60,7 +65,9 @@ class MarlConfig:
     critic_heads: int = 4
     """``critic: attention``: attention heads (must divide ``critic_embed``)."""
     episode_steps: int = 0
-    """Step limit of a training episode (0: the scenario's ``episode.max_steps``)."""
+    """Step limit of a training episode (0: the scenario's ``episode.max_steps``): the TorchRL env
+    truncates there while the env keeps the scenario's limit, so the ``time`` observation means the
+    same in training and evaluation (:class:`~parcover_env.harness.marl_env.RobotsEnv`)."""
     wall_time: float = 0.0
     """Stop after the batch that ends past this many seconds of wall time (0: no limit); the run
     is saved as if ``--steps`` had been reached (the sidecar's ``agent_steps`` is what was done)."""

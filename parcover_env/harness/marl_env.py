@@ -12,6 +12,12 @@ with the same keys as that wrapper for a one-group env (``("robot", "observation
 pool (``info["pad"]``; every agent of a single scenario is real), the mask of the PPO loss
 (:mod:`~parcover_env.harness.marl_loss`). Collection speed of both: ``benchmarks/train_throughput.py``.
 
+``max_steps`` (``MarlConfig.episode_steps``) cuts training episodes short: the env is truncated at
+that step (bootstrapped like any truncation) while the ParallelEnv keeps its own step limit, so the
+observation's ``time`` entry (elapsed fraction of the env's step limit) means in training what it
+means in evaluation. At such a cut the episode metrics are the env's own if it emits them, else
+the KPOIs visited so far (``progress.visited``; success 0).
+
 All agents act every step and end together (the coverage env and its map pool guarantee it), so
 there is no per-agent liveness mask. Several worlds run side by side through TorchRL's ``SerialEnv``
 (:class:`parcover_env.harness.marl.EnvMaker`), so the policy runs once for all of them.
@@ -42,10 +48,13 @@ class RobotsEnv(EnvBase):
     of the group ``"robot"``; ``with_state``: also ``"state"`` = ``parallel.state()`` (MAPPO's critic).
     The env's generator is the ParallelEnv's own (seed it with ``parallel.reset(seed=...)`` first)."""
 
-    def __init__(self, parallel, with_state: bool = False):
+    def __init__(self, parallel, with_state: bool = False, max_steps: int = 0):
         super().__init__(batch_size=torch.Size([]))
         self.parallel = parallel
         self.with_state = with_state
+        self.max_steps = int(max_steps)
+        """Truncate at this step of an episode (0: only the ParallelEnv's own end)."""
+        self.steps = 0
         self.agents = list(parallel.possible_agents)
         n = len(self.agents)
         obs_space, act_space = parallel.observation_space(self.agents[0]), parallel.action_space(self.agents[0])
@@ -74,6 +83,7 @@ class RobotsEnv(EnvBase):
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
         obs, infos = self.parallel.reset()
+        self.steps = 0
         out = self._observation(obs, infos)
         n = len(self.agents)
         out[GROUP].update({k: torch.zeros(n, 1, dtype=torch.bool) for k in ("done", "terminated", "truncated")})
@@ -83,15 +93,28 @@ class RobotsEnv(EnvBase):
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         actions = tensordict.get((GROUP, "action")).detach().cpu().numpy()
         obs, rewards, terms, truncs, infos = self.parallel.step(dict(zip(self.agents, actions, strict=True)))
-        out = self._observation(obs, infos)
+        self.steps += 1
         term = np.array([[bool(terms[a])] for a in self.agents])
         trunc = np.array([[bool(truncs[a])] for a in self.agents])
+        if self.max_steps and self.steps >= self.max_steps and not (term | trunc).any():
+            trunc[:] = True
+            infos = self._cut_infos(infos)
+        out = self._observation(obs, infos)
         out[GROUP].update({"reward": torch.tensor([[float(rewards[a])] for a in self.agents], dtype=torch.float32),
                            "terminated": torch.from_numpy(term), "truncated": torch.from_numpy(trunc),
                            "done": torch.from_numpy(term | trunc)})
         out.update({"terminated": torch.tensor([term.any()]), "truncated": torch.tensor([trunc.any()]),
                     "done": torch.tensor([(term | trunc).any()])})
         return TensorDict(out, batch_size=[])
+
+    def _cut_infos(self, infos: dict) -> dict:
+        """``infos`` with the KPOIs visited so far as the episode metrics (an episode cut at ``max_steps``
+        before the env's own end; ``metrics/success`` 0). A map pool's counts are its drawn map's."""
+        inner = getattr(self.parallel, "env", self.parallel)
+        visited = np.asarray(inner.progress.visited)
+        metrics = {"metrics/kpois_visited": float(visited.sum()), "metrics/n_kpois": float(visited.size),
+                   "metrics/success": 0.0}
+        return {a: {**infos.get(a, {}), **metrics} for a in self.agents}
 
     def _set_seed(self, seed: int | None) -> None:
         if seed is not None:

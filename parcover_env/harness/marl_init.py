@@ -65,6 +65,8 @@ def critic_spec(algo: str, cfg: MarlConfig, obs_dim: int, state_dim: int) -> dic
             "hidden": list(cfg.hidden), "value_norm": cfg.value_norm}
     if kind == "attention":
         spec.update(embed=cfg.critic_embed, heads=cfg.critic_heads)
+    if algo == "ippo" and cfg.obs_scale != "box":  # IPPO's critic then has the actor's input scale
+        spec.update(obs_scale=cfg.obs_scale)
     return spec
 
 

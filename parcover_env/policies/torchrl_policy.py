@@ -16,7 +16,7 @@ import numpy as np
 from parcover_env.errors import ParcoverError
 from parcover_env.policies.protocol import Policy
 
-__all__ = ["actor_net", "TorchRLPolicy", "POLICY_FILE", "SIDECAR_FILE", "checkpoint_overrides"]
+__all__ = ["actor_net", "box_scale", "TorchRLPolicy", "POLICY_FILE", "SIDECAR_FILE", "checkpoint_overrides"]
 
 POLICY_FILE = "policy.pt"
 """The checkpoint's name in a ``parcover train`` output directory."""
@@ -45,15 +45,15 @@ def checkpoint_overrides(path: str | Path) -> dict | None:
     return overrides or None
 
 
-def actor_net(obs_low: np.ndarray, obs_high: np.ndarray, hidden: tuple[int, ...], act_dim: int):
-    """``obs -> (loc, scale parameter)`` per robot: the observation box scaled to [-1, 1], then a tanh
-    MLP with ``2 * act_dim`` outputs. Works on any leading dimensions (time, robots)."""
+def box_scale(obs_low: np.ndarray, obs_high: np.ndarray):
+    """``x -> (x - centre) / half_width``, a fixed affine map saved with the weights (buffers
+    ``centre`` and ``half_width``), set to the centre and half-width of the box ``[obs_low,
+    obs_high]`` (half-widths floored at 1e-6). ``parcover train`` with ``obs_scale: rollout`` later
+    sets them to the mean and spread of the observations (:mod:`parcover_env.harness.marl_scale`)."""
     import torch
     from torch import nn
 
     class BoxScale(nn.Module):
-        """``(x - centre) / half_width`` of a finite box (a fixed affine map, saved with the weights)."""
-
         def __init__(self, low: np.ndarray, high: np.ndarray):
             super().__init__()
             low_t, high_t = torch.as_tensor(low, dtype=torch.float32), torch.as_tensor(high, dtype=torch.float32)
@@ -63,7 +63,16 @@ def actor_net(obs_low: np.ndarray, obs_high: np.ndarray, hidden: tuple[int, ...]
         def forward(self, x):
             return (x - self.centre) / self.half_width
 
-    layers: list[nn.Module] = [BoxScale(obs_low, obs_high)]
+    return BoxScale(obs_low, obs_high)
+
+
+def actor_net(obs_low: np.ndarray, obs_high: np.ndarray, hidden: tuple[int, ...], act_dim: int):
+    """``obs -> (loc, scale parameter)`` per robot: the observation scaled by :func:`box_scale` (to
+    [-1, 1] for the box ``[obs_low, obs_high]``), then a tanh MLP with ``2 * act_dim`` outputs. Works on
+    any leading dimensions (time, robots)."""
+    from torch import nn
+
+    layers: list[nn.Module] = [box_scale(obs_low, obs_high)]
     last = len(obs_low)
     for width in hidden:
         layers += [nn.Linear(last, width), nn.Tanh()]

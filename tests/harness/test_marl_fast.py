@@ -308,3 +308,34 @@ def test_the_generated_worlds_config_loads_with_its_stated_changes():
     assert (cfg.worlds, cfg.frames_per_batch, cfg.minibatch_size, cfg.entropy_coeff) == (8, 4096, 512, 0.005)
     assert cfg.env == {**V2, "rewards": {**V2["rewards"], "collision": -0.25}} and cfg.preset == "realistic"
     assert cfg.checkpoint_every > 0 and cfg.wall_time > 0 and cfg.episode_steps == 800
+
+
+def test_episode_steps_truncate_the_torchrl_env_not_the_env_whose_time_entry_keeps_its_own_limit():
+    maker = EnvMaker("office", "realistic", episode_steps=4, seed=3, overrides=V2, state=False)
+    env = maker.world(0)
+    limit = env.parallel.max_cycles
+    assert limit == maker.parallel().scenario.episode.max_steps and limit > 100  # the scenario's own, not 4
+    td = env.rollout(10, break_when_any_done=True)
+    assert td.batch_size == (4,)
+    nxt = td["next", GROUP]
+    assert nxt["truncated"][-1].all() and not nxt["truncated"][:-1].any() and not nxt["terminated"].any()
+    t = env.parallel.layout.slices["time"]
+    # the observation after step k: k / the env's step limit (an 800-step cut used to make it k / 800)
+    np.testing.assert_allclose(nxt["observation"][:, 0, t].flatten().numpy(), np.arange(1, 5) / limit, rtol=1e-6)
+    # the cut's episode metrics: the KPOIs visited so far (one of two marked by hand before the last step)
+    from torchrl.envs.utils import step_mdp
+
+    td = env.reset()
+    for k in range(4):
+        if k == 3:
+            env.parallel.progress.visited[:1] = True
+        td = env.rand_step(td)
+        if k < 3:
+            assert not td["next", "done"].any()
+            td = step_mdp(td)
+    info = td["next", GROUP, "info"]
+    n_kpois = env.parallel.progress.visited.size
+    assert n_kpois == 2 and td["next", GROUP, "truncated"].all()
+    assert info["metrics/n_kpois"].tolist() == [float(n_kpois)] * env.parallel.n_robots
+    assert info["metrics/kpois_visited"].tolist() == [1.0] * env.parallel.n_robots
+    assert info["metrics/success"].sum().item() == 0.0
