@@ -32,7 +32,7 @@ RECORDS = {
     ("tree", "waypoint"): [("tree_base", "waypoint")],
     ("tree", "random"): [("tree_base", "random")],
     ("generated:*", "expert"): [("gen_expert20_envscan", "expert")],
-    ("generated:*", "`ippo_generated_scratch`"): [("gen20_ippo_worlds_stage1", "torchrl:runs/ippo_generated_worlds/")],
+    ("generated:*", "`ippo_generated_scaled`"): [("gen20_ippo_scaled_s2", "torchrl:runs/ippo_generated_scaled_s2/")],
     ("generated:*", "`ppo_generated`"): [("gen_dagger_waypoint", "ppo:runs/dagger_generated/round_0")],
     ("generated:*", "waypoint"): [("gen_waypoint_scan_r2", "waypoint"), ("gen_waypoint_scan_heldout", "waypoint")],
     ("generated:*", "random"): [("gen_base", "random")],
