@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from throughput import MODES, SCENARIOS, merge, open_box  # noqa: E402
+from runners import merge  # noqa: E402
+from throughput import MODES, SCENARIOS, open_box  # noqa: E402
 
 from parcover_env.envs import stepper  # noqa: E402
 

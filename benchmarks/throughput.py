@@ -45,12 +45,22 @@ import json
 import math
 import os
 import platform
-import resource
 import sys
 import time
 from collections.abc import Callable
 
 import numpy as np
+from memory_soak import section_memory
+from runners import (
+    VecRunner,
+    VmasBatchedRunner,
+    VmasRunner,
+    measure_parallel,
+    merge,
+    our_env,
+    peer_mpe,
+    timed_chunks,
+)
 
 TREE_TARGET_MPE = 5.0
 """Target: tree agent-steps/s >= 5x MPE2 simple_spread N=10."""
@@ -71,82 +81,8 @@ MODES: dict[str, dict] = {
 
 
 # ---------------------------------------------------------------------------------------- timing
-def rss_mb() -> float:
-    """Current resident set size (MiB)."""
-    with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
-
-
-def peak_rss_mb() -> float:
-    """Peak resident set size of this process so far (MiB)."""
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-
-
-def timed_chunks(step: Callable[[int], None], steps: int, repeats: int, warmup: int = 20) -> float:
-    """Median seconds per call of ``step(k)`` over ``repeats`` chunks of ``steps`` calls."""
-    for k in range(warmup):
-        step(k)
-    times = []
-    for _ in range(repeats):
-        gc.collect()
-        t0 = time.perf_counter()
-        for k in range(steps):
-            step(k)
-        times.append((time.perf_counter() - t0) / steps)
-    return float(np.median(times))
-
-
-class ParallelRunner:
-    """Steps a PettingZoo ParallelEnv with pre-drawn random actions; resets are not timed."""
-
-    def __init__(self, env, rng: np.random.Generator, n_actions: int = 4096):
-        self.env = env
-        self.env.reset(seed=0)
-        self.agents = list(env.possible_agents)
-        self.reset_time = 0.0
-        space = env.action_space(self.agents[0])
-        if hasattr(space, "n"):
-            self.actions = rng.integers(0, space.n, (n_actions, len(self.agents)))
-        else:
-            self.actions = rng.uniform(space.low, space.high, (n_actions, len(self.agents), *space.shape))
-            self.actions = self.actions.astype(space.dtype)
-
-    def __call__(self, k: int) -> None:
-        env = self.env
-        if not env.agents:
-            t0 = time.perf_counter()
-            env.reset()
-            self.reset_time += time.perf_counter() - t0
-        a = self.actions[k % len(self.actions)]
-        env.step({name: a[i] for i, name in enumerate(self.agents) if name in env.agents})
-
-
-def measure_parallel(env, steps: int, repeats: int, seed: int = 0) -> dict:
-    run = ParallelRunner(env, np.random.default_rng(seed))
-    t0 = time.perf_counter()
-    sec = timed_chunks(run, steps, repeats)
-    total = time.perf_counter() - t0
-    # resets happen inside the chunks: take their share out of the per-step figure
-    n_calls = steps * repeats + 20
-    sec = max(sec - run.reset_time / n_calls, 1e-9)
-    n = len(run.agents)
-    return {"n_agents": n, "sec_per_step": sec, "env_steps_s": 1.0 / sec, "agent_steps_s": n / sec,
-            "wall": total}
-
 
 # ---------------------------------------------------------------------------------------- ours
-def our_env(scenario: str, overrides: dict | None):
-    from parcover_env.envs import ParallelCoverageEnv
-
-    return ParallelCoverageEnv(scenario, overrides=overrides or None)
-
-
-def merge(a: dict, b: dict) -> dict:
-    out = dict(a)
-    for k, v in b.items():
-        out[k] = merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
-    return out
-
 
 SCENARIOS: dict[str, tuple[str, dict]] = {
     "office": ("office", {}),
@@ -180,33 +116,6 @@ def section_ours(args, results: dict) -> None:
 
 
 # ---------------------------------------------------------------------------------------- peers
-def peer_mpe(n: int):
-    from mpe2 import simple_spread_v3
-
-    return simple_spread_v3.parallel_env(N=n, max_cycles=25, continuous_actions=False)
-
-
-class VmasRunner:
-    """VMAS ``navigation``: one env on the CPU, random continuous actions (torch tensors)."""
-
-    def __init__(self, n_agents: int, seed: int = 0):
-        import torch
-        import vmas
-
-        torch.manual_seed(seed)
-        self.env = vmas.make_env("navigation", num_envs=1, device="cpu", continuous_actions=True,
-                                 n_agents=n_agents, seed=seed)
-        self.env.reset()
-        self.n_agents = n_agents
-        g = torch.Generator().manual_seed(seed)
-        self.actions = [[torch.rand((1, 2), generator=g) * 2 - 1 for _ in range(n_agents)]
-                        for _ in range(256)]
-
-    def __call__(self, k: int) -> None:
-        _, _, done, _ = self.env.step(self.actions[k % len(self.actions)])
-        if bool(done.any()):
-            self.env.reset()
-
 
 def print_peer(r: dict) -> None:
     print(f"  {r['peer']:28s} {r['env_steps_s']:9.1f} env-steps/s  {r['agent_steps_s']:9.0f} agent-steps/s",
@@ -372,42 +281,6 @@ def section_vec(args, results: dict) -> None:
 
 
 # ---------------------------------------------------------------------------------------- batched
-class VecRunner:
-    """Steps an SB3 VecEnv with pre-drawn random actions (auto-resets inside, as in training)."""
-
-    def __init__(self, venv, seed: int = 0):
-        self.venv = venv
-        venv.seed(seed)
-        venv.reset()
-        rng = np.random.default_rng(seed)
-        self.actions = rng.uniform(-1, 1, (32, venv.num_envs, 2)).astype(np.float32)
-
-    def __call__(self, k: int) -> None:
-        self.venv.step(self.actions[k % len(self.actions)])
-
-
-class VmasBatchedRunner:
-    """VMAS ``navigation`` with ``num_envs`` vectorized worlds on the CPU, random actions."""
-
-    def __init__(self, num_envs: int, n_agents: int = 4, seed: int = 0):
-        import torch
-        import vmas
-
-        torch.manual_seed(seed)
-        self.env = vmas.make_env("navigation", num_envs=num_envs, device="cpu", continuous_actions=True,
-                                 n_agents=n_agents, seed=seed)
-        self.env.reset()
-        self.n_agents, self.num_envs = n_agents, num_envs
-        g = torch.Generator().manual_seed(seed)
-        self.actions = [[torch.rand((num_envs, 2), generator=g) * 2 - 1 for _ in range(n_agents)]
-                        for _ in range(32)]
-
-    def __call__(self, k: int) -> None:
-        _, _, done, _ = self.env.step(self.actions[k % len(self.actions)])
-        if bool(done.any()):  # reset only the finished worlds, as VMAS training loops do
-            for i in done.nonzero().flatten().tolist():
-                self.env.reset_at(i)
-
 
 def _vec_row(label: str, venv_fn: Callable[[], object], steps: int, repeats: int, k: int) -> dict:
     t0 = time.perf_counter()
@@ -470,64 +343,6 @@ def section_batched(args, results: dict) -> None:
             print(f"  tree batched K=64 / VMAS navigation 64 = {ratio:.2f}x agent-steps/s "
                   f"(target >= {BATCHED_TARGET_VMAS:.0f}x)", flush=True)
     results["batched"] = out
-
-
-# ---------------------------------------------------------------------------------------- memory
-def _soak(step: Callable[[int], None], total: int) -> dict:
-    """RSS sampled 10 times over ``total`` calls of ``step`` (after a warm-up) and its linear fit."""
-    for k in range(min(500, max(total // 10, 1))):
-        step(k)
-    gc.collect()
-    samples = []
-    chunk = max(total // 10, 1)
-    t0 = time.perf_counter()
-    for i in range(10):
-        for k in range(chunk):
-            step(i * chunk + k)
-        samples.append(rss_mb())
-        print(f"    soak sample {i + 1}/10 after {(i + 1) * chunk} calls: RSS {samples[-1]:.1f} MiB "
-              f"({time.perf_counter() - t0:.0f} s)", flush=True)
-    x = np.arange(len(samples)) * chunk
-    slope = float(np.polyfit(x, samples, 1)[0]) * 1e6 if len(samples) > 1 else 0.0
-    gc.collect()
-    return {"soak_steps": chunk * 10, "rss_start_mb": samples[0], "rss_end_mb": samples[-1],
-            "slope_mb_per_1e6_steps": slope, "rss_trimmed_mb": _trimmed_rss()}
-
-
-def _trimmed_rss() -> float:
-    """RSS (MiB) after glibc's ``malloc_trim(0)`` returned the allocator's free pages (NaN elsewhere):
-    what is left is memory in use, the rest of a growth was allocator slack."""
-    import ctypes
-    import ctypes.util
-
-    try:
-        ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim(0)
-    except (OSError, AttributeError):
-        return float("nan")
-    return rss_mb()
-
-
-def section_memory(args, results: dict) -> None:
-    r: dict = {}
-    if not args.soak_batched_only:
-        run = ParallelRunner(our_env("office", {}), np.random.default_rng(1))
-        r = _soak(run, args.soak)
-        print(f"  office soak {r['soak_steps']} steps: RSS {r['rss_start_mb']:.1f} -> {r['rss_end_mb']:.1f} MiB "
-              f"(fit {r['slope_mb_per_1e6_steps']:+.2f} MiB per 10^6 steps)", flush=True)
-    from parcover_env.envs.vec_env import make_vec_env
-
-    k = 16
-    venv = make_vec_env("office", k, backend="batched", monitor=False)
-    b = _soak(VecRunner(venv), max(args.soak // k, 10))
-    b["K"], b["world_steps"] = k, b["soak_steps"] * k
-    venv.close()
-    print(f"  office batched K={k} soak {b['world_steps']} world-steps: RSS {b['rss_start_mb']:.1f} -> "
-          f"{b['rss_end_mb']:.1f} MiB (fit {b['slope_mb_per_1e6_steps'] / k:+.2f} MiB per 10^6 world-steps), "
-          f"{b['rss_trimmed_mb']:.1f} MiB after malloc_trim", flush=True)
-    r["batched"] = b
-    r["peak_rss_mb"] = peak_rss_mb()
-    print(f"  peak RSS of this whole run {r['peak_rss_mb']:.0f} MiB", flush=True)
-    results["memory"] = r
 
 
 def section_batching(args, results: dict) -> None:
