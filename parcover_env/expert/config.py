@@ -100,7 +100,19 @@ class SonarFixConfig:
     its route's end, at such a place back along its route in its sight, then it returns (none: it
     scans no more). Short against ``rescan_distance``: a held fix may be right and the estimate
     wrong. 0: such scans count as rejected ones (m). Measured with 0.5 m and ``confirm_widened`` on:
-    generated seeds 0-199 192 / 200 (off: 195 / 200), ``docs/expert_benchmark.md``."""
+    generated seeds 0-199 192 / 200 (off: 195 / 200), ``docs/expert_benchmark.md``. After a second
+    uninformative scan in a row the predicted places are not used until a fix: the next scans are
+    ``rescan_distance`` apart (the noise-free prediction is optimistic along corridors, where a real
+    scan every ``relocate_distance`` stays uninformative)."""
+    stuck_time: float = 5.0
+    """With ``relocate_distance`` > 0: a leader waiting to scan from elsewhere whose estimate has moved
+    less than ``stuck_distance`` for this long (s; braked by a wall or a teammate, or backing off and
+    driving in again) drives ``relocate_distance`` into the freest direction of its own sonar ring (or
+    up to ``stop_margin`` before the echo there), then scans: a held fix is confirmed only by a scan
+    from elsewhere. Longer than one give-way (``patience`` 2 s plus ``backoff_time`` 1 s) of the first
+    robots, so that the usual back-off is tried first."""
+    stuck_distance: float = 0.1
+    """See ``stuck_time`` (m); half the env's ``shift_test`` (0.2 m), the move a confirming scan needs."""
     fix_sigma: float = 0.05
     """Position standard deviation of an accepted sonar fix along x and y (m): the covariance the
     expert propagates the corrected belief from."""
@@ -118,6 +130,7 @@ class SonarFixConfig:
                  "fix_sigma", "fix_sigma_heading_deg", "confirm_distance")
         check(self.shift_test >= 0, "shift_test", f"must be >= 0, got {self.shift_test}")
         check(self.relocate_distance >= 0, "relocate_distance", f"must be >= 0, got {self.relocate_distance}")
+        positive(self, "stuck_time", "stuck_distance")
         check(self.min_shift_increase >= 0, "min_shift_increase", f"must be >= 0, got {self.min_shift_increase}")
         check(self.miss_inflation >= 1, "miss_inflation", f"must be >= 1, got {self.miss_inflation}")
         check(self.max_inflation >= 1, "max_inflation", f"must be >= 1, got {self.max_inflation}")
