@@ -105,12 +105,14 @@ class SonarFixConfig:
     ``rescan_distance`` apart (the noise-free prediction is optimistic along corridors, where a real
     scan every ``relocate_distance`` stays uninformative)."""
     stuck_time: float = 5.0
-    """With ``relocate_distance`` > 0: a leader waiting to scan from elsewhere whose estimate has moved
-    less than ``stuck_distance`` for this long (s; braked by a wall or a teammate, or backing off and
-    driving in again) drives ``relocate_distance`` into the freest direction of its own sonar ring (or
-    up to ``stop_margin`` before the echo there), then scans: a held fix is confirmed only by a scan
-    from elsewhere. Longer than one give-way (``patience`` 2 s plus ``backoff_time`` 1 s) of the first
-    robots, so that the usual back-off is tried first."""
+    """With ``relocate_distance`` > 0: a leader waiting to scan from elsewhere (after a held scan, or an
+    uninformative one away from its route's end, where it stands still on purpose) whose belief has
+    moved less than ``stuck_distance`` for this long (s; braked by a wall or a teammate, or backing off
+    and driving in again) drives ``relocate_distance`` into the freest direction of its own sonar ring
+    (or up to ``stop_margin`` before the shortest reading of that direction's front sector), then scans:
+    a held fix is confirmed only by a scan from elsewhere, and an uninformative scene stays so. Longer
+    than one give-way (``patience`` 2 s plus ``backoff_time`` 1 s) of the first robots, so that the
+    usual back-off is tried first."""
     stuck_distance: float = 0.1
     """See ``stuck_time`` (m); half the env's ``shift_test`` (0.2 m), the move a confirming scan needs."""
     fix_sigma: float = 0.05

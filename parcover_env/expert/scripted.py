@@ -311,7 +311,7 @@ class ScriptedExpert(Policy):
         if arrived or (stuck and agent in self.escaping):
             self.fixer.scan_after(agent, 0.0)  # there, or as far as it got: scan now
             return
-        if stuck and self.fixer.held(agent):
+        if stuck and (self.fixer.held(agent) or not at_end):  # at its route's end it stands still on purpose
             self._escape(agent, pose, ranges)
             return
         if self.places is None or not self.fixer.needs_place(agent):
@@ -348,11 +348,16 @@ class ScriptedExpert(Policy):
         return False
 
     def _escape(self, agent: str, pose: np.ndarray, ranges: np.ndarray) -> None:
-        """Send a stuck robot at ``pose`` (its belief) ``relocate_distance`` into the direction of the longest
-        reading of its sonar ring ``ranges`` (the first of equal ones), at most up to ``stop_margin`` before
-        that echo; it scans on arrival or when stuck again (no estimate needed to choose the direction)."""
-        k = int(np.argmax(ranges))
-        reach = min(self.cfg.sonar_fix.relocate_distance, float(ranges[k]) - self.stop)
+        """Send a stuck robot at ``pose`` (its belief) ``relocate_distance`` into the freest direction of its
+        sonar ring ``ranges``: the beam whose front sector (the beams within ``front_sector_deg`` of it, those
+        it brakes on when it drives that way) has the longest shortest reading (the first of equal ones), at
+        most up to ``stop_margin`` before that reading. It scans on arrival or when stuck again (no estimate
+        is needed to choose the direction)."""
+        beams = np.asarray(self.fixer.beams, dtype=float)
+        sector = np.abs(wrap_angle(beams[None, :] - beams[:, None])) <= np.radians(self.cfg.front_sector_deg)
+        clear = np.where(sector, np.asarray(ranges, dtype=float)[None, :], np.inf).min(axis=1)
+        k = int(np.argmax(clear))
+        reach = min(self.cfg.sonar_fix.relocate_distance, float(clear[k]) - self.stop)
         if reach < self.cfg.sonar_fix.stuck_distance:
             return  # boxed in: wait where it is
         heading = pose[2] + float(self.fixer.beams[k])

@@ -266,8 +266,9 @@ def test_a_stuck_robot_with_a_held_fix_drives_into_the_freest_sonar_direction_th
     assert (c.stuck_time, c.stuck_distance, c.relocate_distance, dt) == (5.0, 0.1, 0.5, 0.1)
     assert expert.stop == pytest.approx(0.17)  # robot radius 0.12 + stop_margin 0.05
     ranges = np.full(16, 0.3)
-    ranges[4] = 2.5  # free at 90 degrees to the left (beams every 22.5 degrees)
-    ranges[10] = 2.5  # as free: the first of the longest readings counts
+    ranges[3:6] = 2.5  # free at 90 degrees to the left (beams every 22.5 degrees), its front sector too
+    ranges[9:12] = 2.5  # as free: the first counts
+    ranges[14] = 2.5  # the longest reading, but its neighbours (within front_sector_deg 25) are 0.3 m
     expert._relocate("robot_0", 0, pose, False, ranges)
     assert expert.fixer.states["robot_0"].move == pytest.approx(0.7)  # drives on to the predicted place
     # it does not get anywhere: braked, and jiggling 0.09 m back and forth does not count as moving
@@ -292,7 +293,8 @@ def test_a_stuck_robot_with_a_held_fix_drives_into_the_freest_sonar_direction_th
 def test_an_escape_is_shorter_before_a_near_echo_and_ends_where_the_robot_is_stuck_again():
     expert, pose = _relocating_expert(HELD)
     ranges = np.full(16, 0.2)
-    ranges[8] = 0.45  # behind it, 0.45 m: it stops stop_margin short of the echo (0.45 - 0.17 = 0.28 m)
+    ranges[7:10] = [0.6, 0.45, 0.5]  # behind it the shortest of its sector is 0.45 m: it stops stop_margin
+    # short of that (0.45 - 0.17 = 0.28 m)
     for _ in range(51):
         expert._relocate("robot_0", 0, pose, False, ranges)
     np.testing.assert_allclose(expert.detours["robot_0"], pose[:2] + [-0.28, 0.0], atol=1e-9)
@@ -303,14 +305,19 @@ def test_an_escape_is_shorter_before_a_near_echo_and_ends_where_the_robot_is_stu
     assert expert.fixer.states["robot_0"].move == 0.0  # scans from as far as it got
 
 
-def test_no_escape_when_boxed_in_or_after_an_uninformative_scan():
+def test_no_escape_when_boxed_in_or_standing_at_its_route_end_after_an_uninformative_scan():
     expert, pose = _relocating_expert(HELD)
     boxed = np.full(16, 0.25)  # 0.25 - 0.17 = 0.08 m < stuck_distance: nowhere to go
     for _ in range(120):
         expert._relocate("robot_0", 0, pose, False, boxed)
     assert "robot_0" not in expert.detours and expert.fixer.states["robot_0"].move == pytest.approx(0.7)
-    expert, pose = _relocating_expert(UNINFORMATIVE)  # the scene, not the place, made it useless: wait
     ranges = np.full(16, 2.5)
+    expert, pose = _relocating_expert(UNINFORMATIVE)  # at its route's end it stands still on purpose
     for _ in range(120):
+        expert._relocate("robot_0", 0, pose, True, ranges)
+    assert "robot_0" not in expert.detours and expert.fixer.states["robot_0"].move == math.inf
+    expert, pose = _relocating_expert(UNINFORMATIVE)  # on its way it does not: it escapes (beam 0, ahead)
+    for _ in range(51):
         expert._relocate("robot_0", 0, pose, False, ranges)
-    assert "robot_0" not in expert.detours and expert.fixer.states["robot_0"].move == pytest.approx(0.7)
+    np.testing.assert_allclose(expert.detours["robot_0"], pose[:2] + [0.5, 0.0], atol=1e-9)
+    assert expert.fixer.states["robot_0"].move == math.inf
