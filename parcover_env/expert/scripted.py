@@ -19,7 +19,9 @@ env internals. Roles (leader/follower), splits at TPs, and waypoints come from t
   by a scan before each KPOI and at its route's end; with ``expert.sonar_fix.relocate_distance`` > 0
   (opt-in), after a scan whose fix the env holds for confirmation or that was uninformative
   (``scan_result`` 0.5 / -0.5) it scans next from elsewhere, where the known map predicts an
-  informative scan (:mod:`parcover_env.expert.scan_places`);
+  informative scan (:mod:`parcover_env.expert.scan_places`; after two uninformative scans in a row,
+  ``rescan_distance`` apart), and a robot stuck meanwhile drives into the freest direction of its
+  sonar ring first (``stuck_time``);
 * leaders brake on their front sonar beams when a robot or wall is closer than ``stop_margin``
   (needed in ``individual`` mode, where all robots leave at once); a leader braked for longer than
   ``patience`` (plus ``patience_stagger`` per robot index, so two robots never give way together)
