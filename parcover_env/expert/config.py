@@ -100,10 +100,12 @@ class SonarFixConfig:
     its route's end, at such a place back along its route in its sight, then it returns (none: it
     scans no more). Short against ``rescan_distance``: a held fix may be right and the estimate
     wrong. 0: such scans count as rejected ones (m). After a second uninformative scan in a row the
-    predicted places are not used until a fix: the next scans are ``rescan_distance`` apart (the
-    noise-free prediction is optimistic along corridors, where a real scan every ``relocate_distance``
-    stays uninformative). Measured with 0.5 m and ``confirm_widened`` on (``docs/expert_benchmark.md``,
-    2026-11-26): generated seeds 0-199 198 / 200 (off: 195 / 200), 200-299 97 / 100 (off: 97 / 100)."""
+    predicted places are not used until a fix: the next scans after an uninformative one are
+    ``rescan_distance`` apart (the noise-free prediction is optimistic along corridors, where a real
+    scan every ``relocate_distance`` stays uninformative); after a held one (the scene was
+    informative) the predicted place is used, to confirm it soon. Measured with 0.5 m and
+    ``confirm_widened`` on (``docs/expert_benchmark.md``, 2026-11-26, before that last rule): generated
+    seeds 0-199 198 / 200 (off: 195 / 200), 200-299 97 / 100 (off: 97 / 100)."""
     stuck_time: float = 5.0
     """With ``relocate_distance`` > 0: a leader waiting to scan from elsewhere (after a held scan, or an
     uninformative one away from its route's end, where it stands still on purpose) whose belief has

@@ -295,10 +295,11 @@ class ScriptedExpert(Policy):
     def _relocate(self, agent: str, i: int, odom: np.ndarray, at_end: bool, ranges: np.ndarray) -> None:
         """After a held or uninformative env scan, choose where the robot scans next
         (``expert.sonar_fix.relocate_distance``): the first place ahead along its route where the known map
-        predicts an informative scan (after a second uninformative scan in a row, :meth:`SonarFixer.spaced`:
-        ``rescan_distance`` on); at its route's end, such a place back along it (a detour, scanned on
-        arrival). A robot with a held fix that is stuck (:meth:`_stuck`) drives into the freest direction of
-        its sonar ``ranges`` first (:meth:`_escape`). Drops the detour once the robot scans or is fixed."""
+        predicts an informative scan (after a second uninformative scan in a row, :meth:`SonarFixer.spaced`,
+        and an uninformative last one: ``rescan_distance`` on); at its route's end, such a place back along
+        it (a detour, scanned on arrival). A stuck robot (:meth:`_stuck`; after a held scan, or an
+        uninformative one away from its route's end) drives into the freest direction of its sonar ``ranges``
+        first (:meth:`_escape`). Drops the detour once the robot scans or is fixed."""
         if self.fixer.scanning(agent) or not self.fixer.relocating(agent):
             self.detours.pop(agent, None)
             self.still.pop(agent, None)
@@ -321,7 +322,7 @@ class ScriptedExpert(Policy):
         c = self.cfg.sonar_fix
         near, far = c.relocate_distance, max(c.relocate_distance, c.rescan_distance)
         route = self.mission.routes[i]
-        if self.fixer.spaced(agent) and not at_end:
+        if self.fixer.spaced(agent) and not self.fixer.held(agent) and not at_end:  # a held scan was informative
             self.fixer.scan_after(agent, c.rescan_distance)
             return
         if at_end:

@@ -232,9 +232,10 @@ def test_a_second_uninformative_scan_in_a_row_spaces_the_scans_until_a_fix():
     assert not off.spaced("robot_0") and st.missed
 
 
-def _relocating_expert(result, count=1):
+def _relocating_expert(result, count=1, then=()):
     """The registered expert's robot 0 at its route's start after ``count`` env scans ending in
-    ``result``; the known map's place prediction stubbed: 0.7 m ahead, nothing behind."""
+    ``result``, then scans ending in each of ``then``; the known map's place prediction stubbed: 0.7 m
+    ahead, nothing behind."""
     from types import SimpleNamespace
 
     env = parcover_env.parallel_env("generated:3", overrides=RELOCATE)
@@ -242,8 +243,8 @@ def _relocating_expert(result, count=1):
     pose = np.array([route[0][0], route[0][1], 0.0])
     expert, _ = _expert_at(env, pose)
     _after_scan(expert.fixer, result)
-    for _ in range(count - 1):
-        _scan_again(expert.fixer, result)
+    for later in [result] * (count - 1) + list(then):
+        _scan_again(expert.fixer, later)
     expert.fixer.states["robot_0"].move = None  # the expert has not chosen the place of the next scan yet
     expert.places = SimpleNamespace(ahead=lambda *args: 0.7, behind=lambda *args: None)
     return expert, pose
@@ -258,6 +259,11 @@ def test_after_two_uninformative_scans_the_expert_scans_rescan_distance_on_not_a
     expert._relocate("robot_0", 0, pose, False, ranges)
     assert expert.fixer.states["robot_0"].move == pytest.approx(2.0)  # rescan_distance
     assert expert.cfg.sonar_fix.rescan_distance == 2.0
+    # still spaced, but the last scan was held (informative): to the predicted place, to confirm it soon
+    expert, pose = _relocating_expert(UNINFORMATIVE, count=2, then=[HELD])
+    assert expert.fixer.spaced("robot_0") and expert.fixer.held("robot_0")
+    expert._relocate("robot_0", 0, pose, False, ranges)
+    assert expert.fixer.states["robot_0"].move == pytest.approx(0.7)
 
 
 def test_a_stuck_robot_with_a_held_fix_drives_into_the_freest_sonar_direction_then_scans():
