@@ -2,7 +2,7 @@
 and every change of a robot's relocation state (the expert's "scan from elsewhere"), per robot.
 
     python benchmarks/expert_trace.py 57                # generated:57, seed 57, the registered expert
-    python benchmarks/expert_trace.py 57 --relocate     # the opt-in variant (as benchmarks/expert.py --relocate)
+    python benchmarks/expert_trace.py 57 --relocate     # the variant's settings forced (default since 2026-11-26)
     python benchmarks/expert_trace.py 154 --robots 4
 
 The true poses are read here only, to print the errors ("err": the env's estimate, "belerr": the
@@ -30,7 +30,7 @@ def main() -> None:
     ap.add_argument("--robots", type=int, nargs="*", help="only these robot indices (default: all)")
     ap.add_argument("--relocate", action="store_true", help="scan.confirm_widened and relocate_distance 0.5")
     args = ap.parse_args()
-    overrides = {"formation": {"mode": "formation"}, **policy_overrides("expert")}
+    overrides = {"formation": {"mode": "formation"}, **policy_overrides("expert", f"generated:{args.seed}")}
     if args.relocate:
         overrides.update(RELOCATE)
     env = parcover_env.parallel_env(f"generated:{args.seed}", overrides=overrides, preset="realistic")

@@ -90,9 +90,10 @@ class SonarFixConfig:
     stops and scans once when it believes that KPOI is this close (m; 0: never): the env's route
     follows its estimate and moves on once the estimate reaches the KPOI, so a drifted arrival at a
     KPOI is never corrected afterwards (the same reason as ``final_rescan_distance``)."""
-    relocate_distance: float = 0.0
-    """Opt-in (0 = off, the default). With the env's scans: after a scan whose fix is held for
-    confirmation (``scan_result`` 0.5) or that was uninformative (-0.5), the leader does not scan again
+    relocate_distance: float = 0.5
+    """With the env's scans: after a scan whose fix is held for confirmation (``scan_result`` 0.5; the
+    registered expert's env holds fixes found only in a widened region, ``scan.confirm_widened``, except
+    for the sonar navigator's) or that was uninformative (-0.5), the leader does not scan again
     where it stands (a look-alike match
     repeats there, and an uninformative scene stays uninformative) but at the first place at least this
     far along its route, at most ``rescan_distance``, where the known map predicts an informative
@@ -103,9 +104,9 @@ class SonarFixConfig:
     predicted places are not used until a fix: the next scans after an uninformative one are
     ``rescan_distance`` apart (the noise-free prediction is optimistic along corridors, where a real
     scan every ``relocate_distance`` stays uninformative); after a held one (the scene was
-    informative) the predicted place is used, to confirm it soon. Measured with 0.5 m and
-    ``confirm_widened`` on (``docs/expert_benchmark.md``, 2026-11-26, before that last rule): generated
-    seeds 0-199 198 / 200 (off: 195 / 200), 200-299 97 / 100 (off: 97 / 100)."""
+    informative) the predicted place is used, to confirm it soon. 0: off (the expert before
+    2026-11-26). Measured with 0.5 m and ``confirm_widened`` on (``docs/expert_benchmark.md``,
+    2026-11-26): generated seeds 0-199 199 / 200 (off: 195 / 200), 200-299 98 / 100 (off: 97 / 100)."""
     stuck_time: float = 5.0
     """With ``relocate_distance`` > 0: a leader waiting to scan from elsewhere (after a held scan, or an
     uninformative one away from its route's end, where it stands still on purpose) whose belief has

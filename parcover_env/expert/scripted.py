@@ -17,7 +17,8 @@ env internals. Roles (leader/follower), splits at TPs, and waypoints come from t
   reads the env's estimate and covariance; without the service it turns and localizes its own scan
   with Kim, Pearce & Amato's localizer, :mod:`parcover_env.expert.sonar_fix`), and checks its pose
   by a scan before each KPOI and at its route's end; with ``expert.sonar_fix.relocate_distance`` > 0
-  (opt-in), after a scan whose fix the env holds for confirmation or that was uninformative
+  (0.5 m by default; the registered expert's env holds fixes found only in a widened region), after
+  a scan whose fix the env holds for confirmation or that was uninformative
   (``scan_result`` 0.5 / -0.5) it scans next from elsewhere, where the known map predicts an
   informative scan (:mod:`parcover_env.expert.scan_places`; after two uninformative scans in a row,
   ``rescan_distance`` apart), and a robot stuck meanwhile drives into the freest direction of its

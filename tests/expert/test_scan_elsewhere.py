@@ -121,7 +121,7 @@ def test_a_rejected_scan_is_still_repeated_at_once_and_relocation_off_treats_all
     assert fixer.step("robot_0", odom, **kw) == SCAN_REQUEST  # the env searches a wider region now
     from parcover_env.expert.config import SonarFixConfig
 
-    assert SonarFixConfig().relocate_distance == 0.0  # opt-in: off by default
+    assert SonarFixConfig().relocate_distance == 0.5  # on by default (0 = off)
     off = _fixer(relocate_distance=0.0)
     st, odom, kw = _after_scan(off, HELD)
     assert st.missed and not st.relocate
@@ -327,3 +327,17 @@ def test_no_escape_when_boxed_in_or_standing_at_its_route_end_after_an_uninforma
         expert._relocate("robot_0", 0, pose, False, ranges)
     np.testing.assert_allclose(expert.detours["robot_0"], pose[:2] + [0.5, 0.0], atol=1e-9)
     assert expert.fixer.states["robot_0"].move == math.inf
+
+
+def test_the_registered_expert_holds_widened_fixes_except_for_the_sonar_navigator():
+    from parcover_env.policies.registry import policy_overrides
+
+    held = {"observation": {"scan": {"enabled": True, "confirm_widened": True}}}
+    assert policy_overrides("expert", "generated:3") == held
+    assert policy_overrides("expert", "t_room") == held
+    assert policy_overrides("expert", "hallway") == {"observation": {"scan": {"enabled": True}}}  # navigator
+    assert policy_overrides("expert") == {"observation": {"scan": {"enabled": True}}}  # no scenario named
+    assert policy_overrides("waypoint", "generated:3") == {"observation": {"scan": {"enabled": True}}}
+    first = policy_overrides("expert", "generated:3")
+    first["observation"]["scan"]["confirm_widened"] = False  # a caller's change does not stick
+    assert policy_overrides("expert", "generated:3") == held
