@@ -5,6 +5,7 @@
     python benchmarks/expert.py --scenarios generated --seeds 200 --preset ideal
     python benchmarks/expert.py --scenarios generated --seeds 60 --first-seed 1000
     python benchmarks/expert.py --scenarios generated --seeds 200 --own-scan   # the expert's own sonar loop
+    python benchmarks/expert.py --scenarios generated --seeds 100 --no-relocate   # without "scan from elsewhere"
 
 ``generated`` stands for the maps ``generated:SEED`` with SEED = the episode seed (one map per
 seed). The env is built as ``parcover run --policy expert`` builds it: with the env's sonar
@@ -37,12 +38,20 @@ def _name(scenario: str, seed: int) -> str:
     return f"generated:{seed}" if scenario == "generated" else scenario
 
 
-def episode(job: tuple[str, int, str, str, bool]) -> dict:
-    scenario, seed, mode, preset, env_scan = job
+NO_RELOCATE = {"observation": {"scan": {"enabled": True, "confirm_widened": False}},
+               "expert": {"sonar_fix": {"relocate_distance": 0.0}}}
+"""``--no-relocate``: the expert before 2026-11-26 (the env applies fixes found in a widened region at once,
+``scan.confirm_widened`` off, and the expert rescans in place, ``expert.sonar_fix.relocate_distance`` 0)."""
+
+
+def episode(job: tuple[str, int, str, str, bool, bool]) -> dict:
+    scenario, seed, mode, preset, env_scan, no_relocate = job
     name = _name(scenario, seed)
     overrides = {"formation": {"mode": mode}}
     if env_scan:
-        overrides.update(policy_overrides("expert"))
+        overrides.update(policy_overrides("expert", name))
+    if no_relocate:
+        overrides.update(NO_RELOCATE)
     try:
         env = parcover_env.parallel_env(name, overrides=overrides, preset=preset)
     except Exception as exc:  # noqa: BLE001 - a map that cannot be built is reported, not fatal
@@ -78,12 +87,18 @@ def main() -> None:
                     help="also run 10 seeds per Kinect scenario in 'individual' mode and compare messages")
     ap.add_argument("--own-scan", action="store_true",
                     help="build the env without its sonar localization service: the experts localize their own scans")
+    ap.add_argument("--no-relocate", action="store_true",
+                    help="the expert before 2026-11-26: fixes of a widened region applied at once "
+                         "(scan.confirm_widened off) and rescans in place (expert.sonar_fix.relocate_distance 0)")
     args = ap.parse_args()
+    if args.no_relocate and args.own_scan:
+        ap.error("--no-relocate needs the env's sonar service: drop --own-scan")
     args.env_scan = not args.own_scan
     seeds = range(args.first_seed, args.first_seed + args.seeds)
-    jobs = [(s, k, "formation", args.preset, args.env_scan) for s in args.scenarios for k in seeds]
+    how = (args.preset, args.env_scan, args.no_relocate)
+    jobs = [(s, k, "formation", *how) for s in args.scenarios for k in seeds]
     kinect = [s for s in args.scenarios if args.messages and s != "generated" and parcover_env.load_scenario(s).kinects]
-    jobs += [(s, k, "individual", args.preset, args.env_scan) for s in kinect for k in list(seeds)[:10]]
+    jobs += [(s, k, "individual", *how) for s in kinect for k in list(seeds)[:10]]
     t0 = time.perf_counter()
     results = []
     with ProcessPoolExecutor(args.workers) as pool:
@@ -94,10 +109,11 @@ def main() -> None:
                   flush=True)
     print(file=sys.stderr)
     rows: dict[tuple[str, str], list[dict]] = {}
-    for (name, _, mode, _, _), m in zip(jobs, results, strict=True):
+    for (name, _, mode, *_), m in zip(jobs, results, strict=True):
         rows.setdefault((name, mode), []).append(m)
     print(f"{len(jobs)} episodes in {time.perf_counter() - t0:.0f} s on {args.workers} workers, "
-          f"preset {args.preset}, seeds {seeds.start}..{seeds.stop - 1}, env scans {args.env_scan}\n")
+          f"preset {args.preset}, seeds {seeds.start}..{seeds.stop - 1}, env scans {args.env_scan}, "
+          f"no-relocate {args.no_relocate}\n")
     print("| scenario | seeds | success | KPOIs | makespan ratio min / mean / p95 / max | wall coll. | robot coll. "
           "| messages | formation err l (m) | loc. err (m) | wall time / ep (s) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")

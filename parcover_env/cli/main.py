@@ -79,7 +79,7 @@ def cmd_run(args) -> int:
     if args.gif:
         check_writable_file(args.gif, "--gif")
     env = parallel_env(args.scenario, render_mode="rgb_array" if args.gif else None, preset=args.preset,
-                       overrides=policy_overrides(args.policy))
+                       overrides=policy_overrides(args.policy, args.scenario))
     policy = make_policy(args.policy, env, args.seed)
     say = _sayer(args)  # with --json, human-readable lines go to stderr, the JSON object to stdout
     say(f"scenario {env.scenario.name}: {env.n_robots} robots, {len(env.scenario.kpois)} KPOIs, "

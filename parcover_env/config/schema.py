@@ -206,10 +206,12 @@ class ScanConfig:
     carried along by the estimate's motion; a disagreeing fix from there is held in its place, a scan
     from closer changes nothing (a look-alike match repeats from the same spot). A widened region
     several metres across holds look-alike places of the map; a fix within the estimate's own gate is
-    applied at once. False (default) applies every fix found in the region. Measured with the scripted
-    expert driving on before its next scan (``expert.sonar_fix.relocate_distance`` 0.5 m): generated
-    seeds 0-199 192 / 200, off 195 / 200; a robot blocked in place never confirms its held fix
-    (``docs/expert_benchmark.md``)."""
+    applied at once. False (default) applies every fix found in the region. With it on, a pose found
+    outside the estimate's own gate gives way to a match inside that gate if the scan has one (the far
+    one is a look-alike). Measured with the scripted expert driving on before its next scan
+    (``expert.sonar_fix.relocate_distance`` 0.5 m): generated seeds 0-199 199 / 200, off 195 / 200;
+    200-299 98 / 100, off 97 / 100 (``docs/expert_benchmark.md``, 2026-11-26). The registered expert's
+    env turns it on, except for the sonar navigator (``localization: sonar``)."""
 
     def __post_init__(self) -> None:
         _check(self.shift_test >= 0, "shift_test", f"must be >= 0, got {self.shift_test}")

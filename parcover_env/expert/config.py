@@ -90,17 +90,34 @@ class SonarFixConfig:
     stops and scans once when it believes that KPOI is this close (m; 0: never): the env's route
     follows its estimate and moves on once the estimate reaches the KPOI, so a drifted arrival at a
     KPOI is never corrected afterwards (the same reason as ``final_rescan_distance``)."""
-    relocate_distance: float = 0.0
-    """Opt-in (0 = off, the default). With the env's scans: after a scan whose fix is held for
-    confirmation (``scan_result`` 0.5) or that was uninformative (-0.5), the leader does not scan again
+    relocate_distance: float = 0.5
+    """With the env's scans: after a scan whose fix is held for confirmation (``scan_result`` 0.5; the
+    registered expert's env holds fixes found only in a widened region, ``scan.confirm_widened``, except
+    for the sonar navigator's) or that was uninformative (-0.5), the leader does not scan again
     where it stands (a look-alike match
     repeats there, and an uninformative scene stays uninformative) but at the first place at least this
     far along its route, at most ``rescan_distance``, where the known map predicts an informative
     scan (:class:`~parcover_env.expert.scan_places.ScanPlaces`; none: after ``rescan_distance``); at
     its route's end, at such a place back along its route in its sight, then it returns (none: it
     scans no more). Short against ``rescan_distance``: a held fix may be right and the estimate
-    wrong. 0: such scans count as rejected ones (m). Measured with 0.5 m and ``confirm_widened`` on:
-    generated seeds 0-199 192 / 200 (off: 195 / 200), ``docs/expert_benchmark.md``."""
+    wrong. 0: such scans count as rejected ones (m). After a second uninformative scan in a row the
+    predicted places are not used until a fix: the next scans after an uninformative one are
+    ``rescan_distance`` apart (the noise-free prediction is optimistic along corridors, where a real
+    scan every ``relocate_distance`` stays uninformative); after a held one (the scene was
+    informative) the predicted place is used, to confirm it soon. 0: off (the expert before
+    2026-11-26). Measured with 0.5 m and ``confirm_widened`` on (``docs/expert_benchmark.md``,
+    2026-11-26): generated seeds 0-199 199 / 200 (off: 195 / 200), 200-299 98 / 100 (off: 97 / 100)."""
+    stuck_time: float = 5.0
+    """With ``relocate_distance`` > 0: a leader waiting to scan from elsewhere (after a held scan, or an
+    uninformative one away from its route's end, where it stands still on purpose) whose belief has
+    moved less than ``stuck_distance`` for this long (s; braked by a wall or a teammate, or backing off
+    and driving in again) drives ``relocate_distance`` into the freest direction of its own sonar ring
+    (or up to ``stop_margin`` before the shortest reading of that direction's front sector), then scans:
+    a held fix is confirmed only by a scan from elsewhere, and an uninformative scene stays so. Longer
+    than one give-way (``patience`` 2 s plus ``backoff_time`` 1 s) of the first robots, so that the
+    usual back-off is tried first."""
+    stuck_distance: float = 0.1
+    """See ``stuck_time`` (m); half the env's ``shift_test`` (0.2 m), the move a confirming scan needs."""
     fix_sigma: float = 0.05
     """Position standard deviation of an accepted sonar fix along x and y (m): the covariance the
     expert propagates the corrected belief from."""
@@ -118,6 +135,7 @@ class SonarFixConfig:
                  "fix_sigma", "fix_sigma_heading_deg", "confirm_distance")
         check(self.shift_test >= 0, "shift_test", f"must be >= 0, got {self.shift_test}")
         check(self.relocate_distance >= 0, "relocate_distance", f"must be >= 0, got {self.relocate_distance}")
+        positive(self, "stuck_time", "stuck_distance")
         check(self.min_shift_increase >= 0, "min_shift_increase", f"must be >= 0, got {self.min_shift_increase}")
         check(self.miss_inflation >= 1, "miss_inflation", f"must be >= 1, got {self.miss_inflation}")
         check(self.max_inflation >= 1, "max_inflation", f"must be >= 1, got {self.max_inflation}")

@@ -17,9 +17,12 @@ env internals. Roles (leader/follower), splits at TPs, and waypoints come from t
   reads the env's estimate and covariance; without the service it turns and localizes its own scan
   with Kim, Pearce & Amato's localizer, :mod:`parcover_env.expert.sonar_fix`), and checks its pose
   by a scan before each KPOI and at its route's end; with ``expert.sonar_fix.relocate_distance`` > 0
-  (opt-in), after a scan whose fix the env holds for confirmation or that was uninformative
+  (0.5 m by default; the registered expert's env holds fixes found only in a widened region), after
+  a scan whose fix the env holds for confirmation or that was uninformative
   (``scan_result`` 0.5 / -0.5) it scans next from elsewhere, where the known map predicts an
-  informative scan (:mod:`parcover_env.expert.scan_places`);
+  informative scan (:mod:`parcover_env.expert.scan_places`; after two uninformative scans in a row,
+  ``rescan_distance`` apart), and a robot stuck meanwhile drives into the freest direction of its
+  sonar ring first (``stuck_time``);
 * leaders brake on their front sonar beams when a robot or wall is closer than ``stop_margin``
   (needed in ``individual`` mode, where all robots leave at once); a leader braked for longer than
   ``patience`` (plus ``patience_stagger`` per robot index, so two robots never give way together)
@@ -83,7 +86,13 @@ class ScriptedExpert(Policy):
 
             self.places = ScanPlaces(scenario, mission.known_map.segments)
         self.detours: dict[str, np.ndarray] = {}
-        """Where a robot at its route's end drives back to scan from (after a held or uninformative scan)."""
+        """Where a robot at its route's end drives back to scan from (after a held or uninformative scan),
+        or where a stuck robot with a held fix drives to (:meth:`_escape`)."""
+        self.still: dict[str, tuple[np.ndarray, int]] = {}
+        """Per relocating robot: where its estimate was when it last moved ``stuck_distance``, and the
+        steps since (:meth:`_stuck`)."""
+        self.escaping: set[str] = set()
+        """Robots driving into the freest direction of their sonar ring before their next scan."""
         # with sonar fixes, the robots' progress along their routes is tracked on the corrected pose
         # (the env's waypoints follow its odometry estimate), from the start so that out-and-back
         # legs are never confused
@@ -128,6 +137,8 @@ class ScriptedExpert(Policy):
         self.unseen.clear()
         self.checked.clear()
         self.detours.clear()
+        self.still.clear()
+        self.escaping.clear()
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         g = self.layout.get
@@ -279,25 +290,42 @@ class ScriptedExpert(Policy):
                               check=check is not None, result=result)
         if check is not None and self.fixer.scanning(agent):
             self.checked.add((agent, check))
-        self._relocate(agent, i, odom, at_end)
+        self._relocate(agent, i, odom, at_end, g(obs, "sonar").astype(float))
         return out
 
-    def _relocate(self, agent: str, i: int, odom: np.ndarray, at_end: bool) -> None:
+    def _relocate(self, agent: str, i: int, odom: np.ndarray, at_end: bool, ranges: np.ndarray) -> None:
         """After a held or uninformative env scan, choose where the robot scans next
         (``expert.sonar_fix.relocate_distance``): the first place ahead along its route where the known map
-        predicts an informative scan; at its route's end, such a place back along it (a detour, scanned on
-        arrival). Drops the detour once the robot scans or is fixed."""
+        predicts an informative scan (after a second uninformative scan in a row, :meth:`SonarFixer.spaced`,
+        and an uninformative last one: ``rescan_distance`` on); at its route's end, such a place back along
+        it (a detour, scanned on arrival). A stuck robot (:meth:`_stuck`; after a held scan, or an
+        uninformative one away from its route's end) drives into the freest direction of its sonar ``ranges``
+        first (:meth:`_escape`). Drops the detour once the robot scans or is fixed."""
         if self.fixer.scanning(agent) or not self.fixer.relocating(agent):
             self.detours.pop(agent, None)
+            self.still.pop(agent, None)
+            self.escaping.discard(agent)
             return
-        bel = self.fixer.belief(agent, odom)[:2]
-        if agent in self.detours and np.hypot(*(bel - self.detours[agent])) <= self.mission.waypoint_tol:
-            self.fixer.scan_after(agent, 0.0)  # arrived: scan now
+        pose = self.fixer.belief(agent, odom)
+        bel = pose[:2]
+        stuck = self._stuck(agent, bel)
+        # an escape may be shorter than waypoint_tol: it ends closer, so that the scan is from elsewhere
+        tol = 0.5 * self.cfg.sonar_fix.stuck_distance if agent in self.escaping else self.mission.waypoint_tol
+        arrived = agent in self.detours and np.hypot(*(bel - self.detours[agent])) <= tol
+        if arrived or (stuck and agent in self.escaping):
+            self.fixer.scan_after(agent, 0.0)  # there, or as far as it got: scan now
+            return
+        if stuck and (self.fixer.held(agent) or not at_end):  # at its route's end it stands still on purpose
+            self._escape(agent, pose, ranges)
+            return
         if self.places is None or not self.fixer.needs_place(agent):
             return
         c = self.cfg.sonar_fix
         near, far = c.relocate_distance, max(c.relocate_distance, c.rescan_distance)
         route = self.mission.routes[i]
+        if self.fixer.spaced(agent) and not self.fixer.held(agent) and not at_end:  # a held scan was informative
+            self.fixer.scan_after(agent, c.rescan_distance)
+            return
         if at_end:
             place = self.places.behind(route, bel, near, far)
             if place is not None:
@@ -307,6 +335,39 @@ class ScriptedExpert(Policy):
         progress = float(self.track.progress[i]) if self.track is not None else 0.0
         d = self.places.ahead(route, progress, near, far)
         self.fixer.scan_after(agent, c.rescan_distance if d is None else d)
+
+    def _stuck(self, agent: str, xy: np.ndarray) -> bool:
+        """Whether a relocating robot at ``xy`` (its belief) has stayed within ``stuck_distance`` of one
+        point for ``stuck_time`` (``expert.sonar_fix``); the count restarts once it reports True."""
+        c = self.cfg.sonar_fix
+        anchor, steps = self.still.get(agent, (xy, -1))
+        if np.hypot(*(xy - anchor)) >= c.stuck_distance:
+            anchor, steps = xy, -1
+        steps += 1
+        if steps * self.dt >= c.stuck_time - 1e-9:
+            anchor, steps = xy, 0
+            self.still[agent] = (anchor, steps)
+            return True
+        self.still[agent] = (anchor, steps)
+        return False
+
+    def _escape(self, agent: str, pose: np.ndarray, ranges: np.ndarray) -> None:
+        """Send a stuck robot at ``pose`` (its belief) ``relocate_distance`` into the freest direction of its
+        sonar ring ``ranges``: the beam whose front sector (the beams within ``front_sector_deg`` of it, those
+        it brakes on when it drives that way) has the longest shortest reading (the first of equal ones), at
+        most up to ``stop_margin`` before that reading. It scans on arrival or when stuck again (no estimate
+        is needed to choose the direction)."""
+        beams = np.asarray(self.fixer.beams, dtype=float)
+        sector = np.abs(wrap_angle(beams[None, :] - beams[:, None])) <= np.radians(self.cfg.front_sector_deg)
+        clear = np.where(sector, np.asarray(ranges, dtype=float)[None, :], np.inf).min(axis=1)
+        k = int(np.argmax(clear))
+        reach = min(self.cfg.sonar_fix.relocate_distance, float(clear[k]) - self.stop)
+        if reach < self.cfg.sonar_fix.stuck_distance:
+            return  # boxed in: wait where it is
+        heading = pose[2] + float(self.fixer.beams[k])
+        self.detours[agent] = pose[:2] + reach * np.array([np.cos(heading), np.sin(heading)])
+        self.escaping.add(agent)
+        self.fixer.scan_after(agent, np.inf)  # not before it gets there
 
     def _kpoi_check(self, agent: str, obs: np.ndarray, odom: np.ndarray) -> int | None:
         """The index of the KPOI at the robot's route point ahead (within ``waypoint_tol``), if the robot believes it is

@@ -155,6 +155,13 @@ class _State:
     move: float | None = None
     """While relocating: the distance (m) to drive since that scan before the next one; None until the
     expert has chosen the place (:meth:`SonarFixer.scan_after`)."""
+    held: bool = False
+    """The env's last scan of this robot held its fix for a confirming scan from elsewhere."""
+    uninformative: int = 0
+    """The env's scans of this robot in a row, up to the last one, that were uninformative."""
+    spaced: bool = False
+    """After a second uninformative scan in a row: until a fix, the expert scans ``rescan_distance``
+    apart instead of at the places the known map predicts informative (:meth:`SonarFixer.spaced`)."""
 
 
 class SonarFixer:
@@ -234,6 +241,7 @@ class SonarFixer:
             driven = 0.0 if st.env_fixed else math.inf
             st.correction, st.scan, st.driven_since_scan, st.refused = np.zeros(3), None, driven, None
             st.missed, st.inflation, st.relocate, st.move = False, 1.0, False, None
+            st.held, st.uninformative, st.spaced = False, 0, False
             st.cov = self.kinect_cov.copy() if odom_cov is None else odom_cov
         elif odom_cov is not None and not self.corrected(agent):
             st.cov = odom_cov
@@ -274,6 +282,9 @@ class SonarFixer:
             st.scan, st.driven_since_scan = None, 0.0
             elsewhere = self.cfg.relocate_distance > 0 and result in (HELD, UNINFORMATIVE)
             st.missed, st.relocate, st.move = not elsewhere, elsewhere, None
+            st.held = elsewhere and result == HELD
+            st.uninformative = st.uninformative + 1 if result == UNINFORMATIVE else 0
+            st.spaced = st.spaced or (elsewhere and st.uninformative >= 2)
             self.stats["sonar_failed"] += 1
             return None
         if not st.scan.add(float(odom[2]), ranges):
@@ -292,6 +303,19 @@ class SonarFixer:
         """Whether this robot waits to scan from elsewhere (after a held or uninformative scan)."""
         st = self.states.get(agent)
         return st is not None and st.relocate
+
+    def held(self, agent: str) -> bool:
+        """Whether this robot relocates after a scan whose fix the env holds for a confirming scan from
+        elsewhere (``scan_result`` 0.5)."""
+        st = self.states.get(agent)
+        return st is not None and st.relocate and st.held
+
+    def spaced(self, agent: str) -> bool:
+        """Whether, since this robot's last fix, two of its env scans in a row were uninformative (the
+        second one at a place the expert chose, ``relocate_distance``): until a fix it scans
+        ``rescan_distance`` apart, the known map's prediction having failed here."""
+        st = self.states.get(agent)
+        return st is not None and st.spaced
 
     def scan_after(self, agent: str, distance: float) -> None:
         """A relocating robot scans next once it has driven ``distance`` (m) since its last scan

@@ -65,7 +65,7 @@ def run_job(scenario: str, policy: str, seed: int, max_steps: int | None = None,
     from parcover_env.harness.rollout import run_episode
     from parcover_env.policies.registry import make_policy, policy_overrides
 
-    extra = policy_overrides(policy)
+    extra = policy_overrides(policy, scenario)
     key = (scenario, max_steps, preset, repr(extra))
     if key not in _ENV_CACHE:
         overrides = {"episode": {"max_steps": max_steps}} if max_steps else None

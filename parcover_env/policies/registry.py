@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +49,27 @@ class PolicyEntry:
     path_overrides: Callable[[str], dict | None] | None = None
     """``path -> overrides``: those of one checkpoint (e.g. read from its sidecar); used instead of
     :attr:`env_overrides` when set."""
+    scenario_overrides: Callable[[str], dict | None] | None = None
+    """``scenario -> overrides`` (a scenario name or path): used instead of :attr:`env_overrides` when
+    the caller names the scenario (:func:`policy_overrides`)."""
+
+
+@lru_cache(maxsize=256)
+def _navigates_by_sonar(scenario: str) -> bool:
+    from parcover_env.scenarios import load_scenario
+
+    return load_scenario(scenario).localization == "sonar"
+
+
+def _expert_overrides(scenario: str) -> dict:
+    """The expert's env: the sonar service, and, unless the scenario's expert is the sonar navigator
+    (``localization: sonar``), ``confirm_widened``: the formation expert scans from elsewhere after a
+    held fix (``expert.sonar_fix.relocate_distance``); the navigator rescans at its route's end in
+    place, where a held fix is never confirmed (hallway seeds 8, 10, 14 were lost with it on)."""
+    scan: dict = {"enabled": True}
+    if not _navigates_by_sonar(scenario):
+        scan["confirm_widened"] = True
+    return {"observation": {"scan": scan}}
 
 
 def _random(env, seed: int | None, path: str) -> Policy:
@@ -111,8 +133,10 @@ def _torchrl_overrides(path: str) -> dict | None:
 
 POLICIES: dict[str, PolicyEntry] = {
     "expert": PolicyEntry(_expert, "the scripted expert of the scenario's localization mode; it stops and "
-                          "asks the env for sonar scans (the env's sonar localization)",
-                          env_overrides={"observation": {"scan": {"enabled": True}}}),
+                          "asks the env for sonar scans (the env's sonar localization; a fix found only in a "
+                          "widened region is held until a scan from elsewhere agrees)",
+                          env_overrides={"observation": {"scan": {"enabled": True}}},
+                          scenario_overrides=_expert_overrides),
     "waypoint": PolicyEntry(_waypoint, "each robot drives to its observed route waypoint, alone, and stops "
                             "to scan (the env's sonar localization) when its uncertainty grows",
                             env_overrides={"observation": {"scan": {"enabled": True}}}),
@@ -151,12 +175,17 @@ def check_policy_spec(spec: str) -> None:
             raise ParcoverError(f"policy '{spec}': {path} does not exist")
 
 
-def policy_overrides(spec: str) -> dict | None:
-    """The scenario overrides the env of policy ``spec`` needs (:attr:`PolicyEntry.env_overrides`)."""
+def policy_overrides(spec: str, scenario: str | None = None) -> dict | None:
+    """The scenario overrides the env of policy ``spec`` needs (:attr:`PolicyEntry.env_overrides`; with
+    ``scenario``, a name or path, :attr:`PolicyEntry.scenario_overrides` where the entry has them)."""
     check_policy_spec(spec)
     name, _, path = spec.partition(":")
     entry = POLICIES[name]
-    return entry.path_overrides(path) if entry.path_overrides is not None else entry.env_overrides
+    if entry.path_overrides is not None:
+        return entry.path_overrides(path)
+    if scenario is not None and entry.scenario_overrides is not None:
+        return entry.scenario_overrides(scenario)
+    return entry.env_overrides
 
 
 def make_policy(spec: str, env, seed: int | None) -> Policy:

@@ -301,3 +301,48 @@ def test_a_fix_inside_the_base_gate_or_with_confirmation_off_is_applied_at_once(
     true, _, _ = _widened(off, [0.5, -0.3, 0.2])
     assert _scan(off)[-1][1] == ACCEPTED and off.scanner.held[0] is None
     assert np.hypot(*(off.pose_estimates()[0][:2] - true[:2])) < 0.05
+
+
+def _stub_match(scanner, widened, base):
+    """Replace ``scanner.match``: ``widened`` (3,) or None for a search with inflation > 1, ``base`` for
+    inflation 1; returns the list of inflations searched."""
+    calls = []
+
+    def match(i, ranges, request, inflation):
+        calls.append(inflation)
+        pose = widened if inflation > 1 else base
+        return (None if pose is None else pose.copy()), True
+
+    scanner.match = match
+    return calls
+
+
+def test_a_match_inside_the_base_gate_wins_over_a_far_look_alike_of_the_widened_search():
+    """With ``confirm_widened``: when the widened search's best pose lies outside the base gate but the scan
+    also matches inside it (the estimate's own region), that match is applied, nothing is held."""
+    env = _env(CONFIRM)
+    sc = env.scanner
+    true, cov, est = _widened(env, [0.05, 0.0, 0.0])
+    far = est + np.array([0.0, 1.2, 0.0])  # a look-alike along a corridor, found only in the x8 region
+    near = est + np.array([-0.04, 0.01, 0.01])
+    assert not sc.in_gate(far, est, cov) and sc.in_gate(near, est, cov)
+    calls = _stub_match(sc, far, near)
+    assert _scan(env)[-1][1] == ACCEPTED and sc.held[0] is None and calls == [8.0, 1.0]
+    np.testing.assert_allclose(env.pose_estimates()[0], near)
+    # no match inside the base gate: the far one is held as before
+    _widened(env, [0.05, 0.0, 0.0])
+    calls = _stub_match(sc, far, None)
+    assert _scan(env)[-1][1] == HELD and calls == [8.0, 1.0]
+    np.testing.assert_array_equal(env.pose_estimates()[0], est)
+    # the widened search's pose inside the base gate: no second search
+    sc.held[0] = sc.held_from[0] = None
+    calls = _stub_match(sc, near, far)
+    assert _scan(env)[-1][1] == ACCEPTED and calls == [8.0]
+    # no widening: one search; confirm_widened off: one search, the far pose applied
+    calls = _stub_match(sc, None, None)
+    assert sc.inflation[0] == 1.0 and _scan(env)[-1][1] == REJECTED and calls == [1.0]
+    off = _env()
+    _widened(off, [0.05, 0.0, 0.0])
+    calls = _stub_match(off.scanner, far, near)
+    assert _scan(off)[-1][1] == ACCEPTED and calls == [8.0]
+    np.testing.assert_allclose(off.pose_estimates()[0], far)

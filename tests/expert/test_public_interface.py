@@ -45,7 +45,7 @@ def _raise(*args, **kwargs):
 @pytest.mark.parametrize("scenario,seed,kind", [("generated:3", 3, "ScriptedExpert"),
                                                  ("hallway", 0, "SonarNavigator")])
 def test_expert_runs_on_public_inputs_only(scenario, seed, kind, monkeypatch):
-    env = parcover_env.parallel_env(scenario, overrides=policy_overrides("expert"))
+    env = parcover_env.parallel_env(scenario, overrides=policy_overrides("expert", scenario))
     public = types.SimpleNamespace(layout=env.layout, scenario=env.scenario, plan=env.plan, sonar=env.sonar,
                                    mission=PublicMission(env.mission))
     expert = expert_for(public)
@@ -74,7 +74,7 @@ def test_expert_scans_through_the_env_service(scenario, seed, monkeypatch):
     from parcover_env.expert.team_localizer import TeamLocalizer
 
     monkeypatch.setattr(TeamLocalizer, "localize", _raise)
-    env = parcover_env.parallel_env(scenario, overrides=policy_overrides("expert"))
+    env = parcover_env.parallel_env(scenario, overrides=policy_overrides("expert", scenario))
     public = types.SimpleNamespace(layout=env.layout, scenario=env.scenario, plan=env.plan, sonar=env.sonar,
                                    mission=PublicMission(env.mission))
     expert = expert_for(public)
