@@ -38,7 +38,7 @@ def test_observation_stats_over_the_real_robots_only():
     assert torch.allclose(std, torch.tensor([1.0, 0.0, 0.1], dtype=torch.float64))
     mean_all, _ = observation_stats(obs)  # no mask: the padding counts
     assert mean_all[0] == pytest.approx(104.0 / 3)
-    with pytest.raises(ValueError, match="no real robot"):
+    with pytest.raises(ValueError, match="^no real robot.s observation to fit the scale to$"):
         observation_stats(obs, torch.zeros_like(real))
 
 
