@@ -1,0 +1,97 @@
+"""The score phase's per-world state as rows of shared blocks (:mod:`parcover_env.envs.score_rows`)
+and the compiled calls over them: the metrics' sums (:func:`step_kernels.record_many`) by value on a
+hand-built step, ``K = 2`` worlds equal to two ``K = 1`` calls, copies and pickles of owners that
+hold row views."""
+
+from __future__ import annotations
+
+import copy
+import math
+import pickle
+
+import numpy as np
+import pytest
+
+from parcover_env.envs import metrics, step_kernels
+from parcover_env.envs.metrics import EpisodeMetrics
+from parcover_env.envs.score_rows import shared_rows
+from parcover_env.geometry import wrap_angle
+
+
+class Owner:
+    def __init__(self, a, b):
+        self.a, self.b, self.rows = np.array(a, dtype=float), np.array(b, dtype=np.int64), None
+
+    def __getstate__(self):
+        return {**self.__dict__, "rows": None}
+
+
+def test_shared_rows_attach_reuse_and_adopt_again():
+    x, y = Owner([1.0, 2.0], [3]), Owner([4.0, 5.0], [6])
+    rows = shared_rows([x, y], ("a", "b"))
+    assert rows.blocks["a"].tolist() == [[1.0, 2.0], [4.0, 5.0]] and rows.blocks["b"].tolist() == [[3], [6]]
+    assert x.rows is rows and y.rows is rows and np.shares_memory(x.a, rows.blocks["a"])
+    rows.blocks["a"] += 1.0  # one call on the block updates every owner
+    assert x.a.tolist() == [2.0, 3.0] and y.a.tolist() == [5.0, 6.0]
+    assert shared_rows([x, y], ("a", "b")) is rows  # reused while attached
+    z = Owner([7.0, 8.0], [9])  # a world reset since: a new owner takes row 1
+    assert shared_rows([x, z], ("a", "b")) is rows
+    assert rows.blocks["a"][1].tolist() == [7.0, 8.0] and y.a.tolist() == [5.0, 6.0]
+    assert not np.shares_memory(y.a, rows.blocks["a"])  # the old owner keeps its values, as its own array
+    x.a = np.array([0.5, 0.25])  # rebound by a per-world method: copied in again
+    shared_rows([x, z], ("a", "b"))
+    assert rows.blocks["a"][0].tolist() == [0.5, 0.25] and np.shares_memory(x.a, rows.blocks["a"])
+    one = shared_rows([z], ("a", "b"))  # another K: rows of its own
+    assert one is not rows and one.size == 1 and z.rows is one and one.blocks["a"].tolist() == [[7.0, 8.0]]
+    for c in (copy.deepcopy(x), pickle.loads(pickle.dumps(x))):
+        assert c.rows is None and c.a.tolist() == [0.5, 0.25] and not np.shares_memory(c.a, rows.blocks["a"])
+
+
+def test_metric_totals_are_the_kernels_columns():
+    assert metrics.TOTALS == step_kernels.METRIC_TOTALS
+
+
+def _step(true, predecessor, visited, visit_time, wall, robot, unseen, time):
+    k, n = predecessor.shape
+    return step_kernels.MetricsStep(np.zeros((k, n, 3)), true, true.copy(), predecessor, visited, visit_time, wall,
+                                    robot, unseen, time)
+
+
+def test_record_many_by_value():
+    true = np.array([[[3.0, 4.0, 0.0], [0.0, 0.0, 0.0]], [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
+    step = _step(true, np.array([[-1, 0], [-1, -1]]), np.array([[True, True], [True, False]]),
+                 np.array([[1.0, 2.5], [0.5, np.nan]]), np.array([[2, 0], [0, 1]]), np.array([[1, 1], [0, 0]]),
+                 np.array([1, 0]), np.array([0.3, 0.3]))
+    totals = np.zeros((2, 12))
+    totals[:, -1] = np.nan
+    paths = np.array([[1.0, 0.0], [0.0, 0.0]])
+    step_kernels.record_many(totals, paths, step, (0.0, 4.0, math.pi), 0.1)
+    assert paths.tolist() == [[6.0, 0.0], [1.0, 1.0]]
+    t = dict(zip(step_kernels.METRIC_TOTALS, totals[0].tolist(), strict=True))
+    # follower 1 at the origin, 5 m from its leader at (3, 4): l - l_d = 1; the bearing of (-3, -4) minus pi,
+    # wrapped, is atan(4 / 3)
+    assert t["sq_l"] == 1.0 and t["sq_psi"] == pytest.approx(math.atan(4 / 3) ** 2, rel=1e-14) and t["n_form"] == 1
+    raw = math.atan2(-4.0, -3.0) - math.pi
+    assert t["sq_psi"] == np.sum(wrap_angle(np.array([raw])) ** 2)
+    assert (t["steps"], t["time"], t["kpois_visited"], t["wall_collisions"], t["robot_collisions"]) == (1, 0.3, 2, 2, 1)
+    assert (t["sq_err"], t["n_err"], t["unseen_leader_time"], t["makespan"]) == (0.0, 2, 0.1, 2.5)
+    u = dict(zip(step_kernels.METRIC_TOTALS, totals[1].tolist(), strict=True))
+    assert (u["n_form"], u["sq_l"], u["kpois_visited"], u["wall_collisions"]) == (0, 0, 1, 1)
+    assert u["unseen_leader_time"] == 0
+    assert math.isnan(u["makespan"])
+    step.visit_time[0, 1] = 9.0  # the makespan is set once
+    step_kernels.record_many(totals, paths, step, (0.0, 4.0, math.pi), 0.1)
+    assert totals[0, -1] == 2.5 and totals[0, 0] == 2 and totals[0, 9] == 2 and totals[0, 10] == pytest.approx(0.2)
+
+
+def test_episode_metrics_rows_survive_copies_and_are_adopted_after_a_reset():
+    ms = [EpisodeMetrics(2, 2, 4.0, 0.5, path_lengths=[1.0, 2.0]) for _ in range(2)]
+    rows = shared_rows(ms, ("totals", "paths"))
+    rows.blocks["paths"] += 1.0
+    rows.blocks["totals"][:, 0] = 3.0
+    c = copy.deepcopy(ms[1])
+    assert c.rows is None and c.path_lengths == [2.0, 3.0] and c.steps == 3
+    fresh = EpisodeMetrics(2, 2, 4.0, 0.5)
+    assert shared_rows([ms[0], fresh], ("totals", "paths")) is rows
+    assert fresh.steps == 0 and ms[1].steps == 3 and rows.blocks["totals"][:, 0].tolist() == [3.0, 0.0]
+    assert pickle.loads(pickle.dumps(ms[0])).summary() == ms[0].summary()
