@@ -16,7 +16,7 @@ before, whose last bits depend on the CPU's BLAS kernel).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -77,12 +77,9 @@ class EpisodeMetrics:
         self.totals = np.zeros(len(TOTALS))
         """The sums and counts of :data:`TOTALS` (``makespan`` NaN while None)."""
         self.totals[_T["makespan"]] = math.nan
-        self.messages: dict[str, int] = {}
-        """The team's messages by kind at the last step (sorted by kind)."""
-        self.kinect_splits = 0
-        """Splits at TPs triggered by the Kinect system detecting the leader there (Min et al. Alg. 1)."""
-        self.odometry_splits = 0
-        """Splits decided on the leader's own estimate: its TP lay outside every Kinect footprint."""
+        self.team_counts: tuple[Mapping[str, int], Mapping[str, int]] = ({}, {})
+        """The team's counters of messages and of splits by source (``Team.messages``, ``Team.splits``),
+        linked (not copied) by the first recorded step: :attr:`messages` and the splits read them."""
         self.rows = None
         """The shared rows :attr:`totals` and :attr:`paths` are views of when recorded with
         other worlds' metrics (:func:`record_steps`); not copied, not pickled."""
@@ -94,6 +91,25 @@ class EpisodeMetrics:
 
     def __repr__(self) -> str:
         return f"EpisodeMetrics({self.summary()!r})"
+
+    @property
+    def messages(self) -> dict[str, int]:
+        """The team's messages by kind, sorted by kind (a zero count kept)."""
+        return dict(sorted(self.team_counts[0].items()))
+
+    @messages.setter
+    def messages(self, value: Mapping[str, int]) -> None:
+        self.team_counts = (dict(value), self.team_counts[1])
+
+    @property
+    def kinect_splits(self) -> int:
+        """Splits at TPs triggered by the Kinect system detecting the leader there (Min et al. Alg. 1)."""
+        return self.team_counts[1].get("kinect", 0)
+
+    @property
+    def odometry_splits(self) -> int:
+        """Splits decided on the leader's own estimate: its TP lay outside every Kinect footprint."""
+        return self.team_counts[1].get("odometry", 0)
 
     @property
     def path_lengths(self) -> list[float]:
@@ -184,7 +200,7 @@ class EpisodeMetrics:
                "steps": self.steps, "time": self.time, "kpois_visited": self.kpois_visited, "makespan": self.makespan,
                "wall_collisions": self.wall_collisions, "robot_collisions": self.robot_collisions,
                "path_lengths": self.path_lengths, "localization_error": self.localization_error,
-               "messages": dict(self.messages), "kinect_splits": self.kinect_splits,
+               "messages": self.messages, "kinect_splits": self.kinect_splits,
                "odometry_splits": self.odometry_splits, "unseen_leader_time": self.unseen_leader_time,
                "formation_error_l": self.formation_error_l, "formation_error_psi": self.formation_error_psi}
         out["success"] = self.kpois_visited == self.n_kpois
@@ -243,8 +259,8 @@ def record_step(m: EpisodeMetrics, before: np.ndarray, true: np.ndarray, *, time
     """Add one control step to ``m``: path lengths (true displacement ``before`` -> ``true``), KPOIs
     visited, localization error, new wall / robot contacts (``new_contacts``; a robot-robot contact
     counts for both robots, so halved), formation errors (l-psi, true poses), the team's messages and
-    splits, the time leaders spend outside every Kinect footprint, and the makespan once ``progress``
-    is done (the last KPOI's visit time). The one-world call of :func:`record_steps`."""
+    splits (its counters, linked), the time leaders spend outside every Kinect footprint, and the
+    makespan once ``progress`` is done (the last KPOI's visit time). The one-world call of :func:`record_steps`."""
     record_steps([m], before[None], true[None], times=[time], progress=[progress], estimates=estimate[None],
                  new_contacts=(new_contacts[0][None], new_contacts[1][None]), teams=[team], formation=formation,
                  kinects=kinects, control_dt=control_dt)
@@ -263,7 +279,7 @@ def record_steps(metrics: Sequence[EpisodeMetrics], before: np.ndarray, true: np
     wall and robot contacts ``(K, N)``, teams; ``kinects`` answers ``in_view`` for every world (the
     footprints are the scenario's) or is None. The metrics' sums are rows of shared blocks
     (:func:`~parcover_env.envs.score_rows.shared_rows`) that one compiled call adds the step to
-    (:func:`~parcover_env.envs.step_kernels.record_many`); only the message counts are copied world by world."""
+    (:func:`~parcover_env.envs.step_kernels.record_many`); each world's metrics link its team's counters."""
     from parcover_env.envs import step_kernels
 
     k_worlds = true.shape[0]
@@ -280,9 +296,9 @@ def record_steps(metrics: Sequence[EpisodeMetrics], before: np.ndarray, true: np
                              (float(formation.offset), float(formation.spacing), math.radians(formation.bearing_deg)),
                              float(control_dt))
     for m, team in zip(metrics, teams, strict=True):
-        if m.messages.items() != team.messages.items():  # exact (zero counts too); unchanged most steps
-            m.messages = dict(sorted(team.messages.items()))
-        m.kinect_splits, m.odometry_splits = team.splits.get("kinect", 0), team.splits.get("odometry", 0)
+        counts = m.team_counts
+        if counts[0] is not team.messages or counts[1] is not team.splits:  # once per episode
+            m.team_counts = (team.messages, team.splits)
 
 
 def _c(a, dtype=float) -> np.ndarray:

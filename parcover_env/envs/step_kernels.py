@@ -1,9 +1,9 @@
 """Compiled (numba) loops of an env step: the observation's scalar entries, the formation errors, the
-episode metrics' sums (:func:`record_many`) and the test for teams that may split; import only through :mod:`parcover_env.envs.observations`,
-:mod:`parcover_env.envs.metrics` and :mod:`parcover_env.envs.handover`. The same float operations,
-in the same order, as the numpy formulas they replace (``tests/envs/test_observation_assembly.py``
-and ``tests/envs/test_values.py`` keep references). The ``*_many`` loops run a one-world loop over
-``K`` worlds (leading axis)."""
+episode metrics' sums (:func:`record_many`) and the test for teams that may split; import only
+through :mod:`parcover_env.envs.observations`, :mod:`parcover_env.envs.metrics` and
+:mod:`parcover_env.envs.handover`. The same float operations, in the same order, as the numpy
+formulas they replace (``tests/envs/test_observation_assembly.py`` and ``tests/envs/test_values.py``
+keep references). The ``*_many`` loops run a one-world loop over ``K`` worlds (leading axis)."""
 
 from __future__ import annotations
 

@@ -95,3 +95,20 @@ def test_episode_metrics_rows_survive_copies_and_are_adopted_after_a_reset():
     assert shared_rows([ms[0], fresh], ("totals", "paths")) is rows
     assert fresh.steps == 0 and ms[1].steps == 3 and rows.blocks["totals"][:, 0].tolist() == [3.0, 0.0]
     assert pickle.loads(pickle.dumps(ms[0])).summary() == ms[0].summary()
+
+
+def test_metrics_link_the_teams_counters_once_and_a_copied_world_keeps_the_link():
+    import parcover_env
+
+    env = parcover_env.parallel_env("office")
+    env.reset(seed=0)
+    assert env.metrics.messages == {} and env.metrics.kinect_splits == 0  # nothing recorded yet
+    env.step({a: np.array([0.5, 0.0], np.float32) for a in env.agents})
+    m, team = env.metrics, env.team
+    assert m.team_counts[0] is team.messages and m.team_counts[1] is team.splits
+    team.messages["split"] += 2
+    team.splits["odometry"] += 1
+    assert m.messages["split"] == team.messages["split"] and m.odometry_splits == team.splits["odometry"] == 1
+    assert list(m.messages) == sorted(team.messages)
+    c = copy.deepcopy(env)
+    assert c.metrics.team_counts[0] is c.team.messages and c.metrics.summary() == m.summary()
