@@ -5,7 +5,8 @@ After the act phase has moved every world, :func:`score` tracks the mission, spl
 blocks and computing on the blocks:
 
 * route progress, KPOI visits, goals and the route length to go: one compiled call for all worlds
-  (:func:`parcover_env.scenarios.progress.step_many`);
+  (:func:`parcover_env.scenarios.progress.step_many`) on the trackers' arrays as rows of shared
+  blocks (:func:`parcover_env.envs.score_rows.shared_rows`), updated in place;
 * the team update: waypoint messages counted over ``(K, N)``; only the worlds where a leader may
   have reached its TP run the (rare) Python split (:func:`parcover_env.envs.handover.update_teams`);
 * the reward terms as ``(K, N)`` arrays (:func:`parcover_env.envs.rewards.reward_terms`), returned
@@ -29,8 +30,10 @@ import numpy as np
 from parcover_env.envs.handover import update_teams
 from parcover_env.envs.metrics import record_steps
 from parcover_env.envs.rewards import own_visits, reward_terms
+from parcover_env.envs.score_rows import shared_rows
 from parcover_env.envs.team import count_waypoints_many
-from parcover_env.scenarios.progress import step_many
+from parcover_env.scenarios.progress import STATE, step_many
+from parcover_env.scenarios.progress_kernel import TrackerRows
 
 __all__ = ["ScoreState", "Scores", "score", "gather", "rows"]
 
@@ -82,19 +85,20 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     s = first.scenario
     trackers, teams = [w.progress for w in worlds], [w.team for w in worlds]
     est = gather([w.estimate for w in worlds])
-    was = gather([t.visited for t in trackers])
+    track = shared_rows(trackers, STATE)  # the trackers' arrays as rows of shared blocks, updated in place
+    state = TrackerRows(*(track.blocks[name] for name in STATE))
+    was = state.visited.copy() if first.version == 2 else None
     times = [w.world.time for w in worlds]
     true_xy = np.ascontiguousarray(true[..., :2])
-    n_new, goals, remaining = step_many(trackers, true_xy, est[..., :2], times)
+    n_new, goals, remaining = step_many(trackers, true_xy, est[..., :2], times, state)
     velocity = (true_xy - before[..., :2]) / s.physics.control_dt
-    count_waypoints_many(teams, rows([t.advanced for t in trackers]), rows([t.leader for t in teams]))
-    progress = rows([t.progress for t in trackers])
-    update_teams(teams, [w.kinects for w in worlds], est, progress - first.progress.offsets,
+    count_waypoints_many(teams, state.advanced, rows([t.leader for t in teams]))
+    update_teams(teams, [w.kinects for w in worlds], est, state.progress - first.progress.offsets,
                  [w.camera_view for w in worlds])
     own = None
-    visited = rows([t.visited for t in trackers])
+    visited = state.visited
     if first.version == 2:
-        own = own_visits(visited & ~was, rows([t.visitor for t in trackers]), first.kpoi_owner, first.n_robots)
+        own = own_visits(visited & ~was, state.visitor, first.kpoi_owner, first.n_robots)
     states = [w.score_state for w in worlds]
     gained = rows([st.remaining for st in states]) - remaining
     wall, robot = gather([w.world.wall_contacts for w in worlds]), gather([w.world.robot_contacts for w in worlds])
