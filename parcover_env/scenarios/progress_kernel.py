@@ -80,7 +80,10 @@ def advance_all(p, progress, waypoint, length, arc, must, pts, e, ee, seg_len, r
         bj = 0
         bu = 0.0
         bdist = 0.0
-        for k in range(m - 1):
+        # segment 0 is always taken first; outside [lo, hi) a segment scores +inf and never wins after it
+        for k in range(max(hi, 1)):
+            if 0 < k < lo:
+                continue
             qx = p[i, 0] - pts[i, k, 0]
             qy = p[i, 1] - pts[i, k, 1]
             u = min(max((qx * e[i, k, 0] + qy * e[i, k, 1]) / ee[i, k], 0.0), 1.0)
