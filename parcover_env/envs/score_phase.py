@@ -94,7 +94,7 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     velocity = (true_xy - before[..., :2]) / s.physics.control_dt
     count_waypoints_many(teams, state.advanced, rows([t.leader for t in teams]))
     update_teams(teams, [w.kinects for w in worlds], est, state.progress - first.progress.offsets,
-                 [w.camera_view for w in worlds])
+                 lambda k: worlds[k].camera_view)
     own = None
     visited = state.visited
     if first.version == 2:

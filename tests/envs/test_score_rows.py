@@ -112,3 +112,26 @@ def test_metrics_link_the_teams_counters_once_and_a_copied_world_keeps_the_link(
     assert list(m.messages) == sorted(team.messages)
     c = copy.deepcopy(env)
     assert c.metrics.team_counts[0] is c.team.messages and c.metrics.summary() == m.summary()
+
+
+def test_each_world_reads_its_row_of_the_camera_views_and_a_copy_keeps_its_own_row_only():
+    import parcover_env
+    from parcover_env.envs import stepper
+
+    envs = [parcover_env.parallel_env("office") for _ in range(3)]
+    for seed, e in enumerate(envs):
+        e.reset(seed=seed)
+    alone = copy.deepcopy(envs)
+    acts = [{a: np.array([0.5, 0.1 * k], np.float32) for a in e.agents} for k, e in enumerate(envs)]
+    stepper.step(envs, acts)
+    for k, (e, one) in enumerate(zip(envs, alone, strict=True)):
+        stepper.step([one], [acts[k]])
+        assert e.camera_views is envs[0].camera_views and e.camera_index == k
+        view, ref = e.camera_view, one.camera_view
+        assert np.array_equal(view.predecessor, ref.predecessor) and np.array_equal(view.estimates, ref.estimates)
+        assert all(np.array_equal(x, y) for x, y in zip(view.reading, ref.reading, strict=True))
+        for c in (copy.deepcopy(e), pickle.loads(pickle.dumps(e))):
+            assert c.camera_index == 0 and c.camera_views.estimates.shape == (1, e.n_robots, 3)
+            assert np.array_equal(c.camera_view.estimates, view.estimates)
+            assert not np.shares_memory(c.camera_views.estimates, view.estimates)
+    assert np.array_equal(envs[1].camera_view.estimates, envs[1].estimate)  # measured at this step's estimates
