@@ -365,3 +365,23 @@ def test_scores_carry_a_copy_of_the_estimates_and_the_visits_to_the_later_phases
     obs = stepper.observe([env], true, scores)
     assert not np.shares_memory(env.camera_view.estimates, env.estimate)
     assert np.array_equal(obs, stepper.observe([twin], true))  # read from the worlds: the same
+
+
+def test_infos_take_a_term_equal_for_a_worlds_agents_from_its_template_bit_for_bit():
+    envs = _two_worlds("office")
+    k_worlds, n = len(envs), envs[0].n_robots
+    true = np.stack([e.true_poses() for e in envs])
+    team = np.array([[2.5], [-1.0]]) * np.ones((1, n))  # one value per world, different worlds
+    signed = np.zeros((k_worlds, n))
+    signed[1, 1] = -0.0  # equal to 0.0 but not bit for bit: stays per agent
+    varied = np.arange(k_worlds * n, dtype=float).reshape(k_worlds, n)
+    terms = [team, varied, signed, np.full((k_worlds, n), -0.0)]
+    infos = outputs_phase.infos(envs, true, terms, [False, False])
+    keys = [f"reward_{t}" for t in envs[0].terms]
+    for k, world in enumerate(infos):
+        alone = outputs_phase.infos([envs[k]], true[k:k + 1], [t[k:k + 1] for t in terms], [False])[0]
+        for j, (a, info) in enumerate(world.items()):
+            assert list(info) == list(alone[a]) and all(info[x] == alone[a][x] for x in keys)
+            got = [info[key] for key in keys]
+            assert got == [team[k, 0], varied[k, j], 0.0, 0.0]
+            assert [math.copysign(1.0, g) for g in got[2:]] == [-1.0 if (k, j) == (1, 1) else 1.0, -1.0]
