@@ -22,7 +22,6 @@ No random numbers are drawn here.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -49,20 +48,40 @@ def rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
     return arrays[0][None] if len(arrays) == 1 else np.array(arrays)
 
 
-@dataclass
 class ScoreState:
-    """What scoring carries over from one step of a world to the next."""
+    """What scoring carries over from one step of a world to the next (its arrays rows of shared
+    blocks while the world is scored with others: :attr:`rows`)."""
 
-    remaining: np.ndarray
-    """``(N,)`` route length to go at the last step (m): the ``progress`` term's potential."""
-    contacts: tuple[np.ndarray, np.ndarray]
-    """Wall and robot contacts of each robot counted up to the last step ``(N,)`` each."""
+    def __init__(self, remaining: np.ndarray, wall: np.ndarray, robot: np.ndarray):
+        self.remaining = remaining
+        """``(N,)`` route length to go at the last step (m): the ``progress`` term's potential."""
+        self.wall = wall
+        """``(N,)`` int64 wall contacts of each robot counted up to the last step."""
+        self.robot = robot
+        """``(N,)`` int64 robot contacts of each robot counted up to the last step."""
+        self.rows = None
+        """The shared rows the arrays are views of (:func:`~parcover_env.envs.score_rows.shared_rows`);
+        not copied, not pickled."""
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["rows"] = None  # a copy owns plain arrays (numpy copies the views' values)
+        return state
+
+    @property
+    def contacts(self) -> tuple[np.ndarray, np.ndarray]:
+        """Wall and robot contacts of each robot counted up to the last step ``(N,)`` each."""
+        return self.wall, self.robot
 
     @classmethod
     def start(cls, remaining: np.ndarray) -> ScoreState:
         """At reset: the route length to go ``(N,)``, no contacts yet."""
-        zeros = np.zeros(len(remaining), dtype=np.int64)
-        return cls(remaining, (zeros, zeros))
+        n = len(remaining)
+        return cls(np.array(remaining, dtype=float), np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64))
+
+
+HELD = ("remaining", "wall", "robot")
+"""The :class:`ScoreState` arrays as shared rows."""
 
 
 class Scores(NamedTuple):
@@ -99,18 +118,17 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     visited = state.visited
     if first.version == 2:
         own = own_visits(visited & ~was, state.visitor, first.kpoi_owner, first.n_robots)
-    states = [w.score_state for w in worlds]
-    gained = rows([st.remaining for st in states]) - remaining
+    held = shared_rows([w.score_state for w in worlds], HELD).blocks  # the last step's, updated in place
+    gained = held["remaining"] - remaining
     wall, robot = gather([w.world.wall_contacts for w in worlds]), gather([w.world.robot_contacts for w in worlds])
-    new_wall = wall - rows([st.contacts[0] for st in states])
-    new_robot = robot - rows([st.contacts[1] for st in states])
-    for w, st, v, rem, wall_k, robot_k in zip(worlds, states, velocity, remaining, wall, robot, strict=True):
-        w.true_velocity = v  # row views of the blocks, as the world's own arrays
-        st.remaining, st.contacts = rem, (wall_k, robot_k)
+    new_wall, new_robot = wall - held["wall"], robot - held["robot"]
+    held["remaining"][...], held["wall"][...], held["robot"][...] = remaining, wall, robot
+    for w, v in zip(worlds, velocity, strict=True):
+        w.true_velocity = v  # row views of the block, as the world's own arrays
     terms = reward_terms(s.rewards, n_new, gained, new_wall + new_robot, own)
     record_steps([w.metrics for w in worlds], before, true, times=times, progress=trackers, estimates=est,
                  new_contacts=(new_wall, new_robot), teams=teams, formation=s.formation, kinects=first.kinects,
-                 control_dt=s.physics.control_dt)
+                 control_dt=s.physics.control_dt, visits=(state.visited, state.visit_time))
     for k, w in enumerate(worlds):
         if w.render_mode is not None:
             for trail, p in zip(w.trails, true[k], strict=True):

@@ -135,3 +135,15 @@ def test_each_world_reads_its_row_of_the_camera_views_and_a_copy_keeps_its_own_r
             assert np.array_equal(c.camera_view.estimates, view.estimates)
             assert not np.shares_memory(c.camera_views.estimates, view.estimates)
     assert np.array_equal(envs[1].camera_view.estimates, envs[1].estimate)  # measured at this step's estimates
+
+
+def test_score_states_as_shared_rows():
+    from parcover_env.envs.score_phase import HELD, ScoreState
+
+    states = [ScoreState.start(np.array([3.0, 4.0])), ScoreState.start(np.array([1.0, 2.0]))]
+    held = shared_rows(states, HELD).blocks
+    assert held["remaining"].tolist() == [[3.0, 4.0], [1.0, 2.0]] and held["wall"].dtype == np.int64
+    held["robot"][1] += [2, 0]
+    assert states[1].contacts[1].tolist() == [2, 0] and states[0].contacts[1].tolist() == [0, 0]
+    for c in (copy.deepcopy(states[1]), pickle.loads(pickle.dumps(states[1]))):
+        assert c.rows is None and c.robot.tolist() == [2, 0] and not np.shares_memory(c.robot, held["robot"])
