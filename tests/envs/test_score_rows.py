@@ -82,6 +82,8 @@ def test_record_many_by_value():
     step.visit_time[0, 1] = 9.0  # the makespan is set once
     step_kernels.record_many(totals, paths, step, (0.0, 4.0, math.pi), 0.1)
     assert totals[0, -1] == 2.5 and totals[0, 0] == 2 and totals[0, 9] == 2 and totals[0, 10] == pytest.approx(0.2)
+    assert totals[0, 1:5].tolist() == [0.3, 2, 4, 2]  # the time and visits set, the contacts summed
+    assert paths.tolist() == [[11.0, 0.0], [2.0, 2.0]] and totals[0, 6] == 4
 
 
 def test_episode_metrics_rows_survive_copies_and_are_adopted_after_a_reset():
@@ -147,3 +149,37 @@ def test_score_states_as_shared_rows():
     assert states[1].contacts[1].tolist() == [2, 0] and states[0].contacts[1].tolist() == [0, 0]
     for c in (copy.deepcopy(states[1]), pickle.loads(pickle.dumps(states[1]))):
         assert c.rows is None and c.robot.tolist() == [2, 0] and not np.shares_memory(c.robot, held["robot"])
+
+
+ROUTE = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.5], [2.0, 0.0], [4.0, 0.0]])
+KPOIS = np.array([[2.0, 1.5], [4.0, 0.0]])
+
+
+def _tracker():
+    from parcover_env.scenarios.progress import RouteTracker
+
+    return RouteTracker(KPOIS, 0.2, [ROUTE, ROUTE + [0.0, 0.1]], waypoint_tol=0.15, lookahead=0.4)
+
+
+def test_trackers_stepped_on_shared_rows_are_each_tracker_alone():
+    from parcover_env.scenarios.progress import STATE, step_many
+    from parcover_env.scenarios.progress_kernel import TrackerRows
+
+    a, b = _tracker(), _tracker()
+    for x in np.arange(0.0, 2.05, 0.25):  # world a walks to the foot of the spur, world b stays behind
+        a.update(np.array([[x, 0.05], [x - 0.3, 0.1]]), np.array([[x, 0.05], [x - 0.3, 0.1]]), 1.0)
+    alone = [copy.deepcopy(a), copy.deepcopy(b)]
+    rows = shared_rows([a, b], STATE)
+    state = TrackerRows(*(rows.blocks[name] for name in STATE))
+    true = np.array([[[2.0, 1.45], [0.5, 0.1]], [[0.4, 0.0], [0.2, 0.1]]])  # a's robot 0 reaches KPOI 0
+    got = step_many([a, b], true, true + 0.01, [3.0, 4.0], state)
+    for k, (t, ref) in enumerate(zip((a, b), alone, strict=True)):
+        want = step_many([ref], true[k:k + 1], true[k:k + 1] + 0.01, [3.0 + k])
+        assert got.n_new[k] == want.n_new[0] and np.array_equal(got.goals[k], want.goals[0])
+        assert np.array_equal(got.remaining[k], want.remaining[0])
+        for name in STATE:
+            mine, theirs = getattr(t, name), getattr(ref, name)
+            assert np.array_equal(mine, theirs, equal_nan=True) and np.shares_memory(mine, rows.blocks[name])
+    assert a.visited.tolist() == [True, False] and a.visitor.tolist() == [0, -1] and a.visit_time[0] == 3.0
+    assert got.n_new.tolist() == [1, 0] and a.advanced.tolist() == alone[0].advanced.tolist()
+    assert rows.blocks["progress"][1].tolist() == b.progress.tolist() and b.progress[0] > 0.0  # b moved on too
