@@ -53,7 +53,9 @@ def test_metric_totals_are_the_kernels_columns():
 
 def _step(true, predecessor, visited, visit_time, wall, robot, unseen, time):
     k, n = predecessor.shape
-    return step_kernels.MetricsStep(np.zeros((k, n, 3)), true, true.copy(), predecessor, visited, visit_time, wall,
+    est = true.copy()
+    est[1, 0, :2] += [0.3, 0.4]  # world 1's robot 0 estimated 0.5 m off
+    return step_kernels.MetricsStep(np.zeros((k, n, 3)), true, est, predecessor, visited, visit_time, wall,
                                     robot, unseen, time)
 
 
@@ -78,12 +80,13 @@ def test_record_many_by_value():
     u = dict(zip(step_kernels.METRIC_TOTALS, totals[1].tolist(), strict=True))
     assert (u["n_form"], u["sq_l"], u["kpois_visited"], u["wall_collisions"]) == (0, 0, 1, 1)
     assert u["unseen_leader_time"] == 0
-    assert math.isnan(u["makespan"])
+    assert math.isnan(u["makespan"]) and u["sq_err"] == pytest.approx(0.25) and u["n_err"] == 2
     step.visit_time[0, 1] = 9.0  # the makespan is set once
     step_kernels.record_many(totals, paths, step, (0.0, 4.0, math.pi), 0.1)
     assert totals[0, -1] == 2.5 and totals[0, 0] == 2 and totals[0, 9] == 2 and totals[0, 10] == pytest.approx(0.2)
     assert totals[0, 1:5].tolist() == [0.3, 2, 4, 2]  # the time and visits set, the contacts summed
     assert paths.tolist() == [[11.0, 0.0], [2.0, 2.0]] and totals[0, 6] == 4
+    assert totals[1, 5] == pytest.approx(0.5) and totals[1, 6] == 4  # squared errors summed over steps
 
 
 def test_episode_metrics_rows_survive_copies_and_are_adopted_after_a_reset():
