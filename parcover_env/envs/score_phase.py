@@ -105,7 +105,7 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     trackers, teams = [w.progress for w in worlds], [w.team for w in worlds]
     est = gather([w.estimate for w in worlds])
     track = shared_rows(trackers, STATE)  # the trackers' arrays as rows of shared blocks, updated in place
-    state = TrackerRows(*(track.blocks[name] for name in STATE))
+    state = TrackerRows(**track.blocks)
     was = state.visited.copy() if first.version == 2 else None
     times = [w.world.time for w in worlds]
     true_xy = np.ascontiguousarray(true[..., :2])

@@ -158,7 +158,7 @@ def _rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
     return arrays[0][None] if len(arrays) == 1 else np.array(arrays)
 
 
-STATE = progress_kernel.TrackerRows._fields
+STATE = ("visited", "visit_time", "visitor", "progress", "waypoint", "advanced")
 """A tracker's arrays that a step updates: ``visited``, ``visit_time``, ``visitor`` ``(n_kpois,)``,
 ``progress``, ``waypoint``, ``advanced`` ``(N,)`` (:class:`~parcover_env.scenarios.progress_kernel.TrackerRows`)."""
 
@@ -184,7 +184,7 @@ def step_many(trackers: Sequence[RouteTracker], true_xy: np.ndarray, est_xy: np.
     are gathered and written back."""
     first, k = trackers[0], len(trackers)
     if state is None:
-        state = progress_kernel.TrackerRows(*(_rows([getattr(t, name) for t in trackers]) for name in STATE))
+        state = progress_kernel.TrackerRows(**{name: _rows([getattr(t, name) for t in trackers]) for name in STATE})
     else:
         k = 1  # nothing to write back
     out = progress_kernel.StepOut(np.empty(len(trackers), dtype=np.int64), np.empty((*state.progress.shape, 2)),

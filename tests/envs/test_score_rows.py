@@ -173,7 +173,7 @@ def test_trackers_stepped_on_shared_rows_are_each_tracker_alone():
         a.update(np.array([[x, 0.05], [x - 0.3, 0.1]]), np.array([[x, 0.05], [x - 0.3, 0.1]]), 1.0)
     alone = [copy.deepcopy(a), copy.deepcopy(b)]
     rows = shared_rows([a, b], STATE)
-    state = TrackerRows(*(rows.blocks[name] for name in STATE))
+    state = TrackerRows(**rows.blocks)
     true = np.array([[[2.0, 1.45], [0.5, 0.1]], [[0.4, 0.0], [0.2, 0.1]]])  # a's robot 0 reaches KPOI 0
     got = step_many([a, b], true, true + 0.01, [3.0, 4.0], state)
     for k, (t, ref) in enumerate(zip((a, b), alone, strict=True)):
