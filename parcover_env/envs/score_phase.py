@@ -11,10 +11,14 @@ blocks and computing on the blocks:
   have reached its TP run the (rare) Python split (:func:`parcover_env.envs.handover.update_teams`);
 * the reward terms as ``(K, N)`` arrays (:func:`parcover_env.envs.rewards.reward_terms`), returned
   in a :class:`Scores` for the outputs phase (with the goal points, for the observations);
-* the metrics of all worlds in one call (:func:`parcover_env.envs.metrics.record_steps`).
+* the metrics of all worlds in one call (:func:`parcover_env.envs.metrics.record_steps`), their sums
+  rows of shared blocks too.
 
-Results go back into each world's own objects (trackers, teams, metrics, :class:`ScoreState`), so
-worlds stay independent (deepcopy, pickle) and the ParallelEnv is the ``K = 1`` call; world ``k``
+The worlds' trackers, metrics and :class:`ScoreState` keep their own arrays, which are views of row
+``k`` of shared ``(K, ...)`` blocks while they are scored together (the act phase's pattern,
+:mod:`parcover_env.envs.score_rows`): the compiled calls update every world in place, with no gather
+and no write-back; a copy or pickle of a world holds plain arrays, and a world reset since is adopted
+again. So worlds stay independent (deepcopy, pickle) and the ParallelEnv is the ``K = 1`` call; world ``k``
 gets bit for bit what it would alone (``tests/envs/test_batched.py``, ``tests/envs/test_score_phase.py``).
 No random numbers are drawn here.
 """
