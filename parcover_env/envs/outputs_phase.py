@@ -23,6 +23,7 @@ import numpy as np
 
 from parcover_env.envs.metrics import EpisodeMetrics
 from parcover_env.envs.obs_v2 import target_kpois
+from parcover_env.envs.rewards import TEAM_TERMS
 from parcover_env.envs.score_phase import Scores, rows
 from parcover_env.geometry import wrap_angle
 
@@ -44,7 +45,7 @@ def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *,
     truncated = [w.steps >= max_steps and not d for w, d in zip(worlds, done, strict=True)]
     ended = [d or t for d, t in zip(done, truncated, strict=True)]
     all_infos = infos(worlds, true, [terms[t] for t in first.terms], ended, estimates=scores.estimates,
-                      visited=scores.visited, active=active)
+                      visited=scores.visited, active=active, team_terms=TEAM_TERMS)
     out = []
     for w, rewards, info, d, t, e in zip(worlds, total.tolist(), all_infos, done, truncated, ended, strict=True):
         agents = w.agents
@@ -56,17 +57,18 @@ def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *,
 
 def infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray], ended: Sequence[bool], *,
           estimates: np.ndarray | None = None, visited: np.ndarray | None = None,
-          active: bool = False) -> list[dict[str, dict]]:
+          active: bool = False, team_terms: Sequence[str] = ()) -> list[dict[str, dict]]:
     """``info[agent]`` of every agent of the ``K`` worlds (see the module docstring): ``terms[i]`` the
     values ``(K, N)`` of term ``i`` (the worlds' terms order); ``ended[k]``: world ``k``'s episode
     ends this step (its ``metrics/*`` entries are its metrics). ``estimates (K, N, 3)``, ``visited
     (K, M)``: the worlds' pose estimates and visited KPOIs if already gathered (read from the worlds if not);
-    ``active``: every info also has ``"active": True`` (its last key; a VecEnv's agent slots).
+    ``active``: every info also has ``"active": True`` (its last key; a VecEnv's agent slots);
+    ``team_terms``: the terms whose values are one per world (the same for all its agents, as
+    :data:`~parcover_env.envs.rewards.TEAM_TERMS` are): their first column is read.
 
     Built with the fewest Python operations: each per-agent column becomes Python floats once for
     all worlds (one ``tolist``), every agent's dict is a C-level copy of its world's template (which
-    holds the terms whose values are the same for all the world's agents, bit for bit: the team terms
-    ``kpoi`` and ``time``), and each other column is written into all ``K N`` dicts by one C-level
+    holds the ``team_terms``), and each other column is written into all ``K N`` dicts by one C-level
     ``map`` (no loop per agent)."""
     first = worlds[0]
     n = first.n_robots
@@ -74,9 +76,9 @@ def infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray], 
     d = est[..., :2] - true[..., :2]
     base, reward_keys, keys = _template(tuple(first.terms), first.version == 2, first.scanner is not None, active)
     columns, agent_keys, team_keys, team_columns = [], [], [], []
-    for key, term in zip(reward_keys, terms, strict=True):
+    for name, key, term in zip(first.terms, reward_keys, terms, strict=True):
         c = np.asarray(term, dtype=float)
-        if (c.view(np.int64) == c[:, :1].view(np.int64)).all():  # bit for bit one value per world (kpoi, time)
+        if name in team_terms:  # one value per world: set in its template
             team_keys.append(key)
             team_columns.append(c[:, 0])
         else:

@@ -13,7 +13,7 @@ import pytest
 from layout_helpers import layout_of
 
 import parcover_env
-from parcover_env.envs import outputs_phase, score_phase, step_kernels, stepper
+from parcover_env.envs import outputs_phase, rewards, score_phase, step_kernels, stepper
 from parcover_env.envs.handover import CameraView, update_team, update_teams
 from parcover_env.envs.metrics import EpisodeMetrics, formation_errors, formation_errors_many, record_step, record_steps
 from parcover_env.envs.obs_v2 import target_kpois
@@ -367,21 +367,24 @@ def test_scores_carry_a_copy_of_the_estimates_and_the_visits_to_the_later_phases
     assert np.array_equal(obs, stepper.observe([twin], true))  # read from the worlds: the same
 
 
-def test_infos_take_a_term_equal_for_a_worlds_agents_from_its_template_bit_for_bit():
+def test_infos_take_the_team_terms_from_the_first_agent_and_reward_terms_make_them_one_per_world():
     envs = _two_worlds("office")
     k_worlds, n = len(envs), envs[0].n_robots
     true = np.stack([e.true_poses() for e in envs])
-    team = np.array([[2.5], [-1.0]]) * np.ones((1, n))  # one value per world, different worlds
-    signed = np.zeros((k_worlds, n))
-    signed[1, 1] = -0.0  # equal to 0.0 but not bit for bit: stays per agent
-    varied = np.arange(k_worlds * n, dtype=float).reshape(k_worlds, n)
-    terms = [team, varied, signed, np.full((k_worlds, n), -0.0)]
-    infos = outputs_phase.infos(envs, true, terms, [False, False])
-    keys = [f"reward_{t}" for t in envs[0].terms]
-    for k, world in enumerate(infos):
-        alone = outputs_phase.infos([envs[k]], true[k:k + 1], [t[k:k + 1] for t in terms], [False])[0]
-        for j, (a, info) in enumerate(world.items()):
-            assert list(info) == list(alone[a]) and all(info[x] == alone[a][x] for x in keys)
-            got = [info[key] for key in keys]
-            assert got == [team[k, 0], varied[k, j], 0.0, 0.0]
-            assert [math.copysign(1.0, g) for g in got[2:]] == [-1.0 if (k, j) == (1, 1) else 1.0, -1.0]
+    terms = [np.arange(k_worlds * n, dtype=float).reshape(k_worlds, n) + 100 * i for i in range(len(envs[0].terms))]
+    terms[2][1, 0] = -0.0  # world 1's time term: its first agent's, sign and all
+    team = ("kpoi", "time")
+    infos = outputs_phase.infos(envs, true, terms, [False, False], team_terms=team)
+    plain = outputs_phase.infos(envs, true, terms, [False, False])
+    for k, (world, ref) in enumerate(zip(infos, plain, strict=True)):
+        for j, a in enumerate(world):
+            assert list(world[a]) == list(ref[a])
+            got = [world[a][f"reward_{t}"] for t in envs[0].terms]
+            col = [j if t not in team else 0 for t in envs[0].terms]
+            assert got == [terms[i][k, c] for i, c in enumerate(col)]
+            assert all(np.array_equal(world[a][x], ref[a][x]) for x in ref[a] if not x.startswith("reward_"))
+    assert math.copysign(1.0, infos[1]["robot_1"]["reward_time"]) == -1.0  # time: the world's first agent's
+    w = SimpleNamespace(kpoi=10.0, own_kpoi=5.0, progress=2.0, time=-0.01, collision=-1.0)
+    block = reward_terms(w, np.array([0, 2]), np.ones((2, 3)), np.zeros((2, 3), dtype=int))
+    for t in rewards.TEAM_TERMS:
+        assert (block[t].view(np.int64) == block[t][:, :1].view(np.int64)).all(), t
