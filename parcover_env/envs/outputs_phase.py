@@ -91,7 +91,7 @@ def infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray], 
     if first.version == 2:
         visited = rows([w.progress.visited for w in worlds]) if visited is None else visited
         columns.append(target_kpois(first.route_facts, visited)[1].astype(float))
-    team_values = np.stack(team_columns, axis=1).tolist() if team_keys else [()] * len(worlds)
+    team_values = zip(*(c.tolist() for c in team_columns)) if team_keys else repeat((), len(worlds))
     out, flat = [], []
     for w, e, values in zip(worlds, ended, team_values, strict=True):
         template = base.copy()
