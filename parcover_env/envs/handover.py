@@ -16,7 +16,7 @@ would not change.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -33,7 +33,8 @@ compiled distances and :meth:`Team.update`'s numpy ones can never skip a split."
 
 
 class CameraView(NamedTuple):
-    """The follower cameras' measurements of one observation, with what they were taken against."""
+    """The follower cameras' measurements of one observation, with what they were taken against
+    (of one world; or of ``K`` worlds as ``(K, N, ...)`` blocks, whose world ``k`` is :meth:`select` ``(k)``)."""
 
     predecessor: np.ndarray
     """``(N,)`` the robot each robot followed when measured (-1 none)."""
@@ -41,6 +42,12 @@ class CameraView(NamedTuple):
     """The cameras' reading then."""
     estimates: np.ndarray
     """The pose estimates ``(N, 3)`` then."""
+
+    def select(self, k: int | slice) -> CameraView:
+        """Of a view of ``K`` worlds: world ``k``'s view (or the worlds of the slice ``k``), views of its arrays."""
+        r = self.reading
+        return CameraView(self.predecessor[k], RelativeReading(r.rel_xy[k], r.rel_heading[k], r.visible[k]),
+                          self.estimates[k])
 
 
 def update_team(team: Team, kinects: KinectSystem | None, estimate: np.ndarray, plan_progress: np.ndarray,
@@ -64,9 +71,10 @@ def update_team(team: Team, kinects: KinectSystem | None, estimate: np.ndarray, 
 
 
 def update_teams(teams: Sequence[Team], kinects: Sequence[KinectSystem | None], estimates: np.ndarray,
-                 plan_progress: np.ndarray, views: Sequence[CameraView | None]) -> None:
+                 plan_progress: np.ndarray, view_of: Callable[[int], CameraView | None]) -> None:
     """:func:`update_team` of the teams of ``K`` worlds of one mission (one ``tol``; estimates
-    ``(K, N, 3)``, plan progress ``(K, N)``), run only for the worlds where a leader heading for a
+    ``(K, N, 3)``, plan progress ``(K, N)``; ``view_of(k)``: world ``k``'s camera view, asked for
+    the worlds that may split only), run only for the worlds where a leader heading for a
     TP (:attr:`Team.tp_ahead`) has passed its distance, or its estimate or this step's Kinect fix lies
     within ``tol`` of it (one compiled test of all worlds, widened by :data:`SPLIT_MARGIN`): in every
     other world :meth:`Team.update` would not split (its tests are a subset)."""
@@ -85,4 +93,4 @@ def update_teams(teams: Sequence[Team], kinects: Sequence[KinectSystem | None], 
                            maybe)
     for j, m in enumerate(maybe.tolist()):
         if m:
-            update_team(teams[j], kinects[j], estimates[j], plan_progress[j], views[j])
+            update_team(teams[j], kinects[j], estimates[j], plan_progress[j], view_of(j))

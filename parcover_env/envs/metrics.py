@@ -5,25 +5,26 @@ PettingZoo wrapper builds its spec from the reset infos). ``metrics/*`` entries 
 ``metrics/ended`` is 0) until the step that ends the episode; :func:`episode_metrics` turns an
 info back into the metrics dict.
 
-:func:`record_steps` adds one step to the metrics of ``K`` worlds: the per-robot quantities (path
-steps, localization and formation errors, leaders out of the Kinects' view) as ``(K, N)`` arrays in
-a few calls, then each world's scalars; :func:`record_step` is its one-world call. The sums keep the
-one-world operations (numpy's pairwise summation of the squared errors, the same BLAS dot of each
-world's followers), so the metrics are the same floats.
+:func:`record_steps` adds one step to the metrics of ``K`` worlds: what the steps accumulate (the
+sums and counts of :data:`TOTALS`, the path lengths) are rows of shared ``(K, ...)`` blocks that one
+compiled call updates (:func:`~parcover_env.envs.step_kernels.record_many`); :func:`record_step` is
+its one-world call. Squared errors are summed as ``np.sum`` sums them (numpy's pairwise summation),
+the same floats for one world or ``K`` and on every CPU (the formation errors' sums were BLAS dots
+before, whose last bits depend on the CPU's BLAS kernel).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from parcover_env.envs.score_rows import shared_rows
 from parcover_env.geometry import wrap_angle
 
 __all__ = ["EpisodeMetrics", "formation_errors", "formation_errors_many", "MESSAGE_KINDS", "METRICS_PREFIX",
-           "episode_metrics", "record_step", "record_steps"]
+           "TOTALS", "episode_metrics", "record_step", "record_steps"]
 
 MESSAGE_KINDS = ("split", "promotion", "waypoint", "pose")
 """Kinds of message the Kinect system sends (counted in ``messages``)."""
@@ -51,46 +52,129 @@ def formation_errors_many(poses: np.ndarray, predecessor: np.ndarray, offset: fl
     return dl, wrap_angle(dpsi), n
 
 
-@dataclass
+TOTALS = ("steps", "time", "kpois_visited", "wall_collisions", "robot_collisions", "sq_err", "n_err", "sq_l", "sq_psi",
+          "n_form", "unseen_leader_time", "makespan")
+"""The entries of :attr:`EpisodeMetrics.totals`, what a step adds to (counts as floats; ``makespan`` NaN until set)."""
+_T = {name: i for i, name in enumerate(TOTALS)}
+
+
 class EpisodeMetrics:
-    n_kpois: int
-    n_robots: int
-    c_max: float
-    """PPCP lower bound: roadmap shortest-path length to the furthest KPOI (m). Robots drive the
-    smoothed routes, which are shorter than roadmap paths, so makespan_ratio can fall below 1."""
-    max_speed: float
-    steps: int = 0
-    time: float = 0.0
-    kpois_visited: int = 0
-    makespan: float | None = None
-    """Time when the last KPOI was visited (s); None if the mission was not completed."""
-    wall_collisions: int = 0
-    robot_collisions: int = 0
-    path_lengths: list[float] = field(default_factory=list)
-    localization_error: float = 0.0
-    """RMS distance between the observed pose estimates and the true poses (m)."""
-    messages: dict[str, int] = field(default_factory=dict)
-    kinect_splits: int = 0
-    """Splits at TPs triggered by the Kinect system detecting the leader there (Min et al. Alg. 1)."""
-    odometry_splits: int = 0
-    """Splits decided on the leader's own estimate: its TP lay outside every Kinect footprint."""
-    unseen_leader_time: float = 0.0
-    """Leader-seconds spent outside every Kinect footprint, driving on odometry (s)."""
-    formation_error_l: float = 0.0
-    """RMS of l - l_d over followers and steps (m)."""
-    formation_error_psi: float = 0.0
-    """RMS of wrap(psi - psi_d) over followers and steps (rad)."""
-    _sq_err: float = 0.0
-    _n_err: int = 0
-    _sq_form: tuple[float, float, int] = (0.0, 0.0, 0)
+    """The metrics of one episode. What the steps accumulate lives in two arrays, so that the
+    metrics of ``K`` worlds can be rows of shared blocks (:func:`record_steps`): :attr:`totals`
+    (the sums and counts of :data:`TOTALS`) and :attr:`paths`; the other values are
+    computed from them."""
+
+    def __init__(self, n_kpois: int, n_robots: int, c_max: float, max_speed: float,
+                 path_lengths: Sequence[float] | None = None):
+        self.n_kpois = n_kpois
+        self.n_robots = n_robots
+        self.c_max = c_max
+        """PPCP lower bound: roadmap shortest-path length to the furthest KPOI (m). Robots drive the
+        smoothed routes, which are shorter than roadmap paths, so makespan_ratio can fall below 1."""
+        self.max_speed = max_speed
+        self.paths = np.zeros(n_robots) if path_lengths is None else np.array(path_lengths, dtype=float)
+        """``(N,)`` each robot's path length so far (m): its true straight steps summed (:attr:`path_lengths`)."""
+        self.totals = np.zeros(len(TOTALS))
+        """The sums and counts of :data:`TOTALS` (``makespan`` NaN while None)."""
+        self.totals[_T["makespan"]] = math.nan
+        self.team_counts: tuple[Mapping[str, int], Mapping[str, int]] = ({}, {})
+        """The team's counters of messages and of splits by source (``Team.messages``, ``Team.splits``),
+        linked (not copied) by the first recorded step: :attr:`messages` and the splits read them."""
+        self.rows = None
+        """The shared rows :attr:`totals` and :attr:`paths` are views of when recorded with
+        other worlds' metrics (:func:`record_steps`); not copied, not pickled."""
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["rows"] = None  # a copy owns plain arrays (numpy copies the views' values)
+        return state
+
+    def __repr__(self) -> str:
+        return f"EpisodeMetrics({self.summary()!r})"
+
+    @property
+    def messages(self) -> dict[str, int]:
+        """The team's messages by kind, sorted by kind (a zero count kept)."""
+        return dict(sorted(self.team_counts[0].items()))
+
+    @messages.setter
+    def messages(self, value: Mapping[str, int]) -> None:
+        self.team_counts = (dict(value), self.team_counts[1])
+
+    @property
+    def kinect_splits(self) -> int:
+        """Splits at TPs triggered by the Kinect system detecting the leader there (Min et al. Alg. 1)."""
+        return self.team_counts[1].get("kinect", 0)
+
+    @property
+    def odometry_splits(self) -> int:
+        """Splits decided on the leader's own estimate: its TP lay outside every Kinect footprint."""
+        return self.team_counts[1].get("odometry", 0)
+
+    @property
+    def path_lengths(self) -> list[float]:
+        """Each robot's path length so far (m), a list."""
+        return self.paths.tolist()
+
+    @property
+    def steps(self) -> int:
+        return int(self.totals[_T["steps"]])
+
+    @property
+    def time(self) -> float:
+        return float(self.totals[_T["time"]])
+
+    @property
+    def kpois_visited(self) -> int:
+        return int(self.totals[_T["kpois_visited"]])
+
+    @property
+    def makespan(self) -> float | None:
+        """Time when the last KPOI was visited (s); None if the mission was not completed."""
+        t = float(self.totals[_T["makespan"]])
+        return None if math.isnan(t) else t
+
+    @makespan.setter
+    def makespan(self, value: float | None) -> None:
+        self.totals[_T["makespan"]] = math.nan if value is None else value
+
+    @property
+    def wall_collisions(self) -> int:
+        return int(self.totals[_T["wall_collisions"]])
+
+    @property
+    def robot_collisions(self) -> int:
+        return int(self.totals[_T["robot_collisions"]])
+
+    @property
+    def localization_error(self) -> float:
+        """RMS distance between the observed pose estimates and the true poses (m)."""
+        t = self.totals
+        return math.sqrt(float(t[_T["sq_err"]]) / max(int(t[_T["n_err"]]), 1))
+
+    @property
+    def unseen_leader_time(self) -> float:
+        """Leader-seconds spent outside every Kinect footprint, driving on odometry (s)."""
+        return float(self.totals[_T["unseen_leader_time"]])
+
+    @property
+    def formation_error_l(self) -> float:
+        """RMS of l - l_d over followers and steps (m)."""
+        n = int(self.totals[_T["n_form"]])
+        return math.sqrt(float(self.totals[_T["sq_l"]]) / n) if n else 0.0
+
+    @property
+    def formation_error_psi(self) -> float:
+        """RMS of wrap(psi - psi_d) over followers and steps (rad)."""
+        n = int(self.totals[_T["n_form"]])
+        return math.sqrt(float(self.totals[_T["sq_psi"]]) / n) if n else 0.0
 
     def add_formation(self, sq_l: float, sq_psi: float, n_new: int) -> None:
         """Add one step's sums of squared formation errors (m^2, rad^2) over its ``n_new`` followers."""
-        sl, sp, n = self._sq_form
-        self._sq_form = sl, sp, n = (sl + sq_l, sp + sq_psi, n + n_new)
-        if n:
-            self.formation_error_l = math.sqrt(sl / n)
-            self.formation_error_psi = math.sqrt(sp / n)
+        t = self.totals
+        t[_T["sq_l"]] += sq_l
+        t[_T["sq_psi"]] += sq_psi
+        t[_T["n_form"]] += n_new
 
     def record_step(self, time: float, kpois_visited: int, true_poses: np.ndarray,
                     est_poses: np.ndarray, wall: int, robot: int) -> None:
@@ -101,18 +185,24 @@ class EpisodeMetrics:
     def add_step(self, time: float, kpois_visited: int, sq_err: float, n_err: int, wall: int, robot: int) -> None:
         """Add one step: its time, KPOIs visited, the sum of squared position errors (m^2) of its
         ``n_err`` estimates, and its new wall and robot contacts."""
-        self.steps += 1
-        self.time = time
-        self.kpois_visited = kpois_visited
-        self.wall_collisions += wall
-        self.robot_collisions += robot
-        self._sq_err += sq_err
-        self._n_err += n_err
-        self.localization_error = math.sqrt(self._sq_err / max(self._n_err, 1))
+        t = self.totals
+        t[_T["steps"]] += 1
+        t[_T["time"]] = time
+        t[_T["kpois_visited"]] = kpois_visited
+        t[_T["wall_collisions"]] += wall
+        t[_T["robot_collisions"]] += robot
+        t[_T["sq_err"]] += sq_err
+        t[_T["n_err"]] += n_err
 
     def summary(self) -> dict:
         """Plain-dict summary (JSON-friendly)."""
-        out = {k: v for k, v in asdict(self).items() if not k.startswith("_")}
+        out = {"n_kpois": self.n_kpois, "n_robots": self.n_robots, "c_max": self.c_max, "max_speed": self.max_speed,
+               "steps": self.steps, "time": self.time, "kpois_visited": self.kpois_visited, "makespan": self.makespan,
+               "wall_collisions": self.wall_collisions, "robot_collisions": self.robot_collisions,
+               "path_lengths": self.path_lengths, "localization_error": self.localization_error,
+               "messages": self.messages, "kinect_splits": self.kinect_splits,
+               "odometry_splits": self.odometry_splits, "unseen_leader_time": self.unseen_leader_time,
+               "formation_error_l": self.formation_error_l, "formation_error_psi": self.formation_error_psi}
         out["success"] = self.kpois_visited == self.n_kpois
         bound = self.c_max / self.max_speed if self.c_max > 0 else float("nan")
         out["makespan_ratio"] = (self.makespan / bound) if self.makespan is not None else None
@@ -169,8 +259,8 @@ def record_step(m: EpisodeMetrics, before: np.ndarray, true: np.ndarray, *, time
     """Add one control step to ``m``: path lengths (true displacement ``before`` -> ``true``), KPOIs
     visited, localization error, new wall / robot contacts (``new_contacts``; a robot-robot contact
     counts for both robots, so halved), formation errors (l-psi, true poses), the team's messages and
-    splits, the time leaders spend outside every Kinect footprint, and the makespan once ``progress``
-    is done (the last KPOI's visit time). The one-world call of :func:`record_steps`."""
+    splits (its counters, linked), the time leaders spend outside every Kinect footprint, and the
+    makespan once ``progress`` is done (the last KPOI's visit time). The one-world call of :func:`record_steps`."""
     record_steps([m], before[None], true[None], times=[time], progress=[progress], estimates=estimate[None],
                  new_contacts=(new_contacts[0][None], new_contacts[1][None]), teams=[team], formation=formation,
                  kinects=kinects, control_dt=control_dt)
@@ -183,39 +273,36 @@ def _rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
 
 def record_steps(metrics: Sequence[EpisodeMetrics], before: np.ndarray, true: np.ndarray, *, times: Sequence[float],
                  progress: Sequence, estimates: np.ndarray, new_contacts: tuple[np.ndarray, np.ndarray],
-                 teams: Sequence, formation, kinects, control_dt: float) -> None:
+                 teams: Sequence, formation, kinects, control_dt: float,
+                 visits: tuple[np.ndarray, np.ndarray] | None = None) -> None:
     """:func:`record_step` of ``K`` worlds of one scenario: their metrics, true poses ``before`` and
     ``true`` ``(K, N, 3)``, ``times``, route trackers (``progress``), estimates ``(K, N, 3)``, new
     wall and robot contacts ``(K, N)``, teams; ``kinects`` answers ``in_view`` for every world (the
-    footprints are the scenario's) or is None."""
+    footprints are the scenario's) or is None; ``visits``: the trackers' ``visited`` and ``visit_time``
+    ``(K, M)`` if at hand (read from the trackers if not). The metrics' sums are rows of shared blocks
+    (:func:`~parcover_env.envs.score_rows.shared_rows`) that one compiled call adds the step to
+    (:func:`~parcover_env.envs.step_kernels.record_many`); each world's metrics link its team's counters."""
     from parcover_env.envs import step_kernels
 
-    k_worlds, n = true.shape[:2]
-    paths, sq_err = np.array([m.path_lengths for m in metrics], dtype=float).reshape(k_worlds, n), np.empty(k_worlds)
-    step_kernels.path_and_error_sums(np.ascontiguousarray(before, dtype=float), np.ascontiguousarray(true, dtype=float),
-                                     np.ascontiguousarray(estimates, dtype=float), paths, sq_err)
-    paths, sq_err = paths.tolist(), sq_err.tolist()
-    wall, robot = new_contacts[0].sum(axis=1).tolist(), new_contacts[1].sum(axis=1).tolist()
-    predecessor = _rows([t.predecessor for t in teams])
-    dl, dpsi, n_followers = formation_errors_many(true, predecessor, formation.offset, formation.spacing,
-                                                  math.radians(formation.bearing_deg))
+    k_worlds = true.shape[0]
+    rows = shared_rows(metrics, ("totals", "paths"))
     leader = _rows([t.leader for t in teams])
     seen = (kinects.in_view(true[leader][:, :2]) if kinects is not None
             else np.zeros(int(np.count_nonzero(leader)), dtype=bool))
-    unseen = np.bincount(np.nonzero(leader)[0][~seen], minlength=k_worlds).tolist()
-    visited = _rows([p.visited for p in progress])
-    n_visited, done = np.add.reduce(visited, axis=1, dtype=np.int64).tolist(), visited.all(axis=1).tolist()
-    for k, (m, prog, team, f, l_row, psi_row) in enumerate(zip(metrics, progress, teams, n_followers.tolist(), dl,
-                                                                dpsi, strict=True)):
-        m.path_lengths = paths[k]
-        m.add_step(times[k], n_visited[k], sq_err[k], n, wall[k], robot[k] // 2)
-        if f:
-            l_err, psi_err = l_row[:f], psi_row[:f]
-            m.add_formation(float(l_err.dot(l_err)), float(psi_err.dot(psi_err)), f)  # BLAS dots, as one world's
-        if m.messages.items() != team.messages.items():  # exact (zero counts too); unchanged most steps
-            m.messages = dict(sorted(team.messages.items()))
-        m.kinect_splits, m.odometry_splits = team.splits.get("kinect", 0), team.splits.get("odometry", 0)
-        if unseen[k]:
-            m.unseen_leader_time += control_dt * unseen[k]
-        if m.makespan is None and done[k]:
-            m.makespan = float(np.nanmax(prog.visit_time))
+    unseen = np.bincount(np.nonzero(leader)[0][~seen], minlength=k_worlds)
+    visited, visit_time = visits or (_rows([p.visited for p in progress]), _rows([p.visit_time for p in progress]))
+    step = step_kernels.MetricsStep(
+        _c(before), _c(true), _c(estimates), _c(_rows([t.predecessor for t in teams]), np.int64),
+        _c(visited, bool), _c(visit_time),
+        _c(new_contacts[0], np.int64), _c(new_contacts[1], np.int64), _c(unseen, np.int64), _c(times))
+    step_kernels.record_many(rows.blocks["totals"], rows.blocks["paths"], step,
+                             (float(formation.offset), float(formation.spacing), math.radians(formation.bearing_deg)),
+                             float(control_dt))
+    for m, team in zip(metrics, teams, strict=True):
+        counts = m.team_counts
+        if counts[0] is not team.messages or counts[1] is not team.splits:  # once per episode
+            m.team_counts = (team.messages, team.splits)
+
+
+def _c(a, dtype=float) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=dtype)

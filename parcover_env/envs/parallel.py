@@ -250,8 +250,10 @@ class ParallelCoverageEnv(ParallelEnv):
         self.world = World(self.map, s.robot.radius, s.physics, self.mission.start_poses, s.robot.drive)
         true = self.world.poses()
         self.estimator = PoseEstimator(s, true, self._rng, self.fix_sources)
-        self.camera_view: CameraView | None = None
-        """The follower cameras' measurements at the last observation (set by ``stepper.observe``)."""
+        self.camera_views: CameraView | None = None
+        """The follower cameras' measurements at the last observation of the worlds observed with this
+        one, ``(K, N, ...)`` blocks (set by ``stepper.observe``): this world's is row :attr:`camera_index`."""
+        self.camera_index = 0
         self.progress = self.mission.tracker()
         self.team = Team(self.plan, s.formation.mode, reach_tol=self.mission.reach_tol)
         self.commands = np.zeros((self.n_robots, 2))
@@ -282,6 +284,20 @@ class ParallelCoverageEnv(ParallelEnv):
         Returns the true poses ``(N, 3)`` before and after the step."""
         before, true = stepper.act([self], [actions])
         return before[0], true[0]
+
+    @property
+    def camera_view(self) -> CameraView | None:
+        """The follower cameras' measurements at the last observation (None before the first)."""
+        views = getattr(self, "camera_views", None)
+        return None if views is None else views.select(self.camera_index)
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        views = state.get("camera_views")
+        if views is not None and len(views.predecessor) > 1:  # a copy keeps its own world's measurements only
+            k = state["camera_index"]
+            state["camera_views"], state["camera_index"] = views.select(slice(k, k + 1)), 0
+        return state
 
     # ------------------------------------------------------------------ extras
     @property

@@ -10,12 +10,14 @@ import numpy as np
 
 from parcover_env.config import RewardConfig
 
-__all__ = ["TERMS", "TERMS_V2", "REWARD_KEYS", "terms_for", "reward_terms", "own_visits"]
+__all__ = ["TERMS", "TERMS_V2", "TEAM_TERMS", "REWARD_KEYS", "terms_for", "reward_terms", "own_visits"]
 
 TERMS = ("kpoi", "progress", "time", "collision")
 """The terms of version 1 (and of version 2 after ``own_kpoi``)."""
 TERMS_V2 = ("own_kpoi", *TERMS)
 """The terms of version 2: the per-robot ``own_kpoi`` first."""
+TEAM_TERMS = ("kpoi", "time")
+"""The terms :func:`reward_terms` gives one value for all agents of a world (one number broadcast)."""
 REWARD_KEYS = tuple(f"reward_{t}" for t in TERMS)
 """Info keys of the version-1 terms: ``info[agent]["reward_kpoi"]`` etc. (flat, present at reset as 0)."""
 

@@ -5,15 +5,20 @@ After the act phase has moved every world, :func:`score` tracks the mission, spl
 blocks and computing on the blocks:
 
 * route progress, KPOI visits, goals and the route length to go: one compiled call for all worlds
-  (:func:`parcover_env.scenarios.progress.step_many`);
+  (:func:`parcover_env.scenarios.progress.step_many`) on the trackers' arrays as rows of shared
+  blocks (:func:`parcover_env.envs.score_rows.shared_rows`), updated in place;
 * the team update: waypoint messages counted over ``(K, N)``; only the worlds where a leader may
   have reached its TP run the (rare) Python split (:func:`parcover_env.envs.handover.update_teams`);
 * the reward terms as ``(K, N)`` arrays (:func:`parcover_env.envs.rewards.reward_terms`), returned
   in a :class:`Scores` for the outputs phase (with the goal points, for the observations);
-* the metrics of all worlds in one call (:func:`parcover_env.envs.metrics.record_steps`).
+* the metrics of all worlds in one call (:func:`parcover_env.envs.metrics.record_steps`), their sums
+  rows of shared blocks too.
 
-Results go back into each world's own objects (trackers, teams, metrics, :class:`ScoreState`), so
-worlds stay independent (deepcopy, pickle) and the ParallelEnv is the ``K = 1`` call; world ``k``
+The worlds' trackers, metrics and :class:`ScoreState` keep their own arrays, which are views of row
+``k`` of shared ``(K, ...)`` blocks while they are scored together (the act phase's pattern,
+:mod:`parcover_env.envs.score_rows`): the compiled calls update every world in place, with no gather
+and no write-back; a copy or pickle of a world holds plain arrays, and a world reset since is adopted
+again. So worlds stay independent (deepcopy, pickle) and the ParallelEnv is the ``K = 1`` call; world ``k``
 gets bit for bit what it would alone (``tests/envs/test_batched.py``, ``tests/envs/test_score_phase.py``).
 No random numbers are drawn here.
 """
@@ -21,7 +26,6 @@ No random numbers are drawn here.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -29,8 +33,10 @@ import numpy as np
 from parcover_env.envs.handover import update_teams
 from parcover_env.envs.metrics import record_steps
 from parcover_env.envs.rewards import own_visits, reward_terms
+from parcover_env.envs.score_rows import shared_rows
 from parcover_env.envs.team import count_waypoints_many
-from parcover_env.scenarios.progress import step_many
+from parcover_env.scenarios.progress import STATE, step_many
+from parcover_env.scenarios.progress_kernel import TrackerRows
 
 __all__ = ["ScoreState", "Scores", "score", "gather", "rows"]
 
@@ -46,20 +52,40 @@ def rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
     return arrays[0][None] if len(arrays) == 1 else np.array(arrays)
 
 
-@dataclass
 class ScoreState:
-    """What scoring carries over from one step of a world to the next."""
+    """What scoring carries over from one step of a world to the next (its arrays rows of shared
+    blocks while the world is scored with others: :attr:`rows`)."""
 
-    remaining: np.ndarray
-    """``(N,)`` route length to go at the last step (m): the ``progress`` term's potential."""
-    contacts: tuple[np.ndarray, np.ndarray]
-    """Wall and robot contacts of each robot counted up to the last step ``(N,)`` each."""
+    def __init__(self, remaining: np.ndarray, wall: np.ndarray, robot: np.ndarray):
+        self.remaining = remaining
+        """``(N,)`` route length to go at the last step (m): the ``progress`` term's potential."""
+        self.wall = wall
+        """``(N,)`` int64 wall contacts of each robot counted up to the last step."""
+        self.robot = robot
+        """``(N,)`` int64 robot contacts of each robot counted up to the last step."""
+        self.rows = None
+        """The shared rows the arrays are views of (:func:`~parcover_env.envs.score_rows.shared_rows`);
+        not copied, not pickled."""
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["rows"] = None  # a copy owns plain arrays (numpy copies the views' values)
+        return state
+
+    @property
+    def contacts(self) -> tuple[np.ndarray, np.ndarray]:
+        """Wall and robot contacts of each robot counted up to the last step ``(N,)`` each."""
+        return self.wall, self.robot
 
     @classmethod
     def start(cls, remaining: np.ndarray) -> ScoreState:
         """At reset: the route length to go ``(N,)``, no contacts yet."""
-        zeros = np.zeros(len(remaining), dtype=np.int64)
-        return cls(remaining, (zeros, zeros))
+        n = len(remaining)
+        return cls(np.array(remaining, dtype=float), np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64))
+
+
+HELD = ("remaining", "wall", "robot")
+"""The :class:`ScoreState` arrays as shared rows."""
 
 
 class Scores(NamedTuple):
@@ -82,31 +108,31 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     s = first.scenario
     trackers, teams = [w.progress for w in worlds], [w.team for w in worlds]
     est = gather([w.estimate for w in worlds])
-    was = gather([t.visited for t in trackers])
+    track = shared_rows(trackers, STATE)  # the trackers' arrays as rows of shared blocks, updated in place
+    state = TrackerRows(**track.blocks)
+    was = state.visited.copy() if first.version == 2 else None
     times = [w.world.time for w in worlds]
     true_xy = np.ascontiguousarray(true[..., :2])
-    n_new, goals, remaining = step_many(trackers, true_xy, est[..., :2], times)
+    n_new, goals, remaining = step_many(trackers, true_xy, est[..., :2], times, state)
     velocity = (true_xy - before[..., :2]) / s.physics.control_dt
-    count_waypoints_many(teams, rows([t.advanced for t in trackers]), rows([t.leader for t in teams]))
-    progress = rows([t.progress for t in trackers])
-    update_teams(teams, [w.kinects for w in worlds], est, progress - first.progress.offsets,
-                 [w.camera_view for w in worlds])
+    count_waypoints_many(teams, state.advanced, rows([t.leader for t in teams]))
+    update_teams(teams, [w.kinects for w in worlds], est, state.progress - first.progress.offsets,
+                 lambda k: worlds[k].camera_view)
     own = None
-    visited = rows([t.visited for t in trackers])
+    visited = state.visited
     if first.version == 2:
-        own = own_visits(visited & ~was, rows([t.visitor for t in trackers]), first.kpoi_owner, first.n_robots)
-    states = [w.score_state for w in worlds]
-    gained = rows([st.remaining for st in states]) - remaining
+        own = own_visits(visited & ~was, state.visitor, first.kpoi_owner, first.n_robots)
+    held = shared_rows([w.score_state for w in worlds], HELD).blocks  # the last step's, updated in place
+    gained = held["remaining"] - remaining
     wall, robot = gather([w.world.wall_contacts for w in worlds]), gather([w.world.robot_contacts for w in worlds])
-    new_wall = wall - rows([st.contacts[0] for st in states])
-    new_robot = robot - rows([st.contacts[1] for st in states])
-    for w, st, v, rem, wall_k, robot_k in zip(worlds, states, velocity, remaining, wall, robot, strict=True):
-        w.true_velocity = v  # row views of the blocks, as the world's own arrays
-        st.remaining, st.contacts = rem, (wall_k, robot_k)
+    new_wall, new_robot = wall - held["wall"], robot - held["robot"]
+    held["remaining"][...], held["wall"][...], held["robot"][...] = remaining, wall, robot
+    for w, v in zip(worlds, velocity, strict=True):
+        w.true_velocity = v  # row views of the block, as the world's own arrays
     terms = reward_terms(s.rewards, n_new, gained, new_wall + new_robot, own)
     record_steps([w.metrics for w in worlds], before, true, times=times, progress=trackers, estimates=est,
                  new_contacts=(new_wall, new_robot), teams=teams, formation=s.formation, kinects=first.kinects,
-                 control_dt=s.physics.control_dt)
+                 control_dt=s.physics.control_dt, visits=(state.visited, state.visit_time))
     for k, w in enumerate(worlds):
         if w.render_mode is not None:
             for trail, p in zip(w.trails, true[k], strict=True):

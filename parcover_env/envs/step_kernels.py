@@ -1,9 +1,9 @@
-"""Compiled (numba) loops of an env step: the observation's scalar entries, the formation errors and
-the test for teams that may split; import only through :mod:`parcover_env.envs.observations`,
-:mod:`parcover_env.envs.metrics` and :mod:`parcover_env.envs.handover`. The same float operations,
-in the same order, as the numpy formulas they replace (``tests/envs/test_observation_assembly.py``
-and ``tests/envs/test_values.py`` keep references). The ``*_many`` loops run a one-world loop over
-``K`` worlds (leading axis)."""
+"""Compiled (numba) loops of an env step: the observation's scalar entries, the formation errors, the
+episode metrics' sums (:func:`record_many`) and the test for teams that may split; import only
+through :mod:`parcover_env.envs.observations`, :mod:`parcover_env.envs.metrics` and
+:mod:`parcover_env.envs.handover`. The same float operations, in the same order, as the numpy
+formulas they replace (``tests/envs/test_observation_assembly.py`` and ``tests/envs/test_values.py``
+keep references). The ``*_many`` loops run a one-world loop over ``K`` worlds (leading axis)."""
 
 from __future__ import annotations
 
@@ -12,6 +12,8 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+
+from parcover_env.geometry.angle_kernels import wrap
 
 
 class RobotRows(NamedTuple):
@@ -208,3 +210,83 @@ def path_and_error_sums(before, true, est, paths, sq):
             sq_terms[2 * i] = ex * ex
             sq_terms[2 * i + 1] = ey * ey
         sq[k] = pairwise_sum(sq_terms, 0, 2 * n)
+
+
+METRIC_TOTALS = ("steps", "time", "kpois_visited", "wall_collisions", "robot_collisions", "sq_err", "n_err", "sq_l",
+                 "sq_psi", "n_form", "unseen_leader_time", "makespan")
+"""The columns of :func:`record_many`'s ``totals``: :data:`parcover_env.envs.metrics.TOTALS` (a test
+keeps them equal)."""
+_STEPS, _TIME, _KPOIS, _WALL, _ROBOT, _SQ_ERR, _N_ERR, _SQ_L, _SQ_PSI, _N_FORM, _UNSEEN, _MAKESPAN = range(12)
+
+
+class MetricsStep(NamedTuple):
+    """One step of ``K`` worlds as :func:`record_many` reads it (C-contiguous arrays)."""
+
+    before: np.ndarray
+    """``(K, N, 3)`` true poses before the step."""
+    true: np.ndarray
+    """``(K, N, 3)`` true poses after it."""
+    est: np.ndarray
+    """``(K, N, 3)`` pose estimates after it."""
+    predecessor: np.ndarray
+    """``(K, N)`` int64: the robot each robot follows (-1 none)."""
+    visited: np.ndarray
+    """``(K, M)`` bool: KPOIs visited."""
+    visit_time: np.ndarray
+    """``(K, M)``: their visit times (s, NaN: not yet)."""
+    wall: np.ndarray
+    """``(K, N)`` int64: each robot's new wall contacts."""
+    robot: np.ndarray
+    """``(K, N)`` int64: its new robot contacts (a contact counts for both robots)."""
+    unseen: np.ndarray
+    """``(K,)`` int64: leaders outside every Kinect footprint."""
+    time: np.ndarray
+    """``(K,)``: the worlds' times after the step (s)."""
+
+
+@njit(cache=True, nogil=True)
+def record_many(totals, paths, step, formation, control_dt):
+    """Adds one step of ``K`` worlds (a :class:`MetricsStep`) to their metrics: ``totals (K, 12)``
+    (:data:`METRIC_TOTALS`) and ``paths (K, N)``, in place. Path lengths and the squared position errors
+    as :func:`path_and_error_sums`; the followers' squared formation errors (``formation = (offset, l_d,
+    psi_d)``, :func:`formation_errors`, ``psi`` wrapped) summed as ``np.sum`` sums them; a robot-robot contact
+    counted once (halved); ``control_dt`` per leader out of view; the makespan (the last visit time) on the
+    step every KPOI is visited, if not set yet."""
+    k_worlds, n = paths.shape
+    sq = np.empty(k_worlds)
+    path_and_error_sums(step.before, step.true, step.est, paths, sq)
+    offset, l_d, psi_d = formation
+    dl, dpsi = np.empty(n), np.empty(n)
+    for k in range(k_worlds):
+        t = totals[k]
+        f = formation_errors(step.true[k], step.predecessor[k], offset, l_d, psi_d, dl, dpsi)
+        for j in range(f):
+            dl[j] = dl[j] * dl[j]
+            p = wrap(dpsi[j])
+            dpsi[j] = p * p
+        wall, robot = 0, 0
+        for i in range(n):
+            wall += step.wall[k, i]
+            robot += step.robot[k, i]
+        visited, last = 0, -np.inf
+        for j in range(step.visited.shape[1]):
+            if step.visited[k, j]:
+                visited += 1
+            v = step.visit_time[k, j]
+            if v > last:  # NaN never is
+                last = v
+        t[_STEPS] += 1.0
+        t[_TIME] = step.time[k]
+        t[_KPOIS] = visited
+        t[_WALL] += wall
+        t[_ROBOT] += robot // 2
+        t[_SQ_ERR] += sq[k]
+        t[_N_ERR] += n
+        if f:
+            t[_SQ_L] += pairwise_sum(dl, 0, f)
+            t[_SQ_PSI] += pairwise_sum(dpsi, 0, f)
+            t[_N_FORM] += f
+        if step.unseen[k]:
+            t[_UNSEEN] += control_dt * step.unseen[k]
+        if visited == step.visited.shape[1] and math.isnan(t[_MAKESPAN]):
+            t[_MAKESPAN] = last

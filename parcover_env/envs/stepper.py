@@ -36,7 +36,6 @@ from parcover_env.envs.observations import ScalarInputs
 from parcover_env.envs.score_phase import Scores, gather, rows
 from parcover_env.scenarios.progress import goals_many
 from parcover_env.sensors.base import SensingState
-from parcover_env.sensors.relative import RelativeReading
 
 __all__ = ["sensing_state", "observe", "step", "act", "score", "outputs", "with_metrics", "slot_info"]
 
@@ -52,8 +51,8 @@ def sensing_state(worlds: Sequence[Any], true: np.ndarray) -> SensingState:
 def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = None) -> np.ndarray:
     """Observations ``(K, N, D)`` float32 of every robot of the ``K`` worlds at true poses ``(K, N, 3)``
     (``scores``: this step's score phase, whose goal points, estimates and visits it reads instead of
-    gathering them again). Sets each world's ``camera_view`` (the cameras' measurements Alg. 1's next
-    hand-over uses)."""
+    gathering them again). Sets each world's ``camera_views`` and ``camera_index`` (the cameras'
+    measurements of all worlds, blocks, and its row: its ``camera_view``, which Alg. 1's next hand-over uses)."""
     first = worlds[0]
     state = sensing_state(worlds, true)
     rngs = [w.np_random for w in worlds]
@@ -66,8 +65,9 @@ def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = Non
     else:
         goals, est, visited = scores.goals, scores.estimates, scores.visited
     rel_xy, rel_heading, visible = seen
-    for w, *reading, e in zip(worlds, rel_xy, rel_heading, visible, est, strict=True):  # row views of the blocks
-        w.camera_view = CameraView(w.team.predecessor, RelativeReading(*reading), e)
+    views = CameraView(state.predecessor, seen, est)  # of all worlds; world k reads its row (camera_view)
+    for k, w in enumerate(worlds):
+        w.camera_views, w.camera_index = views, k
     teams = [w.team for w in worlds]
     first.layout.fill_scalars_many(obs, ScalarInputs(
         est, rows([e.velocity for e in estimators]), rows([t.leader for t in teams]), rows([t.slot for t in teams]),

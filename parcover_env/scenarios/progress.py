@@ -16,7 +16,7 @@ import numpy as np
 from parcover_env.geometry.records import record
 from parcover_env.scenarios import progress_kernel
 
-__all__ = ["RouteTracker", "RouteTable", "ProgressStep", "step_many", "update_many", "goals_many"]
+__all__ = ["RouteTracker", "RouteTable", "ProgressStep", "STATE", "step_many", "update_many", "goals_many"]
 
 
 class RouteTable(NamedTuple):
@@ -82,7 +82,16 @@ class RouteTracker:
         self.waypoint = np.ones(n, dtype=np.int64)
         """Index of the next route vertex ahead of each robot (the one it heads for)."""
         self.advanced = np.zeros(n, dtype=bool)
+        """Each robot's waypoint moved at the last update."""
         self._goal_cache: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self.rows = None
+        """The shared rows the :data:`STATE` arrays are views of when the tracker steps with other
+        worlds' (the env's score phase); not copied, not pickled."""
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["rows"] = None  # a copy owns plain arrays (numpy copies the views' values)
+        return state
 
     @property
     def window(self) -> float:
@@ -149,6 +158,11 @@ def _rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
     return arrays[0][None] if len(arrays) == 1 else np.array(arrays)
 
 
+STATE = ("visited", "visit_time", "visitor", "progress", "waypoint", "advanced")
+"""A tracker's arrays that a step updates: ``visited``, ``visit_time``, ``visitor`` ``(n_kpois,)``,
+``progress``, ``waypoint``, ``advanced`` ``(N,)`` (:class:`~parcover_env.scenarios.progress_kernel.TrackerRows`)."""
+
+
 class ProgressStep(NamedTuple):
     """What :func:`step_many` gives back besides the trackers' new state."""
 
@@ -160,27 +174,29 @@ class ProgressStep(NamedTuple):
     """``(K, N)``: route length to go from the true positions (m, :meth:`RouteTracker.remaining`)."""
 
 
-def step_many(trackers: Sequence[RouteTracker], true_xy: np.ndarray, est_xy: np.ndarray,
-              times: Sequence[float]) -> ProgressStep:
+def step_many(trackers: Sequence[RouteTracker], true_xy: np.ndarray, est_xy: np.ndarray, times: Sequence[float],
+              state: progress_kernel.TrackerRows | None = None) -> ProgressStep:
     """:meth:`RouteTracker.update` of the trackers of ``K`` worlds of one mission at once (true and
     estimated positions ``(K, N, 2)``, the worlds' ``times (K,)``), then their goals and the route
-    length to go from the true positions, in one compiled call. Each tracker's ``visited``,
-    ``visit_time`` and ``visitor`` are updated in place, its ``progress``, ``waypoint`` and ``advanced``
-    replaced (rows of ``(K, N)`` blocks)."""
+    length to go from the true positions, in one compiled call. Each tracker's :data:`STATE` arrays are
+    updated in place: ``state``, if given, holds them as ``(K, ...)`` blocks whose rows the trackers'
+    arrays are (shared rows); else a single tracker's arrays are used as they are, several trackers'
+    are gathered and written back."""
     first, k = trackers[0], len(trackers)
-    visited, visit_time = _rows([t.visited for t in trackers]), _rows([t.visit_time for t in trackers])
-    visitor, waypoint = _rows([t.visitor for t in trackers]), _rows([t.waypoint for t in trackers])
-    state = progress_kernel.TrackerRows(visited, visit_time, visitor, _rows([t.progress for t in trackers]), waypoint)
-    n_new, new_progress, new_waypoint, goal, remaining = progress_kernel.step_many(
-        first.kpois, first.kpoi_radius, np.ascontiguousarray(true_xy, dtype=float),
-        np.ascontiguousarray(est_xy, dtype=float), np.asarray(times, dtype=float), state, first.table, first.rules,
-        first.lookahead)
-    advanced = new_waypoint != waypoint
-    for j, tr in enumerate(trackers):
-        if k > 1 and n_new[j]:  # K = 1: the kernel wrote into the tracker's own arrays
-            tr.visited[:], tr.visit_time[:], tr.visitor[:] = visited[j], visit_time[j], visitor[j]
-        tr.progress, tr.waypoint, tr.advanced = new_progress[j], new_waypoint[j], advanced[j]
-    return ProgressStep(n_new, goal, remaining)
+    if state is None:
+        state = progress_kernel.TrackerRows(**{name: _rows([getattr(t, name) for t in trackers]) for name in STATE})
+    else:
+        k = 1  # nothing to write back
+    out = progress_kernel.StepOut(np.empty(len(trackers), dtype=np.int64), np.empty((*state.progress.shape, 2)),
+                                  np.empty(state.progress.shape))
+    progress_kernel.step_many(first.kpois, first.kpoi_radius, np.ascontiguousarray(true_xy, dtype=float),
+                              np.ascontiguousarray(est_xy, dtype=float), np.asarray(times, dtype=float), state,
+                              first.table, first.rules, first.lookahead, out)
+    if k > 1:
+        for j, tr in enumerate(trackers):
+            for name, block in zip(STATE, state, strict=True):
+                getattr(tr, name)[...] = block[j]
+    return ProgressStep(out.n_new, out.goal, out.remaining)
 
 
 def update_many(trackers: Sequence[RouteTracker], true_xy: np.ndarray, est_xy: np.ndarray,

@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["PROGRESS_RULES", "advance_all", "advance_many", "goals", "goals_many", "visits", "visits_many",
-           "step_many", "TrackerRows"]
+           "step_many", "TrackerRows", "StepOut"]
 
 PROGRESS_RULES = np.dtype([
     ("window", "f8"),  # progress is searched this far ahead of the current progress (m)
@@ -80,7 +80,10 @@ def advance_all(p, progress, waypoint, length, arc, must, pts, e, ee, seg_len, r
         bj = 0
         bu = 0.0
         bdist = 0.0
-        for k in range(m - 1):
+        # segment 0 is always taken first; outside [lo, hi) a segment scores +inf and never wins after it
+        for k in range(max(hi, 1)):
+            if 0 < k < lo:
+                continue
             qx = p[i, 0] - pts[i, k, 0]
             qy = p[i, 1] - pts[i, k, 1]
             u = min(max((qx * e[i, k, 0] + qy * e[i, k, 1]) / ee[i, k], 0.0), 1.0)
@@ -190,33 +193,54 @@ def visits_many(kpois, xy, radius, time, visited, visit_time, visitor):
 
 
 class TrackerRows(NamedTuple):
-    """The trackers' state of ``K`` worlds as :func:`step_many` reads it (``visited``, ``visit_time``,
-    ``visitor`` ``(K, n_kpois)``, updated in place; ``progress``, ``waypoint`` ``(K, N)``, read)."""
+    """The trackers' state of ``K`` worlds as :func:`step_many` reads and updates it, in place."""
 
     visited: np.ndarray
+    """``(K, n_kpois)`` bool."""
     visit_time: np.ndarray
+    """``(K, n_kpois)`` (s, NaN: not yet)."""
     visitor: np.ndarray
+    """``(K, n_kpois)`` int64 (-1: none)."""
     progress: np.ndarray
+    """``(K, N)`` (m)."""
     waypoint: np.ndarray
+    """``(K, N)`` int64."""
+    advanced: np.ndarray
+    """``(K, N)`` bool: written, the waypoint moved this step."""
+
+
+class StepOut(NamedTuple):
+    """What :func:`step_many` writes besides the trackers' state (the caller's arrays)."""
+
+    n_new: np.ndarray
+    """``(K,)`` int64: KPOIs newly visited."""
+    goal: np.ndarray
+    """``(K, N, 2)``: the lookahead goal points at the new progress."""
+    remaining: np.ndarray
+    """``(K, N)``: the route length to go from the true positions (m)."""
 
 
 @njit(cache=True)
-def step_many(kpois, radius, true_xy, est_xy, time, state, table, rules, lookahead):
+def step_many(kpois, radius, true_xy, est_xy, time, state, table, rules, lookahead, out):
     """One step of the trackers of ``K`` worlds sharing the KPOIs and routes (``table``: a
-    :class:`~parcover_env.scenarios.progress.RouteTable`; ``state``: :class:`TrackerRows`):
-    :func:`visits_many` at the true positions ``true_xy (K, N, 2)`` at ``time (K,)``,
-    :func:`advance_many` from the estimates ``est_xy``, then :func:`goals_many` at the new progress
-    and the route length to go from ``true_xy`` (``hypot`` to the goal point, then along:
-    ``arc_end - s``). Returns ``(n_new (K,), progress (K, N), waypoint (K, N), goal (K, N, 2),
-    remaining (K, N))``."""
+    :class:`~parcover_env.scenarios.progress.RouteTable`; ``state``: :class:`TrackerRows`, updated in
+    place): :func:`visits` at the true positions ``true_xy (K, N, 2)`` at ``time (K,)``, :func:`advance_all`
+    from the estimates ``est_xy``, then :func:`goals` at the new progress and the route length to go from
+    ``true_xy`` (``hypot`` to the goal point, then along: ``arc_end - s``), written into ``out`` (a
+    :class:`StepOut`)."""
     t = table
-    n_new = visits_many(kpois, true_xy, radius, time, state.visited, state.visit_time, state.visitor)
-    new_progress, new_waypoint = advance_many(est_xy, state.progress, state.waypoint, t.length, t.arc, t.must, t.pts,
-                                              t.e, t.ee, t.seg_len, rules)
-    goal, s = goals_many(new_progress, lookahead, t.length, t.arc, t.must, t.arc_end, t.pts)
-    remaining = np.empty(s.shape)
-    for k in range(s.shape[0]):
-        for i in range(s.shape[1]):
-            remaining[k, i] = (math.hypot(goal[k, i, 0] - true_xy[k, i, 0], goal[k, i, 1] - true_xy[k, i, 1])
-                               + (t.arc_end[i] - s[k, i]))
-    return n_new, new_progress, new_waypoint, goal, remaining
+    k_worlds, n = state.progress.shape
+    s = np.empty(n)
+    for k in range(k_worlds):
+        out.n_new[k] = visits(kpois, true_xy[k], radius, time[k], state.visited[k], state.visit_time[k],
+                              state.visitor[k])
+        progress, waypoint = advance_all(est_xy[k], state.progress[k], state.waypoint[k], t.length, t.arc, t.must,
+                                         t.pts, t.e, t.ee, t.seg_len, rules)
+        for i in range(n):
+            state.advanced[k, i] = waypoint[i] != state.waypoint[k, i]
+            state.progress[k, i] = progress[i]
+            state.waypoint[k, i] = waypoint[i]
+        goals(state.progress[k], lookahead, t.length, t.arc, t.must, t.arc_end, t.pts, out.goal[k], s)
+        for i in range(n):
+            out.remaining[k, i] = (math.hypot(out.goal[k, i, 0] - true_xy[k, i, 0],
+                                              out.goal[k, i, 1] - true_xy[k, i, 1]) + (t.arc_end[i] - s[i]))

@@ -13,7 +13,7 @@ import pytest
 from layout_helpers import layout_of
 
 import parcover_env
-from parcover_env.envs import outputs_phase, score_phase, step_kernels, stepper
+from parcover_env.envs import outputs_phase, rewards, score_phase, step_kernels, stepper
 from parcover_env.envs.handover import CameraView, update_team, update_teams
 from parcover_env.envs.metrics import EpisodeMetrics, formation_errors, formation_errors_many, record_step, record_steps
 from parcover_env.envs.obs_v2 import target_kpois
@@ -102,7 +102,7 @@ def test_update_teams_splits_exactly_the_worlds_update_team_splits():
     ref_kin = copy.deepcopy(kin)
     reading = RelativeReading(np.array([[0.0, 0.0], [0.5, 0.0]]), np.zeros(2), np.array([False, True]))
     views = [CameraView(np.array([-1, 0]), reading, e.copy()) for e in est]
-    update_teams([t_far, t_at, t_fix], kin, est, progress, views)
+    update_teams([t_far, t_at, t_fix], kin, est, progress, views.__getitem__)
     for team, k, e, v in zip(ref, ref_kin, est, views, strict=True):
         update_team(team, k, e, np.zeros(2), v)
     assert [t.groups for t in (t_far, t_at, t_fix)] == [t.groups for t in ref] == [[(0, 2)], [(0, 1), (1, 2)],
@@ -365,3 +365,26 @@ def test_scores_carry_a_copy_of_the_estimates_and_the_visits_to_the_later_phases
     obs = stepper.observe([env], true, scores)
     assert not np.shares_memory(env.camera_view.estimates, env.estimate)
     assert np.array_equal(obs, stepper.observe([twin], true))  # read from the worlds: the same
+
+
+def test_infos_take_the_team_terms_from_the_first_agent_and_reward_terms_make_them_one_per_world():
+    envs = _two_worlds("office")
+    k_worlds, n = len(envs), envs[0].n_robots
+    true = np.stack([e.true_poses() for e in envs])
+    terms = [np.arange(k_worlds * n, dtype=float).reshape(k_worlds, n) + 100 * i for i in range(len(envs[0].terms))]
+    terms[2][1, 0] = -0.0  # world 1's time term: its first agent's, sign and all
+    team = ("kpoi", "time")
+    infos = outputs_phase.infos(envs, true, terms, [False, False], team_terms=team)
+    plain = outputs_phase.infos(envs, true, terms, [False, False])
+    for k, (world, ref) in enumerate(zip(infos, plain, strict=True)):
+        for j, a in enumerate(world):
+            assert list(world[a]) == list(ref[a])
+            got = [world[a][f"reward_{t}"] for t in envs[0].terms]
+            col = [j if t not in team else 0 for t in envs[0].terms]
+            assert got == [terms[i][k, c] for i, c in enumerate(col)]
+            assert all(np.array_equal(world[a][x], ref[a][x]) for x in ref[a] if not x.startswith("reward_"))
+    assert math.copysign(1.0, infos[1]["robot_1"]["reward_time"]) == -1.0  # time: the world's first agent's
+    w = SimpleNamespace(kpoi=10.0, own_kpoi=5.0, progress=2.0, time=-0.01, collision=-1.0)
+    block = reward_terms(w, np.array([0, 2]), np.ones((2, 3)), np.zeros((2, 3), dtype=int))
+    for t in rewards.TEAM_TERMS:
+        assert (block[t].view(np.int64) == block[t][:, :1].view(np.int64)).all(), t
