@@ -119,11 +119,13 @@ def _detections(systems: Sequence[Any], due: np.ndarray, true: np.ndarray, marke
     row_world, row_depth, n, row_drop, out_row, out_index, out_geom = batch_kernels.due_candidates(
         np.ascontiguousarray(due, dtype=bool), np.ascontiguousarray(true, dtype=float),
         np.ascontiguousarray(markers, dtype=bool), kinects, pattern, models[0].depths, models[0].noise)
-    drop = row_drop.tolist()
+    drop, world, depth = row_drop.tolist(), row_world.tolist(), row_depth.tolist()
     cand_row, cand_index, geom = out_row.tolist(), out_index.tolist(), out_geom.tolist()
     found = Detections([], [], [], [], pattern.shape[1])
     c = 0
-    for r, (b, q) in enumerate(zip(row_world.tolist(), row_depth.tolist(), strict=True)):
+    # the rows that draw: every row where frames drop, else only those with candidates (in order)
+    for r in range(len(drop)) if row_drop.any() else dict.fromkeys(cand_row):
+        b, q = world[r], depth[r]
         rng = rngs[b]
         dropped = drop[r] > 0.0 and rng.random() < drop[r]
         while c < n and cand_row[c] == r:
