@@ -92,6 +92,11 @@ class PoseEstimator:
         """The shared rows this estimator's arrays are views of, when it steps with others
         (:func:`~parcover_env.envs.world_rows.act_rows`); not copied, not pickled."""
 
+    @property
+    def kinect_system(self) -> KinectSystem | None:
+        """The Kinect system of the first Kinect source (None: no Kinect source)."""
+        return next((src.system for src in self.sources if isinstance(src, KinectFixes)), None)
+
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
         state["act_rows"] = None  # a copy owns plain arrays (numpy copies the views' values)
@@ -170,8 +175,10 @@ def update_all(estimators: Sequence[PoseEstimator], true: Sequence[np.ndarray], 
             markers = np.asarray(leaders, dtype=bool)
             if not all(src.markers for src in sources):  # the leaders that carry markers
                 markers = markers & np.array([src.markers for src in sources])[:, None]
-            fixes = update_systems([src.system for src in sources], list(times), np.asarray(true, dtype=float),
-                                   markers, estimates, list(rngs))
+            systems = [src.system for src in sources]
+            shared = rows.kinect is not None and rows.kinect.owners[0] is systems[0]  # their ticks are its rows
+            fixes = update_systems(systems, list(times), np.asarray(true, dtype=float), markers, estimates, list(rngs),
+                                   ticks=rows.kinect.blocks["next_tick"] if shared else None)
         else:
             fixes = [src.fixes(FixRequest(time, t, e.estimate, lead, e.covariance), rng) for e, src, time, t, lead, rng
                      in zip(estimators, sources, times, true, leaders, rngs, strict=True)]

@@ -95,6 +95,8 @@ class ActRows(NamedTuple):
     """Their wheel odometries' :data:`ODOMETRY` arrays."""
     drives: SharedRows | None
     """The worlds' drives' :data:`DRIVE` arrays (None: no drive, ``drive: instant``)."""
+    kinect: SharedRows | None = None
+    """The estimators' Kinect systems' :data:`KINECT` arrays (None: no Kinect source)."""
 
 
 ESTIMATOR = ("velocity", "fix_age")
@@ -103,12 +105,15 @@ ODOMETRY = ("estimate", "covariance", "travelled", "turned", "factors", "believe
 """Rows of :class:`~parcover_env.sensors.odometry.Odometry`."""
 DRIVE = ("wheels", "travel", "speed_change")
 """Rows of :class:`~parcover_env.world.drive.DiffDrive`."""
+KINECT = ("next_tick",)
+"""Rows of :class:`~parcover_env.localization.kinect.system.KinectSystem` (each Kinect's next frame time)."""
 
 
 def act_rows(estimators: Sequence[Any], drives: Sequence[Any]) -> ActRows:
-    """The shared rows of ``K`` worlds' pose ``estimators`` (of one scenario) and their ``drives``
-    (``None`` s for ``drive: instant``), every array attached (:meth:`SharedRows.attach`). The rows
-    are kept on the estimators (``act_rows``, never copied or pickled) and reused while they fit."""
+    """The shared rows of ``K`` worlds' pose ``estimators`` (of one scenario), their Kinect systems
+    (``kinect_system``) and their ``drives`` (``None`` s for ``drive: instant``), every array attached
+    (:meth:`SharedRows.attach`). The rows are kept on the estimators (``act_rows``, never copied or
+    pickled) and reused while they fit."""
     first = estimators[0]
     rows = first.act_rows  # after world 0's reset: the rows another world holds
     if rows is None:
@@ -116,12 +121,16 @@ def act_rows(estimators: Sequence[Any], drives: Sequence[Any]) -> ActRows:
     k = len(estimators)
     if rows is None or rows.estimators.size != k or not (_holds(rows, first, drives[0])
                                                          or _fits(rows, k, first, drives[0])):
+        kinect = first.kinect_system
         rows = ActRows(SharedRows(k, ESTIMATOR, first), SharedRows(k, ODOMETRY, first.odometry),
-                       None if drives[0] is None else SharedRows(k, DRIVE, drives[0]))
+                       None if drives[0] is None else SharedRows(k, DRIVE, drives[0]),
+                       None if kinect is None else SharedRows(k, KINECT, kinect))
     rows.estimators.attach(estimators)
     rows.odometry.attach([e.odometry for e in estimators])
     if rows.drives is not None:
         rows.drives.attach(drives)
+    if rows.kinect is not None:
+        rows.kinect.attach([e.kinect_system for e in estimators])
     for e in estimators:
         if e.act_rows is not rows:
             e.act_rows = rows
@@ -129,12 +138,18 @@ def act_rows(estimators: Sequence[Any], drives: Sequence[Any]) -> ActRows:
 
 
 def _holds(rows: ActRows, estimator: Any, drive: Any) -> bool:
-    """True if ``estimator`` (and its odometry and ``drive``) hold row 0 of ``rows`` (so they fit)."""
+    """True if ``estimator`` (its odometry, its Kinect system and ``drive``) hold row 0 of ``rows``
+    (so they fit)."""
+    kinect = estimator.kinect_system
     return (rows.estimators.attached(0, estimator) and rows.odometry.attached(0, estimator.odometry)
-            and (drive is None if rows.drives is None else rows.drives.attached(0, drive)))
+            and (drive is None if rows.drives is None else rows.drives.attached(0, drive))
+            and (kinect is None if rows.kinect is None else rows.kinect.attached(0, kinect)))
 
 
 def _fits(rows: ActRows, k: int, estimator: Any, drive: Any) -> bool:
-    """True if ``rows`` can hold ``k`` worlds like ``estimator``'s (and its odometry's and ``drive``'s)."""
+    """True if ``rows`` can hold ``k`` worlds like ``estimator``'s (its odometry's, its Kinect system's
+    and ``drive``'s)."""
+    kinect = estimator.kinect_system
     return (rows.estimators.fits(k, estimator) and rows.odometry.fits(k, estimator.odometry)
-            and (rows.drives is None) == (drive is None) and (drive is None or rows.drives.fits(k, drive)))
+            and (rows.drives is None) == (drive is None) and (drive is None or rows.drives.fits(k, drive))
+            and (rows.kinect is None) == (kinect is None) and (kinect is None or rows.kinect.fits(k, kinect)))

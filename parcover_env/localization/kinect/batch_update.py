@@ -33,15 +33,19 @@ __all__ = ["update_systems", "fast_estimates", "track_all", "Detections"]
 
 
 def update_systems(systems: Sequence[Any], times: Sequence[float], true: np.ndarray, markers: np.ndarray,
-                   predicted: np.ndarray, rngs: Sequence[np.random.Generator]) -> list[dict[int, np.ndarray]]:
+                   predicted: np.ndarray, rngs: Sequence[np.random.Generator],
+                   ticks: np.ndarray | None = None) -> list[dict[int, np.ndarray]]:
     """Pose fixes ``{robot index: (x, y, theta)}`` of each of ``K`` Kinect systems (one scenario)
     at its world's time ``times[k]``, true poses ``true[k] (N, 3)``, marker carriers
     ``markers[k] (N,)`` and predicted poses ``predicted[k] (N, 3)``, drawing from ``rngs[k]``
     (``systems``: :class:`~parcover_env.localization.kinect.system.KinectSystem` s, typed ``Any`` because
-    ``system`` imports this module)."""
+    ``system`` imports this module). ``ticks (K, S)``: a block whose row ``k`` IS system ``k``'s
+    ``next_tick`` (shared rows, updated in place); None: gathered here and written back."""
     out: list[dict[int, np.ndarray]] = [{} for _ in systems]
     k_count = len(systems)
-    ticks = stack([s.next_tick for s in systems])  # K = 1: the system's own array, updated in place
+    shared = ticks is not None or k_count == 1
+    if ticks is None:  # K = 1: the system's own array, updated in place
+        ticks = stack([s.next_tick for s in systems])
     due = np.empty(ticks.shape, dtype=bool)
     active = np.empty(k_count, dtype=bool)
     true = np.ascontiguousarray(true, dtype=float)
@@ -50,7 +54,7 @@ def update_systems(systems: Sequence[Any], times: Sequence[float], true: np.ndar
                                     active)
     batch = []
     for k, (s, on) in enumerate(zip(systems, active.tolist(), strict=True)):
-        if k_count > 1:
+        if not shared:
             s.next_tick[:] = ticks[k]
         s.last_fixes = {}
         if not on:
