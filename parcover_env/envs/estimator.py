@@ -83,6 +83,9 @@ class PoseEstimator:
         self.scenario = scenario
         self.odometry = Odometry(scenario.robot.odometry, true, scenario.robot.drive.wheel_base, rng)
         self.sources = list(sources)
+        self.kinect_system: KinectSystem | None = next((s.system for s in self.sources if isinstance(s, KinectFixes)),
+                                                       None)
+        """The system of the first Kinect source (None: none)."""
         for source in self.sources:
             source.reset(rng)
         self.estimate = true.copy()
@@ -91,11 +94,6 @@ class PoseEstimator:
         self.act_rows: ActRows | None = None
         """The shared rows this estimator's arrays are views of, when it steps with others
         (:func:`~parcover_env.envs.world_rows.act_rows`); not copied, not pickled."""
-
-    @property
-    def kinect_system(self) -> KinectSystem | None:
-        """The Kinect system of the first Kinect source (None: no Kinect source)."""
-        return next((src.system for src in self.sources if isinstance(src, KinectFixes)), None)
 
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)

@@ -96,7 +96,7 @@ class ActRows(NamedTuple):
     drives: SharedRows | None
     """The worlds' drives' :data:`DRIVE` arrays (None: no drive, ``drive: instant``)."""
     kinect: SharedRows | None = None
-    """The estimators' Kinect systems' :data:`KINECT` arrays (None: no Kinect source)."""
+    """The estimators' Kinect systems' :data:`KINECT` arrays (None: no Kinect source, or ``K = 1``)."""
 
 
 ESTIMATOR = ("velocity", "fix_age")
@@ -121,35 +121,38 @@ def act_rows(estimators: Sequence[Any], drives: Sequence[Any]) -> ActRows:
     k = len(estimators)
     if rows is None or rows.estimators.size != k or not (_holds(rows, first, drives[0])
                                                          or _fits(rows, k, first, drives[0])):
-        kinect = first.kinect_system
         rows = ActRows(SharedRows(k, ESTIMATOR, first), SharedRows(k, ODOMETRY, first.odometry),
-                       None if drives[0] is None else SharedRows(k, DRIVE, drives[0]),
-                       None if kinect is None else SharedRows(k, KINECT, kinect))
+                       None if drives[0] is None else SharedRows(k, DRIVE, drives[0]))
     rows.estimators.attach(estimators)
     rows.odometry.attach([e.odometry for e in estimators])
     if rows.drives is not None:
         rows.drives.attach(drives)
-    if rows.kinect is not None:
-        rows.kinect.attach([e.kinect_system for e in estimators])
+    if k > 1:  # K = 1 updates its one system's ticks in place already
+        rows = _with_kinect(rows, k, [e.kinect_system for e in estimators])
     for e in estimators:
         if e.act_rows is not rows:
             e.act_rows = rows
     return rows
 
 
+def _with_kinect(rows: ActRows, k: int, systems: Sequence[Any]) -> ActRows:
+    """``rows`` with the Kinect ``systems``' rows attached (made when missing or not fitting); without
+    rows for them when some world has no Kinect system."""
+    if any(s is None for s in systems):
+        return rows if rows.kinect is None else rows._replace(kinect=None)
+    if rows.kinect is None or not rows.kinect.fits(k, systems[0]):
+        rows = rows._replace(kinect=SharedRows(k, KINECT, systems[0]))
+    rows.kinect.attach(systems)
+    return rows
+
+
 def _holds(rows: ActRows, estimator: Any, drive: Any) -> bool:
-    """True if ``estimator`` (its odometry, its Kinect system and ``drive``) hold row 0 of ``rows``
-    (so they fit)."""
-    kinect = estimator.kinect_system
+    """True if ``estimator`` (and its odometry and ``drive``) hold row 0 of ``rows`` (so they fit)."""
     return (rows.estimators.attached(0, estimator) and rows.odometry.attached(0, estimator.odometry)
-            and (drive is None if rows.drives is None else rows.drives.attached(0, drive))
-            and (kinect is None if rows.kinect is None else rows.kinect.attached(0, kinect)))
+            and (drive is None if rows.drives is None else rows.drives.attached(0, drive)))
 
 
 def _fits(rows: ActRows, k: int, estimator: Any, drive: Any) -> bool:
-    """True if ``rows`` can hold ``k`` worlds like ``estimator``'s (its odometry's, its Kinect system's
-    and ``drive``'s)."""
-    kinect = estimator.kinect_system
+    """True if ``rows`` can hold ``k`` worlds like ``estimator``'s (and its odometry's and ``drive``'s)."""
     return (rows.estimators.fits(k, estimator) and rows.odometry.fits(k, estimator.odometry)
-            and (rows.drives is None) == (drive is None) and (drive is None or rows.drives.fits(k, drive))
-            and (rows.kinect is None) == (kinect is None) and (kinect is None or rows.kinect.fits(k, kinect)))
+            and (rows.drives is None) == (drive is None) and (drive is None or rows.drives.fits(k, drive)))

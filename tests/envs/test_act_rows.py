@@ -89,7 +89,8 @@ def test_act_rows_are_reused_and_a_copy_or_pickle_owns_plain_arrays():
     envs[0].reset(seed=6)  # world 0's new estimator holds no rows yet: world 1's are found and reused
     assert act_rows([e.estimator for e in envs], [e.world.drive for e in envs]) is rows
     assert envs[0].estimator.odometry.estimate is rows.odometry.views["estimate"][0]
-    assert act_rows(estimators[:1], drives[:1]) is not rows  # another K: rows of its own
+    one = act_rows(estimators[:1], drives[:1])
+    assert one is not rows and one.kinect is None  # another K: rows of its own (K = 1: its ticks in place)
 
 
 # ---------------------------------------------------------------------------------------- physics
