@@ -128,7 +128,7 @@ def _detections(systems: Sequence[Any], due: np.ndarray, true: np.ndarray, marke
     found = Detections([], [], [], [], pattern.shape[1])
     c = 0
     # the rows that draw: every row where frames drop, else only those with candidates (in order)
-    for r in range(len(drop)) if row_drop.any() else dict.fromkeys(cand_row):
+    for r in range(len(drop)) if max(drop, default=0.0) > 0.0 else dict.fromkeys(cand_row):
         b, q = world[r], depth[r]
         rng = rngs[b]
         dropped = drop[r] > 0.0 and rng.random() < drop[r]
