@@ -139,9 +139,9 @@ def _with_kinect(rows: ActRows, k: int, systems: Sequence[Any]) -> ActRows:
     """``rows`` with the Kinect ``systems``' rows attached (made when missing or not fitting); without
     rows for them when some world has no Kinect system."""
     if any(s is None for s in systems):
-        return rows if rows.kinect is None else rows._replace(kinect=None)
+        return rows if rows.kinect is None else ActRows(rows.estimators, rows.odometry, rows.drives)
     if rows.kinect is None or not rows.kinect.fits(k, systems[0]):
-        rows = rows._replace(kinect=SharedRows(k, KINECT, systems[0]))
+        rows = ActRows(rows.estimators, rows.odometry, rows.drives, SharedRows(k, KINECT, systems[0]))
     rows.kinect.attach(systems)
     return rows
 
