@@ -83,6 +83,9 @@ class PoseEstimator:
         self.scenario = scenario
         self.odometry = Odometry(scenario.robot.odometry, true, scenario.robot.drive.wheel_base, rng)
         self.sources = list(sources)
+        self.kinect_system: KinectSystem | None = next((s.system for s in self.sources if isinstance(s, KinectFixes)),
+                                                       None)
+        """The system of the first Kinect source (None: none)."""
         for source in self.sources:
             source.reset(rng)
         self.estimate = true.copy()
@@ -170,8 +173,10 @@ def update_all(estimators: Sequence[PoseEstimator], true: Sequence[np.ndarray], 
             markers = np.asarray(leaders, dtype=bool)
             if not all(src.markers for src in sources):  # the leaders that carry markers
                 markers = markers & np.array([src.markers for src in sources])[:, None]
-            fixes = update_systems([src.system for src in sources], list(times), np.asarray(true, dtype=float),
-                                   markers, estimates, list(rngs))
+            systems = [src.system for src in sources]
+            shared = rows.kinect is not None and rows.kinect.owners[0] is systems[0]  # their ticks are its rows
+            fixes = update_systems(systems, list(times), np.asarray(true, dtype=float), markers, estimates, list(rngs),
+                                   ticks=rows.kinect.blocks["next_tick"] if shared else None)
         else:
             fixes = [src.fixes(FixRequest(time, t, e.estimate, lead, e.covariance), rng) for e, src, time, t, lead, rng
                      in zip(estimators, sources, times, true, leaders, rngs, strict=True)]

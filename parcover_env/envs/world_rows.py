@@ -95,6 +95,8 @@ class ActRows(NamedTuple):
     """Their wheel odometries' :data:`ODOMETRY` arrays."""
     drives: SharedRows | None
     """The worlds' drives' :data:`DRIVE` arrays (None: no drive, ``drive: instant``)."""
+    kinect: SharedRows | None = None
+    """The estimators' Kinect systems' :data:`KINECT` arrays (None: no Kinect source, or ``K = 1``)."""
 
 
 ESTIMATOR = ("velocity", "fix_age")
@@ -103,12 +105,15 @@ ODOMETRY = ("estimate", "covariance", "travelled", "turned", "factors", "believe
 """Rows of :class:`~parcover_env.sensors.odometry.Odometry`."""
 DRIVE = ("wheels", "travel", "speed_change")
 """Rows of :class:`~parcover_env.world.drive.DiffDrive`."""
+KINECT = ("next_tick",)
+"""Rows of :class:`~parcover_env.localization.kinect.system.KinectSystem` (each Kinect's next frame time)."""
 
 
 def act_rows(estimators: Sequence[Any], drives: Sequence[Any]) -> ActRows:
-    """The shared rows of ``K`` worlds' pose ``estimators`` (of one scenario) and their ``drives``
-    (``None`` s for ``drive: instant``), every array attached (:meth:`SharedRows.attach`). The rows
-    are kept on the estimators (``act_rows``, never copied or pickled) and reused while they fit."""
+    """The shared rows of ``K`` worlds' pose ``estimators`` (of one scenario), their Kinect systems
+    (``kinect_system``) and their ``drives`` (``None`` s for ``drive: instant``), every array attached
+    (:meth:`SharedRows.attach`). The rows are kept on the estimators (``act_rows``, never copied or
+    pickled) and reused while they fit."""
     first = estimators[0]
     rows = first.act_rows  # after world 0's reset: the rows another world holds
     if rows is None:
@@ -122,9 +127,22 @@ def act_rows(estimators: Sequence[Any], drives: Sequence[Any]) -> ActRows:
     rows.odometry.attach([e.odometry for e in estimators])
     if rows.drives is not None:
         rows.drives.attach(drives)
+    if k > 1:  # K = 1 updates its one system's ticks in place already
+        rows = _with_kinect(rows, k, [e.kinect_system for e in estimators])
     for e in estimators:
         if e.act_rows is not rows:
             e.act_rows = rows
+    return rows
+
+
+def _with_kinect(rows: ActRows, k: int, systems: Sequence[Any]) -> ActRows:
+    """``rows`` with the Kinect ``systems``' rows attached (made when missing or not fitting); without
+    rows for them when some world has no Kinect system."""
+    if any(s is None for s in systems):
+        return rows if rows.kinect is None else ActRows(rows.estimators, rows.odometry, rows.drives)
+    if rows.kinect is None or not rows.kinect.fits(k, systems[0]):
+        rows = ActRows(rows.estimators, rows.odometry, rows.drives, SharedRows(k, KINECT, systems[0]))
+    rows.kinect.attach(systems)
     return rows
 
 

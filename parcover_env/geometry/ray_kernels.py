@@ -23,6 +23,8 @@ _EPS = 1e-12
 """Parallel rays (|direction x segment| below this) never hit; segment ends get this slack."""
 _BOX_SLACK = 1e-9
 """Margin (m) of a ray's reach box: rounding never culls a segment the ray meets."""
+HIT_EPS, BOX_SLACK = _EPS, _BOX_SLACK
+"""The two tolerances above, for kernels of other rooms that cast the same rays (the same hits)."""
 COS_FLOOR = 1e-9
 """Floor of a segment's length in ``|cos| = |d x e| / |e|`` (degenerate segments)."""
 

@@ -68,10 +68,16 @@ class RelativeCamera:
         follows = target >= 0
         followers = [int(np.count_nonzero(follows))] if k == 1 else follows.reshape(k, n).sum(axis=1).tolist()
         # range, bearing, heading; a world without followers draws nothing (its generator is left as is)
-        z = [rng.standard_normal((3, f)) if f else _NO_DRAWS for rng, f in zip(rngs, followers, strict=True)]
+        if k > 1 and min(followers) == max(followers) > 0:  # as many in every world: one block, rows drawn into
+            block = np.empty((k, 3, followers[0]))
+            for rng, row in zip(rngs, block, strict=True):
+                rng.standard_normal(out=row)
+            z = block.transpose(1, 0, 2).reshape(3, -1)  # world after world along the followers' axis
+        else:
+            parts = [rng.standard_normal((3, f)) if f else _NO_DRAWS for rng, f in zip(rngs, followers, strict=True)]
+            z = parts[0] if k == 1 else np.concatenate(parts, axis=1)
         rel_xy, rel_heading, visible = np.empty((k * n, 2)), np.empty(k * n), np.empty(k * n, dtype=bool)
-        onboard_kernels.camera_view(px, py, pth, target, blocked, z[0] if k == 1 else np.concatenate(z, axis=1),
-                                    self.record, rel_xy, rel_heading, visible)
+        onboard_kernels.camera_view(px, py, pth, target, blocked, z, self.record, rel_xy, rel_heading, visible)
         return RelativeReading(rel_xy.reshape(k, n, 2), rel_heading.reshape(k, n), visible.reshape(k, n))
 
     @functools.cached_property

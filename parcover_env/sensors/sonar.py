@@ -184,6 +184,8 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
 
 
 _NONE = np.empty(0)  # an empty draw (that step is off); never written
+_DRAW_INTO = {"random": np.random.Generator.random, "normal": np.random.Generator.standard_normal}
+"""The draws of :meth:`SonarRing._fill` by kind (``uniform``: :meth:`SonarRing._uniform`), written ``out=``."""
 _AXIS_ONLY = np.zeros(1)
 """Sub-ray offsets of the ``ray`` model: the beam axis alone."""
 
@@ -232,10 +234,9 @@ class SonarRing:
         n_scan = round(360.0 / cfg.scan_step_deg)
         self.scan_angles = np.radians(np.arange(n_scan) * cfg.scan_step_deg)
         """Robot-frame angles of the 360-degree scan (72 readings at 5 deg)."""
-        self._checked: np.ndarray | None = None
+        self._checked: np.ndarray | None = None  # the last wall array measure() checked, if frozen (_frozen)
         self._reach = float(cfg.range_max) + rays.NEAR_SLACK
         """The reach of the rings' near-wall lists (m)."""
-        """The last wall array :meth:`measure` checked, if frozen (:func:`_frozen`)."""
         self._beams = np.ascontiguousarray(self.beam_angles, dtype=float)
         self._offsets = _offsets(cfg, self.n_subrays)
         self._share = _share(self._beams[None], self._offsets)
@@ -274,13 +275,15 @@ class SonarRing:
 
     def sense(self, state: SensingState, rngs: Sequence[np.random.Generator]) -> np.ndarray:
         """The :class:`~parcover_env.sensors.base.Sensor` reading ``(K, N, B)`` float32: each world's :meth:`draw`
-        (written into one flat array per kind, world after world), then one :meth:`readings` of all."""
+        (written into one block per kind, row ``k`` world ``k``'s), then one :meth:`readings` of all."""
         n, size = state.n_robots, state.n_robots * self.n_beams
         kinds = self._kinds(n > 1)
-        flat = [np.empty(len(rngs) * size) if kind else _NONE for kind in kinds]
-        for k, rng in enumerate(rngs):
-            self._fill(kinds, rng, [f[k * size:(k + 1) * size] if kind else f for kind, f in zip(kinds, flat)])
-        return self.readings(state.poses, state.segments, state.robot_radius, [flat])
+        blocks = [np.empty((len(rngs), size)) if kind else _NONE for kind in kinds]
+        plan = [(_DRAW_INTO.get(kind, self._uniform), b) for kind, b in zip(kinds, blocks, strict=True) if kind]
+        for k, rng in enumerate(rngs):  # world k's draws, kind after kind (:meth:`_fill`'s order)
+            for draw, b in plan:
+                draw(rng, out=b[k])
+        return self.readings(state.poses, state.segments, state.robot_radius, [[b.reshape(-1) for b in blocks]])
 
     def draw(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
         """The random numbers :meth:`measure` draws for ``n`` robots that see each other, in its order:
@@ -302,12 +305,12 @@ class SonarRing:
     def _fill(self, kinds: tuple[str | None, ...], rng: np.random.Generator, outs: list[np.ndarray]) -> None:
         """Draw ``outs`` from ``rng`` as ``kinds`` says, in order (``out=``: a fresh array's numbers)."""
         for kind, out in zip(kinds, outs, strict=True):
-            if kind == "random":
-                rng.random(out=out)
-            elif kind == "normal":
-                rng.standard_normal(out=out)
-            elif kind == "uniform":
-                out[:] = rng.uniform(self.cfg.range_min, self.cfg.range_max, len(out))
+            if kind:
+                _DRAW_INTO.get(kind, self._uniform)(rng, out=out)
+
+    def _uniform(self, rng: np.random.Generator, out: np.ndarray) -> None:
+        """``out`` uniform in ``[range_min, range_max]`` (the garbage readings; a fresh array's numbers)."""
+        out[:] = rng.uniform(self.cfg.range_min, self.cfg.range_max, len(out))
 
     def _draws(self, size: int, rng: np.random.Generator | None, talk: bool) -> tuple[np.ndarray, ...]:
         """``size`` of each of :meth:`draw`'s numbers (cross-talk only if ``talk``; none without ``rng``)."""

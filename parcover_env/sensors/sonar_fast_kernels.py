@@ -17,11 +17,11 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from parcover_env.geometry.ray_kernels import disc_hit_from, segment_hit
+from parcover_env.geometry.ray_kernels import BOX_SLACK, HIT_EPS
 from parcover_env.geometry.wall_grid import near_segments_grid
 from parcover_env.sensors.sonar_ring_kernels import Draws, ring_noise
 
-__all__ = ["FastDraws", "fast_noise", "fast_ring_readings"]
+__all__ = ["FastDraws", "fast_noise", "fast_ring_readings", "segment_fan", "disc_fan"]
 
 
 class FastDraws(NamedTuple):
@@ -56,17 +56,74 @@ def fast_noise(ideal, draws, rules, out):
     ring_noise(r, r, 0.0, Draws(drop[:0], draws.z, draws.bad, draws.junk), rules, out)
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def segment_fan(x0, y0, dx, dy, segs, near, boxes, best):
+    """Nearest wall hit ``best[b]`` (inf if none) of every ray ``b`` of a fan from ``(x0, y0)``, unit
+    directions ``(dx[b], dy[b])``, on the segments ``near`` (ascending indices into ``segs``): for
+    each ray what :func:`~parcover_env.geometry.ray_kernels.segment_hit` returns as its ``t``, the
+    same float operations, one segment at a time for all rays (a loop the compiler vectorizes;
+    divisions by a near-zero ``den`` are computed and discarded). ``boxes (4, B)``: each ray's reach
+    box (x low, x high, y low, y high) outside which a segment is skipped, or ``(0, B)``: no culling."""
+    nb = dx.shape[0]
+    cull = boxes.shape[0] > 0
+    for b in range(nb):
+        best[b] = np.inf
+    for j in range(near.shape[0]):
+        s = near[j]
+        ax = segs[s, 0]
+        ay = segs[s, 1]
+        sx = segs[s, 2]
+        sy = segs[s, 3]
+        lox = min(ax, sx)
+        hix = max(ax, sx)
+        loy = min(ay, sy)
+        hiy = max(ay, sy)
+        ex = sx - ax
+        ey = sy - ay
+        wx = ax - x0
+        wy = ay - y0
+        num = wx * ey - wy * ex
+        for b in range(nb):
+            den = dx[b] * ey - dy[b] * ex
+            t = num / den
+            u = (wx * dy[b] - wy * dx[b]) / den
+            hit = abs(den) > HIT_EPS and t >= 0.0 and u >= -HIT_EPS and u <= 1.0 + HIT_EPS and t < best[b]
+            if cull:
+                hit = hit and not (lox > boxes[1, b] or hix < boxes[0, b] or loy > boxes[3, b] or hiy < boxes[2, b])
+            best[b] = t if hit else best[b]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def disc_fan(dx, dy, ocx, ocy, cc, best):
+    """Lower ``best[b]`` to the nearest hit of ray ``b`` (unit directions ``dx, dy``) on the discs
+    whose terms ``oc = origin - centre`` and ``|oc|^2 - r^2`` are ``ocx, ocy, cc``: the distances of
+    :func:`~parcover_env.geometry.ray_kernels.disc_hit_from` (0 from inside a disc, inf on a miss),
+    one disc at a time for all rays, branch-free."""
+    nb = dx.shape[0]
+    for d in range(ocx.shape[0]):
+        c = cc[d]
+        x = ocx[d]
+        y = ocy[d]
+        for b in range(nb):
+            bb = x * dx[b] + y * dy[b]
+            disc = bb * bb - c
+            t = -bb - math.sqrt(max(disc, 0.0))
+            inside = c <= 0.0  # the ray starts inside: 0
+            hit = disc >= 0.0 and (inside or (bb < 0.0 and t >= 0.0))
+            best[b] = min(best[b], (0.0 if inside else t) if hit else np.inf)
+
+
 @njit(cache=True, nogil=True)
 def fast_ring_readings(poses, radius2, beams, segs, grid, draws, rules, out):
     """Readings ``out (K * N, B) float32`` of the ``fast`` rings (beam axes ``beams (B,)`` in the
     robot frame) of every robot of ``K`` worlds sharing the walls ``segs (S, 4)``, poses ``(K, N, 3)``
     (C-contiguous): per beam, the nearest hit within ``range_max`` of one ray along its axis on the
     walls (those within ``range_max`` of the robot, :func:`near_segments_grid` with the walls'
-    :class:`~parcover_env.geometry.wall_grid.WallGrid` ``grid``) and on the other robots
-    of its world (discs of squared radius ``radius2``; those within ``range_max`` of the robot,
-    their terms computed once for all its beams, :func:`disc_hit_from`), inf if none; then
-    :func:`fast_noise` with the :class:`FastDraws`. Row ``k * N + i`` equals what world ``k`` alone
-    reads."""
+    :class:`~parcover_env.geometry.wall_grid.WallGrid` ``grid``; :func:`segment_fan`) and on the
+    other robots of its world (discs of squared radius ``radius2``; those within ``range_max`` of the
+    robot, their terms computed once for all its beams, :func:`disc_fan`), inf if none (a hit beyond
+    ``range_max`` is no echo either); then :func:`fast_noise` with the :class:`FastDraws`. Row
+    ``k * N + i`` equals what world ``k`` alone reads."""
     rule = rules[0]
     rmax = rule.range_max
     cull = rule.box_cull and math.isfinite(rmax)
@@ -85,13 +142,17 @@ def fast_ring_readings(poses, radius2, beams, segs, grid, draws, rules, out):
     bx = np.empty(n)
     by = np.empty(n)
     bc = np.empty(n)
+    dx = np.empty(nb)
+    dy = np.empty(nb)
+    boxes = np.empty((4 if cull else 0, nb))
+    walls = np.empty(nb)
+    discs = np.empty(nb)
     ideal = np.empty((k * n, nb))
     for w in range(k):
         for i in range(n):
             o = w * n + i
             x0 = ox[o]
             y0 = oy[o]
-            near = idx[o, :cnt[o]]
             m = 0  # the discs of the other robots of world w in reach, in robot order (disc_hit's terms)
             for d in range(n):
                 if d == i:
@@ -106,13 +167,18 @@ def fast_ring_readings(poses, radius2, beams, segs, grid, draws, rules, out):
                     m += 1
             for b in range(nb):
                 a = pth[w, i] + beams[b]
-                ddx = math.cos(a)
-                ddy = math.sin(a)
-                t1, i1, _ = segment_hit(x0, y0, ddx, ddy, segs, near, rmax, cull, False)
-                if not (i1 >= 0 and t1 <= rmax):
-                    t1 = np.inf
-                td = disc_hit_from(ddx, ddy, bx[:m], by[:m], bc[:m])
-                if not td <= rmax:
-                    td = np.inf
-                ideal[o, b] = min(t1, td)
+                dx[b] = math.cos(a)
+                dy[b] = math.sin(a)
+                discs[b] = np.inf
+                if cull:  # the box of segment_hit's culling
+                    fx = x0 + dx[b] * rmax
+                    fy = y0 + dy[b] * rmax
+                    boxes[0, b] = min(x0, fx) - BOX_SLACK
+                    boxes[1, b] = max(x0, fx) + BOX_SLACK
+                    boxes[2, b] = min(y0, fy) - BOX_SLACK
+                    boxes[3, b] = max(y0, fy) + BOX_SLACK
+            segment_fan(x0, y0, dx, dy, segs, idx[o, :cnt[o]], boxes, walls)
+            disc_fan(dx, dy, bx[:m], by[:m], bc[:m], discs)
+            for b in range(nb):  # a hit beyond range_max is no echo, like none (inf)
+                ideal[o, b] = min(walls[b], discs[b])
     fast_noise(ideal, draws, rules, out)

@@ -211,14 +211,17 @@ class World:
         that. The world keeps ``velocities`` until its next step (its bodies point into them)."""
         self._cmd[:] = commands
         self._bound = velocities
-        dt = self.physics.dt
-        python = self._addresses is None
-        for k in range(self.physics.substeps):
-            if python:  # the compiled callbacks read their rows from ``velocities`` themselves
-                self._rows.values[:] = velocities[:, k]
-            self.space.step(dt)
-            if self._suppress:  # only the first step of a rebuilt space re-reports contacts in progress
-                self._suppress = set()
+        dt, step = self.physics.dt, self.space.step
+        if self._addresses is not None and not self._suppress:  # the compiled callbacks read their rows
+            for _ in range(self.physics.substeps):
+                step(dt)
+        else:
+            for k in range(self.physics.substeps):
+                if self._addresses is None:  # pymunk's Python callbacks read the rows written here
+                    self._rows.values[:] = velocities[:, k]
+                step(dt)
+                if self._suppress:  # only the first step of a rebuilt space re-reports contacts in progress
+                    self._suppress = set()
         self.time += self.physics.control_dt
 
     @property

@@ -75,18 +75,22 @@ def test_act_rows_are_reused_and_a_copy_or_pickle_owns_plain_arrays():
     assert act_rows(estimators, drives) is rows  # attached already: the same rows, nothing copied
     assert envs[1].estimator.odometry.estimate is rows.odometry.views["estimate"][1]
     assert envs[1].world.drive.wheels is rows.drives.views["wheels"][1]
+    assert envs[1].estimator.kinect_system.next_tick is rows.kinect.views["next_tick"][1]
     for twin in (copy.deepcopy(envs[1]), pickle.loads(pickle.dumps(envs[1]))):
         odometry = twin.estimator.odometry
         assert twin.estimator.act_rows is None and odometry.estimate.base is None
         np.testing.assert_array_equal(odometry.estimate, envs[1].estimator.odometry.estimate)
+        assert twin.estimator.kinect_system.next_tick.base is None
     envs[1].reset(seed=5)  # a new estimator in row 1: adopted, world 0 untouched
     again = act_rows([e.estimator for e in envs], [e.world.drive for e in envs])
     assert again is rows and envs[1].estimator.odometry.estimate is rows.odometry.views["estimate"][1]
+    assert envs[1].estimator.kinect_system.next_tick is rows.kinect.views["next_tick"][1]
     assert envs[0].estimator.odometry.estimate is rows.odometry.views["estimate"][0]
     envs[0].reset(seed=6)  # world 0's new estimator holds no rows yet: world 1's are found and reused
     assert act_rows([e.estimator for e in envs], [e.world.drive for e in envs]) is rows
     assert envs[0].estimator.odometry.estimate is rows.odometry.views["estimate"][0]
-    assert act_rows(estimators[:1], drives[:1]) is not rows  # another K: rows of its own
+    one = act_rows(estimators[:1], drives[:1])
+    assert one is not rows and one.kinect is None  # another K: rows of its own (K = 1: its ticks in place)
 
 
 # ---------------------------------------------------------------------------------------- physics

@@ -56,9 +56,14 @@ def test_fast_estimates_of_two_worlds_are_the_per_world_model(drop_rate):
     assert found > 40
 
 
-def test_update_systems_of_two_worlds_is_update_of_each():
+@pytest.mark.parametrize("shared", [False, True])
+def test_update_systems_of_two_worlds_is_update_of_each(shared):
     systems, _ = _systems([6, 7])
     alone = [copy.deepcopy(s) for s in systems]
+    ticks = np.stack([s.next_tick for s in systems]) if shared else None
+    if shared:  # the systems' next_tick as rows of one block (as the act phase's shared rows give them)
+        for s, row in zip(systems, ticks, strict=True):
+            s.next_tick = row
     poses = np.array([[[3.0, 4.0, 0.1], [5.0, 9.0, 1.0], [6.0, 9.5, -2.0]],
                       [[3.2, 4.1, 0.2], [5.5, 9.0, 0.0], [7.0, 9.0, 3.0]]])
     markers = np.array([[True, False, True], [True, True, False]])
@@ -67,13 +72,14 @@ def test_update_systems_of_two_worlds_is_update_of_each():
     for step in range(10):
         t = 0.1 * (step + 1)
         rngs = [np.random.default_rng(step), np.random.default_rng(50 + step)]
-        got = update_systems(systems, [t, t], poses, markers, predicted, rngs)
+        got = update_systems(systems, [t, t], poses, markers, predicted, rngs, ticks=ticks)
         for k, s in enumerate(alone):
             want = s.update(t, poses[k], markers[k], predicted[k], np.random.default_rng(50 * k + step))
             assert got[k].keys() == want.keys()
             for i in want:
                 np.testing.assert_array_equal(got[k][i], want[i])
             np.testing.assert_array_equal(systems[k].next_tick, s.next_tick)
+            assert not shared or systems[k].next_tick.base is ticks  # still the block's rows
             fixes += len(want)
     assert fixes > 0
 

@@ -4,6 +4,7 @@ per-world ``measure`` drawn from each world's own generator."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from parcover_env.config import SonarConfig
 from parcover_env.sensors.base import SensingState, Sensor
@@ -21,8 +22,10 @@ def _worlds(k=3, n=3, seed=0):
     return SensingState(poses, ROOM, 0.15, predecessor)
 
 
-def test_sonar_sense_is_each_worlds_measure():
-    ring = SonarRing(SonarConfig())
+@pytest.mark.parametrize("cfg", [{}, {"garbage_rate": 0.2}, {"model": "fast"},
+                                 {"model": "fast", "dropout_prob": 0.3, "garbage_rate": 0.2}])
+def test_sonar_sense_is_each_worlds_measure(cfg):
+    ring = SonarRing(SonarConfig(**cfg))  # every kind of draw: cross-talk, noise, dropouts, garbage
     state = _worlds()
     assert isinstance(ring, Sensor) and ring.size == 16
     got = ring.sense(state, [np.random.default_rng(10 + k) for k in range(3)])

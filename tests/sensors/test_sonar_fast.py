@@ -93,6 +93,7 @@ def test_noise_free_fast_readings_are_the_ideal_ray_bit_for_bit():
     pts = rng.uniform(0, 4, (200, 2))
     pts = pts[room.contains(pts, margin=0.2)][:6]
     poses = np.column_stack([pts, rng.uniform(-math.pi, math.pi, len(pts))])
+    poses = np.vstack([poses, [0.0, 2.0, 0.0], [4.0, 2.0, 0.0]])  # on the walls x = 0 and 4 (a reach box edge)
     fast = _ring(model="fast", n_beams=16, below_min="clip")
     ray = _ring(model="ray", n_beams=16, below_min="clip", crosstalk_prob=0.0)
     got = fast.measure(poses, room.segments, 0.165, np.random.default_rng(0))  # the compiled fast ring
@@ -120,3 +121,82 @@ def test_robots_beyond_reach_are_skipped_without_changing_a_bit():
         assert np.array_equal(got[w], ray.measure(poses[w], room.segments, r, None))
     assert got[0, 0, 0] == pytest.approx(2.49, abs=1e-6) and got[1, 2].min() == np.float32(0.15)  # inside: clipped
     assert np.mean(got < 2.54) > 0.1  # robots and walls echo
+
+
+def _fan(n_rays: int, phase: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    a = phase + np.arange(n_rays) * (2 * math.pi / n_rays)
+    return np.cos(a), np.sin(a)
+
+
+def test_segment_fan_hits_the_nearest_wall_of_each_ray_by_value():
+    from parcover_env.sensors.sonar_fast_kernels import segment_fan
+
+    # a wall x = 2 (y in [-2.5, 1]), a nearer one x = 1 (y in [0.5, 1.5]), one along the -x axis
+    segs = np.array([[2.0, -2.5, 2.0, 1.0], [1.0, 0.5, 1.0, 1.5], [-3.0, 0.0, -1.0, 0.0]])
+    dx, dy = _fan(8)  # 0, 45, 90, ..., 315 degrees
+    best = np.full(8, -1.0)
+    segment_fan(0.0, 0.0, dx, dy, segs, np.arange(3), np.empty((0, 8)), best)
+    assert best[0] == 2.0  # +x: the far wall; the near one is above the ray
+    assert best[1] == pytest.approx(math.sqrt(2))  # 45 deg: the near wall at (1, 1), before the far one
+    assert best[7] == pytest.approx(2 * math.sqrt(2))  # -45 deg: the far wall at (2, -2)
+    assert np.isinf(best[2:7]).all()  # -x runs along the third wall (parallel): no hit; the others miss
+    segment_fan(0.0, 0.0, dx, dy, segs, np.array([0, 2]), np.empty((0, 8)), best)
+    assert np.isinf(best[1]) and best[0] == 2.0  # only the listed walls count: the near one is left out
+    boxes = np.array([np.full(8, -1.0), np.full(8, 1.5), np.full(8, -1.0), np.full(8, 1.0)])
+    segment_fan(0.0, 0.0, dx, dy, segs, np.arange(3), boxes, best)
+    assert best[1] == pytest.approx(math.sqrt(2)) and np.isinf(best[0])  # the far wall lies outside every box
+    segment_fan(0.0, 0.0, dx, dy, np.array([[-3.0, 0.0, 1.0, 0.0]]), np.arange(1), np.empty((0, 8)), best)
+    assert best[2] == 0.0 and best[6] == 0.0  # starting on a wall: 0 across it
+    assert np.isinf(best[0]) and np.isinf(best[4])  # along it (-x: |d x e| ~ 5e-16, not exactly 0): no hit
+    ends = np.array([[1.0, 0.0, 1.0, 1.0], [2.0, -1.0, 2.0, 0.0]])  # +x meets the first at u = 0, the second at u = 1
+    segment_fan(0.0, 0.0, dx, dy, ends, np.arange(2), np.empty((0, 8)), best)
+    assert best[0] == 1.0
+    segment_fan(0.0, 0.0, dx, dy, ends, np.arange(1, 2), np.empty((0, 8)), best)
+    assert best[0] == 2.0
+
+
+def test_disc_fan_lowers_each_ray_to_its_nearest_disc_by_value():
+    from parcover_env.sensors.sonar_fast_kernels import disc_fan
+
+    dx, dy = _fan(4)  # +x, +y, -x, -y
+    centres, r = np.array([[2.0, 0.0], [0.0, 3.0], [0.0, -0.05]]), 0.5
+    oc = -centres  # origin (0, 0) minus centre
+    cc = (oc**2).sum(axis=1) - r * r
+    best = np.array([9.0, 1.0, 9.0, 9.0])
+    disc_fan(dx, dy, oc[:2, 0].copy(), oc[:2, 1].copy(), cc[:2].copy(), best)
+    assert best.tolist() == [1.5, 1.0, 9.0, 9.0]  # +x: 2 - 0.5; +y: 2.5 > the 1.0 it had; -x, -y: miss
+    disc_fan(dx, dy, oc[2:, 0].copy(), oc[2:, 1].copy(), cc[2:].copy(), best)
+    assert best.tolist() == [0.0, 0.0, 0.0, 0.0]  # the origin inside the third disc: 0 on every ray
+    best[:] = 9.0
+    disc_fan(dx, dy, np.array([0.5]), np.array([0.0]), np.array([0.0]), best)  # the origin on a disc's rim
+    assert best.tolist() == [0.0, 0.0, 0.0, 0.0]  # counts as inside: 0, even on the ray pointing away
+
+
+def test_fans_equal_the_per_ray_casts_bit_for_bit():
+    from parcover_env.geometry.ray_kernels import disc_hit_from, segment_hit
+    from parcover_env.sensors.sonar_fast_kernels import disc_fan, segment_fan
+
+    rng = np.random.default_rng(3)
+    for trial in range(200):
+        segs = rng.uniform(-3, 3, (12, 4))
+        segs[:3, 2] = segs[:3, 0]  # some axis-parallel walls, so some rays run parallel to a wall
+        segs[3:5, 3] = segs[3:5, 1]
+        x0, y0 = rng.uniform(-1, 1, 2)
+        dx, dy = _fan(16, phase=0.0 if trial % 2 else rng.uniform(-math.pi, math.pi))
+        near = np.sort(rng.choice(12, rng.integers(0, 13), replace=False))
+        reach, cull = 2.5, bool(trial % 3)
+        boxes = np.empty((4 if cull else 0, 16))
+        if cull:
+            fx, fy = x0 + dx * reach, y0 + dy * reach
+            boxes[:] = [np.minimum(x0, fx) - 1e-9, np.maximum(x0, fx) + 1e-9,
+                        np.minimum(y0, fy) - 1e-9, np.maximum(y0, fy) + 1e-9]
+        walls = np.empty(16)
+        segment_fan(x0, y0, dx, dy, segs, near, boxes, walls)
+        oc = rng.uniform(-2, 2, (5, 2))
+        cc = (oc**2).sum(axis=1) - 0.3**2
+        discs = np.full(16, np.inf)
+        disc_fan(dx, dy, oc[:, 0].copy(), oc[:, 1].copy(), cc, discs)
+        for b in range(16):
+            t, i, _ = segment_hit(x0, y0, dx[b], dy[b], segs, near, reach, cull, False)
+            assert walls[b] == t and (i >= 0) == (t < np.inf)  # beyond reach too: the caller clips
+            assert discs[b] == disc_hit_from(dx[b], dy[b], oc[:, 0], oc[:, 1], cc)

@@ -33,15 +33,19 @@ __all__ = ["update_systems", "fast_estimates", "track_all", "Detections"]
 
 
 def update_systems(systems: Sequence[Any], times: Sequence[float], true: np.ndarray, markers: np.ndarray,
-                   predicted: np.ndarray, rngs: Sequence[np.random.Generator]) -> list[dict[int, np.ndarray]]:
+                   predicted: np.ndarray, rngs: Sequence[np.random.Generator],
+                   ticks: np.ndarray | None = None) -> list[dict[int, np.ndarray]]:
     """Pose fixes ``{robot index: (x, y, theta)}`` of each of ``K`` Kinect systems (one scenario)
     at its world's time ``times[k]``, true poses ``true[k] (N, 3)``, marker carriers
     ``markers[k] (N,)`` and predicted poses ``predicted[k] (N, 3)``, drawing from ``rngs[k]``
     (``systems``: :class:`~parcover_env.localization.kinect.system.KinectSystem` s, typed ``Any`` because
-    ``system`` imports this module)."""
+    ``system`` imports this module). ``ticks (K, S)``: a block whose row ``k`` IS system ``k``'s
+    ``next_tick`` (shared rows, updated in place); None: gathered here and written back."""
     out: list[dict[int, np.ndarray]] = [{} for _ in systems]
     k_count = len(systems)
-    ticks = stack([s.next_tick for s in systems])  # K = 1: the system's own array, updated in place
+    shared = ticks is not None or k_count == 1
+    if ticks is None:  # K = 1: the system's own array, updated in place
+        ticks = stack([s.next_tick for s in systems])
     due = np.empty(ticks.shape, dtype=bool)
     active = np.empty(k_count, dtype=bool)
     true = np.ascontiguousarray(true, dtype=float)
@@ -50,7 +54,7 @@ def update_systems(systems: Sequence[Any], times: Sequence[float], true: np.ndar
                                     active)
     batch = []
     for k, (s, on) in enumerate(zip(systems, active.tolist(), strict=True)):
-        if k_count > 1:
+        if not shared:
             s.next_tick[:] = ticks[k]
         s.last_fixes = {}
         if not on:
@@ -119,11 +123,13 @@ def _detections(systems: Sequence[Any], due: np.ndarray, true: np.ndarray, marke
     row_world, row_depth, n, row_drop, out_row, out_index, out_geom = batch_kernels.due_candidates(
         np.ascontiguousarray(due, dtype=bool), np.ascontiguousarray(true, dtype=float),
         np.ascontiguousarray(markers, dtype=bool), kinects, pattern, models[0].depths, models[0].noise)
-    drop = row_drop.tolist()
+    drop, world, depth = row_drop.tolist(), row_world.tolist(), row_depth.tolist()
     cand_row, cand_index, geom = out_row.tolist(), out_index.tolist(), out_geom.tolist()
     found = Detections([], [], [], [], pattern.shape[1])
     c = 0
-    for r, (b, q) in enumerate(zip(row_world.tolist(), row_depth.tolist(), strict=True)):
+    # the rows that draw: every row where frames drop, else only those with candidates (in order)
+    for r in range(len(drop)) if max(drop, default=0.0) > 0.0 else dict.fromkeys(cand_row):
+        b, q = world[r], depth[r]
         rng = rngs[b]
         dropped = drop[r] > 0.0 and rng.random() < drop[r]
         while c < n and cand_row[c] == r:
