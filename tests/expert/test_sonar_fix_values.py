@@ -211,6 +211,10 @@ def test_a_pose_measured_relative_to_a_teammate_is_fused_into_the_belief():
     belief = fixer.belief("robot_0", ahead)
     np.testing.assert_allclose(belief[:2] - [1.3, 2.05], 0.1 * np.array([math.cos(0.55), math.sin(0.55)]),
                                atol=1e-12)
+    # the next measurement is fused into the corrected belief, not into the odometry pose
+    fixer.relative_update("robot_0", odom, np.array([1.3, 2.05, 0.55]), np.diag([0.0075, 0.0075, 0.005]))
+    np.testing.assert_allclose(fixer.belief("robot_0", odom), [1.3, 2.05, 0.55], atol=1e-12)
+    np.testing.assert_allclose(fixer.covariance("robot_0"), np.diag([0.00375, 0.00375, 0.0025]), atol=1e-15)
     # a robot never seen has an exact (zero) covariance: the measurement leaves it where it is
     fixer.relative_update("robot_1", odom, odom + [0.4, 0.2, 0.1], np.diag([0.01, 0.03, 0.01]))
     np.testing.assert_allclose(fixer.belief("robot_1", odom), odom, atol=1e-12)
@@ -218,6 +222,8 @@ def test_a_pose_measured_relative_to_a_teammate_is_fused_into_the_belief():
 
 
 def test_the_fixer_takes_its_settings_from_the_scenario_and_the_expert_config():
+    from dataclasses import replace
+
     from parcover_env.expert.config import SonarFixConfig, expert_config
     from parcover_env.expert.sonar_fix import SonarFixer
 
@@ -226,6 +232,9 @@ def test_the_fixer_takes_its_settings_from_the_scenario_and_the_expert_config():
     assert fixer.cfg == expert_config(scenario).sonar_fix
     assert fixer.stats == {"sonar_scans": 0, "sonar_localized": 0, "sonar_failed": 0}
     assert fixer.n_bins == 72  # 5-degree bins
+    sonar = replace(scenario.robot.sonar, scan_step_deg=1.0)
+    one_degree = replace(scenario, robot=replace(scenario.robot, sonar=sonar))
+    assert SonarFixer(one_degree, fixer.beams, 0.1).n_bins == 360
     # Kinect fix: 0.03 m and 2 degrees (tree); sonar fix: fix_sigma 0.05 m and 2 degrees
     np.testing.assert_allclose(fixer.kinect_cov, np.diag([0.03**2, 0.03**2, math.radians(2.0) ** 2]), rtol=1e-12)
     np.testing.assert_allclose(fixer.fix_cov, np.diag([0.05**2, 0.05**2, math.radians(2.0) ** 2]), rtol=1e-12)
