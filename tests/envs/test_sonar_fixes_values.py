@@ -1,0 +1,151 @@
+"""The env's sonar localization service (``envs/sonar_fixes.py``) on hand-built situations, without an
+env: the scan's duration, the bookkeeping of scans under way and of their outcomes, the search region's
+widening, and the gate's edges."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import parcover_env
+from parcover_env.envs.estimator import FixRequest
+from parcover_env.envs.sonar_fixes import ACCEPTED, HELD, REJECTED, UNINFORMATIVE, SonarFixes, scan_steps, scan_turn
+from parcover_env.sensors.sonar import SonarRing
+from parcover_env.world.map_model import MapModel
+
+
+def _scenario(**scan):
+    sc = parcover_env.load_scenario("t_room")
+    return replace(sc, observation=replace(sc.observation, scan=replace(sc.observation.scan, enabled=True, **scan)))
+
+
+def _service(n_robots: int = 3, **scan) -> SonarFixes:
+    sc = _scenario(**scan)
+    return SonarFixes(sc, MapModel.from_config(sc.map).segments, n_robots)
+
+
+def _request(n: int = 3, cov: np.ndarray | None = None) -> FixRequest:
+    poses = np.array([[1.0 + k, 1.0, 0.0] for k in range(n)])
+    return FixRequest(0.0, poses, poses.copy(), np.zeros(n, bool), cov)
+
+
+def test_a_scan_lasts_the_turn_over_the_turn_rate_in_whole_control_steps():
+    sc = _scenario()
+    turn, dt = scan_turn(SonarRing(sc.robot.sonar).beam_angles), sc.physics.control_dt
+    assert (turn, dt, sc.robot.max_turn_rate) == (pytest.approx(math.radians(72.0)), 0.1, 1.5)
+    # a turn of exactly 20 or 10 control steps takes 20 or 10, not one more
+    assert scan_steps(_scenario(turn_rate=turn / (20 * dt))) == 20
+    assert scan_steps(_scenario(turn_rate=turn / (10 * dt))) == 10
+    # faster than the robot can turn: at max_turn_rate, 1.5 rad/s (72 degrees in 0.84 s)
+    assert scan_steps(_scenario(turn_rate=turn / (5 * dt))) == 9
+    # a dense ring (1 degree between transducers) reads every direction within one step
+    dense = replace(sc, robot=replace(sc.robot, sonar=replace(sc.robot.sonar, layout="ring", n_beams=360)))
+    assert scan_steps(dense) == 1
+
+
+def test_a_request_starts_scans_only_of_robots_not_scanning_and_holds_every_scanning_robot():
+    svc = _service()
+    n = svc.duration_steps
+    commands = np.ones((3, 2))
+    svc.request(np.array([1.0, 0.0, -1.0]), commands)
+    np.testing.assert_array_equal(svc.remaining, [n, 0, 0])
+    np.testing.assert_array_equal(commands, [[0.0, 0.0], [1.0, 1.0], [1.0, 1.0]])
+    svc.remaining[0] = 3  # under way: a new request does not restart it
+    commands = np.ones((3, 2))
+    svc.request(np.array([1.0, 1.0, 0.0]), commands)
+    np.testing.assert_array_equal(svc.remaining, [3, n, 0])
+    np.testing.assert_array_equal(svc.scanning, [True, True, False])
+    np.testing.assert_array_equal(commands, [[0.0, 0.0], [0.0, 0.0], [1.0, 1.0]])
+
+
+def _stub_scans(svc: SonarFixes, results):
+    """Replace ``svc.localize_scan``: each call returns the next of ``results`` ((pose or None, informative))."""
+    it = iter(results)
+    svc.localize_scan = lambda i, request, rng: next(it)
+
+
+def test_outcomes_of_scans_ending_now_and_the_widening_of_the_next_region():
+    svc = _service(miss_inflation=2.0, max_inflation=8.0)
+    rng, req = np.random.default_rng(0), _request()
+    svc.remaining[:] = [1, 2, 0]
+    _stub_scans(svc, [(None, True)])
+    assert svc.fixes(req, rng) == {}  # robot 0's scan ends: rejected; robot 1's goes on
+    np.testing.assert_array_equal(svc.remaining, [0, 1, 0])
+    np.testing.assert_array_equal(svc.outcome, [REJECTED, 0.0, 0.0])
+    np.testing.assert_array_equal(svc.inflation, [2.0, 1.0, 1.0])
+    _stub_scans(svc, [(None, False)])
+    assert svc.fixes(req, rng) == {}  # robot 1: uninformative, its region stays
+    np.testing.assert_array_equal(svc.outcome, [0.0, UNINFORMATIVE, 0.0])  # this step's only
+    np.testing.assert_array_equal(svc.result, [REJECTED, UNINFORMATIVE, 0.0])  # the last of each
+    np.testing.assert_array_equal(svc.inflation, [2.0, 1.0, 1.0])
+    for expected in (4.0, 8.0, 8.0):  # rejected again and again: at most max_inflation
+        svc.remaining[0] = 1
+        _stub_scans(svc, [(None, True)])
+        svc.fixes(req, rng)
+        assert svc.inflation[0] == expected
+    pose = np.array([1.05, 0.98, 0.01])
+    svc.remaining[0] = 1
+    _stub_scans(svc, [(pose, True)])  # confirm_widened off: every fix is applied
+    out = svc.fixes(req, rng)
+    assert list(out) == [0] and out[0] is pose
+    assert svc.outcome[0] == svc.result[0] == ACCEPTED and svc.inflation[0] == 1.0
+    svc.remaining[:] = [0, 0, 0]
+    assert svc.fixes(req, rng) == {} and not svc.outcome.any()
+
+
+def test_reset_forgets_every_scan_outcome_widening_and_held_fix():
+    svc = _service()
+    svc.remaining[:], svc.result[:], svc.outcome[:], svc.inflation[:] = 2, HELD, HELD, 4.0
+    svc.held = [np.ones(3)] * 3
+    svc.held_from = [np.ones(3)] * 3
+    svc.reset(np.random.default_rng(0))
+    assert not svc.remaining.any() and not svc.result.any() and not svc.outcome.any()
+    np.testing.assert_array_equal(svc.inflation, np.ones(3))
+    assert svc.held == [None] * 3 and svc.held_from == [None] * 3
+
+
+def test_a_fix_on_the_edge_of_the_gate_is_inside():
+    # gate_distance 0.75 m over 3 sigmas: a position sigma of 0.25 m with a zero covariance; heading 36 deg
+    svc = _service(gate_distance=0.75, gate_sigmas=3.0, gate_heading_deg=36.0, gate_heading_max_deg=40.0)
+    prior, cov = np.array([1.0, 1.0, 0.0]), np.zeros((3, 3))
+    assert svc.in_gate(np.array([1.75, 1.0, 0.0]), prior, cov)  # 3 sigmas exactly
+    assert not svc.in_gate(np.array([1.75 + 1e-9, 1.0, 0.0]), prior, cov)
+    assert svc.in_gate(np.array([1.0, 1.0, math.radians(36.0)]), prior, cov)  # 36 degrees exactly
+    assert not svc.in_gate(np.array([1.0, 1.0, math.radians(36.0) + 1e-9]), prior, cov)
+    # a heading variance a rounding error below 0 counts as 0
+    pos, turn = svc.gate(np.diag([0.0, 0.0, -1e-18]))
+    assert turn == math.radians(36.0)
+    np.testing.assert_array_equal(pos, np.eye(2) * 0.0625)
+
+
+def test_a_held_fix_is_confirmed_only_by_a_scan_at_least_shift_test_from_where_it_was_found():
+    from parcover_env.geometry.poses import compose, inverse
+
+    svc = _service(confirm_widened=True, shift_test=0.25, gate_distance=0.15, gate_sigmas=3.0)
+    cov = np.zeros((3, 3, 3))
+    est = np.array([[1.0, 1.0, 0.0], [3.0, 1.0, 0.0], [5.0, 1.0, 0.0]])
+    req = FixRequest(0.0, est.copy(), est, np.zeros(3, bool), cov)
+    far = np.array([1.6, 1.0, 0.0])  # 0.6 m off: outside the base gate (3 x 0.05 m widened by the fix sigma)
+    assert not svc.in_gate(far, est[0], cov[0])
+    assert not svc.confirmed(0, far, req)  # nothing held yet: this one is held
+    np.testing.assert_allclose(compose(svc.held[0], est[0]), far, atol=1e-12)
+    np.testing.assert_array_equal(svc.held_from[0], est[0])
+    # found again from exactly shift_test away (0.25 m): from elsewhere, it agrees: confirmed
+    svc.held_from[0] = est[0] + [0.0, -0.25, 0.0]
+    assert svc.confirmed(0, far, req)
+    # from closer (0.2 m): the same scene, neither confirmed nor replaced
+    svc.held_from[0] = est[0] + [0.0, -0.2, 0.0]
+    other = far + [0.0, 0.5, 0.0]
+    assert not svc.confirmed(0, other, req)
+    np.testing.assert_allclose(compose(svc.held[0], est[0]), far, atol=1e-12)
+    # a fix inside the base gate is applied at once, whatever is held; without confirm_widened all are
+    assert svc.confirmed(0, est[0] + [0.1, 0.0, 0.0], req)
+    assert _service(confirm_widened=False).confirmed(0, far, req)
+    # no covariance in the request: the gate is that of a zero covariance (gate_distance only)
+    bare = FixRequest(0.0, est.copy(), est, np.zeros(3, bool), None)
+    assert svc.confirmed(1, est[1] + [0.14, 0.0, 0.0], bare)
+    assert not svc.confirmed(1, est[1] + [0.16, 0.0, 0.0], bare) and svc.held[1] is not None
+    np.testing.assert_allclose(svc.held[1], compose(est[1] + [0.16, 0.0, 0.0], inverse(est[1])), atol=1e-12)
