@@ -149,3 +149,56 @@ def test_a_held_fix_is_confirmed_only_by_a_scan_at_least_shift_test_from_where_i
     assert svc.confirmed(1, est[1] + [0.14, 0.0, 0.0], bare)
     assert not svc.confirmed(1, est[1] + [0.16, 0.0, 0.0], bare) and svc.held[1] is not None
     np.testing.assert_allclose(svc.held[1], compose(est[1] + [0.16, 0.0, 0.0], inverse(est[1])), atol=1e-12)
+
+
+TRUE = np.array([2.0, 0.5, math.pi / 2])  # robot 0 of t_room after reset(seed=0), facing up its room
+"""A pose whose noise-free ring scan the localizer matches exactly."""
+
+
+def test_the_search_region_is_gate_sigmas_of_the_covariance_times_the_inflation():
+    # sigma 0.05 m widened by gate_distance / gate_sigmas = 0.05 m: the 3-sigma region's radius is
+    # 3 sqrt(0.05^2 k^2 + 0.05^2) for inflation k: 0.21 m (k = 1), 0.34 m (2), 0.47 m (3)
+    svc = _service(n_robots=1)
+    ranges = svc.ring.scan(TRUE, svc.segments, np.zeros((0, 2)), svc.radius, None)
+    cov = np.diag([0.05**2, 0.05**2, 0.02**2])[None]
+    found = {}
+    for off in (0.3, 0.43, 0.5):
+        est = (TRUE + [off, 0.0, 0.0])[None]
+        req = FixRequest(0.0, TRUE[None], est, np.zeros(1, bool), cov)
+        found[off] = [svc.match(0, ranges, req, k)[0] is not None for k in (1.0, 2.0, 3.0)]
+    assert found == {0.3: [False, True, True], 0.43: [False, False, True], 0.5: [False, False, False]}
+    pose, informative = svc.match(0, ranges, FixRequest(0.0, TRUE[None], (TRUE + [0.43, 0.0, 0.0])[None],
+                                                        np.zeros(1, bool), cov), 3.0)
+    np.testing.assert_allclose(pose, TRUE, atol=1e-6)
+    assert informative
+    # no covariance in the request: the region of a zero covariance, gate_distance (0.15 m)
+    for off, hit in ((0.1, True), (0.3, False)):
+        req = FixRequest(0.0, TRUE[None], (TRUE + [off, 0.0, 0.0])[None], np.zeros(1, bool), None)
+        assert (svc.match(0, ranges, req, 1.0)[0] is not None) is hit
+
+
+MATES = np.array([TRUE, [2.0, 0.95, 0.0], [1.6, 0.5, 0.0]])  # robot 1 0.45 m ahead, robot 2 0.4 m to the side
+"""Robot 0 and two teammates next to it that block several of its readings."""
+
+
+def test_readings_a_teammate_may_explain_are_left_out_of_the_match():
+    svc = _service()
+    ranges = svc.ring.scan(TRUE, svc.segments, MATES[1:, :2], svc.radius, None)
+    others = np.array([1, 2])
+
+    def matches(cov, estimate=MATES, share=None, which=others):
+        s = svc if share is None else _service(min_unmasked_share=share)
+        return s.matches_unmasked(TRUE, ranges, FixRequest(0.0, MATES, estimate, np.zeros(3, bool), cov), which)
+
+    # teammates known to 0.2 m (major axis; 0.1 m across): readings ending within 0.165 + 2 x 0.2 m of
+    # them are left out, the rest match the known map; robot 0's own covariance plays no part
+    known = np.stack([np.eye(3) * 0.25, np.diag([0.01, 0.04, 0.0]), np.diag([0.04, 0.01, 0.0])])
+    assert matches(known)
+    assert not matches(None)  # exact teammates: only readings ending on their discs; some echoes miss that
+    assert not matches(known, estimate=MATES + [1.5, 0.0, 0.0])  # believed elsewhere: they explain nothing
+    assert not matches(known, which=np.array([], dtype=int))  # no teammates: nothing to leave out
+    # teammates known to 0.5 m: they may explain 50 of the 72 readings; 22 left match the map, but
+    # the share left must be at least min_unmasked_share
+    lost = np.stack([np.eye(3) * 0.25] * 3)
+    assert not matches(lost)
+    assert matches(lost, share=22 / 72) and not matches(lost, share=23 / 72)
