@@ -202,3 +202,43 @@ def test_readings_a_teammate_may_explain_are_left_out_of_the_match():
     lost = np.stack([np.eye(3) * 0.25] * 3)
     assert not matches(lost)
     assert matches(lost, share=22 / 72) and not matches(lost, share=23 / 72)
+
+
+def test_a_match_fails_or_passes_on_the_readings_no_teammate_may_explain():
+    svc = _service()
+    ranges = svc.ring.scan(TRUE, svc.segments, MATES[1:, :2], svc.radius, None)
+    known = np.stack([np.diag([0.01, 0.01, 0.0004]), np.diag([0.01, 0.04, 0.0]), np.diag([0.04, 0.01, 0.0])])
+
+    def match(shift, s=svc):
+        est = MATES + [0.0, shift, 0.0]  # the teammates believed ``shift`` m further up
+        est[0] = TRUE + [0.05, 0.0, 0.0]
+        return s.match(0, ranges, FixRequest(0.0, MATES, est, np.zeros(3, bool), known), 1.0)[0]
+
+    # believed 0.2 m off: drawn in there, they spoil the plain match; the readings they may explain
+    # left out (reach 0.165 + 2 x 0.2 m), the rest match: a fix near the truth
+    pose = match(0.2)
+    assert pose is not None and np.hypot(*(pose[:2] - TRUE[:2])) < 0.15
+    assert match(0.2, _service(min_unmasked_share=1.0)) is None  # no reading may be left out: no fix
+    assert match(0.25) is None  # 0.25 m off: the readings left do not match either
+
+
+def test_the_heading_search_is_the_gate_of_the_heading_sigma():
+    # heading sigma 4 degrees: 30 + 3 x 4 = 42 -> at most 40 degrees, beyond the localizer's own 30
+    svc = _service(n_robots=1)
+    ranges = svc.ring.scan(TRUE, svc.segments, np.zeros((0, 2)), svc.radius, None)
+    for sigma_deg, found in ((0.0, False), (4.0, True)):
+        cov = np.diag([0.05**2, 0.05**2, math.radians(sigma_deg) ** 2])[None]
+        req = FixRequest(0.0, TRUE[None], (TRUE + [0.0, 0.0, math.radians(35.0)])[None], np.zeros(1, bool), cov)
+        assert (svc.match(0, ranges, req, 1.0)[0] is not None) is found
+
+
+def test_the_service_localizes_with_the_scenarios_localizer_settings():
+    sc = _scenario()
+    strict = replace(sc, sonar_localizer={**sc.sonar_localizer, "success_error": 1e-9})
+    svc = _service(n_robots=1)
+    ranges = svc.ring.scan(TRUE, svc.segments, np.zeros((0, 2)), svc.radius, None)
+    req = FixRequest(0.0, TRUE[None], (TRUE + [0.05, 0.0, 0.0])[None], np.zeros(1, bool),
+                     np.diag([0.05**2, 0.05**2, 0.02**2])[None])
+    assert svc.match(0, ranges, req, 1.0)[0] is not None
+    # a success error no real scan reaches (1e-9 m): nothing is accepted
+    assert SonarFixes(strict, svc.segments, 1).match(0, ranges, req, 1.0)[0] is None
