@@ -144,6 +144,9 @@ def test_a_held_fix_is_confirmed_only_by_a_scan_at_least_shift_test_from_where_i
     # a fix inside the base gate is applied at once, whatever is held; without confirm_widened all are
     assert svc.confirmed(0, est[0] + [0.1, 0.0, 0.0], req)
     assert _service(confirm_widened=False).confirmed(0, far, req)
+    # the gate is that of the estimate's covariance: sigma 0.2 m admits a fix 0.4 m off at once
+    loose = FixRequest(0.0, est.copy(), est, np.zeros(3, bool), np.stack([np.diag([0.04, 0.04, 0.01])] * 3))
+    assert svc.confirmed(2, est[2] + [0.4, 0.0, 0.0], loose) and svc.held[2] is None
     # no covariance in the request: the gate is that of a zero covariance (gate_distance only)
     bare = FixRequest(0.0, est.copy(), est, np.zeros(3, bool), None)
     assert svc.confirmed(1, est[1] + [0.14, 0.0, 0.0], bare)
