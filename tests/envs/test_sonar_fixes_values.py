@@ -245,3 +245,72 @@ def test_the_service_localizes_with_the_scenarios_localizer_settings():
     assert svc.match(0, ranges, req, 1.0)[0] is not None
     # a success error no real scan reaches (1e-9 m): nothing is accepted
     assert SonarFixes(strict, svc.segments, 1).match(0, ranges, req, 1.0)[0] is None
+
+
+def test_the_scan_is_simulated_with_the_generator_of_the_step():
+    svc = _service(n_robots=1)
+    req = FixRequest(0.0, TRUE[None], (TRUE + [0.05, 0.0, 0.0])[None], np.zeros(1, bool),
+                     np.diag([0.05**2, 0.05**2, 0.02**2])[None])
+    poses = [svc.localize_scan(0, req, np.random.default_rng(seed))[0] for seed in (0, 1, 0)]
+    assert all(p is not None and np.hypot(*(p[:2] - TRUE[:2])) < 0.05 for p in poses)
+    assert not np.array_equal(poses[0], poses[1])  # the sonar's noise differs with the generator ...
+    np.testing.assert_array_equal(poses[0], poses[2])  # ... and repeats with it
+    seen = []
+    svc.localize_scan = lambda i, request, rng: seen.append(rng) or (None, True)
+    svc.remaining[0] = 1
+    rng = np.random.default_rng(5)
+    svc.fixes(req, rng)
+    assert seen == [rng]
+
+
+def _stub_match(svc: SonarFixes, widened, base):
+    """Replace ``svc.match``: ``widened`` for a search with inflation > 1, ``base`` for inflation 1;
+    returns the list of inflations searched."""
+    calls = []
+
+    def match(i, ranges, request, inflation):
+        calls.append(inflation)
+        pose = widened if inflation > 1 else base
+        return (None if pose is None else pose.copy()), True
+
+    svc.match = match
+    return calls
+
+
+def test_after_one_rejected_scan_a_far_match_gives_way_to_one_inside_the_base_gate():
+    svc = _service(n_robots=1, confirm_widened=True)
+    est = TRUE + [0.05, 0.0, 0.0]
+    cov = np.diag([0.05**2, 0.05**2, 0.02**2])
+    far, near = est + [0.0, 1.2, 0.0], est + [-0.04, 0.01, 0.01]
+    req = FixRequest(0.0, TRUE[None], est[None], np.zeros(1, bool), cov[None])
+    svc.inflation[0] = 2.0  # one rejected scan: the region is twice as wide
+    calls = _stub_match(svc, far, near)
+    pose, _ = svc.localize_scan(0, req, np.random.default_rng(0))
+    np.testing.assert_array_equal(pose, near)
+    assert calls == [2.0, 1.0]
+    # the base gate is that of the estimate's covariance: 0.4 m off is inside with sigma 0.2 m
+    loose = FixRequest(0.0, TRUE[None], est[None], np.zeros(1, bool), np.diag([0.04, 0.04, 0.01])[None])
+    calls = _stub_match(svc, est + [0.4, 0.0, 0.0], near)
+    pose, _ = svc.localize_scan(0, loose, np.random.default_rng(0))
+    np.testing.assert_array_equal(pose, est + [0.4, 0.0, 0.0])
+    assert calls == [2.0]
+    # no covariance in the request: the base gate of a zero covariance (0.15 m)
+    bare = FixRequest(0.0, TRUE[None], est[None], np.zeros(1, bool), None)
+    calls = _stub_match(svc, est + [0.1, 0.0, 0.0], near)
+    np.testing.assert_array_equal(svc.localize_scan(0, bare, np.random.default_rng(0))[0], est + [0.1, 0.0, 0.0])
+    calls = _stub_match(svc, est + [0.2, 0.0, 0.0], near)
+    np.testing.assert_array_equal(svc.localize_scan(0, bare, np.random.default_rng(0))[0], near)
+    assert calls == [2.0, 1.0]
+
+
+def test_the_ring_sees_the_teammates_at_their_true_poses_and_the_map_draws_them_at_their_estimates():
+    svc = _service()
+    est = MATES.copy()
+    est[0] = TRUE + [0.05, 0.0, 0.0]
+    # the teammates next to robot 0, believed where they are: their echoes are explained, a fix
+    pose, _ = svc.localize_scan(0, FixRequest(0.0, MATES, est, np.zeros(3, bool), None), None)
+    assert pose is not None and np.hypot(*(pose[:2] - TRUE[:2])) < 0.01
+    # believed 1.5 m away: the ring still sees them (at their true poses), the map does not: no fix
+    far = MATES + [0.0, 1.5, 0.0]
+    far[0] = est[0]
+    assert svc.localize_scan(0, FixRequest(0.0, MATES, far, np.zeros(3, bool), None), None)[0] is None
