@@ -314,3 +314,24 @@ def test_the_ring_sees_the_teammates_at_their_true_poses_and_the_map_draws_them_
     far = MATES + [0.0, 1.5, 0.0]
     far[0] = est[0]
     assert svc.localize_scan(0, FixRequest(0.0, MATES, far, np.zeros(3, bool), None), None)[0] is None
+
+
+def test_the_pin_down_test_trims_the_worst_readings_like_the_localizer():
+    """A 12 x 1.2 m corridor, sonar range 2.5 m: 2.45 m from its end wall, shifted scans raise the
+    untrimmed error by 0.006 m (>= min_shift_increase 0.003 m), the best 90 % of the readings
+    (``error_trim`` 0.1) by less: not pinned down. 2.3 m from the wall it is."""
+    from parcover_env.config.schema import MapConfig
+    from parcover_env.localization.sonar.known_map import known_map_features
+    from parcover_env.sensors.sonar import simulate_beams
+
+    sc = parcover_env.load_scenario("generated:120")
+    sc = replace(sc, map=MapConfig(size=(12.0, 1.2)),
+                 observation=replace(sc.observation, scan=replace(sc.observation.scan, enabled=True)))
+    svc = SonarFixes(sc, known_map_features(sc.map, sc.robot.sonar.range_max)[0].segments, 1)
+    assert (sc.robot.sonar.range_max, svc.cfg.shift_test, svc.cfg.min_shift_increase) == (2.5, 0.2, 0.003)
+    assert svc.params.error_trim == 0.1
+    for x, pinned in ((2.3, True), (2.45, False)):
+        pose = np.array([x, 0.6, 0.0])
+        ranges = simulate_beams(svc.ring.cfg, pose[None, :2], (pose[2] + svc.ring.scan_angles)[None, :],
+                                svc.known.segments, np.zeros((0, 2)), 0.0, np.array([-1]))[0]
+        assert svc.pins_down(pose, ranges, np.zeros((0, 2))) is pinned
