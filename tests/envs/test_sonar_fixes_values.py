@@ -335,3 +335,30 @@ def test_the_pin_down_test_trims_the_worst_readings_like_the_localizer():
         ranges = simulate_beams(svc.ring.cfg, pose[None, :2], (pose[2] + svc.ring.scan_angles)[None, :],
                                 svc.known.segments, np.zeros((0, 2)), 0.0, np.array([-1]))[0]
         assert svc.pins_down(pose, ranges, np.zeros((0, 2))) is pinned
+
+
+def test_the_team_map_cuts_a_16_sided_disc_of_the_robot_radius_per_teammate():
+    svc = _service()
+    assert svc.team_map(np.zeros((0, 2))) is svc.known
+    r, area = svc.radius, svc.known.free.area  # 4 m x 4 m minus the T's walls
+    disc = 8 * r**2 * math.sin(math.pi / 8)  # quad_segs 4: 16 triangles of r^2 sin(pi / 8) / 2
+    one = svc.team_map(np.array([[2.0, 1.5]]))
+    assert one.free.area == pytest.approx(area - disc, rel=1e-12)
+    assert one.bounds == svc.known.bounds
+    apart = svc.team_map(np.array([[2.0, 1.5], [2.0, 0.95]]))
+    assert apart.free.area == pytest.approx(area - 2 * disc, rel=1e-12)
+
+
+def test_the_unmasked_readings_are_compared_with_the_map_seen_from_the_pose_off_its_symmetry_axis():
+    # robot 0 off the room's axis and turned: a scan mirrored about its heading would not match
+    true = np.array([1.7, 0.6, math.pi / 2 + 0.2])
+    mates = np.array([true, [1.75, 1.05, 0.0], [1.3, 0.6, 0.0]])
+    svc = _service()
+    ranges = svc.ring.scan(true, svc.segments, mates[1:, :2], svc.radius, None)
+    known = np.stack([np.eye(3) * 0.25, np.diag([0.01, 0.04, 0.0]), np.diag([0.04, 0.01, 0.0])])
+    others = np.array([1, 2])
+    assert svc.matches_unmasked(true, ranges, FixRequest(0.0, mates, mates, np.zeros(3, bool), known), others)
+    assert not svc.matches_unmasked(true, ranges, FixRequest(0.0, mates, mates, np.zeros(3, bool), None), others)
+    # one teammate beside robot 0 (of TRUE): the readings ending on its disc left out, the rest match
+    ranges = svc.ring.scan(TRUE, svc.segments, MATES[2:, :2], svc.radius, None)
+    assert svc.matches_unmasked(TRUE, ranges, FixRequest(0.0, MATES, MATES, np.zeros(3, bool), None), np.array([2]))
