@@ -184,7 +184,6 @@ class SonarFixer:
         self.map, self.features, self.sectors = self.team.map, self.team.features, self.team.sectors
         self.beams = np.asarray(beam_angles, dtype=float)
         self.n_bins = int(round(360.0 / self.sonar.scan_step_deg))
-        self.angles = np.arange(self.n_bins) * (2 * math.pi / self.n_bins)
         self.dt = control_dt
         self.scan_rate = min(cfg.scan_rate, scenario.robot.max_turn_rate)
         self.env_scan = bool(env_scan)
