@@ -18,7 +18,15 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from parcover_env.geometry.ray_kernels import COS_FLOOR, disc_hit, disc_hit_from, in_cone, near_segments, segment_hit
+from parcover_env.geometry.ray_kernels import (
+    COS_FLOOR,
+    disc_fan,
+    disc_hit,
+    in_cone,
+    near_segments,
+    segment_fan_hits,
+    segment_hit,
+)
 
 __all__ = ["SONAR_RULES", "WallSet", "wall_set", "Discs", "sonar_echoes", "sonar_corner_echoes", "beam_readings"]
 
@@ -153,9 +161,8 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
     segs, seg_len = walls.segments, walls.lengths
     cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
     rule = rules[0]
-    rmax, multipath, cos_min, box_cull = rule.range_max, rule.multipath, rule.cos_min, rule.box_cull
+    rmax, multipath, cos_min = rule.range_max, rule.multipath, rule.cos_min
     specular = rule.specular and segs.shape[0] > 0
-    cull = box_cull and math.isfinite(rmax)
     per_origin = cx.shape[0] > 1
     n_discs = cx.shape[1]
     n_sub = offsets.shape[0]
@@ -167,11 +174,19 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
     co = np.cos(offsets)
     so = np.sin(offsets)
     n_pairs = share.shape[0] * n_sub
-    again = np.zeros(n_pairs, dtype=np.bool_)  # sub-rays a later beam reads too
+    slot = np.empty(n_pairs, dtype=np.int64)  # the traced sub-rays (a direction's first pair), in order
+    n_traced = 0
     for b in range(share.shape[0]):
         for j in range(n_sub):
-            if share[b, j] != b * n_sub + j:
-                again[share[b, j]] = True
+            if share[b, j] == b * n_sub + j:
+                slot[b * n_sub + j] = n_traced
+                n_traced += 1
+    fdx = np.empty(n_traced)  # per origin: the traced sub-rays as one fan, their first wall and disc hits
+    fdy = np.empty(n_traced)
+    fan_t = np.empty(n_traced)
+    fan_i = np.empty(n_traced, dtype=np.int64)
+    fan_den = np.empty(n_traced)
+    fan_td = np.empty(n_traced)
     direct = np.empty(n_pairs)  # per origin, per sub-ray traced: its direct echo (inf if none)
     leg_t = np.empty(n_pairs)  # where an oblique wall mirrored it (inf: not mirrored)
     leg_i = np.empty(n_pairs, dtype=np.int64)
@@ -181,13 +196,8 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
     ocx = np.empty(n_discs)  # per origin: the terms of the discs a sub-ray within rmax can hit
     ocy = np.empty(n_discs)
     cc = np.empty(n_discs)
-    ux = np.empty(n_discs)
-    uy = np.empty(n_discs)
-    cos_w = np.empty(n_discs)
-    bx = np.empty(n_discs)  # per beam: those a sub-ray of its cone can hit
-    by = np.empty(n_discs)
-    bc = np.empty(n_discs)
-    terms = _DiscTerms(ocx, ocy, cc, ux, uy, cos_w, np.empty((1, n_discs)), np.empty((1, n_discs)), np.empty(n_discs))
+    terms = _DiscTerms(ocx, ocy, cc, np.empty(n_discs), np.empty(n_discs), np.empty(n_discs), np.empty((1, n_discs)),
+                       np.empty((1, n_discs)), np.empty(n_discs))
     normals = _normals(segs)
     for n in range(ox.shape[0]):
         x0 = ox[n]
@@ -199,23 +209,23 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
         for b in range(axes.shape[1]):
             ax = math.cos(axes[n, b])
             ay = math.sin(axes[n, b])
-            nb = 0
-            for d in range(m):  # compacted without a branch: written, kept only if in the cone
-                bx[nb] = ocx[d]
-                by[nb] = ocy[d]
-                bc[nb] = cc[d]
-                nb += ax * ux[d] + ay * uy[d] >= cos_w[d]
+            for j in range(n_sub):
+                if share[b, j] == b * n_sub + j:
+                    p = slot[b * n_sub + j]
+                    fdx[p] = ax * co[j] - ay * so[j]
+                    fdy[p] = ay * co[j] + ax * so[j]
+        # first hits of every traced sub-ray at once (no cull: a hit within rmax is the same, and one
+        # beyond rmax, or beyond a cone's nearest echo, never changes a reading)
+        segment_fan_hits(x0, y0, fdx, fdy, segs, near, fan_t, fan_i, fan_den)
+        fan_td[:] = np.inf
+        disc_fan(fdx, fdy, ocx[:m], ocy[:m], cc[:m], fan_td)
+        for b in range(axes.shape[1]):
             best = np.inf
             for j in range(n_sub):  # first legs: direct echoes (walls near the normal, discs)
                 u = share[b, j]
                 if u == b * n_sub + j:  # a direction not traced yet
-                    ddx = ax * co[j] - ay * so[j]
-                    ddy = ay * co[j] + ax * so[j]
-                    # an echo is never nearer than the sub-ray's first wall or disc, so walls beyond the
-                    # cone's nearest echo so far (``best``) are culled, unless another cone reads it too
-                    reach = rmax if again[u] else min(rmax, best)
-                    t1, i1, den = segment_hit(x0, y0, ddx, ddy, segs, near, reach, cull, False)
-                    td = disc_hit_from(ddx, ddy, bx[:nb], by[:nb], bc[:nb])
+                    p = slot[u]
+                    t1, i1, den, td = fan_t[p], fan_i[p], fan_den[p], fan_td[p]
                     if not td <= rmax:
                         td = np.inf
                     if not (i1 >= 0 and t1 <= rmax):
@@ -234,8 +244,8 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
                         if multipath and i1 >= 0:  # mirrored by an oblique wall: its second leg comes after
                             leg_t[u] = t1
                             leg_i[u] = i1
-                            leg_x[u] = ddx
-                            leg_y[u] = ddy
+                            leg_x[u] = fdx[p]
+                            leg_y[u] = fdy[p]
                     direct[u] = echo
                 best = min(best, direct[u])
             for j in range(n_sub):  # second legs, once the cone's direct echoes bound what can be nearer

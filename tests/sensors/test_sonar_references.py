@@ -61,8 +61,8 @@ def test_disc_culls_change_no_reading():
 
 @pytest.mark.parametrize("range_max", [3.0, 1.2])
 def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit(range_max):
-    """The compiled cone (near-wall lists, box and best-echo culls, direct echoes before mirrored
-    legs, disc culls of both legs) reads bit for bit what tracing every sub-ray's two legs against
+    """The compiled cone (near-wall lists, each origin's sub-rays cast as one fan, direct echoes
+    before mirrored legs, box and disc culls of the second legs) reads bit for bit what tracing every sub-ray's two legs against
     every wall and robot reads, in a room of oblique walls with a crowd of robots (a short range:
     many robots beyond it, left out of the second legs too)."""
     from parcover_env.geometry import rays
