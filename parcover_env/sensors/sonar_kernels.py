@@ -125,9 +125,6 @@ class _DiscTerms(NamedTuple):
     ocx: np.ndarray
     ocy: np.ndarray
     cc: np.ndarray
-    ux: np.ndarray
-    uy: np.ndarray
-    cos_w: np.ndarray
     cx: np.ndarray
     """``(1, D)``: the discs' centres and squared radii, for the second legs (:func:`_second_leg`)."""
     cy: np.ndarray
@@ -166,11 +163,6 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
     per_origin = cx.shape[0] > 1
     n_discs = cx.shape[1]
     n_sub = offsets.shape[0]
-    spread = 0.0  # the sub-rays' largest angle off the beam axis (< pi / 2: cones are < 180 deg)
-    for j in range(n_sub):
-        spread = max(spread, abs(offsets[j]))
-    cos_spread = math.cos(spread)
-    sin_spread = math.sin(spread)
     co = np.cos(offsets)
     so = np.sin(offsets)
     n_pairs = share.shape[0] * n_sub
@@ -196,15 +188,14 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
     ocx = np.empty(n_discs)  # per origin: the terms of the discs a sub-ray within rmax can hit
     ocy = np.empty(n_discs)
     cc = np.empty(n_discs)
-    terms = _DiscTerms(ocx, ocy, cc, np.empty(n_discs), np.empty(n_discs), np.empty(n_discs), np.empty((1, n_discs)),
-                       np.empty((1, n_discs)), np.empty(n_discs))
+    terms = _DiscTerms(ocx, ocy, cc, np.empty((1, n_discs)), np.empty((1, n_discs)), np.empty(n_discs))
     normals = _normals(segs)
     for n in range(ox.shape[0]):
         x0 = ox[n]
         y0 = oy[n]
         row = n if per_origin else 0
         near = idx[n, :cnt[n]]
-        m = _near_discs(x0, y0, cx[row], cy[row], r2, owner[n], rmax, cos_spread, sin_spread, terms)
+        m = _near_discs(x0, y0, cx[row], cy[row], r2, owner[n], rmax, terms)
         leg_discs = Discs(terms.cx[:, :m], terms.cy[:, :m], terms.r2[:m], owner)  # a second leg stays within rmax
         for b in range(axes.shape[1]):
             ax = math.cos(axes[n, b])
@@ -259,17 +250,14 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
 
 
 _DISC_SLACK = 1e-6
-"""Margin (m, rad) of the disc culls of :func:`sonar_echoes`: rounding never culls a disc a sub-ray hits."""
+"""Margin (m) of the disc range cull of :func:`sonar_echoes`: rounding never culls a disc a sub-ray hits."""
 @njit(cache=True, inline="always")
-def _near_discs(x0, y0, cx, cy, r2, mine, rmax, cos_spread, sin_spread, terms):
+def _near_discs(x0, y0, cx, cy, r2, mine, rmax, terms):
     """The discs ``cx, cy`` (squared radii ``r2``) but ``mine`` that a ray from ``(x0, y0)`` can hit
-    within ``rmax``, compacted into the first ``m`` entries of ``terms`` (``m`` returned): the
-    terms ``oc = o - c`` and ``|oc|^2 - r^2`` of :func:`disc_hit_from`, the unit vector ``u`` to the
-    centre and the cosine of ``spread`` (< pi / 2; given as its cosine and sine) plus the half-angle
-    the disc spans (-2 if the origin is inside it: every ray hits). A ray hits a disc outside it only
-    within that half-angle of ``u`` (at a distance >= ``|oc| - r``), so a cone of half-angle
-    ``spread`` about a unit axis ``a`` can hit it only if ``a . u >= cos_w``."""
-    ocx, ocy, cc, ux, uy, cos_w, kept_x, kept_y, kept_r2 = terms
+    within ``rmax`` (the nearest point ``|oc| - r`` within it, or the origin inside), compacted into
+    the first ``m`` entries of ``terms`` (``m`` returned): the terms ``oc = o - c`` and
+    ``|oc|^2 - r^2`` of :func:`disc_hit_from` and the discs themselves."""
+    ocx, ocy, cc, kept_x, kept_y, kept_r2 = terms
     m = 0
     for d in range(cx.shape[0]):
         if d == mine:
@@ -277,19 +265,8 @@ def _near_discs(x0, y0, cx, cy, r2, mine, rmax, cos_spread, sin_spread, terms):
         dx = x0 - cx[d]
         dy = y0 - cy[d]
         c = (dx * dx + dy * dy) - r2[d]
-        if c > 0.0:
-            dist = math.sqrt(dx * dx + dy * dy)
-            r = math.sqrt(r2[d])
-            if dist - r > rmax + _DISC_SLACK:
-                continue
-            ux[m] = -dx / dist
-            uy[m] = -dy / dist
-            sin_w = min(r / dist, 1.0)  # cos(spread + w), w the disc's half-angle, minus a rounding margin
-            cos_w[m] = cos_spread * math.sqrt(1.0 - sin_w * sin_w) - sin_spread * sin_w - _DISC_SLACK
-        else:
-            ux[m] = 0.0
-            uy[m] = 0.0
-            cos_w[m] = -2.0
+        if c > 0.0 and math.sqrt(dx * dx + dy * dy) - math.sqrt(r2[d]) > rmax + _DISC_SLACK:
+            continue
         ocx[m] = dx
         ocy[m] = dy
         cc[m] = c
