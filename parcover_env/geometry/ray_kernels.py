@@ -216,3 +216,54 @@ def in_cone(a, half):
     if abs(a - 2.0 * math.pi * round(a / (2.0 * math.pi))) > half + 1e-9:
         return False
     return abs(wrap(a)) <= half
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def segment_fan_hits(x0, y0, dx, dy, segs, near, t, index, dens):
+    """:func:`segment_hit` (no culling, not ``open_end``) of every ray ``b`` of a fan from ``(x0,
+    y0)``, unit directions ``(dx[b], dy[b])``, on the segments ``near`` (ascending indices into
+    ``segs``): writes its ``t[b]``, ``index[b]`` and ``dens[b]`` (``inf, -1, 0`` if none). The same
+    float operations, one segment at a time for all rays (a loop the compiler vectorizes; divisions
+    by a near-zero ``den`` are computed and discarded); a tie keeps the earlier segment, as there."""
+    nb = dx.shape[0]
+    for b in range(nb):
+        t[b] = np.inf
+        index[b] = -1
+        dens[b] = 0.0
+    for j in range(near.shape[0]):
+        s = near[j]
+        ax = segs[s, 0]
+        ay = segs[s, 1]
+        ex = segs[s, 2] - ax
+        ey = segs[s, 3] - ay
+        wx = ax - x0
+        wy = ay - y0
+        num = wx * ey - wy * ex
+        for b in range(nb):
+            den = dx[b] * ey - dy[b] * ex
+            tt = num / den
+            u = (wx * dy[b] - wy * dx[b]) / den
+            hit = abs(den) > _EPS and tt >= 0.0 and u >= -_EPS and u <= 1.0 + _EPS and tt < t[b]
+            t[b] = tt if hit else t[b]
+            index[b] = s if hit else index[b]
+            dens[b] = den if hit else dens[b]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def disc_fan(dx, dy, ocx, ocy, cc, best):
+    """Lower ``best[b]`` to the nearest hit of ray ``b`` (unit directions ``dx, dy``) on the discs
+    whose terms ``oc = origin - centre`` and ``|oc|^2 - r^2`` are ``ocx, ocy, cc``: the distances of
+    :func:`disc_hit_from` (0 from inside a disc, inf on a miss), one disc at a time for all rays,
+    branch-free."""
+    nb = dx.shape[0]
+    for d in range(ocx.shape[0]):
+        c = cc[d]
+        x = ocx[d]
+        y = ocy[d]
+        for b in range(nb):
+            bb = x * dx[b] + y * dy[b]
+            disc = bb * bb - c
+            t = -bb - math.sqrt(max(disc, 0.0))
+            inside = c <= 0.0  # the ray starts inside: 0
+            hit = disc >= 0.0 and (inside or (bb < 0.0 and t >= 0.0))
+            best[b] = min(best[b], (0.0 if inside else t) if hit else np.inf)

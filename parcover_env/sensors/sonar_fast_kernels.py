@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from parcover_env.geometry.ray_kernels import BOX_SLACK, HIT_EPS
+from parcover_env.geometry.ray_kernels import BOX_SLACK, HIT_EPS, disc_fan
 from parcover_env.geometry.wall_grid import near_segments_grid
 from parcover_env.sensors.sonar_ring_kernels import Draws, ring_noise
 
@@ -91,26 +91,6 @@ def segment_fan(x0, y0, dx, dy, segs, near, boxes, best):
             if cull:
                 hit = hit and not (lox > boxes[1, b] or hix < boxes[0, b] or loy > boxes[3, b] or hiy < boxes[2, b])
             best[b] = t if hit else best[b]
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def disc_fan(dx, dy, ocx, ocy, cc, best):
-    """Lower ``best[b]`` to the nearest hit of ray ``b`` (unit directions ``dx, dy``) on the discs
-    whose terms ``oc = origin - centre`` and ``|oc|^2 - r^2`` are ``ocx, ocy, cc``: the distances of
-    :func:`~parcover_env.geometry.ray_kernels.disc_hit_from` (0 from inside a disc, inf on a miss),
-    one disc at a time for all rays, branch-free."""
-    nb = dx.shape[0]
-    for d in range(ocx.shape[0]):
-        c = cc[d]
-        x = ocx[d]
-        y = ocy[d]
-        for b in range(nb):
-            bb = x * dx[b] + y * dy[b]
-            disc = bb * bb - c
-            t = -bb - math.sqrt(max(disc, 0.0))
-            inside = c <= 0.0  # the ray starts inside: 0
-            hit = disc >= 0.0 and (inside or (bb < 0.0 and t >= 0.0))
-            best[b] = min(best[b], (0.0 if inside else t) if hit else np.inf)
 
 
 @njit(cache=True, nogil=True)

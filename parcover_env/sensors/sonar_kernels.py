@@ -18,7 +18,15 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from parcover_env.geometry.ray_kernels import COS_FLOOR, disc_hit, disc_hit_from, in_cone, near_segments, segment_hit
+from parcover_env.geometry.ray_kernels import (
+    COS_FLOOR,
+    disc_fan,
+    disc_hit,
+    in_cone,
+    near_segments,
+    segment_fan_hits,
+    segment_hit,
+)
 
 __all__ = ["SONAR_RULES", "WallSet", "wall_set", "Discs", "sonar_echoes", "sonar_corner_echoes", "beam_readings"]
 
@@ -117,9 +125,6 @@ class _DiscTerms(NamedTuple):
     ocx: np.ndarray
     ocy: np.ndarray
     cc: np.ndarray
-    ux: np.ndarray
-    uy: np.ndarray
-    cos_w: np.ndarray
     cx: np.ndarray
     """``(1, D)``: the discs' centres and squared radii, for the second legs (:func:`_second_leg`)."""
     cy: np.ndarray
@@ -153,25 +158,27 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
     segs, seg_len = walls.segments, walls.lengths
     cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
     rule = rules[0]
-    rmax, multipath, cos_min, box_cull = rule.range_max, rule.multipath, rule.cos_min, rule.box_cull
+    rmax, multipath, cos_min = rule.range_max, rule.multipath, rule.cos_min
     specular = rule.specular and segs.shape[0] > 0
-    cull = box_cull and math.isfinite(rmax)
     per_origin = cx.shape[0] > 1
     n_discs = cx.shape[1]
     n_sub = offsets.shape[0]
-    spread = 0.0  # the sub-rays' largest angle off the beam axis (< pi / 2: cones are < 180 deg)
-    for j in range(n_sub):
-        spread = max(spread, abs(offsets[j]))
-    cos_spread = math.cos(spread)
-    sin_spread = math.sin(spread)
     co = np.cos(offsets)
     so = np.sin(offsets)
     n_pairs = share.shape[0] * n_sub
-    again = np.zeros(n_pairs, dtype=np.bool_)  # sub-rays a later beam reads too
+    slot = np.empty(n_pairs, dtype=np.int64)  # the traced sub-rays (a direction's first pair), in order
+    n_traced = 0
     for b in range(share.shape[0]):
         for j in range(n_sub):
-            if share[b, j] != b * n_sub + j:
-                again[share[b, j]] = True
+            if share[b, j] == b * n_sub + j:
+                slot[b * n_sub + j] = n_traced
+                n_traced += 1
+    fdx = np.empty(n_traced)  # per origin: the traced sub-rays as one fan, their first wall and disc hits
+    fdy = np.empty(n_traced)
+    fan_t = np.empty(n_traced)
+    fan_i = np.empty(n_traced, dtype=np.int64)
+    fan_den = np.empty(n_traced)
+    fan_td = np.empty(n_traced)
     direct = np.empty(n_pairs)  # per origin, per sub-ray traced: its direct echo (inf if none)
     leg_t = np.empty(n_pairs)  # where an oblique wall mirrored it (inf: not mirrored)
     leg_i = np.empty(n_pairs, dtype=np.int64)
@@ -181,41 +188,35 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
     ocx = np.empty(n_discs)  # per origin: the terms of the discs a sub-ray within rmax can hit
     ocy = np.empty(n_discs)
     cc = np.empty(n_discs)
-    ux = np.empty(n_discs)
-    uy = np.empty(n_discs)
-    cos_w = np.empty(n_discs)
-    bx = np.empty(n_discs)  # per beam: those a sub-ray of its cone can hit
-    by = np.empty(n_discs)
-    bc = np.empty(n_discs)
-    terms = _DiscTerms(ocx, ocy, cc, ux, uy, cos_w, np.empty((1, n_discs)), np.empty((1, n_discs)), np.empty(n_discs))
+    terms = _DiscTerms(ocx, ocy, cc, np.empty((1, n_discs)), np.empty((1, n_discs)), np.empty(n_discs))
     normals = _normals(segs)
     for n in range(ox.shape[0]):
         x0 = ox[n]
         y0 = oy[n]
         row = n if per_origin else 0
         near = idx[n, :cnt[n]]
-        m = _near_discs(x0, y0, cx[row], cy[row], r2, owner[n], rmax, cos_spread, sin_spread, terms)
+        m = _near_discs(x0, y0, cx[row], cy[row], r2, owner[n], rmax, terms)
         leg_discs = Discs(terms.cx[:, :m], terms.cy[:, :m], terms.r2[:m], owner)  # a second leg stays within rmax
         for b in range(axes.shape[1]):
             ax = math.cos(axes[n, b])
             ay = math.sin(axes[n, b])
-            nb = 0
-            for d in range(m):  # compacted without a branch: written, kept only if in the cone
-                bx[nb] = ocx[d]
-                by[nb] = ocy[d]
-                bc[nb] = cc[d]
-                nb += ax * ux[d] + ay * uy[d] >= cos_w[d]
+            for j in range(n_sub):
+                if share[b, j] == b * n_sub + j:
+                    p = slot[b * n_sub + j]
+                    fdx[p] = ax * co[j] - ay * so[j]
+                    fdy[p] = ay * co[j] + ax * so[j]
+        # first hits of every traced sub-ray at once (no cull: a hit within rmax is the same, and one
+        # beyond rmax, or beyond a cone's nearest echo, never changes a reading)
+        segment_fan_hits(x0, y0, fdx, fdy, segs, near, fan_t, fan_i, fan_den)
+        fan_td[:] = np.inf
+        disc_fan(fdx, fdy, ocx[:m], ocy[:m], cc[:m], fan_td)
+        for b in range(axes.shape[1]):
             best = np.inf
             for j in range(n_sub):  # first legs: direct echoes (walls near the normal, discs)
                 u = share[b, j]
                 if u == b * n_sub + j:  # a direction not traced yet
-                    ddx = ax * co[j] - ay * so[j]
-                    ddy = ay * co[j] + ax * so[j]
-                    # an echo is never nearer than the sub-ray's first wall or disc, so walls beyond the
-                    # cone's nearest echo so far (``best``) are culled, unless another cone reads it too
-                    reach = rmax if again[u] else min(rmax, best)
-                    t1, i1, den = segment_hit(x0, y0, ddx, ddy, segs, near, reach, cull, False)
-                    td = disc_hit_from(ddx, ddy, bx[:nb], by[:nb], bc[:nb])
+                    p = slot[u]
+                    t1, i1, den, td = fan_t[p], fan_i[p], fan_den[p], fan_td[p]
                     if not td <= rmax:
                         td = np.inf
                     if not (i1 >= 0 and t1 <= rmax):
@@ -234,8 +235,8 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
                         if multipath and i1 >= 0:  # mirrored by an oblique wall: its second leg comes after
                             leg_t[u] = t1
                             leg_i[u] = i1
-                            leg_x[u] = ddx
-                            leg_y[u] = ddy
+                            leg_x[u] = fdx[p]
+                            leg_y[u] = fdy[p]
                     direct[u] = echo
                 best = min(best, direct[u])
             for j in range(n_sub):  # second legs, once the cone's direct echoes bound what can be nearer
@@ -249,17 +250,14 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
 
 
 _DISC_SLACK = 1e-6
-"""Margin (m, rad) of the disc culls of :func:`sonar_echoes`: rounding never culls a disc a sub-ray hits."""
+"""Margin (m) of the disc range cull of :func:`sonar_echoes`: rounding never culls a disc a sub-ray hits."""
 @njit(cache=True, inline="always")
-def _near_discs(x0, y0, cx, cy, r2, mine, rmax, cos_spread, sin_spread, terms):
+def _near_discs(x0, y0, cx, cy, r2, mine, rmax, terms):
     """The discs ``cx, cy`` (squared radii ``r2``) but ``mine`` that a ray from ``(x0, y0)`` can hit
-    within ``rmax``, compacted into the first ``m`` entries of ``terms`` (``m`` returned): the
-    terms ``oc = o - c`` and ``|oc|^2 - r^2`` of :func:`disc_hit_from`, the unit vector ``u`` to the
-    centre and the cosine of ``spread`` (< pi / 2; given as its cosine and sine) plus the half-angle
-    the disc spans (-2 if the origin is inside it: every ray hits). A ray hits a disc outside it only
-    within that half-angle of ``u`` (at a distance >= ``|oc| - r``), so a cone of half-angle
-    ``spread`` about a unit axis ``a`` can hit it only if ``a . u >= cos_w``."""
-    ocx, ocy, cc, ux, uy, cos_w, kept_x, kept_y, kept_r2 = terms
+    within ``rmax`` (the nearest point ``|oc| - r`` within it, or the origin inside), compacted into
+    the first ``m`` entries of ``terms`` (``m`` returned): the terms ``oc = o - c`` and
+    ``|oc|^2 - r^2`` of :func:`disc_hit_from` and the discs themselves."""
+    ocx, ocy, cc, kept_x, kept_y, kept_r2 = terms
     m = 0
     for d in range(cx.shape[0]):
         if d == mine:
@@ -267,19 +265,8 @@ def _near_discs(x0, y0, cx, cy, r2, mine, rmax, cos_spread, sin_spread, terms):
         dx = x0 - cx[d]
         dy = y0 - cy[d]
         c = (dx * dx + dy * dy) - r2[d]
-        if c > 0.0:
-            dist = math.sqrt(dx * dx + dy * dy)
-            r = math.sqrt(r2[d])
-            if dist - r > rmax + _DISC_SLACK:
-                continue
-            ux[m] = -dx / dist
-            uy[m] = -dy / dist
-            sin_w = min(r / dist, 1.0)  # cos(spread + w), w the disc's half-angle, minus a rounding margin
-            cos_w[m] = cos_spread * math.sqrt(1.0 - sin_w * sin_w) - sin_spread * sin_w - _DISC_SLACK
-        else:
-            ux[m] = 0.0
-            uy[m] = 0.0
-            cos_w[m] = -2.0
+        if c > 0.0 and math.sqrt(dx * dx + dy * dy) - math.sqrt(r2[d]) > rmax + _DISC_SLACK:
+            continue
         ocx[m] = dx
         ocy[m] = dy
         cc[m] = c

@@ -260,3 +260,45 @@ def test_sight_lines_blocked_equals_the_open_segment_test_per_pair():
     one_wall = np.array([[1.0, -1.0, 1.0, 1.0]])
     assert sight_lines_blocked(np.array([0.0, 2.0, 0.5]), np.zeros(3), np.array([1, -1, 0]), one_wall).tolist() == [
         True, False, False]
+
+
+def test_segment_fan_hits_give_each_rays_nearest_wall_its_index_and_den_by_value():
+    """Rays at 0, 90, 180 and 270 deg from the origin; walls x = 2 (y in [-1, 1]), a nearer x = 1
+    (y in [-1, 0]: only its end at y = 0 lies on +x), y = 3 and a copy of x = 2 listed after it."""
+    from parcover_env.geometry.ray_kernels import segment_fan_hits
+
+    segs = np.array([[2.0, -1.0, 2.0, 1.0], [1.0, -1.0, 1.0, 0.0], [-4.0, 3.0, 4.0, 3.0], [2.0, -1.0, 2.0, 1.0]])
+    dx, dy = np.array([1.0, 0.0, -1.0, 0.0]), np.array([0.0, 1.0, 0.0, -1.0])
+    t, index, dens = np.full(4, -5.0), np.full(4, -5), np.full(4, -5.0)
+    segment_fan_hits(0.0, 0.0, dx, dy, segs, np.arange(4), t, index, dens)
+    assert t.tolist() == [1.0, 3.0, np.inf, np.inf]  # +x: the nearer wall's end (u = 1); +y: y = 3; others miss
+    assert index.tolist() == [1, 2, -1, -1] and dens.tolist() == [1.0, -8.0, 0.0, 0.0]  # d x e of the hit
+    segment_fan_hits(0.0, 0.0, dx, dy, segs, np.array([0, 2, 3]), t, index, dens)
+    assert t[0] == 2.0 and index[0] == 0 and dens[0] == 2.0  # the tie with the copy keeps the earlier wall
+    segment_fan_hits(0.0, 0.0, dx, dy, segs, np.array([0, 2, 3])[:0], t, index, dens)
+    assert np.isinf(t).all() and (index == -1).all() and (dens == 0.0).all()  # no walls: reset
+
+
+def test_segment_fan_hits_equal_the_per_ray_casts_bit_for_bit():
+    """Random walls (some axis-parallel: rays parallel to a wall), random listed subsets and fans:
+    each ray's ``(t, index, den)`` is :func:`segment_hit`'s without culling, bit for bit."""
+    from parcover_env.geometry.ray_kernels import segment_fan_hits, segment_hit
+
+    rng = np.random.default_rng(8)
+    hits = 0
+    for trial in range(200):
+        segs = rng.uniform(-3, 3, (12, 4))
+        segs[:3, 2] = segs[:3, 0]
+        segs[3:5, 3] = segs[3:5, 1]
+        x0, y0 = rng.uniform(-1, 1, 2)
+        a = rng.uniform(-math.pi, math.pi) + np.arange(16) * (2 * math.pi / 16) if trial % 2 else \
+            np.concatenate([np.arange(8) * (math.pi / 4), rng.uniform(-4, 4, 8)])
+        dx, dy = np.cos(a), np.sin(a)
+        near = np.sort(rng.choice(12, rng.integers(0, 13), replace=False))
+        t, index, dens = np.empty(16), np.empty(16, np.int64), np.empty(16)
+        segment_fan_hits(x0, y0, dx, dy, segs, near, t, index, dens)
+        for b in range(16):
+            want = segment_hit(x0, y0, dx[b], dy[b], segs, near, np.inf, False, False)
+            assert (t[b], index[b], dens[b]) == want
+            hits += index[b] >= 0
+    assert 1000 < hits < 3000

@@ -290,3 +290,61 @@ def test_update_systems_names_non_finite_poses_and_schedules_by_value():
     np.testing.assert_allclose(ticks, [[0.35, 0.1 + 2e-9, 1.1], [0.5, 0.8, 1.3]], rtol=0, atol=1e-15)
     assert not schedule(ticks, np.zeros(2), np.ones(3), np.ones((2, 1), bool), np.full((2, 1, 3), np.inf), due,
                         active)
+
+
+def test_track_rows_writes_the_world_starts_and_match_into_oversized_scratch():
+    """Worlds 0 and 2 without detections, world 1 with two, world 3 with one: ``starts`` is where each
+    world's rows begin (``searchsorted``'s left side), the rows beyond ``E`` and worlds beyond ``B`` of
+    the scratch stay untouched, and the outputs are :func:`match`'s of the same estimates."""
+    from parcover_env.localization.kinect import track_kernel
+
+    world = np.array([1, 1, 3])
+    pose = np.array([[1.0, 1.0, 0.2], [3.0, 1.0, -0.4], [7.0, 7.0, 1.0]])
+    ref = np.zeros((4, 2, 3))
+    ref[1] = [[3.1, 1.0, 0.0], [1.0, 1.2, 0.0]]
+    ref[3] = [[9.0, 9.0, 0.0], [7.0, 7.1, 0.0]]
+    carriers = np.ones((4, 2), bool)
+    out = track_kernel.track_scratch(6, 5)
+    for a in out:
+        a.fill(-7)
+    track_kernel.track_rows(world, pose, 4.0, ref, carriers, 0.3, 0.12, *out)
+    assert out.starts.tolist() == [0, 0, 2, 2, 3, -7]
+    assert out.status.tolist() == [0, 0, 0, 0, -7]
+    assert out.robot.tolist() == [1, 0, 1, -7, -7, -7]
+    np.testing.assert_array_equal(out.est[:3], np.column_stack([pose, np.full(3, 4.0)]))
+    assert (out.est[3:] == -7).all() and (out.fused[3:] == -7).all()
+    fused, robot, status = np.empty((3, 3)), np.empty(3, np.int64), np.empty(4, np.int64)
+    track_kernel.match(out.est[:3], np.array([0, 0, 2, 2, 3]), ref, carriers, 0.3, 0.12, fused, robot, status)
+    np.testing.assert_array_equal(out.fused[:3], fused)
+    assert out.robot[:3].tolist() == robot.tolist()
+
+
+def test_due_candidates_into_reused_scratch_equal_fresh_scratch():
+    """The candidate rows of the due Kinects written into scratch that held a larger step before are
+    those of fresh scratch: the due rows' (Kinect row, world, Kinect) in world-major order, the drop
+    rates and the candidates (Kinect 1 of world 0, Kinects 0 and 2 of world 1 due)."""
+    from parcover_env.localization.kinect import batch_kernels
+
+    systems, bounds = _systems([6, 7])
+    model = systems[0].fast
+    s = len(model.sensors)
+    assert s == 4
+    kinects = np.concatenate([model.kinects.view(np.uint8)] * 2).view(estimate_kernel.KINECT)
+    pattern = np.concatenate([model.pattern] * 2)
+    g = np.random.default_rng(3)
+    (x0, y0), (x1, y1) = bounds[:2], bounds[2:]
+    poses = np.column_stack([g.uniform(x0, x1, 40), g.uniform(y0, y1, 40), g.uniform(-3, 3, 40)]).reshape(2, 20, 3)
+    args = (poses, np.ones((2, 20), bool), kinects, pattern, model.depths, model.noise)
+    reused = batch_kernels.candidate_rows(2 * s, 2 * s * 20)
+    assert batch_kernels.due_candidates(np.ones((2, s), bool), *args, *reused)[1] > 0  # a larger step first
+    due = np.zeros((2, s), bool)
+    due[0, 1] = due[1, 0] = due[1, 2] = True
+    fresh = batch_kernels.candidate_rows(2 * s, 2 * s * 20)
+    r, n = batch_kernels.due_candidates(due, *args, *fresh)
+    assert batch_kernels.due_candidates(due, *args, *reused) == (r, n) and r == 3 and n > 0
+    assert reused.index[:9].reshape(3, 3).tolist() == [[1, s, s + 2], [0, 1, 1], [1, 0, 2]]
+    np.testing.assert_array_equal(reused.index[:9], fresh.index[:9])
+    np.testing.assert_array_equal(reused.drop[:3], fresh.drop[:3])
+    for a, b in zip(reused[2:], fresh[2:], strict=True):
+        np.testing.assert_array_equal(a[:n], b[:n])
+    assert set(reused.row[:n].tolist()) <= {0, 1, 2} and (np.diff(reused.row[:n]) >= 0).all()

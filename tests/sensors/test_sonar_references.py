@@ -22,9 +22,9 @@ def _oblique_room() -> np.ndarray:
 
 
 def test_disc_culls_change_no_reading():
-    """The sonar kernel tests only the discs within range of a robot and inside a beam's cone: bit
-    for bit the readings of every sub-ray against every disc, on random crowds and on discs just
-    inside and just outside a cone's edge ray and the range."""
+    """The sonar kernel tests only the discs within range of a robot: bit for bit the readings of
+    every sub-ray against every disc, on random crowds and on discs just inside and just outside a
+    cone's edge ray and the range."""
     from parcover_env.sensors.sonar import _subray_offsets, simulate_beams
 
     cfg = SonarConfig(crosstalk_prob=0.0)
@@ -61,10 +61,10 @@ def test_disc_culls_change_no_reading():
 
 @pytest.mark.parametrize("range_max", [3.0, 1.2])
 def test_specular_multipath_echoes_equal_every_path_traced_bit_for_bit(range_max):
-    """The compiled cone (near-wall lists, box and best-echo culls, direct echoes before mirrored
-    legs, disc culls of both legs) reads bit for bit what tracing every sub-ray's two legs against
-    every wall and robot reads, in a room of oblique walls with a crowd of robots (a short range:
-    many robots beyond it, left out of the second legs too)."""
+    """The compiled cone (near-wall lists, each origin's sub-rays cast as one fan, direct echoes
+    before mirrored legs, box and range culls of the second legs) reads bit for bit what tracing
+    every sub-ray's two legs against every wall and robot reads, in a room of oblique walls with a
+    crowd of robots (a short range: many robots beyond it, left out of the second legs too)."""
     from parcover_env.geometry import rays
     from parcover_env.sensors import sonar_kernels as kern
     from parcover_env.sensors.sonar import _NUDGE, _rules, _share, _subray_offsets, _walls

@@ -18,6 +18,7 @@ stays per world (:meth:`KinectSystem.frame_estimates`).
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
@@ -46,8 +47,8 @@ def update_systems(systems: Sequence[Any], times: Sequence[float], true: np.ndar
     shared = ticks is not None or k_count == 1
     if ticks is None:  # K = 1: the system's own array, updated in place
         ticks = stack([s.next_tick for s in systems])
-    due = np.empty(ticks.shape, dtype=bool)
-    active = np.empty(k_count, dtype=bool)
+    scratch = _scratch(ticks.shape, true.shape[1])
+    due, active = scratch.due, scratch.active
     true = np.ascontiguousarray(true, dtype=float)
     markers = np.ascontiguousarray(markers, dtype=bool)
     finite = batch_kernels.schedule(ticks, np.asarray(times, dtype=float), systems[0].periods, markers, true, due,
@@ -66,15 +67,17 @@ def update_systems(systems: Sequence[Any], times: Sequence[float], true: np.ndar
             batch.append(k)
     groups: dict[tuple, list[int]] = {}
     for k in batch:  # worlds sharing the static Kinect scenes (the batched worlds do) go together
-        groups.setdefault(tuple(map(id, systems[k].fast.depths)), []).append(k)
+        groups.setdefault(tuple(map(id, systems[k].fast.depths)) if len(batch) > 1 else (), []).append(k)
     for ks in groups.values():
-        rows = slice(None) if len(ks) == k_count else ks  # all worlds (the common case): no gather
-        if not (finite if len(ks) == k_count else np.isfinite(true[rows]).all()):
+        every = len(ks) == k_count  # all worlds (the common case): no gather
+        rows = slice(None) if every else ks
+        if not (finite if every else np.isfinite(true[rows]).all()):
             for k in ks:
                 check_poses(true[k], markers[k])  # the ValueError naming what is wrong
-        found = _detections([systems[k] for k in ks], due[rows], true[rows], markers[rows], [times[k] for k in ks],
-                            [rngs[k] for k in ks])
-        fixes = track_all([systems[k] for k in ks], found, markers[rows], predicted[rows], [times[k] for k in ks])
+        group, when = (systems, times) if every else ([systems[k] for k in ks], [times[k] for k in ks])
+        found = _detections(group, due[rows], true[rows], markers[rows], when, rngs if every else [rngs[k] for k in ks],
+                            scratch)
+        fixes = track_all(group, found, markers[rows], predicted[rows], when, scratch)
         for k, f in zip(ks, fixes, strict=True):
             out[k] = f
     return out
@@ -116,15 +119,21 @@ def _estimates(system: Any, found: Detections, which: Sequence[int], times: Sequ
 
 
 def _detections(systems: Sequence[Any], due: np.ndarray, true: np.ndarray, markers: np.ndarray,
-                times: Sequence[float], rngs: Sequence[np.random.Generator]) -> Detections:
-    """:func:`fast_estimates` as flat lists (every world's draws, in its order)."""
+                times: Sequence[float], rngs: Sequence[np.random.Generator],
+                scratch: Scratch | None = None) -> Detections:
+    """:func:`fast_estimates` as flat lists (every world's draws, in its order); ``scratch``: the
+    buffers of :func:`_scratch` for at least these worlds (made here if None)."""
     models = [s.fast for s in systems]
     kinects, pattern = _tables(models)
-    row_world, row_depth, n, row_drop, out_row, out_index, out_geom = batch_kernels.due_candidates(
+    if scratch is None:
+        scratch = _scratch(due.shape, true.shape[1])
+    cands = scratch.candidates
+    n_rows, n = batch_kernels.due_candidates(
         np.ascontiguousarray(due, dtype=bool), np.ascontiguousarray(true, dtype=float),
-        np.ascontiguousarray(markers, dtype=bool), kinects, pattern, models[0].depths, models[0].noise)
-    drop, world, depth = row_drop.tolist(), row_world.tolist(), row_depth.tolist()
-    cand_row, cand_index, geom = out_row.tolist(), out_index.tolist(), out_geom.tolist()
+        np.ascontiguousarray(markers, dtype=bool), kinects, pattern, models[0].depths, models[0].noise, *cands)
+    drop, world, depth = cands.drop[:n_rows].tolist(), cands.index[n_rows:2 * n_rows].tolist(), \
+        cands.index[2 * n_rows:3 * n_rows].tolist()
+    cand_row, cand_index, geom = cands.row[:n].tolist(), cands.robot[:n].tolist(), cands.geom[:n].tolist()
     found = Detections([], [], [], [], pattern.shape[1])
     c = 0
     # the rows that draw: every row where frames drop, else only those with candidates (in order)
@@ -145,6 +154,36 @@ def _detections(systems: Sequence[Any], due: np.ndarray, true: np.ndarray, marke
             found.pose.append((x + (0.0 + sigma_xy * z[0]), y + (0.0 + sigma_xy * z[1]),
                                wrap(th + (0.0 + sigma_th * z[2]))))
     return found
+
+
+class Scratch(NamedTuple):
+    """Buffers of one :func:`update_systems` call of ``K`` worlds with ``S`` Kinects and ``N`` robots,
+    reused from call to call (their values are read out before the call returns)."""
+
+    due: np.ndarray
+    """``(K, S)`` bool: the Kinects due."""
+    active: np.ndarray
+    """``(K,)`` bool: the worlds with a due Kinect and a carrier."""
+    candidates: batch_kernels.CandidateRows
+    """``K S`` rows and ``K S N`` candidates."""
+    tracks: track_kernel.TrackRows
+    """``K S N`` detections of ``K`` worlds."""
+
+
+_SCRATCH = threading.local()
+"""Per thread: the last :class:`Scratch` by shape ``(K, S, N)``."""
+
+
+def _scratch(shape: tuple[int, ...], n_robots: int) -> Scratch:
+    """The :class:`Scratch` of ``shape = (K, S)`` Kinects and ``n_robots`` robots (made once per shape)."""
+    key = (*shape, n_robots)
+    held = getattr(_SCRATCH, "held", None)
+    if held is None or held[0] != key:
+        k, s = shape
+        held = _SCRATCH.held = (key, Scratch(np.empty(shape, dtype=bool), np.empty(k, dtype=bool),
+                                             batch_kernels.candidate_rows(k * s, k * s * n_robots),
+                                             track_kernel.track_scratch(k * s * n_robots, k)))
+    return held[1]
 
 
 _TABLES: list = []
@@ -170,7 +209,7 @@ def _tables(models: Sequence[Any]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def track_all(systems: Sequence[Any], found: Detections, markers: np.ndarray, predicted: np.ndarray,
-              times: Sequence[float]) -> list[dict[int, np.ndarray]]:
+              times: Sequence[float], scratch: Scratch | None = None) -> list[dict[int, np.ndarray]]:
     """:meth:`KinectSystem.track <parcover_env.localization.kinect.system.KinectSystem.track>` of ``B``
     systems (one scenario) for their ``found`` detections, carriers ``markers (B, N)`` and predicted
     poses ``predicted (B, N, 3)``: every world's fusion and matching in one compiled call
@@ -180,11 +219,15 @@ def track_all(systems: Sequence[Any], found: Detections, markers: np.ndarray, pr
     t = systems[0].tracking
     ref = np.stack([s.references(p) for s, p in zip(systems, predicted, strict=True)]) \
         if any(s.handover for s in systems) else predicted
-    starts, fused, robot, status = track_kernel.track_rows(
+    e = len(found.world)
+    out = scratch.tracks if scratch is not None and scratch.tracks.robot.shape[0] >= e \
+        and scratch.tracks.status.shape[0] >= b_count else track_kernel.track_scratch(e, b_count)
+    track_kernel.track_rows(
         np.array(found.world, dtype=np.int64), np.array(found.pose, dtype=float).reshape(-1, 3),
-        float(found.n_markers), b_count, np.asarray(ref, dtype=float), np.ascontiguousarray(markers, dtype=bool),
-        float(t.gate), float(t.fuse_radius))
-    bounds, robots, flagged, poses = starts.tolist(), robot.tolist(), status.tolist(), list(fused)
+        float(found.n_markers), np.asarray(ref, dtype=float), np.ascontiguousarray(markers, dtype=bool),
+        float(t.gate), float(t.fuse_radius), *out)
+    bounds, robots, flagged = out.starts[:b_count + 1].tolist(), out.robot[:e].tolist(), out.status[:b_count].tolist()
+    poses = list(out.fused[:e].copy())  # the fixes keep their rows: not the scratch's
     out = []
     for b, s in enumerate(systems):
         lo, hi = bounds[b], bounds[b + 1]

@@ -15,11 +15,12 @@ tracker's own update, so the outcome is always the tracker's.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-__all__ = ["match", "track_rows"]
+__all__ = ["match", "track_rows", "TrackRows", "track_scratch"]
 
 _BAND = 1e-9
 """Relative margin around the fuse radius and the gate inside which a world is left to the tracker."""
@@ -77,22 +78,48 @@ def match(est, starts, ref, carriers, gate, fuse_radius, fused, robot, status):
                 status[b] = 1
 
 
+class TrackRows(NamedTuple):
+    """Scratch outputs of :func:`track_rows` for up to ``E`` detections of ``B`` worlds (reused from
+    step to step: a compiled call that returns new arrays pays for boxing each)."""
+
+    est: np.ndarray
+    """``(E, 4)``: each detection's ``(x, y, theta, marker count)``."""
+    starts: np.ndarray
+    """``(B + 1,)`` int64: world ``b``'s rows are ``starts[b]:starts[b + 1]``."""
+    fused: np.ndarray
+    """``(E, 3)``: :func:`match`'s fused poses."""
+    robot: np.ndarray
+    """``(E,)`` int64: :func:`match`'s robot of each row (-1: none)."""
+    status: np.ndarray
+    """``(B,)`` int64: :func:`match`'s status of each world."""
+
+
+def track_scratch(detections: int, worlds: int) -> TrackRows:
+    """Fresh :class:`TrackRows` for up to ``detections`` detections of ``worlds`` worlds."""
+    return TrackRows(np.empty((detections, 4)), np.empty(worlds + 1, np.int64), np.empty((detections, 3)),
+                     np.empty(detections, np.int64), np.empty(worlds, np.int64))
+
+
 @njit(cache=True)
-def track_rows(world, pose, n_markers, b_count, ref, carriers, gate, fuse_radius):
-    """:func:`match` of the detections of ``b_count`` worlds: ``world (E,)`` ascending (the world of
-    each detection), ``pose (E, 3)``, each of ``n_markers`` markers; ``ref (B, N, >= 2)`` (only x, y
-    read). Returns ``(starts (B + 1,), fused (E, 3), robot (E,), status (B,))``: world ``b``'s rows
-    ``starts[b]:starts[b + 1]`` and :func:`match`'s outputs."""
+def track_rows(world, pose, n_markers, ref, carriers, gate, fuse_radius, est, starts, fused, robot, status):
+    """:func:`match` of the detections of the ``B = carriers.shape[0]`` worlds: ``world (E,)``
+    ascending (the world of each detection), ``pose (E, 3)``, each of ``n_markers`` markers;
+    ``ref (B, N, >= 2)`` (only x, y read). Writes into the :class:`TrackRows` fields ``est, starts,
+    fused, robot, status`` (at least ``E`` detections and ``B`` worlds) ``starts[:B + 1]`` (world
+    ``b``'s rows ``starts[b]:starts[b + 1]``) and :func:`match`'s outputs in the first ``E`` rows and
+    ``B`` worlds."""
     e = pose.shape[0]
-    est = np.empty((e, 4))
+    b_count = carriers.shape[0]
+    est = est[:e]
     for r in range(e):
         est[r, 0] = pose[r, 0]
         est[r, 1] = pose[r, 1]
         est[r, 2] = pose[r, 2]
         est[r, 3] = n_markers
-    starts = np.searchsorted(world, np.arange(b_count + 1))
-    fused = np.empty((e, 3))
-    robot = np.empty(e, np.int64)
-    status = np.empty(b_count, np.int64)
-    match(est, starts, ref, carriers, gate, fuse_radius, fused, robot, status)
-    return starts, fused, robot, status
+    starts = starts[:b_count + 1]
+    j = 0
+    for b in range(b_count + 1):  # the first row of world b or later (world ascending)
+        while j < e and world[j] < b:
+            j += 1
+        starts[b] = j
+    match(est, starts, ref, carriers, gate, fuse_radius, fused[:e], robot[:e], status[:b_count])
