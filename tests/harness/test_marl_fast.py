@@ -339,3 +339,18 @@ def test_episode_steps_truncate_the_torchrl_env_not_the_env_whose_time_entry_kee
     assert info["metrics/n_kpois"].tolist() == [float(n_kpois)] * env.parallel.n_robots
     assert info["metrics/kpois_visited"].tolist() == [1.0] * env.parallel.n_robots
     assert info["metrics/success"].sum().item() == 0.0
+
+
+@pytest.mark.parametrize("mask_done", [False, True])
+def test_mask_done_makes_a_robot_whose_route_is_done_not_real(mask_done):
+    maker = EnvMaker("office", "ideal", episode_steps=4, seed=3, overrides=V2, state=False, mask_done=mask_done)
+    env = maker.world(0)
+    td = env.reset()
+    assert td[GROUP, "real"].flatten().tolist() == [True, True]
+    inner = env.parallel
+    own0 = inner.plan.robots[0].kpois  # robot 0 on each of its own KPOIs in turn: its route is done
+    for k in own0:
+        inner.world.bodies[0].position = tuple(inner.scenario.kpois[k])
+        td = env.step(td.set((GROUP, "action"), torch.zeros(2, 2)))["next"]
+    assert td[GROUP, "real"].flatten().tolist() == [not mask_done, True]
+    assert load_marl_config("ippo", None).mask_done is False  # default: every robot learned from
