@@ -129,6 +129,15 @@ class RewardConfig:
     """Per KPOI of the agent's own route (the plan credits it with that KPOI) that the agent itself
     visits: the per-robot KPOI reward (``parcover_v2`` sets 10, with ``kpoi`` a team bonus of 1;
     0 keeps v1's rewards). A KPOI of another robot's route visited by this agent pays only ``kpoi``."""
+    contact: float = 0.0
+    """Per step that this agent is touching a wall or another robot (its true centre within
+    ``contact_gap`` of touching), however long the contact lasts (``collision`` pays only its start).
+    0 (default): no ``contact`` term at all (the env's terms, infos and rollouts as without it)."""
+    contact_gap: float = 0.02
+    """Gap (m) under which the ``contact`` term counts a robot as touching a wall or robot."""
+
+    def __post_init__(self) -> None:
+        _positive(self, "contact_gap")
 
 
 @dataclass(frozen=True)

@@ -9,8 +9,9 @@ from __future__ import annotations
 import numpy as np
 
 from parcover_env.config import RewardConfig
+from parcover_env.geometry.rays import point_segment_distance
 
-__all__ = ["TERMS", "TERMS_V2", "TEAM_TERMS", "REWARD_KEYS", "terms_for", "reward_terms", "own_visits"]
+__all__ = ["TERMS", "TERMS_V2", "TEAM_TERMS", "REWARD_KEYS", "terms_for", "reward_terms", "own_visits", "touching"]
 
 TERMS = ("kpoi", "progress", "time", "collision")
 """The terms of version 1 (and of version 2 after ``own_kpoi``)."""
@@ -22,9 +23,24 @@ REWARD_KEYS = tuple(f"reward_{t}" for t in TERMS)
 """Info keys of the version-1 terms: ``info[agent]["reward_kpoi"]`` etc. (flat, present at reset as 0)."""
 
 
-def terms_for(version: int) -> tuple[str, ...]:
-    """The reward terms of observation ``version`` (1: :data:`TERMS`, 2: :data:`TERMS_V2`)."""
-    return TERMS_V2 if version == 2 else TERMS
+def terms_for(version: int, contact: bool = False) -> tuple[str, ...]:
+    """The reward terms of observation ``version`` (1: :data:`TERMS`, 2: :data:`TERMS_V2`), with
+    ``contact`` last when ``contact`` (its weight is not 0)."""
+    terms = TERMS_V2 if version == 2 else TERMS
+    return (*terms, "contact") if contact else terms
+
+
+def touching(xy: np.ndarray, segments: np.ndarray, radius: float, gap: float) -> np.ndarray:
+    """``(N,)`` float, 1 where robot ``i`` (a disc of ``radius`` centred at ``xy[i]``, ``xy (N, 2)``)
+    is within ``gap`` of touching a wall (``segments (S, 4)``) or another robot, else 0."""
+    xy = np.asarray(xy, dtype=float)
+    near = np.zeros(len(xy), dtype=bool)
+    if len(segments):
+        near |= point_segment_distance(xy, segments).min(axis=1) < radius + gap
+    d = np.hypot(*(xy[:, None, :] - xy[None, :, :]).transpose(2, 0, 1))
+    np.fill_diagonal(d, np.inf)
+    near |= (d < 2.0 * radius + gap).any(axis=1)
+    return near.astype(float)
 
 
 def own_visits(newly: np.ndarray, visitor: np.ndarray, owner: np.ndarray, n_robots: int) -> np.ndarray:
@@ -40,7 +56,8 @@ def own_visits(newly: np.ndarray, visitor: np.ndarray, owner: np.ndarray, n_robo
 
 
 def reward_terms(w: RewardConfig, n_new_kpois, progress: np.ndarray,
-                 new_contacts: np.ndarray, own_new: np.ndarray | None = None) -> dict[str, np.ndarray]:
+                 new_contacts: np.ndarray, own_new: np.ndarray | None = None,
+                 touch: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Weighted terms per agent ``{name: (N,)}`` (or ``(K, N)`` for ``K`` worlds: ``progress``,
     ``new_contacts`` and ``own_new`` ``(K, N)``, ``n_new_kpois (K,)``).
 
@@ -48,7 +65,9 @@ def reward_terms(w: RewardConfig, n_new_kpois, progress: np.ndarray,
     route that the agent itself visited this step (``own_new``, from :func:`own_visits`);
     kpoi: ``w.kpoi`` per KPOI newly visited by anyone (team reward / team bonus, every agent);
     progress: ``w.progress`` per metre of route-length-to-go removed this step (potential-based);
-    time: ``w.time`` every step; collision: ``w.collision`` per new contact of this agent.
+    time: ``w.time`` every step; collision: ``w.collision`` per new contact of this agent;
+    contact (only when ``touch`` is given, 1 where the agent touches something this step, from
+    :func:`touching`): ``w.contact`` per step in contact.
     """
     shape = np.shape(progress)
     kpoi = np.empty(shape)
@@ -60,4 +79,6 @@ def reward_terms(w: RewardConfig, n_new_kpois, progress: np.ndarray,
         "time": np.full(shape, w.time),
         "collision": w.collision * new_contacts.astype(float),
     })
+    if touch is not None:
+        terms["contact"] = w.contact * touch
     return terms

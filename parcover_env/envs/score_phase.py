@@ -32,7 +32,7 @@ import numpy as np
 
 from parcover_env.envs.handover import update_teams
 from parcover_env.envs.metrics import record_steps
-from parcover_env.envs.rewards import own_visits, reward_terms
+from parcover_env.envs.rewards import own_visits, reward_terms, touching
 from parcover_env.envs.score_rows import shared_rows
 from parcover_env.envs.team import count_waypoints_many
 from parcover_env.scenarios.progress import STATE, step_many
@@ -129,7 +129,12 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     held["remaining"][...], held["wall"][...], held["robot"][...] = remaining, wall, robot
     for w, v in zip(worlds, velocity, strict=True):
         w.true_velocity = v  # row views of the block, as the world's own arrays
-    terms = reward_terms(s.rewards, n_new, gained, new_wall + new_robot, own)
+    touch = None
+    if "contact" in first.terms:
+        gap = s.rewards.contact_gap
+        touch = np.array([touching(xy, w.world.map.segments, w.world.radius, gap)
+                          for w, xy in zip(worlds, true_xy, strict=True)])
+    terms = reward_terms(s.rewards, n_new, gained, new_wall + new_robot, own, touch)
     record_steps([w.metrics for w in worlds], before, true, times=times, progress=trackers, estimates=est,
                  new_contacts=(new_wall, new_robot), teams=teams, formation=s.formation, kinects=first.kinects,
                  control_dt=s.physics.control_dt, visits=(state.visited, state.visit_time))

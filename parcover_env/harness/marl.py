@@ -80,7 +80,8 @@ class EnvMaker:
     the collector's actions (in a Ray worker too), is seeded ``seed``."""
 
     def __init__(self, scenario: str, preset: str, episode_steps: int, seed: int | None = None,
-                 overrides: dict | None = None, max_robots: int = 12, worlds: int = 1, state: bool = True):
+                 overrides: dict | None = None, max_robots: int = 12, worlds: int = 1, state: bool = True,
+                 mask_done: bool = False):
         self.scenario, self.preset, self.episode_steps, self.seed = scenario, preset, episode_steps, seed
         self.overrides = overrides or None
         """Scenario overrides of the env (``MarlConfig.env``)."""
@@ -90,6 +91,8 @@ class EnvMaker:
         """Worlds stepped side by side (``MarlConfig.worlds``)."""
         self.state = state
         """Whether the env carries ``"state"`` (``env.state()``, MAPPO's critic input)."""
+        self.mask_done = mask_done
+        """Robots whose route is done are not ``("robot", "real")`` (``MarlConfig.mask_done``)."""
 
     def parallel(self):
         """The scenario's PettingZoo ParallelEnv (a map pool's padded env for ``generated:A-B``),
@@ -117,7 +120,7 @@ class EnvMaker:
         env = self.parallel()
         if self.seed is not None:
             env.reset(seed=self.world_seed(k))
-        return RobotsEnv(env, with_state=self.state, max_steps=self.episode_steps)
+        return RobotsEnv(env, with_state=self.state, max_steps=self.episode_steps, mask_done=self.mask_done)
 
     def __call__(self):
         import torch
@@ -218,7 +221,7 @@ def _collector(req: TrainRequest, make_env: EnvMaker, actor, total_frames: int):
         k = cfg.ray_collectors
         makers = [EnvMaker(make_env.scenario, make_env.preset, make_env.episode_steps, seed=req.seed + i,
                            overrides=make_env.overrides, max_robots=make_env.max_robots, worlds=make_env.worlds,
-                           state=make_env.state) for i in range(k)]
+                           state=make_env.state, mask_done=make_env.mask_done) for i in range(k)]
         init = {"address": req.ray_address} if req.ray_address else {"num_cpus": k, "include_dashboard": False}
         init["log_to_driver"] = False  # the workers' warnings would print the collector's repr
         collector = RayCollector(makers, actor, frames_per_batch=cfg.frames_per_batch, total_frames=total_frames,
@@ -304,7 +307,8 @@ def train(req: TrainRequest) -> dict:
     cfg, t0 = req.config, time.perf_counter()
     source = find_init(req.init) if req.init else None  # a bad path fails before the env is built
     make_env = EnvMaker(req.scenario, cfg.preset, cfg.episode_steps, seed=req.seed, overrides=cfg.env,
-                        max_robots=cfg.max_robots, worlds=cfg.worlds, state=req.algo == "mappo")
+                        max_robots=cfg.max_robots, worlds=cfg.worlds, state=req.algo == "mappo",
+                        mask_done=cfg.mask_done)
     base = make_env.parallel()  # spaces, robot and KPOI counts
     cfg.check_critic(req.algo, base.scenario.observation.version, req.config_path)
     n_robots = base.n_robots

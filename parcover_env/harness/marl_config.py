@@ -87,6 +87,10 @@ class MarlConfig:
     checkpoint_every: float = 0.0
     """Save the run (policy, critic, curve, sidecar) after the batch that ends past every this many
     seconds of wall time since the last save (0: only at the end)."""
+    mask_done: bool = False
+    """Leave robots whose own route is done (version 2 ``info["route_done"]``, the env docstring's
+    death mask) out of the PPO loss as padding is (their actions still apply; their rewards still
+    count in their earlier steps' returns). Default off: every robot's steps are learned from."""
     ray_collectors: int = 1
     """``--backend ray``: remote collectors (``RayCollector(num_collectors=...)``), one env each (seeds
     SEED, SEED + 1, ...); each collects ``frames_per_batch / ray_collectors`` env steps of every batch."""

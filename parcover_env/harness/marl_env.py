@@ -10,7 +10,9 @@ with the same keys as that wrapper for a one-group env (``("robot", "observation
 ``np.stack`` per entry, and only the info entries the trainer reads (:data:`INFO_KEYS`). It adds
 ``("robot", "real")`` ``[N, 1]`` bool: the agent is one of the map's robots, not padding of a map
 pool (``info["pad"]``; every agent of a single scenario is real), the mask of the PPO loss
-(:mod:`~parcover_env.harness.marl_loss`). Collection speed of both: ``benchmarks/train_throughput.py``.
+(:mod:`~parcover_env.harness.marl_loss`); with ``mask_done`` a robot whose own route is done
+(``info["route_done"]``, env version 2) is not ``real`` either. Collection speed of both:
+``benchmarks/train_throughput.py``.
 
 ``max_steps`` (``MarlConfig.episode_steps``) cuts training episodes short: the env is truncated at
 that step (bootstrapped like any truncation) while the ParallelEnv keeps its own step limit, so the
@@ -48,13 +50,15 @@ class RobotsEnv(EnvBase):
     of the group ``"robot"``; ``with_state``: also ``"state"`` = ``parallel.state()`` (MAPPO's critic).
     The env's generator is the ParallelEnv's own (seed it with ``parallel.reset(seed=...)`` first)."""
 
-    def __init__(self, parallel, with_state: bool = False, max_steps: int = 0):
+    def __init__(self, parallel, with_state: bool = False, max_steps: int = 0, mask_done: bool = False):
         super().__init__(batch_size=torch.Size([]))
         self.parallel = parallel
         self.with_state = with_state
         self.max_steps = int(max_steps)
         """Truncate at this step of an episode (0: only the ParallelEnv's own end)."""
         self.steps = 0
+        self.mask_done = bool(mask_done)
+        """``("robot", "real")`` is false for a robot whose own route is done, too."""
         self.agents = list(parallel.possible_agents)
         n = len(self.agents)
         obs_space, act_space = parallel.observation_space(self.agents[0]), parallel.action_space(self.agents[0])
@@ -73,8 +77,11 @@ class RobotsEnv(EnvBase):
 
     def _observation(self, obs: dict, infos: dict) -> dict:
         info = np.array([[float(infos[a].get(k, 0.0)) for k in INFO_KEYS] for a in self.agents], dtype=np.float32)
+        real = info[:, 0:1] < 0.5
+        if self.mask_done:
+            real &= np.array([[infos[a].get("route_done", 0.0) < 0.5] for a in self.agents])
         group = {"observation": torch.from_numpy(np.stack([obs[a] for a in self.agents]).astype(np.float32)),
-                 "real": torch.from_numpy(info[:, 0:1] < 0.5),
+                 "real": torch.from_numpy(real),
                  "info": {k: torch.from_numpy(info[:, i].copy()) for i, k in enumerate(INFO_KEYS)}}
         out = {GROUP: TensorDict(group, batch_size=[len(self.agents)])}
         if self.with_state:

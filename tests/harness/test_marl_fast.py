@@ -339,3 +339,49 @@ def test_episode_steps_truncate_the_torchrl_env_not_the_env_whose_time_entry_kee
     assert info["metrics/n_kpois"].tolist() == [float(n_kpois)] * env.parallel.n_robots
     assert info["metrics/kpois_visited"].tolist() == [1.0] * env.parallel.n_robots
     assert info["metrics/success"].sum().item() == 0.0
+
+
+@pytest.mark.parametrize("mask_done", [False, True])
+def test_mask_done_makes_a_robot_whose_route_is_done_not_real(mask_done):
+    maker = EnvMaker("office", "ideal", episode_steps=4, seed=3, overrides=V2, state=False, mask_done=mask_done)
+    env = maker.world(0)
+    td = env.reset()
+    assert td[GROUP, "real"].flatten().tolist() == [True, True]
+    inner = env.parallel
+    own0 = inner.plan.robots[0].kpois  # robot 0 on each of its own KPOIs in turn: its route is done
+    for k in own0:
+        inner.world.bodies[0].position = tuple(inner.scenario.kpois[k])
+        td = env.step(td.set((GROUP, "action"), torch.zeros(2, 2)))["next"]
+    assert td[GROUP, "real"].flatten().tolist() == [not mask_done, True]
+    assert load_marl_config("ippo", None).mask_done is False  # default: every robot learned from
+
+
+def test_the_shaped_configs_load_with_their_stated_changes():
+    from parcover_env.scenarios.registry import configs_dir
+
+    s3 = load_marl_config("ippo", configs_dir() / "train" / "ippo_generated_shaped.yaml")
+    s4 = load_marl_config("ippo", configs_dir() / "train" / "ippo_generated_shaped_mask.yaml")
+    rewards = {"own_kpoi": 10.0, "kpoi": 1.0, "collision": -0.25, "progress": 5.0, "contact": -0.1}
+    assert s3.env["rewards"] == s4.env["rewards"] == rewards
+    assert (s3.mask_done, s4.mask_done, s3.entropy_coeff, s4.entropy_coeff) == (False, True, 0.0, 0.0)
+    assert dataclasses.replace(s3, mask_done=True, wall_time=s4.wall_time) == s4  # stage 4: only the mask
+
+
+def test_the_shipped_shaped_checkpoint_names_its_four_stage_chain():
+    import json
+    from pathlib import Path
+
+    import parcover_env
+    from parcover_env.policies.torchrl_policy import TorchRLPolicy
+
+    root = Path(parcover_env.__file__).resolve().parent.parent / "baselines" / "checkpoints" / "ippo_generated_shaped"
+    if not root.is_dir():
+        pytest.skip("source checkout only")
+    run = json.loads((root / "run.json").read_text())
+    assert run["policy"] == "torchrl:baselines/checkpoints/ippo_generated_shaped/policy.pt"
+    assert run["init"]["init"]["init"]["init"] is None  # stage 4 <- 3 <- 2 <- 1 <- from scratch
+    assert run["config"]["mask_done"] and run["init_run"]["config"]["env"]["rewards"]["contact"] == -0.1
+    steps = [run["agent_steps"], run["init_run"]["agent_steps"], run["init_run"]["init_run"]["agent_steps"],
+             run["init_run"]["init_run"]["init_run"]["agent_steps"]]
+    assert sum(steps) == 10_509_297 <= 20_000_000
+    TorchRLPolicy(root / "policy.pt")  # loads
