@@ -23,8 +23,8 @@ _EPS = 1e-12
 """Parallel rays (|direction x segment| below this) never hit; segment ends get this slack."""
 _BOX_SLACK = 1e-9
 """Margin (m) of a ray's reach box: rounding never culls a segment the ray meets."""
-HIT_EPS, BOX_SLACK = _EPS, _BOX_SLACK
-"""The two tolerances above, for kernels of other rooms that cast the same rays (the same hits)."""
+BOX_SLACK = _BOX_SLACK
+"""The reach box's margin, for the fast ring, which builds the boxes :func:`segment_fan` culls with."""
 COS_FLOOR = 1e-9
 """Floor of a segment's length in ``|cos| = |d x e| / |e|`` (degenerate segments)."""
 
@@ -219,13 +219,16 @@ def in_cone(a, half):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def segment_fan_hits(x0, y0, dx, dy, segs, near, t, index, dens):
-    """:func:`segment_hit` (no culling, not ``open_end``) of every ray ``b`` of a fan from ``(x0,
-    y0)``, unit directions ``(dx[b], dy[b])``, on the segments ``near`` (ascending indices into
-    ``segs``): writes its ``t[b]``, ``index[b]`` and ``dens[b]`` (``inf, -1, 0`` if none). The same
-    float operations, one segment at a time for all rays (a loop the compiler vectorizes; divisions
-    by a near-zero ``den`` are computed and discarded); a tie keeps the earlier segment, as there."""
+def segment_fan(x0, y0, dx, dy, segs, near, boxes, t, index, dens):
+    """:func:`segment_hit` (not ``open_end``) of every ray ``b`` of a fan from ``(x0, y0)``, unit
+    directions ``(dx[b], dy[b])``, on the segments ``near`` (ascending indices into ``segs``): writes its
+    ``t[b]``, ``index[b]`` and ``dens[b]`` (``inf, -1, 0`` if none). The same float operations, one
+    segment at a time for all rays (a loop the compiler vectorizes; divisions by a near-zero ``den`` are
+    computed and discarded); a tie keeps the earlier segment, as there. ``boxes (4, B)``: each ray's
+    reach box (x low, x high, y low, y high) outside which a segment is skipped (``segment_hit``'s
+    culling), or ``(0, B)``: no culling."""
     nb = dx.shape[0]
+    cull = boxes.shape[0] > 0
     for b in range(nb):
         t[b] = np.inf
         index[b] = -1
@@ -234,8 +237,14 @@ def segment_fan_hits(x0, y0, dx, dy, segs, near, t, index, dens):
         s = near[j]
         ax = segs[s, 0]
         ay = segs[s, 1]
-        ex = segs[s, 2] - ax
-        ey = segs[s, 3] - ay
+        sx = segs[s, 2]
+        sy = segs[s, 3]
+        lox = min(ax, sx)
+        hix = max(ax, sx)
+        loy = min(ay, sy)
+        hiy = max(ay, sy)
+        ex = sx - ax
+        ey = sy - ay
         wx = ax - x0
         wy = ay - y0
         num = wx * ey - wy * ex
@@ -244,6 +253,8 @@ def segment_fan_hits(x0, y0, dx, dy, segs, near, t, index, dens):
             tt = num / den
             u = (wx * dy[b] - wy * dx[b]) / den
             hit = abs(den) > _EPS and tt >= 0.0 and u >= -_EPS and u <= 1.0 + _EPS and tt < t[b]
+            if cull:
+                hit = hit and not (lox > boxes[1, b] or hix < boxes[0, b] or loy > boxes[3, b] or hiy < boxes[2, b])
             t[b] = tt if hit else t[b]
             index[b] = s if hit else index[b]
             dens[b] = den if hit else dens[b]

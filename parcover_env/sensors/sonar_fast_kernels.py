@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from parcover_env.geometry.ray_kernels import BOX_SLACK, HIT_EPS, disc_fan
+from parcover_env.geometry.ray_kernels import BOX_SLACK, disc_fan, segment_fan
 from parcover_env.geometry.wall_grid import near_segments_grid
 from parcover_env.sensors.sonar_ring_kernels import Draws, ring_noise
 
@@ -56,43 +56,6 @@ def fast_noise(ideal, draws, rules, out):
     ring_noise(r, r, 0.0, Draws(drop[:0], draws.z, draws.bad, draws.junk), rules, out)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def segment_fan(x0, y0, dx, dy, segs, near, boxes, best):
-    """Nearest wall hit ``best[b]`` (inf if none) of every ray ``b`` of a fan from ``(x0, y0)``, unit
-    directions ``(dx[b], dy[b])``, on the segments ``near`` (ascending indices into ``segs``): for
-    each ray what :func:`~parcover_env.geometry.ray_kernels.segment_hit` returns as its ``t``, the
-    same float operations, one segment at a time for all rays (a loop the compiler vectorizes;
-    divisions by a near-zero ``den`` are computed and discarded). ``boxes (4, B)``: each ray's reach
-    box (x low, x high, y low, y high) outside which a segment is skipped, or ``(0, B)``: no culling."""
-    nb = dx.shape[0]
-    cull = boxes.shape[0] > 0
-    for b in range(nb):
-        best[b] = np.inf
-    for j in range(near.shape[0]):
-        s = near[j]
-        ax = segs[s, 0]
-        ay = segs[s, 1]
-        sx = segs[s, 2]
-        sy = segs[s, 3]
-        lox = min(ax, sx)
-        hix = max(ax, sx)
-        loy = min(ay, sy)
-        hiy = max(ay, sy)
-        ex = sx - ax
-        ey = sy - ay
-        wx = ax - x0
-        wy = ay - y0
-        num = wx * ey - wy * ex
-        for b in range(nb):
-            den = dx[b] * ey - dy[b] * ex
-            t = num / den
-            u = (wx * dy[b] - wy * dx[b]) / den
-            hit = abs(den) > HIT_EPS and t >= 0.0 and u >= -HIT_EPS and u <= 1.0 + HIT_EPS and t < best[b]
-            if cull:
-                hit = hit and not (lox > boxes[1, b] or hix < boxes[0, b] or loy > boxes[3, b] or hiy < boxes[2, b])
-            best[b] = t if hit else best[b]
-
-
 @njit(cache=True, nogil=True)
 def fast_ring_readings(poses, radius2, beams, segs, grid, draws, rules, out):
     """Readings ``out (K * N, B) float32`` of the ``fast`` rings (beam axes ``beams (B,)`` in the
@@ -126,6 +89,8 @@ def fast_ring_readings(poses, radius2, beams, segs, grid, draws, rules, out):
     dy = np.empty(nb)
     boxes = np.empty((4 if cull else 0, nb))
     walls = np.empty(nb)
+    wall_i = np.empty(nb, dtype=np.int64)
+    wall_den = np.empty(nb)
     discs = np.empty(nb)
     ideal = np.empty((k * n, nb))
     for w in range(k):
@@ -157,7 +122,7 @@ def fast_ring_readings(poses, radius2, beams, segs, grid, draws, rules, out):
                     boxes[1, b] = max(x0, fx) + BOX_SLACK
                     boxes[2, b] = min(y0, fy) - BOX_SLACK
                     boxes[3, b] = max(y0, fy) + BOX_SLACK
-            segment_fan(x0, y0, dx, dy, segs, idx[o, :cnt[o]], boxes, walls)
+            segment_fan(x0, y0, dx, dy, segs, idx[o, :cnt[o]], boxes, walls, wall_i, wall_den)
             disc_fan(dx, dy, bx[:m], by[:m], bc[:m], discs)
             for b in range(nb):  # a hit beyond range_max is no echo, like none (inf)
                 ideal[o, b] = min(walls[b], discs[b])

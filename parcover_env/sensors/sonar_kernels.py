@@ -24,7 +24,7 @@ from parcover_env.geometry.ray_kernels import (
     disc_hit,
     in_cone,
     near_segments,
-    segment_fan_hits,
+    segment_fan,
     segment_hit,
 )
 
@@ -179,6 +179,7 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
     fan_i = np.empty(n_traced, dtype=np.int64)
     fan_den = np.empty(n_traced)
     fan_td = np.empty(n_traced)
+    no_boxes = np.empty((0, n_traced))  # segment_fan without culling
     direct = np.empty(n_pairs)  # per origin, per sub-ray traced: its direct echo (inf if none)
     leg_t = np.empty(n_pairs)  # where an oblique wall mirrored it (inf: not mirrored)
     leg_i = np.empty(n_pairs, dtype=np.int64)
@@ -207,7 +208,7 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
                     fdy[p] = ay * co[j] + ax * so[j]
         # first hits of every traced sub-ray at once (no cull: a hit within rmax is the same, and one
         # beyond rmax, or beyond a cone's nearest echo, never changes a reading)
-        segment_fan_hits(x0, y0, fdx, fdy, segs, near, fan_t, fan_i, fan_den)
+        segment_fan(x0, y0, fdx, fdy, segs, near, no_boxes, fan_t, fan_i, fan_den)
         fan_td[:] = np.inf
         disc_fan(fdx, fdy, ocx[:m], ocy[:m], cc[:m], fan_td)
         for b in range(axes.shape[1]):

@@ -262,27 +262,27 @@ def test_sight_lines_blocked_equals_the_open_segment_test_per_pair():
         True, False, False]
 
 
-def test_segment_fan_hits_give_each_rays_nearest_wall_its_index_and_den_by_value():
+def test_segment_fan_gives_each_rays_nearest_wall_its_index_and_den_by_value():
     """Rays at 0, 90, 180 and 270 deg from the origin; walls x = 2 (y in [-1, 1]), a nearer x = 1
     (y in [-1, 0]: only its end at y = 0 lies on +x), y = 3 and a copy of x = 2 listed after it."""
-    from parcover_env.geometry.ray_kernels import segment_fan_hits
+    from parcover_env.geometry.ray_kernels import segment_fan
 
     segs = np.array([[2.0, -1.0, 2.0, 1.0], [1.0, -1.0, 1.0, 0.0], [-4.0, 3.0, 4.0, 3.0], [2.0, -1.0, 2.0, 1.0]])
     dx, dy = np.array([1.0, 0.0, -1.0, 0.0]), np.array([0.0, 1.0, 0.0, -1.0])
     t, index, dens = np.full(4, -5.0), np.full(4, -5), np.full(4, -5.0)
-    segment_fan_hits(0.0, 0.0, dx, dy, segs, np.arange(4), t, index, dens)
+    segment_fan(0.0, 0.0, dx, dy, segs, np.arange(4), np.empty((0, 4)), t, index, dens)
     assert t.tolist() == [1.0, 3.0, np.inf, np.inf]  # +x: the nearer wall's end (u = 1); +y: y = 3; others miss
     assert index.tolist() == [1, 2, -1, -1] and dens.tolist() == [1.0, -8.0, 0.0, 0.0]  # d x e of the hit
-    segment_fan_hits(0.0, 0.0, dx, dy, segs, np.array([0, 2, 3]), t, index, dens)
+    segment_fan(0.0, 0.0, dx, dy, segs, np.array([0, 2, 3]), np.empty((0, 4)), t, index, dens)
     assert t[0] == 2.0 and index[0] == 0 and dens[0] == 2.0  # the tie with the copy keeps the earlier wall
-    segment_fan_hits(0.0, 0.0, dx, dy, segs, np.array([0, 2, 3])[:0], t, index, dens)
+    segment_fan(0.0, 0.0, dx, dy, segs, np.array([0, 2, 3])[:0], np.empty((0, 4)), t, index, dens)
     assert np.isinf(t).all() and (index == -1).all() and (dens == 0.0).all()  # no walls: reset
 
 
-def test_segment_fan_hits_equal_the_per_ray_casts_bit_for_bit():
+def test_segment_fan_equals_the_per_ray_casts_bit_for_bit():
     """Random walls (some axis-parallel: rays parallel to a wall), random listed subsets and fans:
     each ray's ``(t, index, den)`` is :func:`segment_hit`'s without culling, bit for bit."""
-    from parcover_env.geometry.ray_kernels import segment_fan_hits, segment_hit
+    from parcover_env.geometry.ray_kernels import segment_fan, segment_hit
 
     rng = np.random.default_rng(8)
     hits = 0
@@ -296,7 +296,7 @@ def test_segment_fan_hits_equal_the_per_ray_casts_bit_for_bit():
         dx, dy = np.cos(a), np.sin(a)
         near = np.sort(rng.choice(12, rng.integers(0, 13), replace=False))
         t, index, dens = np.empty(16), np.empty(16, np.int64), np.empty(16)
-        segment_fan_hits(x0, y0, dx, dy, segs, near, t, index, dens)
+        segment_fan(x0, y0, dx, dy, segs, near, np.empty((0, 16)), t, index, dens)
         for b in range(16):
             want = segment_hit(x0, y0, dx[b], dy[b], segs, near, np.inf, False, False)
             assert (t[b], index[b], dens[b]) == want

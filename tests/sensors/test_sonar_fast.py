@@ -128,8 +128,17 @@ def _fan(n_rays: int, phase: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     return np.cos(a), np.sin(a)
 
 
+def _segment_fan(x0, y0, dx, dy, segs, near, boxes, best):
+    """:func:`~parcover_env.geometry.ray_kernels.segment_fan`'s nearest hits into ``best`` (what the
+    fast ring reads)."""
+    from parcover_env.geometry.ray_kernels import segment_fan
+
+    n = dx.shape[0]
+    segment_fan(x0, y0, dx, dy, segs, near, boxes, best, np.empty(n, np.int64), np.empty(n))
+
+
 def test_segment_fan_hits_the_nearest_wall_of_each_ray_by_value():
-    from parcover_env.sensors.sonar_fast_kernels import segment_fan
+    segment_fan = _segment_fan
 
     # a wall x = 2 (y in [-2.5, 1]), a nearer one x = 1 (y in [0.5, 1.5]), one along the -x axis
     segs = np.array([[2.0, -2.5, 2.0, 1.0], [1.0, 0.5, 1.0, 1.5], [-3.0, 0.0, -1.0, 0.0]])
@@ -174,7 +183,9 @@ def test_disc_fan_lowers_each_ray_to_its_nearest_disc_by_value():
 
 def test_fans_equal_the_per_ray_casts_bit_for_bit():
     from parcover_env.geometry.ray_kernels import disc_hit_from, segment_hit
-    from parcover_env.sensors.sonar_fast_kernels import disc_fan, segment_fan
+    from parcover_env.sensors.sonar_fast_kernels import disc_fan
+
+    segment_fan = _segment_fan
 
     rng = np.random.default_rng(3)
     for trial in range(200):
