@@ -12,7 +12,8 @@ call, act = the stepper's act phase of all worlds (of it physics, the drives and
 score and outputs = those stepper phases of all worlds, the rest = everything else), timed in a
 separate run with wrapped calls. The issue's K = 64
 targets are printed beside the figures, met or not, from a paired run (specular K = 1 and 64, fast
-K = 64 and VMAS 64 built together and timed in turn, at least 3 times); a single ``tree`` env and
+K = 64 and VMAS 64 built together and timed in turn, at least 3 times, every timed chunk about
+``PAIRED_CHUNK_S`` long whatever ``--steps`` says); a single ``tree`` env and
 MPE2 ``simple_spread`` N = 10 are measured here, alternately, for the single-env target.
 
     .venv/bin/python benchmarks/throughput.py --sections batching --ks 1,4,16,64,256
@@ -37,6 +38,18 @@ FAST_VMAS = 2.0
 """Target: fast sonar, K = 64 >= 2x VMAS navigation 64 envs."""
 SINGLE_MPE = 5.0
 """Target: single env ``tree`` >= 5x MPE2 simple_spread N = 10 in agent-steps/s."""
+PAIRED_CHUNK_S = 0.5
+"""Seconds of each timed chunk of the paired run, the same for every set-up: a chunk of a few steps right
+after another set-up's chunk would weigh the switch (caches, the collector) more for the faster set-ups."""
+
+
+def _chunk_steps(run, seconds: float) -> int:
+    """Steps of ``run`` that take about ``seconds`` (timed on a quarter of that, at least 3 steps)."""
+    t0, n = time.perf_counter(), 0
+    while n < 3 or time.perf_counter() - t0 < seconds / 4:
+        run(n)
+        n += 1
+    return max(round(seconds * n / (time.perf_counter() - t0)), 3)
 
 
 def _venv(model: str, k: int):
@@ -176,10 +189,10 @@ def _single_and_mpe(args) -> tuple[dict, dict | None]:
     return single, mpe
 
 
-def _paired(steps: int, repeats: int) -> dict[str, float]:
+def _paired(repeats: int) -> dict[str, float]:
     """Agent-steps/s of the target pairs (specular K = 1 and 64, fast K = 64, VMAS 64), all built
-    first, then timed in turn ``max(repeats, 3)`` times: the median of each. Side by side in time,
-    so a change of the machine's load moves them alike."""
+    first, then timed in turn ``max(repeats, 3)`` times in chunks of about :data:`PAIRED_CHUNK_S` each:
+    the median of each. Side by side in time, so a change of the machine's load moves them alike."""
     runners = {"specular 1": _venv("specular", 1), "specular 64": _venv("specular", 64), "fast 64": _venv("fast", 64)}
     calls = {name: VecRunner(v) for name, v in runners.items()}
     slots = {name: v.num_envs for name, v in runners.items()}
@@ -188,8 +201,7 @@ def _paired(steps: int, repeats: int) -> dict[str, float]:
         calls["vmas 64"], slots["vmas 64"] = vmas, 64 * vmas.n_agents
     except ImportError:
         pass
-    n_steps = {name: max(steps * 16 // (1 if name.endswith(" 1") else 64), 3) * (4 if name.startswith("vmas") else 1)
-               for name in calls}
+    n_steps = {name: _chunk_steps(run, PAIRED_CHUNK_S) for name, run in calls.items()}
     seen: dict[str, list[float]] = {name: [] for name in calls}
     for _ in range(max(repeats, 3)):
         for name, run in calls.items():
@@ -232,7 +244,7 @@ def section_batching(args, results: dict) -> None:
             print(f"  K={k:4d} ours / VMAS agent-steps/s: " + ", ".join(
                 f"{m} {rows[m, k]['agent_steps_s'] / vmas[k]['agent_steps_s']:.2f}x" for m in MODELS), flush=True)
     if 1 in ks and 64 in ks:
-        paired = _paired(steps, args.repeats)
+        paired = _paired(args.repeats)
         out["paired"] = paired
         _target("realistic K=64 / K=1 agent-steps/s", paired["specular 64"] / paired["specular 1"], REALISTIC_SELF)
         if "vmas 64" in paired:
