@@ -1,7 +1,8 @@
-"""CPU time (not wall time) of each stepper phase per world-step: batched ``tree`` at ``K`` worlds,
-random actions, the phases called as ``stepper.step`` calls them (act, score, observe, outputs) and
-the auto-resets. A before/after measure for a loaded, shared machine: run it on two checkouts in
-turn and compare the minimum over chunks (the least disturbed) phase by phase.
+"""CPU time (not wall time) per world-step of each stepper phase and of a whole batched step: batched
+``tree`` at ``K`` worlds (``make_vec_env(..., backend="batched")``), random actions, the phases called as
+``stepper.step`` calls them (act, score, observe, outputs) and the auto-resets, then ``VecEnv.step``
+whole (``step``). A before/after measure for a loaded, shared machine: run it on two checkouts in turn
+and compare the minimum over chunks (the least disturbed) phase by phase.
 
     PYTHONPATH=. python benchmarks/phase_cpu.py --ks 1,64 --model fast
     PYTHONPATH=/path/to/other python benchmarks/phase_cpu.py --ks 1,64 --model fast
@@ -18,10 +19,12 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy: an idle BLAS
 import numpy as np
 
 PHASES = ("act", "score", "observe", "outputs", "resets")
+"""The stepper's phases, timed one by one; the whole ``VecEnv.step`` is reported as ``step``."""
 
 
 def measure(k: int, model: str, steps: int, chunks: int) -> dict[str, float]:
-    """Microseconds of CPU per world-step of each phase (the minimum over ``chunks`` of ``steps`` steps)."""
+    """Microseconds of CPU per world-step of each phase and of a whole step (the minimum over ``chunks``
+    of ``steps`` steps each)."""
     from parcover_env.envs import stepper
     from parcover_env.envs.vec_env import make_vec_env
 
@@ -54,6 +57,10 @@ def measure(k: int, model: str, steps: int, chunks: int) -> dict[str, float]:
             for name, dt in zip(PHASES, (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4), strict=True):
                 total[name] += dt
         best = {name: min(best[name], total[name]) for name in PHASES}
+        t0 = clock()
+        for a in acts[10 + c * steps: 10 + (c + 1) * steps]:
+            venv.step(a)
+        best["step"] = min(best.get("step", float("inf")), clock() - t0)
     venv.close()
     return {name: v * 1e6 / (steps * k) for name, v in best.items()}
 
