@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from operator import is_
+from typing import NamedTuple
 
 import numpy as np
 import pymunk
@@ -53,6 +54,7 @@ def _kernels():
             if body_kernels.layout_matches(_ffi, _cp):
                 kernels = body_kernels
                 _COMPILED["fn"] = _ffi.cast("cpBodyVelocityFunc", kernels.velocity_update.address)
+                _COMPILED["step"] = kernels.space_step_address(_ffi, _cp)
         _COMPILED["k"] = kernels
     return _COMPILED["k"]
 
@@ -62,9 +64,16 @@ def _cp_body(body: pymunk.Body):
     return body._body
 
 
+def _cp_space(space: pymunk.Space):
+    """The chipmunk ``cpSpace*`` of a pymunk space, for the compiled substep loop
+    (:func:`~parcover_env.world.body_kernels.step_spaces`). pymunk has no public accessor for it: this
+    is the one place that reads its private ``_space``."""
+    return space._space
+
+
 ROBOT, WALL = 1, 2
 # World attributes rebuilt from a snapshot, never copied
-_REBUILT = ("space", "bodies", "_rows", "_suppress", "_addresses", "_bound")
+_REBUILT = ("space", "bodies", "_rows", "_suppress", "_addresses", "_space_cell", "_fresh", "_bound")
 _WALL_RADIUS = 0.005  # m, collision skin of the static boundary segments
 
 
@@ -127,6 +136,12 @@ class World:
             self.bodies.append(body)
         self._addresses = np.array([int(_ffi.cast("intptr_t", _cp_body(b))) for b in self.bodies], dtype=np.int64) \
             if kernels else None
+        self._space_cell = np.array([int(_ffi.cast("intptr_t", _cp_space(space)))], dtype=np.int64) \
+            if kernels else None
+        """The chipmunk address of the space ``(1,)`` (None where pymunk's Python callbacks run)."""
+        self._fresh = True
+        """Not stepped yet: its first step goes through pymunk's ``Space.step`` (which checks the
+        bodies added), the later ones through the compiled substep loop where it is available."""
         if kernels:
             kernels.bind_commands(self._addresses, self._rows.values.ctypes.data)
             for body in self.bodies:
@@ -211,6 +226,7 @@ class World:
         that. The world keeps ``velocities`` until its next step (its bodies point into them)."""
         self._cmd[:] = commands
         self._bound = velocities
+        self._fresh = False
         dt, step = self.physics.dt, self.space.step
         if self._addresses is not None and not self._suppress:  # the compiled callbacks read their rows
             for _ in range(self.physics.substeps):
@@ -229,6 +245,12 @@ class World:
         """The chipmunk addresses ``(N,)`` of the robots' bodies, read by the compiled body access
         (:mod:`parcover_env.world.body_kernels`); None where pymunk's Python callbacks run."""
         return self._addresses
+
+    @property
+    def space_address(self) -> int | None:
+        """The chipmunk address of the world's space, stepped by the compiled substep loop
+        (:func:`~parcover_env.world.body_kernels.step_spaces`); None where pymunk's Python callbacks run."""
+        return None if self._space_cell is None else int(self._space_cell[0])
 
     def poses(self) -> np.ndarray:
         """Ground-truth poses ``(N, 3)``: x, y (m), theta (rad, wrapped to (-pi, pi])."""
@@ -252,25 +274,34 @@ def poses_all(worlds: Sequence[World]) -> np.ndarray:
     flat = _flat_addresses(worlds)
     if flat is None:
         return np.stack([w.poses() for w in worlds])
-    out = np.empty((len(flat), 3))
-    _kernels().read_poses(flat, out)  # the angles wrapped there
+    out = np.empty((len(flat.bodies), 3))
+    _kernels().read_poses(flat.bodies, out)  # the angles wrapped there
     return out.reshape(len(worlds), -1, 3)
 
 
+class _Addresses(NamedTuple):
+    """The chipmunk addresses of some worlds, world after world."""
+
+    bodies: np.ndarray
+    """``(K N,)`` their robots' bodies."""
+    spaces: np.ndarray
+    """``(K,)`` their spaces."""
+
+
 _FLAT: list = []
-"""The worlds' body addresses last concatenated, and the arrays they came from (kept alive, so
-compared by identity: a world's addresses change only when it rebuilds its space)."""
+"""The worlds' addresses last concatenated (:class:`_Addresses`), and the body address arrays they came
+from (kept alive, so compared by identity: a world's addresses change only when it rebuilds its space)."""
 
 
-def _flat_addresses(worlds: Sequence[World]) -> np.ndarray | None:
-    """The body addresses of all ``worlds`` end to end, or None if some world has none (pymunk's
-    Python callbacks)."""
+def _flat_addresses(worlds: Sequence[World]) -> _Addresses | None:
+    """The addresses of all ``worlds`` end to end, or None if some world has none (pymunk's Python
+    callbacks)."""
     addresses = [w.body_addresses for w in worlds]
     if _FLAT and len(_FLAT[0]) == len(addresses) and all(map(is_, addresses, _FLAT[0])):
         return _FLAT[1]
     if any(a is None for a in addresses):
         return None
-    _FLAT[:] = [addresses, np.concatenate(addresses)]
+    _FLAT[:] = [addresses, _Addresses(np.concatenate(addresses), np.concatenate([w._space_cell for w in worlds]))]
     return _FLAT[1]
 
 
@@ -280,8 +311,10 @@ def step_all(worlds: Sequence[World], commands: np.ndarray, velocities: np.ndarr
     substep when the caller advanced the worlds' drives already
     (:func:`~parcover_env.world.drive.command_steps_all`), None: the drives are advanced here (or the
     commands apply as they are, ``drive: instant``). The compiled callbacks of all worlds' bodies are
-    pointed at their rows in one call, then each world runs its substeps (:meth:`World.integrate`):
-    the same floats as each world stepped alone."""
+    pointed at their rows in one call, then the substeps of every world run in one compiled loop
+    over the worlds' chipmunk spaces (:func:`~parcover_env.world.body_kernels.step_spaces`; a world's
+    first step, or the first after a rebuild, goes through pymunk's ``Space.step``:
+    :meth:`World.integrate`): the same floats as each world stepped alone."""
     first = worlds[0]
     physics = first.physics
     k, n = commands.shape[:2]
@@ -292,15 +325,29 @@ def step_all(worlds: Sequence[World], commands: np.ndarray, velocities: np.ndarr
             velocities = command_steps_all([w.drive for w in worlds], commands, physics.dt, physics.substeps)
         else:  # the commands at every substep
             velocities = np.repeat(np.asarray(commands, dtype=float).reshape(k, n, 1, 2), physics.substeps, axis=2)
-    flat = first.body_addresses if k == 1 else _flat_addresses(worlds)
-    if flat is not None:
-        _kernels().bind_rows(flat, velocities.reshape(k * n, *velocities.shape[2:]))
-    else:
+    flat = (None if first.body_addresses is None else _Addresses(first.body_addresses, first._space_cell)) \
+        if k == 1 else _flat_addresses(worlds)
+    if flat is None:
         for w, v in zip(worlds, velocities, strict=True):
             if w.body_addresses is not None:
                 _kernels().bind_rows(w.body_addresses, v)
-    for w, c, v in zip(worlds, commands, velocities, strict=True):
-        w.integrate(c, v)
+        for w, c, v in zip(worlds, commands, velocities, strict=True):
+            w.integrate(c, v)
+        return
+    kernels = _kernels()
+    kernels.bind_rows(flat.bodies, velocities.reshape(k * n, *velocities.shape[2:]))
+    ready = [not (w._fresh or w._suppress) for w in worlds]  # the others step through pymunk's Space.step
+    spaces = flat.spaces if all(ready) else flat.spaces[np.array(ready, dtype=bool)]
+    if len(spaces):
+        kernels.step_spaces(_COMPILED["step"], spaces, physics.dt, physics.substeps)
+    control_dt = physics.control_dt
+    for w, c, v, stepped in zip(worlds, commands, velocities, ready, strict=True):
+        if stepped:  # integrate's bookkeeping
+            w._cmd[:] = c
+            w._bound = v
+            w.time += control_dt
+        else:
+            w.integrate(c, v)
 
 
 class _CommandRows:
