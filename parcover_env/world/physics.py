@@ -224,7 +224,7 @@ class World:
         ``velocities[:, s]`` ``(N, substeps, 2)`` (the commands ``(N, 2)`` as given are kept).
         Part of :func:`step_all`, which binds the compiled callbacks to ``velocities`` first: call
         that. The world keeps ``velocities`` until its next step (its bodies point into them)."""
-        self._cmd[:] = commands
+        self._cmd = np.array(commands, dtype=float)  # rebound, never written in place (it may be a caller's view)
         self._bound = velocities
         self._fresh = False
         dt, step = self.physics.dt, self.space.step
@@ -341,13 +341,13 @@ def step_all(worlds: Sequence[World], commands: np.ndarray, velocities: np.ndarr
     if len(spaces):
         kernels.step_spaces(_COMPILED["step"], spaces, physics.dt, physics.substeps)
     control_dt = physics.control_dt
-    for w, c, v, stepped in zip(worlds, commands, velocities, ready, strict=True):
-        if stepped:  # integrate's bookkeeping
-            w._cmd[:] = c
-            w._bound = v
+    for j, (w, c, stepped) in enumerate(zip(worlds, commands, ready, strict=True)):
+        if stepped:  # integrate's bookkeeping (the commands' row kept as it is: the world only copies it)
+            w._cmd = c
+            w._bound = velocities
             w.time += control_dt
         else:
-            w.integrate(c, v)
+            w.integrate(c, velocities[j])
 
 
 class _CommandRows:
