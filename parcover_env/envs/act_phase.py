@@ -58,12 +58,14 @@ def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -
     true = poses_all(physics)
     fixes = update_all(estimators, true, commands, drives, [w.time for w in physics],
                        stack([w.team.leader for w in worlds]), [w.np_random for w in worlds], rows)
-    for k, w in enumerate(worlds):
-        if "kinect" in fixes[k]:  # a Kinect fix is a message to a leader
-            w.team.count_pose_fixes(len(fixes[k]["kinect"]))
-        if scanning and s.observation.pose_source == "ground_truth":  # no sources ran: scans end
-            w.scanner.fixes(FixRequest(w.world.time, true[k], w.estimate.copy(), w.team.leader,
-                                       w.estimator.covariance), w.np_random)
+    for w, f in zip(worlds, fixes, strict=True):
+        kinect = f.get("kinect")
+        if kinect:  # a Kinect fix is a message to a leader
+            w.team.count_pose_fixes(len(kinect))
+    if scanning and s.observation.pose_source == "ground_truth":  # no sources ran: scans end
+        for w, t in zip(worlds, true, strict=True):
+            w.scanner.fixes(FixRequest(w.world.time, t, w.estimate.copy(), w.team.leader, w.estimator.covariance),
+                            w.np_random)
     return before, true
 
 
