@@ -115,7 +115,9 @@ def read_poses(bodies, out):
 def step_spaces(step_function, spaces, dt, substeps):
     """``substeps`` steps of ``dt`` (s) of each chipmunk space at the addresses ``spaces`` in turn, by
     chipmunk's ``cpSpaceStep`` at the address ``step_function`` (what pymunk's ``Space.step`` calls;
-    pymunk's Python collision callbacks run from inside it as they do there)."""
+    pymunk's Python collision callbacks run from inside it as they do there). Without the bookkeeping
+    of pymunk's wrapper: only for spaces whose callbacks add or remove nothing and that have no
+    post-step callbacks or bodies added since their last ``Space.step``."""
     for j in range(spaces.shape[0]):
         for _ in range(substeps):
             _call_space_step(step_function, spaces[j], dt)

@@ -45,7 +45,8 @@ _COMPILED: dict = {}
 
 def _kernels():
     """The compiled body access (:mod:`parcover_env.world.body_kernels`), or ``None`` if this pymunk
-    build's body layout is not the one it expects (then the Python callbacks run)."""
+    build's body layout is not the one it expects (then the Python callbacks run). The compiled
+    substep loop runs where the build also exposes its spaces' chipmunk handles (``_COMPILED["step"]``)."""
     if "k" not in _COMPILED:
         kernels = None
         if _cp is not None:
@@ -54,7 +55,8 @@ def _kernels():
             if body_kernels.layout_matches(_ffi, _cp):
                 kernels = body_kernels
                 _COMPILED["fn"] = _ffi.cast("cpBodyVelocityFunc", kernels.velocity_update.address)
-                _COMPILED["step"] = kernels.space_step_address(_ffi, _cp)
+                handle = getattr(pymunk.Space(), "_space", None)  # where this pymunk build keeps the cpSpace*
+                _COMPILED["step"] = kernels.space_step_address(_ffi, _cp) if isinstance(handle, _ffi.CData) else None
         _COMPILED["k"] = kernels
     return _COMPILED["k"]
 
@@ -137,8 +139,8 @@ class World:
         self._addresses = np.array([int(_ffi.cast("intptr_t", _cp_body(b))) for b in self.bodies], dtype=np.int64) \
             if kernels else None
         self._space_cell = np.array([int(_ffi.cast("intptr_t", _cp_space(space)))], dtype=np.int64) \
-            if kernels else None
-        """The chipmunk address of the space ``(1,)`` (None where pymunk's Python callbacks run)."""
+            if kernels and _COMPILED["step"] is not None else None
+        """The chipmunk address of the space ``(1,)`` (None: it steps through pymunk's ``Space.step``)."""
         self._fresh = True
         """Not stepped yet: its first step goes through pymunk's ``Space.step`` (which checks the
         bodies added), the later ones through the compiled substep loop where it is available."""
@@ -284,8 +286,8 @@ class _Addresses(NamedTuple):
 
     bodies: np.ndarray
     """``(K N,)`` their robots' bodies."""
-    spaces: np.ndarray
-    """``(K,)`` their spaces."""
+    spaces: np.ndarray | None
+    """``(K,)`` their spaces (None: they step through pymunk's ``Space.step``)."""
 
 
 _FLAT: list = []
@@ -301,7 +303,9 @@ def _flat_addresses(worlds: Sequence[World]) -> _Addresses | None:
         return _FLAT[1]
     if any(a is None for a in addresses):
         return None
-    _FLAT[:] = [addresses, _Addresses(np.concatenate(addresses), np.concatenate([w._space_cell for w in worlds]))]
+    cells = [w._space_cell for w in worlds]
+    spaces = None if any(c is None for c in cells) else np.concatenate(cells)
+    _FLAT[:] = [addresses, _Addresses(np.concatenate(addresses), spaces)]
     return _FLAT[1]
 
 
@@ -336,8 +340,9 @@ def step_all(worlds: Sequence[World], commands: np.ndarray, velocities: np.ndarr
         return
     kernels = _kernels()
     kernels.bind_rows(flat.bodies, velocities.reshape(k * n, *velocities.shape[2:]))
-    ready = [not (w._fresh or w._suppress) for w in worlds]  # the others step through pymunk's Space.step
-    spaces = flat.spaces if all(ready) else flat.spaces[np.array(ready, dtype=bool)]
+    # the others step through pymunk's Space.step
+    ready = [False] * k if flat.spaces is None else [not (w._fresh or w._suppress) for w in worlds]
+    spaces = flat.spaces if all(ready) else flat.spaces[np.array(ready, dtype=bool)] if any(ready) else ()
     if len(spaces):
         kernels.step_spaces(_COMPILED["step"], spaces, physics.dt, physics.substeps)
     control_dt = physics.control_dt

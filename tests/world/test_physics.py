@@ -149,3 +149,29 @@ def test_step_all_takes_the_compiled_loop_after_the_first_step_with_the_same_flo
         assert a.robot_contacts.tolist() == b.robot_contacts.tolist()
         assert a.time == b.time
     assert sum(fast[0].wall_contacts) + sum(fast[0].robot_contacts) > 0
+
+
+def test_step_all_without_space_handles_steps_through_space_step(monkeypatch):
+    """A pymunk build that does not expose its spaces' chipmunk handles: the worlds step through
+    pymunk's ``Space.step`` (no compiled substep loop), with the same floats."""
+    from parcover_env.world import physics
+    from parcover_env.world.physics import step_all
+
+    assert physics._kernels() is not None
+    poses = np.array([[0.5, 0.5, 0.3], [0.9, 0.6, 2.9], [1.6, 1.5, 0.1]])
+
+    def run():
+        worlds = [World(BOX, 0.15, PhysicsConfig(), p) for p in (poses, poses[::-1].copy())]
+        rng = np.random.default_rng(2)
+        for _ in range(20):
+            step_all(worlds, np.stack([np.column_stack([rng.uniform(0.1, 0.6, 3), rng.uniform(-1.5, 1.5, 3)])
+                                       for _ in range(2)]))
+        return worlds
+
+    compiled = run()
+    monkeypatch.setitem(physics._COMPILED, "step", None)
+    plain = run()
+    assert plain[0].space_address is None and compiled[0].space_address is not None
+    for a, b in zip(compiled, plain, strict=True):
+        assert a.poses().tobytes() == b.poses().tobytes()
+        assert a.wall_contacts.tolist() == b.wall_contacts.tolist()
