@@ -5,7 +5,8 @@ actions of all worlds become one ``(K, N, A)`` array of commands
 (:func:`~parcover_env.envs.actions.to_commands_all`), the drives of all worlds turn them into body
 velocities in one compiled call (:func:`~parcover_env.world.drive.command_steps_rows`), each world's
 pymunk space integrates its physics (one space per world; :func:`~parcover_env.world.physics.step_all`
-points the compiled velocity callbacks of all worlds' bodies at their rows in one call), and the
+points the compiled velocity callbacks of all worlds' bodies at their rows in one call and steps
+all spaces in one compiled loop), and the
 pose estimators of all worlds update together (:func:`~parcover_env.envs.estimator.update_all`: the
 wheel odometry of all ``K N`` robots in one compiled call, the Kinect systems in one batch). World
 ``k`` draws from its own generator in the order it would alone, so every world is bit for bit a

@@ -9,7 +9,10 @@ an actuator delay; the velocity the contact solver corrected is what moves the b
 ``velocity_func`` is a compiled C callback (:mod:`parcover_env.world.body_kernels`) that reads
 each substep's body velocity from the rows ``(substeps, 2)`` :func:`step_all` points the body at
 (the worlds of a batch in one call, no Python between substeps); where that is not available, a
-Python callable computing the same floats from rows written before each substep.
+Python callable computing the same floats from rows written before each substep. The substeps of
+all worlds then run in one compiled loop that calls chipmunk's ``cpSpaceStep`` on each world's
+space (:func:`~parcover_env.world.body_kernels.step_spaces`: the function pymunk's ``Space.step``
+calls, without that wrapper's Python; a space's first step still goes through ``Space.step``).
 
 With a ``DriveConfig`` of ``model: wheels`` the commands are wheel-speed targets for a
 :class:`~parcover_env.world.drive.DiffDrive` (limits, lag, bounded acceleration) advanced once per
