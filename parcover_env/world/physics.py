@@ -48,8 +48,7 @@ _COMPILED: dict = {}
 
 def _kernels():
     """The compiled body access (:mod:`parcover_env.world.body_kernels`), or ``None`` if this pymunk
-    build's body layout is not the one it expects (then the Python callbacks run). The compiled
-    substep loop runs where the build also exposes its spaces' chipmunk handles (``_COMPILED["step"]``)."""
+    build's body layout is not the one it expects (then the Python callbacks run)."""
     if "k" not in _COMPILED:
         kernels = None
         if _cp is not None:
@@ -58,8 +57,7 @@ def _kernels():
             if body_kernels.layout_matches(_ffi, _cp):
                 kernels = body_kernels
                 _COMPILED["fn"] = _ffi.cast("cpBodyVelocityFunc", kernels.velocity_update.address)
-                handle = getattr(pymunk.Space(), "_space", None)  # where this pymunk build keeps the cpSpace*
-                _COMPILED["step"] = kernels.space_step_address(_ffi, _cp) if isinstance(handle, _ffi.CData) else None
+                _COMPILED["step"] = kernels.space_step_address(_ffi, _cp)
         _COMPILED["k"] = kernels
     return _COMPILED["k"]
 
@@ -67,13 +65,6 @@ def _cp_body(body: pymunk.Body):
     """The chipmunk ``cpBody*`` of a pymunk body, for the C setters and the compiled callback. pymunk
     has no public accessor for it: this is the one place that reads its private ``_body``."""
     return body._body
-
-
-def _cp_space(space: pymunk.Space):
-    """The chipmunk ``cpSpace*`` of a pymunk space, for the compiled substep loop
-    (:func:`~parcover_env.world.body_kernels.step_spaces`). pymunk has no public accessor for it: this
-    is the one place that reads its private ``_space``."""
-    return space._space
 
 
 ROBOT, WALL = 1, 2
@@ -141,9 +132,10 @@ class World:
             self.bodies.append(body)
         self._addresses = np.array([int(_ffi.cast("intptr_t", _cp_body(b))) for b in self.bodies], dtype=np.int64) \
             if kernels else None
-        self._space_cell = np.array([int(_ffi.cast("intptr_t", _cp_space(space)))], dtype=np.int64) \
-            if kernels and _COMPILED["step"] is not None else None
-        """The chipmunk address of the space ``(1,)`` (None: it steps through pymunk's ``Space.step``)."""
+        self._space_cell = np.array([int(_ffi.cast("intptr_t", _cp.cpBodyGetSpace(_cp_body(self.bodies[0]))))],
+                                    dtype=np.int64) if kernels and self.bodies and _COMPILED["step"] else None
+        """The chipmunk address of the space ``(1,)``, chipmunk's own answer for a robot's body (None: it
+        steps through pymunk's ``Space.step``)."""
         self._fresh = True
         """Not stepped yet: its first step goes through pymunk's ``Space.step`` (which checks the
         bodies added), the later ones through the compiled substep loop where it is available."""
@@ -224,12 +216,18 @@ class World:
         a drive advanced here): :func:`step_all` of this world alone."""
         step_all([self], np.asarray(commands, dtype=float)[None])
 
-    def integrate(self, commands: np.ndarray, velocities: np.ndarray) -> None:
+    def integrate(self, commands: np.ndarray, velocities: np.ndarray, stepped: bool = False) -> None:
         """The physics substeps of one control step, the body velocities of substep ``s`` being
         ``velocities[:, s]`` ``(N, substeps, 2)`` (the commands ``(N, 2)`` as given are kept).
         Part of :func:`step_all`, which binds the compiled callbacks to ``velocities`` first: call
-        that. The world keeps ``velocities`` until its next step (its bodies point into them)."""
-        self._cmd = np.array(commands, dtype=float)  # rebound, never written in place (it may be a caller's view)
+        that. The world keeps ``velocities`` until its next step (its bodies point into them).
+        ``stepped``: :func:`step_all` ran the substeps already (its compiled loop): the rest only."""
+        if stepped:  # the caller ran the substeps (step_all's compiled loop): the bookkeeping only
+            self._cmd = commands  # rebound, never written in place (a caller's view is kept as it is)
+            self._bound = velocities
+            self.time += self.physics.control_dt
+            return
+        self._cmd = np.array(commands, dtype=float)
         self._bound = velocities
         self._fresh = False
         dt, step = self.physics.dt, self.space.step
@@ -250,6 +248,13 @@ class World:
         """The chipmunk addresses ``(N,)`` of the robots' bodies, read by the compiled body access
         (:mod:`parcover_env.world.body_kernels`); None where pymunk's Python callbacks run."""
         return self._addresses
+
+    @property
+    def loop_ready(self) -> bool:
+        """True if :func:`step_all`'s compiled substep loop may step this world's space now: it has
+        the space's address and has been stepped once by ``Space.step`` since it was built (which
+        also leaves the contacts in progress at a rebuild uncounted)."""
+        return self._space_cell is not None and not self._fresh
 
     @property
     def space_address(self) -> int | None:
@@ -306,8 +311,8 @@ def _flat_addresses(worlds: Sequence[World]) -> _Addresses | None:
         return _FLAT[1]
     if any(a is None for a in addresses):
         return None
-    cells = [w._space_cell for w in worlds]
-    spaces = None if any(c is None for c in cells) else np.concatenate(cells)
+    cells = [w.space_address for w in worlds]
+    spaces = None if None in cells else np.array(cells, dtype=np.int64)
     _FLAT[:] = [addresses, _Addresses(np.concatenate(addresses), spaces)]
     return _FLAT[1]
 
@@ -332,8 +337,7 @@ def step_all(worlds: Sequence[World], commands: np.ndarray, velocities: np.ndarr
             velocities = command_steps_all([w.drive for w in worlds], commands, physics.dt, physics.substeps)
         else:  # the commands at every substep
             velocities = np.repeat(np.asarray(commands, dtype=float).reshape(k, n, 1, 2), physics.substeps, axis=2)
-    flat = (None if first.body_addresses is None else _Addresses(first.body_addresses, first._space_cell)) \
-        if k == 1 else _flat_addresses(worlds)
+    flat = _flat_addresses(worlds)
     if flat is None:
         for w, v in zip(worlds, velocities, strict=True):
             if w.body_addresses is not None:
@@ -344,18 +348,12 @@ def step_all(worlds: Sequence[World], commands: np.ndarray, velocities: np.ndarr
     kernels = _kernels()
     kernels.bind_rows(flat.bodies, velocities.reshape(k * n, *velocities.shape[2:]))
     # the others step through pymunk's Space.step
-    ready = [False] * k if flat.spaces is None else [not (w._fresh or w._suppress) for w in worlds]
+    ready = [False] * k if flat.spaces is None else [w.loop_ready for w in worlds]
     spaces = flat.spaces if all(ready) else flat.spaces[np.array(ready, dtype=bool)] if any(ready) else ()
     if len(spaces):
         kernels.step_spaces(_COMPILED["step"], spaces, physics.dt, physics.substeps)
-    control_dt = physics.control_dt
-    for j, (w, c, stepped) in enumerate(zip(worlds, commands, ready, strict=True)):
-        if stepped:  # integrate's bookkeeping (the commands' row kept as it is: the world only copies it)
-            w._cmd = c
-            w._bound = velocities
-            w.time += control_dt
-        else:
-            w.integrate(c, velocities[j])
+    for w, c, v, stepped in zip(worlds, commands, velocities, ready, strict=True):
+        w.integrate(c, v, stepped)
 
 
 class _CommandRows:

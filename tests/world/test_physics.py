@@ -123,12 +123,17 @@ def test_step_spaces_runs_the_substeps_of_each_space_in_turn():
         assert a.poses().tobytes() == b.poses().tobytes()
 
 
-def test_step_all_takes_the_compiled_loop_after_the_first_step_with_the_same_floats():
+def test_step_all_takes_the_compiled_loop_after_the_first_step_with_the_same_floats(monkeypatch):
     """Worlds stepped by :func:`step_all` (compiled substep loop from the second step on, a rebuilt
     world through pymunk's ``Space.step`` first) are bit-identical to worlds that always step
     through ``Space.step`` (kept fresh), in contact with walls and each other."""
+    from parcover_env.world import body_kernels
     from parcover_env.world.physics import step_all
 
+    looped = []  # the spaces each compiled loop stepped
+    loop = body_kernels.step_spaces
+    monkeypatch.setattr(body_kernels, "step_spaces", lambda fn, spaces, *a: (looped.append(len(spaces)),
+                                                                               loop(fn, spaces, *a)))
     poses = np.array([[0.5, 0.5, 0.3], [0.9, 0.6, 2.9], [1.6, 1.5, 0.1], [2.0, 1.5, 3.0]])
     fast = [World(BOX, 0.15, PhysicsConfig(), p) for p in (poses, poses[::-1].copy())]
     slow = [World(BOX, 0.15, PhysicsConfig(), p) for p in (poses, poses[::-1].copy())]
@@ -138,8 +143,10 @@ def test_step_all_takes_the_compiled_loop_after_the_first_step_with_the_same_flo
         if t == 20:  # a rebuilt space (a copy mid-episode): its first step goes through Space.step again
             fast[1] = copy.deepcopy(fast[1])
             slow[1] = copy.deepcopy(slow[1])
+        looped.clear()
         step_all(fast, cmd)
-        assert not fast[0]._fresh
+        assert fast[0].loop_ready
+        assert looped == ([] if t == 0 else [1] if t == 20 else [2])  # a fresh space: Space.step
         for w, c in zip(slow, cmd, strict=True):
             w._fresh = True
             step_all([w], c[None])
