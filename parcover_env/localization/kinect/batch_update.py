@@ -245,6 +245,11 @@ def track_all(systems: Sequence[Any], found: Detections, markers: np.ndarray, pr
         lo, hi = bounds[b], bounds[b + 1]
         if flagged[b]:  # outside the common case: the system's own tracking
             out.append(s.track([_estimates(s, found, range(lo, hi), times)], markers[b], predicted[b], times[b]))
-        else:
-            out.append(s.tracked(s.tracker.assign(poses[lo:hi], robots[lo:hi], times[b]), markers[b]))
+            continue
+        fixes = s.tracker.assign(poses[lo:hi], robots[lo:hi], times[b])
+        if s.handover:
+            s.tracked(fixes, markers[b])
+        else:  # what tracked does without robots awaiting their first detection
+            s.last_fixes = fixes
+        out.append(fixes)
     return out
