@@ -317,6 +317,14 @@ def _flat_addresses(worlds: Sequence[World]) -> _Addresses | None:
     return _FLAT[1]
 
 
+def _one_world(world: World) -> _Addresses | None:
+    """The addresses of one world (:func:`_flat_addresses` without its cache)."""
+    if world.body_addresses is None:
+        return None
+    space = world.space_address
+    return _Addresses(world.body_addresses, None if space is None else np.array([space], dtype=np.int64))
+
+
 def step_all(worlds: Sequence[World], commands: np.ndarray, velocities: np.ndarray | None = None) -> None:
     """:meth:`World.step` of ``K`` worlds of ``N`` robots each (one physics configuration):
     ``commands`` ``(K, N, 2)``; ``velocities`` ``(K, N, substeps, 2)`` the body velocities of each
@@ -337,7 +345,7 @@ def step_all(worlds: Sequence[World], commands: np.ndarray, velocities: np.ndarr
             velocities = command_steps_all([w.drive for w in worlds], commands, physics.dt, physics.substeps)
         else:  # the commands at every substep
             velocities = np.repeat(np.asarray(commands, dtype=float).reshape(k, n, 1, 2), physics.substeps, axis=2)
-    flat = _flat_addresses(worlds)
+    flat = _flat_addresses(worlds) if k > 1 else _one_world(first)  # K = 1: the batches' cache left alone
     if flat is None:
         for w, v in zip(worlds, velocities, strict=True):
             if w.body_addresses is not None:
