@@ -5,7 +5,8 @@ actions of all worlds become one ``(K, N, A)`` array of commands
 (:func:`~parcover_env.envs.actions.to_commands_all`), the drives of all worlds turn them into body
 velocities in one compiled call (:func:`~parcover_env.world.drive.command_steps_rows`), each world's
 pymunk space integrates its physics (one space per world; :func:`~parcover_env.world.physics.step_all`
-points the compiled velocity callbacks of all worlds' bodies at their rows in one call), and the
+points the compiled velocity callbacks of all worlds' bodies at their rows in one call and steps
+all spaces in one compiled loop), and the
 pose estimators of all worlds update together (:func:`~parcover_env.envs.estimator.update_all`: the
 wheel odometry of all ``K N`` robots in one compiled call, the Kinect systems in one batch). World
 ``k`` draws from its own generator in the order it would alone, so every world is bit for bit a
@@ -58,12 +59,14 @@ def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -
     true = poses_all(physics)
     fixes = update_all(estimators, true, commands, drives, [w.time for w in physics],
                        stack([w.team.leader for w in worlds]), [w.np_random for w in worlds], rows)
-    for k, w in enumerate(worlds):
-        if "kinect" in fixes[k]:  # a Kinect fix is a message to a leader
-            w.team.count_pose_fixes(len(fixes[k]["kinect"]))
-        if scanning and s.observation.pose_source == "ground_truth":  # no sources ran: scans end
-            w.scanner.fixes(FixRequest(w.world.time, true[k], w.estimate.copy(), w.team.leader,
-                                       w.estimator.covariance), w.np_random)
+    for w, f in zip(worlds, fixes, strict=True):
+        kinect = f.get("kinect")
+        if kinect:  # a Kinect fix is a message to a leader
+            w.team.count_pose_fixes(len(kinect))
+    if scanning and s.observation.pose_source == "ground_truth":  # no sources ran: scans end
+        for w, t in zip(worlds, true, strict=True):
+            w.scanner.fixes(FixRequest(w.world.time, t, w.estimate.copy(), w.team.leader, w.estimator.covariance),
+                            w.np_random)
     return before, true
 
 

@@ -12,6 +12,7 @@ robot that stops and scans (Kim, Pearce & Amato; :class:`~parcover_env.envs.sona
 from __future__ import annotations
 
 from collections.abc import Sequence
+from itertools import chain
 from typing import NamedTuple, Protocol
 
 import numpy as np
@@ -189,28 +190,24 @@ def update_all(estimators: Sequence[PoseEstimator], true: Sequence[np.ndarray], 
 def _apply_fixes(rows: ActRows, fixes: Sequence[dict[int, np.ndarray]], cov: np.ndarray | None) -> None:
     """:meth:`PoseEstimator.fix` of every ``fixes[k]`` ``{robot: pose}`` of estimator ``k`` (one
     source, its fix covariance ``cov``), on the shared rows in a few numpy calls."""
-    worlds: list[int] = []
-    robots: list[int] = []
-    poses: list = []
-    for k, f in enumerate(fixes):
-        if f:
-            worlds += [k] * len(f)
-            robots += f.keys()
-            poses += f.values()
+    counts = list(map(len, fixes))
+    total = sum(counts)
     o, fix_age = rows.odometry.blocks, rows.estimators.blocks["fix_age"]
     est, covariance, travelled, turned = o["estimate"], o["covariance"], o["travelled"], o["turned"]
     cov = 0.0 if cov is None else cov
-    if len(worlds) <= _FEW_FIXES:  # a few rows: written one by one (numpy's fancy indexing costs more)
-        for k, i, pose in zip(worlds, robots, poses, strict=True):
-            est[k, i] = pose
-            covariance[k, i] = cov
-            travelled[k, i] = turned[k, i] = fix_age[k, i] = 0.0
+    if total <= _FEW_FIXES:  # a few rows: written one by one (numpy's fancy indexing costs more)
+        for k, f in enumerate(fixes):
+            for i, pose in f.items():
+                est[k, i] = pose
+                covariance[k, i] = cov
+                travelled[k, i] = turned[k, i] = fix_age[k, i] = 0.0
         return
-    est[worlds, robots] = poses
-    covariance[worlds, robots] = cov
-    travelled[worlds, robots] = 0.0
-    turned[worlds, robots] = 0.0
-    fix_age[worlds, robots] = 0.0
+    at = (np.repeat(np.arange(len(fixes)), counts), np.fromiter(chain.from_iterable(fixes), np.int64, total))
+    est[at] = list(chain.from_iterable(f.values() for f in fixes))
+    covariance[at] = cov
+    travelled[at] = 0.0
+    turned[at] = 0.0
+    fix_age[at] = 0.0
 
 
 _FEW_FIXES = 4

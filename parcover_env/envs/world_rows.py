@@ -41,6 +41,8 @@ class SharedRows:
         self.flat = {name: b.reshape(-1, *b.shape[2:]) for name, b in self.blocks.items()}
         """Each block with its first two axes (worlds, robots) as one (a view)."""
         self.owners: list[Any] = [None] * k
+        self.memo: tuple | None = None
+        """Free for the caller that keeps these rows (:func:`act_rows`: what it found attached last)."""
 
     def fits(self, k: int, template: Any) -> bool:
         """True if these rows can hold ``k`` owners like ``template`` (the same shapes and dtypes)."""
@@ -113,10 +115,14 @@ def act_rows(estimators: Sequence[Any], drives: Sequence[Any]) -> ActRows:
     """The shared rows of ``K`` worlds' pose ``estimators`` (of one scenario), their Kinect systems
     (``kinect_system``) and their ``drives`` (``None`` s for ``drive: instant``), every array attached
     (:meth:`SharedRows.attach`). The rows are kept on the estimators (``act_rows``, never copied or
-    pickled) and reused while they fit."""
+    pickled) and reused while they fit. When every estimator, odometry, Kinect system and drive
+    still holds the very objects it held when last attached (the common step), one identity check
+    per world replaces the attach passes."""
     first = estimators[0]
-    rows = first.act_rows  # after world 0's reset: the rows another world holds
-    if rows is None:
+    rows = first.act_rows
+    if rows is not None and _unchanged(rows, estimators, drives):
+        return rows
+    if rows is None:  # after world 0's reset: the rows another world holds
         rows = next((e.act_rows for e in estimators if e.act_rows is not None), None)
     k = len(estimators)
     if rows is None or rows.estimators.size != k or not (_holds(rows, first, drives[0])
@@ -132,7 +138,36 @@ def act_rows(estimators: Sequence[Any], drives: Sequence[Any]) -> ActRows:
     for e in estimators:
         if e.act_rows is not rows:
             e.act_rows = rows
+    _remember(rows, estimators, drives)
     return rows
+
+
+def _getter(rows: ActRows):
+    """``f(estimator, drive)``: the objects and arrays of one world that :func:`act_rows` attaches."""
+    names = ["act_rows", "kinect_system", *ESTIMATOR, *(f"odometry.{n}" for n in ODOMETRY)]
+    if rows.kinect is not None:
+        names += [f"kinect_system.{n}" for n in KINECT]
+    mine = attrgetter(*names)
+    if rows.drives is None:
+        return lambda e, d: (*mine(e), d)
+    theirs = attrgetter(*DRIVE)
+    return lambda e, d: (*mine(e), d, *theirs(d))
+
+
+def _remember(rows: ActRows, estimators: Sequence[Any], drives: Sequence[Any]) -> None:
+    """Keep what every world holds now that ``rows`` are attached (for :func:`_unchanged`)."""
+    get = _getter(rows)
+    rows.estimators.memo = (rows, get, [get(e, d) for e, d in zip(estimators, drives, strict=True)])
+
+
+def _unchanged(rows: ActRows, estimators: Sequence[Any], drives: Sequence[Any]) -> bool:
+    """True if every world still holds what it held when ``rows`` were last attached to these
+    estimators and drives (so all of them are attached)."""
+    memo = rows.estimators.memo
+    if memo is None or memo[0] is not rows or len(memo[2]) != len(estimators):
+        return False
+    get = memo[1]
+    return all(all(map(is_, get(e, d), held)) for e, d, held in zip(estimators, drives, memo[2], strict=True))
 
 
 def _with_kinect(rows: ActRows, k: int, systems: Sequence[Any]) -> ActRows:

@@ -23,12 +23,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from llvmlite import ir
 from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
 from parcover_env.geometry.angle_kernels import wrap
 
-__all__ = ["N_SLOTS", "ROW_BYTES", "layout_matches", "velocity_update", "bind_commands", "bind_rows", "read_poses"]
+__all__ = ["N_SLOTS", "ROW_BYTES", "layout_matches", "velocity_update", "bind_commands", "bind_rows", "read_poses",
+           "step_spaces", "space_step_address"]
 
 N_SLOTS = 17
 """8-byte slots of ``cpBody`` read or written here (up to the torque)."""
@@ -45,6 +47,20 @@ def _pointer(typingctx, address):
 
     def codegen(context, builder, signature, args):
         return builder.inttoptr(args[0], context.get_value_type(types.voidptr))
+
+    return sig, codegen
+
+
+@intrinsic
+def _call_space_step(typingctx, function, space, dt):
+    """Call the C function ``void f(cpSpace *, double)`` at address ``function`` on ``space``."""
+    sig = types.void(types.int64, types.int64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        fnty = ir.FunctionType(ir.VoidType(), [ir.IntType(8).as_pointer(), ir.DoubleType()])
+        target = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(target, [builder.inttoptr(args[1], ir.IntType(8).as_pointer()), args[2]])
+        return context.get_dummy_value()
 
     return sig, codegen
 
@@ -93,6 +109,23 @@ def read_poses(bodies, out):
         out[i, 0] = b[_PX]
         out[i, 1] = b[_PY]
         out[i, 2] = wrap(b[_A])
+
+
+@njit(cache=True)
+def step_spaces(step_function, spaces, dt, substeps):
+    """``substeps`` steps of ``dt`` (s) of each chipmunk space at the addresses ``spaces`` in turn, by
+    chipmunk's ``cpSpaceStep`` at the address ``step_function`` (what pymunk's ``Space.step`` calls;
+    pymunk's Python collision callbacks run from inside it as they do there). Without the bookkeeping
+    of pymunk's wrapper: only for spaces whose callbacks add or remove nothing and that have no
+    post-step callbacks or bodies added since their last ``Space.step``."""
+    for j in range(spaces.shape[0]):
+        for _ in range(substeps):
+            _call_space_step(step_function, spaces[j], dt)
+
+
+def space_step_address(ffi, lib) -> int:
+    """The address of chipmunk's ``cpSpaceStep`` in pymunk's cffi module ``lib`` (for :func:`step_spaces`)."""
+    return int(ffi.cast("intptr_t", ffi.addressof(lib, "cpSpaceStep")))
 
 
 def layout_matches(ffi, lib) -> bool:

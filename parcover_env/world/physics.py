@@ -9,7 +9,10 @@ an actuator delay; the velocity the contact solver corrected is what moves the b
 ``velocity_func`` is a compiled C callback (:mod:`parcover_env.world.body_kernels`) that reads
 each substep's body velocity from the rows ``(substeps, 2)`` :func:`step_all` points the body at
 (the worlds of a batch in one call, no Python between substeps); where that is not available, a
-Python callable computing the same floats from rows written before each substep.
+Python callable computing the same floats from rows written before each substep. The substeps of
+all worlds then run in one compiled loop that calls chipmunk's ``cpSpaceStep`` on each world's
+space (:func:`~parcover_env.world.body_kernels.step_spaces`: the function pymunk's ``Space.step``
+calls, without that wrapper's Python; a space's first step still goes through ``Space.step``).
 
 With a ``DriveConfig`` of ``model: wheels`` the commands are wheel-speed targets for a
 :class:`~parcover_env.world.drive.DiffDrive` (limits, lag, bounded acceleration) advanced once per
@@ -22,6 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from operator import is_
+from typing import NamedTuple
 
 import numpy as np
 import pymunk
@@ -53,6 +57,7 @@ def _kernels():
             if body_kernels.layout_matches(_ffi, _cp):
                 kernels = body_kernels
                 _COMPILED["fn"] = _ffi.cast("cpBodyVelocityFunc", kernels.velocity_update.address)
+                _COMPILED["step"] = kernels.space_step_address(_ffi, _cp)
         _COMPILED["k"] = kernels
     return _COMPILED["k"]
 
@@ -64,7 +69,7 @@ def _cp_body(body: pymunk.Body):
 
 ROBOT, WALL = 1, 2
 # World attributes rebuilt from a snapshot, never copied
-_REBUILT = ("space", "bodies", "_rows", "_suppress", "_addresses", "_bound")
+_REBUILT = ("space", "bodies", "_rows", "_suppress", "_addresses", "_space_cell", "_fresh", "_bound")
 _WALL_RADIUS = 0.005  # m, collision skin of the static boundary segments
 
 
@@ -127,6 +132,13 @@ class World:
             self.bodies.append(body)
         self._addresses = np.array([int(_ffi.cast("intptr_t", _cp_body(b))) for b in self.bodies], dtype=np.int64) \
             if kernels else None
+        self._space_cell = np.array([int(_ffi.cast("intptr_t", _cp.cpBodyGetSpace(_cp_body(self.bodies[0]))))],
+                                    dtype=np.int64) if kernels and self.bodies and _COMPILED["step"] else None
+        """The chipmunk address of the space ``(1,)``, chipmunk's own answer for a robot's body (None: it
+        steps through pymunk's ``Space.step``)."""
+        self._fresh = True
+        """Not stepped yet: its first step goes through pymunk's ``Space.step`` (which checks the
+        bodies added), the later ones through the compiled substep loop where it is available."""
         if kernels:
             kernels.bind_commands(self._addresses, self._rows.values.ctypes.data)
             for body in self.bodies:
@@ -204,13 +216,20 @@ class World:
         a drive advanced here): :func:`step_all` of this world alone."""
         step_all([self], np.asarray(commands, dtype=float)[None])
 
-    def integrate(self, commands: np.ndarray, velocities: np.ndarray) -> None:
+    def integrate(self, commands: np.ndarray, velocities: np.ndarray, stepped: bool = False) -> None:
         """The physics substeps of one control step, the body velocities of substep ``s`` being
         ``velocities[:, s]`` ``(N, substeps, 2)`` (the commands ``(N, 2)`` as given are kept).
         Part of :func:`step_all`, which binds the compiled callbacks to ``velocities`` first: call
-        that. The world keeps ``velocities`` until its next step (its bodies point into them)."""
-        self._cmd[:] = commands
+        that. The world keeps ``velocities`` until its next step (its bodies point into them).
+        ``stepped``: :func:`step_all` ran the substeps already (its compiled loop): the rest only."""
+        if stepped:  # the caller ran the substeps (step_all's compiled loop): the bookkeeping only
+            self._cmd = commands  # rebound, never written in place (a caller's view is kept as it is)
+            self._bound = velocities
+            self.time += self.physics.control_dt
+            return
+        self._cmd = np.array(commands, dtype=float)
         self._bound = velocities
+        self._fresh = False
         dt, step = self.physics.dt, self.space.step
         if self._addresses is not None and not self._suppress:  # the compiled callbacks read their rows
             for _ in range(self.physics.substeps):
@@ -229,6 +248,19 @@ class World:
         """The chipmunk addresses ``(N,)`` of the robots' bodies, read by the compiled body access
         (:mod:`parcover_env.world.body_kernels`); None where pymunk's Python callbacks run."""
         return self._addresses
+
+    @property
+    def loop_ready(self) -> bool:
+        """True if :func:`step_all`'s compiled substep loop may step this world's space now: it has
+        the space's address and has been stepped once by ``Space.step`` since it was built (which
+        also leaves the contacts in progress at a rebuild uncounted)."""
+        return self._space_cell is not None and not self._fresh
+
+    @property
+    def space_address(self) -> int | None:
+        """The chipmunk address of the world's space, stepped by the compiled substep loop
+        (:func:`~parcover_env.world.body_kernels.step_spaces`); None where pymunk's Python callbacks run."""
+        return None if self._space_cell is None else int(self._space_cell[0])
 
     def poses(self) -> np.ndarray:
         """Ground-truth poses ``(N, 3)``: x, y (m), theta (rad, wrapped to (-pi, pi])."""
@@ -252,26 +284,45 @@ def poses_all(worlds: Sequence[World]) -> np.ndarray:
     flat = _flat_addresses(worlds)
     if flat is None:
         return np.stack([w.poses() for w in worlds])
-    out = np.empty((len(flat), 3))
-    _kernels().read_poses(flat, out)  # the angles wrapped there
+    out = np.empty((len(flat.bodies), 3))
+    _kernels().read_poses(flat.bodies, out)  # the angles wrapped there
     return out.reshape(len(worlds), -1, 3)
 
 
+class _Addresses(NamedTuple):
+    """The chipmunk addresses of some worlds, world after world."""
+
+    bodies: np.ndarray
+    """``(K N,)`` their robots' bodies."""
+    spaces: np.ndarray | None
+    """``(K,)`` their spaces (None: they step through pymunk's ``Space.step``)."""
+
+
 _FLAT: list = []
-"""The worlds' body addresses last concatenated, and the arrays they came from (kept alive, so
-compared by identity: a world's addresses change only when it rebuilds its space)."""
+"""The worlds' addresses last concatenated (:class:`_Addresses`), and the body address arrays they came
+from (kept alive, so compared by identity: a world's addresses change only when it rebuilds its space)."""
 
 
-def _flat_addresses(worlds: Sequence[World]) -> np.ndarray | None:
-    """The body addresses of all ``worlds`` end to end, or None if some world has none (pymunk's
-    Python callbacks)."""
+def _flat_addresses(worlds: Sequence[World]) -> _Addresses | None:
+    """The addresses of all ``worlds`` end to end, or None if some world has none (pymunk's Python
+    callbacks)."""
     addresses = [w.body_addresses for w in worlds]
     if _FLAT and len(_FLAT[0]) == len(addresses) and all(map(is_, addresses, _FLAT[0])):
         return _FLAT[1]
     if any(a is None for a in addresses):
         return None
-    _FLAT[:] = [addresses, np.concatenate(addresses)]
+    cells = [w.space_address for w in worlds]
+    spaces = None if None in cells else np.array(cells, dtype=np.int64)
+    _FLAT[:] = [addresses, _Addresses(np.concatenate(addresses), spaces)]
     return _FLAT[1]
+
+
+def _one_world(world: World) -> _Addresses | None:
+    """The addresses of one world (:func:`_flat_addresses` without its cache)."""
+    if world.body_addresses is None:
+        return None
+    space = world.space_address
+    return _Addresses(world.body_addresses, None if space is None else np.array([space], dtype=np.int64))
 
 
 def step_all(worlds: Sequence[World], commands: np.ndarray, velocities: np.ndarray | None = None) -> None:
@@ -280,8 +331,10 @@ def step_all(worlds: Sequence[World], commands: np.ndarray, velocities: np.ndarr
     substep when the caller advanced the worlds' drives already
     (:func:`~parcover_env.world.drive.command_steps_all`), None: the drives are advanced here (or the
     commands apply as they are, ``drive: instant``). The compiled callbacks of all worlds' bodies are
-    pointed at their rows in one call, then each world runs its substeps (:meth:`World.integrate`):
-    the same floats as each world stepped alone."""
+    pointed at their rows in one call, then the substeps of every world run in one compiled loop
+    over the worlds' chipmunk spaces (:func:`~parcover_env.world.body_kernels.step_spaces`; a world's
+    first step, or the first after a rebuild, goes through pymunk's ``Space.step``:
+    :meth:`World.integrate`): the same floats as each world stepped alone."""
     first = worlds[0]
     physics = first.physics
     k, n = commands.shape[:2]
@@ -292,15 +345,23 @@ def step_all(worlds: Sequence[World], commands: np.ndarray, velocities: np.ndarr
             velocities = command_steps_all([w.drive for w in worlds], commands, physics.dt, physics.substeps)
         else:  # the commands at every substep
             velocities = np.repeat(np.asarray(commands, dtype=float).reshape(k, n, 1, 2), physics.substeps, axis=2)
-    flat = first.body_addresses if k == 1 else _flat_addresses(worlds)
-    if flat is not None:
-        _kernels().bind_rows(flat, velocities.reshape(k * n, *velocities.shape[2:]))
-    else:
+    flat = _flat_addresses(worlds) if k > 1 else _one_world(first)  # K = 1: the batches' cache left alone
+    if flat is None:
         for w, v in zip(worlds, velocities, strict=True):
             if w.body_addresses is not None:
                 _kernels().bind_rows(w.body_addresses, v)
-    for w, c, v in zip(worlds, commands, velocities, strict=True):
-        w.integrate(c, v)
+        for w, c, v in zip(worlds, commands, velocities, strict=True):
+            w.integrate(c, v)
+        return
+    kernels = _kernels()
+    kernels.bind_rows(flat.bodies, velocities.reshape(k * n, *velocities.shape[2:]))
+    # the others step through pymunk's Space.step
+    ready = [False] * k if flat.spaces is None else [w.loop_ready for w in worlds]
+    spaces = flat.spaces if all(ready) else flat.spaces[np.array(ready, dtype=bool)] if any(ready) else ()
+    if len(spaces):
+        kernels.step_spaces(_COMPILED["step"], spaces, physics.dt, physics.substeps)
+    for w, c, v, stepped in zip(worlds, commands, velocities, ready, strict=True):
+        w.integrate(c, v, stepped)
 
 
 class _CommandRows:

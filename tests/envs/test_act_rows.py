@@ -93,6 +93,30 @@ def test_act_rows_are_reused_and_a_copy_or_pickle_owns_plain_arrays():
     assert one is not rows and one.kinect is None  # another K: rows of its own (K = 1: its ticks in place)
 
 
+def test_act_rows_notice_any_rebound_array_after_the_quick_identity_check():
+    """Once attached, act_rows checks identities only; an array a per-world method rebinds (odometry,
+    estimator, drive or Kinect ticks) is still adopted: its values land in its row."""
+    envs = _worlds([1, 2])
+    estimators, drives = [e.estimator for e in envs], [e.world.drive for e in envs]
+    rows = act_rows(estimators, drives)
+    assert act_rows(estimators, drives) is rows
+    rebinds = [(lambda: envs[1].estimator.odometry, "estimate", np.array([[7.0, 8.0, 0.5]] * 15),
+                lambda: rows.odometry.blocks["estimate"][1]),
+               (lambda: envs[0].estimator, "fix_age", np.full(15, 3.0), lambda: rows.estimators.blocks["fix_age"][0]),
+               (lambda: envs[1].world.drive, "travel", np.full((15, 2), 0.25), lambda: rows.drives.blocks["travel"][1]),
+               (lambda: envs[0].estimator.kinect_system, "next_tick", np.full(4, 9.5),
+                lambda: rows.kinect.blocks["next_tick"][0])]
+    for owner, name, value, row in rebinds:
+        setattr(owner(), name, value.copy())
+        assert act_rows(estimators, drives) is rows
+        np.testing.assert_array_equal(row(), value)
+        assert np.shares_memory(getattr(owner(), name), row())  # the owner holds its row's view again
+    envs[1].estimator.odometry = copy.deepcopy(envs[1].estimator.odometry)  # a new object, same values
+    envs[1].estimator.odometry.covariance[0, 0, 0] = 4.5
+    act_rows(estimators, drives)
+    assert rows.odometry.blocks["covariance"][1, 0, 0, 0] == 4.5
+
+
 # ---------------------------------------------------------------------------------------- physics
 def test_step_all_bodies_read_one_row_per_substep():
     """A robot heading along +x with body velocities 0.1, 0.2, ... 0.5 m/s over the 5 substeps moves

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
+import pytest
 
 from parcover_env.config import MapConfig, PhysicsConfig
 from parcover_env.world.map_model import MapModel
@@ -86,3 +88,97 @@ def test_compiled_callback_follows_the_command_of_its_own_robot():
     assert math.isclose(p[0, 0], 1.0 + 0.5 * 0.18, abs_tol=1e-12) and math.isclose(p[0, 1], 1.0, abs_tol=1e-12)
     assert math.isclose(p[1, 2], math.pi / 2 + 0.18, abs_tol=1e-12)
     assert math.isclose(p[1, 0], 2.0, abs_tol=1e-12) and math.isclose(p[1, 1], 2.0, abs_tol=1e-12)
+
+
+def test_step_spaces_runs_the_substeps_of_each_space_in_turn():
+    """Two one-robot worlds, body velocities 0.1 .. 0.5 m/s (first world) and 0.5 .. 0.1 m/s (second)
+    over 5 substeps of 0.02 s: each moves by dt times the sum of its first four rows (a body moves
+    before its velocity update), the floats of pymunk's ``Space.step`` five times."""
+    from parcover_env.world import body_kernels, physics
+
+    assert physics._kernels() is not None
+    from pymunk._chipmunk import ffi, lib
+
+    cfg = PhysicsConfig(dt=0.02, substeps=5)
+
+    def pair():
+        ws = [World(BOX, 0.15, cfg, np.array([[1.0, 1.5, 0.0]])), World(BOX, 0.15, cfg, np.array([[2.0, 1.0, 0.0]]))]
+        rows = np.zeros((2, 5, 2))
+        rows[0, :, 0] = [0.1, 0.2, 0.3, 0.4, 0.5]
+        rows[1, :, 0] = [0.5, 0.4, 0.3, 0.2, 0.1]
+        for w, r in zip(ws, rows, strict=True):
+            body_kernels.bind_rows(w.body_addresses, r[None])
+        return ws, rows
+
+    ws, rows = pair()
+    spaces = np.array([w.space_address for w in ws], dtype=np.int64)
+    body_kernels.step_spaces(body_kernels.space_step_address(ffi, lib), spaces, 0.02, 5)
+    assert ws[0].poses()[0, 0] == pytest.approx(1.0 + 0.02 * 1.0, abs=1e-15)
+    assert ws[1].poses()[0, 0] == pytest.approx(2.0 + 0.02 * 1.4, abs=1e-15)
+    ref, _ = pair()
+    for w in ref:
+        for _ in range(5):
+            w.space.step(0.02)
+    for a, b in zip(ws, ref, strict=True):
+        assert a.poses().tobytes() == b.poses().tobytes()
+
+
+def test_step_all_takes_the_compiled_loop_after_the_first_step_with_the_same_floats(monkeypatch):
+    """Worlds stepped by :func:`step_all` (compiled substep loop from the second step on, a rebuilt
+    world through pymunk's ``Space.step`` first) are bit-identical to worlds that always step
+    through ``Space.step`` (kept fresh), in contact with walls and each other."""
+    from parcover_env.world import body_kernels
+    from parcover_env.world.physics import step_all
+
+    looped = []  # the spaces each compiled loop stepped
+    loop = body_kernels.step_spaces
+    monkeypatch.setattr(body_kernels, "step_spaces", lambda fn, spaces, *a: (looped.append(len(spaces)),
+                                                                               loop(fn, spaces, *a)))
+    poses = np.array([[0.5, 0.5, 0.3], [0.9, 0.6, 2.9], [1.6, 1.5, 0.1], [2.0, 1.5, 3.0]])
+    fast = [World(BOX, 0.15, PhysicsConfig(), p) for p in (poses, poses[::-1].copy())]
+    slow = [World(BOX, 0.15, PhysicsConfig(), p) for p in (poses, poses[::-1].copy())]
+    rng = np.random.default_rng(5)
+    for t in range(40):
+        cmd = np.stack([np.column_stack([rng.uniform(0.1, 0.6, 4), rng.uniform(-1.5, 1.5, 4)]) for _ in range(2)])
+        if t == 20:  # a rebuilt space (a copy mid-episode): its first step goes through Space.step again
+            fast[1] = copy.deepcopy(fast[1])
+            slow[1] = copy.deepcopy(slow[1])
+        looped.clear()
+        step_all(fast, cmd)
+        assert fast[0].loop_ready
+        assert looped == ([] if t == 0 else [1] if t == 20 else [2])  # a fresh space: Space.step
+        for w, c in zip(slow, cmd, strict=True):
+            w._fresh = True
+            step_all([w], c[None])
+    for a, b in zip(fast, slow, strict=True):
+        assert a.poses().tobytes() == b.poses().tobytes()
+        assert a.wall_contacts.tolist() == b.wall_contacts.tolist()
+        assert a.robot_contacts.tolist() == b.robot_contacts.tolist()
+        assert a.time == b.time
+    assert sum(fast[0].wall_contacts) + sum(fast[0].robot_contacts) > 0
+
+
+def test_step_all_without_space_handles_steps_through_space_step(monkeypatch):
+    """A pymunk build that does not expose its spaces' chipmunk handles: the worlds step through
+    pymunk's ``Space.step`` (no compiled substep loop), with the same floats."""
+    from parcover_env.world import physics
+    from parcover_env.world.physics import step_all
+
+    assert physics._kernels() is not None
+    poses = np.array([[0.5, 0.5, 0.3], [0.9, 0.6, 2.9], [1.6, 1.5, 0.1]])
+
+    def run():
+        worlds = [World(BOX, 0.15, PhysicsConfig(), p) for p in (poses, poses[::-1].copy())]
+        rng = np.random.default_rng(2)
+        for _ in range(20):
+            step_all(worlds, np.stack([np.column_stack([rng.uniform(0.1, 0.6, 3), rng.uniform(-1.5, 1.5, 3)])
+                                       for _ in range(2)]))
+        return worlds
+
+    compiled = run()
+    monkeypatch.setitem(physics._COMPILED, "step", None)
+    plain = run()
+    assert plain[0].space_address is None and compiled[0].space_address is not None
+    for a, b in zip(compiled, plain, strict=True):
+        assert a.poses().tobytes() == b.poses().tobytes()
+        assert a.wall_contacts.tolist() == b.wall_contacts.tolist()

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Sequence
+from operator import is_
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -53,21 +54,22 @@ def update_systems(systems: Sequence[Any], times: Sequence[float], true: np.ndar
     markers = np.ascontiguousarray(markers, dtype=bool)
     finite = batch_kernels.schedule(ticks, np.asarray(times, dtype=float), systems[0].periods, markers, true, due,
                                     active)
-    batch = []
-    for k, (s, on) in enumerate(zip(systems, active.tolist(), strict=True)):
+    models = [s.fast for s in systems]
+    on = active.tolist()
+    for k, s in enumerate(systems):
         if not shared:
             s.next_tick[:] = ticks[k]
         s.last_fixes = {}
-        if not on:
-            continue
-        if s.fast is None:
+        if on[k] and models[k] is None:  # kinect: frames
             per_kinect = s.frame_estimates(np.flatnonzero(due[k]), true[k], markers[k], rngs[k], times[k])
             out[k] = s.track(per_kinect, markers[k], predicted[k], times[k])
-        else:
-            batch.append(k)
-    groups: dict[tuple, list[int]] = {}
-    for k in batch:  # worlds sharing the static Kinect scenes (the batched worlds do) go together
-        groups.setdefault(tuple(map(id, systems[k].fast.depths)) if len(batch) > 1 else (), []).append(k)
+    batch = [k for k, (model, o) in enumerate(zip(models, on, strict=True)) if o and model is not None]
+    if len(batch) == k_count and _tables(models).shared:  # every world, one set of Kinect scenes: one group
+        groups = {(): batch}
+    else:  # worlds sharing the static Kinect scenes (the batched worlds do) go together
+        groups = {}
+        for k in batch:
+            groups.setdefault(tuple(map(id, models[k].depths)) if len(batch) > 1 else (), []).append(k)
     for ks in groups.values():
         every = len(ks) == k_count  # all worlds (the common case): no gather
         rows = slice(None) if every else ks
@@ -124,7 +126,7 @@ def _detections(systems: Sequence[Any], due: np.ndarray, true: np.ndarray, marke
     """:func:`fast_estimates` as flat lists (every world's draws, in its order); ``scratch``: the
     buffers of :func:`_scratch` for at least these worlds (made here if None)."""
     models = [s.fast for s in systems]
-    kinects, pattern = _tables(models)
+    kinects, pattern, _ = _tables(models)
     if scratch is None:
         scratch = _scratch(due.shape, true.shape[1])
     cands = scratch.candidates
@@ -186,26 +188,36 @@ def _scratch(shape: tuple[int, ...], n_robots: int) -> Scratch:
     return held[1]
 
 
+class Tables(NamedTuple):
+    """The estimate models' constants of ``K`` worlds, model after model (:func:`_tables`)."""
+
+    kinects: np.ndarray
+    """Their :data:`~parcover_env.localization.kinect.estimate_kernel.KINECT` rows."""
+    pattern: np.ndarray
+    """Their Kinects' marker patterns."""
+    shared: bool
+    """True if every model has the same static depths (the same arrays: one group of worlds)."""
+
+
 _TABLES: list = []
-"""The last stacked tables and the models' tables they were stacked from (kept alive, so compared by
-identity): the batched worlds' tables change only when a world remounts its Kinects (a reset)."""
+"""The models last stacked (kept alive, so compared by identity: a model's tables are made once, and
+the batched worlds' models change only when a world remounts its Kinects, a reset) and their
+:class:`Tables`."""
 
 
-def _tables(models: Sequence[Any]) -> tuple[np.ndarray, np.ndarray]:
-    """The :data:`~parcover_env.localization.kinect.estimate_kernel.KINECT` rows and marker patterns
-    of the estimate ``models``' Kinects, model after model."""
+def _tables(models: Sequence[Any]) -> Tables:
+    """The :class:`Tables` of the estimate ``models`` (their Kinects, model after model)."""
     if len(models) == 1:
-        return models[0].kinects, models[0].pattern
-    if _TABLES:
-        parts, kinects, pattern = _TABLES
-        if len(parts) == 2 * len(models) and all(p is m.kinects and q is m.pattern for p, q, m in
-                                                  zip(parts[::2], parts[1::2], models, strict=True)):
-            return kinects, pattern
+        return Tables(models[0].kinects, models[0].pattern, True)
+    if _TABLES and len(_TABLES[0]) == len(models) and all(map(is_, models, _TABLES[0])):
+        return _TABLES[1]
     # structured rows concatenated as bytes (numpy's field promotion costs ~2 us a table)
     kinects = np.concatenate([m.kinects.view(np.uint8) for m in models]).view(estimate_kernel.KINECT)
     pattern = np.concatenate([m.pattern for m in models])
-    _TABLES[:] = [[x for m in models for x in (m.kinects, m.pattern)], kinects, pattern]
-    return kinects, pattern
+    depths = models[0].depths
+    shared = all(len(m.depths) == len(depths) and all(map(is_, m.depths, depths)) for m in models)
+    _TABLES[:] = [list(models), Tables(kinects, pattern, shared)]
+    return _TABLES[1]
 
 
 def track_all(systems: Sequence[Any], found: Detections, markers: np.ndarray, predicted: np.ndarray,
@@ -233,6 +245,11 @@ def track_all(systems: Sequence[Any], found: Detections, markers: np.ndarray, pr
         lo, hi = bounds[b], bounds[b + 1]
         if flagged[b]:  # outside the common case: the system's own tracking
             out.append(s.track([_estimates(s, found, range(lo, hi), times)], markers[b], predicted[b], times[b]))
-        else:
-            out.append(s.tracked(s.tracker.assign(poses[lo:hi], robots[lo:hi], times[b]), markers[b]))
+            continue
+        fixes = s.tracker.assign(poses[lo:hi], robots[lo:hi], times[b])
+        if s.handover:
+            s.tracked(fixes, markers[b])
+        else:  # what tracked does without robots awaiting their first detection
+            s.last_fixes = fixes
+        out.append(fixes)
     return out

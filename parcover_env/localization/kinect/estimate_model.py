@@ -63,7 +63,8 @@ def estimate_fast_all(sensors: list[KinectSensor], poses, marker_mask, rng: np.r
 class FastModel:
     """The estimate model (:func:`estimate_fast`) of a set of Kinects: their constants stacked once
     (a :data:`~parcover_env.localization.kinect.estimate_kernel.KINECT` row per Kinect) for one
-    compiled call per step. Build it again after a sensor is remounted."""
+    compiled call per step. Build it again after a sensor is remounted; do not rebind its tables after its
+    first step (the batched worlds' stacked tables are kept by model)."""
 
     def __init__(self, sensors: list[KinectSensor], noise: FastNoise | None = None):
         self.sensors = list(sensors)
