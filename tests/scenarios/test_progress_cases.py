@@ -88,3 +88,11 @@ def test_copies_and_pickles_drop_the_shared_rows():
     t = RouteTracker(np.array([[3.0, 0.0]]), 0.1, [LINE], waypoint_tol=0.1)
     t.rows = object()
     assert copy.deepcopy(t).rows is None and pickle.loads(pickle.dumps(t)).rows is None
+
+
+def test_route_table_pads_every_route_to_the_longest_repeating_its_last_vertex():
+    routes = [np.array([[0.0, 0.0], [2.0, 0.0]]), np.array([[5.0, 5.0]])]
+    table = RouteTracker(np.array([[9.0, 9.0]]), 0.1, routes, waypoint_tol=0.1).table
+    assert table.pts.shape == (2, 2, 2) and table.length.tolist() == [2, 1]
+    assert table.pts[1].tolist() == [[5.0, 5.0], [5.0, 5.0]] and table.arc[1].tolist() == [0.0, np.inf]
+    assert table.arc_end.tolist() == [2.0, 0.0] and table.seg_len[0].tolist() == [2.0]
