@@ -96,3 +96,10 @@ def test_route_table_pads_every_route_to_the_longest_repeating_its_last_vertex()
     assert table.pts.shape == (2, 2, 2) and table.length.tolist() == [2, 1]
     assert table.pts[1].tolist() == [[5.0, 5.0], [5.0, 5.0]] and table.arc[1].tolist() == [0.0, np.inf]
     assert table.arc_end.tolist() == [2.0, 0.0] and table.seg_len[0].tolist() == [2.0]
+
+
+def test_a_kpoi_vertex_exactly_waypoint_tol_away_is_reached():
+    t = _walk(RouteTracker(np.array([[1.0, 0.0], [3.0, 0.0]]), 0.1, [LINE], waypoint_tol=0.25), [0.75, 0.0])
+    assert t.progress.tolist() == [1.0] and t.waypoint.tolist() == [2]  # reached: progress moved onto the vertex
+    t = _walk(RouteTracker(np.array([[1.0, 0.0], [3.0, 0.0]]), 0.1, [LINE], waypoint_tol=0.2499), [0.75, 0.0])
+    assert t.progress.tolist() == [0.75] and t.waypoint.tolist() == [1]
