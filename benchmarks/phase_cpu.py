@@ -48,7 +48,7 @@ def measure(k: int, model: str, steps: int, chunks: int) -> dict[str, float]:
             t2 = clock()
             stepper.observe(worlds, true, scores)
             t3 = clock()
-            stepper.outputs(worlds, true, scores, active=True)
+            stepper.slot_outputs(worlds, true, scores, active=True)
             t4 = clock()
             for w in worlds:
                 if not w.agents:

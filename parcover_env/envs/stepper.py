@@ -13,7 +13,8 @@ env all step through here, so the rules are written once:
    :mod:`parcover_env.envs.obs_v2`); clipped into the bounds. World ``k`` draws from its own generator in the
    order a single world would, so it is bit for bit a separate env;
 3. **outputs** (:func:`outputs`, all worlds at once, :mod:`parcover_env.envs.outputs_phase`): rewards,
-   terminations, truncations, infos;
+   terminations, truncations, infos (by world and agent name; by agent slot: :func:`slot_outputs`, which
+   :func:`step_slots` returns, what a VecEnv reads);
 4. **slots** (:func:`slot_info`, :func:`with_metrics`): what a vectorized or single-agent view adds
    to an agent's info (``metrics``, ``terminal_observation``, ``TimeLimit.truncated``, ``active``);
    a world whose agents are all done is reset by the caller (auto-reset).
@@ -33,11 +34,13 @@ from parcover_env.envs import act_phase, obs_v2, outputs_phase, score_phase
 from parcover_env.envs.handover import CameraView
 from parcover_env.envs.metrics import episode_metrics
 from parcover_env.envs.observations import ScalarInputs
+from parcover_env.envs.outputs_phase import SlotOutputs
 from parcover_env.envs.score_phase import Scores, gather, rows
 from parcover_env.scenarios.progress import goals_many
 from parcover_env.sensors.base import SensingState
 
-__all__ = ["sensing_state", "observe", "step", "act", "score", "outputs", "with_metrics", "slot_info"]
+__all__ = ["sensing_state", "observe", "step", "step_slots", "act", "score", "outputs", "slot_outputs", "with_metrics",
+           "slot_info"]
 
 
 def sensing_state(worlds: Sequence[Any], true: np.ndarray) -> SensingState:
@@ -100,6 +103,16 @@ def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray, 
     return obs, outputs(worlds, true, scores, active=active)
 
 
+def step_slots(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray, *,
+               active: bool = True) -> tuple[np.ndarray, SlotOutputs]:
+    """:func:`step` with the outputs by agent slot (:func:`slot_outputs`, what a VecEnv reads): the
+    observations ``(K, N, D)`` and the rewards, ends and infos of the ``K N`` agents."""
+    before, true = act(worlds, actions)
+    scores = score(worlds, before, true)
+    obs = observe(worlds, true, scores)
+    return obs, slot_outputs(worlds, true, scores, active=active)
+
+
 def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Part 1a of every world (:func:`parcover_env.envs.act_phase.act`: act, physics, pose estimates):
     the true poses ``(K, N, 3)`` before and after the step."""
@@ -116,6 +129,12 @@ def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *, active: 
     """Part 3 of every world, all at once (:func:`parcover_env.envs.outputs_phase.outputs`):
     ``(rewards, terminations, truncations, infos)`` per world."""
     return outputs_phase.outputs(worlds, true, scores, active=active)
+
+
+def slot_outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *, active: bool = True) -> SlotOutputs:
+    """Part 3 of every world by agent slot (:func:`parcover_env.envs.outputs_phase.slot_outputs`): the
+    rewards ``(K, N)``, the worlds' ends and the ``K N`` infos."""
+    return outputs_phase.slot_outputs(worlds, true, scores, active=active)
 
 
 def with_metrics(info: dict) -> dict:
