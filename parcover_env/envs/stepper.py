@@ -43,38 +43,52 @@ __all__ = ["sensing_state", "observe", "step", "step_slots", "act", "score", "ou
            "slot_info"]
 
 
-def sensing_state(worlds: Sequence[Any], true: np.ndarray) -> SensingState:
+def sensing_state(worlds: Sequence[Any], true: np.ndarray, predecessor: np.ndarray | None = None) -> SensingState:
     """What the sensors read: ``true (K, N, 3)`` poses of the worlds, their shared walls and radius,
-    and who follows whom in each world."""
+    and who follows whom in each world (``predecessor (K, N)``, gathered from the teams if not given)."""
     first = worlds[0]
-    predecessor = rows([w.team.predecessor for w in worlds])
+    if predecessor is None:
+        predecessor = rows([w.team.predecessor for w in worlds])
     return SensingState(true, first.map.segments, float(first.scenario.robot.radius), predecessor)
 
 
 def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = None) -> np.ndarray:
     """Observations ``(K, N, D)`` float32 of every robot of the ``K`` worlds at true poses ``(K, N, 3)``
-    (``scores``: this step's score phase, whose goal points, estimates and visits it reads instead of
-    gathering them again). Sets each world's ``camera_views`` and ``camera_index`` (the cameras'
-    measurements of all worlds, blocks, and its row: its ``camera_view``, which Alg. 1's next hand-over uses)."""
+    (``scores``: this step's score phase, whose goal points, estimates, visits, team rows and estimator
+    rows it reads instead of gathering them again). Sets each world's ``camera_views`` and
+    ``camera_index`` (the cameras' measurements of all worlds, blocks, and its row: its ``camera_view``,
+    which Alg. 1's next hand-over uses)."""
     first = worlds[0]
-    state = sensing_state(worlds, true)
+    team = None if scores is None else scores.team
+    if team is None:
+        teams = [w.team for w in worlds]
+        team = {"leader": rows([t.leader for t in teams]), "slot": rows([t.slot for t in teams]),
+                "predecessor": rows([t.predecessor for t in teams])}
+    else:  # the teams' rows change at the next split: the camera view keeps a copy
+        team = {**team, "predecessor": team["predecessor"].copy()}
+    state = sensing_state(worlds, true, team["predecessor"])
     rngs = [w.np_random for w in worlds]
     seen = first.camera.measure_many(true, state.predecessor, state.segments, rngs)
     obs = np.zeros((len(worlds), state.n_robots, first.layout.size), dtype=np.float32)
-    estimators = [w.estimator for w in worlds]
     if scores is None:
         goals, est, visited = (goals_many([w.progress for w in worlds])[0], gather([w.estimate for w in worlds]),
                                rows([w.progress.visited for w in worlds]))
     else:
         goals, est, visited = scores.goals, scores.estimates, scores.visited
+    act = None if scores is None else scores.act
+    if act is None:
+        estimators = [w.estimator for w in worlds]
+        velocity, fix_age = rows([e.velocity for e in estimators]), rows([e.fix_age for e in estimators])
+        covariance = rows([e.covariance for e in estimators])
+    else:
+        velocity, fix_age = act.estimators.blocks["velocity"], act.estimators.blocks["fix_age"]
+        covariance = act.odometry.blocks["covariance"]
     rel_xy, rel_heading, visible = seen
     views = CameraView(state.predecessor, seen, est)  # of all worlds; world k reads its row (camera_view)
     for k, w in enumerate(worlds):
         w.camera_views, w.camera_index = views, k
-    teams = [w.team for w in worlds]
     first.layout.fill_scalars_many(obs, ScalarInputs(
-        est, rows([e.velocity for e in estimators]), rows([t.leader for t in teams]), rows([t.slot for t in teams]),
-        rows([e.fix_age for e in estimators]), rows([e.covariance for e in estimators]), goals, rel_xy, rel_heading,
+        est, velocity, team["leader"], team["slot"], fix_age, covariance, goals, rel_xy, rel_heading,
         visible, visited.sum(axis=1) / visited.shape[1],
         np.array([w.steps for w in worlds]) / first.scenario.episode.max_steps))
     if first.scanner is not None:  # the ``scan`` entries of the spec

@@ -32,7 +32,11 @@ import numpy as np
 
 from parcover_env.planning.plan import Plan
 
-__all__ = ["Team", "count_waypoints_many"]
+__all__ = ["Team", "TEAM_ROWS", "count_waypoints_many"]
+
+TEAM_ROWS = ("leader", "slot", "predecessor", "tp_ahead")
+"""The :class:`Team` arrays the stepper reads for ``K`` worlds as rows of shared blocks
+(:func:`~parcover_env.envs.score_rows.shared_rows`, :attr:`Team.rows`)."""
 
 
 class Team:
@@ -46,7 +50,16 @@ class Team:
         self._tps = {tuple(tp.robots): tp for tp in plan.turning_points}
         self.groups: list[tuple[int, int]] = ([(i, i + 1) for i in range(self.n)] if mode == "individual"
                                               else [(0, self.n)])
+        self.rows = None
+        """The shared rows (:data:`TEAM_ROWS`) the arrays are views of while the team is scored with
+        other worlds' teams (:func:`~parcover_env.envs.score_rows.shared_rows`); a split rebinds the
+        arrays (they are adopted again); not copied, not pickled."""
         self._refresh()
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["rows"] = None  # a copy owns plain arrays (numpy copies the views' values)
+        return state
 
     def _pending(self) -> None:
         """:attr:`tp_ahead` from the groups and the TPs not passed yet."""

@@ -85,7 +85,9 @@ def test_one_world_step_is_the_env_step():
     ra = a.step(acts)
     assert all(np.array_equal(ra[0][n], obs[0][i]) for i, n in enumerate(a.possible_agents))
     assert ra[1] == rew and ra[2] == term and ra[3] == trunc
-    assert b.camera_view is not None and np.shares_memory(b.camera_view.predecessor, b.team.predecessor)
+    view = b.camera_view  # the predecessors it was measured against: a copy of the team's (shared) rows
+    assert np.array_equal(view.predecessor, b.team.predecessor)
+    assert not np.shares_memory(view.predecessor, b.team.predecessor)
     assert b.camera_views.predecessor.shape == (1, b.n_robots) and b.camera_index == 0
     with pytest.raises(RuntimeError, match="finished episode"):
         b.agents = []
