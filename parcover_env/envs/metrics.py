@@ -22,6 +22,7 @@ import numpy as np
 
 from parcover_env.envs.score_rows import shared_rows
 from parcover_env.geometry import wrap_angle
+from parcover_env.geometry.row_owner import RowOwner
 
 __all__ = ["EpisodeMetrics", "formation_errors", "formation_errors_many", "MESSAGE_KINDS", "METRICS_PREFIX",
            "TOTALS", "episode_metrics", "record_step", "record_steps"]
@@ -58,7 +59,7 @@ TOTALS = ("steps", "time", "kpois_visited", "wall_collisions", "robot_collisions
 _T = {name: i for i, name in enumerate(TOTALS)}
 
 
-class EpisodeMetrics:
+class EpisodeMetrics(RowOwner):
     """The metrics of one episode. What the steps accumulate lives in two arrays, so that the
     metrics of ``K`` worlds can be rows of shared blocks (:func:`record_steps`): :attr:`totals`
     (the sums and counts of :data:`TOTALS`) and :attr:`paths`; the other values are
@@ -82,12 +83,7 @@ class EpisodeMetrics:
         linked (not copied) by the first recorded step: :attr:`messages` and the splits read them."""
         self.rows = None
         """The shared rows :attr:`totals` and :attr:`paths` are views of when recorded with
-        other worlds' metrics (:func:`record_steps`); not copied, not pickled."""
-
-    def __getstate__(self) -> dict:
-        state = dict(self.__dict__)
-        state["rows"] = None  # a copy owns plain arrays (numpy copies the views' values)
-        return state
+        other worlds' metrics (:func:`record_steps`); not copied, not pickled (:class:`RowOwner`)."""
 
     def __repr__(self) -> str:
         return f"EpisodeMetrics({self.summary()!r})"

@@ -38,6 +38,7 @@ from parcover_env.envs.rewards import own_visits, reward_terms, touching
 from parcover_env.envs.score_rows import shared_rows
 from parcover_env.envs.team import TEAM_ROWS, count_waypoints_many
 from parcover_env.envs.world_rows import ActRows
+from parcover_env.geometry.row_owner import RowOwner
 from parcover_env.scenarios.progress import STATE, step_many
 from parcover_env.scenarios.progress_kernel import TrackerRows
 
@@ -55,7 +56,7 @@ def rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
     return arrays[0][None] if len(arrays) == 1 else np.array(arrays)
 
 
-class ScoreState:
+class ScoreState(RowOwner):
     """What scoring carries over from one step of a world to the next (its arrays rows of shared
     blocks while the world is scored with others: :attr:`rows`)."""
 
@@ -68,12 +69,7 @@ class ScoreState:
         """``(N,)`` int64 robot contacts of each robot counted up to the last step."""
         self.rows = None
         """The shared rows the arrays are views of (:func:`~parcover_env.envs.score_rows.shared_rows`);
-        not copied, not pickled."""
-
-    def __getstate__(self) -> dict:
-        state = dict(self.__dict__)
-        state["rows"] = None  # a copy owns plain arrays (numpy copies the views' values)
-        return state
+        not copied, not pickled (:class:`~parcover_env.geometry.row_owner.RowOwner`)."""
 
     @property
     def contacts(self) -> tuple[np.ndarray, np.ndarray]:

@@ -30,6 +30,7 @@ from collections import Counter
 
 import numpy as np
 
+from parcover_env.geometry.row_owner import RowOwner
 from parcover_env.planning.plan import Plan
 
 __all__ = ["Team", "TEAM_ROWS", "count_waypoints_many"]
@@ -39,7 +40,7 @@ TEAM_ROWS = ("leader", "slot", "predecessor", "tp_ahead")
 (:func:`~parcover_env.envs.score_rows.shared_rows`, :attr:`Team.rows`)."""
 
 
-class Team:
+class Team(RowOwner):
     def __init__(self, plan: Plan, mode: str = "formation", reach_tol: float = 0.2):
         self.n = plan.r
         self.mode = mode
@@ -52,14 +53,9 @@ class Team:
                                               else [(0, self.n)])
         self.rows = None
         """The shared rows (:data:`TEAM_ROWS`) the arrays are views of while the team is scored with
-        other worlds' teams (:func:`~parcover_env.envs.score_rows.shared_rows`); a split rebinds the
-        arrays (they are adopted again); not copied, not pickled."""
+        other worlds' teams (:func:`~parcover_env.envs.score_rows.shared_rows`; None once a split rebinds
+        the arrays: they are adopted again); not copied, not pickled (:class:`RowOwner`)."""
         self._refresh()
-
-    def __getstate__(self) -> dict:
-        state = dict(self.__dict__)
-        state["rows"] = None  # a copy owns plain arrays (numpy copies the views' values)
-        return state
 
     def _pending(self) -> None:
         """:attr:`tp_ahead` from the groups and the TPs not passed yet."""
