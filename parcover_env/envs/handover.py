@@ -87,10 +87,10 @@ def update_teams(teams: Sequence[Team], kinects: Sequence[KinectSystem | None], 
     if tp is None:
         tp = teams[0].tp_ahead[None] if k == 1 else np.array([t.tp_ahead for t in teams])
     fix = np.full((*tp.shape[:2], 2), np.nan)
-    for j, kin in enumerate(kinects):
-        if kin is not None:
-            for i, pose in kin.last_fixes.items():
-                fix[j, i] = pose[:2]
+    found = [(j, i, pose) for j, kin in enumerate(kinects) if kin is not None for i, pose in kin.last_fixes.items()]
+    if found:  # this step's Kinect fixes, written in one call
+        worlds, robots, poses = zip(*found, strict=True)
+        fix[worlds, robots] = np.array(poses)[:, :2]
     maybe = np.empty(k, dtype=bool)
     step_kernels.may_split(tp, np.ascontiguousarray(estimates, dtype=float),
                            np.ascontiguousarray(plan_progress, dtype=float), fix, float(teams[0].tol), SPLIT_MARGIN,

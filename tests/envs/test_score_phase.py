@@ -102,7 +102,7 @@ def test_update_teams_splits_exactly_the_worlds_update_team_splits():
     ref_kin = copy.deepcopy(kin)
     reading = RelativeReading(np.array([[0.0, 0.0], [0.5, 0.0]]), np.zeros(2), np.array([False, True]))
     views = [CameraView(np.array([-1, 0]), reading, e.copy()) for e in est]
-    update_teams([t_far, t_at, t_fix], kin, est, progress, views.__getitem__)
+    assert update_teams([t_far, t_at, t_fix], kin, est, progress, views.__getitem__) == [1, 2]  # the worlds run
     for team, k, e, v in zip(ref, ref_kin, est, views, strict=True):
         update_team(team, k, e, np.zeros(2), v)
     assert [t.groups for t in (t_far, t_at, t_fix)] == [t.groups for t in ref] == [[(0, 2)], [(0, 1), (1, 2)],
