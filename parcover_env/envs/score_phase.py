@@ -1,25 +1,30 @@
 """The stepper's score phase (part 1b) for ``K`` worlds of one scenario at once.
 
 After the act phase has moved every world, :func:`score` tracks the mission, splits and hands over
-(Alg. 1), scores and records each world, gathering what it reads from the worlds into ``(K, N)``
-blocks and computing on the blocks:
+(Alg. 1), scores and records each world, on ``(K, N)`` blocks:
 
+* the pose estimates: a copy of the act phase's estimator rows (:func:`act_rows_of`; gathered from
+  the worlds when the phase is called on its own);
 * route progress, KPOI visits, goals and the route length to go: one compiled call for all worlds
   (:func:`parcover_env.scenarios.progress.step_many`) on the trackers' arrays as rows of shared
   blocks (:func:`parcover_env.envs.score_rows.shared_rows`), updated in place;
-* the team update: waypoint messages counted over ``(K, N)``; only the worlds where a leader may
-  have reached its TP run the (rare) Python split (:func:`parcover_env.envs.handover.update_teams`);
+* the team update on the teams' arrays as rows of shared blocks too
+  (:data:`~parcover_env.envs.team.TEAM_ROWS`): waypoint messages counted over ``(K, N)``; only the
+  worlds where a leader may have reached its TP run the (rare) Python split
+  (:func:`parcover_env.envs.handover.update_teams`), whose rebound arrays are adopted again;
 * the reward terms as ``(K, N)`` arrays (:func:`parcover_env.envs.rewards.reward_terms`), returned
-  in a :class:`Scores` for the outputs phase (with the goal points, for the observations);
+  in a :class:`Scores` for the outputs phase (with the goal points, the team rows and the estimator
+  rows, for the observations);
 * the metrics of all worlds in one call (:func:`parcover_env.envs.metrics.record_steps`), their sums
   rows of shared blocks too.
 
-The worlds' trackers, metrics and :class:`ScoreState` keep their own arrays, which are views of row
-``k`` of shared ``(K, ...)`` blocks while they are scored together (the act phase's pattern,
+The worlds' trackers, teams, metrics and :class:`ScoreState` keep their own arrays, which are views of
+row ``k`` of shared ``(K, ...)`` blocks while they are scored together (the act phase's pattern,
 :mod:`parcover_env.envs.score_rows`): the compiled calls update every world in place, with no gather
-and no write-back; a copy or pickle of a world holds plain arrays, and a world reset since is adopted
-again. So worlds stay independent (deepcopy, pickle) and the ParallelEnv is the ``K = 1`` call; world ``k``
-gets bit for bit what it would alone (``tests/envs/test_batched.py``, ``tests/envs/test_score_phase.py``).
+and no write-back; a copy or pickle of a world holds plain arrays, and a world reset since (or an
+array rebound, :class:`~parcover_env.geometry.row_owner.RowOwner`) is adopted again. So worlds stay
+independent (deepcopy, pickle) and the ParallelEnv is the ``K = 1`` call; world ``k`` gets bit for
+bit what it would alone (``tests/envs/test_batched.py``, ``tests/envs/test_score_phase.py``).
 No random numbers are drawn here.
 """
 
