@@ -109,6 +109,9 @@ class Scores(NamedTuple):
     act: ActRows | None = None
     """The act phase's shared rows of the worlds' pose estimators, every world's attached (to read
     only, this step); None: the estimates were gathered from the worlds."""
+    track: TrackerRows | None = None
+    """The route trackers' :data:`~parcover_env.scenarios.progress.STATE` blocks after this step's
+    progress (to read only, this step)."""
 
 
 def act_rows_of(worlds: Sequence[Any]) -> ActRows | None:
@@ -169,7 +172,7 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
         if w.render_mode is not None:
             for trail, p in zip(w.trails, true[k], strict=True):
                 trail.append(p[:2].copy())
-    return Scores(terms, goals, est, visited, team, act)
+    return Scores(terms, goals, est, visited, team, act, state)
 
 
 _consume = deque(maxlen=0).extend

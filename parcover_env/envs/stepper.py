@@ -96,8 +96,12 @@ def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = Non
             for name, values in w.localization_entries().items():
                 obs[k][:, w.layout.slices[name]] = values[:, None]
     if first.route_facts is not None:  # observation version 2: route and teammate entries, all worlds at once
-        obs_v2.fill(obs, first.layout.slices, first.route_facts, obs_v2.team_rows(worlds),
-                    first.scenario.observation.neighbours)
+        if scores is None or scores.act is None or scores.track is None:
+            mates = obs_v2.team_rows(worlds)
+        else:  # this step's blocks
+            mates = obs_v2.TeamRows(est, velocity, team["leader"], obs_v2.group_sizes(team["leader"]),
+                                    scores.track.waypoint, scores.track.progress - first.progress.offsets, visited)
+        obs_v2.fill(obs, first.layout.slices, first.route_facts, mates, first.scenario.observation.neighbours)
     for name, sensor in first.sensors.items():  # every sensor entry of the spec, all worlds in one call
         if sensor is not None:
             obs[..., first.layout.slices[name]] = sensor.sense(state, rngs)
