@@ -48,7 +48,7 @@ def measure(k: int, model: str, steps: int, chunks: int) -> dict[str, float]:
             t2 = clock()
             stepper.observe(worlds, true, scores)
             t3 = clock()
-            stepper.slot_outputs(worlds, true, scores, active=True)
+            getattr(stepper, "slot_outputs", stepper.outputs)(worlds, true, scores, active=True)  # what a VecEnv calls
             t4 = clock()
             for w in worlds:
                 if not w.agents:
