@@ -110,7 +110,8 @@ def breakdown(model: str, k: int, steps: int) -> dict:
     ``k`` worlds."""
     from parcover_env.envs import act_phase, stepper
 
-    phases = {name: getattr(stepper, name) for name in ("act", "score", "outputs")}
+    calls = {"act": "act", "score": "score", "outputs": "slot_outputs"}  # the stepper calls a VecEnv step makes
+    phases = {name: getattr(stepper, call) for name, call in calls.items()}
     inner = {name: getattr(act_phase, name) for name in ("step_all", "command_steps_rows", "update_all")}
     venv = _venv(model, k)
     try:
@@ -124,8 +125,8 @@ def breakdown(model: str, k: int, steps: int) -> dict:
                 seen.add(id(w.sonar))
                 clock.wrap(w.sonar, "draw", "sonar")
                 clock.wrap(w.sonar, "readings", "sonar")
-        for name in phases:
-            clock.wrap(stepper, name, name)
+        for name, call in calls.items():
+            clock.wrap(stepper, call, name)
         clock.wrap(act_phase, "command_steps_rows", "drives")
         clock.wrap(act_phase, "update_all", "estimators")
         t0 = time.perf_counter()
@@ -134,7 +135,7 @@ def breakdown(model: str, k: int, steps: int) -> dict:
         total = time.perf_counter() - t0
     finally:
         for name, fn in phases.items():
-            setattr(stepper, name, fn)
+            setattr(stepper, calls[name], fn)
         for name, fn in inner.items():
             setattr(act_phase, name, fn)
         venv.close()

@@ -52,7 +52,7 @@ def chunks(k: int, model: str, steps: int, count: int):
             t2 = clock()
             stepper.observe(worlds, true, scores)
             t3 = clock()
-            stepper.outputs(worlds, true, scores, active=True)
+            getattr(stepper, "slot_outputs", stepper.outputs)(worlds, true, scores, active=True)  # what a VecEnv calls
             t4 = clock()
             for w in worlds:
                 if not w.agents:

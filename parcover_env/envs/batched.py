@@ -31,7 +31,6 @@ them (and the Mission) between the worlds.
 from __future__ import annotations
 
 import copy
-from itertools import chain
 from typing import Any
 
 import numpy as np
@@ -123,25 +122,23 @@ class BatchedVecEnv(VecEnv):
         if self._actions is None:
             raise RuntimeError("step_wait() without step_async()")
         acts, self._actions = self._actions, None
-        n, names = self.n_robots, self.agents_per_world
+        n = self.n_robots
         # the (K N, A) slots as the (K, N, A) block of the worlds' agents (validated by the act phase)
-        world_obs, outs = stepper.step(self.worlds, acts.reshape(self.n_worlds, n, *acts.shape[1:]), active=True)
+        world_obs, out = stepper.step_slots(self.worlds, acts.reshape(self.n_worlds, n, *acts.shape[1:]))
         obs = world_obs.reshape(self.num_envs, *world_obs.shape[2:])  # the slots, world by world (a view)
-        rewards = np.fromiter(chain.from_iterable(out[0].values() for out in outs), np.float32, self.num_envs)
+        rewards = out.rewards.reshape(-1).astype(np.float32)
         dones = np.zeros(self.num_envs, dtype=bool)
-        infos: list[dict] = []
+        infos = out.infos  # ``active`` set; a running episode's are complete (stepper.slot_info adds nothing)
         copied = False
-        for k, (_, term, trunc, inf) in enumerate(outs):
-            t, tr = term[names[0]], trunc[names[0]]  # all robots of a world end together
-            if t or tr:
+        for k, (t, tr) in enumerate(zip(out.terminated, out.truncated, strict=True)):
+            if t or tr:  # all robots of a world end together
                 if not copied:  # the terminal observations stay the worlds' rows: reset into a copy
                     obs, copied = obs.copy(), True
                 o, rows = world_obs[k], slice(k * n, (k + 1) * n)
-                infos += [stepper.slot_info(inf[a], o[i], t, tr) for i, a in enumerate(names)]
+                for i, info in enumerate(infos[rows]):
+                    stepper.slot_info(info, o[i], t, tr)  # in place
                 dones[rows] = True
                 obs[rows] = self._reset_world(k)
-            else:  # stepper.slot_info of a running episode: no metrics yet, ``active`` already set
-                infos += inf.values()
         return obs, rewards, dones, infos
 
     def close(self) -> None:

@@ -71,26 +71,31 @@ def update_team(team: Team, kinects: KinectSystem | None, estimate: np.ndarray, 
 
 
 def update_teams(teams: Sequence[Team], kinects: Sequence[KinectSystem | None], estimates: np.ndarray,
-                 plan_progress: np.ndarray, view_of: Callable[[int], CameraView | None]) -> None:
+                 plan_progress: np.ndarray, view_of: Callable[[int], CameraView | None], *,
+                 tp: np.ndarray | None = None) -> list[int]:
     """:func:`update_team` of the teams of ``K`` worlds of one mission (one ``tol``; estimates
     ``(K, N, 3)``, plan progress ``(K, N)``; ``view_of(k)``: world ``k``'s camera view, asked for
     the worlds that may split only), run only for the worlds where a leader heading for a
     TP (:attr:`Team.tp_ahead`) has passed its distance, or its estimate or this step's Kinect fix lies
     within ``tol`` of it (one compiled test of all worlds, widened by :data:`SPLIT_MARGIN`): in every
-    other world :meth:`Team.update` would not split (its tests are a subset)."""
+    other world :meth:`Team.update` would not split (its tests are a subset). ``tp``: the teams'
+    :attr:`Team.tp_ahead` ``(K, N, 3)`` if at hand (gathered if not). Returns the worlds that ran
+    :func:`update_team` (a split there rebinds its team's arrays)."""
     from parcover_env.envs import step_kernels
 
     k = len(teams)
-    tp = teams[0].tp_ahead[None] if k == 1 else np.array([t.tp_ahead for t in teams])
+    if tp is None:
+        tp = teams[0].tp_ahead[None] if k == 1 else np.array([t.tp_ahead for t in teams])
     fix = np.full((*tp.shape[:2], 2), np.nan)
-    for j, kin in enumerate(kinects):
-        if kin is not None:
-            for i, pose in kin.last_fixes.items():
-                fix[j, i] = pose[:2]
+    found = [(j, i, pose) for j, kin in enumerate(kinects) if kin is not None for i, pose in kin.last_fixes.items()]
+    if found:  # this step's Kinect fixes, written in one call
+        worlds, robots, poses = zip(*found, strict=True)
+        fix[worlds, robots] = np.array(poses)[:, :2]
     maybe = np.empty(k, dtype=bool)
     step_kernels.may_split(tp, np.ascontiguousarray(estimates, dtype=float),
                            np.ascontiguousarray(plan_progress, dtype=float), fix, float(teams[0].tol), SPLIT_MARGIN,
                            maybe)
-    for j, m in enumerate(maybe.tolist()):
-        if m:
-            update_team(teams[j], kinects[j], estimates[j], plan_progress[j], view_of(j))
+    ran = np.flatnonzero(maybe).tolist()
+    for j in ran:
+        update_team(teams[j], kinects[j], estimates[j], plan_progress[j], view_of(j))
+    return ran

@@ -22,6 +22,7 @@ import numpy as np
 
 from parcover_env.envs.score_rows import shared_rows
 from parcover_env.geometry import wrap_angle
+from parcover_env.geometry.row_owner import RowOwner
 
 __all__ = ["EpisodeMetrics", "formation_errors", "formation_errors_many", "MESSAGE_KINDS", "METRICS_PREFIX",
            "TOTALS", "episode_metrics", "record_step", "record_steps"]
@@ -58,7 +59,7 @@ TOTALS = ("steps", "time", "kpois_visited", "wall_collisions", "robot_collisions
 _T = {name: i for i, name in enumerate(TOTALS)}
 
 
-class EpisodeMetrics:
+class EpisodeMetrics(RowOwner):
     """The metrics of one episode. What the steps accumulate lives in two arrays, so that the
     metrics of ``K`` worlds can be rows of shared blocks (:func:`record_steps`): :attr:`totals`
     (the sums and counts of :data:`TOTALS`) and :attr:`paths`; the other values are
@@ -82,12 +83,7 @@ class EpisodeMetrics:
         linked (not copied) by the first recorded step: :attr:`messages` and the splits read them."""
         self.rows = None
         """The shared rows :attr:`totals` and :attr:`paths` are views of when recorded with
-        other worlds' metrics (:func:`record_steps`); not copied, not pickled."""
-
-    def __getstate__(self) -> dict:
-        state = dict(self.__dict__)
-        state["rows"] = None  # a copy owns plain arrays (numpy copies the views' values)
-        return state
+        other worlds' metrics (:func:`record_steps`); not copied, not pickled (:class:`RowOwner`)."""
 
     def __repr__(self) -> str:
         return f"EpisodeMetrics({self.summary()!r})"
@@ -274,25 +270,28 @@ def _rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
 def record_steps(metrics: Sequence[EpisodeMetrics], before: np.ndarray, true: np.ndarray, *, times: Sequence[float],
                  progress: Sequence, estimates: np.ndarray, new_contacts: tuple[np.ndarray, np.ndarray],
                  teams: Sequence, formation, kinects, control_dt: float,
-                 visits: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+                 visits: tuple[np.ndarray, np.ndarray] | None = None,
+                 team_rows: Mapping[str, np.ndarray] | None = None) -> None:
     """:func:`record_step` of ``K`` worlds of one scenario: their metrics, true poses ``before`` and
     ``true`` ``(K, N, 3)``, ``times``, route trackers (``progress``), estimates ``(K, N, 3)``, new
     wall and robot contacts ``(K, N)``, teams; ``kinects`` answers ``in_view`` for every world (the
     footprints are the scenario's) or is None; ``visits``: the trackers' ``visited`` and ``visit_time``
-    ``(K, M)`` if at hand (read from the trackers if not). The metrics' sums are rows of shared blocks
-    (:func:`~parcover_env.envs.score_rows.shared_rows`) that one compiled call adds the step to
+    ``(K, M)`` if at hand (read from the trackers if not); ``team_rows``: the teams' ``leader`` and
+    ``predecessor`` ``(K, N)`` by name if at hand (read from the teams if not). The metrics' sums are
+    rows of shared blocks (:func:`~parcover_env.envs.score_rows.shared_rows`) that one compiled call adds the step to
     (:func:`~parcover_env.envs.step_kernels.record_many`); each world's metrics link its team's counters."""
     from parcover_env.envs import step_kernels
 
     k_worlds = true.shape[0]
     rows = shared_rows(metrics, ("totals", "paths"))
-    leader = _rows([t.leader for t in teams])
+    leader = _rows([t.leader for t in teams]) if team_rows is None else team_rows["leader"]
+    predecessor = _rows([t.predecessor for t in teams]) if team_rows is None else team_rows["predecessor"]
     seen = (kinects.in_view(true[leader][:, :2]) if kinects is not None
             else np.zeros(int(np.count_nonzero(leader)), dtype=bool))
     unseen = np.bincount(np.nonzero(leader)[0][~seen], minlength=k_worlds)
     visited, visit_time = visits or (_rows([p.visited for p in progress]), _rows([p.visit_time for p in progress]))
     step = step_kernels.MetricsStep(
-        _c(before), _c(true), _c(estimates), _c(_rows([t.predecessor for t in teams]), np.int64),
+        _c(before), _c(true), _c(estimates), _c(predecessor, np.int64),
         _c(visited, bool), _c(visit_time),
         _c(new_contacts[0], np.int64), _c(new_contacts[1], np.int64), _c(unseen, np.int64), _c(times))
     step_kernels.record_many(rows.blocks["totals"], rows.blocks["paths"], step,

@@ -22,7 +22,7 @@ import numpy as np
 from parcover_env.envs.obs_spec import N_PREVIEW
 from parcover_env.planning.plan import Plan
 
-__all__ = ["RouteFacts", "TeamRows", "route_facts", "team_rows", "target_kpois", "fill"]
+__all__ = ["RouteFacts", "TeamRows", "route_facts", "team_rows", "group_sizes", "target_kpois", "fill"]
 
 
 class RouteFacts(NamedTuple):
@@ -104,6 +104,14 @@ def team_rows(worlds: Sequence[Any]) -> TeamRows:
                     np.stack([w.progress.waypoint for w in worlds]),
                     np.stack([w.progress.plan_progress for w in worlds]),
                     np.stack([w.progress.visited for w in worlds]))
+
+
+def group_sizes(leader: np.ndarray) -> np.ndarray:
+    """``(K, N)`` float: the robots in each robot's group from the worlds' leader flags ``(K, N)`` (a
+    team's groups are contiguous, each led by its first robot: a group runs from a leader to the next)."""
+    k, n = leader.shape
+    group = np.cumsum(leader, axis=1) - 1 + n * np.arange(k)[:, None]  # numbered over all worlds
+    return np.bincount(group.ravel(), minlength=k * n)[group].astype(float)
 
 
 def target_kpois(facts: RouteFacts, visited: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

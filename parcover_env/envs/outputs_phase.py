@@ -1,5 +1,6 @@
-"""The stepper's outputs phase (part 3) for ``K`` worlds of one scenario at once: each world's
-PettingZoo ``(rewards, terminations, truncations, infos)`` dicts.
+"""The stepper's outputs phase (part 3) for ``K`` worlds of one scenario at once: the rewards,
+terminations, truncations and infos of every agent slot (:func:`slot_outputs`, what a VecEnv reads), or
+each world's PettingZoo ``(rewards, terminations, truncations, infos)`` dicts (:func:`outputs`).
 
 Rewards, estimate errors and the other per-agent info values are computed as ``(K, N)`` arrays and
 turned into Python floats once (``tolist``); each agent's info is a copy of its world's template
@@ -15,9 +16,9 @@ from __future__ import annotations
 import functools
 from collections import deque
 from collections.abc import Sequence
-from itertools import repeat
+from itertools import chain, repeat
 from operator import setitem
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -27,14 +28,27 @@ from parcover_env.envs.rewards import TEAM_TERMS
 from parcover_env.envs.score_phase import Scores, rows
 from parcover_env.geometry import wrap_angle
 
-__all__ = ["outputs", "infos"]
+__all__ = ["SlotOutputs", "slot_outputs", "outputs", "infos", "slot_infos"]
 
 
-def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *,
-            active: bool = False) -> list[tuple[dict, dict, dict, dict]]:
-    """Part 3 of the ``K`` worlds at true poses ``(K, N, 3)`` with the score phase's ``scores``:
-    ``(rewards, terminations, truncations, infos)`` per world (a world's agents are cleared when
-    its episode ends); ``active``: every info has ``"active": True`` (a VecEnv's agent slots)."""
+class SlotOutputs(NamedTuple):
+    """Part 3 of ``K`` worlds of ``N`` agents each, by agent slot (world ``k``'s agents are slots
+    ``k N ... (k + 1) N - 1``)."""
+
+    rewards: np.ndarray
+    """``(K, N)`` every agent's reward (its terms summed in the worlds' terms order)."""
+    terminated: list[bool]
+    """Per world: every KPOI visited this step (all its agents end)."""
+    truncated: list[bool]
+    """Per world: the step limit reached, not terminated."""
+    infos: list[dict]
+    """The ``K N`` agents' infos, world by world (:func:`slot_infos`)."""
+
+
+def slot_outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *, active: bool = False) -> SlotOutputs:
+    """Part 3 of the ``K`` worlds at true poses ``(K, N, 3)`` with the score phase's ``scores``, by
+    agent slot (a world's agents are cleared when its episode ends); ``active``: every info has
+    ``"active": True`` (a VecEnv's agent slots)."""
     first = worlds[0]
     terms = scores.terms
     total = 0
@@ -44,34 +58,54 @@ def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *,
     done = scores.visited.all(axis=1).tolist()
     truncated = [w.steps >= max_steps and not d for w, d in zip(worlds, done, strict=True)]
     ended = [d or t for d, t in zip(done, truncated, strict=True)]
-    all_infos = infos(worlds, true, [terms[t] for t in first.terms], ended, estimates=scores.estimates,
+    flat = slot_infos(worlds, true, [terms[t] for t in first.terms], ended, estimates=scores.estimates,
                       visited=scores.visited, active=active, team_terms=TEAM_TERMS)
-    out = []
-    for w, rewards, info, d, t, e in zip(worlds, total.tolist(), all_infos, done, truncated, ended, strict=True):
-        agents = w.agents
-        out.append((dict(zip(agents, rewards, strict=True)), dict.fromkeys(agents, d), dict.fromkeys(agents, t), info))
+    for w, e in zip(worlds, ended, strict=True):
         if e:
             w.agents = []
-    return out
+    return SlotOutputs(total, done, truncated, flat)
+
+
+def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *,
+            active: bool = False) -> list[tuple[dict, dict, dict, dict]]:
+    """:func:`slot_outputs` as each world's PettingZoo ``(rewards, terminations, truncations, infos)``
+    dicts (by agent name)."""
+    agents = [w.agents for w in worlds]
+    out = slot_outputs(worlds, true, scores, active=active)
+    n = worlds[0].n_robots
+    return [(dict(zip(names, rewards, strict=True)), dict.fromkeys(names, d), dict.fromkeys(names, t),
+             dict(zip(names, out.infos[k * n:(k + 1) * n], strict=True)))
+            for k, (names, rewards, d, t) in enumerate(zip(agents, out.rewards.tolist(), out.terminated,
+                                                           out.truncated, strict=True))]
 
 
 def infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray], ended: Sequence[bool], *,
           estimates: np.ndarray | None = None, visited: np.ndarray | None = None,
           active: bool = False, team_terms: Sequence[str] = ()) -> list[dict[str, dict]]:
-    """``info[agent]`` of every agent of the ``K`` worlds (see the module docstring): ``terms[i]`` the
-    values ``(K, N)`` of term ``i`` (the worlds' terms order); ``ended[k]``: world ``k``'s episode
-    ends this step (its ``metrics/*`` entries are its metrics). ``estimates (K, N, 3)``, ``visited
-    (K, M)``: the worlds' pose estimates and visited KPOIs if already gathered (read from the worlds if not);
-    ``active``: every info also has ``"active": True`` (its last key; a VecEnv's agent slots);
-    ``team_terms``: the terms whose values are one per world (the same for all its agents, as
-    :data:`~parcover_env.envs.rewards.TEAM_TERMS` are): their first column is read.
+    """``info[agent]`` of every agent of the ``K`` worlds: :func:`slot_infos` by world and agent name."""
+    flat = slot_infos(worlds, true, terms, ended, estimates=estimates, visited=visited, active=active,
+                      team_terms=team_terms)
+    n = worlds[0].n_robots
+    return [dict(zip(w.agents, flat[k * n:(k + 1) * n], strict=True)) for k, w in enumerate(worlds)]
+
+
+def slot_infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray], ended: Sequence[bool], *,
+               estimates: np.ndarray | None = None, visited: np.ndarray | None = None,
+               active: bool = False, team_terms: Sequence[str] = ()) -> list[dict]:
+    """The info of every agent of the ``K`` worlds, world by world (``K N`` dicts; see the module
+    docstring): ``terms[i]`` the values ``(K, N)`` of term ``i`` (the worlds' terms order);
+    ``ended[k]``: world ``k``'s episode ends this step (its ``metrics/*`` entries are its metrics).
+    ``estimates (K, N, 3)``, ``visited (K, M)``: the worlds' pose estimates and visited KPOIs if already
+    gathered (read from the worlds if not); ``active``: every info also has ``"active": True`` (its
+    last key; a VecEnv's agent slots); ``team_terms``: the terms whose values are one per world (the
+    same for all its agents, as :data:`~parcover_env.envs.rewards.TEAM_TERMS` are): their first column is read.
 
     Built with the fewest Python operations: each per-agent column becomes Python floats once for
-    all worlds (one ``tolist``), every agent's dict is a C-level copy of its world's template (which
-    holds the ``team_terms``), and each other column is written into all ``K N`` dicts by one C-level
-    ``map`` (no loop per agent)."""
+    all worlds (one ``tolist``), the worlds' templates and every agent's dict are C-level copies
+    (of the template, of its world's template), and each other column is written into all ``K N``
+    dicts by one C-level ``map`` (no Python loop per world or agent)."""
     first = worlds[0]
-    n = first.n_robots
+    n, k_worlds = first.n_robots, len(worlds)
     est = rows([w.estimate for w in worlds]) if estimates is None else estimates
     d = est[..., :2] - true[..., :2]
     base, reward_keys, keys = _template(tuple(first.terms), first.version == 2, first.scanner is not None, active)
@@ -91,21 +125,17 @@ def infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray], 
     if first.version == 2:
         visited = rows([w.progress.visited for w in worlds]) if visited is None else visited
         columns.append(target_kpois(first.route_facts, visited)[1].astype(float))
-    team_values = zip(*(c.tolist() for c in team_columns)) if team_keys else repeat((), len(worlds))
-    out, flat = [], []
-    for w, e, values in zip(worlds, ended, team_values, strict=True):
-        template = base.copy()
-        if e:
+    templates = list(map(dict.copy, repeat(base, k_worlds)))
+    _consume(map(setitem, templates, repeat(_PATH_KEY), map(np.zeros, repeat(n, k_worlds))))
+    for template, w, e in zip(templates, worlds, ended, strict=True):
+        if e:  # the step that ends the episode: its metrics
             template.update(w.metrics.flat(ended=True))
-        else:
-            template[_PATH_KEY] = np.zeros(n)
-        template.update(zip(team_keys, values))  # the team terms: one value for all the world's agents
-        world_infos = dict(zip(w.agents, map(dict.copy, repeat(template, n)), strict=True))
-        out.append(world_infos)
-        flat += world_infos.values()
+    for key, column in zip(team_keys, team_columns, strict=True):  # one value for all the world's agents
+        _consume(map(setitem, templates, repeat(key), column.tolist()))
+    flat = list(map(dict.copy, chain.from_iterable(map(repeat, templates, repeat(n, k_worlds)))))
     for key, column in zip(keys, columns, strict=True):
         _consume(map(setitem, flat, repeat(key), column.reshape(-1).tolist()))
-    return out
+    return flat
 
 
 _PATH_KEY = "metrics/path_lengths"
@@ -118,7 +148,7 @@ def _template(terms: tuple[str, ...], route_done: bool, sonar_fix: bool,
               active: bool) -> tuple[dict, tuple[str, ...], tuple[str, ...]]:
     """The info of an agent before its own values (zeros; ``metrics/path_lengths`` to be replaced by a
     fresh array), the keys of the reward terms, and the keys of the agent's other values in the order
-    :func:`infos` builds their columns. Read only: copy it."""
+    :func:`slot_infos` builds their columns. Read only: copy it."""
     reward_keys = tuple(f"reward_{t}" for t in terms)
     keys = ("pose_error", "heading_error")
     base = dict.fromkeys(reward_keys, 0.0)

@@ -1,31 +1,38 @@
 """The stepper's score phase (part 1b) for ``K`` worlds of one scenario at once.
 
 After the act phase has moved every world, :func:`score` tracks the mission, splits and hands over
-(Alg. 1), scores and records each world, gathering what it reads from the worlds into ``(K, N)``
-blocks and computing on the blocks:
+(Alg. 1), scores and records each world, on ``(K, N)`` blocks:
 
+* the pose estimates: a copy of the act phase's estimator rows (:func:`act_rows_of`; gathered from
+  the worlds when the phase is called on its own);
 * route progress, KPOI visits, goals and the route length to go: one compiled call for all worlds
   (:func:`parcover_env.scenarios.progress.step_many`) on the trackers' arrays as rows of shared
   blocks (:func:`parcover_env.envs.score_rows.shared_rows`), updated in place;
-* the team update: waypoint messages counted over ``(K, N)``; only the worlds where a leader may
-  have reached its TP run the (rare) Python split (:func:`parcover_env.envs.handover.update_teams`);
+* the team update on the teams' arrays as rows of shared blocks too
+  (:data:`~parcover_env.envs.team.TEAM_ROWS`): waypoint messages counted over ``(K, N)``; only the
+  worlds where a leader may have reached its TP run the (rare) Python split
+  (:func:`parcover_env.envs.handover.update_teams`), whose rebound arrays are adopted again;
 * the reward terms as ``(K, N)`` arrays (:func:`parcover_env.envs.rewards.reward_terms`), returned
-  in a :class:`Scores` for the outputs phase (with the goal points, for the observations);
+  in a :class:`Scores` for the outputs phase (with the goal points, the team rows and the estimator
+  rows, for the observations);
 * the metrics of all worlds in one call (:func:`parcover_env.envs.metrics.record_steps`), their sums
   rows of shared blocks too.
 
-The worlds' trackers, metrics and :class:`ScoreState` keep their own arrays, which are views of row
-``k`` of shared ``(K, ...)`` blocks while they are scored together (the act phase's pattern,
+The worlds' trackers, teams, metrics and :class:`ScoreState` keep their own arrays, which are views of
+row ``k`` of shared ``(K, ...)`` blocks while they are scored together (the act phase's pattern,
 :mod:`parcover_env.envs.score_rows`): the compiled calls update every world in place, with no gather
-and no write-back; a copy or pickle of a world holds plain arrays, and a world reset since is adopted
-again. So worlds stay independent (deepcopy, pickle) and the ParallelEnv is the ``K = 1`` call; world ``k``
-gets bit for bit what it would alone (``tests/envs/test_batched.py``, ``tests/envs/test_score_phase.py``).
+and no write-back; a copy or pickle of a world holds plain arrays, and a world reset since (or an
+array rebound, :class:`~parcover_env.geometry.row_owner.RowOwner`) is adopted again. So worlds stay
+independent (deepcopy, pickle) and the ParallelEnv is the ``K = 1`` call; world ``k`` gets bit for
+bit what it would alone (``tests/envs/test_batched.py``, ``tests/envs/test_score_phase.py``).
 No random numbers are drawn here.
 """
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Sequence
+from itertools import repeat
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -34,11 +41,13 @@ from parcover_env.envs.handover import update_teams
 from parcover_env.envs.metrics import record_steps
 from parcover_env.envs.rewards import own_visits, reward_terms, touching
 from parcover_env.envs.score_rows import shared_rows
-from parcover_env.envs.team import count_waypoints_many
+from parcover_env.envs.team import TEAM_ROWS, count_waypoints_many
+from parcover_env.envs.world_rows import ActRows
+from parcover_env.geometry.row_owner import RowOwner
 from parcover_env.scenarios.progress import STATE, step_many
 from parcover_env.scenarios.progress_kernel import TrackerRows
 
-__all__ = ["ScoreState", "Scores", "score", "gather", "rows"]
+__all__ = ["ScoreState", "Scores", "score", "gather", "rows", "act_rows_of"]
 
 
 def gather(arrays: Sequence[np.ndarray]) -> np.ndarray:
@@ -52,7 +61,7 @@ def rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
     return arrays[0][None] if len(arrays) == 1 else np.array(arrays)
 
 
-class ScoreState:
+class ScoreState(RowOwner):
     """What scoring carries over from one step of a world to the next (its arrays rows of shared
     blocks while the world is scored with others: :attr:`rows`)."""
 
@@ -65,12 +74,7 @@ class ScoreState:
         """``(N,)`` int64 robot contacts of each robot counted up to the last step."""
         self.rows = None
         """The shared rows the arrays are views of (:func:`~parcover_env.envs.score_rows.shared_rows`);
-        not copied, not pickled."""
-
-    def __getstate__(self) -> dict:
-        state = dict(self.__dict__)
-        state["rows"] = None  # a copy owns plain arrays (numpy copies the views' values)
-        return state
+        not copied, not pickled (:class:`~parcover_env.geometry.row_owner.RowOwner`)."""
 
     @property
     def contacts(self) -> tuple[np.ndarray, np.ndarray]:
@@ -99,6 +103,30 @@ class Scores(NamedTuple):
     """The pose estimates ``(K, N, 3)`` of this step (a copy; scoring does not move them)."""
     visited: np.ndarray
     """The KPOIs visited ``(K, M)`` after this step's progress (to read only)."""
+    team: dict[str, np.ndarray] | None = None
+    """The teams' :data:`~parcover_env.envs.team.TEAM_ROWS` blocks ``(K, N, ...)`` after this step's
+    splits (to read only, this step: the rows of the worlds' teams)."""
+    act: ActRows | None = None
+    """The act phase's shared rows of the worlds' pose estimators, every world's attached (to read
+    only, this step); None: the estimates were gathered from the worlds."""
+    track: TrackerRows | None = None
+    """The route trackers' :data:`~parcover_env.scenarios.progress.STATE` blocks after this step's
+    progress (to read only, this step)."""
+
+
+def act_rows_of(worlds: Sequence[Any]) -> ActRows | None:
+    """The act phase's shared rows of the ``K`` worlds' pose estimators
+    (:attr:`~parcover_env.envs.estimator.PoseEstimator.act_rows`) if they are those of these very
+    estimators, in order (as right after :func:`~parcover_env.envs.act_phase.act` of these worlds, which
+    attaches them and writes the estimates in place); None otherwise (a world reset, copied or
+    stepped with other worlds since)."""
+    first = worlds[0].estimator
+    rows = first.act_rows
+    if (rows is None or rows.estimators.size != len(worlds) or not rows.estimators.attached(0, first)
+            or not rows.odometry.attached(0, first.odometry)
+            or rows.estimators.owners != [w.estimator for w in worlds]):
+        return None
+    return rows
 
 
 def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores:
@@ -107,7 +135,8 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     first = worlds[0]
     s = first.scenario
     trackers, teams = [w.progress for w in worlds], [w.team for w in worlds]
-    est = gather([w.estimate for w in worlds])
+    act = act_rows_of(worlds)
+    est = gather([w.estimate for w in worlds]) if act is None else act.odometry.blocks["estimate"].copy()
     track = shared_rows(trackers, STATE)  # the trackers' arrays as rows of shared blocks, updated in place
     state = TrackerRows(**track.blocks)
     was = state.visited.copy() if first.version == 2 else None
@@ -115,9 +144,11 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     true_xy = np.ascontiguousarray(true[..., :2])
     n_new, goals, remaining = step_many(trackers, true_xy, est[..., :2], times, state)
     velocity = (true_xy - before[..., :2]) / s.physics.control_dt
-    count_waypoints_many(teams, state.advanced, rows([t.leader for t in teams]))
-    update_teams(teams, [w.kinects for w in worlds], est, state.progress - first.progress.offsets,
-                 lambda k: worlds[k].camera_view)
+    team = shared_rows(teams, TEAM_ROWS).blocks  # the teams' arrays as rows of shared blocks (read here)
+    count_waypoints_many(teams, state.advanced, team["leader"])
+    if update_teams(teams, [w.kinects for w in worlds], est, state.progress - first.progress.offsets,
+                    lambda k: worlds[k].camera_view, tp=team["tp_ahead"]):
+        team = shared_rows(teams, TEAM_ROWS).blocks  # a split rebinds a team's arrays: adopted again
     own = None
     visited = state.visited
     if first.version == 2:
@@ -127,8 +158,7 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     wall, robot = gather([w.world.wall_contacts for w in worlds]), gather([w.world.robot_contacts for w in worlds])
     new_wall, new_robot = wall - held["wall"], robot - held["robot"]
     held["remaining"][...], held["wall"][...], held["robot"][...] = remaining, wall, robot
-    for w, v in zip(worlds, velocity, strict=True):
-        w.true_velocity = v  # row views of the block, as the world's own arrays
+    _consume(map(setattr, worlds, repeat("true_velocity"), velocity))  # row views of the block, as the worlds' own
     touch = None
     if "contact" in first.terms:
         gap = s.rewards.contact_gap
@@ -137,9 +167,13 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     terms = reward_terms(s.rewards, n_new, gained, new_wall + new_robot, own, touch)
     record_steps([w.metrics for w in worlds], before, true, times=times, progress=trackers, estimates=est,
                  new_contacts=(new_wall, new_robot), teams=teams, formation=s.formation, kinects=first.kinects,
-                 control_dt=s.physics.control_dt, visits=(state.visited, state.visit_time))
+                 control_dt=s.physics.control_dt, visits=(state.visited, state.visit_time), team_rows=team)
     for k, w in enumerate(worlds):
         if w.render_mode is not None:
             for trail, p in zip(w.trails, true[k], strict=True):
                 trail.append(p[:2].copy())
-    return Scores(terms, goals, est, visited)
+    return Scores(terms, goals, est, visited, team, act, state)
+
+
+_consume = deque(maxlen=0).extend
+"""Runs an iterator to its end at C speed, keeping nothing."""

@@ -13,7 +13,8 @@ env all step through here, so the rules are written once:
    :mod:`parcover_env.envs.obs_v2`); clipped into the bounds. World ``k`` draws from its own generator in the
    order a single world would, so it is bit for bit a separate env;
 3. **outputs** (:func:`outputs`, all worlds at once, :mod:`parcover_env.envs.outputs_phase`): rewards,
-   terminations, truncations, infos;
+   terminations, truncations, infos (by world and agent name; by agent slot: :func:`slot_outputs`, which
+   :func:`step_slots` returns, what a VecEnv reads);
 4. **slots** (:func:`slot_info`, :func:`with_metrics`): what a vectorized or single-agent view adds
    to an agent's info (``metrics``, ``terminal_observation``, ``TimeLimit.truncated``, ``active``);
    a world whose agents are all done is reset by the caller (auto-reset).
@@ -33,45 +34,61 @@ from parcover_env.envs import act_phase, obs_v2, outputs_phase, score_phase
 from parcover_env.envs.handover import CameraView
 from parcover_env.envs.metrics import episode_metrics
 from parcover_env.envs.observations import ScalarInputs
+from parcover_env.envs.outputs_phase import SlotOutputs
 from parcover_env.envs.score_phase import Scores, gather, rows
 from parcover_env.scenarios.progress import goals_many
 from parcover_env.sensors.base import SensingState
 
-__all__ = ["sensing_state", "observe", "step", "act", "score", "outputs", "with_metrics", "slot_info"]
+__all__ = ["sensing_state", "observe", "step", "step_slots", "act", "score", "outputs", "slot_outputs", "with_metrics",
+           "slot_info"]
 
 
-def sensing_state(worlds: Sequence[Any], true: np.ndarray) -> SensingState:
+def sensing_state(worlds: Sequence[Any], true: np.ndarray, predecessor: np.ndarray | None = None) -> SensingState:
     """What the sensors read: ``true (K, N, 3)`` poses of the worlds, their shared walls and radius,
-    and who follows whom in each world."""
+    and who follows whom in each world (``predecessor (K, N)``, gathered from the teams if not given)."""
     first = worlds[0]
-    predecessor = rows([w.team.predecessor for w in worlds])
+    if predecessor is None:
+        predecessor = rows([w.team.predecessor for w in worlds])
     return SensingState(true, first.map.segments, float(first.scenario.robot.radius), predecessor)
 
 
 def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = None) -> np.ndarray:
     """Observations ``(K, N, D)`` float32 of every robot of the ``K`` worlds at true poses ``(K, N, 3)``
-    (``scores``: this step's score phase, whose goal points, estimates and visits it reads instead of
-    gathering them again). Sets each world's ``camera_views`` and ``camera_index`` (the cameras'
-    measurements of all worlds, blocks, and its row: its ``camera_view``, which Alg. 1's next hand-over uses)."""
+    (``scores``: this step's score phase, whose goal points, estimates, visits, team rows and estimator
+    rows it reads instead of gathering them again). Sets each world's ``camera_views`` and
+    ``camera_index`` (the cameras' measurements of all worlds, blocks, and its row: its ``camera_view``,
+    which Alg. 1's next hand-over uses)."""
     first = worlds[0]
-    state = sensing_state(worlds, true)
+    team = None if scores is None else scores.team
+    if team is None:
+        teams = [w.team for w in worlds]
+        team = {"leader": rows([t.leader for t in teams]), "slot": rows([t.slot for t in teams]),
+                "predecessor": rows([t.predecessor for t in teams])}
+    else:  # the teams' rows change at the next split: the camera view keeps a copy
+        team = {**team, "predecessor": team["predecessor"].copy()}
+    state = sensing_state(worlds, true, team["predecessor"])
     rngs = [w.np_random for w in worlds]
     seen = first.camera.measure_many(true, state.predecessor, state.segments, rngs)
     obs = np.zeros((len(worlds), state.n_robots, first.layout.size), dtype=np.float32)
-    estimators = [w.estimator for w in worlds]
     if scores is None:
         goals, est, visited = (goals_many([w.progress for w in worlds])[0], gather([w.estimate for w in worlds]),
                                rows([w.progress.visited for w in worlds]))
     else:
         goals, est, visited = scores.goals, scores.estimates, scores.visited
+    act = None if scores is None else scores.act
+    if act is None:
+        estimators = [w.estimator for w in worlds]
+        velocity, fix_age = rows([e.velocity for e in estimators]), rows([e.fix_age for e in estimators])
+        covariance = rows([e.covariance for e in estimators])
+    else:
+        velocity, fix_age = act.estimators.blocks["velocity"], act.estimators.blocks["fix_age"]
+        covariance = act.odometry.blocks["covariance"]
     rel_xy, rel_heading, visible = seen
     views = CameraView(state.predecessor, seen, est)  # of all worlds; world k reads its row (camera_view)
     for k, w in enumerate(worlds):
         w.camera_views, w.camera_index = views, k
-    teams = [w.team for w in worlds]
     first.layout.fill_scalars_many(obs, ScalarInputs(
-        est, rows([e.velocity for e in estimators]), rows([t.leader for t in teams]), rows([t.slot for t in teams]),
-        rows([e.fix_age for e in estimators]), rows([e.covariance for e in estimators]), goals, rel_xy, rel_heading,
+        est, velocity, team["leader"], team["slot"], fix_age, covariance, goals, rel_xy, rel_heading,
         visible, visited.sum(axis=1) / visited.shape[1],
         np.array([w.steps for w in worlds]) / first.scenario.episode.max_steps))
     if first.scanner is not None:  # the ``scan`` entries of the spec
@@ -79,8 +96,12 @@ def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = Non
             for name, values in w.localization_entries().items():
                 obs[k][:, w.layout.slices[name]] = values[:, None]
     if first.route_facts is not None:  # observation version 2: route and teammate entries, all worlds at once
-        obs_v2.fill(obs, first.layout.slices, first.route_facts, obs_v2.team_rows(worlds),
-                    first.scenario.observation.neighbours)
+        if scores is None or scores.act is None or scores.track is None:
+            mates = obs_v2.team_rows(worlds)
+        else:  # this step's blocks
+            mates = obs_v2.TeamRows(est, velocity, team["leader"], obs_v2.group_sizes(team["leader"]),
+                                    scores.track.waypoint, scores.track.progress - first.progress.offsets, visited)
+        obs_v2.fill(obs, first.layout.slices, first.route_facts, mates, first.scenario.observation.neighbours)
     for name, sensor in first.sensors.items():  # every sensor entry of the spec, all worlds in one call
         if sensor is not None:
             obs[..., first.layout.slices[name]] = sensor.sense(state, rngs)
@@ -100,6 +121,16 @@ def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray, 
     return obs, outputs(worlds, true, scores, active=active)
 
 
+def step_slots(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray, *,
+               active: bool = True) -> tuple[np.ndarray, SlotOutputs]:
+    """:func:`step` with the outputs by agent slot (:func:`slot_outputs`, what a VecEnv reads): the
+    observations ``(K, N, D)`` and the rewards, ends and infos of the ``K N`` agents."""
+    before, true = act(worlds, actions)
+    scores = score(worlds, before, true)
+    obs = observe(worlds, true, scores)
+    return obs, slot_outputs(worlds, true, scores, active=active)
+
+
 def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Part 1a of every world (:func:`parcover_env.envs.act_phase.act`: act, physics, pose estimates):
     the true poses ``(K, N, 3)`` before and after the step."""
@@ -116,6 +147,12 @@ def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *, active: 
     """Part 3 of every world, all at once (:func:`parcover_env.envs.outputs_phase.outputs`):
     ``(rewards, terminations, truncations, infos)`` per world."""
     return outputs_phase.outputs(worlds, true, scores, active=active)
+
+
+def slot_outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *, active: bool = True) -> SlotOutputs:
+    """Part 3 of every world by agent slot (:func:`parcover_env.envs.outputs_phase.slot_outputs`): the
+    rewards ``(K, N)``, the worlds' ends and the ``K N`` infos."""
+    return outputs_phase.slot_outputs(worlds, true, scores, active=active)
 
 
 def with_metrics(info: dict) -> dict:

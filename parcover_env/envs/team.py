@@ -30,12 +30,17 @@ from collections import Counter
 
 import numpy as np
 
+from parcover_env.geometry.row_owner import RowOwner
 from parcover_env.planning.plan import Plan
 
-__all__ = ["Team", "count_waypoints_many"]
+__all__ = ["Team", "TEAM_ROWS", "count_waypoints_many"]
+
+TEAM_ROWS = ("leader", "slot", "predecessor", "tp_ahead")
+"""The :class:`Team` arrays the stepper reads for ``K`` worlds as rows of shared blocks
+(:func:`~parcover_env.envs.score_rows.shared_rows`, :attr:`Team.rows`)."""
 
 
-class Team:
+class Team(RowOwner):
     def __init__(self, plan: Plan, mode: str = "formation", reach_tol: float = 0.2):
         self.n = plan.r
         self.mode = mode
@@ -46,6 +51,10 @@ class Team:
         self._tps = {tuple(tp.robots): tp for tp in plan.turning_points}
         self.groups: list[tuple[int, int]] = ([(i, i + 1) for i in range(self.n)] if mode == "individual"
                                               else [(0, self.n)])
+        self.rows = None
+        """The shared rows (:data:`TEAM_ROWS`) the arrays are views of while the team is scored with
+        other worlds' teams (:func:`~parcover_env.envs.score_rows.shared_rows`; None once a split rebinds
+        the arrays: they are adopted again); not copied, not pickled (:class:`RowOwner`)."""
         self._refresh()
 
     def _pending(self) -> None:

@@ -14,6 +14,7 @@ from typing import NamedTuple
 import numpy as np
 
 from parcover_env.geometry.records import record
+from parcover_env.geometry.row_owner import RowOwner
 from parcover_env.scenarios import progress_kernel
 
 __all__ = ["RouteTracker", "RouteTable", "ProgressStep", "STATE", "step_many", "update_many", "goals_many"]
@@ -41,7 +42,7 @@ class RouteTable(NamedTuple):
     """``(N,)`` each route's length (m)."""
 
 
-class RouteTracker:
+class RouteTracker(RowOwner):
     """Routes are polylines ``(M_i, 2)`` (a lead-in from the robot's start place, then its plan path).
 
     Progress along a route is the arc length of the robot's pose estimate projected onto the route,
@@ -86,12 +87,7 @@ class RouteTracker:
         self._goal_cache: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.rows = None
         """The shared rows the :data:`STATE` arrays are views of when the tracker steps with other
-        worlds' (the env's score phase); not copied, not pickled."""
-
-    def __getstate__(self) -> dict:
-        state = dict(self.__dict__)
-        state["rows"] = None  # a copy owns plain arrays (numpy copies the views' values)
-        return state
+        worlds' (the env's score phase); not copied, not pickled (:class:`RowOwner`)."""
 
     @property
     def window(self) -> float:

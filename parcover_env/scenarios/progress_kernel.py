@@ -140,6 +140,7 @@ def visits(kpois, xy, radius, time, visited, visit_time, visitor):
     ``radius`` of (Euclidean distance ``sqrt(dx^2 + dy^2)``): ``visit_time = time`` and ``visitor`` =
     the nearest such point (the lowest index on ties). Returns how many were newly visited."""
     n_new = 0
+    reach = radius * (1.0 + 1e-9)  # a point farther than this along x or y is farther than radius, rounding and all
     for k in range(kpois.shape[0]):
         if visited[k]:
             continue
@@ -148,6 +149,8 @@ def visits(kpois, xy, radius, time, visited, visit_time, visitor):
         for i in range(xy.shape[0]):
             dx = kpois[k, 0] - xy[i, 0]
             dy = kpois[k, 1] - xy[i, 1]
+            if abs(dx) > reach or abs(dy) > reach:  # skips the square root only (NaN is not skipped)
+                continue
             d = math.sqrt(dx * dx + dy * dy)
             if d <= radius and d < best:
                 best = d

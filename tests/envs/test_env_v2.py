@@ -14,7 +14,7 @@ from parcover_env import parcover_v2
 from parcover_env.config import RewardConfig
 from parcover_env.envs import ParallelCoverageEnv, critic_state
 from parcover_env.envs.obs_spec import ENTRIES, V2_ENTRIES
-from parcover_env.envs.obs_v2 import RouteFacts, TeamRows, fill, route_facts, target_kpois
+from parcover_env.envs.obs_v2 import RouteFacts, TeamRows, fill, group_sizes, route_facts, target_kpois, team_rows
 from parcover_env.envs.rewards import TERMS, TERMS_V2, own_visits, reward_terms
 from parcover_env.errors import ConfigError
 
@@ -316,3 +316,20 @@ def test_bad_v2_settings_raise_one_clear_error_at_construction():
         parcover_v2.parallel_env("office", overrides={"observation": {"neighbours": 16}})
     with pytest.raises(ConfigError, match="observation.version"):
         parcover_env.parallel_env("office", overrides={"observation": {"version": 3}})
+
+
+def test_group_sizes_from_the_leader_flags_by_value_and_as_the_teams_groups():
+    leader = np.array([[True, False, False, True, False], [True, True, True, True, True]])
+    assert group_sizes(leader).tolist() == [[3.0, 3.0, 3.0, 2.0, 2.0], [1.0] * 5]
+    assert group_sizes(leader[:1]).dtype == np.float64
+    envs = [ParallelCoverageEnv("tree", overrides={"observation": {"version": 2}}) for _ in range(2)]
+    for e in envs:
+        e.reset(seed=0)
+    team = envs[1].team
+    tp = next(t for t in envs[1].plan.turning_points if tuple(t.robots) == (0, team.n))
+    est = np.zeros((team.n, 2))
+    est[0] = tp.position
+    assert team.update(est, np.zeros(team.n)) and len(team.groups) > 1  # world 1 split, world 0 did not
+    want = team_rows(envs).group_size
+    assert want[0].tolist() == [float(team.n)] * team.n and want[1].tolist() != want[0].tolist()
+    np.testing.assert_array_equal(group_sizes(np.stack([e.team.leader for e in envs])), want)

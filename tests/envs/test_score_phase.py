@@ -102,7 +102,7 @@ def test_update_teams_splits_exactly_the_worlds_update_team_splits():
     ref_kin = copy.deepcopy(kin)
     reading = RelativeReading(np.array([[0.0, 0.0], [0.5, 0.0]]), np.zeros(2), np.array([False, True]))
     views = [CameraView(np.array([-1, 0]), reading, e.copy()) for e in est]
-    update_teams([t_far, t_at, t_fix], kin, est, progress, views.__getitem__)
+    assert update_teams([t_far, t_at, t_fix], kin, est, progress, views.__getitem__) == [1, 2]  # the worlds run
     for team, k, e, v in zip(ref, ref_kin, est, views, strict=True):
         update_team(team, k, e, np.zeros(2), v)
     assert [t.groups for t in (t_far, t_at, t_fix)] == [t.groups for t in ref] == [[(0, 2)], [(0, 1), (1, 2)],
@@ -388,3 +388,19 @@ def test_infos_take_the_team_terms_from_the_first_agent_and_reward_terms_make_th
     block = reward_terms(w, np.array([0, 2]), np.ones((2, 3)), np.zeros((2, 3), dtype=int))
     for t in rewards.TEAM_TERMS:
         assert (block[t].view(np.int64) == block[t][:, :1].view(np.int64)).all(), t
+
+
+def test_act_rows_of_are_the_act_phases_rows_of_these_very_estimators_only():
+    envs = _two_worlds("office")
+    rng = np.random.default_rng(5)
+    acts = rng.uniform(-1, 1, (2, envs[0].n_robots, 2)).astype(np.float32)
+    before, true = stepper.act(envs, acts)
+    rows = score_phase.act_rows_of(envs)
+    assert rows is not None and rows is envs[0].estimator.act_rows
+    np.testing.assert_array_equal(rows.odometry.blocks["estimate"], np.stack([e.estimate for e in envs]))
+    assert score_phase.act_rows_of(envs[::-1]) is None and score_phase.act_rows_of(envs[:1]) is None
+    scores = stepper.score(envs, before, true)
+    assert scores.act is rows and not np.shares_memory(scores.estimates, rows.odometry.blocks["estimate"])
+    np.testing.assert_array_equal(scores.team["leader"], np.stack([e.team.leader for e in envs]))
+    envs[1].reset(seed=3)  # a new estimator: not those rows' any more
+    assert score_phase.act_rows_of(envs) is None

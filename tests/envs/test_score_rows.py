@@ -12,10 +12,14 @@ import pickle
 import numpy as np
 import pytest
 
+import parcover_env
 from parcover_env.envs import metrics, step_kernels
 from parcover_env.envs.metrics import EpisodeMetrics
 from parcover_env.envs.score_rows import shared_rows
+from parcover_env.envs.team import TEAM_ROWS, Team
+from parcover_env.envs.world_rows import SharedRows
 from parcover_env.geometry import wrap_angle
+from parcover_env.geometry.row_owner import RowOwner
 
 
 class Owner:
@@ -186,3 +190,58 @@ def test_trackers_stepped_on_shared_rows_are_each_tracker_alone():
     assert a.visited.tolist() == [True, False] and a.visitor.tolist() == [0, -1] and a.visit_time[0] == 3.0
     assert got.n_new.tolist() == [1, 0] and a.advanced.tolist() == alone[0].advanced.tolist()
     assert rows.blocks["progress"][1].tolist() == b.progress.tolist() and b.progress[0] > 0.0  # b moved on too
+
+
+class Tracked(RowOwner):
+    def __init__(self, a, b):
+        self.a, self.b, self.c = np.array(a, dtype=float), np.array(b, dtype=np.int64), 0
+
+
+def test_a_row_owner_forgets_its_rows_when_a_row_array_is_rebound_only():
+    x, y = Tracked([1.0, 2.0], [3]), Tracked([4.0, 5.0], [6])
+    rows = shared_rows([x, y], ("a", "b"))
+    assert x.rows is rows and y.rows is rows
+    x.a += 1.0  # in place: the same view, still attached
+    x.c = 5  # not a row array
+    assert x.rows is rows and rows.blocks["a"][0].tolist() == [2.0, 3.0]
+    x.b = np.array([7])  # rebound: the rows are forgotten, adopted again at the next call
+    assert x.rows is None and y.rows is rows
+    assert shared_rows([x, y], ("a", "b")) is rows and x.rows is rows
+    assert rows.blocks["b"].tolist() == [[7], [6]] and np.shares_memory(x.b, rows.blocks["b"])
+    for c in (copy.deepcopy(x), pickle.loads(pickle.dumps(x))):
+        assert c.rows is None and c.a.tolist() == [2.0, 3.0] and not np.shares_memory(c.a, rows.blocks["a"])
+
+
+def test_shared_rows_skip_attaching_only_while_every_owner_holds_its_row(monkeypatch):
+    x, y = Tracked([1.0, 2.0], [3]), Tracked([4.0, 5.0], [6])
+    rows = shared_rows([x, y], ("a", "b"))
+    calls = []
+    attach = SharedRows.attach
+    monkeypatch.setattr(SharedRows, "attach", lambda self, owners: calls.append(list(owners)) or attach(self, owners))
+    assert shared_rows([x, y], ("a", "b")) is rows and calls == []  # all attached: nothing to do
+    assert shared_rows([y, x], ("a", "b")) is rows and calls == [[y, x]]  # another order: rows follow it
+    assert rows.blocks["a"].tolist() == [[4.0, 5.0], [1.0, 2.0]] and np.shares_memory(y.a, rows.blocks["a"][0])
+    z = Tracked([8.0, 9.0], [0])  # a world reset since: a new owner
+    assert shared_rows([y, z], ("a", "b")) is rows and len(calls) == 2
+    assert x.rows is None and not np.shares_memory(x.a, rows.blocks["a"]) and x.a.tolist() == [1.0, 2.0]
+    assert rows.blocks["a"].tolist() == [[4.0, 5.0], [8.0, 9.0]]
+    y.a = np.array([0.5, 0.25])  # rebound by a method of its own
+    shared_rows([y, z], ("a", "b"))
+    assert len(calls) == 3 and rows.blocks["a"][0].tolist() == [0.5, 0.25]
+
+
+def test_a_split_rebinds_a_teams_arrays_and_its_rows_take_them_in():
+    env = parcover_env.parallel_env("tree")
+    plan = env.plan
+    teams = [Team(plan, reach_tol=0.2), Team(plan, reach_tol=0.2)]
+    rows = shared_rows(teams, TEAM_ROWS)
+    assert rows.blocks["leader"].tolist() == [[True] + [False] * (plan.r - 1)] * 2
+    tp = next(t for t in plan.turning_points if tuple(t.robots) == (0, plan.r))
+    est = np.zeros((plan.r, 2))
+    est[0] = tp.position  # the leader of world 1's team at its first TP: it splits
+    assert teams[1].update(est, np.zeros(plan.r))
+    assert teams[1].rows is None and teams[0].rows is rows
+    assert shared_rows(teams, TEAM_ROWS) is rows
+    np.testing.assert_array_equal(rows.blocks["leader"][1], teams[1].leader)
+    np.testing.assert_array_equal(rows.blocks["predecessor"][1], teams[1].predecessor)
+    assert rows.blocks["leader"][1].sum() == len(tp.branches) > 1 and rows.blocks["leader"][0].sum() == 1

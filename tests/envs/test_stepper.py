@@ -85,8 +85,40 @@ def test_one_world_step_is_the_env_step():
     ra = a.step(acts)
     assert all(np.array_equal(ra[0][n], obs[0][i]) for i, n in enumerate(a.possible_agents))
     assert ra[1] == rew and ra[2] == term and ra[3] == trunc
-    assert b.camera_view is not None and np.shares_memory(b.camera_view.predecessor, b.team.predecessor)
+    view = b.camera_view  # the predecessors it was measured against: a copy of the team's (shared) rows
+    assert np.array_equal(view.predecessor, b.team.predecessor)
+    assert not np.shares_memory(view.predecessor, b.team.predecessor)
     assert b.camera_views.predecessor.shape == (1, b.n_robots) and b.camera_index == 0
     with pytest.raises(RuntimeError, match="finished episode"):
         b.agents = []
         stepper.step([b], [acts])
+
+
+def test_step_slots_is_step_by_agent_slot_and_clears_an_ended_world():
+    import copy
+
+    worlds = []
+    for seed in (0, 1):
+        w = parcover_env.parallel_env("office", overrides={"episode": {"max_steps": 3}})
+        w.reset(seed=seed)
+        worlds.append(w)
+    worlds[1].steps = 2  # by hand: world 1 reaches its step limit at the next step, world 0 does not
+    twins = copy.deepcopy(worlds)
+    n = worlds[0].n_robots
+    rng = np.random.default_rng(4)
+    acts = rng.uniform(-1, 1, (2, n, 2)).astype(np.float32)
+    obs, out = stepper.step_slots(worlds, acts)
+    obs_ref, ref = stepper.step(twins, acts, active=True)
+    assert np.array_equal(obs, obs_ref)
+    assert out.terminated == [False, False] and out.truncated == [False, True]
+    assert [w.agents for w in worlds] == [worlds[0].possible_agents, []]
+    for k, (rewards, term, trunc, infos) in enumerate(ref):
+        assert out.rewards[k].tolist() == list(rewards.values())
+        assert list(term.values()) == [out.terminated[k]] * n and list(trunc.values()) == [out.truncated[k]] * n
+        slots = out.infos[k * n:(k + 1) * n]
+        for got, want in zip(slots, infos.values(), strict=True):
+            assert list(got) == list(want) and got["active"] is True
+            assert all(np.array_equal(got[x], want[x], equal_nan=True) for x in want)
+            assert got["metrics/ended"] == float(k == 1) and got["metrics/steps"] == float(k == 1)  # one step recorded
+        assert out.rewards[k].tolist() == [sum(info[f"reward_{t}"] for t in worlds[k].terms) for info in slots]
+    assert len({id(i) for i in out.infos}) == 2 * n  # one dict per slot
