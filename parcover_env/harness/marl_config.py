@@ -116,7 +116,8 @@ class MarlConfig:
             if getattr(self, key) < 0:
                 raise ConfigError(source, key, f"must be >= 0, got {getattr(self, key)}")
         if self.lr_end is not None and not 0.0 <= self.lr_end <= self.learning_rate:
-            raise ConfigError(source, "lr_end", f"must be in [0, learning_rate ({self.learning_rate})], got {self.lr_end}")
+            raise ConfigError(source, "lr_end", f"must be in [0, learning_rate ({self.learning_rate})], "
+                              f"got {self.lr_end}")
         if self.minibatch_size > self.frames_per_batch:
             raise ConfigError(source, "minibatch_size", f"must be <= frames_per_batch ({self.frames_per_batch}), "
                               f"got {self.minibatch_size}")
