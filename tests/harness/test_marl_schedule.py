@@ -8,6 +8,7 @@ import pytest
 
 from parcover_env.errors import ConfigError
 from parcover_env.harness.marl_config import MarlConfig, load_marl_config, scheduled_lr
+from parcover_env.scenarios.registry import configs_dir
 
 
 def test_scheduled_lr_is_constant_without_lr_end():
@@ -40,8 +41,8 @@ def test_bad_schedule_values_name_the_key(tmp_path, text, key, words):
 
 
 def test_the_stage5_config_loads_with_its_stated_changes():
-    cfg = load_marl_config("mappo", "configs/train/mappo_generated_attention.yaml")
-    stage4 = load_marl_config("ippo", "configs/train/ippo_generated_shaped_mask.yaml")
+    cfg = load_marl_config("mappo", configs_dir() / "train" / "mappo_generated_attention.yaml")
+    stage4 = load_marl_config("ippo", configs_dir() / "train" / "ippo_generated_shaped_mask.yaml")
     assert (cfg.critic, cfg.lr_end, cfg.critic_warmup) == ("attention", 3e-5, 300000)
     same = {f.name for f in dataclasses.fields(MarlConfig)} - {"critic", "lr_end", "critic_warmup", "wall_time"}
     assert {k: getattr(cfg, k) for k in same} == {k: getattr(stage4, k) for k in same}
