@@ -87,3 +87,23 @@ def test_critic_warmup_and_the_schedule_drive_the_training_loop(tmp_path, monkey
     assert seen == [(128, 256), (256, 256)]  # office: 2 robots, 128 agent-steps per batch
     assert _same(_weights(tmp_path / "a" / "policy.pt"), _weights(tmp_path / "z" / "policy.pt"))
     assert _same(_weights(tmp_path / "a" / "critic.pt"), _weights(tmp_path / "z" / "critic.pt"))
+
+
+def test_the_shipped_mappo_checkpoint_names_its_five_stage_chain():
+    import json
+    from pathlib import Path
+
+    import parcover_env
+    from parcover_env.policies.torchrl_policy import TorchRLPolicy
+
+    root = Path(parcover_env.__file__).resolve().parent.parent / "baselines" / "checkpoints"
+    if not (root / "mappo_generated_attention").is_dir():
+        pytest.skip("source checkout only")
+    run = json.loads((root / "mappo_generated_attention" / "run.json").read_text())
+    stage4 = json.loads((root / "ippo_generated_shaped" / "run.json").read_text())
+    assert run["policy"] == "torchrl:baselines/checkpoints/mappo_generated_attention/policy.pt"
+    assert (run["algo"], run["config"]["critic"], run["config"]["lr_end"]) == ("mappo", "attention", 3e-5)
+    assert run["init"]["path"] == "baselines/checkpoints/ippo_generated_shaped" and run["init"]["critic"] is False
+    assert run["init"]["init"] == stage4["init"] and run["init_run"] == stage4  # stages 1-4 as shipped
+    assert run["agent_steps"] + 10_509_297 == 12_770_434 <= 20_000_000
+    TorchRLPolicy(root / "mappo_generated_attention" / "policy.pt")  # loads
