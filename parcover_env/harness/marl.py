@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from parcover_env.harness.marl_config import MarlConfig
+from parcover_env.harness.marl_config import MarlConfig, scheduled_lr
 from parcover_env.harness.marl_init import CRITIC_FILE, apply_init, critic_spec, find_init, save_critic
 from parcover_env.harness.marl_loss import GROUP, REAL, build_loss, prepare_minibatch, standardize_advantage
 from parcover_env.harness.marl_scale import fit_scale
@@ -350,9 +350,14 @@ def train(req: TrainRequest) -> dict:
                 loss.value_estimator(batch, params=loss.critic_network_params,
                                      target_params=loss.target_critic_network_params)
             buffer.extend(batch.reshape(-1))
+            for group in optim.param_groups:
+                group["lr"] = scheduled_lr(cfg, run.agent_steps, req.steps, time.perf_counter() - t0)
+            warming = run.agent_steps <= cfg.critic_warmup  # only the critic learns from this batch
             for _ in range(cfg.epochs * (cfg.frames_per_batch // cfg.minibatch_size)):
                 parts = loss(prepare_minibatch(loss, buffer.sample(), cfg.normalize_advantage))
-                total = parts["loss_objective"] + parts["loss_critic"] + parts.get("loss_entropy", 0.0)
+                total = parts["loss_critic"]
+                if not warming:
+                    total = total + parts["loss_objective"] + parts.get("loss_entropy", 0.0)
                 optim.zero_grad()
                 total.backward()
                 torch.nn.utils.clip_grad_norm_(loss.parameters(), cfg.max_grad_norm)

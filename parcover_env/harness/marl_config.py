@@ -15,7 +15,7 @@ from typing import Any, Literal
 from parcover_env.config import from_mapping, read_yaml
 from parcover_env.errors import ConfigError
 
-__all__ = ["MarlConfig", "ALGOS", "default_config_path", "load_marl_config"]
+__all__ = ["MarlConfig", "ALGOS", "default_config_path", "load_marl_config", "scheduled_lr"]
 
 ALGOS = ("ippo", "mappo")
 """The algorithms ``parcover train`` knows: IPPO (per-agent critic), MAPPO (centralized critic)."""
@@ -32,7 +32,14 @@ class MarlConfig:
     minibatch_size: int = 256
     """Env steps per gradient step (``ReplayBuffer(batch_size=...)``, sampled without replacement)."""
     learning_rate: float = 3e-4
-    """Adam step size for actor and critic."""
+    """Adam step size for actor and critic (at the start of the run when ``lr_end`` is set)."""
+    lr_end: float | None = None
+    """Linear learning-rate decay: the step size goes from ``learning_rate`` to this value over the
+    run's budget, the larger of the fractions of ``--steps`` and of ``wall_time`` used, set before
+    each batch's updates (:func:`scheduled_lr`). None: constant ``learning_rate``."""
+    critic_warmup: int = 0
+    """Agent-steps at the start of the run during which only the critic learns (the actor's loss is
+    left out), e.g. when ``--init`` brings an actor but no critic. 0: none."""
     max_grad_norm: float = 0.5
     """Gradients are clipped to this global norm."""
     gamma: float = 0.99
@@ -105,9 +112,12 @@ class MarlConfig:
         for key in ("gamma", "gae_lambda"):
             if not 0.0 <= getattr(self, key) <= 1.0:
                 raise ConfigError(source, key, f"must be in [0, 1], got {getattr(self, key)}")
-        for key in ("entropy_coeff", "critic_coeff", "episode_steps", "wall_time", "checkpoint_every"):
+        for key in ("entropy_coeff", "critic_coeff", "episode_steps", "wall_time", "checkpoint_every", "critic_warmup"):
             if getattr(self, key) < 0:
                 raise ConfigError(source, key, f"must be >= 0, got {getattr(self, key)}")
+        if self.lr_end is not None and not 0.0 <= self.lr_end <= self.learning_rate:
+            raise ConfigError(source, "lr_end", f"must be in [0, learning_rate ({self.learning_rate})], "
+                              f"got {self.lr_end}")
         if self.minibatch_size > self.frames_per_batch:
             raise ConfigError(source, "minibatch_size", f"must be <= frames_per_batch ({self.frames_per_batch}), "
                               f"got {self.minibatch_size}")
@@ -135,6 +145,19 @@ class MarlConfig:
         if version != 2:
             raise ConfigError(source, "critic", f"attention reads the version-2 state tokens, but the training env "
                               f"has observation version {version}: set env: {{observation: {{version: 2}}}}")
+
+
+def scheduled_lr(cfg: MarlConfig, agent_steps: int, steps: int, elapsed: float) -> float:
+    """The step size after ``agent_steps`` of ``steps`` and ``elapsed`` seconds: ``learning_rate``, or
+    with ``lr_end`` set the linear interpolation to it by the used fraction of the budget (the larger
+    of ``agent_steps / steps`` and ``elapsed / wall_time``, at most 1)."""
+    if cfg.lr_end is None:
+        return cfg.learning_rate
+    used = agent_steps / steps if steps > 0 else 0.0
+    if cfg.wall_time:
+        used = max(used, elapsed / cfg.wall_time)
+    used = min(1.0, used)
+    return cfg.learning_rate + (cfg.lr_end - cfg.learning_rate) * used
 
 
 def default_config_path(algo: str) -> Path:
