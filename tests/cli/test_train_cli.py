@@ -93,3 +93,33 @@ def test_issue_done_when_train_ippo_office_4096_then_bench(backend, tmp_path, mo
     assert main(["bench", "office", "--policies", record["policy"], "--seeds", "2", "--out", "bench",
                  "--no-plots", "--quiet"]) == 0
     assert record["policy"] in (tmp_path / "bench" / "table.md").read_text()
+
+
+@pytest.mark.parametrize("backend", ["local", "ray"])
+def test_rollout_input_scale_reaches_the_collecting_actor(backend, tmp_path, monkeypatch):
+    """``obs_scale: rollout`` fits the actor's input scale after the first batch; the actor that collects the
+    next batches (a remote one with ``--backend ray``) must use it: the log-probabilities stored with a batch
+    are then the learner's own before its first update, so PPO's approximate KL on each batch's first (and
+    only) minibatch is ~0 (with the box scale still at the collector it reads ~0.01-0.06)."""
+    pytest.importorskip("torchrl")
+    if backend == "ray":
+        pytest.importorskip("ray")
+    from torchrl.objectives.multiagent import IPPOLoss
+
+    kls = []
+    forward = IPPOLoss.forward
+
+    def recording(self, td):
+        out = forward(self, td)
+        kls.append(float(out.get("kl_approx")))
+        return out
+
+    monkeypatch.setattr(IPPOLoss, "forward", recording)
+    cfg = tmp_path / "tiny.yaml"
+    cfg.write_text("frames_per_batch: 64\nminibatch_size: 64\nepochs: 1\nhidden: [8]\nepisode_steps: 40\n"
+                   "obs_scale: rollout\n")
+    argv = ["train", "ippo", "office", "--steps", "300", "--out", str(tmp_path / "run"), "--backend", backend,
+            "--seed", "2", "--config", str(cfg)]
+    assert main(argv) == 0
+    assert len(kls) >= 2  # the batches after the one that set the scale
+    assert max(abs(k) for k in kls) < 1e-5, kls
