@@ -28,6 +28,9 @@ def test_shipped_configs_load(algo):
     ("critic_embed: 30\ncritic_heads: 4\n", "critic_heads", "divide critic_embed (30)"),
     ("critic_heads: 0\n", "critic_heads", "> 0"),
     ("env: [1]\n", "env", "mapping"),
+    ("learning_rate: 1.0e-4\nlr_end: 2.0e-4\n", "lr_end", "[0, learning_rate"),
+    ("lr_end: -1.0e-5\n", "lr_end", "[0, learning_rate"),
+    ("critic_warmup: -1\n", "critic_warmup", ">= 0"),
 ])
 def test_bad_values_name_file_and_key(tmp_path, text, key, words):
     path = tmp_path / "bad.yaml"
