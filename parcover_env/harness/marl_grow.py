@@ -106,6 +106,9 @@ def grow_actor(where: str, init_net, net, growth: Growth) -> dict:
         raise ParcoverError(f"--init {where}: its actor has {old_lin[0].in_features} inputs, but its env's "
                             f"observation layout (rebuilt from its sidecar) has "
                             f"{sum(s.stop - s.start for s in init_io.observation.values())}")
+    if old_lin[-1].out_features != 2 * len(init_io.actions):
+        raise ParcoverError(f"--init {where}: its actor has {old_lin[-1].out_features // 2} action components, but "
+                            f"its env (rebuilt from its sidecar) has {len(init_io.actions)}")
     old_cols, new_cols = [], []
     for name, old in init_io.observation.items():
         new = io.observation.get(name)

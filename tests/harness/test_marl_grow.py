@@ -100,6 +100,15 @@ def test_a_misfit_growth_cannot_explain_is_one_error(new, hidden, words):
     assert "--init runs/x" in str(info.value) and words in str(info.value)
 
 
+def test_an_init_actor_that_does_not_fit_its_own_sidecar_env_is_one_error():
+    init, grown = _actor(1, 5, 3), _actor(2, 9, 3)  # 3 actions, but its env (OLD) has 2
+    with pytest.raises(ParcoverError, match="its actor has 3 action components, but its env .* has 2"):
+        grow_actor("x", policy_net(init), policy_net(grown), Growth(OLD, NEW, loc=-1.5, std=0.5))
+    init = _actor(1, 6, 2)
+    with pytest.raises(ParcoverError, match="its actor has 6 inputs, but its env's observation layout .* has 5"):
+        grow_actor("x", policy_net(init), policy_net(grown), Growth(OLD, NEW, loc=-1.5, std=0.5))
+
+
 def test_the_new_scale_bias_and_the_config_bounds():
     from tensordict.nn import NormalParamExtractor
 
