@@ -37,7 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from parcover_env.harness.marl_config import MarlConfig, scheduled_lr
-from parcover_env.harness.marl_init import CRITIC_FILE, apply_init, critic_spec, find_init, save_critic
+from parcover_env.harness.marl_grow import Growth, env_io
+from parcover_env.harness.marl_init import CRITIC_FILE, apply_init, critic_spec, find_init, init_env_args, save_critic
 from parcover_env.harness.marl_loss import GROUP, REAL, build_loss, prepare_minibatch, standardize_advantage
 from parcover_env.harness.marl_scale import fit_scale
 from parcover_env.harness.training import git_commit, plot_curve, write_csv
@@ -317,7 +318,11 @@ def train(req: TrainRequest) -> dict:
     critic = build_critic(req.algo, obs_space, base.state_space, cfg)
     loss = build_loss(req.algo, cfg, actor, critic)
     spec = critic_spec(req.algo, cfg, obs_space.shape[0], base.state_space.shape[0])
-    init = apply_init(source, policy_net(actor), critic, loss.value_norm, spec) if source else None
+    growth = None
+    if source is not None and cfg.init_grow:  # the init's env, rebuilt from its sidecar, for its layout
+        init_env = EnvMaker(episode_steps=0, state=False, **init_env_args(source)).parallel()
+        growth = Growth(env_io(init_env), env_io(base), cfg.init_grow_loc, cfg.init_grow_std)
+    init = apply_init(source, policy_net(actor), critic, loss.value_norm, spec, growth) if source else None
     optim = torch.optim.Adam(loss.parameters(), lr=cfg.learning_rate)
     # at least one real robot per env step: enough frames for ``req.steps`` real agent-steps; the loop
     # stops at the first batch that reaches them (a map pool's padding robots do not count)

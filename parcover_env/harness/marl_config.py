@@ -40,6 +40,15 @@ class MarlConfig:
     critic_warmup: int = 0
     """Agent-steps at the start of the run during which only the critic learns (the actor's loss is
     left out), e.g. when ``--init`` brings an actor but no critic. 0: none."""
+    init_grow: bool = False
+    """``--init`` into an env with observation entries or action components the init's env lacked
+    (e.g. ``observation.scan.enabled``): the actor is grown by name
+    (:mod:`~parcover_env.harness.marl_grow`). False: an actor of another size is an error."""
+    init_grow_loc: float = -1.5
+    """``init_grow``: the ``loc`` of a new action component (zero weights): its deterministic action
+    is ``tanh(init_grow_loc)`` (-0.905: for ``scan``, read as "scan when > 0", no scan)."""
+    init_grow_std: float = 0.5
+    """``init_grow``: the TanhNormal scale of a new action component at the start."""
     max_grad_norm: float = 0.5
     """Gradients are clipped to this global norm."""
     gamma: float = 0.99
@@ -106,6 +115,8 @@ class MarlConfig:
         """Self, or ConfigError naming ``source`` and the first out-of-range key."""
         positive = ("frames_per_batch", "epochs", "minibatch_size", "learning_rate", "max_grad_norm", "clip_epsilon",
                     "ray_collectors", "critic_embed", "critic_heads", "max_robots", "worlds")
+        if not self.init_grow_std > 0.01:  # the actor's scale floor (NormalParamExtractor's biased softplus)
+            raise ConfigError(source, "init_grow_std", f"must be > 0.01, got {self.init_grow_std}")
         for key in positive:
             if not getattr(self, key) > 0:
                 raise ConfigError(source, key, f"must be > 0, got {getattr(self, key)}")

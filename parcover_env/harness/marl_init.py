@@ -8,6 +8,12 @@ critic kind, input sizes, widths and value normalization, whose running statisti
 else from scratch. The new run's sidecar records :func:`init_record`: the path, the init run's own
 ``algo`` and ``init`` (from its ``run.json``; ``None`` for a bare ``policy.pt``) and whether the critic
 was loaded, so a chain of runs says how its last network was made.
+
+With ``init_grow: true`` the run's env may add observation entries and action components that the
+init's env lacked (e.g. the ``scan`` ones): the init env is rebuilt from the init run's sidecar
+(:func:`init_env_args`) and the actor is grown by name (:mod:`~parcover_env.harness.marl_grow`); the
+``init`` record then says ``grown: {observation: [...], actions: [...]}`` (the new entries and
+components). A critic of another input size starts from scratch, as above.
 """
 
 from __future__ import annotations
@@ -18,9 +24,10 @@ from pathlib import Path
 
 from parcover_env.errors import ParcoverError
 from parcover_env.harness.marl_config import MarlConfig
+from parcover_env.harness.marl_grow import Growth, grow_actor
 from parcover_env.policies.torchrl_policy import POLICY_FILE, TorchRLPolicy
 
-__all__ = ["CRITIC_FILE", "InitSource", "find_init", "critic_spec", "save_critic", "apply_init"]
+__all__ = ["CRITIC_FILE", "InitSource", "find_init", "init_env_args", "critic_spec", "save_critic", "apply_init"]
 
 CRITIC_FILE = "critic.pt"
 """The critic checkpoint beside ``policy.pt``: ``spec`` (:func:`critic_spec`), ``state_dict``, ``value_norm``."""
@@ -58,6 +65,19 @@ def find_init(path: str | Path) -> InitSource:
     return InitSource(str(path), policy, critic if critic.is_file() else None, run)
 
 
+def init_env_args(src: InitSource) -> dict:
+    """The :class:`~parcover_env.harness.marl.EnvMaker` keyword arguments (``scenario``, ``preset``,
+    ``overrides``, ``max_robots``) of the init run's env, from its sidecar; ParcoverError without one."""
+    run = src.run
+    config = run.get("config") if run else None
+    if not run or not isinstance(run.get("scenario"), str) or not isinstance(config, dict):
+        raise ParcoverError(f"--init {src.path}: init_grow needs the init run's run.json (scenario and config) "
+                            "to rebuild its env's observation layout")
+    overrides = run.get("env_overrides", config.get("env"))
+    return {"scenario": run["scenario"], "preset": config.get("preset", "realistic"),
+            "overrides": overrides or None, "max_robots": int(config.get("max_robots", 12))}
+
+
 def critic_spec(algo: str, cfg: MarlConfig, obs_dim: int, state_dim: int) -> dict:
     """What a saved critic must match to be loaded: its kind, input sizes, widths, value normalization."""
     kind = cfg.critic if algo == "mappo" else "mlp"
@@ -86,19 +106,26 @@ def _shape(net) -> tuple[int, list[int], int]:
     return linear[0].in_features, [m.out_features for m in linear[:-1]], linear[-1].out_features // 2
 
 
-def apply_init(src: InitSource, actor_net, critic, value_norm, spec: dict) -> dict:
-    """Load ``src`` into ``actor_net`` (an :func:`actor_net`, required to match) and, when its spec
-    equals ``spec``, into ``critic`` and ``value_norm``; returns the sidecar's ``init`` record."""
+def apply_init(src: InitSource, actor_net, critic, value_norm, spec: dict, growth: Growth | None = None) -> dict:
+    """Load ``src`` into ``actor_net`` (an :func:`actor_net`, required to match unless ``growth``, with
+    ``init_grow``, says how the two envs' layouts differ) and, when its spec equals ``spec``, into
+    ``critic`` and ``value_norm``; returns the sidecar's ``init`` record."""
     import torch
 
     loaded = TorchRLPolicy(src.policy).net  # a corrupt or foreign file is a ParcoverError naming it
-    theirs, ours = _shape(loaded), _shape(actor_net)
-    if theirs != ours:
-        def show(s):
-            return f"observation {s[0]}, hidden {s[1]}, actions {s[2]}"
+    grown = None
+    if growth is not None and growth.changes:
+        grown = grow_actor(src.path, loaded, actor_net, growth)
+    else:
+        theirs, ours = _shape(loaded), _shape(actor_net)
+        if theirs != ours:
+            def show(s):
+                return f"observation {s[0]}, hidden {s[1]}, actions {s[2]}"
 
-        raise ParcoverError(f"--init {src.path}: its actor ({show(theirs)}) does not fit this run's ({show(ours)})")
-    actor_net.load_state_dict(loaded.state_dict())
+            hint = "" if growth is not None else " (init_grow: true grows it into new observation entries/actions)"
+            raise ParcoverError(f"--init {src.path}: its actor ({show(theirs)}) does not fit this run's "
+                                f"({show(ours)}){hint}")
+        actor_net.load_state_dict(loaded.state_dict())
     critic_loaded = False
     if src.critic is not None:
         try:
@@ -111,4 +138,7 @@ def apply_init(src: InitSource, actor_net, critic, value_norm, spec: dict) -> di
                 value_norm.load_state_dict(ckpt["value_norm"])
             critic_loaded = True
     run = src.run or {}
-    return {"path": src.path, "algo": run.get("algo"), "init": run.get("init"), "critic": critic_loaded}
+    record = {"path": src.path, "algo": run.get("algo"), "init": run.get("init"), "critic": critic_loaded}
+    if grown is not None:
+        record["grown"] = grown
+    return record
