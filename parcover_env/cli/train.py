@@ -72,10 +72,21 @@ def cmd_train(args) -> int:
                                 backend=args.backend, ray_address=args.ray_address, seed=args.seed,
                                 command=shlex.join(command), init=args.init))
     if record["init"]:
-        critic = "and its critic" if record["init"]["critic"] else "(critic from scratch: another kind or size)"
-        print(f"started from {record['init']['path']} {critic}")
+        print(init_line(record["init"]))
     print(f"{record['agent_steps']} agent-steps, {record['episodes']} episodes ended, {record['wall_time']:.1f} s; "
           f"wrote {Path(args.out) / 'run.json'}")
     maps = "generated:1000,generated:1001,..." if is_pool(args.scenario) else args.scenario  # unseen maps
     print(f"evaluate: parcover bench {maps} --policies {record['policy']}")
     return 0
+
+
+def init_line(init: dict) -> str:
+    """What the sidecar's ``init`` record says, as one line: the run started from, whether the critic
+    came along, and the entries the actor was grown by (``init_grow``)."""
+    critic = "and its critic" if init["critic"] else "(critic from scratch: another kind or size)"
+    line = f"started from {init['path']} {critic}"
+    grown = init.get("grown")
+    if grown:
+        parts = [f"{kind} {', '.join(names)}" for kind, names in grown.items() if names]
+        line += f"; actor grown by {'; '.join(parts)} (new weights zero)"
+    return line

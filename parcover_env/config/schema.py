@@ -135,6 +135,11 @@ class RewardConfig:
     0 (default): no ``contact`` term at all (the env's terms, infos and rollouts as without it)."""
     contact_gap: float = 0.02
     """Gap (m) under which the ``contact`` term counts a robot as touching a wall or robot."""
+    uncertainty: float = 0.0
+    """Per step and metre of the agent's position uncertainty: the major axis (1 sigma) of its
+    estimate's own covariance ellipse after this step's fixes (the observation's ``sigma_major``; the
+    estimate's belief, never its true error). Negative: a cost of being unsure, which Kinect fixes and
+    sonar scans (``observation.scan``) lower. 0 (default): no ``uncertainty`` term at all."""
 
     def __post_init__(self) -> None:
         _positive(self, "contact_gap")

@@ -110,7 +110,10 @@ class ParallelCoverageEnv(ParallelEnv):
     when a robot's true centre comes within ``kpoi_radius`` of it. Version 2 adds ``own_kpoi`` (per
     KPOI of its own route the agent itself visits: the per-robot reward) and makes ``kpoi`` a small
     team bonus (``parcover_v2``'s weights: ``own_kpoi`` 10, ``kpoi`` 1). A non-zero ``rewards.contact``
-    adds ``contact`` last (per step the agent is within ``contact_gap`` of touching a wall or robot).
+    adds ``contact`` (per step the agent is within ``contact_gap`` of touching a wall or robot), a
+    non-zero ``rewards.uncertainty`` adds ``uncertainty`` last (per step and metre of the agent's
+    ``sigma_major``, its estimate's own uncertainty after this step's fixes: negative, a cost of being
+    unsure that Kinect fixes and sonar scans lower).
 
     Done robots (version 2): once every KPOI of its own route is visited, a robot's ``done_mask``
     entry and ``info[agent]["route_done"]`` are 1; it stays in the world (it can still block and
@@ -200,7 +203,7 @@ class ParallelCoverageEnv(ParallelEnv):
         self._act_space = spaces.Box(-1.0, 1.0, (2 if self.scanner is None else 3,), dtype=np.float32)
         self.version = s.observation.version
         """Observation, reward and ``state()`` version (``observation.version``)."""
-        self.terms = terms_for(self.version, s.rewards.contact != 0)
+        self.terms = terms_for(self.version, s.rewards.contact != 0, s.rewards.uncertainty != 0)
         """The reward terms, in summing order (``info[agent]["reward_<term>"]``)."""
         self.route_facts = None
         """Version 2: the routes' static facts the v2 entries and ``state()`` read (``obs_v2.RouteFacts``)."""

@@ -11,7 +11,8 @@ import numpy as np
 from parcover_env.config import RewardConfig
 from parcover_env.geometry.rays import point_segment_distance
 
-__all__ = ["TERMS", "TERMS_V2", "TEAM_TERMS", "REWARD_KEYS", "terms_for", "reward_terms", "own_visits", "touching"]
+__all__ = ["TERMS", "TERMS_V2", "TEAM_TERMS", "REWARD_KEYS", "terms_for", "reward_terms", "own_visits", "touching",
+           "sigma_major"]
 
 TERMS = ("kpoi", "progress", "time", "collision")
 """The terms of version 1 (and of version 2 after ``own_kpoi``)."""
@@ -23,11 +24,18 @@ REWARD_KEYS = tuple(f"reward_{t}" for t in TERMS)
 """Info keys of the version-1 terms: ``info[agent]["reward_kpoi"]`` etc. (flat, present at reset as 0)."""
 
 
-def terms_for(version: int, contact: bool = False) -> tuple[str, ...]:
-    """The reward terms of observation ``version`` (1: :data:`TERMS`, 2: :data:`TERMS_V2`), with
-    ``contact`` last when ``contact`` (its weight is not 0)."""
+def terms_for(version: int, contact: bool = False, uncertainty: bool = False) -> tuple[str, ...]:
+    """The reward terms of observation ``version`` (1: :data:`TERMS`, 2: :data:`TERMS_V2`), then
+    ``contact`` when ``contact`` and ``uncertainty`` when ``uncertainty`` (their weights are not 0)."""
     terms = TERMS_V2 if version == 2 else TERMS
-    return (*terms, "contact") if contact else terms
+    return (*terms, *(("contact",) if contact else ()), *(("uncertainty",) if uncertainty else ()))
+
+
+def sigma_major(cov: np.ndarray) -> np.ndarray:
+    """The major axis (1 sigma, m) of the position uncertainty ellipse of pose covariances
+    ``(..., 3, 3)`` (x, y, heading): the square root of the larger eigenvalue of the x-y block."""
+    a, b, c = cov[..., 0, 0], cov[..., 0, 1], cov[..., 1, 1]
+    return np.sqrt(np.maximum(0.5 * (a + c) + np.hypot(0.5 * (a - c), b), 0.0))
 
 
 def touching(xy: np.ndarray, segments: np.ndarray, radius: float, gap: float) -> np.ndarray:
@@ -57,7 +65,7 @@ def own_visits(newly: np.ndarray, visitor: np.ndarray, owner: np.ndarray, n_robo
 
 def reward_terms(w: RewardConfig, n_new_kpois, progress: np.ndarray,
                  new_contacts: np.ndarray, own_new: np.ndarray | None = None,
-                 touch: np.ndarray | None = None) -> dict[str, np.ndarray]:
+                 touch: np.ndarray | None = None, sigma: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Weighted terms per agent ``{name: (N,)}`` (or ``(K, N)`` for ``K`` worlds: ``progress``,
     ``new_contacts`` and ``own_new`` ``(K, N)``, ``n_new_kpois (K,)``).
 
@@ -67,7 +75,8 @@ def reward_terms(w: RewardConfig, n_new_kpois, progress: np.ndarray,
     progress: ``w.progress`` per metre of route-length-to-go removed this step (potential-based);
     time: ``w.time`` every step; collision: ``w.collision`` per new contact of this agent;
     contact (only when ``touch`` is given, 1 where the agent touches something this step, from
-    :func:`touching`): ``w.contact`` per step in contact.
+    :func:`touching`): ``w.contact`` per step in contact; uncertainty (only when ``sigma`` is given,
+    the agent's :func:`sigma_major` in m): ``w.uncertainty * sigma`` per step.
     """
     shape = np.shape(progress)
     kpoi = np.empty(shape)
@@ -81,4 +90,6 @@ def reward_terms(w: RewardConfig, n_new_kpois, progress: np.ndarray,
     })
     if touch is not None:
         terms["contact"] = w.contact * touch
+    if sigma is not None:
+        terms["uncertainty"] = w.uncertainty * sigma
     return terms

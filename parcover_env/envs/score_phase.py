@@ -39,7 +39,7 @@ import numpy as np
 
 from parcover_env.envs.handover import update_teams
 from parcover_env.envs.metrics import record_steps
-from parcover_env.envs.rewards import own_visits, reward_terms, touching
+from parcover_env.envs.rewards import own_visits, reward_terms, sigma_major, touching
 from parcover_env.envs.score_rows import shared_rows
 from parcover_env.envs.team import TEAM_ROWS, count_waypoints_many
 from parcover_env.envs.world_rows import ActRows
@@ -164,7 +164,11 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
         gap = s.rewards.contact_gap
         touch = np.array([touching(xy, w.world.map.segments, w.world.radius, gap)
                           for w, xy in zip(worlds, true_xy, strict=True)])
-    terms = reward_terms(s.rewards, n_new, gained, new_wall + new_robot, own, touch)
+    sigma = None
+    if "uncertainty" in first.terms:  # the estimates' covariances after this step's fixes
+        cov = gather([w.estimator.covariance for w in worlds]) if act is None else act.odometry.blocks["covariance"]
+        sigma = sigma_major(cov)
+    terms = reward_terms(s.rewards, n_new, gained, new_wall + new_robot, own, touch, sigma)
     record_steps([w.metrics for w in worlds], before, true, times=times, progress=trackers, estimates=est,
                  new_contacts=(new_wall, new_robot), teams=teams, formation=s.formation, kinects=first.kinects,
                  control_dt=s.physics.control_dt, visits=(state.visited, state.visit_time), team_rows=team)

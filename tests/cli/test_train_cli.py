@@ -123,3 +123,17 @@ def test_rollout_input_scale_reaches_the_collecting_actor(backend, tmp_path, mon
     assert main(argv) == 0
     assert len(kls) >= 2  # the batches after the one that set the scale
     assert max(abs(k) for k in kls) < 1e-5, kls
+
+
+def test_init_line_names_the_critic_and_the_grown_entries():
+    from parcover_env.cli.train import init_line
+
+    base = {"path": "runs/a", "algo": "mappo", "init": None}
+    assert init_line({**base, "critic": True}) == "started from runs/a and its critic"
+    assert init_line({**base, "critic": False}) == "started from runs/a (critic from scratch: another kind or size)"
+    grown = {**base, "critic": False, "grown": {"observation": ["scanning", "scan_result"], "actions": ["scan"]}}
+    assert init_line(grown) == ("started from runs/a (critic from scratch: another kind or size); actor grown by "
+                                "observation scanning, scan_result; actions scan (new weights zero)")
+    only_obs = {**base, "critic": True, "grown": {"observation": ["scanning"], "actions": []}}
+    assert init_line(only_obs) == ("started from runs/a and its critic; actor grown by observation scanning "
+                                   "(new weights zero)")
