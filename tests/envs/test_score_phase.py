@@ -280,7 +280,8 @@ def _two_worlds(scenario, overrides=None):
 
 
 @pytest.mark.parametrize("scenario, overrides", [("office", None), ("tree", {"observation": {"version": 2}}),
-                                                 ("office", {"observation": {"scan": {"enabled": True}}})])
+                                                 ("office", {"observation": {"scan": {"enabled": True}}}),
+                                                 ("office", {"rewards": {"uncertainty": -1.0}})])
 def test_phases_of_two_worlds_are_each_world_alone(scenario, overrides):
     envs = _two_worlds(scenario, overrides)
     alone = copy.deepcopy(envs)

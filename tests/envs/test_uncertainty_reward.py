@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from parcover_env import parcover_v2
+from parcover_env.envs import stepper
 from parcover_env.config import RewardConfig
 from parcover_env.envs.rewards import TERMS_V2, reward_terms, sigma_major, terms_for
 
@@ -91,3 +92,23 @@ def test_env_without_uncertainty_weight_has_no_uncertainty_term():
     env.reset(seed=0)
     _, _, _, _, infos = env.step(_drive(env))
     assert env.terms == TERMS_V2 and "reward_uncertainty" not in infos["robot_0"]
+
+
+def test_score_phase_pays_each_worlds_own_sigma_from_the_act_rows_or_gathered():
+    envs = [_env(-2.0) for _ in range(2)]
+    rng = np.random.default_rng(4)
+    for seed, e in enumerate(envs):
+        e.reset(seed=seed)
+        for _ in range(6 + 9 * seed):  # different covariances
+            e.step({a: rng.uniform(-1, 1, 2).astype(np.float32) for a in e.agents})
+    acts = rng.uniform(-1, 1, (2, envs[0].n_robots, 2)).astype(np.float32)
+    before, true = stepper.act(envs, acts)
+    want = [-2.0 * sigma_major(e.estimator.covariance) for e in envs]
+    assert not np.allclose(want[0], want[1])
+    scores = stepper.score(envs, before, true)  # the act phase's shared rows
+    assert scores.act is not None
+    np.testing.assert_allclose(scores.terms["uncertainty"], want, rtol=1e-12)
+    twins = copy.deepcopy(envs[::-1])  # reversed copies: not the act rows' estimators, so gathered
+    scores = stepper.score(twins, before[::-1], true[::-1])
+    assert scores.act is None
+    np.testing.assert_allclose(scores.terms["uncertainty"], want[::-1], rtol=1e-12)
