@@ -110,19 +110,24 @@ def _learned(kind: str) -> Callable[[Any, int | None, str], Policy]:
     return build
 
 
-def _torchrl(env, seed: int | None, path: str) -> Policy:
-    from parcover_env.errors import require
+def _torchrl(sampled: bool) -> Callable[[Any, int | None, str], Policy]:
+    name = "torchrl_sampled" if sampled else "torchrl"
 
-    torch = require("torch", "train", f"policy 'torchrl:{path}'")
-    from parcover_env.policies.torchrl_policy import TorchRLPolicy
+    def build(env, seed: int | None, path: str) -> Policy:
+        from parcover_env.errors import require
 
-    torch.set_num_threads(1)
-    policy = TorchRLPolicy(path)
-    expected = env.observation_space(env.possible_agents[0]).shape
-    if tuple(policy.obs_shape) != tuple(expected):
-        raise ParcoverError(f"policy 'torchrl:{path}' was trained on observations of shape "
-                            f"{tuple(policy.obs_shape)}; scenario '{env.scenario.name}' gives {tuple(expected)}")
-    return policy
+        torch = require("torch", "train", f"policy '{name}:{path}'")
+        from parcover_env.policies.torchrl_policy import TorchRLPolicy
+
+        torch.set_num_threads(1)
+        policy = TorchRLPolicy(path, sample_seed=(0 if seed is None else seed) if sampled else None)
+        expected = env.observation_space(env.possible_agents[0]).shape
+        if tuple(policy.obs_shape) != tuple(expected):
+            raise ParcoverError(f"policy '{name}:{path}' was trained on observations of shape "
+                                f"{tuple(policy.obs_shape)}; scenario '{env.scenario.name}' gives {tuple(expected)}")
+        return policy
+
+    return build
 
 
 def _torchrl_overrides(path: str) -> dict | None:
@@ -144,15 +149,18 @@ POLICIES: dict[str, PolicyEntry] = {
     "ppo": PolicyEntry(_learned("ppo"), "a saved SB3 PPO model (model.zip + vecnormalize.pkl)", needs_path=True),
     "bc": PolicyEntry(_learned("bc"), "a behaviour-cloned MLP (bc.pt)", needs_path=True),
     "mappo": PolicyEntry(_learned("mappo"), "a MAPPO actor (actor.pt)", needs_path=True),
-    "torchrl": PolicyEntry(_torchrl, "an IPPO/MAPPO actor from parcover train (DIR/policy.pt; the env "
-                           "overrides it was trained with come from DIR/run.json)", needs_path=True,
-                           path_overrides=_torchrl_overrides),
+    "torchrl": PolicyEntry(_torchrl(False), "an IPPO/MAPPO actor from parcover train (DIR/policy.pt; the env "
+                           "overrides it was trained with come from DIR/run.json), deterministic: tanh(loc)",
+                           needs_path=True, path_overrides=_torchrl_overrides),
+    "torchrl_sampled": PolicyEntry(_torchrl(True), "the same actor with its actions sampled from its TanhNormal "
+                                   "as in training (seeded by the episode's seed)", needs_path=True,
+                                   path_overrides=_torchrl_overrides),
 }
 """Every policy by name; see the module docstring to add one."""
 
 
 def policy_specs() -> str:
-    """The accepted specs, e.g. ``expert | waypoint | random | ppo:PATH | bc:PATH | mappo:PATH | torchrl:PATH``."""
+    """The accepted specs, e.g. ``expert | waypoint | random | ppo:PATH | ... | torchrl_sampled:PATH``."""
     return " | ".join(f"{name}:PATH" if e.needs_path else name for name, e in POLICIES.items())
 
 

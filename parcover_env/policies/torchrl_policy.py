@@ -3,12 +3,18 @@
 The checkpoint ``policy.pt`` is a dict: ``state_dict`` of :func:`actor_net` (the weights and the
 observation box it scales by), ``obs_dim``, ``hidden`` and ``act_dim``. Every robot runs the same network on its
 own observation (parameter sharing). The network outputs the location and the pre-softplus scale of
-a TanhNormal distribution (TorchRL's ``NormalParamExtractor`` splits them); acting takes the
-distribution's deterministic sample ``tanh(loc)``, which lies in the action box [-1, 1].
+a TanhNormal distribution (TorchRL's ``NormalParamExtractor`` splits them). Acting takes the
+distribution's deterministic sample ``tanh(loc)`` (spec ``torchrl:DIR``), or, with a ``sample_seed``
+(spec ``torchrl_sampled:DIR``), a sample ``tanh(loc + scale * eps)`` as in training, ``eps`` standard
+normal from a numpy Generator seeded with the episode's seed (bit-identical per seed, also after
+``deepcopy``/``pickle``). Both lie in the action box [-1, 1]. A policy whose ``scan`` component starts a
+scan when it is above 0 scans, deterministically, only where ``loc > 0``; sampled, it also scans now
+and then elsewhere, as it did in training.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +22,8 @@ import numpy as np
 from parcover_env.errors import ParcoverError
 from parcover_env.policies.protocol import Policy
 
-__all__ = ["actor_net", "box_scale", "TorchRLPolicy", "POLICY_FILE", "SIDECAR_FILE", "checkpoint_overrides"]
+__all__ = ["actor_net", "box_scale", "TorchRLPolicy", "POLICY_FILE", "SIDECAR_FILE", "checkpoint_overrides",
+           "SCALE_MIN", "actor_scale"]
 
 POLICY_FILE = "policy.pt"
 """The checkpoint's name in a ``parcover train`` output directory."""
@@ -81,10 +88,23 @@ def actor_net(obs_low: np.ndarray, obs_high: np.ndarray, hidden: tuple[int, ...]
     return nn.Sequential(*layers)
 
 
-class TorchRLPolicy(Policy):
-    """The actor of a ``parcover train`` run: ``torchrl:DIR`` or ``torchrl:DIR/policy.pt``."""
+SCALE_MIN = 0.01
+"""Smallest scale of the actor's TanhNormal (TorchRL's ``NormalParamExtractor``: ``biased_softplus(1.0)``)."""
 
-    def __init__(self, path: str | Path):
+
+def actor_scale(pre):
+    """The TanhNormal scale of the actor's pre-softplus outputs ``pre`` (a torch tensor), as TorchRL's
+    ``NormalParamExtractor`` maps them: ``softplus(pre + b) + SCALE_MIN``, ``b`` such that 0 maps to 1."""
+    import torch
+
+    return torch.nn.functional.softplus(pre + math.log(math.expm1(1.0 - SCALE_MIN))) + SCALE_MIN
+
+
+class TorchRLPolicy(Policy):
+    """The actor of a ``parcover train`` run: ``torchrl:DIR`` or ``torchrl:DIR/policy.pt``
+    (deterministic), ``torchrl_sampled:...`` (``sample_seed``: actions sampled, see the module docstring)."""
+
+    def __init__(self, path: str | Path, sample_seed: int | None = None):
         import torch
 
         path = Path(path)
@@ -101,6 +121,8 @@ class TorchRLPolicy(Policy):
         self.net.eval()
         self.act_dim = int(ckpt["act_dim"])
         self.obs_shape = (n,)
+        self.rng = None if sample_seed is None else np.random.default_rng(sample_seed)
+        """The sampling noise's generator; None: deterministic ``tanh(loc)``."""
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         import torch
@@ -110,6 +132,12 @@ class TorchRLPolicy(Policy):
             return {}
         obs = torch.as_tensor(np.stack([np.asarray(observations[a], dtype=np.float32) for a in agents]))
         with torch.no_grad():
-            loc = self.net(obs)[:, : self.act_dim]
-        actions = torch.tanh(loc).numpy().astype(np.float32)
+            out = self.net(obs)
+            loc = out[:, : self.act_dim]
+            if self.rng is None:
+                actions = torch.tanh(loc).numpy().astype(np.float32)
+            else:
+                scale = actor_scale(out[:, self.act_dim:]).double().numpy()
+                u = loc.double().numpy() + scale * self.rng.standard_normal(scale.shape)
+                actions = np.tanh(u).astype(np.float32)
         return {a: actions[i] for i, a in enumerate(agents)}

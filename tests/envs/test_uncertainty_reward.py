@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from parcover_env import parcover_v2
-from parcover_env.envs import stepper
 from parcover_env.config import RewardConfig
+from parcover_env.envs import stepper
 from parcover_env.envs.rewards import TERMS_V2, reward_terms, sigma_major, terms_for
 
 
