@@ -32,8 +32,8 @@ RECORDS = {
     ("tree", "waypoint"): [("tree_base", "waypoint")],
     ("tree", "random"): [("tree_base", "random")],
     ("generated:*", "expert"): [("gen_expert20_envscan", "expert")],
-    ("generated:*", "`mappo_generated_attention`"): [("gen20_mappo_attention",
-                                                      "torchrl:runs/mappo_generated_attention_2261137/")],
+    ("generated:*", "`mappo_generated_scan_sigma`"): [
+        ("gen20_mappo_scan_sigma", "torchrl_sampled:runs/snap/mappo_generated_scan_sigma_1633701")],
     ("generated:*", "`ppo_generated`"): [("gen_dagger_waypoint", "ppo:runs/dagger_generated/round_0")],
     ("generated:*", "waypoint"): [("gen_waypoint_scan_r2", "waypoint"), ("gen_waypoint_scan_heldout", "waypoint")],
     ("generated:*", "random"): [("gen_base", "random")],

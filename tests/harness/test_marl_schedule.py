@@ -93,3 +93,26 @@ def test_the_shipped_mappo_checkpoint_names_its_five_stage_chain():
     assert run["init"]["init"] == stage4["init"] and run["init_run"] == stage4  # stages 1-4 as shipped
     assert run["agent_steps"] + 10_509_297 == 12_770_434 <= 20_000_000
     TorchRLPolicy(root / "mappo_generated_attention" / "policy.pt")  # loads
+
+
+def test_the_shipped_stage_7_names_its_chain_its_budget_and_its_sampled_spec():
+    import json
+    from pathlib import Path
+
+    import parcover_env
+    from parcover_env.policies.torchrl_policy import TorchRLPolicy
+
+    root = Path(parcover_env.__file__).resolve().parent.parent / "baselines" / "checkpoints"
+    if not (root / "mappo_generated_scan_sigma").is_dir():
+        pytest.skip("source checkout only")
+    run = json.loads((root / "mappo_generated_scan_sigma" / "run.json").read_text())
+    stage5 = json.loads((root / "mappo_generated_attention" / "run.json").read_text())
+    assert run["policy"] == "torchrl_sampled:baselines/checkpoints/mappo_generated_scan_sigma/policy.pt"
+    assert run["config"]["env"]["rewards"]["uncertainty"] == -1.0 and run["env_overrides"]["observation"]["scan"]
+    assert run["init"]["path"] == "docs/learned/mappo_generated_scan_s6" and run["init"]["critic"] is True
+    stage6 = run["init_run"]
+    assert stage6["init"]["path"] == "baselines/checkpoints/mappo_generated_attention" and stage6["init_run"] == stage5
+    assert stage6["init"]["grown"] == {"observation": ["scanning", "scan_result"], "actions": ["scan"]}
+    total = stage5["agent_steps"] + 10_509_297 + stage6["agent_steps"] + run["agent_steps"]
+    assert total == 16_395_528 <= 20_000_000
+    assert TorchRLPolicy(root / "mappo_generated_scan_sigma" / "policy.pt", sample_seed=0).act_dim == 3
