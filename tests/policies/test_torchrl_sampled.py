@@ -85,5 +85,7 @@ def test_registry_seeds_the_sampled_actor_with_the_episode_seed(tmp_path):
     spec = f"torchrl_sampled:{tmp_path}"
     x, y = make_policy(spec, env, 11).act(obs), TorchRLPolicy(tmp_path, sample_seed=11).act(obs)
     assert all(np.array_equal(x[k], y[k]) for k in obs)
+    x, y = make_policy(spec, env, None).act(obs), TorchRLPolicy(tmp_path, sample_seed=0).act(obs)  # no seed: 0
+    assert all(np.array_equal(x[k], y[k]) for k in obs)
     det = make_policy(f"torchrl:{tmp_path}", env, 11).act(obs)
     assert all(np.allclose(det[k], np.tanh(LOC)) for k in obs)
