@@ -6,8 +6,8 @@ own observation (parameter sharing). The network outputs the location and the pr
 a TanhNormal distribution (TorchRL's ``NormalParamExtractor`` splits them). Acting takes the
 distribution's deterministic sample ``tanh(loc)`` (spec ``torchrl:DIR``), or, with a ``sample_seed``
 (spec ``torchrl_sampled:DIR``), a sample ``tanh(loc + scale * eps)`` as in training, ``eps`` standard
-normal from a numpy Generator seeded with the episode's seed (bit-identical per seed, also after
-``deepcopy``/``pickle``). Both lie in the action box [-1, 1]. A policy whose ``scan`` component starts a
+normal from a numpy Generator seeded with the episode's seed (bit-identical per seed, also after a
+``deepcopy`` mid-episode). Both lie in the action box [-1, 1]. A policy whose ``scan`` component starts a
 scan when it is above 0 scans, deterministically, only where ``loc > 0``; sampled, it also scans now
 and then elsewhere, as it did in training.
 """
