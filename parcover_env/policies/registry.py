@@ -90,6 +90,15 @@ def _expert(env, seed: int | None, path: str) -> Policy:
     return expert_for(env)
 
 
+def _fitting(policy, env, spec: str):
+    """``policy`` if its checkpoint's observation shape is ``env``'s, else a ParcoverError naming both."""
+    expected = env.observation_space(env.possible_agents[0]).shape
+    if tuple(policy.obs_shape) != tuple(expected):
+        raise ParcoverError(f"policy '{spec}' was trained on observations of shape "
+                            f"{tuple(policy.obs_shape)}; scenario '{env.scenario.name}' gives {tuple(expected)}")
+    return policy
+
+
 def _learned(kind: str) -> Callable[[Any, int | None, str], Policy]:
     def build(env, seed: int | None, path: str) -> Policy:
         from parcover_env.errors import require
@@ -101,11 +110,7 @@ def _learned(kind: str) -> Callable[[Any, int | None, str], Policy]:
 
         torch.set_num_threads(1)  # small MLPs: one thread is fastest and avoids oversubscribing workers
         policy = PPOPolicy(path) if kind == "ppo" else BCPolicy(path, "actor.pt" if kind == "mappo" else "bc.pt")
-        expected = env.observation_space(env.possible_agents[0]).shape
-        if tuple(policy.obs_shape) != tuple(expected):
-            raise ParcoverError(f"policy '{kind}:{path}' was trained on observations of shape "
-                                f"{tuple(policy.obs_shape)}; scenario '{env.scenario.name}' gives {tuple(expected)}")
-        return policy
+        return _fitting(policy, env, f"{kind}:{path}")
 
     return build
 
@@ -121,11 +126,7 @@ def _torchrl(sampled: bool) -> Callable[[Any, int | None, str], Policy]:
 
         torch.set_num_threads(1)
         policy = TorchRLPolicy(path, sample_seed=(0 if seed is None else seed) if sampled else None)
-        expected = env.observation_space(env.possible_agents[0]).shape
-        if tuple(policy.obs_shape) != tuple(expected):
-            raise ParcoverError(f"policy '{name}:{path}' was trained on observations of shape "
-                                f"{tuple(policy.obs_shape)}; scenario '{env.scenario.name}' gives {tuple(expected)}")
-        return policy
+        return _fitting(policy, env, f"{name}:{path}")
 
     return build
 

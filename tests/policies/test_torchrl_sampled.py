@@ -89,3 +89,18 @@ def test_registry_seeds_the_sampled_actor_with_the_episode_seed(tmp_path):
     assert all(np.array_equal(x[k], y[k]) for k in obs)
     det = make_policy(f"torchrl:{tmp_path}", env, 11).act(obs)
     assert all(np.allclose(det[k], np.tanh(LOC)) for k in obs)
+
+
+@pytest.mark.parametrize("name", ["torchrl", "torchrl_sampled"])
+def test_a_checkpoint_of_another_observation_size_is_one_clear_error(tmp_path, name):
+    from parcover_env.errors import ParcoverError
+
+    env = parcover_env.parallel_env("office")
+    env.reset(seed=0)
+    dim = env.observation_space(env.possible_agents[0]).shape[0]
+    _save(tmp_path, dim + 3)
+    (tmp_path / "run.json").write_text(json.dumps({"env_overrides": None}))
+    with pytest.raises(ParcoverError) as err:
+        make_policy(f"{name}:{tmp_path}", env, 0)
+    assert str(err.value) == (f"policy '{name}:{tmp_path}' was trained on observations of shape ({dim + 3},); "
+                              f"scenario 'office' gives ({dim},)")
