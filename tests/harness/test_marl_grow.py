@@ -65,7 +65,7 @@ def test_grown_actor_keeps_the_init_outputs_and_starts_the_new_component_at_no_s
     # the deterministic action (tanh(loc), as evaluation takes it): scan = tanh(-1.5) = -0.905, "no scan"
     # (the env starts a scan when scan > 0)
     policy = TorchRLPolicy.__new__(TorchRLPolicy)
-    policy.net, policy.act_dim = policy_net(grown), 3
+    policy.net, policy.act_dim, policy.rng = policy_net(grown), 3, None  # deterministic
     act = policy.act({"robot_0": obs[0].numpy(), "robot_1": obs[1].numpy()})
     assert act["robot_0"][2] == pytest.approx(math.tanh(-1.5)) and act["robot_1"][2] < 0
 
