@@ -104,3 +104,33 @@ def test_a_checkpoint_of_another_observation_size_is_one_clear_error(tmp_path, n
         make_policy(f"{name}:{tmp_path}", env, 0)
     assert str(err.value) == (f"policy '{name}:{tmp_path}' was trained on observations of shape ({dim + 3},); "
                               f"scenario 'office' gives ({dim},)")
+
+
+class _NotWeights:
+    """Stands for code a checkpoint could carry: ``weights_only`` loading refuses it."""
+
+
+def test_float64_observations_give_float32_actions(tmp_path):
+    _save(tmp_path, 5)
+    obs = {k: v.astype(np.float64) for k, v in _obs(2, 5).items()}
+    for policy in (TorchRLPolicy(tmp_path), TorchRLPolicy(tmp_path, sample_seed=1)):
+        got = policy.act(obs)
+        assert all(a.dtype == np.float32 and a.shape == (2,) for a in got.values())
+    assert TorchRLPolicy(tmp_path).act({}) == {}
+
+
+def test_missing_corrupt_and_code_carrying_checkpoints_are_one_clear_error(tmp_path):
+    from parcover_env.errors import ParcoverError
+
+    with pytest.raises(ParcoverError, match="^TorchRL policy checkpoint not found: .*/nothing$"):
+        TorchRLPolicy(tmp_path / "nothing")
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "policy.pt").write_bytes(b"not a checkpoint")
+    with pytest.raises(ParcoverError, match=r"^cannot load TorchRL policy .*policy.pt: UnpicklingError: "):
+        TorchRLPolicy(bad)
+    _save(tmp_path / "code", 4)
+    ckpt = torch.load(tmp_path / "code" / "policy.pt", weights_only=True)
+    torch.save({**ckpt, "extra": _NotWeights()}, tmp_path / "code" / "policy.pt")
+    with pytest.raises(ParcoverError, match=r"^cannot load TorchRL policy .*policy.pt: UnpicklingError: "):
+        TorchRLPolicy(tmp_path / "code")  # weights only: no object of a foreign class is rebuilt
