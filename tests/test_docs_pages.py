@@ -4,7 +4,6 @@ the file NAME). Python blocks titled with a path are excerpts of the package's s
 
 from __future__ import annotations
 
-import os
 import re
 from pathlib import Path
 
