@@ -27,7 +27,7 @@ lint: $(VENV)/.installed
 # The documentation site (mkdocs.yml, sources in docs/) into site/, warnings as errors;
 # `$(BIN)/mkdocs serve` serves it live at http://127.0.0.1:8000.
 docs: $(VENV)/.installed
-	$(BIN)/mkdocs build --strict
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/throughput.py
