@@ -8,6 +8,12 @@ import re
 from pathlib import Path
 
 
+def test_readme_is_short():
+    """The README is the front page for users (at most 150 lines); the manual is the docs site."""
+    lines = (Path(__file__).resolve().parents[1] / "README.md").read_text().splitlines()
+    assert len(lines) <= 150
+
+
 def test_readme_api_example_runs():
     text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
     code = re.search(r"## The API in 15 lines\n\n```python\n(.*?)```", text, re.S).group(1)
