@@ -32,3 +32,15 @@ def test_site_builds_strict(tmp_path):
     for page in ("getting_started", "concepts/sensors", "tutorials/add_sensor", "gallery", "results"):
         assert (site / page / "index.html").is_file(), page
     assert not (site / "learned" / "episodes").exists()   # benchmark records are not published
+
+
+def test_docs_hook_turns_sphinx_roles_into_code_spans():
+    sys.path.insert(0, str(ROOT))
+    try:
+        import docs_hooks
+    finally:
+        sys.path.remove(str(ROOT))
+    html = ("see :class:<code>~parcover_env.sensors.base.Sensor</code> and :func:<code>merge_routes</code>, "
+            ":mod:<code>parcover_env.errors</code>; plain <code>x</code>")
+    assert docs_hooks.strip_roles(html) == ("see <code>Sensor</code> and <code>merge_routes</code>, "
+                                            "<code>parcover_env.errors</code>; plain <code>x</code>")

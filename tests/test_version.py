@@ -86,3 +86,4 @@ def test_env_version_history_names_released_versions():
     assert {r for _, r in pairs} <= set(releases)
     newest = tuple(map(int, pairs[0][1].split(".")))
     assert newest <= tuple(map(int, parcover_env.__version__.split(".")))
+
