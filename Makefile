@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 SCENARIO ?= office
 
-.PHONY: run test lint bench clean clean-kernels
+.PHONY: run test lint bench docs clean clean-kernels
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -12,7 +12,7 @@ $(BIN)/python:
 # Reinstall only when the package metadata or the pins change.
 $(VENV)/.installed: pyproject.toml constraints.txt | $(BIN)/python
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -c constraints.txt -e ".[dev,train]"
+	$(BIN)/python -m pip install --quiet -c constraints.txt -e ".[dev,train,docs]"
 	touch $@
 
 run: $(VENV)/.installed
@@ -24,6 +24,11 @@ test: $(VENV)/.installed
 lint: $(VENV)/.installed
 	$(BIN)/ruff check .
 
+# The documentation site (mkdocs.yml, sources in docs/) into site/, warnings as errors;
+# `$(BIN)/mkdocs serve` serves it live at http://127.0.0.1:8000.
+docs: $(VENV)/.installed
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
+
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/throughput.py
 
@@ -34,4 +39,4 @@ clean-kernels:
 	find parcover_env -name '*.nb[ic]' -delete
 
 clean: clean-kernels
-	rm -rf $(VENV) .pytest_cache
+	rm -rf $(VENV) .pytest_cache site

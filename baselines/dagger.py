@@ -20,7 +20,7 @@ also written as Minari datasets (``parcover/dagger-<teacher>-r<r>-v0``) for ``tr
 Why a teacher other than the scripted expert: the expert's actions depend on state the observation
 does not carry (its plan, waits for teammates and for localization fixes), so a network cloning it
 from the observation averages "drive" and "wait" in the same observed state and stalls (measured in
-docs/train_and_compare.md). ``waypoint`` acts from the observation alone, so it can be cloned exactly.
+docs/lab/train_and_compare.md). ``waypoint`` acts from the observation alone, so it can be cloned exactly.
 """
 
 from __future__ import annotations

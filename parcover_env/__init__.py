@@ -25,7 +25,7 @@ __all__ = [
     "ParallelCoverageEnv", "raw_env", "parallel_env", "env", "make", "Scenario", "load_scenario",
     "scenario_names", "make_vec_env", "ConfigError", "ActionError", "ParcoverError", "__version__",
 ]
-__version__ = "0.2.0"
+__version__ = "0.3.0"  # the one version string (pyproject reads it; tests/test_version.py)
 
 _LAZY = {
     "ParallelCoverageEnv": ("parcover_env.envs", "ParallelCoverageEnv"),

@@ -8,6 +8,12 @@ import re
 from pathlib import Path
 
 
+def test_readme_is_short():
+    """The README is the front page for users (at most 150 lines); the manual is the docs site."""
+    lines = (Path(__file__).resolve().parents[1] / "README.md").read_text().splitlines()
+    assert len(lines) <= 150
+
+
 def test_readme_api_example_runs():
     text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
     code = re.search(r"## The API in 15 lines\n\n```python\n(.*?)```", text, re.S).group(1)
@@ -17,7 +23,7 @@ def test_readme_api_example_runs():
     assert namespace["frame"].ndim == 3
 
 
-# README results row (scenario, policy) -> the benchmark records it summarizes: (file in
+# Results row (scenario, policy) of docs/results.md and the README -> the benchmark records it summarizes: (file in
 # docs/learned/episodes/, policy spec prefix in those records)
 RECORDS = {
     ("office", "expert"): [("office20_expert_r3", "expert")],
@@ -48,24 +54,43 @@ def _cell(est: float, lo: float, hi: float, digits: int = 2) -> str:
     return f"{est:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
 
 
-def test_readme_results_table_is_the_benchmark_records():
-    """Every row of the README's results table is recomputed from the stored ``parcover bench``
-    records (the same summary ``parcover bench`` prints), and no record-less row is left."""
+def _table(text: str, header: str) -> list[list[str]]:
+    """The rows (cells stripped) of the markdown table whose header line starts with ``header``."""
+    lines = text[text.index(header):].split("\n\n")[0].splitlines()[2:]
+    return [[c.strip() for c in line.strip("|").split("|")] for line in lines]
+
+
+def _summary(root: Path, scenario: str, policy: str) -> tuple[str, ...]:
+    """(episodes, success, KPOI fraction, makespan ratio, collisions) cells of one row, recomputed from
+    its stored ``parcover bench`` records (the same summary ``parcover bench`` prints)."""
     from parcover_env.harness.bench import summarize
 
+    records = []
+    for name, prefix in RECORDS[scenario, policy]:
+        data = json.loads((root / "docs" / "learned" / "episodes" / f"{name}.json").read_text())
+        records += [r for r in data if r["policy"].startswith(prefix)]
+    s = next(x for x in summarize(records) if x["scenario"] == scenario)
+    return (str(s["episodes"]), _cell(s["success"], s["success_lo"], s["success_hi"]),
+            _cell(s["kpoi_fraction"], s["kpoi_fraction_lo"], s["kpoi_fraction_hi"]),
+            _cell(s["makespan_ratio"], s["makespan_ratio_lo"], s["makespan_ratio_hi"]),
+            _cell(s["collisions"], s["collisions_lo"], s["collisions_hi"], 1))
+
+
+def test_results_page_table_is_the_benchmark_records():
+    """Every row of the results page's table (docs/results.md) is recomputed from the stored
+    ``parcover bench`` records, and no record-less row is left."""
     root = Path(__file__).resolve().parents[1]
-    text = (root / "README.md").read_text()
-    table = text[text.index("| scenario | policy | how it was made (budget) |"):].split("\n\n")[0].splitlines()[2:]
-    rows = [[c.strip() for c in line.strip("|").split("|")] for line in table]
+    rows = _table((root / "docs" / "results.md").read_text(), "| scenario | policy | how it was made (budget) |")
     assert {(r[0], r[1]) for r in rows} == set(RECORDS)
-    for scenario, policy, _how, episodes, success, kpoi, makespan, collisions in rows:
-        records = []
-        for name, prefix in RECORDS[scenario, policy]:
-            data = json.loads((root / "docs" / "learned" / "episodes" / f"{name}.json").read_text())
-            records += [r for r in data if r["policy"].startswith(prefix)]
-        s = next(x for x in summarize(records) if x["scenario"] == scenario)
-        got = (str(s["episodes"]), _cell(s["success"], s["success_lo"], s["success_hi"]),
-               _cell(s["kpoi_fraction"], s["kpoi_fraction_lo"], s["kpoi_fraction_hi"]),
-               _cell(s["makespan_ratio"], s["makespan_ratio_lo"], s["makespan_ratio_hi"]),
-               _cell(s["collisions"], s["collisions_lo"], s["collisions_hi"], 1))
-        assert got == (episodes, success, kpoi, makespan, collisions), (scenario, policy)
+    for scenario, policy, _how, *cells in rows:
+        assert tuple(cells) == _summary(root, scenario, policy), (scenario, policy)
+
+
+def test_readme_results_table_is_the_benchmark_records():
+    """The README's short table: rows of the results page, each recomputed from its records."""
+    root = Path(__file__).resolve().parents[1]
+    rows = _table((root / "README.md").read_text(), "| scenario | policy | episodes |")
+    assert len(rows) >= 6 and {(r[0], r[1]) for r in rows} <= set(RECORDS)
+    assert {r[0] for r in rows} == {"office", "tree", "generated:*"}
+    for scenario, policy, *cells in rows:
+        assert tuple(cells) == _summary(root, scenario, policy), (scenario, policy)

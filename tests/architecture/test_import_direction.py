@@ -1,6 +1,6 @@
 """The house's import rules, read from the source with ``ast`` (nothing is imported).
 
-Rooms sit on floors (see the README's Architecture section); a module may import from its own
+Rooms sit on floors (see docs/architecture.md); a module may import from its own
 room or from rooms on lower floors, never from a higher floor. ``viz`` draws state and is imported
 only by ``envs`` (lazily, inside ``render``), ``harness`` and ``cli``. No import cycles at all.
 """

@@ -198,7 +198,7 @@ def check_file(path: Path, steps: int = 2) -> tuple[str, str]:
 
     outcome is ``loaded`` (load + env + reset + ``steps`` steps OK), ``config_error`` (ConfigError
     naming this file and a key), ``huge`` (loaded, but the planner raster is over
-    ``RASTER_CELL_LIMIT`` cells: not built, see docs/reliability.md), or ``FAIL`` (anything else).
+    ``RASTER_CELL_LIMIT`` cells: not built, see docs/lab/reliability.md), or ``FAIL`` (anything else).
     """
     import parcover_env as pe
 
