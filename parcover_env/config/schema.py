@@ -224,7 +224,7 @@ class ScanConfig:
     outside the estimate's own gate gives way to a match inside that gate if the scan has one (the far
     one is a look-alike). Measured with the scripted expert driving on before its next scan
     (``expert.sonar_fix.relocate_distance`` 0.5 m): generated seeds 0-199 199 / 200, off 195 / 200;
-    200-299 98 / 100, off 97 / 100 (``docs/expert_benchmark.md``, 2026-11-26). The registered expert's
+    200-299 98 / 100, off 97 / 100 (``docs/lab/expert_benchmark.md``, 2026-11-26). The registered expert's
     env turns it on, except for the sonar navigator (``localization: sonar``)."""
 
     def __post_init__(self) -> None:

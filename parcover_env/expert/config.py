@@ -105,7 +105,7 @@ class SonarFixConfig:
     ``rescan_distance`` apart (the noise-free prediction is optimistic along corridors, where a real
     scan every ``relocate_distance`` stays uninformative); after a held one (the scene was
     informative) the predicted place is used, to confirm it soon. 0: off (the expert before
-    2026-11-26). Measured with 0.5 m and ``confirm_widened`` on (``docs/expert_benchmark.md``,
+    2026-11-26). Measured with 0.5 m and ``confirm_widened`` on (``docs/lab/expert_benchmark.md``,
     2026-11-26): generated seeds 0-199 199 / 200 (off: 195 / 200), 200-299 98 / 100 (off: 97 / 100)."""
     stuck_time: float = 5.0
     """With ``relocate_distance`` > 0: a leader waiting to scan from elsewhere (after a held scan, or an

@@ -5,7 +5,7 @@ box to [-1, 1] (:func:`~parcover_env.policies.torchrl_policy.box_scale`). The bo
 entry can take, which for some entries is far wider than the values it takes: on the generated maps'
 pool (14 m x 14 m box) the route goal ``goal_dx`` / ``goal_dy`` (the pure-pursuit point 0.4 m ahead,
 the steering signal of the ``waypoint`` policy) reaches the network with a standard deviation of
-~0.01 against ~0.5 for most entries (measured in ``docs/train_and_compare.md``, 2026-11-26).
+~0.01 against ~0.5 for most entries (measured in ``docs/lab/train_and_compare.md``, 2026-11-26).
 
 With ``obs_scale: rollout`` the trainer's first batch (collected by the untrained actor) is used
 only to set the scale of each entry to its mean and standard deviation over the real robots (the
