@@ -53,8 +53,9 @@ class PolicyEntry:
     scenario_overrides: Callable[[str], dict | None] | None = None
     """``scenario -> overrides`` (a scenario name or path): used instead of :attr:`env_overrides` when
     the caller names the scenario (:func:`policy_overrides`)."""
-    check_path: Callable[[str], None] | None = None
-    """Checks the text after ``NAME:`` (raises ParcoverError) instead of requiring an existing path."""
+    check_path: Callable[[str, str], None] | None = None
+    """``(path, spec) -> None``: checks the text after ``NAME:`` (raises ParcoverError naming ``spec``)
+    instead of requiring an existing path."""
     path_hint: str = "PATH"
     """What follows ``NAME:`` in the spec help (``NAME:PATH``)."""
 
@@ -119,10 +120,10 @@ def _python(env, seed: int | None, path: str) -> Policy:
     return fitting_policy(policy_from(load_attribute(path, spec), env, seed, spec), env, spec)
 
 
-def _python_check(path: str) -> None:
+def _python_check(path: str, spec: str) -> None:
     from parcover_env.policies.external import check_python_spec
 
-    check_python_spec(path)
+    check_python_spec(path, spec)
 
 
 def _python_overrides(path: str) -> dict | None:
@@ -215,7 +216,7 @@ def check_policy_spec(spec: str) -> None:
         raise ParcoverError(f"unknown policy '{spec}' (choose from {policy_specs()})")
     if entry.needs_path:
         if entry.check_path is not None:
-            entry.check_path(path)
+            entry.check_path(path, spec)
             return
         if not path:
             raise ParcoverError(f"policy '{spec}': give a checkpoint, e.g. {name}:runs/{name}_office")
