@@ -26,7 +26,8 @@ if TYPE_CHECKING:  # imported on first use (module ``__getattr__`` below): ``imp
 
 __all__ = [
     "ParallelCoverageEnv", "raw_env", "parallel_env", "env", "make", "Scenario", "load_scenario",
-    "scenario_names", "make_vec_env", "compare", "Comparison", "ConfigError", "ActionError", "ParcoverError", "__version__",
+    "scenario_names", "make_vec_env", "compare", "Comparison", "ConfigError", "ActionError", "ParcoverError",
+    "__version__",
 ]
 __version__ = "0.2.0"
 
