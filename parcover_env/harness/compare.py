@@ -106,7 +106,7 @@ def _seeds(seeds: Iterable[int]) -> list[int]:
 
 
 def compare(
-    policy: Any,
+    policy: Any | dict[str, Any],
     scenarios: str | Sequence[str],
     seeds: Iterable[int],
     *,
@@ -123,7 +123,8 @@ def compare(
     seed; the per-episode records, the summary and ``parcover bench``'s table.
 
     ``policy``: a Policy object, a factory ``(env, seed) -> Policy`` or ``(env) -> Policy``, a Policy
-    class, or a spec string (``py:MODULE:ATTR``, ``ppo:PATH``, ...). ``scenarios``: names, YAML paths
+    class, or a spec string (``py:MODULE:ATTR``, ``ppo:PATH``, ...); or a mapping ``{name: policy}``
+    of several, benched in one sweep. ``scenarios``: names, YAML paths
     or ``generated:SEED`` (one string or several). ``seeds``: the episode seeds (the same for every
     policy). ``name``: the policy's row label (default: the spec, or the factory's or class's
     ``__name__``). ``env_overrides``: scenario overrides of your policy's env (default: the factory's
@@ -132,7 +133,6 @@ def compare(
     module docstring); ``backend="ray"`` as ``parcover bench --backend ray``. One ParcoverError for bad
     input."""
     from parcover_env.harness.bench import markdown_table, run_calls, run_job, summarize
-    from parcover_env.policies.external import env_overrides_of
     from parcover_env.policies.registry import check_policy_spec
 
     scenario_list = [scenarios] if isinstance(scenarios, str) else list(scenarios)
@@ -149,33 +149,50 @@ def compare(
         against = [against]
     for spec in against:
         check_policy_spec(spec)
-    label = name or _label(policy)
-    if label in against:
-        raise ParcoverError(f"policy name '{label}' is also a baseline in against={list(against)}: give name=...")
     if env_overrides is not None and not isinstance(env_overrides, dict):
         raise ParcoverError(f"env_overrides must be a mapping, got {type(env_overrides).__name__}")
-
-    if isinstance(policy, str):  # a registry spec: run as ``parcover bench`` runs it
-        check_policy_spec(policy)
-        own = [(_spec_job, (label, s, policy, seed, max_steps, preset)) for s in scenario_list for seed in seed_list]
+    if isinstance(policy, dict):
+        if name is not None:
+            raise ParcoverError("name= labels a single policy; the keys of a mapping of policies are their names")
+        if not policy or not all(isinstance(k, str) and k for k in policy):
+            raise ParcoverError(f"a mapping of policies needs one or more names (str) as keys, got {list(policy)!r}")
+        named = list(policy.items())
     else:
-        overrides = env_overrides if env_overrides is not None else env_overrides_of(policy, label)
-        sent = policy
-        if workers > 1 and backend == "local":
-            try:
-                sent = _Pickled(pickle.dumps(policy), label)
-            except Exception as exc:
-                raise ParcoverError(_unpicklable(label, exc, "does not pickle")) from None
-        own = [(run_policy_job, (s, label, sent, seed, max_steps, preset, overrides))
-               for s in scenario_list for seed in seed_list]
-    base = [(run_job, (s, spec, seed, max_steps, preset)) for s in scenario_list for spec in against
-            for seed in seed_list]
-    per_base, per_own = len(against) * len(seed_list), len(seed_list)
-    calls = [c for i in range(len(scenario_list))  # per scenario: the baselines, then the policy (row order)
-             for c in base[i * per_base:(i + 1) * per_base] + own[i * per_own:(i + 1) * per_own]]
+        named = [(name or _label(policy), policy)]
+    for label, _ in named:
+        if label in against:
+            raise ParcoverError(f"policy name '{label}' is also a baseline in against={list(against)}: give "
+                                "another name")
+
+    own = {s: [] for s in scenario_list}
+    for label, one in named:
+        for s in scenario_list:
+            own[s] += _jobs(label, one, s, seed_list, workers, backend, max_steps, preset, env_overrides)
+    calls = []
+    for s in scenario_list:  # per scenario: the baselines, then the policies (the table's row order)
+        calls += [(run_job, (s, spec, seed, max_steps, preset)) for spec in against for seed in seed_list] + own[s]
     rows = run_calls(_call, calls, workers, backend, progress)
     summary = summarize(rows)
     return Comparison(rows, summary, markdown_table(summary))
+
+
+def _jobs(label: str, policy: Any, scenario: str, seeds: list[int], workers: int, backend: str,
+          max_steps: int | None, preset: str, env_overrides: dict | None) -> list[tuple]:
+    """The calls of one policy's episodes on one scenario."""
+    from parcover_env.policies.external import env_overrides_of
+    from parcover_env.policies.registry import check_policy_spec
+
+    if isinstance(policy, str):  # a registry spec: run as ``parcover bench`` runs it
+        check_policy_spec(policy)
+        return [(_spec_job, (label, scenario, policy, seed, max_steps, preset)) for seed in seeds]
+    overrides = env_overrides if env_overrides is not None else env_overrides_of(policy, label)
+    sent = policy
+    if workers > 1 and backend == "local":
+        try:
+            sent = _Pickled(pickle.dumps(policy), label)
+        except Exception as exc:
+            raise ParcoverError(_unpicklable(label, exc, "does not pickle")) from None
+    return [(run_policy_job, (scenario, label, sent, seed, max_steps, preset, overrides)) for seed in seeds]
 
 
 def _call(fn, args: tuple) -> dict:

@@ -138,14 +138,22 @@ def test_a_spec_string_and_bad_arguments():
         (dict(workers=0), "workers must be an integer >= 1, got 0"),
         (dict(backend="slurm"), "backend must be 'local' or 'ray', got 'slurm'"),
         (dict(max_steps=0), "max_steps must be an integer >= 1 or None, got 0"),
-        (dict(name="expert"), "policy name 'expert' is also a baseline in against=['expert']: give name=..."),
+        (dict(name="expert"), "policy name 'expert' is also a baseline in against=['expert']: give another name"),
         (dict(env_overrides=[1]), "env_overrides must be a mapping, got list"),
         (dict(against=("greedy",)), "unknown policy 'greedy'"),
     ]
+    bad += [
+        (dict(policy={"a": Still()}, name="b"),
+         "name= labels a single policy; the keys of a mapping of policies are their names"),
+        (dict(policy={}), "a mapping of policies needs one or more names (str) as keys, got []"),
+        (dict(policy={"expert": Still()}),
+         "policy name 'expert' is also a baseline in against=['expert']: give another name"),
+        (dict(policy="greedy"), "unknown policy 'greedy'"),
+    ]
     for kwargs, message in bad:
-        args = {"scenarios": "office", "seeds": [0], **kwargs}
+        args = {"policy": Still(), "scenarios": "office", "seeds": [0], **kwargs}
         with pytest.raises(ParcoverError) as info:
-            parcover_env.compare(Still(), args.pop("scenarios"), args.pop("seeds"), **args)
+            parcover_env.compare(args.pop("policy"), args.pop("scenarios"), args.pop("seeds"), **args)
         assert str(info.value).startswith(message), (kwargs, str(info.value))
     with pytest.raises(KeyError, match="no single summary row for policy 'nobody'"):
         result.row("nobody")
