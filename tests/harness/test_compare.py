@@ -110,6 +110,27 @@ def test_workers_need_a_policy_that_pickles():
         "or name it by the spec 'py:MODULE:ATTR', or run with workers=1")
 
 
+def test_a_policy_that_pickles_here_but_not_in_a_worker(monkeypatch):
+    """A function of a module that exists only in this process (a notebook's ``__main__``, say)
+    pickles here by reference; the worker cannot import it: one error naming the policy."""
+    import types
+
+    ghost = types.ModuleType("ghost_agents")
+
+    def make(env, seed):
+        return Still()
+
+    make.__module__, make.__qualname__ = "ghost_agents", "make"
+    ghost.make = make
+    monkeypatch.setitem(sys.modules, "ghost_agents", ghost)
+    with pytest.raises(ParcoverError) as info:
+        parcover_env.compare(make, "office", [0], workers=2, max_steps=5, against=("random",))
+    assert str(info.value) == (
+        "policy 'make' cannot be unpickled in a worker process (ModuleNotFoundError: No module named "
+        "'ghost_agents'), so it cannot run with workers > 1: define a factory (env, seed) -> Policy at module "
+        "level in an importable module and pass it, or name it by the spec 'py:MODULE:ATTR', or run with workers=1")
+
+
 def test_a_module_level_factory_reaches_two_workers(monkeypatch):
     """Pickled by reference, the factory is imported in each spawned worker; the episodes are those
     of one process."""
