@@ -102,6 +102,7 @@ class TorchRLPolicy(Policy):
 def main(sb3_steps: int = 4096, torchrl_iterations: int = 10, torchrl_frames: int = 256, seeds=SEEDS,
          max_steps: int | None = None):
     """Train both agents, compare them with the expert, print the table; returns the Comparison."""
+    torch.set_num_threads(1)  # small networks: one thread acts fastest, and leaves the env a core
     sb3 = SB3Policy(train_sb3(sb3_steps))
     obs_dim = parcover_env.parallel_env(SCENARIO).observation_space("robot_0").shape[0]
     torchrl = TorchRLPolicy(train_torchrl(torchrl_iterations, torchrl_frames), obs_dim)

@@ -7,13 +7,14 @@ Your policy is a Policy object, a factory ``(env, seed) -> Policy`` / ``(env) ->
 class, or a spec string (``py:MODULE:ATTR``, ``ppo:PATH``, ...); see
 :mod:`parcover_env.policies.external`. It drives the scenario as it is (plus the ``env_overrides``
 you give, or those its factory carries as ``env_overrides``); the expert drives the env ``parcover
-bench`` gives it (with the env's sonar scan service). Same seeds, same worlds: the robots' start
-noise and the sensors' errors of episode ``seed`` are the same for every policy.
+bench`` gives it (with the env's sonar scan service). Every policy's episode ``seed`` starts with
+``env.reset(seed=seed)``; a policy that drives as the expert does, on the expert's env, gets the
+expert's records bit for bit (wall time aside).
 
 With ``workers > 1`` the episodes run in spawned processes, and the policy is sent to them pickled:
-a module-level factory or class pickles (by reference: the worker imports its module), a lambda, a
-nested function or an object holding a live torch model may not; such a policy gets one error
-suggesting a module-level factory or a ``py:`` spec. A Policy object is copied into every episode
+a module-level factory or class pickles (by reference: the worker imports its module), a lambda or
+a nested function does not; such a policy, or one whose module the worker cannot import, gets one
+error suggesting a module-level factory or a ``py:`` spec. A Policy object is copied into every episode
 there; with ``workers=1`` the one object drives every episode in turn (``reset`` before each).
 """
 
