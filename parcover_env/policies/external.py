@@ -144,7 +144,7 @@ def _arguments(obj: Any, env, seed: int | None, label: str) -> tuple:
     raise ParcoverError(f"policy '{label}': {_name(obj)}{sig} takes neither (env, seed), (env) nor no arguments")
 
 
-def env_overrides_of(obj: Any, label: str = "policy") -> dict | None:
+def env_overrides_of(obj: Any, label: str) -> dict | None:
     """The ``env_overrides`` mapping attribute of a factory, class or object (None without one);
     ParcoverError if it is not a mapping."""
     overrides = getattr(obj, "env_overrides", None)

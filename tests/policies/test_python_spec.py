@@ -49,6 +49,8 @@ def test_a_factory_a_class_and_their_env_overrides(env):
     assert np.array_equal(a.act(obs)["robot_0"], b.act(obs)["robot_0"])
     assert not np.array_equal(b.act(obs)["robot_0"], c.act(obs)["robot_0"])
     assert type(make_policy("py:user_policies:StandStill", env, 0)) is user_policies.StandStill  # class ()
+    check_policy_spec("py:user_policies:STILL")  # a Policy object (not callable) is used as it is
+    assert make_policy("py:user_policies:STILL", env, 0) is user_policies.STILL
     assert policy_overrides("py:user_policies:make_still") is None
     assert policy_overrides("py:user_policies:make_expert", "office") == {
         "observation": {"scan": {"enabled": True, "confirm_widened": True}}}
@@ -66,6 +68,8 @@ def test_missing_attribute():
         "policy 'py:user_policies:make_polcy': 'user_policies' has no attribute 'make_polcy'")
     assert _error("py:user_policies:StandStill.nope") == (
         "policy 'py:user_policies:StandStill.nope': 'user_policies.StandStill' has no attribute 'nope'")
+    assert _error("py:user_policies:StandStill.act.nope") == (
+        "policy 'py:user_policies:StandStill.act.nope': 'user_policies.StandStill.act' has no attribute 'nope'")
 
 
 def test_malformed_specs():
@@ -75,6 +79,8 @@ def test_malformed_specs():
     assert _error("py:my-pkg:make") == "policy 'py:my-pkg:make': 'my-pkg' is not a module path (dotted Python names)"
     assert _error("py:user_policies:make still") == (
         "policy 'py:user_policies:make still': 'make still' is not an attribute name")
+    assert _error("py:user_policies:make:still") == (
+        "policy 'py:user_policies:make:still': 'make:still' is not an attribute name")
 
 
 def test_not_callable():
@@ -103,9 +109,22 @@ def test_factory_calls_and_their_errors(env):
     """``policy_from``: the call each signature gets, and one error for each way it can go wrong."""
     calls = []
 
-    class Mine(Policy):
+    class Fresh(Policy):  # no __init__ of its own: typing.Protocol's stand-in until the first instance
         def act(self, observations):
             return {}
+
+    class Mine(Fresh):
+        pass
+
+    class TakesEnv(Policy):
+        def __init__(self, env):
+            calls.append(("class", env.scenario.name))
+
+        def act(self, observations):
+            return {}
+
+    class Inherits(TakesEnv):
+        pass
 
     def two(env, seed):
         calls.append(("two", seed))
@@ -119,11 +138,24 @@ def test_factory_calls_and_their_errors(env):
         calls.append(("default", seed))
         return Mine()
 
+    assert type(policy_from(Fresh, env, 4, "x")) is Fresh  # before any instance: the stand-in's (*args, **kwargs)
+    assert type(policy_from(Fresh, env, 4, "x")) is Fresh  # after one: object.__init__
     for f in (two, one, default_seed, Mine):
         assert type(policy_from(f, env, 4, "x")) is Mine
-    assert calls == [("two", 4), ("one", "office"), ("default", 4)]
+    for cls in (TakesEnv, Inherits):
+        assert type(policy_from(cls, env, 4, "x")) is cls
+    assert calls == [("two", 4), ("one", "office"), ("default", 4), ("class", "office"), ("class", "office")]
     obj = Mine()
     assert policy_from(obj, env, 4, "x") is obj  # a Policy object is used as it is
+
+    class Factory:  # a callable object (no __qualname__): named by its type
+        def __call__(self, env, seed):
+            return 3
+
+    with pytest.raises(ParcoverError) as info:
+        policy_from(Factory(), env, 0, "mine")
+    assert str(info.value) == ("policy 'mine': Factory(env, seed) returned int, not a Policy (it has no act, reset, "
+                               "stats, belief; subclass parcover_env.policies.Policy)")
 
     def three(env, seed, extra):
         return Mine()
