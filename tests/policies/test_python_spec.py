@@ -190,3 +190,17 @@ def test_env_overrides_must_be_a_mapping(monkeypatch):
     monkeypatch.setattr(user_policies.make_still, "env_overrides", ["observation"], raising=False)
     assert _error("py:user_policies:make_still") == (
         "policy 'py:user_policies:make_still': env_overrides must be a mapping, got list")
+
+
+def test_a_py_spec_labels_and_drives_recorded_episodes():
+    """``parcover collect``'s recorder builds its labeller and its DAgger driver from specs too."""
+    from parcover_env.harness.datasets import record_episodes
+
+    eps = record_episodes("office", 1, seed=3, policy="py:user_policies:make_still", max_steps=5,
+                          driver="py:user_policies:SeededRandom", driver_prob=1.0)
+    still = record_episodes("office", 1, seed=3, policy="py:user_policies:make_still", max_steps=5)
+    assert [e["agent"] for e in eps] == [e["agent"] for e in still] == ["robot_0", "robot_1"]
+    for e, s in zip(eps, still, strict=True):  # the labeller's zeros are recorded either way
+        assert e["actions"].shape == s["actions"].shape == (5, 2) and not e["actions"].any() and not s["actions"].any()
+        assert np.array_equal(e["observations"][0], s["observations"][0])
+        assert not np.array_equal(e["observations"][-1], s["observations"][-1])  # the random driver moved the team
