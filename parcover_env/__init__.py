@@ -7,6 +7,8 @@ convention (``parcover_v1`` = these; ``parcover_v2``: observations, rewards and 
 state to learn from). ``make_vec_env`` (SB3 VecEnv, ``train`` extra)
 has one slot per robot per world; ``backend="batched"`` steps many worlds in one process. The
 single-robot Gymnasium env is registered as ``parcover_env/SingleRobotCoverage-v0``.
+``compare(policy, scenarios, seeds)`` benches a policy of your own beside the expert (the
+``parcover bench`` table: IQM with stratified bootstrap CIs).
 """
 
 from __future__ import annotations
@@ -19,11 +21,13 @@ if TYPE_CHECKING:  # imported on first use (module ``__getattr__`` below): ``imp
     from parcover_env.config import Scenario
     from parcover_env.envs import ParallelCoverageEnv
     from parcover_env.envs.vec_env import make_vec_env
+    from parcover_env.harness.compare import Comparison, compare
     from parcover_env.scenarios import load_scenario, scenario_names
 
 __all__ = [
     "ParallelCoverageEnv", "raw_env", "parallel_env", "env", "make", "Scenario", "load_scenario",
-    "scenario_names", "make_vec_env", "ConfigError", "ActionError", "ParcoverError", "__version__",
+    "scenario_names", "make_vec_env", "compare", "Comparison", "ConfigError", "ActionError", "ParcoverError",
+    "__version__",
 ]
 __version__ = "0.3.0"  # the one version string (pyproject reads it; tests/test_version.py)
 
@@ -34,6 +38,8 @@ _LAZY = {
     "load_scenario": ("parcover_env.scenarios", "load_scenario"),
     "scenario_names": ("parcover_env.scenarios", "scenario_names"),
     "make_vec_env": ("parcover_env.envs.vec_env", "make_vec_env"),
+    "compare": ("parcover_env.harness.compare", "compare"),
+    "Comparison": ("parcover_env.harness.compare", "Comparison"),
 }
 
 

@@ -9,7 +9,9 @@ its bootstrap CI, and, over several procedural maps, one aggregate row whose boo
 episodes within each map (stratified bootstrap). No normal-approximation intervals.
 
 Policies by spec: ``expert``, ``waypoint``, ``random``, ``ppo:PATH`` (``train_ppo.py`` output dir
-or ``model.zip``), ``bc:PATH`` (``train_bc.py`` output dir or ``bc.pt``). Backends: ``local``
+or ``model.zip``), ``bc:PATH`` (``train_bc.py`` output dir or ``bc.pt``), ... and ``py:MODULE:ATTR``
+(a policy of your own, imported in every worker); :func:`parcover_env.compare` benches a policy
+object or factory from Python with this module's runner and statistics. Backends: ``local``
 (a process pool, or in-process with ``--workers 1``) and ``ray`` (local Ray by default, or
 ``--ray-address``; optional extra).
 """
@@ -28,6 +30,9 @@ from parcover_env.policies.registry import check_policy_spec
 
 __all__ = [
     "EPISODE_FIELDS",
+    "bench_env",
+    "episode_record",
+    "run_calls",
     "iqm",
     "read_episodes",
     "stratified_bootstrap_ci",
@@ -58,22 +63,23 @@ EPISODE_FIELDS = ("scenario", "policy", "preset", "seed", "success", "kpois_visi
 _ENV_CACHE: dict[tuple[str, int | None, str, str], Any] = {}
 
 
-def run_job(scenario: str, policy: str, seed: int, max_steps: int | None = None, preset: str = "realistic") -> dict:
-    """One episode; a flat record (``EPISODE_FIELDS``). Envs are cached per process."""
+def bench_env(scenario: str, max_steps: int | None = None, preset: str = "realistic", extra: dict | None = None):
+    """The env of one benchmark episode: ``scenario`` with ``preset``, the step limit ``max_steps``
+    (None: the scenario's) and the overrides ``extra`` of the policy that drives it. Cached per process."""
     from parcover_env.config import deep_merge
     from parcover_env.envs import ParallelCoverageEnv
-    from parcover_env.harness.rollout import run_episode
-    from parcover_env.policies.registry import make_policy, policy_overrides
 
-    extra = policy_overrides(policy, scenario)
     key = (scenario, max_steps, preset, repr(extra))
     if key not in _ENV_CACHE:
         overrides = {"episode": {"max_steps": max_steps}} if max_steps else None
         if extra:
             overrides = deep_merge(overrides or {}, extra)
         _ENV_CACHE[key] = ParallelCoverageEnv(scenario, overrides=overrides, preset=preset)
-    env = _ENV_CACHE[key]
-    m = run_episode(env, make_policy(policy, env, seed), seed)
+    return _ENV_CACHE[key]
+
+
+def episode_record(scenario: str, policy: str, preset: str, seed: int, m: dict) -> dict:
+    """The flat record (``EPISODE_FIELDS``) of one episode's metrics ``m`` (``run_episode``'s)."""
     return {
         "scenario": scenario,
         "policy": policy,
@@ -91,6 +97,16 @@ def run_job(scenario: str, policy: str, seed: int, max_steps: int | None = None,
         "localization_error": m["localization_error"],
         "wall_time": m["wall_time"],
     }
+
+
+def run_job(scenario: str, policy: str, seed: int, max_steps: int | None = None, preset: str = "realistic") -> dict:
+    """One episode; a flat record (``EPISODE_FIELDS``). Envs are cached per process."""
+    from parcover_env.harness.rollout import run_episode
+    from parcover_env.policies.registry import make_policy, policy_overrides
+
+    env = bench_env(scenario, max_steps, preset, policy_overrides(policy, scenario))
+    m = run_episode(env, make_policy(policy, env, seed), seed)
+    return episode_record(scenario, policy, preset, seed, m)
 
 
 def run_sweep(
@@ -111,34 +127,42 @@ def run_sweep(
         raise ValueError(f"workers must be >= 1, got {workers}")
     for p in policies:
         check_policy_spec(p)
-    jobs = [(s, p, seed) for s in scenarios for p in policies for seed in seeds]
+    jobs = [(s, p, seed, max_steps, preset) for s in scenarios for p in policies for seed in seeds]
     if not jobs:
         raise ValueError("nothing to run: no scenarios, policies or seeds")
+    return run_calls(run_job, jobs, workers, backend, progress, ray_address)
+
+
+def run_calls(fn, jobs: list[tuple], workers: int = 1, backend: str = "local", progress: bool = True,
+              ray_address: str | None = None) -> list:
+    """``[fn(*job) for job in jobs]``, in job order: in this process (``workers`` 1), in a pool of
+    ``workers`` spawned processes (``fn`` and the jobs must pickle) or as Ray tasks; a tqdm bar over
+    the episodes when ``progress``. A ParcoverError raised in a worker is re-raised here as itself."""
     from tqdm import tqdm
 
     with tqdm(total=len(jobs), unit="episode", desc="bench", disable=not progress, dynamic_ncols=True) as bar:
         report = bar.update
         if backend == "ray":
-            return _run_ray(jobs, workers, max_steps, report, ray_address, preset)
+            return _run_ray(fn, jobs, workers, report, ray_address)
         if workers == 1:
             rows = []
-            for s, p, seed in jobs:
-                rows.append(run_job(s, p, seed, max_steps, preset))
+            for job in jobs:
+                rows.append(fn(*job))
                 report(1)
             return rows
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor, as_completed
 
-        rows: list[dict | None] = [None] * len(jobs)
+        rows: list[Any] = [None] * len(jobs)
         with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
-            futures = {pool.submit(run_job, s, p, seed, max_steps, preset): i for i, (s, p, seed) in enumerate(jobs)}
+            futures = {pool.submit(fn, *job): i for i, job in enumerate(jobs)}
             for fut in as_completed(futures):
                 rows[futures[fut]] = fut.result()  # a ParcoverError in a worker is re-raised here as itself
                 report(1)
-        return rows  # type: ignore[return-value]
+        return rows
 
 
-def _run_ray(jobs, workers, max_steps, report, address, preset) -> list[dict]:
+def _run_ray(fn, jobs, workers, report, address) -> list:
     try:
         import ray
     except ImportError:
@@ -153,8 +177,8 @@ def _run_ray(jobs, workers, max_steps, report, address, preset) -> list[dict]:
             configure_logging=False,
         )
     try:
-        remote = ray.remote(num_cpus=1)(run_job)
-        refs = [remote.remote(s, p, seed, max_steps, preset) for s, p, seed in jobs]
+        remote = ray.remote(num_cpus=1)(fn)
+        refs = [remote.remote(*job) for job in jobs]
         pending = list(refs)
         while pending:
             ready, pending = ray.wait(pending, num_returns=1)

@@ -15,7 +15,8 @@ with ``def _greedy(env, seed, path): from parcover_env.policies.greedy import Gr
 loads a checkpoint sets ``needs_path=True`` (:func:`check_policy_spec` then checks that the path
 exists) and checks in its factory that the checkpoint's observation shape is the scenario's.
 Code outside the package may add an entry to :data:`POLICIES` at run time the same way
-(in-process runs only: ``parcover bench`` workers start from the built-in registry).
+(in-process runs only: ``parcover bench`` workers start from the built-in registry), or, to reach
+worker processes too, be named by the spec ``py:MODULE:ATTR`` (:mod:`parcover_env.policies.external`).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from parcover_env.errors import ParcoverError
 from parcover_env.policies.protocol import Policy
 
 __all__ = ["POLICIES", "PolicyEntry", "BASIC_POLICIES", "POLICY_SPECS", "make_policy", "check_policy_spec",
-           "policy_overrides", "policy_specs"]
+           "policy_overrides", "policy_specs", "fitting_policy"]
 
 
 @dataclass(frozen=True)
@@ -52,6 +53,11 @@ class PolicyEntry:
     scenario_overrides: Callable[[str], dict | None] | None = None
     """``scenario -> overrides`` (a scenario name or path): used instead of :attr:`env_overrides` when
     the caller names the scenario (:func:`policy_overrides`)."""
+    check_path: Callable[[str, str], None] | None = None
+    """``(path, spec) -> None``: checks the text after ``NAME:`` (raises ParcoverError naming ``spec``)
+    instead of requiring an existing path."""
+    path_hint: str = "PATH"
+    """What follows ``NAME:`` in the spec help (``NAME:PATH``)."""
 
 
 @lru_cache(maxsize=256)
@@ -97,6 +103,33 @@ def _fitting(policy, env, spec: str):
         raise ParcoverError(f"policy '{spec}' was trained on observations of shape "
                             f"{tuple(policy.obs_shape)}; scenario '{env.scenario.name}' gives {tuple(expected)}")
     return policy
+
+
+def fitting_policy(policy, env, label: str):
+    """``policy`` if it declares no ``obs_shape`` or its ``obs_shape`` is ``env``'s observation
+    shape, else the ParcoverError of a checkpoint policy that does not fit (the check all share)."""
+    if getattr(policy, "obs_shape", None) is None:
+        return policy
+    return _fitting(policy, env, label)
+
+
+def _python(env, seed: int | None, path: str) -> Policy:
+    from parcover_env.policies.external import PY_PREFIX, load_attribute, policy_from
+
+    spec = f"{PY_PREFIX}:{path}"
+    return fitting_policy(policy_from(load_attribute(path, spec), env, seed, spec), env, spec)
+
+
+def _python_check(path: str, spec: str) -> None:
+    from parcover_env.policies.external import check_python_spec
+
+    check_python_spec(path, spec)
+
+
+def _python_overrides(path: str) -> dict | None:
+    from parcover_env.policies.external import env_overrides_of, load_attribute
+
+    return env_overrides_of(load_attribute(path), f"py:{path}")
 
 
 def _learned(kind: str) -> Callable[[Any, int | None, str], Policy]:
@@ -156,13 +189,17 @@ POLICIES: dict[str, PolicyEntry] = {
     "torchrl_sampled": PolicyEntry(_torchrl(True), "the same actor with its actions sampled from its TanhNormal "
                                    "as in training (seeded by the episode's seed)", needs_path=True,
                                    path_overrides=_torchrl_overrides),
+    "py": PolicyEntry(_python, "a policy of your own that this process and bench workers import: "
+                      "py:MODULE:ATTR, ATTR a factory (env, seed) -> Policy or a Policy class "
+                      "(see parcover_env.policies.external)", needs_path=True, path_overrides=_python_overrides,
+                      check_path=_python_check, path_hint="MODULE:ATTR"),
 }
 """Every policy by name; see the module docstring to add one."""
 
 
 def policy_specs() -> str:
     """The accepted specs, e.g. ``expert | waypoint | random | ppo:PATH | ... | torchrl_sampled:PATH``."""
-    return " | ".join(f"{name}:PATH" if e.needs_path else name for name, e in POLICIES.items())
+    return " | ".join(f"{name}:{e.path_hint}" if e.needs_path else name for name, e in POLICIES.items())
 
 
 BASIC_POLICIES = tuple(name for name, e in POLICIES.items() if not e.needs_path)
@@ -178,6 +215,9 @@ def check_policy_spec(spec: str) -> None:
     if entry is None or (path and not entry.needs_path):
         raise ParcoverError(f"unknown policy '{spec}' (choose from {policy_specs()})")
     if entry.needs_path:
+        if entry.check_path is not None:
+            entry.check_path(path, spec)
+            return
         if not path:
             raise ParcoverError(f"policy '{spec}': give a checkpoint, e.g. {name}:runs/{name}_office")
         if not Path(path).exists():
