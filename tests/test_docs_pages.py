@@ -56,7 +56,7 @@ def test_page_python_blocks_run(name, tmp_path, monkeypatch):
 
 
 def test_every_tutorial_page_is_run_or_linked():
-    """A tutorial page of this site either runs here or is the linked compare-your-policy page."""
+    """A tutorial page of this site runs here, or (compare-your-policy) in tests/test_tutorials.py."""
     tutorials = {str(p.relative_to(DOCS)) for p in (DOCS / "tutorials").glob("*.md")}
     others = tutorials - set(PAGES) - {"tutorials/index.md", "tutorials/compare_your_policy.md"}
     assert not others, f"tutorial pages whose code no test runs: {sorted(others)}"
