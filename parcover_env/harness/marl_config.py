@@ -49,6 +49,15 @@ class MarlConfig:
     is ``tanh(init_grow_loc)`` (-0.905: for ``scan``, read as "scan when > 0", no scan)."""
     init_grow_std: float = 0.5
     """``init_grow``: the TanhNormal scale of a new action component at the start."""
+    scan_head: Literal["bernoulli", "continuous"] = "bernoulli"
+    """How the actor outputs the ``scan`` action component when the env has the scan service
+    (``observation.scan.enabled``; without it the actor is the TanhNormal of ``(v, omega)`` whatever
+    this says): ``bernoulli``, a Bernoulli "scan now" beside the TanhNormal of ``(v, omega)``, whose
+    deterministic action scans where its probability is above 0.5
+    (:mod:`~parcover_env.harness.marl_scan_head`); ``continuous``, a third TanhNormal component read
+    as "scan when > 0" (the head of the shipped stage 6-7 checkpoints). A grown ``bernoulli`` scan
+    starts with the scan probability ``init_grow_loc`` / ``init_grow_std`` give a grown ``continuous``
+    one."""
     max_grad_norm: float = 0.5
     """Gradients are clipped to this global norm."""
     gamma: float = 0.99
