@@ -125,6 +125,13 @@ def actor_net(obs_low: np.ndarray, obs_high: np.ndarray, hidden: tuple[int, ...]
     return nn.Sequential(*layers)
 
 
+def _linear(net) -> list:
+    """The ``Linear`` layers of an :func:`actor_net`, in order."""
+    import torch
+
+    return [m for m in net.modules() if isinstance(m, torch.nn.Linear)]
+
+
 SCALE_MIN = 0.01
 """Smallest scale of the actor's TanhNormal (TorchRL's ``NormalParamExtractor``: ``biased_softplus(1.0)``)."""
 
@@ -156,15 +163,35 @@ class TorchRLPolicy(Policy):
             self.net.load_state_dict(ckpt["state_dict"])
         except Exception as exc:  # a foreign or corrupt file: name it instead of a deep traceback
             raise ParcoverError(f"cannot load TorchRL policy {file}: {type(exc).__name__}: {exc}") from None
+        self._set(self.net, int(ckpt["act_dim"]), head, sample_seed)
+
+    def _set(self, net, act_dim: int, scan_head: str, sample_seed: int | None) -> None:
+        self.net = net
         self.net.eval()
-        self.act_dim = int(ckpt["act_dim"])
-        self.scan_head: str = head
+        self.act_dim = act_dim
+        self.scan_head: str = scan_head
         """:data:`SCAN_HEADS`: how the network outputs the ``scan`` component."""
-        self.drive_dim = self.act_dim - 1 if head == "bernoulli" else self.act_dim
+        self.drive_dim = act_dim - 1 if scan_head == "bernoulli" else act_dim
         """Action components of the TanhNormal (all of them for the ``continuous`` head)."""
-        self.obs_shape = (n,)
+        self.obs_shape = (_linear(net)[0].in_features,)
         self.rng = None if sample_seed is None else np.random.default_rng(sample_seed)
-        """The sampling noise's generator; None: deterministic ``tanh(loc)``."""
+        """The sampling noise's generator; None: deterministic (``tanh(loc)``, the scan head's mode)."""
+
+    @classmethod
+    def from_net(cls, net, act_dim: int, scan_head: str = "continuous",
+                 sample_seed: int | None = None) -> TorchRLPolicy:
+        """The policy of an in-memory :func:`actor_net` (e.g. a trainer's, before it is saved);
+        ParcoverError if its outputs do not fit ``act_dim`` and ``scan_head``."""
+        try:
+            outputs = head_outputs(act_dim, scan_head)
+        except ValueError as exc:
+            raise ParcoverError(str(exc)) from None
+        if outputs != _linear(net)[-1].out_features:
+            raise ParcoverError(f"an actor_net with {act_dim} action components and the {scan_head} scan head has "
+                                f"{outputs} outputs, not {_linear(net)[-1].out_features}")
+        policy = cls.__new__(cls)
+        policy._set(net, act_dim, scan_head, sample_seed)
+        return policy
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         import torch
@@ -185,8 +212,10 @@ class TorchRLPolicy(Policy):
                 actions = np.tanh(u).astype(np.float32)
             if self.scan_head == "bernoulli":
                 logit = out[:, 2 * d].double().numpy()
-                # deterministic: the mode (probability above 0.5); sampled: u < sigmoid(logit)
-                scan = logit > 0.0 if self.rng is None else self.rng.random(len(agents)) < 1.0 / (1.0 + np.exp(-logit))
+                if self.rng is None:  # the mode: probability above 0.5
+                    scan = logit > 0.0
+                else:  # u < sigmoid(logit), written without overflow
+                    scan = self.rng.random(len(agents)) < np.exp(-np.logaddexp(0.0, -logit))
                 scan = np.where(scan, SCAN_ON, SCAN_OFF).astype(np.float32)
                 actions = np.concatenate([actions, scan[:, None]], axis=1)
         return {a: actions[i] for i, a in enumerate(agents)}
