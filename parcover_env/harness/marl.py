@@ -19,7 +19,9 @@ network for every map). Actor and critic are each one network shared by every ro
 :class:`~parcover_env.harness.marl_config.MarlConfig` (``configs/train/``; its ``env`` mapping
 overrides the scenario, e.g. the observation version). A run saves the actor (``policy.pt``) and
 the critic with the value normalizer's statistics (``critic.pt``); ``--init`` starts from them
-(:mod:`~parcover_env.harness.marl_init`).
+(:mod:`~parcover_env.harness.marl_init`). The actor is a TanhNormal over the action; with the env's
+scan service its ``scan`` component is a separate Bernoulli head (``scan_head: bernoulli``, the
+default; :mod:`~parcover_env.harness.marl_scan_head`), named in ``policy.pt`` and the sidecar.
 
 torch, torchrl and ray are imported inside the functions (``pip install 'parcover_env[train]'``).
 """

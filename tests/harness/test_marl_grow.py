@@ -137,7 +137,7 @@ def test_train_grows_an_init_run_into_the_scan_env(tmp_path):
                               hidden=(8,), episode_steps=30)
     a = train(TrainRequest("ippo", "office", 64, tmp_path / "a", cfg, "x", seed=1))
     scan_env = {"observation": {"scan": {"enabled": True}}}
-    plain = dataclasses.replace(cfg, env=scan_env, learning_rate=1e-12)
+    plain = dataclasses.replace(cfg, env=scan_env, learning_rate=1e-12, scan_head="continuous")
     with pytest.raises(ParcoverError, match="does not fit this run's .*init_grow: true"):
         train(TrainRequest("ippo", "office", 64, tmp_path / "no", plain, "x", seed=2, init=str(tmp_path / "a")))
     grow = dataclasses.replace(plain, init_grow=True)
@@ -186,5 +186,6 @@ def test_the_stage_6_config_is_stage_5_with_the_scan_service_and_growth():
     stage6 = load_marl_config("mappo", here / "mappo_generated_scan.yaml")
     env = {**stage5.env, "observation": {**stage5.env["observation"], "scan": {"enabled": True}}}
     assert stage6 == dataclasses.replace(stage5, env=env, init_grow=True, init_grow_loc=-1.5, init_grow_std=0.5,
-                                         wall_time=2400.0)  # the 40 min the first run had
+                                         wall_time=2400.0,  # the 40 min the first run had
+                                         scan_head="continuous")  # the head it was trained with
     assert stage6.critic_warmup > 0
