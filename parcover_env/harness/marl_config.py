@@ -46,7 +46,9 @@ class MarlConfig:
     (:mod:`~parcover_env.harness.marl_grow`). False: an actor of another size is an error."""
     init_grow_loc: float = -1.5
     """``init_grow``: the ``loc`` of a new action component (zero weights): its deterministic action
-    is ``tanh(init_grow_loc)`` (-0.905: for ``scan``, read as "scan when > 0", no scan)."""
+    is ``tanh(init_grow_loc)`` (-0.905: for ``scan``, read as "scan when > 0", no scan). A new
+    ``bernoulli`` scan head starts at the logit of the same sampled scan probability,
+    ``P(N(init_grow_loc, init_grow_std) > 0)`` (-6.61 at the defaults)."""
     init_grow_std: float = 0.5
     """``init_grow``: the TanhNormal scale of a new action component at the start."""
     scan_head: Literal["bernoulli", "continuous"] = "bernoulli"

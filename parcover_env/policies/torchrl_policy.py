@@ -190,7 +190,7 @@ class TorchRLPolicy(Policy):
             raise ParcoverError(f"an actor_net with {act_dim} action components and the {scan_head} scan head has "
                                 f"{outputs} outputs, not {_linear(net)[-1].out_features}")
         policy = cls.__new__(cls)
-        policy._set(net, act_dim, scan_head, sample_seed)
+        cls._set(policy, net, act_dim, scan_head, sample_seed)  # the class's own setter, as __init__ uses it
         return policy
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
