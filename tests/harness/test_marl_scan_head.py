@@ -292,3 +292,44 @@ def test_mappo_on_a_map_pool_through_ray_trains_the_scan_head(tmp_path):
     assert record["scan_head"] == "bernoulli" and record["backend"] == "ray" and seen
     assert all(math.isfinite(v) for s in seen for v in s.values())
     assert TorchRLPolicy(tmp_path / "ray").scan_head == "bernoulli"
+
+
+def test_the_ppo_loss_takes_the_composite_log_prob_and_the_bernoulli_entropy():
+    """IPPO's loss on one step of two robots with the hand-built actor (scan logit l, p = 0.7): at ratio 1
+    and advantage 1 the objective's gradient on the logit bias is -mean(d log p(a) / dl) =
+    -((1 - p) + (0 - p)) / 2 = 0.2 for actions "scan" and "no scan"; the entropy term's is
+    -c * dH/dl = c * l * p * (1 - p) (the drive's estimate does not depend on l)."""
+    from gymnasium import spaces
+
+    from parcover_env.harness.marl import build_critic
+    from parcover_env.harness.marl_loss import build_loss
+
+    actor = _hand_actor(3, LOGIT_SCAN)
+    box = spaces.Box(-np.ones(3, np.float32), np.ones(3, np.float32))
+    cfg = MarlConfig(entropy_coeff=0.5, value_norm="none", hidden=(4,))
+    loss = build_loss("ippo", cfg, actor, build_critic("ippo", box, box, cfg))
+    act = torch.tensor([[[0.1, -0.2, SCAN_ON], [0.3, 0.4, SCAN_OFF]]])
+    dist = TanhNormalScan(torch.tensor([LOC, LOC]), torch.ones(2, 2), torch.full((2, 1), LOGIT_SCAN))
+    td = TensorDict({GROUP: {"observation": torch.zeros(1, 2, 3), "action": act,
+                             "action_log_prob": dist.log_prob(act[0]).unsqueeze(0),
+                             "advantage": torch.ones(1, 2, 1), "value_target": torch.zeros(1, 2, 1)}},
+                    batch_size=[1])
+    bias = policy_net(actor)[-1].bias
+    grads = {}
+    for term in ("loss_objective", "loss_entropy"):
+        loss.zero_grad()
+        torch.manual_seed(0)
+        parts = loss(td.clone())
+        parts[term].backward()
+        parts = parts.detach()
+        grads[term] = float(bias.grad[4])
+    assert parts["loss_objective"].item() == pytest.approx(-1.0, abs=1e-6)  # ratio 1, advantage 1
+    assert grads["loss_objective"] == pytest.approx(-((1 - P_SCAN) + (0 - P_SCAN)) / 2, abs=1e-6)  # 0.2
+    assert grads["loss_entropy"] == pytest.approx(0.5 * LOGIT_SCAN * P_SCAN * P_NO, abs=1e-6)  # 0.0889
+    torch.manual_seed(0)
+    assert float(loss(td.clone())["entropy"]) == pytest.approx(float(_entropy_at_seed(dist, 0).mean()), abs=1e-5)
+
+
+def _entropy_at_seed(dist: TanhNormalScan, seed: int) -> torch.Tensor:
+    torch.manual_seed(seed)
+    return dist.entropy()
