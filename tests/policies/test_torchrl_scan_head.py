@@ -168,3 +168,19 @@ def test_shipped_checkpoints_keep_the_continuous_head_and_act_as_before(where):
         assert np.array_equal(got_det[a], want[i]) and np.array_equal(got_sam[a], sampled[i])
     if k == 3:  # the shipped continuous-scan actors: the deterministic scan stays below 0 (docs/train_and_compare.md)
         assert all(got_det[a][2] < 0 for a in obs)
+    # what the code before the bernoulli head gave on these observations (robot_0 deterministic, robot_2 sampled)
+    np.testing.assert_allclose(got_det["robot_0"], BEFORE[where][0], atol=2e-6)
+    np.testing.assert_allclose(got_sam["robot_2"], BEFORE[where][1], atol=2e-6)
+
+
+BEFORE = {  # TorchRLPolicy at commit 44e748a, the observations of the test above
+    "baselines/checkpoints/ippo_generated_scaled": ([-0.079696, 0.148935], [0.83796, -0.55026]),
+    "baselines/checkpoints/ippo_generated_scratch": ([-0.082516, 0.394959], [0.996344, -0.806934]),
+    "baselines/checkpoints/ippo_generated_shaped": ([-0.44971, 0.343453], [0.741509, -0.155223]),
+    "baselines/checkpoints/ippo_office_scratch": ([-0.254042, -0.555756], [0.944969, 0.743937]),
+    "baselines/checkpoints/ippo_tree_scratch": ([-0.606067, 0.937208], [-0.761367, 0.507209]),
+    "baselines/checkpoints/mappo_generated_attention": ([-0.640154, 0.33953], [0.641233, -0.156114]),
+    "baselines/checkpoints/mappo_generated_scan_sigma": ([0.020657, 0.242074, -0.896858],
+                                                         [0.456781, -0.413058, -0.925747]),
+    "docs/learned/mappo_generated_scan_s6": ([-0.105257, 0.444936, -0.891082], [0.457284, -0.399542, -0.830849]),
+}
