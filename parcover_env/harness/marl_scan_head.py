@@ -47,7 +47,7 @@ __all__ = ["TanhNormalScan", "ScanParamExtractor", "scan_actor", "actor_head", "
 
 
 class TanhNormalScan(D.Distribution):
-    """``(v, omega) ~ TanhNormal(loc, scale)`` on ``[low, high]`` and ``scan ~ Bernoulli(sigmoid(scan_logit))``
+    """``(v, omega) ~ TanhNormal(loc, scale)`` on ``[-1, 1]`` and ``scan ~ Bernoulli(sigmoid(scan_logit))``
     as one action ``[..., D + 1]`` (``D = loc.shape[-1]``), the scan mapped to ``SCAN_ON`` / ``SCAN_OFF``.
     ``loc``, ``scale``: ``[..., D]``; ``scan_logit``: ``[..., 1]``. Batch shape ``loc.shape[:-1]``; the
     log-probability and entropy have that shape (the module docstring gives both)."""
@@ -56,19 +56,17 @@ class TanhNormalScan(D.Distribution):
     has_rsample = False  # the scan is discrete: samples come from :meth:`sample`
     support = D.constraints.real
 
-    def __init__(self, loc: torch.Tensor, scale: torch.Tensor, scan_logit: torch.Tensor,
-                 low: float = -1.0, high: float = 1.0):
+    def __init__(self, loc: torch.Tensor, scale: torch.Tensor, scan_logit: torch.Tensor):
         from torchrl.modules import TanhNormal
 
-        if scan_logit.shape != (*loc.shape[:-1], 1):
+        if loc.ndim < 1 or scan_logit.shape != (*loc.shape[:-1], 1):
             raise ValueError(f"scan_logit of shape {tuple(scan_logit.shape)} does not fit loc of shape "
                              f"{tuple(loc.shape)}: expected {(*loc.shape[:-1], 1)}")
-        self.drive = TanhNormal(loc, scale, low=low, high=high, event_dims=1)
+        self.drive = TanhNormal(loc, scale)  # on [-1, 1], the env's box; the log-prob sums the last dimension
         """The TanhNormal of the drive components."""
-        self.scan = D.Bernoulli(logits=scan_logit[..., 0], validate_args=False)
+        self.scan = D.Bernoulli(logits=scan_logit[..., 0])
         """The Bernoulli of "scan now" (batch shape ``loc.shape[:-1]``)."""
-        super().__init__(batch_shape=loc.shape[:-1], event_shape=torch.Size([loc.shape[-1] + 1]),
-                         validate_args=False)
+        super().__init__(batch_shape=loc.shape[:-1], event_shape=torch.Size([loc.shape[-1] + 1]))
 
     @property
     def scan_probability(self) -> torch.Tensor:

@@ -102,8 +102,12 @@ def head_outputs(act_dim: int, scan_head: str = "continuous") -> int:
 
 
 def head_act_dim(outputs: int, scan_head: str = "continuous") -> int:
-    """The action components of an actor with ``outputs`` network outputs (inverse of :func:`head_outputs`)."""
-    return (outputs + 1) // 2 if scan_head == "bernoulli" else outputs // 2
+    """The action components of an actor with ``outputs`` network outputs (inverse of :func:`head_outputs`);
+    ValueError if no actor of ``scan_head`` has that many."""
+    act_dim = (outputs + 1) // 2
+    if head_outputs(act_dim, scan_head) != outputs:
+        raise ValueError(f"no actor with the {scan_head} scan head has {outputs} outputs")
+    return act_dim
 
 
 def actor_net(obs_low: np.ndarray, obs_high: np.ndarray, hidden: tuple[int, ...], act_dim: int,

@@ -28,7 +28,13 @@ from parcover_env.harness.marl_scan_head import (  # noqa: E402
     actor_head,
     grown_scan_logit,
 )
-from parcover_env.policies.torchrl_policy import SCAN_OFF, SCAN_ON, TorchRLPolicy, head_outputs  # noqa: E402
+from parcover_env.policies.torchrl_policy import (  # noqa: E402
+    SCAN_OFF,
+    SCAN_ON,
+    TorchRLPolicy,
+    head_act_dim,
+    head_outputs,
+)
 
 LOC, SCALE = [0.2, -0.5], [1.0, 0.4]
 P_SCAN, P_NO = 0.7, 0.3
@@ -61,6 +67,18 @@ def test_the_mode_scans_where_the_probability_is_above_one_half():
     assert det[:, 2].tolist() == [SCAN_ON, SCAN_OFF] == [1.0, -1.0]
     torch.testing.assert_close(det[:, :2], torch.tanh(torch.tensor([LOC, LOC], dtype=torch.float64)))
     assert _dist([0.0, 1e-6]).deterministic_sample[:, 2].tolist() == [-1.0, 1.0]  # p = 0.5 exactly: no scan
+
+
+def test_shapes_and_a_scan_logit_that_does_not_fit():
+    dist = _dist([LOGIT_SCAN, LOGIT_NO])
+    assert dist.batch_shape == (2,) and dist.event_shape == (3,)
+    assert dist.sample().dtype == torch.float64 and dist.deterministic_sample.dtype == torch.float64
+    batch = TanhNormalScan(torch.zeros(4, 5, 2), torch.ones(4, 5, 2), torch.zeros(4, 5, 1))
+    assert batch.batch_shape == (4, 5) and batch.entropy().shape == (4, 5)
+    assert batch.log_prob(batch.sample()).shape == (4, 5)
+    with pytest.raises(ValueError) as err:
+        TanhNormalScan(torch.zeros(4, 2), torch.ones(4, 2), torch.zeros(4))
+    assert str(err.value) == "scan_logit of shape (4,) does not fit loc of shape (4, 2): expected (4, 1)"
 
 
 def test_log_prob_is_the_tanh_normal_part_plus_the_bernoulli_part_by_hand():
@@ -133,6 +151,7 @@ def test_the_actor_writes_the_env_action_and_its_log_prob():
     torch.testing.assert_close(act, torch.tensor([[math.tanh(LOC[0]), math.tanh(LOC[1]), 1.0]] * 2))
     torch.testing.assert_close(out[GROUP, "scan_logit"], torch.full((2, 1), LOGIT_SCAN))
     torch.testing.assert_close(out[GROUP, "scale"], torch.ones(2, 2))  # pre-scale 0: scale 1
+    torch.testing.assert_close(out[GROUP, "loc"], torch.tensor([LOC, LOC]))
     # its log-prob is the composite one: loc LOC, scale 1, p 0.7 at the mode
     lp = sum(_log_normal(math.atanh(math.tanh(m)), m, 1.0) - math.log(1 - math.tanh(m) ** 2) for m in LOC)
     torch.testing.assert_close(out[GROUP, "action_log_prob"], torch.full((2,), lp + math.log(P_SCAN)))
@@ -176,8 +195,17 @@ def test_a_grown_scan_head_starts_with_the_continuous_heads_scan_probability():
     assert grown_scan_logit(0.0, 0.7) == 0.0 and grown_scan_logit(0.3, 0.5) > 0
     assert math.isfinite(grown_scan_logit(-40.0, 0.02))  # far in the tail: still a finite logit
     assert head_outputs(3, "bernoulli") == 5 and head_outputs(3, "continuous") == 6 and head_outputs(2) == 4
-    with pytest.raises(ValueError, match="scan head 'nope'"):
-        head_outputs(3, "nope")
+    assert head_outputs(2, "bernoulli") == 3  # one drive component and the scan
+    assert head_act_dim(5, "bernoulli") == 3 and head_act_dim(6) == 3 and head_act_dim(3, "bernoulli") == 2
+    for outputs, head in ((5, "continuous"), (6, "bernoulli")):
+        with pytest.raises(ValueError, match=f"^no actor with the {head} scan head has {outputs} outputs$"):
+            head_act_dim(outputs, head)
+    for act_dim, head in ((3, "nope"), (1, "bernoulli")):
+        with pytest.raises(ValueError) as err:
+            head_outputs(act_dim, head)
+        assert str(err.value) == (f"scan head {head!r} with {act_dim} action components: expected one of "
+                                  "('continuous', 'bernoulli'), bernoulli with at least one drive component and "
+                                  "the scan component")
 
 
 OLD = IoLayout({"a": slice(0, 2), "b": slice(2, 3)}, ("v", "omega"))

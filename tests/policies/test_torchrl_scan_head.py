@@ -45,7 +45,8 @@ def _obs(n_agents: int, obs_dim: int) -> dict:
     return {f"robot_{i}": np.full(obs_dim, 0.1 * i, np.float32) for i in range(n_agents)}
 
 
-@pytest.mark.parametrize(("p_scan", "scan"), [(0.7, SCAN_ON), (0.3, SCAN_OFF), (0.51, SCAN_ON), (0.49, SCAN_OFF)])
+@pytest.mark.parametrize(("p_scan", "scan"), [(0.7, SCAN_ON), (0.3, SCAN_OFF), (0.51, SCAN_ON), (0.49, SCAN_OFF),
+                                             (0.5, SCAN_OFF)])  # logit 0: p = 0.5 is not above one half
 def test_deterministic_scans_where_the_probability_is_above_one_half(tmp_path, p_scan, scan):
     policy = TorchRLPolicy(_save(tmp_path, 5, p_scan))
     assert (policy.scan_head, policy.act_dim, policy.drive_dim) == ("bernoulli", 3, 2)
@@ -144,6 +145,21 @@ def test_an_unknown_head_in_a_file_or_a_misfit_net_is_one_clear_error(tmp_path):
     with pytest.raises(ParcoverError, match="scan head 'nope'"):
         TorchRLPolicy.from_net(net, 3, "nope")
     assert TorchRLPolicy.from_net(net, 3).scan_head == "continuous"
+    deep = actor_net(np.zeros(3), np.ones(3), (4, 6), 3)  # the last layer is the one that counts
+    with pytest.raises(ParcoverError, match="the continuous scan head has 4 outputs, not 6"):
+        TorchRLPolicy.from_net(deep, 2)
+
+
+def test_from_net_is_the_loaded_policy_sampled_and_deterministic(tmp_path):
+    _save(tmp_path, 4, 0.6)
+    obs = _obs(5, 4)
+    for seed in (None, 9):
+        loaded = TorchRLPolicy(tmp_path, sample_seed=seed)
+        made = TorchRLPolicy.from_net(copy.deepcopy(loaded.net), 3, "bernoulli", sample_seed=seed)
+        assert made.obs_shape == (4,) and (made.rng is None) == (seed is None)
+        for _ in range(2):
+            x, y = loaded.act(obs), made.act(obs)
+            assert all(np.array_equal(x[k], y[k]) for k in obs)
 
 
 SHIPPED = sorted(str(p.parent.relative_to(ROOT)) for p in [*ROOT.glob("baselines/checkpoints/*/policy.pt"),
