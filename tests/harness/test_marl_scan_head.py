@@ -74,11 +74,15 @@ def test_shapes_and_a_scan_logit_that_does_not_fit():
     assert dist.batch_shape == (2,) and dist.event_shape == (3,)
     assert dist.sample().dtype == torch.float64 and dist.deterministic_sample.dtype == torch.float64
     batch = TanhNormalScan(torch.zeros(4, 5, 2), torch.ones(4, 5, 2), torch.zeros(4, 5, 1))
-    assert batch.batch_shape == (4, 5) and batch.entropy().shape == (4, 5)
+    assert batch.batch_shape == (4, 5) and batch.event_shape == (3,) and batch.entropy().shape == (4, 5)
     assert batch.log_prob(batch.sample()).shape == (4, 5)
-    with pytest.raises(ValueError) as err:
-        TanhNormalScan(torch.zeros(4, 2), torch.ones(4, 2), torch.zeros(4))
-    assert str(err.value) == "scan_logit of shape (4,) does not fit loc of shape (4, 2): expected (4, 1)"
+    one = TanhNormalScan(torch.zeros(2), torch.ones(2), torch.zeros(1))  # one robot, no batch
+    assert one.batch_shape == () and one.sample().shape == (3,) and one.log_prob(one.sample()).shape == ()
+    for loc, logit, words in (((4, 5, 2), (4, 5), "(4, 5) does not fit loc of shape (4, 5, 2): expected (4, 5, 1)"),
+                              ((), (1,), "(1,) does not fit loc of shape (): expected (1,)")):
+        with pytest.raises(ValueError) as err:
+            TanhNormalScan(torch.zeros(loc), torch.ones(loc), torch.zeros(logit))
+        assert str(err.value) == f"scan_logit of shape {words}"
 
 
 def test_log_prob_is_the_tanh_normal_part_plus_the_bernoulli_part_by_hand():
@@ -361,3 +365,33 @@ def test_the_ppo_loss_takes_the_composite_log_prob_and_the_bernoulli_entropy():
 def _entropy_at_seed(dist: TanhNormalScan, seed: int) -> torch.Tensor:
     torch.manual_seed(seed)
     return dist.entropy()
+
+
+def test_train_grows_an_init_run_into_the_bernoulli_head(tmp_path):
+    """``parcover train --init`` with ``init_grow`` from a run without the scan service: the drive is
+    the init's, the scan starts at the logit of ``Phi(init_grow_loc / init_grow_std)`` (lr 1e-12: nothing
+    moved); the sidecar says what grew and which head the actor has."""
+    from parcover_env import parallel_env
+
+    cfg = dataclasses.replace(load_marl_config("ippo"), frames_per_batch=64, minibatch_size=64, epochs=1,
+                              hidden=(8,), episode_steps=30)
+    train(TrainRequest("ippo", "office", 64, tmp_path / "a", cfg, "x", seed=1))
+    scan_env = {"observation": {"scan": {"enabled": True}}}
+    grow = dataclasses.replace(cfg, env=scan_env, learning_rate=1e-12, init_grow=True)
+    b = train(TrainRequest("ippo", "office", 64, tmp_path / "b", grow, "x", seed=2, init=str(tmp_path / "a")))
+    assert b["init"]["grown"] == {"observation": ["scanning", "scan_result"], "actions": ["scan"]}
+    assert b["scan_head"] == "bernoulli"
+    pa, pb = TorchRLPolicy(tmp_path / "a"), TorchRLPolicy(tmp_path / "b")
+    assert pa.scan_head == "continuous" and pb.scan_head == "bernoulli"
+    obs_a, _ = parallel_env("office").reset(seed=3)
+    obs_b, _ = parallel_env("office", overrides=scan_env).reset(seed=3)
+    act_a, act_b = pa.act(obs_a), pb.act(obs_b)
+    for agent in act_a:
+        np.testing.assert_allclose(act_b[agent][:2], act_a[agent], atol=1e-5)
+        assert act_b[agent][2] == SCAN_OFF
+    with torch.no_grad():
+        logit = pb.net(torch.as_tensor(np.stack([obs_b[a] for a in sorted(obs_b)])))[:, 4]
+    torch.testing.assert_close(logit, torch.full_like(logit, grown_scan_logit(-1.5, 0.5)), rtol=0, atol=1e-4)
+    # its run continued into the same env and head: the file loads as it is
+    c = train(TrainRequest("ippo", "office", 64, tmp_path / "c", grow, "x", seed=3, init=str(tmp_path / "b")))
+    assert "grown" not in c["init"] and c["init"]["critic"] is True and c["scan_head"] == "bernoulli"

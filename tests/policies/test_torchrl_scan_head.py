@@ -145,7 +145,7 @@ def test_an_unknown_head_in_a_file_or_a_misfit_net_is_one_clear_error(tmp_path):
     with pytest.raises(ParcoverError, match="scan head 'nope'"):
         TorchRLPolicy.from_net(net, 3, "nope")
     assert TorchRLPolicy.from_net(net, 3).scan_head == "continuous"
-    deep = actor_net(np.zeros(3), np.ones(3), (4, 6), 3)  # the last layer is the one that counts
+    deep = actor_net(np.zeros(3), np.ones(3), (4, 5), 3)  # the last layer is the one that counts
     with pytest.raises(ParcoverError, match="the continuous scan head has 4 outputs, not 6"):
         TorchRLPolicy.from_net(deep, 2)
 
