@@ -76,10 +76,9 @@ class ParallelCoverageEnv(ParallelEnv):
     How an actor of ``parcover train`` fills ``scan`` (``MarlConfig.scan_head``; ``v``, ``omega`` are a
     TanhNormal with either head: ``tanh(loc)`` under ``torchrl:``, a sample under ``torchrl_sampled:``):
 
-    | head | ``scan`` | ``torchrl:`` | ``torchrl_sampled:`` |
-    | --- | --- | --- | --- |
-    | ``bernoulli`` (default) | +1 or -1, a Bernoulli of ``p = sigmoid(logit)`` | +1 iff ``p > 0.5`` (mode) | a draw |
-    | ``continuous`` | a third TanhNormal component | ``tanh(loc)``: scans iff ``loc > 0`` | a sample |
+    * ``bernoulli`` (the default with the service): +1 ("scan now") or -1 from a Bernoulli of
+      ``p = sigmoid(logit)``; ``torchrl:`` takes its mode, +1 iff ``p > 0.5``, ``torchrl_sampled:`` a draw.
+    * ``continuous``: a third TanhNormal component; ``torchrl:`` scans iff ``loc > 0``.
 
     A learned scan trigger of the ``bernoulli`` head survives evaluation; the ``continuous`` head's
     may live only in the sampling noise (``parcover_env.harness.marl_scan_head``; tests:

@@ -291,7 +291,7 @@ def _smoke(tmp_path, algo: str = "ippo", scenario: str = "office", backend: str 
 
     def recording_loss(*args, **kwargs):
         loss = build(*args, **kwargs)
-        loss.register_forward_hook(lambda m, i, out: seen.append({k: float(v) for k, v in out.items()
+        loss.register_forward_hook(lambda m, i, out: seen.append({k: v.detach().item() for k, v in out.items()
                                                                   if k.startswith("loss_")}))
         return loss
 
