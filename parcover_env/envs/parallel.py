@@ -73,6 +73,17 @@ class ParallelCoverageEnv(ParallelEnv):
     policy turns it on (``parcover_env.policies.registry``).
     Module: ``parcover_env.envs.sonar_fixes``; a test with a known answer: ``tests/envs/test_sonar_fixes.py``.
 
+    How an actor of ``parcover train`` fills ``scan`` (``MarlConfig.scan_head``; ``v``, ``omega`` are a
+    TanhNormal with either head: ``tanh(loc)`` under ``torchrl:``, a sample under ``torchrl_sampled:``):
+
+    * ``bernoulli`` (the default with the service): +1 ("scan now") or -1 from a Bernoulli of
+      ``p = sigmoid(logit)``; ``torchrl:`` takes its mode, +1 iff ``p > 0.5``, ``torchrl_sampled:`` a draw.
+    * ``continuous``: a third TanhNormal component; ``torchrl:`` scans iff ``loc > 0``.
+
+    A learned scan trigger of the ``bernoulli`` head survives evaluation; the ``continuous`` head's
+    may live only in the sampling noise (``parcover_env.harness.marl_scan_head``; tests:
+    ``tests/policies/test_torchrl_scan_head.py``, the +1 held and scanning, the -1 driving on).
+
     ## Observation space
     One flat ``Box`` per agent, identical across agents (``env.layout`` names the slices), entries in
     this order:
@@ -158,6 +169,9 @@ class ParallelCoverageEnv(ParallelEnv):
     * v1, opt-in ``observation.scan`` (unreleased): the sonar localization service (``scan`` action
       component, ``scanning`` / ``scan_result`` entries, ``info[agent]["sonar_fix"]``; outcomes 1, -1,
       then 0.5 held and -0.5 uninformative, which were -1 before); without it v1 is unchanged.
+      A policy of ``parcover train`` fills ``scan`` with +1 / -1 from a Bernoulli head (unreleased;
+      the env's ``scan > 0`` rule and action box are unchanged; earlier checkpoints keep their
+      continuous ``scan``).
     * v1 (0.2.0): realistic motion and covariance observations (differential-drive dynamics, UMBmark
       odometry, encoder ``v, omega``, ``sigma_*`` entries, realistic Kinect and sonar errors, the
       formation hand-over of promoted followers); flat ``info[agent]["metrics/<name>"]`` and

@@ -19,7 +19,9 @@ network for every map). Actor and critic are each one network shared by every ro
 :class:`~parcover_env.harness.marl_config.MarlConfig` (``configs/train/``; its ``env`` mapping
 overrides the scenario, e.g. the observation version). A run saves the actor (``policy.pt``) and
 the critic with the value normalizer's statistics (``critic.pt``); ``--init`` starts from them
-(:mod:`~parcover_env.harness.marl_init`).
+(:mod:`~parcover_env.harness.marl_init`). The actor is a TanhNormal over the action; with the env's
+scan service its ``scan`` component is a separate Bernoulli head (``scan_head: bernoulli``, the
+default; :mod:`~parcover_env.harness.marl_scan_head`), named in ``policy.pt`` and the sidecar.
 
 torch, torchrl and ray are imported inside the functions (``pip install 'parcover_env[train]'``).
 """
@@ -37,15 +39,15 @@ from pathlib import Path
 import numpy as np
 
 from parcover_env.harness.marl_config import MarlConfig, scheduled_lr
-from parcover_env.harness.marl_grow import Growth, env_io
+from parcover_env.harness.marl_grow import ACTION_COMPONENTS, Growth, env_io
 from parcover_env.harness.marl_init import CRITIC_FILE, apply_init, critic_spec, find_init, init_env_args, save_critic
 from parcover_env.harness.marl_loss import GROUP, REAL, build_loss, prepare_minibatch, standardize_advantage
 from parcover_env.harness.marl_scale import fit_scale
 from parcover_env.harness.training import git_commit, plot_curve, write_csv
-from parcover_env.policies.torchrl_policy import POLICY_FILE, SIDECAR_FILE, actor_net, box_scale
+from parcover_env.policies.torchrl_policy import POLICY_FILE, SIDECAR_FILE, actor_net, box_scale, head_act_dim
 
-__all__ = ["TrainRequest", "EnvMaker", "build_actor", "save_policy", "policy_net", "build_critic", "critic_scale",
-           "build_loss",
+__all__ = ["TrainRequest", "EnvMaker", "build_actor", "run_scan_head", "save_policy", "policy_net", "build_critic",
+           "critic_scale", "build_loss",
            "train", "GROUP", "REAL", "standardize_advantage", "prepare_minibatch", "RunWriter"]
 
 CURVE_FILE = "curve.csv"
@@ -136,12 +138,18 @@ class EnvMaker:
         return TransformedEnv(env, RewardSum(in_keys=[(GROUP, "reward")], out_keys=[(GROUP, "episode_reward")]))
 
 
-def build_actor(obs_low, obs_high, act_dim: int, hidden: tuple[int, ...]):
-    """The shared stochastic policy: :func:`actor_net` -> ``NormalParamExtractor`` -> TanhNormal on [-1, 1]."""
+def build_actor(obs_low, obs_high, act_dim: int, hidden: tuple[int, ...], scan_head: str = "continuous"):
+    """The shared stochastic policy: :func:`actor_net` -> ``NormalParamExtractor`` -> TanhNormal on [-1, 1]
+    (``scan_head="continuous"``), or with ``"bernoulli"`` the TanhNormal of ``(v, omega)`` beside a
+    Bernoulli scan (:func:`~parcover_env.harness.marl_scan_head.scan_actor`; ``act_dim`` 3)."""
     from tensordict.nn import NormalParamExtractor, TensorDictModule
     from torch import nn
     from torchrl.modules import ProbabilisticActor, TanhNormal
 
+    if scan_head == "bernoulli":
+        from parcover_env.harness.marl_scan_head import scan_actor
+
+        return scan_actor(actor_net(obs_low, obs_high, hidden, act_dim, scan_head))
     net = nn.Sequential(actor_net(obs_low, obs_high, hidden, act_dim), NormalParamExtractor())
     module = TensorDictModule(net, in_keys=[(GROUP, "observation")], out_keys=[(GROUP, "loc"), (GROUP, "scale")])
     return ProbabilisticActor(module, in_keys=[(GROUP, "loc"), (GROUP, "scale")], out_keys=[(GROUP, "action")],
@@ -149,20 +157,32 @@ def build_actor(obs_low, obs_high, act_dim: int, hidden: tuple[int, ...]):
                               return_log_prob=True)
 
 
+def run_scan_head(cfg: MarlConfig, act_dim: int) -> str:
+    """The scan head of a run whose env has ``act_dim`` action components: ``cfg.scan_head`` with the
+    env's scan service (``(v, omega, scan)``), else ``continuous`` (the actor of an env without it is unchanged)."""
+    return cfg.scan_head if act_dim == len(ACTION_COMPONENTS) else "continuous"
+
+
 def policy_net(actor):
     """The :func:`actor_net` inside an actor of :func:`build_actor`."""
-    return actor.module[0].module[0]  # TensorDictModule -> Sequential(actor_net, NormalParamExtractor) -> actor_net
+    return actor.module[0].module[0]  # TensorDictModule -> Sequential(actor_net, parameter extractor) -> actor_net
 
 
 def save_policy(actor, path: Path) -> None:
     """Write the actor's network as the ``policy.pt`` that
-    :class:`~parcover_env.policies.torchrl_policy.TorchRLPolicy` loads (torch alone, no TorchRL)."""
+    :class:`~parcover_env.policies.torchrl_policy.TorchRLPolicy` loads (torch alone, no TorchRL); a
+    ``bernoulli`` scan head is named in it (``scan_head``), a ``continuous`` one is not (as before)."""
     import torch
 
-    net = policy_net(actor)
+    from parcover_env.harness.marl_scan_head import actor_head
+
+    net, head = policy_net(actor), actor_head(actor)
     linear = [m for m in net if isinstance(m, torch.nn.Linear)]
-    torch.save({"state_dict": net.state_dict(), "obs_dim": linear[0].in_features,
-                "hidden": [m.out_features for m in linear[:-1]], "act_dim": linear[-1].out_features // 2}, path)
+    ckpt = {"state_dict": net.state_dict(), "obs_dim": linear[0].in_features,
+            "hidden": [m.out_features for m in linear[:-1]], "act_dim": head_act_dim(linear[-1].out_features, head)}
+    if head != "continuous":
+        ckpt["scan_head"] = head
+    torch.save(ckpt, path)
 
 
 def build_critic(algo: str, obs_space, state_space, cfg: MarlConfig):
@@ -314,15 +334,16 @@ def train(req: TrainRequest) -> dict:
     cfg.check_critic(req.algo, base.scenario.observation.version, req.config_path)
     n_robots = base.n_robots
     obs_space, act_dim = base.observation_space(base.possible_agents[0]), base.action_space("robot_0").shape[0]
-    actor = build_actor(obs_space.low, obs_space.high, act_dim, cfg.hidden)
+    head = run_scan_head(cfg, act_dim)
+    actor = build_actor(obs_space.low, obs_space.high, act_dim, cfg.hidden, head)
     critic = build_critic(req.algo, obs_space, base.state_space, cfg)
     loss = build_loss(req.algo, cfg, actor, critic)
     spec = critic_spec(req.algo, cfg, obs_space.shape[0], base.state_space.shape[0])
     growth = None
     if source is not None and cfg.init_grow:  # the init's env, rebuilt from its sidecar, for its layout
         init_env = EnvMaker(episode_steps=0, state=False, **init_env_args(source)).parallel()
-        growth = Growth(env_io(init_env), env_io(base), cfg.init_grow_loc, cfg.init_grow_std)
-    init = apply_init(source, policy_net(actor), critic, loss.value_norm, spec, growth) if source else None
+        growth = Growth(env_io(init_env), env_io(base, head), cfg.init_grow_loc, cfg.init_grow_std)
+    init = apply_init(source, policy_net(actor), critic, loss.value_norm, spec, growth, head) if source else None
     optim = torch.optim.Adam(loss.parameters(), lr=cfg.learning_rate)
     # at least one real robot per env step: enough frames for ``req.steps`` real agent-steps; the loop
     # stops at the first batch that reaches them (a map pool's padding robots do not count)
@@ -399,6 +420,8 @@ class RunWriter:
         import importlib.metadata as md
         import os
 
+        from parcover_env.harness.marl_scan_head import actor_head
+
         req, out = self.req, self.req.out
         out.mkdir(parents=True, exist_ok=True)
         for name, write in ((POLICY_FILE, lambda p: save_policy(self.actor, p)),
@@ -416,6 +439,7 @@ class RunWriter:
             "command": req.command, "commit": self.commit, "config_file": req.config_path,
             "config": asdict(req.config), "n_robots": self.n_robots, "episodes": len(self.rows),
             "policy": f"torchrl:{out / POLICY_FILE}", "env_overrides": req.config.env, "curve": CURVE_FILE,
+            "scan_head": actor_head(self.actor),
         }
         tmp = out / f".{SIDECAR_FILE}.tmp"
         tmp.write_text(json.dumps(sidecar, indent=2) + "\n")

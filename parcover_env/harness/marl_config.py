@@ -46,9 +46,20 @@ class MarlConfig:
     (:mod:`~parcover_env.harness.marl_grow`). False: an actor of another size is an error."""
     init_grow_loc: float = -1.5
     """``init_grow``: the ``loc`` of a new action component (zero weights): its deterministic action
-    is ``tanh(init_grow_loc)`` (-0.905: for ``scan``, read as "scan when > 0", no scan)."""
+    is ``tanh(init_grow_loc)`` (-0.905: for ``scan``, read as "scan when > 0", no scan). A new
+    ``bernoulli`` scan head starts at the logit of the same sampled scan probability,
+    ``P(N(init_grow_loc, init_grow_std) > 0)`` (-6.61 at the defaults)."""
     init_grow_std: float = 0.5
     """``init_grow``: the TanhNormal scale of a new action component at the start."""
+    scan_head: Literal["bernoulli", "continuous"] = "bernoulli"
+    """How the actor outputs the ``scan`` action component when the env has the scan service
+    (``observation.scan.enabled``; without it the actor is the TanhNormal of ``(v, omega)`` whatever
+    this says): ``bernoulli``, a Bernoulli "scan now" beside the TanhNormal of ``(v, omega)``, whose
+    deterministic action scans where its probability is above 0.5
+    (:mod:`~parcover_env.harness.marl_scan_head`); ``continuous``, a third TanhNormal component read
+    as "scan when > 0" (the head of the shipped stage 6-7 checkpoints). A grown ``bernoulli`` scan
+    starts with the scan probability ``init_grow_loc`` / ``init_grow_std`` give a grown ``continuous``
+    one."""
     max_grad_norm: float = 0.5
     """Gradients are clipped to this global norm."""
     gamma: float = 0.99

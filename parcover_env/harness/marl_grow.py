@@ -13,9 +13,13 @@ of this run's. Then:
 - first layer: the init's weights for the matching columns, zero for a new entry's columns (so a
   new entry does not change any output until the network learns to use it); the other hidden
   layers are copied;
-- output layer (``loc`` rows then pre-softplus ``scale`` rows, split by ``NormalParamExtractor``):
-  an init component's two rows are copied to its new position; a new component's rows get zero
-  weights, ``loc`` bias ``loc`` and a ``scale`` bias such that the TanhNormal's scale is ``std``.
+- output layer (:func:`output_rows`: ``loc`` rows then pre-softplus ``scale`` rows, split by
+  ``NormalParamExtractor``, then with the ``bernoulli`` scan head the scan logit): an init
+  component's rows are copied to its new position; a new component's rows get zero weights, ``loc``
+  bias ``loc`` and a ``scale`` bias such that the TanhNormal's scale is ``std``, or for a
+  ``bernoulli`` scan the logit bias of the same scan probability ``Phi(loc / std)``
+  (:func:`~parcover_env.harness.marl_scan_head.grown_scan_logit`). A component whose head differs
+  (a ``continuous`` scan grown into a ``bernoulli`` one, or back) starts as a new one.
 
 So on any observation the init components' loc and scale are exactly the init actor's, and a new
 component's deterministic action is ``tanh(loc)`` (``MarlConfig.init_grow_loc``, default -1.5:
@@ -33,7 +37,7 @@ from dataclasses import dataclass
 
 from parcover_env.errors import ParcoverError
 
-__all__ = ["ACTION_COMPONENTS", "IoLayout", "Growth", "env_io", "grow_actor", "scale_bias"]
+__all__ = ["ACTION_COMPONENTS", "IoLayout", "Growth", "env_io", "output_rows", "grow_actor", "scale_bias"]
 
 ACTION_COMPONENTS = ("v", "omega", "scan")
 """The action components in action order (``scan`` only with ``observation.scan.enabled``)."""
@@ -46,6 +50,8 @@ class IoLayout:
 
     observation: dict[str, slice]
     actions: tuple[str, ...]
+    scan_head: str = "continuous"
+    """How the actor outputs ``scan`` (:data:`~parcover_env.policies.torchrl_policy.SCAN_HEADS`)."""
 
 
 @dataclass(frozen=True)
@@ -64,12 +70,23 @@ class Growth:
         return self.init_io != self.io
 
 
-def env_io(env) -> IoLayout:
+def env_io(env, scan_head: str = "continuous") -> IoLayout:
     """The :class:`IoLayout` of a ParallelEnv or a :class:`~parcover_env.harness.map_pool.MapPoolEnv`
-    (whose maps share the layout of its first map's env)."""
+    (whose maps share the layout of its first map's env) for an actor of ``scan_head`` (``continuous``
+    when the env has no ``scan``)."""
     layout = env.layout if hasattr(env, "layout") else env.env.layout
     width = env.action_space(env.possible_agents[0]).shape[0]
-    return IoLayout(dict(layout.slices), ACTION_COMPONENTS[:width])
+    actions = ACTION_COMPONENTS[:width]
+    return IoLayout(dict(layout.slices), actions, scan_head if "scan" in actions else "continuous")
+
+
+def output_rows(io: IoLayout) -> dict[str, tuple[int, ...]]:
+    """The actor's output rows of each action component of ``io``: ``(loc, pre-scale)`` of a TanhNormal
+    component, ``(logit,)`` of a ``bernoulli`` scan (the last output, after the drive's rows)."""
+    if io.scan_head == "bernoulli":
+        drive = [a for a in io.actions if a != "scan"]
+        return {**{a: (i, len(drive) + i) for i, a in enumerate(drive)}, "scan": (2 * len(drive),)}
+    return {a: (i, len(io.actions) + i) for i, a in enumerate(io.actions)}
 
 
 def scale_bias(std: float) -> float:
@@ -96,6 +113,9 @@ def grow_actor(where: str, init_net, net, growth: Growth) -> dict:
     ``{observation: [new entries], actions: [new components]}``. ``where`` names the init in errors."""
     import torch
 
+    from parcover_env.harness.marl_scan_head import grown_scan_logit
+    from parcover_env.policies.torchrl_policy import head_outputs
+
     init_io, io, loc, scale_pre = growth.init_io, growth.io, growth.loc, scale_bias(growth.std)
     old_lin, new_lin = _linear(init_net), _linear(net)
     old_hidden, new_hidden = [m.out_features for m in old_lin[:-1]], [m.out_features for m in new_lin[:-1]]
@@ -106,9 +126,11 @@ def grow_actor(where: str, init_net, net, growth: Growth) -> dict:
         raise ParcoverError(f"--init {where}: its actor has {old_lin[0].in_features} inputs, but its env's "
                             f"observation layout (rebuilt from its sidecar) has "
                             f"{sum(s.stop - s.start for s in init_io.observation.values())}")
-    if old_lin[-1].out_features != 2 * len(init_io.actions):
-        raise ParcoverError(f"--init {where}: its actor has {old_lin[-1].out_features // 2} action components, but "
-                            f"its env (rebuilt from its sidecar) has {len(init_io.actions)}")
+    if old_lin[-1].out_features != head_outputs(len(init_io.actions), init_io.scan_head):
+        raise ParcoverError(f"--init {where}: its actor has {old_lin[-1].out_features} outputs, but its env "
+                            f"(rebuilt from its sidecar) has {len(init_io.actions)} action components "
+                            f"({head_outputs(len(init_io.actions), init_io.scan_head)} outputs with its "
+                            f"{init_io.scan_head} scan head)")
     old_cols, new_cols = [], []
     for name, old in init_io.observation.items():
         new = io.observation.get(name)
@@ -122,7 +144,8 @@ def grow_actor(where: str, init_net, net, growth: Growth) -> dict:
     missing = [a for a in init_io.actions if a not in io.actions]
     if missing:
         raise ParcoverError(f"--init {where}: its action components {missing} are not in this run's {list(io.actions)}")
-    a_old, a_new = len(init_io.actions), len(io.actions)
+    old_rows, new_rows = output_rows(init_io), output_rows(io)
+    kept = [a for a in init_io.actions if len(old_rows[a]) == len(new_rows[a])]  # same kind of head
     with torch.no_grad():
         old_scale, new_scale = init_net[0], net[0]
         new_scale.centre[new_cols] = old_scale.centre[old_cols]
@@ -135,12 +158,17 @@ def grow_actor(where: str, init_net, net, growth: Growth) -> dict:
             new.load_state_dict(old.state_dict())
         last_old, last = old_lin[-1], new_lin[-1]
         last.weight.zero_()
-        last.bias[:a_new] = loc
-        last.bias[a_new:] = scale_pre
-        for j, name in enumerate(init_io.actions):
-            i = io.actions.index(name)
-            for row_new, row_old in ((i, j), (a_new + i, a_old + j)):
+        for rows in new_rows.values():
+            if len(rows) == 2:
+                last.bias[rows[0]], last.bias[rows[1]] = loc, scale_pre
+            else:
+                last.bias[rows[0]] = grown_scan_logit(loc, growth.std)
+        for name in kept:
+            for row_new, row_old in zip(new_rows[name], old_rows[name], strict=True):
                 last.weight[row_new] = last_old.weight[row_old]
                 last.bias[row_new] = last_old.bias[row_old]
-    return {"observation": [n for n in io.observation if n not in init_io.observation],
-            "actions": [a for a in io.actions if a not in init_io.actions]}
+    grown = {"observation": [n for n in io.observation if n not in init_io.observation],
+             "actions": [a for a in io.actions if a not in kept]}
+    if init_io.scan_head != io.scan_head and "scan" in init_io.actions:
+        grown["scan_head"] = f"{init_io.scan_head} -> {io.scan_head}"
+    return grown

@@ -25,7 +25,7 @@ from pathlib import Path
 from parcover_env.errors import ParcoverError
 from parcover_env.harness.marl_config import MarlConfig
 from parcover_env.harness.marl_grow import Growth, grow_actor
-from parcover_env.policies.torchrl_policy import POLICY_FILE, TorchRLPolicy
+from parcover_env.policies.torchrl_policy import POLICY_FILE, TorchRLPolicy, head_act_dim
 
 __all__ = ["CRITIC_FILE", "InitSource", "find_init", "init_env_args", "critic_spec", "save_critic", "apply_init"]
 
@@ -98,29 +98,37 @@ def save_critic(path: Path, critic, value_norm, spec: dict) -> None:
                 "value_norm": value_norm.state_dict() if value_norm is not None else None}, path)
 
 
-def _shape(net) -> tuple[int, list[int], int]:
-    """(observation size, hidden widths, action size) of an :func:`actor_net`."""
+def _shape(net, scan_head: str) -> tuple[int, list[int], int, str]:
+    """(observation size, hidden widths, action size, scan head) of an :func:`actor_net` of ``scan_head``."""
     import torch
 
     linear = [m for m in net if isinstance(m, torch.nn.Linear)]
-    return linear[0].in_features, [m.out_features for m in linear[:-1]], linear[-1].out_features // 2
+    return (linear[0].in_features, [m.out_features for m in linear[:-1]],
+            head_act_dim(linear[-1].out_features, scan_head), scan_head)
 
 
-def apply_init(src: InitSource, actor_net, critic, value_norm, spec: dict, growth: Growth | None = None) -> dict:
-    """Load ``src`` into ``actor_net`` (an :func:`actor_net`, required to match unless ``growth``, with
-    ``init_grow``, says how the two envs' layouts differ) and, when its spec equals ``spec``, into
-    ``critic`` and ``value_norm``; returns the sidecar's ``init`` record."""
+def apply_init(src: InitSource, actor_net, critic, value_norm, spec: dict, growth: Growth | None = None,
+               scan_head: str = "continuous") -> dict:
+    """Load ``src`` into ``actor_net`` (an :func:`actor_net` with ``scan_head``, required to match
+    unless ``growth``, with ``init_grow``, says how the two envs' layouts differ; the init's scan head
+    is its file's) and, when its spec equals ``spec``, into ``critic`` and ``value_norm``; returns the
+    sidecar's ``init`` record."""
+    import dataclasses
+
     import torch
 
-    loaded = TorchRLPolicy(src.policy).net  # a corrupt or foreign file is a ParcoverError naming it
+    policy = TorchRLPolicy(src.policy)  # a corrupt or foreign file is a ParcoverError naming it
+    loaded = policy.net
     grown = None
+    if growth is not None:
+        growth = dataclasses.replace(growth, init_io=dataclasses.replace(growth.init_io, scan_head=policy.scan_head))
     if growth is not None and growth.changes:
         grown = grow_actor(src.path, loaded, actor_net, growth)
     else:
-        theirs, ours = _shape(loaded), _shape(actor_net)
+        theirs, ours = _shape(loaded, policy.scan_head), _shape(actor_net, scan_head)
         if theirs != ours:
             def show(s):
-                return f"observation {s[0]}, hidden {s[1]}, actions {s[2]}"
+                return f"observation {s[0]}, hidden {s[1]}, actions {s[2]}, scan head {s[3]}"
 
             hint = "" if growth is not None else " (init_grow: true grows it into new observation entries/actions)"
             raise ParcoverError(f"--init {src.path}: its actor ({show(theirs)}) does not fit this run's "

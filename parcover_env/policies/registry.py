@@ -184,10 +184,12 @@ POLICIES: dict[str, PolicyEntry] = {
     "bc": PolicyEntry(_learned("bc"), "a behaviour-cloned MLP (bc.pt)", needs_path=True),
     "mappo": PolicyEntry(_learned("mappo"), "a MAPPO actor (actor.pt)", needs_path=True),
     "torchrl": PolicyEntry(_torchrl(False), "an IPPO/MAPPO actor from parcover train (DIR/policy.pt; the env "
-                           "overrides it was trained with come from DIR/run.json), deterministic: tanh(loc)",
+                           "overrides it was trained with come from DIR/run.json), deterministic: tanh(loc), "
+                           "and a Bernoulli scan head's mode (scan iff p > 0.5)",
                            needs_path=True, path_overrides=_torchrl_overrides),
     "torchrl_sampled": PolicyEntry(_torchrl(True), "the same actor with its actions sampled from its TanhNormal "
-                                   "as in training (seeded by the episode's seed)", needs_path=True,
+                                   "(and Bernoulli scan head) as in training (seeded by the episode's seed)",
+                                   needs_path=True,
                                    path_overrides=_torchrl_overrides),
     "py": PolicyEntry(_python, "a policy of your own that this process and bench workers import: "
                       "py:MODULE:ATTR, ATTR a factory (env, seed) -> Policy or a Policy class "

@@ -1,15 +1,25 @@
 """A robot policy trained by ``parcover train`` (TorchRL IPPO/MAPPO), loaded with torch alone.
 
 The checkpoint ``policy.pt`` is a dict: ``state_dict`` of :func:`actor_net` (the weights and the
-observation box it scales by), ``obs_dim``, ``hidden`` and ``act_dim``. Every robot runs the same network on its
-own observation (parameter sharing). The network outputs the location and the pre-softplus scale of
-a TanhNormal distribution (TorchRL's ``NormalParamExtractor`` splits them). Acting takes the
+observation box it scales by), ``obs_dim``, ``hidden``, ``act_dim`` (the env's action size) and
+``scan_head`` (:data:`SCAN_HEADS`; a file without it has the ``continuous`` head). Every robot runs
+the same network on its own observation (parameter sharing).
+
+``continuous`` head: the network outputs the location and the pre-softplus scale of a TanhNormal
+over every action component (TorchRL's ``NormalParamExtractor`` splits them). Acting takes the
 distribution's deterministic sample ``tanh(loc)`` (spec ``torchrl:DIR``), or, with a ``sample_seed``
 (spec ``torchrl_sampled:DIR``), a sample ``tanh(loc + scale * eps)`` as in training, ``eps`` standard
 normal from a numpy Generator seeded with the episode's seed (bit-identical per seed, also after a
 ``deepcopy`` mid-episode). Both lie in the action box [-1, 1]. A policy whose ``scan`` component starts a
 scan when it is above 0 scans, deterministically, only where ``loc > 0``; sampled, it also scans now
 and then elsewhere, as it did in training.
+
+``bernoulli`` head (an env with the scan service, ``MarlConfig.scan_head``): the TanhNormal covers
+``(v, omega)`` only (outputs ``loc_v, loc_omega, pre_v, pre_omega``) and a fifth output is the logit
+of a Bernoulli "scan now" (:mod:`~parcover_env.harness.marl_scan_head`). The ``scan`` component is
+:data:`SCAN_ON` (+1: the env scans) or :data:`SCAN_OFF` (-1: it does not). Deterministic: the mode,
+scan iff the logit is above 0 (probability above 0.5); sampled: ``(v, omega)`` as above, then one
+uniform ``u`` per robot from the same Generator, scan iff ``u < sigmoid(logit)``.
 """
 
 from __future__ import annotations
@@ -23,11 +33,16 @@ from parcover_env.errors import ParcoverError
 from parcover_env.policies.protocol import Policy
 
 __all__ = ["actor_net", "box_scale", "TorchRLPolicy", "POLICY_FILE", "SIDECAR_FILE", "checkpoint_overrides",
-           "SCALE_MIN", "actor_scale"]
+           "SCALE_MIN", "actor_scale", "SCAN_HEADS", "SCAN_ON", "SCAN_OFF", "head_outputs", "head_act_dim"]
 
 POLICY_FILE = "policy.pt"
 """The checkpoint's name in a ``parcover train`` output directory."""
 SIDECAR_FILE = "run.json"
+SCAN_HEADS = ("continuous", "bernoulli")
+"""How an actor outputs the ``scan`` action component: ``continuous`` (one more TanhNormal component,
+also the head of every action without ``scan``) or ``bernoulli`` (a separate Bernoulli "scan now")."""
+SCAN_ON, SCAN_OFF = 1.0, -1.0
+"""The ``scan`` component a ``bernoulli`` head gives the env for "scan" / "no scan" (the env scans when ``> 0``)."""
 """The run's sidecar beside the checkpoint (``parcover train``); its ``env_overrides`` are the
 scenario overrides the policy was trained with (e.g. ``observation.version: 2``)."""
 
@@ -73,19 +88,52 @@ def box_scale(obs_low: np.ndarray, obs_high: np.ndarray):
     return BoxScale(obs_low, obs_high)
 
 
-def actor_net(obs_low: np.ndarray, obs_high: np.ndarray, hidden: tuple[int, ...], act_dim: int):
-    """``obs -> (loc, scale parameter)`` per robot: the observation scaled by :func:`box_scale` (to
-    [-1, 1] for the box ``[obs_low, obs_high]``), then a tanh MLP with ``2 * act_dim`` outputs. Works on
-    any leading dimensions (time, robots)."""
+def head_outputs(act_dim: int, scan_head: str = "continuous") -> int:
+    """The network outputs of an actor with ``act_dim`` action components and ``scan_head``:
+    ``2 * act_dim`` (loc and pre-scale of each), or for ``bernoulli`` ``2 * (act_dim - 1) + 1`` (loc
+    and pre-scale of each drive component, then the scan logit). ValueError for an unknown head, or a
+    ``bernoulli`` head without a scan component beside a drive (``act_dim < 2``)."""
+    if scan_head == "continuous":
+        return 2 * act_dim
+    if scan_head == "bernoulli" and act_dim >= 2:
+        return 2 * (act_dim - 1) + 1
+    raise ValueError(f"scan head {scan_head!r} with {act_dim} action components: expected one of {SCAN_HEADS}, "
+                     "bernoulli with at least one drive component and the scan component")
+
+
+def head_act_dim(outputs: int, scan_head: str = "continuous") -> int:
+    """The action components of an actor with ``outputs`` network outputs (inverse of :func:`head_outputs`);
+    ValueError if no actor of ``scan_head`` has that many."""
+    act_dim = (outputs + 1) // 2
+    if head_outputs(act_dim, scan_head) != outputs:
+        raise ValueError(f"no actor with the {scan_head} scan head has {outputs} outputs")
+    return act_dim
+
+
+def actor_net(obs_low: np.ndarray, obs_high: np.ndarray, hidden: tuple[int, ...], act_dim: int,
+              scan_head: str = "continuous"):
+    """``obs -> distribution parameters`` per robot: the observation scaled by :func:`box_scale` (to
+    [-1, 1] for the box ``[obs_low, obs_high]``), then a tanh MLP with :func:`head_outputs` outputs
+    (``2 * act_dim`` (loc, pre-scale) for the ``continuous`` head). Works on any leading dimensions
+    (time, robots)."""
     from torch import nn
+
+    outputs = head_outputs(act_dim, scan_head)
 
     layers: list[nn.Module] = [box_scale(obs_low, obs_high)]
     last = len(obs_low)
     for width in hidden:
         layers += [nn.Linear(last, width), nn.Tanh()]
         last = width
-    layers.append(nn.Linear(last, 2 * act_dim))
+    layers.append(nn.Linear(last, outputs))
     return nn.Sequential(*layers)
+
+
+def _linear(net) -> list:
+    """The ``Linear`` layers of an :func:`actor_net`, in order."""
+    import torch
+
+    return [m for m in net.modules() if isinstance(m, torch.nn.Linear)]
 
 
 SCALE_MIN = 0.01
@@ -114,15 +162,40 @@ class TorchRLPolicy(Policy):
         try:
             ckpt = torch.load(file, map_location="cpu", weights_only=True)
             n = int(ckpt["obs_dim"])  # the box's centre and half-width come with the state dict
-            self.net = actor_net(np.zeros(n), np.ones(n), tuple(ckpt["hidden"]), int(ckpt["act_dim"]))
+            head = ckpt.get("scan_head", "continuous")
+            self.net = actor_net(np.zeros(n), np.ones(n), tuple(ckpt["hidden"]), int(ckpt["act_dim"]), head)
             self.net.load_state_dict(ckpt["state_dict"])
         except Exception as exc:  # a foreign or corrupt file: name it instead of a deep traceback
             raise ParcoverError(f"cannot load TorchRL policy {file}: {type(exc).__name__}: {exc}") from None
+        self._set(self.net, int(ckpt["act_dim"]), head, sample_seed)
+
+    def _set(self, net, act_dim: int, scan_head: str, sample_seed: int | None) -> None:
+        self.net = net
         self.net.eval()
-        self.act_dim = int(ckpt["act_dim"])
-        self.obs_shape = (n,)
+        self.act_dim = act_dim
+        self.scan_head: str = scan_head
+        """:data:`SCAN_HEADS`: how the network outputs the ``scan`` component."""
+        self.drive_dim = act_dim - 1 if scan_head == "bernoulli" else act_dim
+        """Action components of the TanhNormal (all of them for the ``continuous`` head)."""
+        self.obs_shape = (_linear(net)[0].in_features,)
         self.rng = None if sample_seed is None else np.random.default_rng(sample_seed)
-        """The sampling noise's generator; None: deterministic ``tanh(loc)``."""
+        """The sampling noise's generator; None: deterministic (``tanh(loc)``, the scan head's mode)."""
+
+    @classmethod
+    def from_net(cls, net, act_dim: int, scan_head: str = "continuous",
+                 sample_seed: int | None = None) -> TorchRLPolicy:
+        """The policy of an in-memory :func:`actor_net` (e.g. a trainer's, before it is saved);
+        ParcoverError if its outputs do not fit ``act_dim`` and ``scan_head``."""
+        try:
+            outputs = head_outputs(act_dim, scan_head)
+        except ValueError as exc:
+            raise ParcoverError(str(exc)) from None
+        if outputs != _linear(net)[-1].out_features:
+            raise ParcoverError(f"an actor_net with {act_dim} action components and the {scan_head} scan head has "
+                                f"{outputs} outputs, not {_linear(net)[-1].out_features}")
+        policy = cls.__new__(cls)
+        cls._set(policy, net, act_dim, scan_head, sample_seed)  # the class's own setter, as __init__ uses it
+        return policy
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         import torch
@@ -131,13 +204,22 @@ class TorchRLPolicy(Policy):
         if not agents:
             return {}
         obs = torch.as_tensor(np.stack([np.asarray(observations[a], dtype=np.float32) for a in agents]))
+        d = self.drive_dim
         with torch.no_grad():
             out = self.net(obs)
-            loc = out[:, : self.act_dim]
+            loc = out[:, :d]
             if self.rng is None:
                 actions = torch.tanh(loc).numpy().astype(np.float32)
             else:
-                scale = actor_scale(out[:, self.act_dim:]).double().numpy()
+                scale = actor_scale(out[:, d:2 * d]).double().numpy()
                 u = loc.double().numpy() + scale * self.rng.standard_normal(scale.shape)
                 actions = np.tanh(u).astype(np.float32)
+            if self.scan_head == "bernoulli":
+                logit = out[:, 2 * d].double().numpy()
+                if self.rng is None:  # the mode: probability above 0.5
+                    scan = logit > 0.0
+                else:  # u < sigmoid(logit), written without overflow
+                    scan = self.rng.random(len(agents)) < np.exp(-np.logaddexp(0.0, -logit))
+                scan = np.where(scan, SCAN_ON, SCAN_OFF).astype(np.float32)
+                actions = np.concatenate([actions, scan[:, None]], axis=1)
         return {a: actions[i] for i, a in enumerate(agents)}

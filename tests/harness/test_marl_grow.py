@@ -64,8 +64,7 @@ def test_grown_actor_keeps_the_init_outputs_and_starts_the_new_component_at_no_s
     assert torch.all(new_s.centre[[0, 4, 5, 8]] == 0.5) and torch.all(new_s.half_width[[0, 4, 5, 8]] == 2.5)
     # the deterministic action (tanh(loc), as evaluation takes it): scan = tanh(-1.5) = -0.905, "no scan"
     # (the env starts a scan when scan > 0)
-    policy = TorchRLPolicy.__new__(TorchRLPolicy)
-    policy.net, policy.act_dim, policy.rng = policy_net(grown), 3, None  # deterministic
+    policy = TorchRLPolicy.from_net(policy_net(grown), 3)  # deterministic
     act = policy.act({"robot_0": obs[0].numpy(), "robot_1": obs[1].numpy()})
     assert act["robot_0"][2] == pytest.approx(math.tanh(-1.5)) and act["robot_1"][2] < 0
 
@@ -102,7 +101,8 @@ def test_a_misfit_growth_cannot_explain_is_one_error(new, hidden, words):
 
 def test_an_init_actor_that_does_not_fit_its_own_sidecar_env_is_one_error():
     init, grown = _actor(1, 5, 3), _actor(2, 9, 3)  # 3 actions, but its env (OLD) has 2
-    with pytest.raises(ParcoverError, match="its actor has 3 action components, but its env .* has 2"):
+    with pytest.raises(ParcoverError, match=r"its actor has 6 outputs, but its env .* has 2 action components "
+                                            r"\(4 outputs with its continuous scan head\)"):
         grow_actor("x", policy_net(init), policy_net(grown), Growth(OLD, NEW, loc=-1.5, std=0.5))
     init = _actor(1, 6, 2)
     with pytest.raises(ParcoverError, match="its actor has 6 inputs, but its env's observation layout .* has 5"):
@@ -137,7 +137,7 @@ def test_train_grows_an_init_run_into_the_scan_env(tmp_path):
                               hidden=(8,), episode_steps=30)
     a = train(TrainRequest("ippo", "office", 64, tmp_path / "a", cfg, "x", seed=1))
     scan_env = {"observation": {"scan": {"enabled": True}}}
-    plain = dataclasses.replace(cfg, env=scan_env, learning_rate=1e-12)
+    plain = dataclasses.replace(cfg, env=scan_env, learning_rate=1e-12, scan_head="continuous")
     with pytest.raises(ParcoverError, match="does not fit this run's .*init_grow: true"):
         train(TrainRequest("ippo", "office", 64, tmp_path / "no", plain, "x", seed=2, init=str(tmp_path / "a")))
     grow = dataclasses.replace(plain, init_grow=True)
@@ -186,5 +186,6 @@ def test_the_stage_6_config_is_stage_5_with_the_scan_service_and_growth():
     stage6 = load_marl_config("mappo", here / "mappo_generated_scan.yaml")
     env = {**stage5.env, "observation": {**stage5.env["observation"], "scan": {"enabled": True}}}
     assert stage6 == dataclasses.replace(stage5, env=env, init_grow=True, init_grow_loc=-1.5, init_grow_std=0.5,
-                                         wall_time=2400.0)  # the 40 min the first run had
+                                         wall_time=2400.0,  # the 40 min the first run had
+                                         scan_head="continuous")  # the head it was trained with
     assert stage6.critic_warmup > 0

@@ -107,7 +107,8 @@ def test_a_critic_of_another_kind_is_not_loaded_the_actor_is(tmp_path):
 
 
 @pytest.mark.parametrize(("obs", "hidden", "words"), [
-    (OBS + 1, (8,), "its actor (observation 4, hidden [8], actions 2) does not fit this run's (observation 5"),
+    (OBS + 1, (8,), "its actor (observation 4, hidden [8], actions 2, scan head continuous) does not fit this run's "
+              "(observation 5"),
     (OBS, (8, 8), "hidden [8, 8]"),
 ])
 def test_an_actor_of_another_shape_is_one_error(tmp_path, obs, hidden, words):
