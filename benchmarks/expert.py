@@ -171,7 +171,8 @@ def main() -> None:
 
         lat = np.array([m["sonar_lateral_offset"] for m in ms])
         n_cl = np.array([m.get("sonar_rearranged_close", 0) for m in ms])
-        print(f"| {name} | {n_re.mean():.2f} ({n_re.min()}-{n_re.max()}) | {n_cl.mean():.2f} ({n_cl.min()}-{n_cl.max()}) "
+        print(f"| {name} | {n_re.mean():.2f} ({n_re.min()}-{n_re.max()}) "
+              f"| {n_cl.mean():.2f} ({n_cl.min()}-{n_cl.max()}) "
               f"| {sum(m.get('sonar_reacted', 0) for m in ms)} | {(n_re > 0).sum()} / {len(ms)} "
               f"| {sum(m['sonar_separate_sectors'] for m in ms)} "
               f"| {biased('sonar_bias_before_deg'):.1f} / {biased('sonar_bias_after_deg'):.1f} "

@@ -18,8 +18,14 @@ from parcover_env.world.map_model import map_model
 ROOM = box(0.0, 0.0, 4.0, 3.0)
 L_CORRIDOR = Polygon([(0, 0), (4, 0), (4, 4), (3, 4), (3, 1), (0, 1)])
 """A 1 m wide corridor along y in [0, 1], turning left at x in [3, 4]; the inner corner is (3, 1)."""
-CHORD = 1 - math.sin(math.pi / (4 * FREE_QUAD_SEGS)) / (math.pi / (4 * FREE_QUAD_SEGS))
-"""Largest relative shortfall of a chord path against the arc it replaces (module docstring)."""
+
+
+def _l_exact(r: float) -> float:
+    """The L corridor's shortest path (0.5, 0.5) -> (3.5, 3.5) for a disc of radius ``r`` (derived by
+    hand in :func:`test_l_corridor_is_two_tangents_and_the_arc_around_the_inflated_corner`)."""
+    dc = math.sqrt(6.5)
+    apart = math.radians(360 - (math.degrees(math.atan2(-0.5, -2.5)) % 360 - math.degrees(math.atan2(2.5, 0.5))))
+    return 2 * math.sqrt(dc**2 - r**2) + r * (apart - 2 * math.acos(r / dc))
 
 
 def test_empty_room_is_the_straight_line():
@@ -48,7 +54,10 @@ def test_l_corridor_is_two_tangents_and_the_arc_around_the_inflated_corner():
     arc = r * (apart - 2 * math.acos(r / dc))
     exact = 2 * leg + arc
     assert exact == pytest.approx(2 * 2.54165 + 0.2 * 1.3331, abs=1e-4)  # the numbers in the comment
-    assert exact * (1 - CHORD) - 1e-9 <= d <= exact + 1e-9  # a lower bound, short by the chords at most
+    assert exact == pytest.approx(_l_exact(r))
+    # a lower bound, no shorter than the exact path for the corner's inscribed circle (module docstring)
+    assert _l_exact(r * math.cos(math.pi / (4 * FREE_QUAD_SEGS))) - 1e-9 <= d <= exact + 1e-9
+    assert exact - d < 2e-4
     fine = free_space_distances(L_CORRIDOR, (0.5, 0.5), [(3.5, 3.5)], radius=r, quad_segs=256)[0]
     assert fine == pytest.approx(exact, abs=1e-6)
     # a point robot bends at the corner itself: the two straight legs
@@ -124,3 +133,24 @@ def test_makespan_ratio_against_the_free_space_bound():
     assert out["c_free"] == plan.c_free
     assert out["makespan_ratio_free"] == pytest.approx(32.3 / (plan.c_free / 0.2))
     assert out["makespan_ratio_free"] == pytest.approx(1.3226, abs=1e-4)
+
+
+def test_path_bends_at_the_corners_of_a_triangle():
+    room = box(0, 0, 4, 3).difference(Polygon([(1.5, 0.5), (2.5, 0.5), (2.0, 2.5)]))
+    # a point robot from (0.5, 1) to (3.5, 1) passes under the triangle, by its two lower corners
+    d = free_space_distances(room, (0.5, 1.0), [(3.5, 1.0)], radius=0.0)[0]
+    assert d == pytest.approx(2 * math.hypot(1.0, 0.5) + 1.0, abs=1e-9)
+    np.testing.assert_allclose(sorted(map(tuple, reflex_vertices(room))), [(1.5, 0.5), (2.0, 2.5), (2.5, 0.5)])
+
+
+def test_no_room_for_the_robot_and_no_targets():
+    np.testing.assert_array_equal(free_space_distances(box(0, 0, 1, 1), (0.5, 0.5), [(0.5, 0.5), (0.6, 0.6)],
+                                                       radius=0.6), [math.inf, math.inf])
+    assert free_space_distances(ROOM, (0.5, 0.5), np.zeros((0, 2)), radius=0.2).shape == (0,)
+
+
+def test_one_chord_per_quarter_circle_is_still_a_lower_bound():
+    coarse = free_space_distances(L_CORRIDOR, (0.5, 0.5), [(3.5, 3.5)], radius=0.2, quad_segs=1)[0]
+    assert _l_exact(0.2 * math.cos(math.pi / 4)) < coarse < _l_exact(0.2) - 0.03  # 3 cm short at one chord
+    with pytest.raises(ValueError, match="quad_segs"):
+        free_space_distances(L_CORRIDOR, (0.5, 0.5), [(3.5, 3.5)], radius=0.2, quad_segs=0)
