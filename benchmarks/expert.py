@@ -12,7 +12,8 @@ seed). The env is built as ``parcover run --policy expert`` builds it: with the 
 localization service (``observation.scan``), which does the experts' stop-and-scan fixes (they ask
 for a scan and read the env's estimate and covariance). ``--own-scan``: without it; the experts then
 turn, collect and localize their scans themselves (their former loop, kept for comparison). Prints
-one Markdown table (makespan ratio = makespan / (c_max / v_max): min / mean / p95 / max), failures by cause
+one Markdown table (makespan ratio = makespan / (c_max / v_max), c_max on the roadmap metric: min / mean / p95 /
+max), the makespan ratio against the free-space lower bound c_free, failures by cause
 (``parcover_env.harness.failures``) with their seeds, for the sonar navigator its rearrangements,
 scan-angle bias and lateral offset, and, for the Kinect scenarios, the messages of formation mode
 vs every-robot-localized mode (``--messages``).
@@ -65,6 +66,13 @@ def episode(job: tuple[str, int, str, str, bool, bool]) -> dict:
 
 def _ratio(ms: list[dict]) -> str:
     ratio = np.array([m["makespan_ratio"] for m in ms if m.get("makespan_ratio") is not None])
+    if not len(ratio):
+        return "-"
+    return f"{ratio.min():.2f} / {ratio.mean():.2f} / {np.percentile(ratio, 95):.2f} / {ratio.max():.2f}"
+
+
+def _free_ratio(ms: list[dict]) -> str:
+    ratio = np.array([m["makespan_ratio_free"] for m in ms if m.get("makespan_ratio_free") is not None])
     if not len(ratio):
         return "-"
     return f"{ratio.min():.2f} / {ratio.mean():.2f} / {np.percentile(ratio, 95):.2f} / {ratio.max():.2f}"
@@ -125,6 +133,12 @@ def main() -> None:
               f"| {sum(m['wall_collisions'] for m in ok)} | {_mean(ok, 'robot_collisions'):.1f} avg "
               f"| {_mean(ok, 'n_messages'):.0f} | {_mean(ok, 'formation_error_l'):.3f} "
               f"| {_mean(ok, 'localization_error'):.3f} | {_mean(ok, 'wall_time'):.2f} |")
+    print("\nMakespan ratio against the free-space lower bound (makespan / (c_free / v_max); the table's ratio "
+          "divides by the roadmap's c_max), min / mean / p95 / max:\n")
+    for name in args.scenarios:
+        ok = [m for m in rows[(name, "formation")] if "n_kpois" in m]
+        cf = sorted({round(m["c_free"], 2) for m in ok if "c_free" in m})
+        print(f"* {name}: {_free_ratio(ok)} (c_free {', '.join(f'{c:.2f}' for c in cf[:3])} m)")
     print("\nFailures by cause (seeds):\n")
     print("| scenario | " + " | ".join(c for c in CAUSES if c != "solved") + " |")
     print("|---|" + "---|" * (len(CAUSES) - 1))
@@ -142,9 +156,10 @@ def main() -> None:
         print("\nSonar navigator (Kim, Pearce & Amato §3): rearranged subgoal pairs per episode, eq. 1 bias at the "
               "original algorithm's subgoal vs the optimized one (mean over subgoals), median lateral offset "
               "between the robots while both drive (per episode, then median over episodes):\n")
-        print("| scenario | rearranged / episode (mean, min-max) | episodes with >= 1 | pairs in different sectors "
+        print("| scenario | rearranged / episode (mean, min-max) | of them by the proximity trigger (mean, min-max) "
+              "| reactions to a done teammate (total) | episodes with >= 1 | pairs in different sectors "
               "| bias before / after (deg) | lateral offset (m) |")
-        print("|---|---|---|---|---|---|")
+        print("|---|---|---|---|---|---|---|---|")
     for name in sonar:
         ms = [m for m in rows[(name, "formation")] if "sonar_rearranged" in m]
         n_re = np.array([m["sonar_rearranged"] for m in ms])
@@ -155,7 +170,10 @@ def main() -> None:
             return sum(m[key] * m["sonar_bias_subgoals"] for m in counted) / total if total else float("nan")
 
         lat = np.array([m["sonar_lateral_offset"] for m in ms])
-        print(f"| {name} | {n_re.mean():.2f} ({n_re.min()}-{n_re.max()}) | {(n_re > 0).sum()} / {len(ms)} "
+        n_cl = np.array([m.get("sonar_rearranged_close", 0) for m in ms])
+        print(f"| {name} | {n_re.mean():.2f} ({n_re.min()}-{n_re.max()}) "
+              f"| {n_cl.mean():.2f} ({n_cl.min()}-{n_cl.max()}) "
+              f"| {sum(m.get('sonar_reacted', 0) for m in ms)} | {(n_re > 0).sum()} / {len(ms)} "
               f"| {sum(m['sonar_separate_sectors'] for m in ms)} "
               f"| {biased('sonar_bias_before_deg'):.1f} / {biased('sonar_bias_after_deg'):.1f} "
               f"| {np.nanmedian(lat):.2f} (min {np.nanmin(lat):.2f}) |")

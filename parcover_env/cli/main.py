@@ -136,7 +136,8 @@ def cmd_plan(args) -> int:
         _print_json(plan_summary(plan, tree))
     else:
         print(f"scenario {s.name}: r = {plan.r} robots, c_max = {plan.c_max:.2f} m, c_p = {plan.c_p:.2f} m "
-              f"({plan.method}); {len(plan.turning_points)} turning positions")
+              f"({plan.method}, roadmap metric); longest route to a KPOI {plan.c_route:.2f} m; free-space "
+              f"bound c_free = {plan.c_free:.2f} m; {len(plan.turning_points)} turning positions")
         for tp in plan.turning_points:
             counts = ", ".join(str(b.n_robots) for b in tp.branches)
             print(f"  TP at ({tp.position[0]:.2f}, {tp.position[1]:.2f}): robots {tp.robots[0]}-{tp.robots[1] - 1} "

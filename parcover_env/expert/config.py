@@ -180,12 +180,18 @@ class NavigatorConfig:
     range_margin: float = 0.15
     """Features are looked for within the sonar's ``range_max`` minus this (m)."""
     max_shift: float = 0.6
-    """Bisector rearrangement (Kim, Pearce & Amato §4): farthest an off-path subgoal may lie from its path, and
-    farthest it may slide along the bisector to keep the robots apart (m)."""
+    """Subgoal rearrangement (Kim, Pearce & Amato §3.2, §4) shift cap: farthest a rearranged subgoal
+    moves along its path, an off-path (bisector) subgoal lies from its path, and a subgoal slides
+    along the bisector to keep the robots apart (m). OUR EXTENSION: the paper bounds the move only
+    by the legal space S_i and gives no cap (:mod:`parcover_env.expert.rearrange`)."""
     shift_step: float = 0.1
     """Bisector rearrangement: step of that slide along the bisector (m)."""
     separation_margin: float = 0.15
-    """Robots at their subgoals stay at least 2 radius + this apart (m)."""
+    """Robots at their subgoals stay at least 2 radius + this apart (m), and two subgoals closer than
+    that are rearranged even when neither blocks the other's scan (the proximity trigger). OUR
+    EXTENSION: the paper lets robots stand "close as long as they are not in collision" (§4) and
+    rearranges only on blocking; the blocking threshold (a loss of 0.25 deg of scan angle) is ours
+    too (:data:`parcover_env.expert.rearrange.RESOLUTION`)."""
     lookahead: float = 0.35
     """Pure-pursuit look-ahead distance along the path while driving to a subgoal (m)."""
     arrive_tol: float = 0.05

@@ -151,13 +151,16 @@ class SonarNavigator(NavigatorScans):
         """Robots that ask the env for a scan at this step (:attr:`env_scan`)."""
         self.fixes: list[dict] = []
         self._stats = {"scans": 0, "localized": 0, "failed": 0, "corrections": [], "scan_steps": 0,
-                       "rearranged": 0, "iterations": 0, "bias": [], "lateral": [], "apart": 0}
+                       "rearranged": 0, "iterations": 0, "bias": [], "lateral": [], "apart": 0, "close": 0,
+                       "reacted": 0}
         if observations:
             self._ingest(observations)
 
     def stats(self) -> dict:
         """Counters for the episode summary (prefixed ``sonar_``). ``sonar_rearranged``: robot pairs
-        whose subgoals were rearranged (§3.2); ``sonar_separate_sectors``: pairs whose subgoals lay in
+        whose subgoals were rearranged (§3.2), ``sonar_rearranged_close`` those of them the proximity
+        trigger fired (our extension), ``sonar_reacted`` robots whose subgoal moved because a done
+        teammate stood in their scan (our extension); ``sonar_separate_sectors``: pairs whose subgoals lay in
         different relaxed sectors (Fig. 10: no rearrangement). ``sonar_bias_before_deg`` / ``_after_deg``: mean eq. 1
         bias (deg) over the robots' subgoals chosen by the scan-angle optimization, at the node the
         original algorithm takes (the last within the horizon) and at the optimized one (before any
@@ -168,7 +171,8 @@ class SonarNavigator(NavigatorScans):
         return {"sonar_scans": st["scans"], "sonar_localized": st["localized"], "sonar_failed": st["failed"],
                 "sonar_mean_correction": float(np.mean(c)) if c else 0.0,
                 "sonar_scan_time": st["scan_steps"] * self.dt,
-                "sonar_rearranged": st["rearranged"], "sonar_separate_sectors": st["apart"],
+                "sonar_rearranged": st["rearranged"], "sonar_rearranged_close": st["close"],
+                "sonar_reacted": st["reacted"], "sonar_separate_sectors": st["apart"],
                 "sonar_iterations": st["iterations"],
                 "sonar_bias_before_deg": float(np.degrees(b[:, 0].mean())) if len(b) else math.nan,
                 "sonar_bias_after_deg": float(np.degrees(b[:, 1].mean())) if len(b) else math.nan,
@@ -317,10 +321,13 @@ class SonarNavigator(NavigatorScans):
         targets = np.clip(sigma - self.lags, starts, ends)
         targets[self.done] = ends[self.done]
         windows = np.stack([self.progress, np.minimum(self.progress + horizon, ends)], axis=1)
-        res = self.rearranger.rearrange(self.paths, self.scores, targets, windows, active) if self.n > 1 else None
+        res = (self.rearranger.rearrange(self.paths, self.scores, targets, windows, active, standing=bel[self.done, :2])
+               if self.n > 1 else None)  # done teammates stand where their runs left them (our extension)
         self.targets = targets if res is None else res.targets
         self.goal_xy = np.full((self.n, 2), np.nan) if res is None else res.goals
         self._stats["rearranged"] += 0 if res is None else res.pairs
+        self._stats["close"] += 0 if res is None else res.close
+        self._stats["reacted"] += 0 if res is None else len(res.reacted)
         self._stats["apart"] += 0 if res is None else res.apart
         self.phase, self.arrived = "drive", self.done.copy()
         self.drive_steps = 0

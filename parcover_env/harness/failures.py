@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from parcover_env.envs.metrics import episode_metrics
+from parcover_env.harness.rollout import add_free_space_ratio
 from parcover_env.policies.protocol import Policy
 
 __all__ = ["EpisodeDiagnosis", "CAUSES", "classify_failure", "run_diagnosed"]
@@ -119,6 +120,7 @@ def run_diagnosed(env, policy: Policy, seed: int | None, window: float = 20.0) -
     if summary is None:
         summary = env.metrics.summary()
     summary["wall_time"] = time.perf_counter() - t0
+    add_free_space_ratio(summary, env.plan)
     summary.update(policy.stats())
     true = _true_poses(env)
     belief = _estimates(env)

@@ -2,12 +2,31 @@
 
 from __future__ import annotations
 
+import math
 import time
 
 from parcover_env.envs.metrics import episode_metrics
 from parcover_env.policies.protocol import Policy
 
-__all__ = ["run_episode"]
+__all__ = ["add_free_space_ratio", "makespan_ratio", "run_episode"]
+
+
+def makespan_ratio(makespan: float | None, bound: float, max_speed: float) -> float | None:
+    """``makespan / (bound / max_speed)``: the makespan (s) over the time (s) a robot at top speed
+    needs for ``bound`` (m); None without a makespan (a failed mission), NaN for a bound <= 0."""
+    if makespan is None:
+        return None
+    time_bound = bound / max_speed if bound > 0 and max_speed > 0 else math.nan
+    return makespan / time_bound
+
+
+def add_free_space_ratio(summary: dict, plan) -> dict:
+    """Add ``c_free`` (the plan's free-space lower bound, m) and ``makespan_ratio_free`` (the
+    makespan over ``c_free / v_max``; ``makespan_ratio`` divides by ``c_max / v_max``, the roadmap
+    metric) to an episode summary (:meth:`EpisodeMetrics.summary`); returns it."""
+    summary["c_free"] = float(plan.c_free)
+    summary["makespan_ratio_free"] = makespan_ratio(summary.get("makespan"), plan.c_free, summary["max_speed"])
+    return summary
 
 
 def run_episode(env, policy: Policy, seed: int | None, max_steps: int | None = None, frames=None,
@@ -47,5 +66,6 @@ def run_episode(env, policy: Policy, seed: int | None, max_steps: int | None = N
     if summary is None:
         summary = env.metrics.summary()
     summary["wall_time"] = time.perf_counter() - t0
+    add_free_space_ratio(summary, env.plan)
     summary.update(policy.stats())
     return summary

@@ -153,13 +153,16 @@ def kinect_tree(footprints: dict[str, Polygon], plan: Plan, start, step: float =
 
 
 def plan_summary(plan: Plan, tree: KinectTree | None = None) -> dict[str, Any]:
-    """The plan as scripts want it (``parcover plan --json``): ``n_robots``, ``c_max``, ``c_p``,
-    ``method``, ``turning_positions`` ``[[x, y], ...]``, ``tp_branches`` (robots per branch of each TP,
+    """The plan as scripts want it (``parcover plan --json``): ``n_robots``, ``c_max``, ``c_p`` (the
+    roadmap metric), ``c_route`` (the same along the driven route polylines), ``c_free`` (the
+    free-space lower bound, :attr:`Plan.c_free`), ``method``, ``turning_positions``
+    ``[[x, y], ...]``, ``tp_branches`` (robots per branch of each TP,
     the numbers beside the TPs of Min et al. Fig. 6(c)), ``kinect_tree`` (adjacent Kinect pairs, empty
     without Kinects), ``kinect_root``, ``kinect_links`` ``[[from, to, crossings], ...]`` and ``routes``
     (per robot: ``kpois`` in visiting order, ``cost`` on the roadmap metric, ``path`` ``[[x, y], ...]``)."""
     return {
-        "n_robots": plan.r, "c_max": float(plan.c_max), "c_p": float(plan.c_p), "method": plan.method,
+        "n_robots": plan.r, "c_max": float(plan.c_max), "c_p": float(plan.c_p),
+        "c_route": float(plan.c_route), "c_free": float(plan.c_free), "method": plan.method,
         "n_leaves": plan.n_leaves,
         "turning_positions": [[float(tp.position[0]), float(tp.position[1])] for tp in plan.turning_points],
         "tp_branches": [[b.n_robots for b in tp.branches] for tp in plan.turning_points],

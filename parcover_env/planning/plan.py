@@ -118,8 +118,9 @@ class RobotPlan:
 
 @dataclass(frozen=True, eq=False)
 class Plan:
-    """PPCP solution. ``c_max`` (lower bound: roadmap distance from the start to the furthest KPOI),
-    ``c_p`` (max route cost), ``r`` robots with disjoint KPOI sets covering all KPOIs."""
+    """PPCP solution. ``c_max`` (lower bound ON THE ROADMAP METRIC: roadmap distance from the start
+    to the furthest KPOI), ``c_p`` (max route cost, same metric), ``r`` robots with disjoint KPOI
+    sets covering all KPOIs; ``c_free`` the free-space lower bound beside ``c_max``."""
 
     c_max: float
     c_p: float
@@ -132,6 +133,13 @@ class Plan:
     furthest_kpoi: int
     n_leaves: int = 0
     """Stage-1 robots: leaves of the pruned shortest-path tree (KPOIs with no KPOI below them)."""
+    c_free: float = float("nan")
+    """Free-space lower bound (m): the longest over KPOIs of the shortest path of the robot's
+    centre from the start to the KPOI through the free space eroded by the robot radius
+    (:func:`~parcover_env.planning.free_space.free_space_distances`); no route is shorter. ``c_max``
+    measures the same on the roadmap, which keeps to the middle of the free space: ``c_free <=
+    c_max``. NaN when the plan was solved on a bare graph (:func:`solve_ppcp`), set by
+    :func:`~parcover_env.planning.scenario_plan.plan_scenario`."""
 
     @property
     def r(self) -> int:
@@ -140,6 +148,12 @@ class Plan:
     @property
     def paths(self) -> list[np.ndarray]:
         return [rp.path for rp in self.robots]
+
+    @property
+    def c_route(self) -> float:
+        """Longest distance (m) along a robot's route polyline (the smoothed path it drives) from
+        the start to one of its KPOIs: between ``c_free`` and ``c_max`` on a plan at ``c_p = c_max``."""
+        return max((d for rp in self.robots for d in rp.kpoi_distance), default=0.0)
 
     def kpoi_owner(self) -> np.ndarray:
         """(n_kpois,) index of the robot credited with each KPOI."""
@@ -150,7 +164,8 @@ class Plan:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain lists / floats / ints only (JSON-serializable)."""
-        return {"r": self.r, "c_max": self.c_max, "c_p": self.c_p, "method": self.method,
+        return {"r": self.r, "c_max": self.c_max, "c_p": self.c_p, "c_free": self.c_free,
+                "c_route": self.c_route, "method": self.method,
                 "n_kpois": self.n_kpois, "furthest_kpoi": self.furthest_kpoi,
                 "n_leaves": self.n_leaves,
                 "robots": [rp.to_dict() for rp in self.robots],

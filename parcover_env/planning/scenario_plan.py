@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from functools import lru_cache
 from typing import TYPE_CHECKING
 
@@ -10,6 +11,7 @@ import shapely
 from shapely.geometry import LineString
 
 from parcover_env.errors import ConfigError
+from parcover_env.planning.free_space import free_space_distances
 from parcover_env.planning.plan import Plan
 from parcover_env.planning.ppcp import solve_ppcp
 from parcover_env.planning.roadmap import Roadmap, UnreachableKpoiError, build_roadmap, planner_clearance
@@ -18,7 +20,7 @@ from parcover_env.world.map_model import MapModel, map_model
 if TYPE_CHECKING:
     from parcover_env.config import Scenario
 
-__all__ = ["plan_scenario", "scenario_roadmap", "make_simplifier", "path_is_clear"]
+__all__ = ["free_space_bound", "plan_scenario", "scenario_roadmap", "make_simplifier", "path_is_clear"]
 
 
 def path_is_clear(region, points: np.ndarray) -> bool:
@@ -77,8 +79,21 @@ def _cached_plan(scenario: Scenario, n_robots: int | None, method: str) -> Plan:
     region = model.free.buffer(-(radius - 1e-6))
     to_roadmap = np.vstack([start, roadmap.node_pos(roadmap.start)])
     start_point = start if path_is_clear(region, to_roadmap) else None
-    return solve_ppcp(roadmap.graph, roadmap.start, roadmap.kpois, n_robots, method=method,
+    plan = solve_ppcp(roadmap.graph, roadmap.start, roadmap.kpois, n_robots, method=method,
                       start_point=start_point, simplify=simplify, tp_merge_tol=scenario.planner.tp_merge_tol)
+    return dataclasses.replace(plan, c_free=free_space_bound(scenario))
+
+
+@lru_cache(maxsize=32)
+def free_space_bound(scenario: Scenario) -> float:
+    """The scenario's free-space lower bound ``c_free`` (m, :attr:`Plan.c_free`): the longest over
+    its KPOIs of the shortest path from the start through the known map's free space eroded by
+    the robot radius (:func:`~parcover_env.planning.free_space.free_space_distances`)."""
+    if not scenario.kpois:
+        return 0.0
+    model = map_model(scenario.map, include_unknown=False)
+    d = free_space_distances(model.free, (scenario.start.x, scenario.start.y), scenario.kpois, scenario.robot.radius)
+    return float(d.max())
 
 
 def plan_scenario(scenario: Scenario, n_robots: int | None = None, method: str = "auto") -> Plan:

@@ -13,7 +13,7 @@ from parcover_env.expert.config import NavigatorConfig
 from parcover_env.expert.rearrange import SubgoalRearranger
 from parcover_env.localization.sonar.features import MapFeature
 from parcover_env.localization.sonar.sectors import Sector
-from parcover_env.localization.sonar.subgoals import NodeScores, densify, unblocked_angles
+from parcover_env.localization.sonar.subgoals import NodeScores, densify, unblocked_angles, unblocked_scan_angle
 from parcover_env.world.map_model import MapModel
 
 R, RANGE = 0.165, 10.0
@@ -72,3 +72,47 @@ def test_no_rearrangement_across_sectors_or_without_blocking():
     windows = np.array([WINDOWS[0], [0.0, 0.5]])
     res = _rearranger(one).rearrange(paths, [_scores(p) for p in paths], TARGETS, windows, np.arange(2))
     assert res.pairs == 0 and np.array_equal(res.targets, TARGETS)
+
+
+# Run-time blocking (our extension): robot 0 drives along y = 2 from x = 1.2 to 3.4, its subgoal at
+# (2, 2) (label 0.8); robot 1 is far away in the room's other corner; a body stands where the plan
+# did not put one (a teammate done with its route, left where its run took it).
+LANE = [densify([[1.2, 2.0], [3.4, 2.0]], 0.05), densify([[4.0, 5.0], [5.0, 5.0]], 0.05)]
+LANE_TARGETS = np.array([0.8, 0.0])
+LANE_WINDOWS = np.array([[0.0, LANE[0].s[-1]], [0.0, 1.0]])
+
+
+def _react(standing):
+    rr = SubgoalRearranger([CORNER], [Sector(ROOM.free, frozenset({0}))], ROOM, R, RANGE, math.pi / 2, 0.0,
+                           NavigatorConfig())  # the default max_shift, 0.6 m
+    return rr.rearrange(LANE, [_scores(p) for p in LANE], LANE_TARGETS.copy(), LANE_WINDOWS, np.array([0]),
+                        standing=standing)
+
+
+def _angle(xy, bodies):
+    return math.degrees(unblocked_scan_angle(xy, CORNER, np.reshape(bodies, (-1, 2)), R, RANGE))
+
+
+def test_rearrangement_reacts_to_a_body_standing_in_the_line_of_sight():
+    """By hand: from (2, 2) the corner's walls (3 m long) span bearings -63.43 .. 153.43 deg through
+    225 deg, 143.13 deg, + 2 x 2 deg margin = 147.1 deg. A body at (1.2, 1.2), 1.131 m away on the
+    line to the corner, hides 2 asin(0.165 / 1.131) = 16.8 deg: 130.4 deg left. Robot 0 alone is
+    blocked (its teammate is not in its way), so it moves alone along its path, as far as the 0.6 m
+    cap allows, to (1.4, 2): bearings -51.34 .. 144.46 deg, 164.2 + 4 = 168.2 deg; the body, 0.825 m
+    away, hides 2 asin(0.165 / 0.825) = 23.1 deg: 145.1 deg, 14.7 deg gained."""
+    body = np.array([[1.2, 1.2]])
+    res = _react(body)
+    assert res.reacted == (0,) and res.pairs == 0 and not np.isfinite(res.goals).any()
+    assert LANE_TARGETS[0] - res.targets[0] == pytest.approx(0.6, abs=1e-9)  # the shift cap
+    new = LANE[0].point(res.targets[0])
+    assert new == pytest.approx([1.4, 2.0], abs=1e-9)
+    assert res.targets[1] == LANE_TARGETS[1]  # the robot that is not active keeps its subgoal
+    assert _angle([2.0, 2.0], []) == pytest.approx(147.1, abs=0.6)
+    assert _angle([2.0, 2.0], body) == pytest.approx(130.4, abs=0.6)
+    assert _angle(new, body) == pytest.approx(145.1, abs=0.6)
+
+
+def test_no_reaction_without_the_body_or_with_a_body_out_of_the_way():
+    for standing in (None, np.zeros((0, 2)), np.array([[3.5, 3.5]])):  # (3.5, 3.5): behind robot 0
+        res = _react(standing)
+        assert res.reacted == () and res.pairs == 0 and np.array_equal(res.targets, LANE_TARGETS)
