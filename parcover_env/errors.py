@@ -6,7 +6,7 @@ benchmark worker process reaches the parent as itself, not as ``BrokenProcessPoo
 
 from __future__ import annotations
 
-__all__ = ["ParcoverError", "ConfigError", "ActionError", "DependencyError", "OutputError"]
+__all__ = ["ParcoverError", "ConfigError", "ActionError", "CheckpointError", "DependencyError", "OutputError"]
 
 
 def _rebuild(cls: type, args: tuple, state: dict) -> ParcoverError:
@@ -37,6 +37,17 @@ class ConfigError(ParcoverError, ValueError):
 
 class ActionError(ParcoverError, ValueError):
     """An action passed to ``step`` is malformed; names the agent and what is wrong."""
+
+
+class CheckpointError(ParcoverError, ValueError):
+    """A policy checkpoint cannot be used (corrupt, empty, another format or another policy's);
+    names the file and what is wrong."""
+
+    def __init__(self, path: str, what: str, problem: str):
+        self.path = str(path)
+        self.what = what
+        self.problem = problem
+        super().__init__(f"cannot load {what} {path}: {problem}")
 
 
 class DependencyError(ParcoverError, ImportError):
