@@ -71,7 +71,8 @@ class PPOPolicy(Policy):
         try:
             self.model = PPO.load(str(model_file), device="cpu")
         except Exception as exc:  # a corrupt or foreign file: name it instead of a deep traceback
-            raise CheckpointError(model_file, "PPO checkpoint", f"not an SB3 PPO model.zip ({first_line(exc)})") from None
+            problem = f"not an SB3 PPO model.zip ({first_line(exc)})"
+            raise CheckpointError(model_file, "PPO checkpoint", problem) from None
         stats = vecnormalize_file(model_file)
         self.normalize = ObsNormalizer.from_vecnormalize(stats) if stats is not None else None
         self.deterministic = deterministic
