@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from parcover_env.cli.checks import check_writable_dir, non_negative_int, positive_int
+from parcover_env.cli.checks import check_writable_dir, check_writable_file, non_negative_int, positive_int
 from parcover_env.errors import ParcoverError
 from parcover_env.policies.registry import check_policy_spec, policy_specs
 
@@ -58,6 +58,7 @@ def cmd_bench(args) -> int:
         from pathlib import Path
 
         check_writable_dir(str(Path(args.json).resolve().parent), "--json")
+        check_writable_file(args.json, "--json")  # not a directory, writable: checked before the sweep
     seeds = list(range(args.seed_offset, args.seed_offset + args.seeds))
     rows = run_sweep(
         scenarios,

@@ -18,7 +18,7 @@ from parcover_env.cli.checks import (
     positive_int,
     write_image,
 )
-from parcover_env.errors import ParcoverError
+from parcover_env.errors import OutputError, ParcoverError
 from parcover_env.policies.registry import policy_specs
 
 __all__ = ["main", "build_parser"]
@@ -78,6 +78,8 @@ def cmd_run(args) -> int:
 
     if args.gif:
         check_writable_file(args.gif, "--gif")
+        if not args.gif.lower().endswith(".gif"):
+            raise OutputError(f"--gif: {args.gif}: expected a file name ending in .gif")
     env = parallel_env(args.scenario, render_mode="rgb_array" if args.gif else None, preset=args.preset,
                        overrides=policy_overrides(args.policy, args.scenario))
     policy = make_policy(args.policy, env, args.seed)
