@@ -31,7 +31,7 @@ class SingleRobotCoverageEnv(gym.Env):
         self.render_mode = render_mode
 
     def reset(self, *, seed=None, options=None):
-        check_seed(seed)  # before gymnasium's own seeding changes anything
+        seed = check_seed(seed)  # before gymnasium's own seeding changes anything; numpy integers become int
         check_options(options)
         super().reset(seed=seed)
         obs, infos = self.par.reset(seed=seed, options=options)
