@@ -5,17 +5,20 @@ from __future__ import annotations
 
 import contextlib
 import io
+import tempfile
 import traceback
 
 from parcover_env.cli import main
+
+_SCRATCH = tempfile.mkdtemp(prefix="parcover_cli_cwd_")
 
 
 def run_cli(argv: list[str]) -> tuple[int, str, str]:
     """``(status, stdout, stderr)`` of ``parcover ARGV``; an exception escaping ``main`` fails the
     caller's test with the command line and the traceback."""
     out, err = io.StringIO(), io.StringIO()
-    try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+    try:  # in a scratch directory: default outputs (frame.png, kinect_views/, runs/) land there
+        with contextlib.chdir(_SCRATCH), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
             status = main(argv)
     except BaseException as exc:  # noqa: BLE001 - any escape is the finding
         raise AssertionError(f"parcover {argv!r} raised {type(exc).__name__}: {exc}\n"
