@@ -14,10 +14,12 @@ from parcover_env.cli.checks import (
     OneLineParser,
     check_writable_dir,
     check_writable_file,
+    int_at_most,
     non_negative_int,
     positive_int,
     write_image,
 )
+from parcover_env.config.schema import MAX_ROBOTS
 from parcover_env.errors import OutputError, ParcoverError
 from parcover_env.policies.registry import policy_specs
 
@@ -239,7 +241,8 @@ def build_parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("plan", help="PPCP plan: print r, c_max, c_p and the TPs; draw it")
     pl.add_argument("scenario", nargs="?", default="office")
     pl.add_argument("--png", default=None, help="draw the map, roadmap, plan tree and Kinect tree here")
-    pl.add_argument("--n-robots", type=positive_int, default=None, help="plan for this many robots (min-max variant)")
+    pl.add_argument("--n-robots", type=int_at_most(MAX_ROBOTS), default=None,
+                    help=f"plan for this many robots, at most {MAX_ROBOTS} (min-max variant)")
     pl.add_argument("--json", action="store_true", help="print n_robots, c_max, turning_positions, "
                     "kinect_tree and routes as one JSON object")
     pl.set_defaults(func=cmd_plan)

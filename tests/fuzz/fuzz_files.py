@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+
 def fuzz_settings(examples: int):
     """Hypothesis settings of the fuzz tests: ``examples`` cases, derandomized (the same cases every
     run: reproducible in CI), not shrunk (shrinking env episodes takes minutes).

@@ -31,8 +31,8 @@ SCENARIOS = st.sampled_from(["office", "hallway", "t_room", "tree", "triangle_ro
     _path, st.sampled_from(["yaml_bad", "yaml_list", "bc", "missing", "dir", "empty"]))
 CHECKPOINTS = ("bc", "torchrl", "ppo", "empty", "junk", "text", "pickle", "list", "nokeys", "bc_trunc", "bc_tail",
                "bc_shape", "bc_hidden", "dir", "missing")
-POLICIES = st.sampled_from(["expert", "waypoint", "random", "nosuch", "", ":", "expert:x", "bc:", "random:1"]) | st.builds(
-    lambda kind, name: f"{kind}:{_path(name)}",
+POLICIES = st.sampled_from(["expert", "waypoint", "random", "nosuch", "", ":", "expert:x", "bc:", "random:1"]) \
+    | st.builds(lambda kind, name: f"{kind}:{_path(name)}",
     st.sampled_from(["bc", "mappo", "torchrl", "torchrl_sampled", "ppo"]), st.sampled_from(CHECKPOINTS))
 INTS = st.sampled_from(["0", "1", "2", "-1", "x", "", "1.5", "99999999999999999999", " 3", "1e3"])
 SMALL_STEPS = st.sampled_from(["1", "2", "3", "0", "-2", "x"])

@@ -38,7 +38,8 @@ def _fresh(name: str):
 SEEDS = (st.none() | st.integers(-3, 2**70) | st.floats(allow_nan=True) | st.text(max_size=3) | st.booleans()
          | st.lists(st.integers(0, 3), max_size=2) | st.integers(0, 2**63 - 1).map(np.uint64)
          | st.integers(-3, 3).map(np.int64) | st.just(np.float64(2.0)))
-OPTIONS = st.none() | st.dictionaries(st.text(max_size=3), st.integers(), max_size=2) | st.integers() | st.text(max_size=2)
+OPTIONS = (st.none() | st.dictionaries(st.text(max_size=3), st.integers(), max_size=2) | st.integers()
+           | st.text(max_size=2))
 
 VALUES = st.floats(allow_nan=True, allow_infinity=True, width=32) | st.floats(-1, 1)
 DTYPES = st.sampled_from(["float32", "float64", "float16", "int8", "int64", "uint8", "bool", "complex64", "object",
