@@ -176,7 +176,15 @@ def cmd_sectors(args) -> int:
 
     if args.png:
         check_writable_file(args.png, "--png")
+    if args.rearrangement:
+        check_writable_file(args.rearrangement, "--rearrangement")
     s = load_scenario(args.scenario)
+    if args.rearrangement:  # checked before any output is written
+        from parcover_env.scenarios import mission_for
+
+        if mission_for(s).n_robots < 2:
+            raise ParcoverError(f"--rearrangement: scenario '{s.name}' plans {mission_for(s).n_robots} robot(s); "
+                                "Kim, Pearce & Amato Fig. 9 needs two")
     known = map_model(s.map, include_unknown=False)
     features = map_features(known)
     range_max = s.robot.sonar.range_max if args.range is None else args.range
@@ -195,7 +203,6 @@ def cmd_sectors(args) -> int:
 
         from parcover_env.viz.sectors import rearrangement_figure
 
-        check_writable_file(args.rearrangement, "--rearrangement")
         img, info = rearrangement_figure(s)
         write_image(args.rearrangement, img, "--rearrangement")
         _sayer(args)(f"wrote {args.rearrangement}: Fig. 9 subgoals "

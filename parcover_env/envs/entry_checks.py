@@ -11,16 +11,16 @@ from parcover_env.errors import ArgumentError, CallOrderError
 __all__ = ["check_seed", "check_options", "require_episode"]
 
 
-def check_seed(seed: object) -> int | None:
+def check_seed(seed: object, where: str = "reset(seed=...)") -> int | None:
     """``seed`` as ``reset`` takes it: None (a fresh unseeded generator the first time, else the
-    running one) or an integer >= 0 (a Python or numpy integer, not a bool); else ArgumentError."""
+    running one) or an integer >= 0 (a Python or numpy integer, not a bool); else ArgumentError
+    naming ``where`` (the call and argument)."""
     if seed is None:
         return None
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral):
-        raise ArgumentError(f"reset(seed=...): expected None or an integer >= 0, got {type(seed).__name__} "
-                            f"{_short(seed)}")
+        raise ArgumentError(f"{where}: expected None or an integer >= 0, got {type(seed).__name__} {_short(seed)}")
     if seed < 0:
-        raise ArgumentError(f"reset(seed=...): expected None or an integer >= 0, got {int(seed)}")
+        raise ArgumentError(f"{where}: expected None or an integer >= 0, got {int(seed)}")
     return int(seed)
 
 

@@ -213,3 +213,29 @@ def test_single_robot_env_rejects_bad_seeds_before_seeding(seed):
     except ArgumentError as exc:
         assert "seed" in str(exc)
         assert (repr(env.np_random.bit_generator.state), repr(env.par.np_random.bit_generator.state)) == state
+
+
+_VEC: list = []
+
+
+@fuzz_settings(30)
+@given(seed=SEEDS, options=OPTIONS | st.lists(OPTIONS, min_size=2, max_size=2))
+def test_vec_env_checks_seeds_and_options_when_given(seed, options):
+    """``VecEnv.seed`` and ``set_options`` check their values at once (not half-way through the next
+    ``reset()``, after some worlds were reset) and keep the previous ones on a rejection."""
+    if not _VEC:
+        _VEC.append(pe.make_vec_env("office", n_envs=2, backend="batched"))
+    vec = _VEC[0]
+    if len(_VEC) == 1:
+        vec.seed(5)
+        _VEC.append(vec.reset())
+    vec.seed(5)
+    try:
+        assert vec.seed(seed) == ([None, None] if seed is None else [int(seed), int(seed) + 1])
+    except ArgumentError as exc:
+        assert str(exc).startswith("seed(...): expected None or an integer >= 0, got ")
+        np.testing.assert_array_equal(vec.reset(), _VEC[1])  # the previous seeds still hold
+    try:
+        vec.set_options(options)
+    except ArgumentError as exc:
+        assert "options" in str(exc)
