@@ -10,7 +10,7 @@ import pytest
 
 import parcover_env as pe
 from parcover_env.envs.entry_checks import check_options, check_seed
-from parcover_env.errors import ArgumentError, CallOrderError, ParcoverError
+from parcover_env.errors import ActionError, ArgumentError, CallOrderError, ParcoverError
 
 
 def _steps(env, n: int, seed: int = 3) -> list[np.ndarray]:
@@ -94,3 +94,22 @@ def test_the_single_robot_env_checks_the_seed_before_gymnasium_seeds():
     a, _ = env.reset(seed=np.int64(9))  # a numpy integer: Gymnasium's own check refused it before
     b, _ = env.reset(seed=9)
     np.testing.assert_array_equal(a, b)
+
+
+def test_the_aec_env_refuses_a_bad_action_when_it_is_given():
+    """PettingZoo's converter buffered a NaN of the first robot and failed only at the last robot's
+    turn, then at every later step (the NaN stayed in the buffer)."""
+    env, twin = pe.env("office"), pe.env("office")
+    for e in (env, twin):
+        e.reset(seed=5)
+    with pytest.raises(ActionError, match=r"^robot_0: action contains NaN or inf: \[nan, 0\.0\]$"):
+        env.step(np.array([np.nan, 0.0], np.float32))
+    assert env.agent_selection == "robot_0"
+    rng = np.random.default_rng(0)
+    for _ in range(6):  # the cycle goes on exactly as in the twin that never saw the NaN
+        action = rng.uniform(-1, 1, 2).astype(np.float32)
+        env.step(action)
+        twin.step(action)
+        assert env.agent_selection == twin.agent_selection
+        np.testing.assert_array_equal(env.observe(env.agent_selection), twin.observe(twin.agent_selection))
+        assert env.rewards == twin.rewards
