@@ -113,3 +113,15 @@ def test_the_aec_env_refuses_a_bad_action_when_it_is_given():
         assert env.agent_selection == twin.agent_selection
         np.testing.assert_array_equal(env.observe(env.agent_selection), twin.observe(twin.agent_selection))
         assert env.rewards == twin.rewards
+
+
+def test_a_long_seed_is_shown_cut():
+    with pytest.raises(ArgumentError) as info:
+        check_seed("s" * 100)
+    assert str(info.value) == "reset(seed=...): expected None or an integer >= 0, got str '" + "s" * 56 + "..."
+    with pytest.raises(ArgumentError) as info:
+        check_seed("t" * 58)  # its repr is 60 characters: shown whole
+    assert str(info.value).endswith("got str '" + "t" * 58 + "'")
+    with pytest.raises(ArgumentError) as info:
+        check_seed("t" * 59, "seed(...)")
+    assert str(info.value) == "seed(...): expected None or an integer >= 0, got str '" + "t" * 56 + "..."

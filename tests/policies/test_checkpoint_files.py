@@ -120,3 +120,43 @@ def test_build_or_explain():
 
     with pytest.raises(ZeroDivisionError):  # not a checkpoint's fault: not dressed up as one
         build_or_explain("f.pt", "BC actor", bug)
+
+
+def test_message_bounds():
+    exact = RuntimeError("a" * 146)  # "RuntimeError: " + 146 = 160 characters: kept whole
+    assert first_line(exact) == "RuntimeError: " + "a" * 146
+    assert first_line(RuntimeError("a" * 147)) == "RuntimeError: " + "a" * 143 + "..."
+    at_100 = "b" * 97 + ". c"  # a message of 100 characters is not cut at its first sentence
+    assert first_line(RuntimeError(at_100)) == f"RuntimeError: {at_100}"
+    many = RuntimeError("x " * 30 + "Advice. More. WeightsUnpickler error: Bad thing. Try this. Or that.")
+    assert first_line(many) == "RuntimeError: Bad thing"
+    sentences = RuntimeError("s" * 110 + ". Second. Third.")
+    assert first_line(sentences) == "RuntimeError: " + "s" * 110
+    long = "v" * 300
+    with pytest.raises(CheckpointError) as info:
+        as_int(long, "f.pt", "BC actor", "n_in")
+    assert len(info.value.problem) == 200 and info.value.problem.startswith("n_in must be an integer, got 'vvv")
+    with pytest.raises(CheckpointError) as info:
+        as_widths(long, "f.pt", "BC actor")
+    assert len(info.value.problem) == 200 and info.value.path == "f.pt" and info.value.what == "BC actor"
+    with pytest.raises(CheckpointError) as info:
+        as_int(-10**250, "f.pt", "BC actor", "n_in")
+    assert len(info.value.problem) == 200
+
+
+def test_every_refusal_names_the_file_and_the_kind(tmp_path):
+    cases = [([1], "it holds a list"), ({"k": 1}, "no n_in, hidden, state_dict (it has k)"),
+             ({f"k{i}": i for i in range(8)}, "(it has k0, k1, k2, k3, k4, k5, k6, k7)")]
+    for saved, words in cases:
+        path = _save(tmp_path, saved)
+        with pytest.raises(CheckpointError) as info:
+            load_torch_dict(path, "BC actor", KEYS, weights_only=True)
+        assert (info.value.path, info.value.what) == (str(path), "BC actor") and words in str(info.value)
+    with pytest.raises(CheckpointError) as info:
+        load_torch_dict(tmp_path / "none.pt", "BC actor", KEYS, weights_only=True)
+    assert (info.value.path, info.value.what) == (str(tmp_path / "none.pt"), "BC actor")
+    path = _save(tmp_path, {"n_in": 3, "obj": pickle.PickleError("x")})
+    with pytest.raises(CheckpointError) as info:
+        load_torch_dict(path, "TorchRL policy", KEYS, weights_only=True)
+    assert str(info.value).endswith("was not an allowed global by default): another program's or another policy's "
+                                    "file, e.g. a bc: or mappo: checkpoint (weights-only loading runs no code in it)")
