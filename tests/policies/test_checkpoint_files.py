@@ -160,3 +160,18 @@ def test_every_refusal_names_the_file_and_the_kind(tmp_path):
         load_torch_dict(path, "TorchRL policy", KEYS, weights_only=True)
     assert str(info.value).endswith("was not an allowed global by default): another program's or another policy's "
                                     "file, e.g. a bc: or mappo: checkpoint (weights-only loading runs no code in it)")
+
+
+def test_more_bounds():
+    over_100 = "d" * 98 + ". e"  # 101 characters: cut at its first sentence
+    assert first_line(RuntimeError(over_100)) == "RuntimeError: " + "d" * 98
+    with pytest.raises(CheckpointError) as info:
+        as_widths([8, "x"], "f.pt", "BC actor")
+    assert (info.value.path, info.value.what, info.value.problem) == ("f.pt", "BC actor",
+                                                                      "hidden must be an integer, got 'x'")
+
+
+def test_nine_keys_are_shown_eight_and_an_ellipsis(tmp_path):
+    path = _save(tmp_path, {f"k{i}": i for i in range(9)})
+    with pytest.raises(CheckpointError, match=r"\(it has k0, k1, k2, k3, k4, k5, k6, k7, \.\.\.\)$"):
+        load_torch_dict(path, "BC actor", KEYS, weights_only=True)
