@@ -70,11 +70,12 @@ def parallel_env(scenario="office", render_mode=None, overrides=None, preset="re
 
 
 def env(scenario="office", render_mode=None, overrides=None, preset="realistic", max_cycles=None):
-    """The AEC version (``pettingzoo.utils.parallel_to_aec``) of :func:`parallel_env`."""
-    from pettingzoo.utils.conversions import parallel_to_aec
+    """The AEC version (``pettingzoo.utils.parallel_to_aec``, each action checked when given:
+    :mod:`parcover_env.envs.aec`) of :func:`parallel_env`."""
+    from parcover_env.envs.aec import aec_env
 
-    return parallel_to_aec(parallel_env(scenario, render_mode=render_mode, overrides=overrides, preset=preset,
-                                        max_cycles=max_cycles))
+    return aec_env(parallel_env(scenario, render_mode=render_mode, overrides=overrides, preset=preset,
+                                max_cycles=max_cycles))
 
 
 make = parallel_env

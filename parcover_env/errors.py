@@ -6,7 +6,8 @@ benchmark worker process reaches the parent as itself, not as ``BrokenProcessPoo
 
 from __future__ import annotations
 
-__all__ = ["ParcoverError", "ConfigError", "ActionError", "DependencyError", "OutputError"]
+__all__ = ["ParcoverError", "ConfigError", "ActionError", "ArgumentError", "CallOrderError", "CheckpointError",
+           "DependencyError", "OutputError"]
 
 
 def _rebuild(cls: type, args: tuple, state: dict) -> ParcoverError:
@@ -37,6 +38,27 @@ class ConfigError(ParcoverError, ValueError):
 
 class ActionError(ParcoverError, ValueError):
     """An action passed to ``step`` is malformed; names the agent and what is wrong."""
+
+
+class ArgumentError(ParcoverError, ValueError):
+    """An argument of a public call is malformed (e.g. ``reset(seed=...)``); names the argument and
+    the accepted values."""
+
+
+class CallOrderError(ParcoverError, RuntimeError):
+    """A call made in the wrong order (``step`` before ``reset``, after the episode ended, ...); says
+    what to call first. The env is unchanged."""
+
+
+class CheckpointError(ParcoverError, ValueError):
+    """A policy checkpoint cannot be used (corrupt, empty, another format or another policy's);
+    names the file and what is wrong."""
+
+    def __init__(self, path: str, what: str, problem: str):
+        self.path = str(path)
+        self.what = what
+        self.problem = problem
+        super().__init__(f"cannot load {what} {path}: {problem}")
 
 
 class DependencyError(ParcoverError, ImportError):

@@ -8,9 +8,8 @@ factories apply by default. Infos follow v1's flat convention. New work should u
 
 from __future__ import annotations
 
-from pettingzoo.utils.conversions import parallel_to_aec
-
 from parcover_env import ParallelCoverageEnv
+from parcover_env.envs.aec import aec_env
 
 __all__ = ["env", "parallel_env", "raw_env"]
 
@@ -32,5 +31,5 @@ def parallel_env(scenario="office", render_mode=None, overrides=None, preset="id
 
 def env(scenario="office", render_mode=None, overrides=None, preset="ideal", max_cycles=None):
     """v0's AEC env: :func:`parcover_env.env` with the ``ideal`` preset."""
-    return parallel_to_aec(parallel_env(scenario, render_mode=render_mode, overrides=overrides, preset=preset,
-                                        max_cycles=max_cycles))
+    return aec_env(parallel_env(scenario, render_mode=render_mode, overrides=overrides, preset=preset,
+                                max_cycles=max_cycles))

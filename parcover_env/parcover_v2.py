@@ -10,10 +10,9 @@ docstring's observation table, state table and version history.
 
 from __future__ import annotations
 
-from pettingzoo.utils.conversions import parallel_to_aec
-
 from parcover_env import ParallelCoverageEnv
 from parcover_env.config import deep_merge
+from parcover_env.envs.aec import aec_env
 
 __all__ = ["V2_SETTINGS", "env", "parallel_env", "raw_env"]
 
@@ -38,5 +37,5 @@ def parallel_env(scenario="office", render_mode=None, overrides=None, preset="re
 
 def env(scenario="office", render_mode=None, overrides=None, preset="realistic", max_cycles=None):
     """v2's AEC env."""
-    return parallel_to_aec(parallel_env(scenario, render_mode=render_mode, overrides=overrides, preset=preset,
-                                        max_cycles=max_cycles))
+    return aec_env(parallel_env(scenario, render_mode=render_mode, overrides=overrides, preset=preset,
+                                max_cycles=max_cycles))

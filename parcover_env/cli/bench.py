@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
-from parcover_env.cli.checks import check_writable_dir, non_negative_int, positive_int
+from parcover_env.cli.checks import (
+    check_writable_dir,
+    check_writable_file,
+    int_at_most,
+    non_negative_int,
+    positive_int,
+)
 from parcover_env.errors import ParcoverError
 from parcover_env.policies.registry import check_policy_spec, policy_specs
 
@@ -23,7 +29,7 @@ def add_bench_parser(sub) -> None:
         default="expert,random",
         help=f"comma-separated, each one of: {policy_specs()} (default: expert,random)",
     )
-    b.add_argument("--seeds", type=positive_int, default=10,
+    b.add_argument("--seeds", type=int_at_most(100_000), default=10,
                    help="episodes per (scenario, policy): seeds OFFSET..OFFSET+N-1 (default: 10)")
     b.add_argument("--seed-offset", type=non_negative_int, default=1000,
                    help="first evaluation seed (default: 1000, disjoint from the trainers' seeds, which are < 1000)")
@@ -58,6 +64,7 @@ def cmd_bench(args) -> int:
         from pathlib import Path
 
         check_writable_dir(str(Path(args.json).resolve().parent), "--json")
+        check_writable_file(args.json, "--json")  # not a directory, writable: checked before the sweep
     seeds = list(range(args.seed_offset, args.seed_offset + args.seeds))
     rows = run_sweep(
         scenarios,

@@ -9,7 +9,8 @@ from pathlib import Path
 
 from parcover_env.errors import OutputError
 
-__all__ = ["OneLineParser", "non_negative_int", "positive_int", "check_writable_file", "check_writable_dir"]
+__all__ = ["OneLineParser", "non_negative_int", "positive_int", "int_at_most", "check_writable_file",
+           "check_writable_dir"]
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -41,6 +42,19 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
     return value
+
+
+def int_at_most(high: int):
+    """argparse type: an integer in [1, ``high``] (a count whose work or memory grows with it)."""
+
+    def parse(text: str) -> int:
+        value = positive_int(text)
+        if value > high:
+            raise argparse.ArgumentTypeError(f"must be <= {high}, got {value}")
+        return value
+
+    parse.__name__ = f"integer in [1, {high}]"
+    return parse
 
 
 def check_writable_file(path: str | os.PathLike, option: str) -> None:

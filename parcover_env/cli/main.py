@@ -14,11 +14,13 @@ from parcover_env.cli.checks import (
     OneLineParser,
     check_writable_dir,
     check_writable_file,
+    int_at_most,
     non_negative_int,
     positive_int,
     write_image,
 )
-from parcover_env.errors import ParcoverError
+from parcover_env.config.schema import MAX_ROBOTS
+from parcover_env.errors import OutputError, ParcoverError
 from parcover_env.policies.registry import policy_specs
 
 __all__ = ["main", "build_parser"]
@@ -78,6 +80,8 @@ def cmd_run(args) -> int:
 
     if args.gif:
         check_writable_file(args.gif, "--gif")
+        if not args.gif.lower().endswith(".gif"):
+            raise OutputError(f"--gif: {args.gif}: expected a file name ending in .gif")
     env = parallel_env(args.scenario, render_mode="rgb_array" if args.gif else None, preset=args.preset,
                        overrides=policy_overrides(args.policy, args.scenario))
     policy = make_policy(args.policy, env, args.seed)
@@ -173,7 +177,15 @@ def cmd_sectors(args) -> int:
 
     if args.png:
         check_writable_file(args.png, "--png")
+    if args.rearrangement:
+        check_writable_file(args.rearrangement, "--rearrangement")
     s = load_scenario(args.scenario)
+    if args.rearrangement:  # checked before any output is written
+        from parcover_env.scenarios import mission_for
+
+        if mission_for(s).n_robots < 2:
+            raise ParcoverError(f"--rearrangement: scenario '{s.name}' plans {mission_for(s).n_robots} robot(s); "
+                                "Kim, Pearce & Amato Fig. 9 needs two")
     known = map_model(s.map, include_unknown=False)
     features = map_features(known)
     range_max = s.robot.sonar.range_max if args.range is None else args.range
@@ -192,7 +204,6 @@ def cmd_sectors(args) -> int:
 
         from parcover_env.viz.sectors import rearrangement_figure
 
-        check_writable_file(args.rearrangement, "--rearrangement")
         img, info = rearrangement_figure(s)
         write_image(args.rearrangement, img, "--rearrangement")
         _sayer(args)(f"wrote {args.rearrangement}: Fig. 9 subgoals "
@@ -238,7 +249,8 @@ def build_parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("plan", help="PPCP plan: print r, c_max, c_p and the TPs; draw it")
     pl.add_argument("scenario", nargs="?", default="office")
     pl.add_argument("--png", default=None, help="draw the map, roadmap, plan tree and Kinect tree here")
-    pl.add_argument("--n-robots", type=positive_int, default=None, help="plan for this many robots (min-max variant)")
+    pl.add_argument("--n-robots", type=int_at_most(MAX_ROBOTS), default=None,
+                    help=f"plan for this many robots, at most {MAX_ROBOTS} (min-max variant)")
     pl.add_argument("--json", action="store_true", help="print n_robots, c_max, turning_positions, "
                     "kinect_tree and routes as one JSON object")
     pl.set_defaults(func=cmd_plan)

@@ -26,8 +26,11 @@ __all__ = [
     "ConfigError", "MapConfig", "Pose", "SonarConfig", "DriveConfig", "OdometryConfig", "RobotConfig",
     "KinectConfig", "PhysicsConfig", "EpisodeConfig", "RewardConfig", "ObservationConfig", "ScanConfig",
     "FormationConfig", "PlannerConfig", "KinectTrackingConfig", "Scenario",
-    "Point", "Polygon", "Segment",
+    "Point", "Polygon", "Segment", "MAX_ROBOTS",
 ]
+
+MAX_ROBOTS = 256
+"""Most robots a team may have (``n_robots``; also the planner's ``n_robots`` bound)."""
 
 
 MAX_RASTER_CELLS = 4e6
@@ -365,7 +368,8 @@ class Scenario:
         _check(len(self.kpois) <= 10000, "kpois", f"at most 10000 KPOIs, got {len(self.kpois)}")
         _positive(self, "kpoi_radius")
         if self.n_robots != "auto":
-            _check(1 <= self.n_robots <= 256, "n_robots", f"must be in [1, 256] or 'auto', got {self.n_robots}")
+            _check(1 <= self.n_robots <= MAX_ROBOTS, "n_robots",
+                   f"must be in [1, {MAX_ROBOTS}] or 'auto', got {self.n_robots}")
         if self.n_robots != 1:
             f = self.formation
             _check(f.spacing - f.offset >= 2 * self.robot.radius - 1e-9, "formation.spacing",

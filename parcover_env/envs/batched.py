@@ -37,6 +37,7 @@ import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 from parcover_env.envs import stepper
+from parcover_env.envs.entry_checks import check_options, check_seed
 from parcover_env.envs.parallel import ParallelCoverageEnv
 
 __all__ = ["BatchedVecEnv"]
@@ -95,10 +96,12 @@ class BatchedVecEnv(VecEnv):
     # ------------------------------------------------------------------ VecEnv API
     def seed(self, seed: int | None = None) -> list[int | None]:
         """World ``k`` resets with ``seed + k`` at the next ``reset()``."""
-        self._seeds = [None if seed is None else int(seed) + k for k in range(self.n_worlds)]
+        self._seeds = [None if seed is None else check_seed(seed, "seed(...)") + k for k in range(self.n_worlds)]
         return list(self._seeds)
 
     def set_options(self, options: list[dict] | dict | None = None) -> None:
+        for one in options if isinstance(options, list) else [options]:
+            check_options(one)  # here, not half-way through the next reset()
         if isinstance(options, list):
             if len(options) != self.n_worlds:
                 raise ValueError(f"options: expected {self.n_worlds} dicts (one per world), got {len(options)}")

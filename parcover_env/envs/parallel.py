@@ -11,6 +11,7 @@ from pettingzoo import ParallelEnv
 
 from parcover_env.config import Scenario, deep_merge
 from parcover_env.envs import critic_state, outputs_phase, stepper
+from parcover_env.envs.entry_checks import check_options, check_seed, require_episode
 from parcover_env.envs.estimator import KinectFixes, PoseEstimator
 from parcover_env.envs.handover import CameraView, update_team
 from parcover_env.envs.metrics import EpisodeMetrics
@@ -21,6 +22,7 @@ from parcover_env.envs.rewards import terms_for
 from parcover_env.envs.score_phase import ScoreState
 from parcover_env.envs.sonar_fixes import SonarFixes
 from parcover_env.envs.team import Team
+from parcover_env.errors import CallOrderError, ParcoverError
 from parcover_env.localization.kinect.system import KinectSystem
 from parcover_env.scenarios import load_scenario, mission_for
 from parcover_env.sensors.relative import RelativeCamera
@@ -261,6 +263,10 @@ class ParallelCoverageEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ episode
     def reset(self, seed: int | None = None, options: dict | None = None):
+        """Start an episode: ``seed`` None or an integer >= 0, ``options`` None or a dict (none is read
+        yet); a bad one raises :class:`~parcover_env.errors.ArgumentError` and changes nothing."""
+        seed = check_seed(seed)
+        check_options(options)
         if seed is not None or self._rng is None:
             self._rng = np.random.default_rng(seed)
         s = self.scenario
@@ -290,6 +296,9 @@ class ParallelCoverageEnv(ParallelEnv):
         return obs, outputs_phase.infos([self], true[None], [zeros] * len(self.terms), [False])[0]
 
     def step(self, actions: dict[str, Any]):
+        require_episode(self, "step()")
+        if not self.agents:
+            raise CallOrderError("step() called on a finished episode; call reset() first")
         obs, ((rewards, terminations, truncations, infos),) = stepper.step([self], [actions])
         return self._as_dict(obs[0]), rewards, terminations, truncations, infos
 
@@ -342,22 +351,30 @@ class ParallelCoverageEnv(ParallelEnv):
 
     def true_poses(self) -> np.ndarray:
         """Ground-truth poses ``(n_robots, 3)`` (x, y m; theta rad in (-pi, pi]) in agent order."""
+        require_episode(self, "true_poses()")
         return self.world.poses()
 
     def pose_estimates(self) -> np.ndarray:
         """The robots' pose estimates ``(n_robots, 3)`` (the observations' x, y, theta), agent order."""
+        require_episode(self, "pose_estimates()")
         return self.estimate.copy()
 
     def pose_covariances(self) -> np.ndarray:
         """Covariances ``(n_robots, 3, 3)`` of the pose estimates (m^2, m rad, rad^2), agent order."""
+        require_episode(self, "pose_covariances()")
         return self.estimator.covariance.copy()
 
     def route_done(self) -> np.ndarray:
         """Version 2: ``(N,)`` bool, every KPOI of each robot's own route visited (its ``done_mask``)."""
+        require_episode(self, "route_done()")
+        if self.route_facts is None:
+            raise ParcoverError(f"route_done() needs observation.version 2 (parcover_v2); this env is version "
+                                f"{self.version}")
         return target_kpois(self.route_facts, self.progress.visited[None])[1][0]
 
     def state(self) -> np.ndarray:
         """The global state for a centralized critic (see the class docstring; its layout is the version's)."""
+        require_episode(self, "state()")
         if self.version == 2:
             return critic_state.global_state(self, self.route_facts, self.state_space)
         return critic_state.state_v1(self)
@@ -366,6 +383,7 @@ class ParallelCoverageEnv(ParallelEnv):
         """Depth + IR frames (``KinectFrame``) of every overhead Kinect: in ``observation.kinect:
         frames`` mode those of the last Kinect tick, otherwise rendered now from a generator seeded
         by the step count (calling this never changes the episode)."""
+        require_episode(self, "kinect_frames()")
         if self.kinects is None:
             return {}
         if self.scenario.observation.kinect == "frames" and self.kinects.frames:
@@ -377,6 +395,7 @@ class ParallelCoverageEnv(ParallelEnv):
         """``rgb_array``: the top-down frame (H, W, 3) uint8; ``human``: show it in a window, None."""
         if self.render_mode is None:
             return None
+        require_episode(self, "render()")
         from parcover_env.viz.render import render_frame, show_frame
 
         frame = render_frame(self)

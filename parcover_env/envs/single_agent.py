@@ -5,6 +5,7 @@ from __future__ import annotations
 import gymnasium as gym
 
 from parcover_env.envs import ParallelCoverageEnv
+from parcover_env.envs.entry_checks import check_options, check_seed
 from parcover_env.envs.stepper import with_metrics
 
 __all__ = ["SingleRobotCoverageEnv"]
@@ -30,6 +31,8 @@ class SingleRobotCoverageEnv(gym.Env):
         self.render_mode = render_mode
 
     def reset(self, *, seed=None, options=None):
+        seed = check_seed(seed)  # before gymnasium's own seeding changes anything; numpy integers become int
+        check_options(options)
         super().reset(seed=seed)
         obs, infos = self.par.reset(seed=seed, options=options)
         return obs[self.agent], infos[self.agent]

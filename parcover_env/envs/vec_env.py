@@ -37,6 +37,7 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import CloudpickleWrapper, VecEnv
 
+from parcover_env.envs.entry_checks import check_options, check_seed
 from parcover_env.envs.stepper import slot_info
 
 __all__ = ["AgentSlots", "BACKENDS", "ParallelVecEnv", "make_vec_env"]  # + BatchedVecEnv (lazy)
@@ -221,10 +222,12 @@ class ParallelVecEnv(VecEnv):
     # ------------------------------------------------------------------ VecEnv API
     def seed(self, seed: int | None = None) -> list[int | None]:
         """ParallelEnv ``i`` resets with ``seed + i`` at the next ``reset()``."""
-        self._env_seeds = [None if seed is None else int(seed) + i for i in range(len(self._envs))]
+        self._env_seeds = [None if seed is None else check_seed(seed, "seed(...)") + i for i in range(len(self._envs))]
         return list(self._env_seeds)
 
     def set_options(self, options: list[dict] | dict | None = None) -> None:
+        for one in options if isinstance(options, list) else [options]:
+            check_options(one)  # here, not half-way through the next reset()
         if isinstance(options, list):
             if len(options) != len(self._envs):
                 raise ValueError(

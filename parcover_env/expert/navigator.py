@@ -112,6 +112,9 @@ class SonarNavigator(NavigatorScans):
         with the ``scan`` action component, is held still while the ``scanning`` entry is 1, and the
         env's estimate (the observed pose) and covariance (the ``sigma_*`` entries) carry the fix;
         otherwise the navigator turns, collects and localizes each scan itself."""
+        self.env_cov = self.env_scan and "sigma_major" in layout.slices
+        """The env's covariance is observed (``observation.pose_covariance``; off in the ``ideal``
+        preset): else the navigator propagates its own from the last fix, also with the env's scans."""
         self.rearranger = SubgoalRearranger(self.features, self.team_loc.sectors, self.map, self.radius,
                                             r.sonar.range_max, self.incidence, self.cone, self.p)
         self.reset()
@@ -243,13 +246,13 @@ class SonarNavigator(NavigatorScans):
             else:
                 odom[i, :2] = raw[:2] + self.offset[i]
             odom[i, 2], self.raw[i] = raw[2], raw
-        if self.env_scan:  # the env's covariance of its estimate, from the observation
+        if self.env_cov:  # the env's covariance of its estimate, from the observation
             names = ("sigma_major", "sigma_minor", "sigma_axis_cos2", "sigma_axis_sin2", "sigma_heading")
             for a, o in observations.items():
                 i = int(a.rsplit("_", 1)[1])
                 self.cov[i] = covariance_from_entries(np.array([g(o, k)[0] for k in names], dtype=float), odom[i, 2])
         if self.last_odom is not None:
-            if not self.env_scan:
+            if not self.env_cov:
                 heading = self.last_odom[:, 2] + self.correction[:, 2]
                 self.cov = belief_covariance_step(self.cov, self.last_odom, odom, heading, self.odometry,
                                                   self.wheel_base)

@@ -87,6 +87,7 @@ class NavigatorScans:
             self._stats["corrections"].append(float(np.hypot(*(pose[:2] - prior[:2]))))
             if fix is not None:
                 self.correction[i] = _compose(fix, _inverse(self.scan["start"]))
+            if fix is not None or not self.env_cov:  # else the next observation carries the env's
                 self.cov[i] = self.fix_cov
             self.travelled[i] = self.turned[i] = 0.0
             self.axis0[i] = self.p.initial_axis

@@ -22,9 +22,10 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from parcover_env.errors import ParcoverError
+from parcover_env.errors import CheckpointError, ParcoverError
 from parcover_env.harness.marl_config import MarlConfig
 from parcover_env.harness.marl_grow import Growth, grow_actor
+from parcover_env.policies.checkpoint_files import first_line
 from parcover_env.policies.torchrl_policy import POLICY_FILE, TorchRLPolicy, head_act_dim
 
 __all__ = ["CRITIC_FILE", "InitSource", "find_init", "init_env_args", "critic_spec", "save_critic", "apply_init"]
@@ -141,9 +142,13 @@ def apply_init(src: InitSource, actor_net, critic, value_norm, spec: dict, growt
         except Exception as exc:  # a corrupt file: name it
             raise ParcoverError(f"--init {src.path}: cannot load {src.critic}: {type(exc).__name__}: {exc}") from None
         if isinstance(ckpt, dict) and ckpt.get("spec") == spec:
-            critic.load_state_dict(ckpt["state_dict"])
-            if value_norm is not None and ckpt.get("value_norm") is not None:
-                value_norm.load_state_dict(ckpt["value_norm"])
+            try:
+                critic.load_state_dict(ckpt["state_dict"])
+                if value_norm is not None and ckpt.get("value_norm") is not None:
+                    value_norm.load_state_dict(ckpt["value_norm"])
+            except (KeyError, TypeError, ValueError, RuntimeError) as exc:  # its spec matches, its weights do not
+                raise CheckpointError(src.critic, "critic", f"its weights do not fit its spec ({first_line(exc)})"
+                                      ) from None
             critic_loaded = True
     run = src.run or {}
     record = {"path": src.path, "algo": run.get("algo"), "init": run.get("init"), "critic": critic_loaded}

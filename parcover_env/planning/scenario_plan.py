@@ -10,7 +10,8 @@ import numpy as np
 import shapely
 from shapely.geometry import LineString
 
-from parcover_env.errors import ConfigError
+from parcover_env.config.schema import MAX_ROBOTS
+from parcover_env.errors import ArgumentError, ConfigError
 from parcover_env.planning.free_space import free_space_distances
 from parcover_env.planning.plan import Plan
 from parcover_env.planning.ppcp import solve_ppcp
@@ -102,6 +103,7 @@ def plan_scenario(scenario: Scenario, n_robots: int | None = None, method: str =
     ``n_robots=None`` -> fewest robots at ``c_p = c_max``; an int -> min–max routes for that many.
     Paths keep the robot radius from known obstacles. Cached per (scenario, n_robots, method).
     """
-    if n_robots is not None and (isinstance(n_robots, bool) or int(n_robots) != n_robots or n_robots < 1):
-        raise ValueError(f"n_robots must be a positive integer or None, got {n_robots!r}")
+    if n_robots is not None and (isinstance(n_robots, bool) or int(n_robots) != n_robots
+                                 or not 1 <= n_robots <= MAX_ROBOTS):
+        raise ArgumentError(f"n_robots must be an integer in [1, {MAX_ROBOTS}] or None, got {n_robots!r}")
     return _cached_plan(scenario, None if n_robots is None else int(n_robots), method)

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from parcover_env.errors import ParcoverError
+from parcover_env.errors import CheckpointError, ParcoverError
+from parcover_env.policies.checkpoint_files import as_int, as_widths, build_or_explain, first_line, load_torch_dict
 from parcover_env.policies.protocol import Policy
 
 __all__ = ["PPOPolicy", "BCPolicy", "ObsNormalizer", "vecnormalize_file"]
@@ -28,9 +29,13 @@ class ObsNormalizer:
     @classmethod
     def from_vecnormalize(cls, path: str | Path) -> ObsNormalizer:
         """Read the statistics saved by ``VecNormalize.save`` (no env needed)."""
-        with open(path, "rb") as fh:
-            vn = pickle.load(fh)
-        return cls(vn.obs_rms.mean, vn.obs_rms.var, vn.clip_obs, vn.epsilon)
+        try:
+            with open(path, "rb") as fh:
+                vn = pickle.load(fh)
+            return cls(vn.obs_rms.mean, vn.obs_rms.var, vn.clip_obs, vn.epsilon)
+        except Exception as exc:  # a corrupt or foreign file (unpickling may raise anything): name it
+            raise CheckpointError(path, "VecNormalize statistics", f"not a saved VecNormalize "
+                                  f"({first_line(exc)})") from None
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         return np.clip((obs - self.mean) / self.std, -self.clip, self.clip).astype(np.float32)
@@ -66,7 +71,8 @@ class PPOPolicy(Policy):
         try:
             self.model = PPO.load(str(model_file), device="cpu")
         except Exception as exc:  # a corrupt or foreign file: name it instead of a deep traceback
-            raise ParcoverError(f"cannot load PPO checkpoint {model_file}: {type(exc).__name__}: {exc}") from None
+            problem = f"not an SB3 PPO model.zip ({first_line(exc)})"
+            raise CheckpointError(model_file, "PPO checkpoint", problem) from None
         stats = vecnormalize_file(model_file)
         self.normalize = ObsNormalizer.from_vecnormalize(stats) if stats is not None else None
         self.deterministic = deterministic
@@ -108,18 +114,30 @@ class BCPolicy(Policy):
     MAPPO actor (``baselines/train_mappo.py``, ``actor.pt``, same format)."""
 
     def __init__(self, path: str | Path, filename: str = "bc.pt"):
-        import torch
 
         path = Path(path)
         file = path / filename if path.is_dir() else path
         if not file.is_file():
             raise ParcoverError(f"BC checkpoint not found: {file}")
-        ckpt = torch.load(file, map_location="cpu", weights_only=False)
-        self.net = make_mlp(ckpt["n_in"], ckpt["n_out"], tuple(ckpt["hidden"]))
-        self.net.load_state_dict(ckpt["state_dict"])
+        what = "MAPPO actor" if filename == "actor.pt" else "BC actor"
+        ckpt = load_torch_dict(file, what, ("n_in", "n_out", "hidden", "state_dict", "obs_mean", "obs_std"),
+                               weights_only=False)
+        n_in, n_out = as_int(ckpt["n_in"], file, what, "n_in"), as_int(ckpt["n_out"], file, what, "n_out")
+        hidden = as_widths(ckpt["hidden"], file, what)
+
+        def build():
+            net = make_mlp(n_in, n_out, hidden)
+            net.load_state_dict(ckpt["state_dict"])
+            std = np.asarray(ckpt["obs_std"], dtype=np.float64)
+            normalize = ObsNormalizer(ckpt["obs_mean"], std**2, clip=10.0, eps=0.0)
+            if normalize.mean.shape != (n_in,) or normalize.std.shape != (n_in,):
+                raise ValueError(f"obs_mean / obs_std have shapes {normalize.mean.shape} / {normalize.std.shape}, "
+                                 f"n_in is {n_in}")
+            return net, normalize
+
+        self.net, self.normalize = build_or_explain(file, what, build)
         self.net.eval()
-        self.normalize = ObsNormalizer(ckpt["obs_mean"], ckpt["obs_std"] ** 2, clip=10.0, eps=0.0)
-        self.obs_shape = (int(ckpt["n_in"]),)
+        self.obs_shape = (n_in,)
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         import torch

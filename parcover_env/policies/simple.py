@@ -42,7 +42,11 @@ class WaypointPolicy(Policy):
     def __init__(self, layout: ObservationLayout, k_v: float = 2.0, k_w: float = 2.0,
                  scan_sigma: float | None = None, retry_growth: float = 1.5, retries: int = 2):
         self.layout, self.k_v, self.k_w = layout, k_v, k_w
-        self.scans = "scanning" in layout.slices and "sigma_major" in layout.slices
+        self.width = 3 if "scanning" in layout.slices else 2
+        """Action components: 3 with the env's sonar localization service (the ``scan`` component)."""
+        self.scans = self.width == 3 and "sigma_major" in layout.slices
+        """Scans when due; without the ``sigma_*`` entries (``observation.pose_covariance`` off, as in
+        the ``ideal`` preset) it never asks for a scan (its ``scan`` component stays -1)."""
         self.scan_sigma = default_scan_sigma() if scan_sigma is None else float(scan_sigma)
         self.retry_growth, self.retries = float(retry_growth), int(retries)
         self.rejected: dict[str, int] = {}
@@ -67,7 +71,7 @@ class WaypointPolicy(Policy):
             v = np.clip(self.k_v * dist, 0.0, 1.0) * max(np.cos(bearing), 0.0) ** 2
             w = np.clip(self.k_w * bearing, -1.0, 1.0)
             if not self.scans:
-                out[agent] = np.array([v, w], dtype=np.float32)
+                out[agent] = np.array([v, w, -1.0][: self.width], dtype=np.float32)
                 continue
             out[agent] = np.array([v, w, -1.0], dtype=np.float32)
             if self.scan_due(agent, obs):

@@ -29,7 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from parcover_env.errors import ParcoverError
+from parcover_env.errors import CheckpointError, ParcoverError
+from parcover_env.policies.checkpoint_files import as_int, as_widths, build_or_explain, load_torch_dict
 from parcover_env.policies.protocol import Policy
 
 __all__ = ["actor_net", "box_scale", "TorchRLPolicy", "POLICY_FILE", "SIDECAR_FILE", "checkpoint_overrides",
@@ -153,21 +154,27 @@ class TorchRLPolicy(Policy):
     (deterministic), ``torchrl_sampled:...`` (``sample_seed``: actions sampled, see the module docstring)."""
 
     def __init__(self, path: str | Path, sample_seed: int | None = None):
-        import torch
 
         path = Path(path)
         file = path / POLICY_FILE if path.is_dir() else path
         if not file.is_file():
             raise ParcoverError(f"TorchRL policy checkpoint not found: {file}")
+        what = "TorchRL policy"
+        ckpt = load_torch_dict(file, what, ("obs_dim", "act_dim", "hidden", "state_dict"), weights_only=True)
+        n, act_dim = as_int(ckpt["obs_dim"], file, what, "obs_dim"), as_int(ckpt["act_dim"], file, what, "act_dim")
+        hidden = as_widths(ckpt["hidden"], file, what)
+        head = ckpt.get("scan_head", "continuous")
         try:
-            ckpt = torch.load(file, map_location="cpu", weights_only=True)
-            n = int(ckpt["obs_dim"])  # the box's centre and half-width come with the state dict
-            head = ckpt.get("scan_head", "continuous")
-            self.net = actor_net(np.zeros(n), np.ones(n), tuple(ckpt["hidden"]), int(ckpt["act_dim"]), head)
-            self.net.load_state_dict(ckpt["state_dict"])
-        except Exception as exc:  # a foreign or corrupt file: name it instead of a deep traceback
-            raise ParcoverError(f"cannot load TorchRL policy {file}: {type(exc).__name__}: {exc}") from None
-        self._set(self.net, int(ckpt["act_dim"]), head, sample_seed)
+            head_outputs(act_dim, head)
+        except ValueError as exc:
+            raise CheckpointError(file, what, f"ValueError: {exc}") from None
+
+        def build():  # the box's centre and half-width come with the state dict
+            net = actor_net(np.zeros(n), np.ones(n), hidden, act_dim, head)
+            net.load_state_dict(ckpt["state_dict"])
+            return net
+
+        self._set(build_or_explain(file, what, build), act_dim, head, sample_seed)
 
     def _set(self, net, act_dim: int, scan_head: str, sample_seed: int | None) -> None:
         self.net = net

@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 import shapely
 
+from parcover_env.errors import ArgumentError
 from parcover_env.localization.sonar.features import MapFeature
 from parcover_env.localization.sonar.sectors import Sector
 
@@ -89,7 +90,7 @@ def rearrangement_figure(scenario, px_per_m: float = 70.0, node_step: float = 0.
 
     mission = mission_for(scenario)
     if mission.n_robots < 2:
-        raise ValueError(f"scenario {scenario.name!r} plans {mission.n_robots} robot(s); Fig. 9 needs two")
+        raise ArgumentError(f"scenario {scenario.name!r} plans {mission.n_robots} robot(s); Fig. 9 needs two")
     known, sonar = mission.known_map, scenario.robot.sonar
     from parcover_env.localization.sonar.features import map_features
 

@@ -145,3 +145,15 @@ def test_runs_chain_their_init_records(tmp_path):
     assert c["init"] == {"path": str(tmp_path / "b" / "policy.pt"), "algo": "ippo", "init": b["init"],
                          "critic": True}
     assert json.loads((tmp_path / "c" / "run.json").read_text())["init"]["init"]["path"] == str(tmp_path / "a")
+
+
+def test_a_critic_whose_weights_do_not_fit_its_spec_is_one_error(tmp_path):
+    out, *_ = _saved_run(tmp_path)
+    ckpt = torch.load(out / "critic.pt", weights_only=True)
+    first = next(iter(ckpt["state_dict"]))
+    ckpt["state_dict"][first] = torch.zeros(3, 3)  # same spec, weights of another shape
+    torch.save(ckpt, out / "critic.pt")
+    actor, critic, loss = _nets(2)
+    with pytest.raises(ParcoverError, match=r"^cannot load critic .*critic.pt: its weights do not fit its spec "
+                                            r"\(RuntimeError: Error\(s\) in loading state_dict"):
+        apply_init(find_init(out), policy_net(actor), critic, loss.value_norm, critic_spec("mappo", CFG, OBS, STATE))
