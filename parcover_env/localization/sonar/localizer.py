@@ -35,6 +35,8 @@ from scipy.optimize import minimize
 
 from parcover_env.config import SonarConfig
 from parcover_env.geometry import wrap_angle
+from parcover_env.geometry.rays import disc_planes
+from parcover_env.localization.sonar import localizer_kernels as kern
 from parcover_env.localization.sonar.features import (
     MapFeature,
     ScanPoints,
@@ -44,7 +46,8 @@ from parcover_env.localization.sonar.features import (
 from parcover_env.localization.sonar.filter import filter_scan
 from parcover_env.localization.sonar.params import SonarLocalizerParams
 from parcover_env.localization.sonar.sectors import Sector
-from parcover_env.sensors.sonar import simulate_beams
+from parcover_env.sensors.sonar import beam_kernel_arguments, simulate_beams
+from parcover_env.sensors.sonar_kernels import Discs
 
 __all__ = ["Ellipse", "LocalizationResult", "localize", "synthetic_scans", "scan_error", "pose_candidates"]
 
@@ -103,16 +106,17 @@ class Ellipse:
 
     def distance(self, points) -> np.ndarray:
         """Distance from each point ``(P, 2)`` to the ellipse (0 inside); boundary sampled at 256 points."""
-        p = np.atleast_2d(np.asarray(points, dtype=float)) - np.asarray(self.center)
-        c, s = math.cos(self.angle), math.sin(self.angle)
-        local = np.stack([c * p[:, 0] + s * p[:, 1], -s * p[:, 0] + c * p[:, 1]], axis=1)
-        a, b = max(self.axes[0], 1e-9), max(self.axes[1], 1e-9)
-        inside = (local[:, 0] / a) ** 2 + (local[:, 1] / b) ** 2 <= 1.0
-        t = np.linspace(0, 2 * math.pi, 256, endpoint=False)
-        edge = np.stack([a * np.cos(t), b * np.sin(t)], axis=1)
-        d = np.linalg.norm(local[:, None, :] - edge[None, :, :], axis=-1).min(axis=1)
-        return np.where(inside, 0.0, d)
+        p = np.atleast_2d(np.asarray(points, dtype=float))
+        out = np.empty(len(p))
+        kern.ellipse_distances(np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]), self.kernel_record(),
+                                    kern.EDGE_COS, kern.EDGE_SIN, out)
+        return out
 
+    def kernel_record(self) -> np.ndarray:
+        """``(cx, cy, cos angle, sin angle, a, b)`` with the semi-axes at least 1e-9: the ellipse as
+        :func:`~parcover_env.localization.sonar.localizer_kernels.ellipse_distance` reads it."""
+        return np.array([self.center[0], self.center[1], math.cos(self.angle), math.sin(self.angle),
+                         max(self.axes[0], 1e-9), max(self.axes[1], 1e-9)])
 
 @dataclass(frozen=True, eq=False)
 class LocalizationResult:
@@ -137,12 +141,17 @@ def synthetic_scans(poses, scan_angles, segments, sonar: SonarConfig) -> np.ndar
 
 def scan_error(measured, synthetic, clip: float, trim: float = 0.0) -> np.ndarray:
     """Mean clipped absolute range error per synthetic scan (rows), over the best ``1 - trim``
-    share of the readings (``trim`` drops the worst: other robots, multipath, unknown obstacles)."""
-    e = np.minimum(np.abs(np.atleast_2d(synthetic) - np.asarray(measured)[None, :]), clip)
-    keep = e.shape[1] - int(math.floor(trim * e.shape[1]))
-    if keep < e.shape[1]:
-        e = np.partition(e, keep - 1, axis=1)[:, :keep]
-    return e.mean(axis=1)
+    share of the readings (``trim`` drops the worst: other robots, multipath, unknown obstacles).
+    Compiled (:func:`~parcover_env.localization.sonar.localizer_kernels.scan_errors`): the kept errors
+    are summed in ascending order with a trim, in reading order without."""
+    m = np.ascontiguousarray(measured, dtype=float)
+    synth = np.ascontiguousarray(np.atleast_2d(synthetic), dtype=float)
+    if synth.shape[1:] != m.shape or m.ndim != 1:
+        raise ValueError(f"scan_error: synthetic scans {synth.shape} do not match the measured scan {m.shape}")
+    keep = len(m) - int(math.floor(trim * len(m)))
+    out = np.empty(len(synth))
+    kern.scan_errors(m, synth, float(clip), keep, out)
+    return out
 
 
 def pose_candidates(feature: MapFeature, scan: ScanPoints, params: SonarLocalizerParams) -> list[np.ndarray]:
@@ -204,6 +213,38 @@ def _grid_candidates(ellipse: Ellipse, heading: float, map_model, p: SonarLocali
     dh = math.radians(p.grid_heading_step_deg)
     heads = heading + dh * np.arange(-p.grid_heading_steps, p.grid_heading_steps + 1)
     return np.column_stack([np.repeat(xy, len(heads), axis=0), np.tile(heads, len(xy))])
+
+
+_ARGSORT4 = kern.argsort4_table()
+
+
+def _polish(pose: np.ndarray, r: np.ndarray, a: np.ndarray, map_model, ellipse: Ellipse, p: SonarLocalizerParams,
+            sonar: SonarConfig) -> tuple[np.ndarray, float]:
+    """The polish (extension ``polish``): Nelder-Mead from ``pose`` over the clipped, trimmed scan error,
+    a pose outside the free space or ``ellipse_distance`` or more from the ellipse costing
+    ``error_clip``. Compiled (:func:`~parcover_env.localization.sonar.localizer_kernels.nelder_mead`); a
+    pose within 1e-9 m of a wall leaves the decision to shapely, through scipy's Nelder-Mead (the same
+    steps). Returns the minimizer and its cost."""
+    segs = map_model.segments
+    keep = len(r) - int(math.floor(p.error_trim * len(r)))
+    axes = pose[2] + a[None, :]
+    walls, offsets, share, rules = beam_kernel_arguments(sonar, segs, axes)
+    discs = Discs(*disc_planes(np.zeros((0, 2)), 0.0, np.full(1, -1), 1))
+    x, f, undecided = kern.nelder_mead(pose, 0.03, p.polish_iters, 1e-3, 1e-5, _ARGSORT4, r, a, p.error_clip, keep,
+                                       ellipse.kernel_record(), kern.EDGE_COS, kern.EDGE_SIN, p.ellipse_distance,
+                                       segs, walls, offsets, share, discs, rules, float(sonar.range_max))
+    if not undecided:
+        return x, float(f)
+
+    def cost(x):
+        if not map_model.contains(x[None, :2])[0] or ellipse.distance(x[None, :2])[0] >= p.ellipse_distance:
+            return p.error_clip
+        return float(scan_error(r, synthetic_scans(x[None], a, segs, sonar), p.error_clip, p.error_trim)[0])
+
+    res = minimize(cost, pose, method="Nelder-Mead",
+                   options={"maxiter": p.polish_iters, "xatol": 1e-3, "fatol": 1e-5,
+                            "initial_simplex": pose + np.array([[0, 0, 0], [0.03, 0, 0], [0, 0.03, 0], [0, 0, 0.03]])})
+    return np.asarray(res.x, dtype=float), float(res.fun)
 
 
 def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
@@ -275,17 +316,8 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
     best = int(np.argmin(err))
     pose, e = poses[best].copy(), float(err[best])
     if p.polish:
-        def cost(x):
-            if not map_model.contains(x[None, :2])[0] or \
-                    ellipse.distance(x[None, :2])[0] >= p.ellipse_distance:
-                return p.error_clip
-            return float(scan_error(r, synthetic_scans(x[None], a, segs, sonar), p.error_clip, p.error_trim)[0])
-
-        res = minimize(cost, pose, method="Nelder-Mead",
-                       options={"maxiter": p.polish_iters, "xatol": 1e-3, "fatol": 1e-5,
-                                "initial_simplex": pose + np.array([[0, 0, 0], [0.03, 0, 0], [0, 0.03, 0],
-                                                                    [0, 0, 0.03]])})
-        if res.fun < e:
-            pose, e = np.asarray(res.x, dtype=float), float(res.fun)
+        res = _polish(pose, r, a, map_model, ellipse, p, sonar)
+        if res[1] < e:
+            pose, e = res
     pose[2] = float(wrap_angle(pose[2]))
     return LocalizationResult(pose, e, len(poses), e <= p.success_error, int(owners[best]))

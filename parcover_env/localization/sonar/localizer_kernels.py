@@ -1,0 +1,337 @@
+"""Compiled (numba) steps of the sonar localizer (:mod:`parcover_env.localization.sonar.localizer`).
+
+Each kernel does the float operations of the numpy code it replaces, in the same order, so that the
+localizer's poses are bit-identical to what it gave before it was compiled (issue 40;
+``tests/references/sonar_localizer.py`` keeps that code, ``tests/localization/sonar`` compares):
+
+* :func:`mean_of` sums like numpy's ``add.reduce`` over a contiguous row (pairwise: eight
+  accumulators per block of up to 128 values, halves above that), after numpy's 0.0 identity;
+* :func:`scan_error_row` is ``scan_error`` for one synthetic scan: with a trim, the kept errors are
+  summed in ascending order (numpy's ``partition`` of a row of at most 256 values sorts it on CPUs with
+  AVX-512; on other CPUs numpy's order, and so its last bits, differed from CPU to CPU);
+* :func:`ellipse_distance` is ``Ellipse.distance`` (boundary sampled at 256 points, the cosines and
+  sines computed by numpy once: :data:`EDGE_COS`, :data:`EDGE_SIN`);
+* :func:`nelder_mead` is scipy's ``minimize(method="Nelder-Mead")`` with an initial simplex (scipy
+  1.17: reflection 1, expansion 2, contraction 0.5, shrink 0.5), its simplex ordered as numpy's
+  ``argsort`` orders four values (ties included: :func:`argsort4_table`, taken from numpy);
+* :func:`free_status` tells whether a point lies in the free space (crossing number); a point within
+  :data:`BOUNDARY_GUARD` of a wall is reported as undecided and the caller asks shapely instead.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+from numba import njit
+
+from parcover_env.sensors.sonar_kernels import beam_readings
+
+__all__ = ["EDGE_COS", "EDGE_SIN", "BOUNDARY_GUARD", "argsort4_table", "mean_of", "scan_error_row",
+           "scan_errors", "ellipse_distance", "ellipse_distances", "free_status", "nelder_mead"]
+
+_EDGE_T = np.linspace(0, 2 * math.pi, 256, endpoint=False)
+EDGE_COS = np.cos(_EDGE_T)
+"""Cosines of the 256 boundary samples of ``Ellipse.distance`` (numpy's, as that method computed them)."""
+EDGE_SIN = np.sin(_EDGE_T)
+"""Their sines."""
+BOUNDARY_GUARD = 1e-9
+"""A point nearer than this to a wall (m) is not classified by :func:`free_status` (undecided)."""
+
+
+def argsort4_table() -> np.ndarray:
+    """``(256, 4)`` int64: numpy's ``argsort`` of every four values with order pattern ``t`` (each value
+    coded 0-3 by rank, row ``sum(t[k] * 4**k)``): how numpy orders ties on this machine."""
+    table = np.zeros((256, 4), dtype=np.int64)
+    for t in itertools.product(range(4), repeat=4):
+        table[sum(v * 4**k for k, v in enumerate(t))] = np.argsort(np.array(t, dtype=float))
+    return table
+
+
+@njit(cache=True, nogil=True)
+def _block(x, lo, n):
+    """numpy's pairwise sum of ``x[lo:lo + n]``, ``n <= 128`` (one block)."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += x[i]
+        return res
+    r0, r1, r2, r3 = x[lo], x[lo + 1], x[lo + 2], x[lo + 3]
+    r4, r5, r6, r7 = x[lo + 4], x[lo + 5], x[lo + 6], x[lo + 7]
+    i = 8
+    stop = n - n % 8
+    while i < stop:
+        r0 += x[lo + i]
+        r1 += x[lo + i + 1]
+        r2 += x[lo + i + 2]
+        r3 += x[lo + i + 3]
+        r4 += x[lo + i + 4]
+        r5 += x[lo + i + 5]
+        r6 += x[lo + i + 6]
+        r7 += x[lo + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += x[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True, nogil=True)
+def _halves1(x, lo, n):
+    """numpy's pairwise sum of ``x[lo:lo + n]``, ``n <= 256``: halves (the first a multiple of 8) above 128."""
+    if n <= 128:
+        return _block(x, lo, n)
+    n2 = n // 2
+    n2 -= n2 % 8
+    return _block(x, lo, n2) + _block(x, lo + n2, n - n2)
+
+
+@njit(cache=True, nogil=True)
+def _halves2(x, lo, n):
+    """The same, ``n <= 512``."""
+    if n <= 128:
+        return _block(x, lo, n)
+    n2 = n // 2
+    n2 -= n2 % 8
+    return _halves1(x, lo, n2) + _halves1(x, lo + n2, n - n2)
+
+
+@njit(cache=True, nogil=True)
+def _pairwise(x, lo, n):
+    """The same, ``n <= MAX_SUM`` (numba compiles no recursion: three levels of halving)."""
+    if n <= 128:
+        return _block(x, lo, n)
+    n2 = n // 2
+    n2 -= n2 % 8
+    return _halves2(x, lo, n2) + _halves2(x, lo + n2, n - n2)
+
+
+MAX_SUM = 1024
+"""Longest row :func:`mean_of` sums like numpy (a scan of up to 1024 readings)."""
+
+
+@njit(cache=True, nogil=True)
+def mean_of(x, n):
+    """Mean of ``x[:n]`` as numpy's ``mean`` of a contiguous row (pairwise sum), ``n <= MAX_SUM``."""
+    return (0.0 + _pairwise(x, 0, n)) / n
+
+
+@njit(cache=True, nogil=True)
+def scan_error_row(measured, synth, clip, keep, buf):
+    """``scan_error`` of one synthetic scan ``synth (n,)``: mean of the ``keep`` smallest clipped
+    errors (``keep = n``: all, in reading order). ``buf (n,)`` is scratch."""
+    n = measured.shape[0]
+    for i in range(n):
+        d = abs(synth[i] - measured[i])
+        buf[i] = d if d < clip else clip
+    if keep < n:
+        buf[:] = np.sort(buf)
+    return mean_of(buf, keep)
+
+
+@njit(cache=True, nogil=True)
+def scan_errors(measured, synth, clip, keep, out):
+    """:func:`scan_error_row` of every row of ``synth (H, n)`` into ``out (H,)``."""
+    buf = np.empty(measured.shape[0])
+    for h in range(synth.shape[0]):
+        out[h] = scan_error_row(measured, synth[h], clip, keep, buf)
+
+
+@njit(cache=True, nogil=True)
+def ellipse_distance(px, py, ell, ecos, esin):
+    """Distance from ``(px, py)`` to the ellipse ``ell = (cx, cy, cos angle, sin angle, a, b)`` (the
+    semi-axes at least 1e-9), 0 inside: its boundary sampled at ``ecos, esin``."""
+    p0 = px - ell[0]
+    p1 = py - ell[1]
+    c, s, a, b = ell[2], ell[3], ell[4], ell[5]
+    l0 = c * p0 + s * p1
+    l1 = -s * p0 + c * p1
+    q0 = l0 / a
+    q1 = l1 / b
+    if q0 * q0 + q1 * q1 <= 1.0:
+        return 0.0
+    best = np.inf
+    for k in range(ecos.shape[0]):
+        d0 = l0 - a * ecos[k]
+        d1 = l1 - b * esin[k]
+        d = math.sqrt(d0 * d0 + d1 * d1)
+        if d < best:
+            best = d
+    return best
+
+
+@njit(cache=True, nogil=True)
+def ellipse_distances(x, y, ell, ecos, esin, out):
+    """:func:`ellipse_distance` of every point ``(x[i], y[i])`` into ``out``."""
+    for i in range(x.shape[0]):
+        out[i] = ellipse_distance(x[i], y[i], ell, ecos, esin)
+
+
+@njit(cache=True, nogil=True)
+def free_status(px, py, segs):
+    """1 if ``(px, py)`` lies inside the region bounded by the closed rings of ``segs (S, 4)`` (even-odd
+    rule), 0 if outside, -1 if within :data:`BOUNDARY_GUARD` of a segment (undecided)."""
+    inside = False
+    for k in range(segs.shape[0]):
+        x1, y1, x2, y2 = segs[k, 0], segs[k, 1], segs[k, 2], segs[k, 3]
+        ex = x2 - x1
+        ey = y2 - y1
+        ll = ex * ex + ey * ey
+        t = 0.0
+        if ll > 0.0:
+            t = ((px - x1) * ex + (py - y1) * ey) / ll
+            t = min(max(t, 0.0), 1.0)
+        dx = x1 + t * ex - px
+        dy = y1 + t * ey - py
+        if dx * dx + dy * dy < BOUNDARY_GUARD * BOUNDARY_GUARD:
+            return -1
+        if (y1 > py) != (y2 > py) and px < x1 + (py - y1) * ex / ey:
+            inside = not inside
+    return 1 if inside else 0
+
+
+@njit(cache=True, nogil=True)
+def _cost(x, measured, angles, clip, keep, ell, ecos, esin, reach, free, walls, offsets, share, discs, rules,
+          rmax, axes, reading, synth, buf):
+    """The polish's cost of pose ``x``: ``clip`` outside the free space or ``reach`` or more from the
+    ellipse, else the scan error of its synthetic scan; and whether the point was undecided."""
+    st = free_status(x[0], x[1], free)
+    if st < 0:
+        return clip, True
+    if st == 0 or ellipse_distance(x[0], x[1], ell, ecos, esin) >= reach:
+        return clip, False
+    for i in range(angles.shape[0]):
+        axes[0, i] = x[2] + angles[i]
+    ox = np.full(1, x[0])
+    oy = np.full(1, x[1])
+    beam_readings(ox, oy, axes, offsets, share, walls, discs, rules, reading)
+    for i in range(angles.shape[0]):
+        v = reading[0, i]
+        synth[i] = v if v < rmax else rmax
+    return scan_error_row(measured, synth, clip, keep, buf), False
+
+
+@njit(cache=True, nogil=True)
+def _order(sim, fsim, table):
+    """Reorder the simplex as numpy's ``argsort`` of ``fsim (4,)`` does (``table``: :func:`argsort4_table`)."""
+    code = 0
+    for k in range(4):
+        rank = 0
+        for j in range(4):
+            if fsim[j] < fsim[k]:
+                first = True
+                for q in range(j):
+                    if fsim[q] == fsim[j]:
+                        first = False
+                if first:
+                    rank += 1
+        code += rank * 4**k
+    ind = table[code]
+    s2 = sim.copy()
+    f2 = fsim.copy()
+    for k in range(4):
+        sim[k] = s2[ind[k]]
+        fsim[k] = f2[ind[k]]
+
+
+@njit(cache=True, nogil=True)
+def nelder_mead(x0, step, maxiter, xatol, fatol, table, measured, angles, clip, keep, ell, ecos, esin, reach, free,
+                walls, offsets, share, discs, rules, rmax):
+    """scipy's Nelder-Mead (non-adaptive) from the simplex ``x0`` and ``x0 + step`` along each axis,
+    minimizing :func:`_cost`. Returns ``(x (3,), f, undecided)``: ``undecided`` when a point came within
+    :data:`BOUNDARY_GUARD` of a wall (then ``x`` and ``f`` mean nothing)."""
+    n = angles.shape[0]
+    axes = np.empty((1, n))
+    reading = np.empty((1, n))
+    synth = np.empty(n)
+    buf = np.empty(n)
+    sim = np.empty((4, 3))
+    for k in range(4):
+        for j in range(3):
+            sim[k, j] = x0[j] + (step if k == j + 1 else 0.0)
+    fsim = np.empty(4)
+    for k in range(4):
+        f, bad = _cost(sim[k], measured, angles, clip, keep, ell, ecos, esin, reach, free, walls, offsets, share,
+                       discs, rules, rmax, axes, reading, synth, buf)
+        if bad:
+            return sim[0].copy(), np.inf, True
+        fsim[k] = f
+    _order(sim, fsim, table)
+    _order(sim, fsim, table)
+    xbar = np.empty(3)
+    xr = np.empty(3)
+    xe = np.empty(3)
+    iterations = 1
+    while iterations < maxiter:
+        dx = 0.0
+        for k in range(1, 4):
+            for j in range(3):
+                dx = max(dx, abs(sim[k, j] - sim[0, j]))
+        df = 0.0
+        for k in range(1, 4):
+            df = max(df, abs(fsim[0] - fsim[k]))
+        if dx <= xatol and df <= fatol:
+            break
+        for j in range(3):
+            xbar[j] = (((0.0 + sim[0, j]) + sim[1, j]) + sim[2, j]) / 3
+            xr[j] = 2 * xbar[j] - sim[3, j]
+        fxr, bad = _cost(xr, measured, angles, clip, keep, ell, ecos, esin, reach, free, walls, offsets, share,
+                         discs, rules, rmax, axes, reading, synth, buf)
+        if bad:
+            return sim[0].copy(), np.inf, True
+        shrink = False
+        if fxr < fsim[0]:
+            for j in range(3):
+                xe[j] = 3 * xbar[j] - 2 * sim[3, j]
+            fxe, bad = _cost(xe, measured, angles, clip, keep, ell, ecos, esin, reach, free, walls, offsets, share,
+                             discs, rules, rmax, axes, reading, synth, buf)
+            if bad:
+                return sim[0].copy(), np.inf, True
+            if fxe < fxr:
+                sim[3] = xe
+                fsim[3] = fxe
+            else:
+                sim[3] = xr
+                fsim[3] = fxr
+        elif fxr < fsim[2]:
+            sim[3] = xr
+            fsim[3] = fxr
+        else:
+            if fxr < fsim[3]:
+                for j in range(3):
+                    xe[j] = 1.5 * xbar[j] - 0.5 * sim[3, j]
+                fxc, bad = _cost(xe, measured, angles, clip, keep, ell, ecos, esin, reach, free, walls, offsets,
+                                 share, discs, rules, rmax, axes, reading, synth, buf)
+                if bad:
+                    return sim[0].copy(), np.inf, True
+                if fxc <= fxr:
+                    sim[3] = xe
+                    fsim[3] = fxc
+                else:
+                    shrink = True
+            else:
+                for j in range(3):
+                    xe[j] = 0.5 * xbar[j] + 0.5 * sim[3, j]
+                fxcc, bad = _cost(xe, measured, angles, clip, keep, ell, ecos, esin, reach, free, walls, offsets,
+                                  share, discs, rules, rmax, axes, reading, synth, buf)
+                if bad:
+                    return sim[0].copy(), np.inf, True
+                if fxcc < fsim[3]:
+                    sim[3] = xe
+                    fsim[3] = fxcc
+                else:
+                    shrink = True
+            if shrink:
+                for k in range(1, 4):
+                    for j in range(3):
+                        sim[k, j] = sim[0, j] + 0.5 * (sim[k, j] - sim[0, j])
+                    f, bad = _cost(sim[k], measured, angles, clip, keep, ell, ecos, esin, reach, free, walls,
+                                   offsets, share, discs, rules, rmax, axes, reading, synth, buf)
+                    if bad:
+                        return sim[0].copy(), np.inf, True
+                    fsim[k] = f
+        iterations += 1
+        _order(sim, fsim, table)
+    return sim[0].copy(), fsim.min(), False
