@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 import shapely
@@ -37,10 +38,10 @@ from parcover_env.config import SonarConfig
 from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.rays import disc_planes
 from parcover_env.localization.sonar import localizer_kernels as kern
+from parcover_env.localization.sonar import scan_kernels
 from parcover_env.localization.sonar.features import (
     MapFeature,
     ScanPoints,
-    characteristic_points,
     map_features,
 )
 from parcover_env.localization.sonar.filter import filter_scan
@@ -216,6 +217,74 @@ def _grid_candidates(ellipse: Ellipse, heading: float, map_model, p: SonarLocali
 
 
 _ARGSORT4 = kern.argsort4_table()
+_OFF_NORMAL = float(np.radians(20.0))
+"""A wall's fitted normal replaces its plateau bearing when within this of it (rad), as in ``features``."""
+_ARC_STEP = 0.03
+"""Arc step of :func:`arc_candidates` in the localizer (m)."""
+
+
+def _scan_rows(r: np.ndarray, sin_a: np.ndarray, cos_a: np.ndarray, range_max: float,
+               p: SonarLocalizerParams) -> tuple[np.ndarray, np.ndarray]:
+    """The scan's walls and corners ``(W, 3), (K, 3)`` (rows bearing, range, index) as
+    :func:`~parcover_env.localization.sonar.features.characteristic_points` finds them."""
+    _, corners, walls = scan_kernels.characteristic_points(
+        r, sin_a, cos_a, float(range_max), float(p.far_margin), float(p.jump_threshold), float(p.prominence),
+        int(p.window), float(p.plateau_tol), float(p.line_tol), _OFF_NORMAL)
+    return walls, corners
+
+
+class _FeatureTable(NamedTuple):
+    points: np.ndarray
+    normals: np.ndarray
+    walls: np.ndarray
+    solvable: np.ndarray
+
+
+_TABLES: dict[int, tuple[list, _FeatureTable]] = {}
+"""The last few feature lists' tables (keyed by identity; the list is held, so its id stays its own)."""
+
+
+def _feature_table(feats: list[MapFeature]) -> _FeatureTable:
+    """The map features as arrays for the compiled candidates, built once per feature list."""
+    hit = _TABLES.get(id(feats))
+    if hit is not None and hit[0] is feats and len(feats) == len(hit[1].solvable):
+        return hit[1]
+    solvable = np.ones(len(feats), dtype=bool)
+    for k, f in enumerate(feats):
+        try:
+            np.linalg.solve(f.normals, np.ones(2))
+        except np.linalg.LinAlgError:  # walls along one line: no pose from their two distances
+            solvable[k] = False
+    table = _FeatureTable(np.array([f.point for f in feats], dtype=float).reshape(-1, 2),
+                          np.array([f.normals for f in feats], dtype=float).reshape(-1, 2, 2),
+                          np.array([f.walls for f in feats], dtype=float).reshape(-1, 2, 2), solvable)
+    if len(_TABLES) >= 16:
+        _TABLES.pop(next(iter(_TABLES)))
+    _TABLES[id(feats)] = (feats, table)
+    return table
+
+
+def _feature_poses(feats: list[MapFeature], f1: np.ndarray, scans: list[tuple[np.ndarray, np.ndarray]],
+                   ellipse: Ellipse, region: shapely.Geometry,
+                   p: SonarLocalizerParams) -> tuple[np.ndarray, np.ndarray]:
+    """Fig. 6 steps 5-7: for each feature of ``f1`` and each scan (walls, corners), the poses of
+    :func:`pose_candidates` within ``ellipse_distance`` of the ellipse, or, with ``arc_fallback`` and
+    none, those of :func:`arc_candidates` inside ``region``; ``(poses (M, 3), owners (M,))`` in that order."""
+    table = _feature_table(feats)
+    walls = np.ascontiguousarray(np.concatenate([s[0] for s in scans]).reshape(-1, 3))
+    corners = np.ascontiguousarray(np.concatenate([s[1] for s in scans]).reshape(-1, 3))
+    wstart = np.concatenate([[0], np.cumsum([len(s[0]) for s in scans])]).astype(np.int64)
+    cstart = np.concatenate([[0], np.cumsum([len(s[1]) for s in scans])]).astype(np.int64)
+    poses, pair, arcs, arc_pair = kern.feature_candidates(
+        table.points, table.normals, table.walls, table.solvable, f1, walls, wstart, corners, cstart,
+        math.radians(p.heading_tol_deg), float(p.line_tol), ellipse.kernel_record(), kern.EDGE_COS, kern.EDGE_SIN,
+        float(p.ellipse_distance), bool(p.arc_fallback), _ARC_STEP)
+    if len(arcs):
+        inside = shapely.contains_xy(region, arcs[:, 0], arcs[:, 1])
+        poses, pair = np.concatenate([poses, arcs[inside]]), np.concatenate([pair, arc_pair[inside]])
+        order = np.argsort(pair, kind="stable")
+        poses, pair = poses[order], pair[order]
+    return poses, f1[pair // len(scans)] if len(pair) else np.zeros(0, dtype=np.int64)
 
 
 def _polish(pose: np.ndarray, r: np.ndarray, a: np.ndarray, map_model, ellipse: Ellipse, p: SonarLocalizerParams,
@@ -278,27 +347,20 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
     f1 = sorted(set().union(*[s.features for s in sectors if s.polygon.intersects(region)]))
     # Kim, Pearce & Amato Fig. 11: features also come from the filtered scan (too-long readings moved onto the
     # nearest walls); the raw scan's features stay candidates (the filter can erase a wall's end)
-    scans = [characteristic_points(r, a, sonar.range_max, p)]
+    sin_a, cos_a = np.ascontiguousarray(np.sin(a)), np.ascontiguousarray(np.cos(a))
+    r = np.ascontiguousarray(r)
+    scans = [_scan_rows(r, sin_a, cos_a, sonar.range_max, p)]
     if p.filter:
         r_filt = filter_scan(r, a, sonar.range_max, p.filter_repeats, p.filter_half_window, p.filter_line_tol)
         if not np.array_equal(r_filt, r):
-            scans.insert(0, characteristic_points(r_filt, a, sonar.range_max, p))
-    cands, owners = [], []
-    for fi in f1:
-        for scan in scans:
-            qs = [q for q in pose_candidates(feats[fi], scan, p)
-                  if ellipse.distance(q[None, :2])[0] < p.ellipse_distance]
-            if not qs and p.arc_fallback:
-                qs = arc_candidates(feats[fi], scan, region)
-            cands.extend(qs)
-            owners.extend([fi] * len(qs))
+            scans.insert(0, _scan_rows(r_filt, sin_a, cos_a, sonar.range_max, p))
+    poses, owners = _feature_poses(feats, np.array(f1, dtype=np.int64), scans, ellipse, region, p)
     segs = map_model.segments
-    poses = np.array(cands).reshape(-1, 3)
     keep = (ellipse.distance(poses[:, :2]) < p.ellipse_distance) & map_model.contains(poses[:, :2])
     if heading is not None:
         tol = math.radians(p.heading_prior_tol_deg) if heading_tol is None else float(heading_tol)
         keep &= np.abs(wrap_angle(poses[:, 2] - float(heading))) <= tol
-    poses, owners = poses[keep], np.asarray(owners, dtype=np.int64)[keep]
+    poses, owners = poses[keep], owners[keep]
     _, uniq = np.unique(np.round(np.column_stack([poses[:, :2] / 0.01, poses[:, 2] / 0.01])), axis=0,
                         return_index=True)
     uniq = np.sort(uniq)[: p.max_candidates]

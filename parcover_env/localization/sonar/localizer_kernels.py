@@ -26,10 +26,11 @@ import math
 import numpy as np
 from numba import njit
 
+from parcover_env.geometry.angle_kernels import wrap
 from parcover_env.sensors.sonar_kernels import beam_readings
 
-__all__ = ["EDGE_COS", "EDGE_SIN", "BOUNDARY_GUARD", "argsort4_table", "mean_of", "scan_error_row",
-           "scan_errors", "ellipse_distance", "ellipse_distances", "free_status", "nelder_mead"]
+__all__ = ["EDGE_COS", "EDGE_SIN", "BOUNDARY_GUARD", "MAX_SUM", "argsort4_table", "mean_of", "scan_error_row",
+           "scan_errors", "ellipse_distance", "ellipse_distances", "free_status", "nelder_mead", "feature_candidates"]
 
 _EDGE_T = np.linspace(0, 2 * math.pi, 256, endpoint=False)
 EDGE_COS = np.cos(_EDGE_T)
@@ -335,3 +336,127 @@ def nelder_mead(x0, step, maxiter, xatol, fatol, table, measured, angles, clip, 
         iterations += 1
         _order(sim, fsim, table)
     return sim[0].copy(), fsim.min(), False
+
+
+@njit(cache=True, nogil=True)
+def _pair_poses(c, normals, solvable, walls, corners, tol, line_tol, out, m):
+    """Poses ``(x, y, theta)`` from one map feature (corner ``c (2,)``, wall ``normals (2, 2)``) and one
+    scan's ``walls (W, 3)`` and ``corners (K, 3)`` (rows bearing, range, index), written to ``out``
+    from row ``m`` on (``localizer.pose_candidates``); returns the next free row."""
+    nw = walls.shape[0]
+    na0 = math.atan2(-normals[0, 1], -normals[0, 0])
+    na1 = math.atan2(-normals[1, 1], -normals[1, 0])
+    heads = np.empty((2, nw))
+    for w in range(nw):
+        heads[0, w] = wrap(na0 - walls[w, 0])
+        heads[1, w] = wrap(na1 - walls[w, 0])
+    rhs = np.empty(2)
+    for w0 in range(nw):
+        th0 = heads[0, w0]
+        for w1 in range(nw):
+            th1 = heads[1, w1]
+            if walls[w0, 2] == walls[w1, 2] or abs(wrap(th0 - th1)) > tol or not solvable:
+                continue
+            th = math.atan2(math.sin(th0) + math.sin(th1), math.cos(th0) + math.cos(th1))
+            rhs[0] = walls[w0, 1]
+            rhs[1] = walls[w1, 1]
+            p = np.linalg.solve(normals, rhs)
+            out[m, 0] = c[0] + p[0]
+            out[m, 1] = c[1] + p[1]
+            out[m, 2] = th
+            m += 1
+    n = np.empty(2)
+    d = np.empty(2)
+    for i in range(2):
+        n[0] = normals[i, 0]
+        n[1] = normals[i, 1]
+        for w in range(nw):
+            th = heads[i, w]
+            for k in range(corners.shape[0]):
+                px = c[0] - corners[k, 1] * math.cos(th + corners[k, 0])
+                py = c[1] - corners[k, 1] * math.sin(th + corners[k, 0])
+                d[0] = px - c[0]
+                d[1] = py - c[1]
+                if abs(np.dot(n, d) - walls[w, 1]) <= 2 * line_tol + 0.02 * walls[w, 1]:
+                    out[m, 0] = px
+                    out[m, 1] = py
+                    out[m, 2] = th
+                    m += 1
+    return m
+
+
+@njit(cache=True, nogil=True)
+def _arc_count(fwalls, corners, step):
+    a1 = math.atan2(fwalls[0, 1], fwalls[0, 0])
+    span = wrap(math.atan2(fwalls[1, 1], fwalls[1, 0]) - a1)
+    total = 0
+    for k in range(corners.shape[0]):
+        total += max(2, int(abs(span) * corners[k, 1] / step)) - 1
+    return total
+
+
+@njit(cache=True, nogil=True)
+def _arc_poses(c, fwalls, corners, step, out, m):
+    """Poses on the circle of each scan corner's range around the map corner ``c``, inside its wedge
+    (``localizer.arc_candidates`` before the region test), written to ``out`` from row ``m`` on."""
+    a1 = math.atan2(fwalls[0, 1], fwalls[0, 0])
+    span = wrap(math.atan2(fwalls[1, 1], fwalls[1, 0]) - a1)
+    for k in range(corners.shape[0]):
+        n = max(2, int(abs(span) * corners[k, 1] / step))
+        dpsi = span / n
+        for i in range(1, n):
+            y = i * dpsi if dpsi != 0 else (i / n) * span
+            psi = a1 + (y + 0.0)
+            out[m, 0] = c[0] + corners[k, 1] * math.cos(psi)
+            out[m, 1] = c[1] + corners[k, 1] * math.sin(psi)
+            out[m, 2] = wrap(psi + math.pi - corners[k, 0])
+            m += 1
+    return m
+
+
+@njit(cache=True, nogil=True)
+def feature_candidates(points, normals, fwalls, solvable, f1, walls, wstart, corners, cstart, tol, line_tol, ell,
+                       ecos, esin, reach, arc, arc_step):
+    """Fig. 6 candidates of every (map feature ``f1[i]``, scan ``s``) pair in that order: the poses of
+    ``_pair_poses`` within ``reach`` of the ellipse ``ell``; with ``arc``, a pair without any gives its
+    arc poses instead (to be tested against the grown ellipse by the caller). Scan ``s`` has
+    ``walls[wstart[s]:wstart[s + 1]]`` and ``corners[cstart[s]:cstart[s + 1]]``. Returns
+    ``(poses (M, 3), pair (M,), arcs (Q, 3), arc_pair (Q,))``, pair ``i * n_scans + s``."""
+    n_scans = wstart.shape[0] - 1
+    bound = 0
+    for s in range(n_scans):
+        nw = wstart[s + 1] - wstart[s]
+        bound += nw * nw + 2 * nw * (cstart[s + 1] - cstart[s])
+    poses = np.empty((bound * f1.shape[0], 3))
+    pair = np.empty(bound * f1.shape[0], dtype=np.int64)
+    buf = np.empty((bound, 3))
+    arc_rows = 0
+    keep_rows = 0
+    empty = np.zeros(f1.shape[0] * n_scans, dtype=np.bool_)
+    for i in range(f1.shape[0]):
+        f = f1[i]
+        for s in range(n_scans):
+            sc_w = walls[wstart[s]:wstart[s + 1]]
+            sc_c = corners[cstart[s]:cstart[s + 1]]
+            m = _pair_poses(points[f], normals[f], solvable[f], sc_w, sc_c, tol, line_tol, buf, 0)
+            got = 0
+            for q in range(m):
+                if ellipse_distance(buf[q, 0], buf[q, 1], ell, ecos, esin) < reach:
+                    poses[keep_rows] = buf[q]
+                    pair[keep_rows] = i * n_scans + s
+                    keep_rows += 1
+                    got += 1
+            if got == 0 and arc:
+                empty[i * n_scans + s] = True
+                arc_rows += _arc_count(fwalls[f], sc_c, arc_step)
+    arcs = np.empty((arc_rows, 3))
+    arc_pair = np.empty(arc_rows, dtype=np.int64)
+    q = 0
+    for i in range(f1.shape[0]):
+        for s in range(n_scans):
+            if empty[i * n_scans + s]:
+                f = f1[i]
+                q2 = _arc_poses(points[f], fwalls[f], corners[cstart[s]:cstart[s + 1]], arc_step, arcs, q)
+                arc_pair[q:q2] = i * n_scans + s
+                q = q2
+    return poses[:keep_rows], pair[:keep_rows], arcs, arc_pair
