@@ -143,7 +143,8 @@ def scan_errors(measured, synth, clip, keep, out):
 @njit(cache=True, nogil=True)
 def ellipse_distance(px, py, ell, ecos, esin):
     """Distance from ``(px, py)`` to the ellipse ``ell = (cx, cy, cos angle, sin angle, a, b)`` (the
-    semi-axes at least 1e-9), 0 inside: its boundary sampled at ``ecos, esin``."""
+    semi-axes at least 1e-9), 0 inside: its boundary sampled at ``ecos, esin`` (the square root of
+    the smallest squared distance: the smallest root, as the root is correctly rounded and monotonic)."""
     p0 = px - ell[0]
     p1 = py - ell[1]
     c, s, a, b = ell[2], ell[3], ell[4], ell[5]
@@ -157,10 +158,18 @@ def ellipse_distance(px, py, ell, ecos, esin):
     for k in range(ecos.shape[0]):
         d0 = l0 - a * ecos[k]
         d1 = l1 - b * esin[k]
-        d = math.sqrt(d0 * d0 + d1 * d1)
-        if d < best:
-            best = d
-    return best
+        best = min(best, d0 * d0 + d1 * d1)
+    return math.sqrt(best)
+
+
+@njit(cache=True, nogil=True)
+def ellipse_beyond(px, py, ell, reach):
+    """Whether ``(px, py)`` is certainly ``reach`` or more from the ellipse's boundary samples: its
+    distance from the centre less the larger semi-axis exceeds ``reach`` by 1e-9 (m), far more than
+    the rounding of either side (a test that needs no samples)."""
+    p0 = px - ell[0]
+    p1 = py - ell[1]
+    return math.sqrt(p0 * p0 + p1 * p1) - max(ell[4], ell[5]) > reach + 1e-9
 
 
 @njit(cache=True, nogil=True)
@@ -201,7 +210,7 @@ def _cost(x, measured, angles, clip, keep, ell, ecos, esin, reach, free, walls, 
     st = free_status(x[0], x[1], free)
     if st < 0:
         return clip, True
-    if st == 0 or ellipse_distance(x[0], x[1], ell, ecos, esin) >= reach:
+    if st == 0 or ellipse_beyond(x[0], x[1], ell, reach) or ellipse_distance(x[0], x[1], ell, ecos, esin) >= reach:
         return clip, False
     for i in range(angles.shape[0]):
         axes[0, i] = x[2] + angles[i]
@@ -441,7 +450,8 @@ def feature_candidates(points, normals, fwalls, solvable, f1, walls, wstart, cor
             m = _pair_poses(points[f], normals[f], solvable[f], sc_w, sc_c, tol, line_tol, buf, 0)
             got = 0
             for q in range(m):
-                if ellipse_distance(buf[q, 0], buf[q, 1], ell, ecos, esin) < reach:
+                if not ellipse_beyond(buf[q, 0], buf[q, 1], ell, reach) and \
+                        ellipse_distance(buf[q, 0], buf[q, 1], ell, ecos, esin) < reach:
                     poses[keep_rows] = buf[q]
                     pair[keep_rows] = i * n_scans + s
                     keep_rows += 1
