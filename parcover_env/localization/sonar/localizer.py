@@ -155,30 +155,21 @@ def scan_error(measured, synthetic, clip: float, trim: float = 0.0) -> np.ndarra
     return out
 
 
+def _scan_arrays(scan: ScanPoints) -> tuple[np.ndarray, np.ndarray]:
+    walls = np.array([(w.bearing, w.distance, w.index) for w in scan.walls], dtype=float).reshape(-1, 3)
+    corners = np.array([(k.bearing, k.range, k.index) for k in scan.corners], dtype=float).reshape(-1, 3)
+    return walls, corners
+
+
 def pose_candidates(feature: MapFeature, scan: ScanPoints, params: SonarLocalizerParams) -> list[np.ndarray]:
-    """Poses (x, y, theta) that explain ``feature`` by the scan's walls and corners."""
-    c, out = feature.point, []
-    tol = math.radians(params.heading_tol_deg)
-    normal_ang = [math.atan2(-n[1], -n[0]) for n in feature.normals]  # robot -> wall direction
-    heads = [[(float(wrap_angle(normal_ang[i] - w.bearing)), w) for w in scan.walls] for i in (0, 1)]
-    for th0, w0 in heads[0]:
-        for th1, w1 in heads[1]:
-            if w0.index == w1.index or abs(wrap_angle(th0 - th1)) > tol:
-                continue
-            th = math.atan2(math.sin(th0) + math.sin(th1), math.cos(th0) + math.cos(th1))
-            try:
-                p = c + np.linalg.solve(feature.normals, np.array([w0.distance, w1.distance]))
-            except np.linalg.LinAlgError:
-                continue
-            out.append(np.array([p[0], p[1], th]))
-    for i in (0, 1):
-        n = feature.normals[i]
-        for th, w in heads[i]:
-            for k in scan.corners:
-                p = c - k.range * np.array([math.cos(th + k.bearing), math.sin(th + k.bearing)])
-                if abs(n @ (p - c) - w.distance) <= 2 * params.line_tol + 0.02 * w.distance:
-                    out.append(np.array([p[0], p[1], th]))
-    return out
+    """Poses (x, y, theta) that explain ``feature`` by the scan's walls and corners (compiled:
+    :func:`~parcover_env.localization.sonar.localizer_kernels.pair_poses`, the ones :func:`localize` uses)."""
+    walls, corners = _scan_arrays(scan)
+    out = np.empty((len(walls) ** 2 + 2 * len(walls) * len(corners), 3))
+    table = _build_table([feature])
+    m = kern.pair_poses(table.points[0], table.normals[0], bool(table.solvable[0]), walls, corners,
+                        math.radians(params.heading_tol_deg), float(params.line_tol), out, 0)
+    return list(out[:m])
 
 
 def arc_candidates(feature: MapFeature, scan: ScanPoints, region: shapely.Geometry,
@@ -186,18 +177,12 @@ def arc_candidates(feature: MapFeature, scan: ScanPoints, region: shapely.Geomet
     """Fallback beyond the paper (``arc_fallback``) when no wall of the corner shows its perpendicular
     foot: poses on the circle of the measured corner range around the corner, inside the corner's
     wedge and ``region`` (the grown ellipse), every ``step`` metres of arc; heading from the corner's
-    measured bearing."""
-    c, out = feature.point, []
-    a1 = math.atan2(feature.walls[0][1], feature.walls[0][0])
-    span = float(wrap_angle(math.atan2(feature.walls[1][1], feature.walls[1][0]) - a1))
-    for k in scan.corners:
-        n = max(2, int(abs(span) * k.range / step))
-        psi = a1 + np.linspace(0.0, span, n + 1)[1:-1]
-        pts = c + k.range * np.stack([np.cos(psi), np.sin(psi)], axis=1)
-        inside = shapely.contains_xy(region, pts[:, 0], pts[:, 1])
-        for q, ps in zip(pts[inside], psi[inside], strict=True):
-            out.append(np.array([q[0], q[1], float(wrap_angle(ps + math.pi - k.bearing))]))
-    return out
+    measured bearing (compiled: :func:`~parcover_env.localization.sonar.localizer_kernels.arc_poses`)."""
+    _, corners = _scan_arrays(scan)
+    walls = np.ascontiguousarray(feature.walls, dtype=float)
+    out = np.empty((kern.arc_count(walls, corners, float(step)), 3))
+    kern.arc_poses(np.ascontiguousarray(feature.point, dtype=float), walls, corners, float(step), out, 0)
+    return list(out[shapely.contains_xy(region, out[:, 0], out[:, 1])])
 
 
 def _grid_candidates(ellipse: Ellipse, heading: float, map_model, p: SonarLocalizerParams) -> np.ndarray:
@@ -249,6 +234,14 @@ def _feature_table(feats: list[MapFeature]) -> _FeatureTable:
     hit = _TABLES.get(id(feats))
     if hit is not None and hit[0] is feats and len(feats) == len(hit[1].solvable):
         return hit[1]
+    table = _build_table(feats)
+    if len(_TABLES) >= 16:
+        _TABLES.pop(next(iter(_TABLES)))
+    _TABLES[id(feats)] = (feats, table)
+    return table
+
+
+def _build_table(feats: list[MapFeature]) -> _FeatureTable:
     solvable = np.ones(len(feats), dtype=bool)
     for k, f in enumerate(feats):
         try:
@@ -258,9 +251,6 @@ def _feature_table(feats: list[MapFeature]) -> _FeatureTable:
     table = _FeatureTable(np.array([f.point for f in feats], dtype=float).reshape(-1, 2),
                           np.array([f.normals for f in feats], dtype=float).reshape(-1, 2, 2),
                           np.array([f.walls for f in feats], dtype=float).reshape(-1, 2, 2), solvable)
-    if len(_TABLES) >= 16:
-        _TABLES.pop(next(iter(_TABLES)))
-    _TABLES[id(feats)] = (feats, table)
     return table
 
 

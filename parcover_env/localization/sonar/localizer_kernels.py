@@ -30,7 +30,8 @@ from parcover_env.geometry.angle_kernels import wrap
 from parcover_env.sensors.sonar_kernels import beam_readings
 
 __all__ = ["EDGE_COS", "EDGE_SIN", "BOUNDARY_GUARD", "MAX_SUM", "argsort4_table", "mean_of", "scan_error_row",
-           "scan_errors", "ellipse_distance", "ellipse_distances", "free_status", "nelder_mead", "feature_candidates"]
+           "scan_errors", "ellipse_distance", "ellipse_beyond", "ellipse_distances", "free_status", "order_simplex",
+           "nelder_mead", "pair_poses", "arc_count", "arc_poses", "feature_candidates"]
 
 _EDGE_T = np.linspace(0, 2 * math.pi, 256, endpoint=False)
 EDGE_COS = np.cos(_EDGE_T)
@@ -224,7 +225,7 @@ def _cost(x, measured, angles, clip, keep, ell, ecos, esin, reach, free, walls, 
 
 
 @njit(cache=True, nogil=True)
-def _order(sim, fsim, table):
+def order_simplex(sim, fsim, table):
     """Reorder the simplex as numpy's ``argsort`` of ``fsim (4,)`` does (``table``: :func:`argsort4_table`)."""
     code = 0
     for k in range(4):
@@ -268,8 +269,8 @@ def nelder_mead(x0, step, maxiter, xatol, fatol, table, measured, angles, clip, 
         if bad:
             return sim[0].copy(), np.inf, True
         fsim[k] = f
-    _order(sim, fsim, table)
-    _order(sim, fsim, table)
+    order_simplex(sim, fsim, table)
+    order_simplex(sim, fsim, table)
     xbar = np.empty(3)
     xr = np.empty(3)
     xe = np.empty(3)
@@ -343,12 +344,12 @@ def nelder_mead(x0, step, maxiter, xatol, fatol, table, measured, angles, clip, 
                         return sim[0].copy(), np.inf, True
                     fsim[k] = f
         iterations += 1
-        _order(sim, fsim, table)
+        order_simplex(sim, fsim, table)
     return sim[0].copy(), fsim.min(), False
 
 
 @njit(cache=True, nogil=True)
-def _pair_poses(c, normals, solvable, walls, corners, tol, line_tol, out, m):
+def pair_poses(c, normals, solvable, walls, corners, tol, line_tol, out, m):
     """Poses ``(x, y, theta)`` from one map feature (corner ``c (2,)``, wall ``normals (2, 2)``) and one
     scan's ``walls (W, 3)`` and ``corners (K, 3)`` (rows bearing, range, index), written to ``out``
     from row ``m`` on (``localizer.pose_candidates``); returns the next free row."""
@@ -395,7 +396,8 @@ def _pair_poses(c, normals, solvable, walls, corners, tol, line_tol, out, m):
 
 
 @njit(cache=True, nogil=True)
-def _arc_count(fwalls, corners, step):
+def arc_count(fwalls, corners, step):
+    """How many poses :func:`arc_poses` writes."""
     a1 = math.atan2(fwalls[0, 1], fwalls[0, 0])
     span = wrap(math.atan2(fwalls[1, 1], fwalls[1, 0]) - a1)
     total = 0
@@ -405,7 +407,7 @@ def _arc_count(fwalls, corners, step):
 
 
 @njit(cache=True, nogil=True)
-def _arc_poses(c, fwalls, corners, step, out, m):
+def arc_poses(c, fwalls, corners, step, out, m):
     """Poses on the circle of each scan corner's range around the map corner ``c``, inside its wedge
     (``localizer.arc_candidates`` before the region test), written to ``out`` from row ``m`` on."""
     a1 = math.atan2(fwalls[0, 1], fwalls[0, 0])
@@ -427,7 +429,7 @@ def _arc_poses(c, fwalls, corners, step, out, m):
 def feature_candidates(points, normals, fwalls, solvable, f1, walls, wstart, corners, cstart, tol, line_tol, ell,
                        ecos, esin, reach, arc, arc_step):
     """Fig. 6 candidates of every (map feature ``f1[i]``, scan ``s``) pair in that order: the poses of
-    ``_pair_poses`` within ``reach`` of the ellipse ``ell``; with ``arc``, a pair without any gives its
+    ``pair_poses`` within ``reach`` of the ellipse ``ell``; with ``arc``, a pair without any gives its
     arc poses instead (to be tested against the grown ellipse by the caller). Scan ``s`` has
     ``walls[wstart[s]:wstart[s + 1]]`` and ``corners[cstart[s]:cstart[s + 1]]``. Returns
     ``(poses (M, 3), pair (M,), arcs (Q, 3), arc_pair (Q,))``, pair ``i * n_scans + s``."""
@@ -447,7 +449,7 @@ def feature_candidates(points, normals, fwalls, solvable, f1, walls, wstart, cor
         for s in range(n_scans):
             sc_w = walls[wstart[s]:wstart[s + 1]]
             sc_c = corners[cstart[s]:cstart[s + 1]]
-            m = _pair_poses(points[f], normals[f], solvable[f], sc_w, sc_c, tol, line_tol, buf, 0)
+            m = pair_poses(points[f], normals[f], solvable[f], sc_w, sc_c, tol, line_tol, buf, 0)
             got = 0
             for q in range(m):
                 if not ellipse_beyond(buf[q, 0], buf[q, 1], ell, reach) and \
@@ -458,7 +460,7 @@ def feature_candidates(points, normals, fwalls, solvable, f1, walls, wstart, cor
                     got += 1
             if got == 0 and arc:
                 empty[i * n_scans + s] = True
-                arc_rows += _arc_count(fwalls[f], sc_c, arc_step)
+                arc_rows += arc_count(fwalls[f], sc_c, arc_step)
     arcs = np.empty((arc_rows, 3))
     arc_pair = np.empty(arc_rows, dtype=np.int64)
     q = 0
@@ -466,7 +468,7 @@ def feature_candidates(points, normals, fwalls, solvable, f1, walls, wstart, cor
         for s in range(n_scans):
             if empty[i * n_scans + s]:
                 f = f1[i]
-                q2 = _arc_poses(points[f], fwalls[f], corners[cstart[s]:cstart[s + 1]], arc_step, arcs, q)
+                q2 = arc_poses(points[f], fwalls[f], corners[cstart[s]:cstart[s + 1]], arc_step, arcs, q)
                 arc_pair[q:q2] = i * n_scans + s
                 q = q2
     return poses[:keep_rows], pair[:keep_rows], arcs, arc_pair
