@@ -472,3 +472,19 @@ def feature_candidates(points, normals, fwalls, solvable, f1, walls, wstart, cor
                 arc_pair[q:q2] = i * n_scans + s
                 q = q2
     return poses[:keep_rows], pair[:keep_rows], arcs, arc_pair
+
+
+@njit(cache=True, nogil=True)
+def first_unique(keys):
+    """Indices of the first occurrence of each distinct row of ``keys (M, 3)``, ascending (rows equal as
+    floats: ``-0.0 == 0.0``): numpy's ``unique(keys, axis=0, return_index=True)`` indices, sorted."""
+    seen = dict()
+    out = np.empty(keys.shape[0], dtype=np.int64)
+    m = 0
+    for i in range(keys.shape[0]):
+        k = (keys[i, 0] + 0.0, keys[i, 1] + 0.0, keys[i, 2] + 0.0)
+        if k not in seen:
+            seen[k] = i
+            out[m] = i
+            m += 1
+    return out[:m]
