@@ -249,6 +249,23 @@ _TABLES: dict[int, tuple[list, _FeatureTable]] = {}
 """The last few feature lists' tables (keyed by identity; the list is held, so its id stays its own)."""
 
 
+_POLYGONS: dict[int, tuple[list, np.ndarray]] = {}
+"""The last few sector lists' polygons as an array (keyed by identity; the list is held)."""
+
+
+def _sector_polygons(sectors: list[Sector]) -> np.ndarray:
+    """The sectors' polygons as one array, for one vectorized ``intersects`` (the same GEOS predicate)."""
+    hit = _POLYGONS.get(id(sectors))
+    if hit is not None and hit[0] is sectors and len(hit[1]) == len(sectors):
+        return hit[1]
+    polys = np.empty(len(sectors), dtype=object)
+    polys[:] = [s.polygon for s in sectors]
+    if len(_POLYGONS) >= 16:
+        _POLYGONS.pop(next(iter(_POLYGONS)))
+    _POLYGONS[id(sectors)] = (sectors, polys)
+    return polys
+
+
 def _feature_table(feats: list[MapFeature]) -> _FeatureTable:
     """The map features as arrays for the compiled candidates, built once per feature list."""
     hit = _TABLES.get(id(feats))
@@ -354,7 +371,8 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
         raise ValueError(f"heading_tol must be > 0 (rad), got {heading_tol}")
     feats = map_features(map_model) if features is None else features
     region = ellipse.polygon().buffer(p.ellipse_distance)
-    f1 = sorted(set().union(*[s.features for s in sectors if s.polygon.intersects(region)]))
+    meets = shapely.intersects(_sector_polygons(sectors), region)
+    f1 = sorted(set().union(*[s.features for s, hit in zip(sectors, meets.tolist(), strict=True) if hit]))
     # Kim, Pearce & Amato Fig. 11: features also come from the filtered scan (too-long readings moved onto the
     # nearest walls); the raw scan's features stay candidates (the filter can erase a wall's end)
     sin_a, cos_a = np.ascontiguousarray(np.sin(a)), np.ascontiguousarray(np.cos(a))
