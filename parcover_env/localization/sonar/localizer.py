@@ -39,7 +39,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from functools import lru_cache
-from typing import NamedTuple
 
 import numpy as np
 import shapely
@@ -239,14 +238,7 @@ def _scan_rows(r: np.ndarray, sin_a: np.ndarray, cos_a: np.ndarray, range_max: f
     return walls, corners
 
 
-class _FeatureTable(NamedTuple):
-    points: np.ndarray
-    normals: np.ndarray
-    walls: np.ndarray
-    solvable: np.ndarray
-
-
-_TABLES: dict[int, tuple[list, _FeatureTable]] = {}
+_TABLES: dict[int, tuple[list, kern.FeatureTable]] = {}
 """The last few feature lists' tables (keyed by identity; the list is held, so its id stays its own)."""
 
 
@@ -267,7 +259,7 @@ def _sector_polygons(sectors: list[Sector]) -> np.ndarray:
     return polys
 
 
-def _feature_table(feats: list[MapFeature]) -> _FeatureTable:
+def _feature_table(feats: list[MapFeature]) -> kern.FeatureTable:
     """The map features as arrays for the compiled candidates, built once per feature list."""
     hit = _TABLES.get(id(feats))
     if hit is not None and hit[0] is feats and len(feats) == len(hit[1].solvable):
@@ -279,14 +271,14 @@ def _feature_table(feats: list[MapFeature]) -> _FeatureTable:
     return table
 
 
-def _build_table(feats: list[MapFeature]) -> _FeatureTable:
+def _build_table(feats: list[MapFeature]) -> kern.FeatureTable:
     solvable = np.ones(len(feats), dtype=bool)
     for k, f in enumerate(feats):
         try:
             np.linalg.solve(f.normals, np.ones(2))
         except np.linalg.LinAlgError:  # walls along one line: no pose from their two distances
             solvable[k] = False
-    table = _FeatureTable(np.array([f.point for f in feats], dtype=float).reshape(-1, 2),
+    table = kern.FeatureTable(np.array([f.point for f in feats], dtype=float).reshape(-1, 2),
                           np.array([f.normals for f in feats], dtype=float).reshape(-1, 2, 2),
                           np.array([f.walls for f in feats], dtype=float).reshape(-1, 2, 2), solvable)
     return table
@@ -303,10 +295,11 @@ def _feature_poses(feats: list[MapFeature], f1: np.ndarray, scans: list[tuple[np
     corners = np.ascontiguousarray(np.concatenate([s[1] for s in scans]).reshape(-1, 3))
     wstart = np.concatenate([[0], np.cumsum([len(s[0]) for s in scans])]).astype(np.int64)
     cstart = np.concatenate([[0], np.cumsum([len(s[1]) for s in scans])]).astype(np.int64)
-    poses, pair, arcs, arc_pair = kern.feature_candidates(
-        table.points, table.normals, table.walls, table.solvable, f1, walls, wstart, corners, cstart,
-        math.radians(p.heading_tol_deg), float(p.line_tol), ellipse.kernel_record(), kern.EDGE_COS, kern.EDGE_SIN,
-        float(p.ellipse_distance), bool(p.arc_fallback), _ARC_STEP)
+    rules = kern.CandidateRules(math.radians(p.heading_tol_deg), float(p.line_tol), ellipse.kernel_record(),
+                                kern.EDGE_COS, kern.EDGE_SIN, float(p.ellipse_distance), bool(p.arc_fallback),
+                                _ARC_STEP)
+    poses, pair, arcs, arc_pair = kern.feature_candidates(table, f1, kern.ScanRows(walls, wstart, corners, cstart),
+                                                          rules)
     if len(arcs):
         inside = shapely.contains_xy(region, arcs[:, 0], arcs[:, 1])
         poses, pair = np.concatenate([poses, arcs[inside]]), np.concatenate([pair, arc_pair[inside]])
@@ -327,9 +320,10 @@ def _polish(pose: np.ndarray, r: np.ndarray, a: np.ndarray, map_model, ellipse: 
     axes = pose[2] + a[None, :]
     walls, offsets, share, rules = beam_kernel_arguments(sonar, segs, axes)
     discs = Discs(*disc_planes(np.zeros((0, 2)), 0.0, np.full(1, -1), 1))
-    x, f, undecided = kern.nelder_mead(pose, 0.03, p.polish_iters, 1e-3, 1e-5, _ARGSORT4, r, a, p.error_clip, keep,
-                                       ellipse.kernel_record(), kern.EDGE_COS, kern.EDGE_SIN, p.ellipse_distance,
-                                       segs, walls, offsets, share, discs, rules, float(sonar.range_max))
+    fit = kern.ScanFit(measured=r, angles=a, clip=float(p.error_clip), keep=keep, ell=ellipse.kernel_record(),
+                       ecos=kern.EDGE_COS, esin=kern.EDGE_SIN, reach=float(p.ellipse_distance), free=segs, walls=walls,
+                       offsets=offsets, share=share, discs=discs, rules=rules, rmax=float(sonar.range_max))
+    x, f, undecided = kern.nelder_mead(pose, kern.Simplex(0.03, int(p.polish_iters), 1e-3, 1e-5, _ARGSORT4), fit)
     if not undecided:
         return x, float(f)
 

@@ -22,16 +22,18 @@ from __future__ import annotations
 
 import itertools
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from parcover_env.geometry.angle_kernels import wrap
-from parcover_env.sensors.sonar_kernels import beam_readings
+from parcover_env.sensors.sonar_kernels import Discs, WallSet, beam_readings
 
 __all__ = ["EDGE_COS", "EDGE_SIN", "BOUNDARY_GUARD", "MAX_SUM", "argsort4_table", "mean_of", "scan_error_row",
            "scan_errors", "ellipse_distance", "ellipse_beyond", "ellipse_distances", "free_status", "order_simplex",
-           "nelder_mead", "pair_poses", "arc_count", "arc_poses", "feature_candidates"]
+           "nelder_mead", "pair_poses", "arc_count", "arc_poses", "feature_candidates", "first_unique", "ScanFit",
+           "Simplex", "FeatureTable", "ScanRows", "CandidateRules"]
 
 _EDGE_T = np.linspace(0, 2 * math.pi, 256, endpoint=False)
 EDGE_COS = np.cos(_EDGE_T)
@@ -40,6 +42,96 @@ EDGE_SIN = np.sin(_EDGE_T)
 """Their sines."""
 BOUNDARY_GUARD = 1e-9
 """A point nearer than this to a wall (m) is not classified by :func:`free_status` (undecided)."""
+
+
+class ScanFit(NamedTuple):
+    """What the polish's cost compares: a measured scan and how its synthetic scans are made."""
+
+    measured: np.ndarray
+    """``(n,)`` measured ranges (m)."""
+    angles: np.ndarray
+    """``(n,)`` their robot-frame angles (rad)."""
+    clip: float
+    """Per-reading error cap (m)."""
+    keep: int
+    """Readings kept by the trim (the smallest errors)."""
+    ell: np.ndarray
+    """The ellipse record (:func:`ellipse_distance`)."""
+    ecos: np.ndarray
+    """Cosines of its boundary samples."""
+    esin: np.ndarray
+    """Sines of its boundary samples."""
+    reach: float
+    """A pose this far or farther from the ellipse costs ``clip`` (m)."""
+    free: np.ndarray
+    """``(S, 4)`` the free space's boundary segments (a pose outside costs ``clip``)."""
+    walls: WallSet
+    """The walls the synthetic scans see (:func:`parcover_env.sensors.sonar.beam_kernel_arguments`) ..."""
+    offsets: np.ndarray
+    """... the beams' sub-ray offsets ..."""
+    share: np.ndarray
+    """... their shared sub-rays ..."""
+    discs: Discs
+    """... no discs ..."""
+    rules: np.ndarray
+    """... and the sonar's rules record."""
+    rmax: float
+    """Readings are capped at this (m)."""
+
+
+class Simplex(NamedTuple):
+    """Nelder-Mead's settings (scipy's names)."""
+
+    step: float
+    """The initial simplex: ``x0`` and ``x0 + step`` along each axis."""
+    maxiter: int
+    xatol: float
+    fatol: float
+    table: np.ndarray
+    """:func:`argsort4_table`."""
+
+
+class FeatureTable(NamedTuple):
+    """The map's features as arrays (``localizer.MapFeature``)."""
+
+    points: np.ndarray
+    """``(F, 2)`` corners (m)."""
+    normals: np.ndarray
+    """``(F, 2, 2)`` unit normals of the two walls, into free space."""
+    walls: np.ndarray
+    """``(F, 2, 2)`` unit directions along the two walls, leaving the corner."""
+    solvable: np.ndarray
+    """``(F,)`` bool: the two normals are independent (LAPACK solves them)."""
+
+
+class ScanRows(NamedTuple):
+    """The walls and corners of one or more scans, rows ``(bearing, range, index)``."""
+
+    walls: np.ndarray
+    """``(W, 3)``; scan ``s`` has rows ``wstart[s]:wstart[s + 1]``."""
+    wstart: np.ndarray
+    corners: np.ndarray
+    """``(K, 3)``; scan ``s`` has rows ``cstart[s]:cstart[s + 1]``."""
+    cstart: np.ndarray
+
+
+class CandidateRules(NamedTuple):
+    """How Fig. 6's candidates are made and kept."""
+
+    tol: float
+    """Two wall-derived headings agree within this (rad)."""
+    line_tol: float
+    """Line tolerance of a corner-derived pose (m)."""
+    ell: np.ndarray
+    """The ellipse record (:func:`ellipse_distance`)."""
+    ecos: np.ndarray
+    esin: np.ndarray
+    reach: float
+    """Candidates nearer than this to the ellipse are kept (m)."""
+    arc: bool
+    """A pair without candidates gives arc poses."""
+    arc_step: float
+    """Their spacing along the arc (m)."""
 
 
 def argsort4_table() -> np.ndarray:
@@ -204,24 +296,26 @@ def free_status(px, py, segs):
 
 
 @njit(cache=True, nogil=True)
-def _cost(x, measured, angles, clip, keep, ell, ecos, esin, reach, free, walls, offsets, share, discs, rules,
-          rmax, axes, reading, synth, buf):
+def _cost(x, fit, axes, reading, synth, buf):
     """The polish's cost of pose ``x``: ``clip`` outside the free space or ``reach`` or more from the
     ellipse, else the scan error of its synthetic scan; and whether the point was undecided."""
-    st = free_status(x[0], x[1], free)
+    st = free_status(x[0], x[1], fit.free)
     if st < 0:
-        return clip, True
-    if st == 0 or ellipse_beyond(x[0], x[1], ell, reach) or ellipse_distance(x[0], x[1], ell, ecos, esin) >= reach:
-        return clip, False
+        return fit.clip, True
+    if st == 0 or ellipse_beyond(x[0], x[1], fit.ell, fit.reach) or \
+            ellipse_distance(x[0], x[1], fit.ell, fit.ecos, fit.esin) >= fit.reach:
+        return fit.clip, False
+    angles = fit.angles
     for i in range(angles.shape[0]):
         axes[0, i] = x[2] + angles[i]
     ox = np.full(1, x[0])
     oy = np.full(1, x[1])
-    beam_readings(ox, oy, axes, offsets, share, walls, discs, rules, reading)
+    beam_readings(ox, oy, axes, fit.offsets, fit.share, fit.walls, fit.discs, fit.rules, reading)
+    rmax = fit.rmax
     for i in range(angles.shape[0]):
         v = reading[0, i]
         synth[i] = v if v < rmax else rmax
-    return scan_error_row(measured, synth, clip, keep, buf), False
+    return scan_error_row(fit.measured, synth, fit.clip, fit.keep, buf), False
 
 
 @njit(cache=True, nogil=True)
@@ -248,12 +342,13 @@ def order_simplex(sim, fsim, table):
 
 
 @njit(cache=True, nogil=True)
-def nelder_mead(x0, step, maxiter, xatol, fatol, table, measured, angles, clip, keep, ell, ecos, esin, reach, free,
-                walls, offsets, share, discs, rules, rmax):
-    """scipy's Nelder-Mead (non-adaptive) from the simplex ``x0`` and ``x0 + step`` along each axis,
-    minimizing :func:`_cost`. Returns ``(x (3,), f, undecided)``: ``undecided`` when a point came within
-    :data:`BOUNDARY_GUARD` of a wall (then ``x`` and ``f`` mean nothing)."""
-    n = angles.shape[0]
+def nelder_mead(x0, nm, fit):
+    """scipy's Nelder-Mead (non-adaptive; settings ``nm``, a :class:`Simplex`) from the simplex ``x0`` and
+    ``x0 + nm.step`` along each axis, minimizing :func:`_cost` of the :class:`ScanFit` ``fit``. Returns
+    ``(x (3,), f, undecided)``: ``undecided`` when a point came within :data:`BOUNDARY_GUARD` of a wall
+    (then ``x`` and ``f`` mean nothing)."""
+    step, maxiter, xatol, fatol, table = nm.step, nm.maxiter, nm.xatol, nm.fatol, nm.table
+    n = fit.angles.shape[0]
     axes = np.empty((1, n))
     reading = np.empty((1, n))
     synth = np.empty(n)
@@ -264,8 +359,7 @@ def nelder_mead(x0, step, maxiter, xatol, fatol, table, measured, angles, clip, 
             sim[k, j] = x0[j] + (step if k == j + 1 else 0.0)
     fsim = np.empty(4)
     for k in range(4):
-        f, bad = _cost(sim[k], measured, angles, clip, keep, ell, ecos, esin, reach, free, walls, offsets, share,
-                       discs, rules, rmax, axes, reading, synth, buf)
+        f, bad = _cost(sim[k], fit, axes, reading, synth, buf)
         if bad:
             return sim[0].copy(), np.inf, True
         fsim[k] = f
@@ -288,16 +382,14 @@ def nelder_mead(x0, step, maxiter, xatol, fatol, table, measured, angles, clip, 
         for j in range(3):
             xbar[j] = (((0.0 + sim[0, j]) + sim[1, j]) + sim[2, j]) / 3
             xr[j] = 2 * xbar[j] - sim[3, j]
-        fxr, bad = _cost(xr, measured, angles, clip, keep, ell, ecos, esin, reach, free, walls, offsets, share,
-                         discs, rules, rmax, axes, reading, synth, buf)
+        fxr, bad = _cost(xr, fit, axes, reading, synth, buf)
         if bad:
             return sim[0].copy(), np.inf, True
         shrink = False
         if fxr < fsim[0]:
             for j in range(3):
                 xe[j] = 3 * xbar[j] - 2 * sim[3, j]
-            fxe, bad = _cost(xe, measured, angles, clip, keep, ell, ecos, esin, reach, free, walls, offsets, share,
-                             discs, rules, rmax, axes, reading, synth, buf)
+            fxe, bad = _cost(xe, fit, axes, reading, synth, buf)
             if bad:
                 return sim[0].copy(), np.inf, True
             if fxe < fxr:
@@ -313,8 +405,7 @@ def nelder_mead(x0, step, maxiter, xatol, fatol, table, measured, angles, clip, 
             if fxr < fsim[3]:
                 for j in range(3):
                     xe[j] = 1.5 * xbar[j] - 0.5 * sim[3, j]
-                fxc, bad = _cost(xe, measured, angles, clip, keep, ell, ecos, esin, reach, free, walls, offsets,
-                                 share, discs, rules, rmax, axes, reading, synth, buf)
+                fxc, bad = _cost(xe, fit, axes, reading, synth, buf)
                 if bad:
                     return sim[0].copy(), np.inf, True
                 if fxc <= fxr:
@@ -325,8 +416,7 @@ def nelder_mead(x0, step, maxiter, xatol, fatol, table, measured, angles, clip, 
             else:
                 for j in range(3):
                     xe[j] = 0.5 * xbar[j] + 0.5 * sim[3, j]
-                fxcc, bad = _cost(xe, measured, angles, clip, keep, ell, ecos, esin, reach, free, walls, offsets,
-                                  share, discs, rules, rmax, axes, reading, synth, buf)
+                fxcc, bad = _cost(xe, fit, axes, reading, synth, buf)
                 if bad:
                     return sim[0].copy(), np.inf, True
                 if fxcc < fsim[3]:
@@ -338,8 +428,7 @@ def nelder_mead(x0, step, maxiter, xatol, fatol, table, measured, angles, clip, 
                 for k in range(1, 4):
                     for j in range(3):
                         sim[k, j] = sim[0, j] + 0.5 * (sim[k, j] - sim[0, j])
-                    f, bad = _cost(sim[k], measured, angles, clip, keep, ell, ecos, esin, reach, free, walls,
-                                   offsets, share, discs, rules, rmax, axes, reading, synth, buf)
+                    f, bad = _cost(sim[k], fit, axes, reading, synth, buf)
                     if bad:
                         return sim[0].copy(), np.inf, True
                     fsim[k] = f
@@ -426,13 +515,16 @@ def arc_poses(c, fwalls, corners, step, out, m):
 
 
 @njit(cache=True, nogil=True)
-def feature_candidates(points, normals, fwalls, solvable, f1, walls, wstart, corners, cstart, tol, line_tol, ell,
-                       ecos, esin, reach, arc, arc_step):
-    """Fig. 6 candidates of every (map feature ``f1[i]``, scan ``s``) pair in that order: the poses of
-    ``pair_poses`` within ``reach`` of the ellipse ``ell``; with ``arc``, a pair without any gives its
-    arc poses instead (to be tested against the grown ellipse by the caller). Scan ``s`` has
-    ``walls[wstart[s]:wstart[s + 1]]`` and ``corners[cstart[s]:cstart[s + 1]]``. Returns
-    ``(poses (M, 3), pair (M,), arcs (Q, 3), arc_pair (Q,))``, pair ``i * n_scans + s``."""
+def feature_candidates(table, f1, scans, rules):
+    """Fig. 6 candidates of every (map feature ``f1[i]`` of the :class:`FeatureTable`, scan ``s`` of the
+    :class:`ScanRows`) pair in that order: the poses of :func:`pair_poses` within ``rules.reach`` of the
+    ellipse; with ``rules.arc``, a pair without any gives its arc poses instead (to be tested against
+    the grown ellipse by the caller). Returns ``(poses (M, 3), pair (M,), arcs (Q, 3), arc_pair (Q,))``,
+    pair ``i * n_scans + s``."""
+    points, normals, fwalls, solvable = table.points, table.normals, table.walls, table.solvable
+    walls, wstart, corners, cstart = scans.walls, scans.wstart, scans.corners, scans.cstart
+    tol, line_tol, ell, ecos, esin = rules.tol, rules.line_tol, rules.ell, rules.ecos, rules.esin
+    reach, arc, arc_step = rules.reach, rules.arc, rules.arc_step
     n_scans = wstart.shape[0] - 1
     bound = 0
     for s in range(n_scans):

@@ -177,10 +177,12 @@ def test_polish_equals_scipys_nelder_mead_also_next_to_a_wall():
     from parcover_env.sensors.sonar_kernels import Discs
 
     walls, offsets, share, rules = beam_kernel_arguments(sc.robot.sonar, known.segments, on_wall[2] + ANGLES[None])
-    *_, undecided = kern.nelder_mead(on_wall, 0.03, p.polish_iters, 1e-3, 1e-5, kern.argsort4_table(), r, ANGLES,
-                                     p.error_clip, 65, rec, kern.EDGE_COS, kern.EDGE_SIN, p.ellipse_distance,
-                                     known.segments, walls, offsets, share,
-                                     Discs(*disc_planes(np.zeros((0, 2)), 0.0, np.full(1, -1), 1)), rules, 2.54)
+    no_discs = Discs(*disc_planes(np.zeros((0, 2)), 0.0, np.full(1, -1), 1))
+    fit = kern.ScanFit(measured=r, angles=ANGLES, clip=p.error_clip, keep=65, ell=rec, ecos=kern.EDGE_COS,
+                       esin=kern.EDGE_SIN, reach=p.ellipse_distance, free=known.segments, walls=walls, offsets=offsets,
+                       share=share, discs=no_discs, rules=rules, rmax=2.54)
+    nm = kern.Simplex(0.03, p.polish_iters, 1e-3, 1e-5, kern.argsort4_table())
+    *_, undecided = kern.nelder_mead(on_wall, nm, fit)
     assert undecided
     got = loc._polish(on_wall.copy(), r, ANGLES, known, ell, p, sc.robot.sonar)
     want = _scipy_polish(on_wall.copy(), r, known, ell, p, sc.robot.sonar)
