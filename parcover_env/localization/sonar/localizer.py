@@ -28,7 +28,7 @@ candidate poses, the ellipse distance, the scan error and the polish's Nelder-Me
 (:mod:`.localizer_kernels`) run in numba with the float operations, LAPACK/BLAS calls and order of the
 numpy/scipy code they replaced (kept as ``tests/references/sonar_localizer.py``): the results are the
 same bit for bit (``tests/localization/sonar/test_localizer_kernels.py``, ``test_localizer_pinned.py``),
-at 0.5-1.8 ms of CPU per scan (median per row and map) instead of 5-31 ms (``benchmarks/sonar_localization.py
+at 0.4-1.8 ms of CPU per scan (median per row and map) instead of 5-31 ms (``benchmarks/sonar_localization.py
 --reference``; docs/fidelity.md).
 Shapely still decides which sectors meet the grown ellipse, which candidates lie in free space and
 which arc poses lie in the grown ellipse (one vectorized call each).
