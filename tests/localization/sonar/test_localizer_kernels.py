@@ -219,7 +219,7 @@ def test_localize_equals_the_numpy_code_on_pinned_scans(name):
     rule = expert_config(sc).navigator.sector_rule
     known, feats, sectors = known_map_features(sc.map, sc.robot.sonar.range_max, rule)
     angles = SonarRing(sc.robot.sonar).scan_angles
-    for _, params, mis in pinned._benchmark().rows(p0):
+    for _, params, mis in pinned.rows(p0):
         for k in range(0, len(inputs["scans"]), 3):
             est, cov = np.array(inputs["estimates"][k]), np.array(inputs["covariances"][k])
             scan = np.array(inputs["scans_mismatch" if mis else "scans"][k])

@@ -43,7 +43,7 @@ def test_localizer_outcomes_on_pinned_benchmark_scans(name):
     case = DATA["trial"][name]
     inputs = case["inputs"]
     loc = SonarLocalizerConfig(**inputs["loc"])
-    rows = {label: (params, mis) for label, params, mis in pinned._benchmark().rows(loc)}
+    rows = {label: (params, mis) for label, params, mis in pinned.rows(loc)}
     assert set(rows) == set(case["rows"])
     n = len(inputs["scans"])
     for label, want_rows in case["rows"].items():
