@@ -31,9 +31,14 @@ navigator uses); then the paper's method and all extensions against the mismatch
 Columns: ``fix`` = share of trials where the localizer accepts a pose (mean clipped scan error
 <= ``success_error``); ``success`` = share of trials with an accepted pose within
 :data:`POS_OK` m and :data:`HEAD_OK` deg of the truth; ``wrong`` = accepted poses outside that
-("confidently wrong"); median and p90 of the position and heading errors of the accepted poses.
+("confidently wrong"); median and p90 of the position and heading errors of the accepted poses;
+``ms med`` / ``ms p90``: CPU time of one localization (ms, median and p90 over the trials: process CPU
+time, the machine may be shared). ``--reference`` adds the same for the localizer as it was before it
+was compiled (``tests/references/sonar_localizer.py``: numpy, shapely, scipy) and ``same``, the trials
+whose result (accepted or not, pose, error, feature, candidates) is bit-identical to the compiled one's.
 
     PYTHONPATH=. python benchmarks/sonar_localization.py [--trials 200] [--seed 0] [--maps hallway t_room generated:1]
+        [--unknown] [--reference]
 """
 
 from __future__ import annotations
@@ -186,11 +191,24 @@ def make_trials(sc: Scenario, world: MapModel, goal_region: shapely.Geometry, n:
 
 
 def score(trials: list[Trial], scans: list[np.ndarray], angles: np.ndarray, known: MapModel, feats, sectors,
-          params: SonarLocalizerConfig, sonar: SonarConfig) -> dict:
-    pos, head, fixes, good, t0 = [], [], 0, 0, time.perf_counter()
+          params: SonarLocalizerConfig, sonar: SonarConfig, reference=None) -> dict:
+    """Accuracy of ``localize`` on the trials and its CPU time per scan (ms; the process's CPU time, as
+    the machine may be shared); with ``reference`` (the localizer before it was compiled), that one's
+    time too and how many of its results equal the compiled one's bit for bit."""
+    pos, head, fixes, good, ms, ms_ref, same = [], [], 0, 0, [], [], 0
     for tr, scan in zip(trials, scans, strict=True):
-        res = localize(scan, angles, known, sectors, (tr.estimate[:2], tr.covariance[:2, :2]), params,
-                       sonar=sonar, features=feats, heading=float(tr.estimate[2]))
+        args = (scan, angles, known, sectors, (tr.estimate[:2], tr.covariance[:2, :2]), params)
+        kw = {"sonar": sonar, "features": feats, "heading": float(tr.estimate[2])}
+        t0 = time.process_time()
+        res = localize(*args, **kw)
+        ms.append(1000 * (time.process_time() - t0))
+        if reference is not None:
+            t0 = time.process_time()
+            old = reference(*args, **kw)
+            ms_ref.append(1000 * (time.process_time() - t0))
+            same += (old.success, old.error, old.candidates_tried, old.feature) == (
+                res.success, res.error, res.candidates_tried, res.feature) and (
+                (old.pose is None and res.pose is None) or np.array_equal(old.pose, res.pose))
         if not res.success:
             continue
         fixes += 1
@@ -206,7 +224,8 @@ def score(trials: list[Trial], scans: list[np.ndarray], angles: np.ndarray, know
 
     return {"fix": fixes / n, "success": good / n, "wrong": fixes - good, "pos_med": q(pos, 50),
             "pos_p90": q(pos, 90), "head_med": q(head, 50), "head_p90": q(head, 90),
-            "ms": 1000 * (time.perf_counter() - t0) / n}
+            "ms_med": q(ms, 50), "ms_p90": q(ms, 90), "ref_med": q(ms_ref, 50), "ref_p90": q(ms_ref, 90),
+            "same": same}
 
 
 def rows(loc: SonarLocalizerConfig) -> list[tuple[str, SonarLocalizerConfig, bool]]:
@@ -222,7 +241,7 @@ def rows(loc: SonarLocalizerConfig) -> list[tuple[str, SonarLocalizerConfig, boo
             ("all extensions, sonar mismatch", loc, True)]
 
 
-def run_map(name: str, trials_n: int, seed: int, unknown: bool = False) -> None:
+def run_map(name: str, trials_n: int, seed: int, unknown: bool = False, reference=None) -> None:
     sc = load_scenario(name)
     if unknown:
         if name not in UNKNOWN:
@@ -251,13 +270,29 @@ def run_map(name: str, trials_n: int, seed: int, unknown: bool = False) -> None:
     print(f"  odometry prior: position error median {100 * np.median(prior):.1f} cm, p90 "
           f"{100 * np.percentile(prior, 90):.1f} cm; heading error median {np.median(prior_head):.2f} deg, p90 "
           f"{np.percentile(prior_head, 90):.2f} deg; 1-sigma major axis median {100 * np.median(sig):.1f} cm")
+    ref_head = f" {'ref med':>8s} {'ref p90':>8s} {'same':>5s}" if reference is not None else ""
     print(f"  {'row':32s} {'fix':>6s} {'success':>8s} {'wrong':>6s} {'pos med':>8s} {'pos p90':>8s} "
-          f"{'head med':>9s} {'head p90':>9s} {'ms':>6s}")
+          f"{'head med':>9s} {'head p90':>9s} {'ms med':>7s} {'ms p90':>7s}{ref_head}")
+    for _, params, mis in rows(loc):  # untimed warm-up: numba loads its compiled kernels on the first calls
+        score(trials[:2], (scans_mis if mis else scans)[:2], ring.scan_angles, known, feats, sectors, params, sonar)
     for label, params, mis in rows(loc):
-        r = score(trials, scans_mis if mis else scans, ring.scan_angles, known, feats, sectors, params, sonar)
+        r = score(trials, scans_mis if mis else scans, ring.scan_angles, known, feats, sectors, params, sonar,
+                  reference)
+        ref_cols = (f" {r['ref_med']:8.2f} {r['ref_p90']:8.2f} {r['same']:5d}" if reference is not None else "")
         print(f"  {label:32s} {100 * r['fix']:5.0f}% {100 * r['success']:7.0f}% {r['wrong']:6d} "
               f"{100 * r['pos_med']:6.1f}cm {100 * r['pos_p90']:6.1f}cm {r['head_med']:7.2f}deg "
-              f"{r['head_p90']:7.2f}deg {r['ms']:6.0f}")
+              f"{r['head_p90']:7.2f}deg {r['ms_med']:7.2f} {r['ms_p90']:7.2f}{ref_cols}")
+
+
+def _reference_localize():
+    """``localize`` as it was before it was compiled (numpy, shapely, scipy), kept under ``tests/references``."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from references.sonar_localizer import localize as reference
+
+    return reference
 
 
 def main() -> None:
@@ -267,11 +302,16 @@ def main() -> None:
     ap.add_argument("--maps", nargs="+", default=["hallway", "t_room", "generated:1"])
     ap.add_argument("--unknown", action="store_true",
                     help="put obstacles the known map lacks into the world (hallway, t_room; the paper's Fig. 7)")
+    ap.add_argument("--reference", action="store_true",
+                    help="also run the localizer as it was before it was compiled (tests/references/"
+                         "sonar_localizer.py): its CPU ms per scan side by side, and how many results are "
+                         "bit-identical ('same')")
     args = ap.parse_args()
+    reference = _reference_localize() if args.reference else None
     print(f"success: accepted fix within {100 * POS_OK:.0f} cm and {HEAD_OK:.0f} deg of the truth; wrong: accepted "
           f"fixes outside that; errors over accepted fixes. Mismatch rows: {MISMATCH}.")
     for name in args.maps:
-        run_map(name, args.trials, args.seed, args.unknown)
+        run_map(name, args.trials, args.seed, args.unknown, reference)
 
 
 if __name__ == "__main__":

@@ -48,7 +48,8 @@ from parcover_env.sensors import sonar_kernels as kern
 from parcover_env.sensors import sonar_ring_kernels as ring_kern
 from parcover_env.sensors.base import SensingState
 
-__all__ = ["SonarRing", "AMIGOBOT_ANGLES_DEG", "concave_corners", "simulate_beams", "crosstalk"]
+__all__ = ["SonarRing", "AMIGOBOT_ANGLES_DEG", "concave_corners", "simulate_beams", "beam_kernel_arguments",
+           "crosstalk"]
 
 AMIGOBOT_ANGLES_DEG = (90.0, 44.0, 12.0, -12.0, -44.0, -90.0, -144.0, 144.0)
 """AmigoBot sonar layout (robot frame, deg): six forward-facing transducers and two rear ones."""
@@ -181,6 +182,19 @@ def simulate_beams(cfg: SonarConfig, origins: np.ndarray, axes: np.ndarray, segm
     reading = np.empty((n, b))
     kern.beam_readings(ox, oy, axes, offsets, _share(axes, offsets), walls.kernel, discs, rules, reading)
     return np.minimum(reading, rmax, out=reading)
+
+
+def beam_kernel_arguments(cfg: SonarConfig, segments: np.ndarray, axes: np.ndarray,
+                          n_subrays: int = 5) -> tuple:
+    """What :func:`simulate_beams` hands :func:`~parcover_env.sensors.sonar_kernels.beam_readings` for
+    beams ``axes (N, B)`` on the walls ``segments``: ``(walls, offsets, share, rules)`` (the
+    :class:`~parcover_env.sensors.sonar_kernels.WallSet`, the sub-ray offsets, the shared sub-rays and the
+    :data:`~parcover_env.sensors.sonar_kernels.SONAR_RULES` record), for compiled code that casts beams of
+    that pattern many times (the sonar localizer's polish) with the same float operations. Readings
+    are then ``min(reading, range_max)`` as here."""
+    offsets = _offsets(cfg, n_subrays)
+    share = _share(np.ascontiguousarray(axes, dtype=float), offsets)
+    return _walls(segments).kernel, offsets, share, _rules(cfg, box_cull=rays.BOX_CULL)
 
 
 _NONE = np.empty(0)  # an empty draw (that step is off); never written

@@ -15,7 +15,7 @@ import numpy as np
 from shapely.geometry import Polygon
 from shapely.geometry.polygon import orient
 
-from parcover_env.geometry import atan2, wrap_angle
+from parcover_env.localization.sonar import scan_kernels
 from parcover_env.localization.sonar.params import SonarLocalizerParams
 
 __all__ = ["MapFeature", "map_features", "ScanPoints", "WallObservation", "CornerObservation",
@@ -96,12 +96,6 @@ class ScanPoints:
     """One wall per m point (normal bearing from a line fit or the plateau centre)."""
 
 
-def _side_windows(n: int, w: int) -> tuple[np.ndarray, np.ndarray]:
-    i = np.arange(n)[:, None]
-    k = np.arange(1, w + 1)[None, :]
-    return (i - k) % n, (i + k) % n
-
-
 def characteristic_points(ranges, angles, range_max: float,
                           params: SonarLocalizerParams | None = None) -> ScanPoints:
     """Characteristic points of a circular scan ``ranges (n,)`` taken at robot-frame ``angles (n,)``.
@@ -118,86 +112,19 @@ def characteristic_points(ranges, angles, range_max: float,
                          f"{a.shape}")
     if not np.all(np.isfinite(r)):
         raise ValueError("ranges contain NaN or infinite values")
-    n = len(r)
-    far = r >= range_max - p.far_margin
-    nxt = np.roll(np.arange(n), -1)
-    jump = ~far & ~far[nxt] & (np.abs(r - r[nxt]) > p.jump_threshold)
-    is_d = np.zeros(n, bool)
-    is_c = np.zeros(n, bool)
-    for i in np.nonzero(jump)[0]:
-        j = nxt[i]
-        hi, lo = (i, j) if r[i] > r[j] else (j, i)
-        is_d[hi] = True
-        is_c[lo] = True
-    w = min(p.window, (n - 1) // 2)
-    left, right = _side_windows(n, w)
-    rl, rr = r[left], r[right]
-    fl, fr = far[left], far[right]
-    # maxima: f neighbours count as lower (unknown), echoes must not exceed r_i
-    lmax = np.where(fl, -np.inf, rl).max(axis=1)
-    rmax = np.where(fr, -np.inf, rr).max(axis=1)
-    lmin = np.where(fl, -np.inf, rl).min(axis=1, initial=np.inf)
-    rmin = np.where(fr, -np.inf, rr).min(axis=1, initial=np.inf)
-    prom_l = fl.any(axis=1) | (r - np.where(np.isfinite(lmin), lmin, r) >= p.prominence)
-    prom_r = fr.any(axis=1) | (r - np.where(np.isfinite(rmin), rmin, r) >= p.prominence)
-    loose_max = ~far & ~is_c & (r > lmax) & (r >= rmax) & prom_l & prom_r
-    # an M point proper has echoes (not f) on both sides: a wall reaching the range limit is no corner
-    is_max = loose_max & ~fl[:, 0] & ~fr[:, 0]
-    # minima: f neighbours count as higher
-    lmn = np.where(fl, np.inf, rl).min(axis=1)
-    rmn = np.where(fr, np.inf, rr).min(axis=1)
-    is_min = ~far & ~is_d & ~is_c & (r < lmn) & (r <= rmn)
-    labels = np.full(n, ".")
-    labels[is_min] = "m"
-    labels[is_c] = "c"
-    labels[is_d] = "D"
-    labels[is_max] = "M"
-    labels[far] = "f"
-    maxima, minima = np.nonzero(is_max)[0], np.nonzero(is_min)[0]
-    corners = [CornerObservation(_plateau_bearing(r, a, far, i, p.plateau_tol), float(r[i]), int(i))
-               for i in np.nonzero(loose_max)[0]]
-    walls = [_wall_observation(r, a, far, i, p) for i in minima]
-    return ScanPoints("".join(labels), maxima, minima, corners, walls)
+    labels, corners, walls = scan_kernels.characteristic_points(
+        np.ascontiguousarray(r), *_sin_cos(a), float(range_max), float(p.far_margin), float(p.jump_threshold),
+        float(p.prominence), int(p.window), float(p.plateau_tol), float(p.line_tol), _OFF_NORMAL)
+    return ScanPoints("".join([scan_kernels.LABEL_CODES[c] for c in labels.tolist()]), np.flatnonzero(labels == 4),
+                      np.flatnonzero(labels == 1),
+                      [CornerObservation(b, rr, int(i)) for b, rr, i in corners.tolist()],
+                      [WallObservation(b, d, int(i)) for b, d, i in walls.tolist()])
 
 
-def _plateau(r, far, i, tol) -> list[int]:
-    """Contiguous readings (circular) within ``tol`` of reading ``i``, in angular order."""
-    n = len(r)
-    run = [i]
-    for step in (-1, 1):
-        j = i
-        for _ in range(n // 2):
-            j = (j + step) % n
-            if far[j] or abs(r[j] - r[i]) > tol or j in run:
-                break
-            run.insert(0, j) if step < 0 else run.append(j)
-    return run
+_OFF_NORMAL = float(np.radians(20.0))
+"""A wall's fitted normal replaces its plateau bearing when within this of it (rad)."""
 
 
-def _circular_mean(angles) -> float:
-    return float(atan2(np.mean(np.sin(angles)), np.mean(np.cos(angles))))
-
-
-def _plateau_bearing(r, a, far, i, tol) -> float:
-    return _circular_mean(a[_plateau(r, far, i, tol)])
-
-
-def _wall_observation(r, a, far, i, p: SonarLocalizerParams) -> WallObservation:
-    run = _plateau(r, far, i, p.plateau_tol)
-    n = len(r)
-    idx = [(run[0] - k) % n for k in range(p.window, 0, -1)] + run + [(run[-1] + k) % n
-                                                                    for k in range(1, p.window + 1)]
-    idx = [j for j in dict.fromkeys(idx) if not far[j]]
-    bearing = _circular_mean(a[run])
-    if len(idx) >= 3:
-        pts = np.stack([r[idx] * np.cos(a[idx]), r[idx] * np.sin(a[idx])], axis=1)
-        centre = pts.mean(axis=0)
-        _, s, vt = np.linalg.svd(pts - centre)
-        normal = vt[1]
-        if normal @ centre < 0:
-            normal = -normal
-        rms = s[1] / np.sqrt(len(idx))
-        if rms < p.line_tol and abs(wrap_angle(atan2(normal[1], normal[0]) - bearing)) \
-                < np.radians(20.0):
-            bearing = float(atan2(normal[1], normal[0]))
-    return WallObservation(bearing, float(r[i]), int(i))
+def _sin_cos(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """numpy's sines and cosines of the reading angles ``a`` (contiguous), for the compiled scan kernels."""
+    return np.ascontiguousarray(np.sin(a)), np.ascontiguousarray(np.cos(a))

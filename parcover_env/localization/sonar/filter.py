@@ -15,16 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from parcover_env.localization.sonar import scan_kernels
+
 __all__ = ["filter_scan"]
-
-
-def _fit_line(pts: np.ndarray) -> tuple[np.ndarray, float, float]:
-    centre = pts.mean(axis=0)
-    _, s, vt = np.linalg.svd(pts - centre)
-    normal = vt[1]
-    if normal @ centre < 0:
-        normal = -normal
-    return normal, float(normal @ centre), float(s[1] / np.sqrt(len(pts)))
 
 
 def filter_scan(ranges, angles, range_max: float, repeats: int = 4, half_window: int = 1,
@@ -36,31 +29,6 @@ def filter_scan(ranges, angles, range_max: float, repeats: int = 4, half_window:
         raise ValueError(f"ranges and angles must be equal-length 1-D arrays, got {r.shape}, {a.shape}")
     if repeats < 1 or half_window < 1:
         raise ValueError(f"repeats and half_window must be >= 1, got {repeats}, {half_window}")
-    n = len(r)
-    done = np.zeros(n, dtype=bool)
-    u = np.stack([np.cos(a), np.sin(a)], axis=1)
-    for _ in range(repeats):
-        free = np.nonzero(~done & (r < range_max))[0]
-        if len(free) == 0:
-            break
-        ms = int(free[np.argmin(r[free])])
-        done[ms] = True
-        idx = [(ms + k) % n for k in range(-half_window, half_window + 1)]
-        if np.any(r[idx] >= range_max):
-            continue
-        normal, dist, rms = _fit_line(r[idx, None] * u[idx])
-        if rms > line_tol:
-            continue
-        for step in (-1, 1):
-            cur = ms
-            for _ in range(n - 1):
-                nxt = (cur + step) % n
-                if nxt == ms or r[nxt] <= r[cur]:
-                    break
-                cos = float(u[nxt] @ normal)
-                if cos <= 0.05 or dist / cos > range_max or dist / cos > r[nxt] + line_tol:
-                    break  # L runs behind the reading: a nearer surface (the next wall of a corner)
-                r[nxt] = dist / cos
-                done[nxt] = True
-                cur = nxt
-    return r
+    return scan_kernels.filter_scan(np.ascontiguousarray(r), np.ascontiguousarray(np.sin(a)),
+                                    np.ascontiguousarray(np.cos(a)), float(range_max), int(repeats), int(half_window),
+                                    float(line_tol))

@@ -22,12 +22,23 @@ Extensions beyond the paper, each a switch of :class:`~parcover_env.localization
   paper only suggests least squares to cut its 13 cm error.
 
 ``benchmarks/sonar_localization.py`` measures each of them against the paper's method alone.
+
+Compiled (issue 40): the characteristic points and the Fig. 11 filter (:mod:`.scan_kernels`), the
+candidate poses, the ellipse distance, the scan error and the polish's Nelder-Mead
+(:mod:`.localizer_kernels`) run in numba with the float operations, LAPACK/BLAS calls and order of the
+numpy/scipy code they replaced (kept as ``tests/references/sonar_localizer.py``): the results are the
+same bit for bit (``tests/localization/sonar/test_localizer_kernels.py``, ``test_localizer_pinned.py``),
+at 0.4-1.8 ms of CPU per scan (median per row and map) instead of 5-31 ms (``benchmarks/sonar_localization.py
+--reference``; docs/fidelity.md).
+Shapely still decides which sectors meet the grown ellipse, which candidates lie in free space and
+which arc poses lie in the grown ellipse (one vectorized call each).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 import shapely
@@ -35,18 +46,31 @@ from scipy.optimize import minimize
 
 from parcover_env.config import SonarConfig
 from parcover_env.geometry import wrap_angle
+from parcover_env.geometry.rays import disc_planes
+from parcover_env.localization.sonar import localizer_kernels as kern
+from parcover_env.localization.sonar import scan_kernels
 from parcover_env.localization.sonar.features import (
     MapFeature,
     ScanPoints,
-    characteristic_points,
     map_features,
 )
 from parcover_env.localization.sonar.filter import filter_scan
 from parcover_env.localization.sonar.params import SonarLocalizerParams
 from parcover_env.localization.sonar.sectors import Sector
-from parcover_env.sensors.sonar import simulate_beams
+from parcover_env.sensors.sonar import beam_kernel_arguments, simulate_beams
+from parcover_env.sensors.sonar_kernels import Discs
 
 __all__ = ["Ellipse", "LocalizationResult", "localize", "synthetic_scans", "scan_error", "pose_candidates"]
+
+
+@lru_cache(maxsize=8)
+def _unit_circle(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cosines and sines of ``n`` angles evenly spaced over a turn (numpy's; read-only)."""
+    t = np.linspace(0, 2 * math.pi, n, endpoint=False)
+    cos_t, sin_t = np.cos(t), np.sin(t)
+    cos_t.setflags(write=False)
+    sin_t.setflags(write=False)
+    return cos_t, sin_t
 
 
 @dataclass(frozen=True)
@@ -95,24 +119,25 @@ class Ellipse:
         return replace(self, center=tuple(center))
 
     def polygon(self, n: int = 64) -> shapely.Polygon:
-        t = np.linspace(0, 2 * math.pi, n, endpoint=False)
+        cos_t, sin_t = _unit_circle(int(n))
         a, b = max(self.axes[0], 1e-6), max(self.axes[1], 1e-6)
         c, s = math.cos(self.angle), math.sin(self.angle)
-        x, y = a * np.cos(t), b * np.sin(t)
+        x, y = a * cos_t, b * sin_t
         return shapely.Polygon(np.stack([self.center[0] + c * x - s * y, self.center[1] + s * x + c * y], 1))
 
     def distance(self, points) -> np.ndarray:
         """Distance from each point ``(P, 2)`` to the ellipse (0 inside); boundary sampled at 256 points."""
-        p = np.atleast_2d(np.asarray(points, dtype=float)) - np.asarray(self.center)
-        c, s = math.cos(self.angle), math.sin(self.angle)
-        local = np.stack([c * p[:, 0] + s * p[:, 1], -s * p[:, 0] + c * p[:, 1]], axis=1)
-        a, b = max(self.axes[0], 1e-9), max(self.axes[1], 1e-9)
-        inside = (local[:, 0] / a) ** 2 + (local[:, 1] / b) ** 2 <= 1.0
-        t = np.linspace(0, 2 * math.pi, 256, endpoint=False)
-        edge = np.stack([a * np.cos(t), b * np.sin(t)], axis=1)
-        d = np.linalg.norm(local[:, None, :] - edge[None, :, :], axis=-1).min(axis=1)
-        return np.where(inside, 0.0, d)
+        p = np.atleast_2d(np.asarray(points, dtype=float))
+        out = np.empty(len(p))
+        kern.ellipse_distances(np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]), self.kernel_record(),
+                                    kern.EDGE_COS, kern.EDGE_SIN, out)
+        return out
 
+    def kernel_record(self) -> np.ndarray:
+        """``(cx, cy, cos angle, sin angle, a, b)`` with the semi-axes at least 1e-9: the ellipse as
+        :func:`~parcover_env.localization.sonar.localizer_kernels.ellipse_distance` reads it."""
+        return np.array([self.center[0], self.center[1], math.cos(self.angle), math.sin(self.angle),
+                         max(self.axes[0], 1e-9), max(self.axes[1], 1e-9)])
 
 @dataclass(frozen=True, eq=False)
 class LocalizationResult:
@@ -137,38 +162,34 @@ def synthetic_scans(poses, scan_angles, segments, sonar: SonarConfig) -> np.ndar
 
 def scan_error(measured, synthetic, clip: float, trim: float = 0.0) -> np.ndarray:
     """Mean clipped absolute range error per synthetic scan (rows), over the best ``1 - trim``
-    share of the readings (``trim`` drops the worst: other robots, multipath, unknown obstacles)."""
-    e = np.minimum(np.abs(np.atleast_2d(synthetic) - np.asarray(measured)[None, :]), clip)
-    keep = e.shape[1] - int(math.floor(trim * e.shape[1]))
-    if keep < e.shape[1]:
-        e = np.partition(e, keep - 1, axis=1)[:, :keep]
-    return e.mean(axis=1)
+    share of the readings (``trim`` drops the worst: other robots, multipath, unknown obstacles).
+    Compiled (:func:`~parcover_env.localization.sonar.localizer_kernels.scan_errors`): the kept errors
+    are summed in ascending order with a trim, in reading order without."""
+    m = np.ascontiguousarray(measured, dtype=float)
+    synth = np.ascontiguousarray(np.atleast_2d(synthetic), dtype=float)
+    if synth.shape[1:] != m.shape or m.ndim != 1:
+        raise ValueError(f"scan_error: synthetic scans {synth.shape} do not match the measured scan {m.shape}")
+    keep = len(m) - int(math.floor(trim * len(m)))
+    out = np.empty(len(synth))
+    kern.scan_errors(m, synth, float(clip), keep, out)
+    return out
+
+
+def _scan_arrays(scan: ScanPoints) -> tuple[np.ndarray, np.ndarray]:
+    walls = np.array([(w.bearing, w.distance, w.index) for w in scan.walls], dtype=float).reshape(-1, 3)
+    corners = np.array([(k.bearing, k.range, k.index) for k in scan.corners], dtype=float).reshape(-1, 3)
+    return walls, corners
 
 
 def pose_candidates(feature: MapFeature, scan: ScanPoints, params: SonarLocalizerParams) -> list[np.ndarray]:
-    """Poses (x, y, theta) that explain ``feature`` by the scan's walls and corners."""
-    c, out = feature.point, []
-    tol = math.radians(params.heading_tol_deg)
-    normal_ang = [math.atan2(-n[1], -n[0]) for n in feature.normals]  # robot -> wall direction
-    heads = [[(float(wrap_angle(normal_ang[i] - w.bearing)), w) for w in scan.walls] for i in (0, 1)]
-    for th0, w0 in heads[0]:
-        for th1, w1 in heads[1]:
-            if w0.index == w1.index or abs(wrap_angle(th0 - th1)) > tol:
-                continue
-            th = math.atan2(math.sin(th0) + math.sin(th1), math.cos(th0) + math.cos(th1))
-            try:
-                p = c + np.linalg.solve(feature.normals, np.array([w0.distance, w1.distance]))
-            except np.linalg.LinAlgError:
-                continue
-            out.append(np.array([p[0], p[1], th]))
-    for i in (0, 1):
-        n = feature.normals[i]
-        for th, w in heads[i]:
-            for k in scan.corners:
-                p = c - k.range * np.array([math.cos(th + k.bearing), math.sin(th + k.bearing)])
-                if abs(n @ (p - c) - w.distance) <= 2 * params.line_tol + 0.02 * w.distance:
-                    out.append(np.array([p[0], p[1], th]))
-    return out
+    """Poses (x, y, theta) that explain ``feature`` by the scan's walls and corners (compiled:
+    :func:`~parcover_env.localization.sonar.localizer_kernels.pair_poses`, the ones :func:`localize` uses)."""
+    walls, corners = _scan_arrays(scan)
+    out = np.empty((len(walls) ** 2 + 2 * len(walls) * len(corners), 3))
+    table = _build_table([feature])
+    m = kern.pair_poses(table.points[0], table.normals[0], bool(table.solvable[0]), walls, corners,
+                        math.radians(params.heading_tol_deg), float(params.line_tol), out, 0)
+    return list(out[:m])
 
 
 def arc_candidates(feature: MapFeature, scan: ScanPoints, region: shapely.Geometry,
@@ -176,18 +197,12 @@ def arc_candidates(feature: MapFeature, scan: ScanPoints, region: shapely.Geomet
     """Fallback beyond the paper (``arc_fallback``) when no wall of the corner shows its perpendicular
     foot: poses on the circle of the measured corner range around the corner, inside the corner's
     wedge and ``region`` (the grown ellipse), every ``step`` metres of arc; heading from the corner's
-    measured bearing."""
-    c, out = feature.point, []
-    a1 = math.atan2(feature.walls[0][1], feature.walls[0][0])
-    span = float(wrap_angle(math.atan2(feature.walls[1][1], feature.walls[1][0]) - a1))
-    for k in scan.corners:
-        n = max(2, int(abs(span) * k.range / step))
-        psi = a1 + np.linspace(0.0, span, n + 1)[1:-1]
-        pts = c + k.range * np.stack([np.cos(psi), np.sin(psi)], axis=1)
-        inside = shapely.contains_xy(region, pts[:, 0], pts[:, 1])
-        for q, ps in zip(pts[inside], psi[inside], strict=True):
-            out.append(np.array([q[0], q[1], float(wrap_angle(ps + math.pi - k.bearing))]))
-    return out
+    measured bearing (compiled: :func:`~parcover_env.localization.sonar.localizer_kernels.arc_poses`)."""
+    _, corners = _scan_arrays(scan)
+    walls = np.ascontiguousarray(feature.walls, dtype=float)
+    out = np.empty((kern.arc_count(walls, corners, float(step)), 3))
+    kern.arc_poses(np.ascontiguousarray(feature.point, dtype=float), walls, corners, float(step), out, 0)
+    return list(out[shapely.contains_xy(region, out[:, 0], out[:, 1])])
 
 
 def _grid_candidates(ellipse: Ellipse, heading: float, map_model, p: SonarLocalizerParams) -> np.ndarray:
@@ -204,6 +219,123 @@ def _grid_candidates(ellipse: Ellipse, heading: float, map_model, p: SonarLocali
     dh = math.radians(p.grid_heading_step_deg)
     heads = heading + dh * np.arange(-p.grid_heading_steps, p.grid_heading_steps + 1)
     return np.column_stack([np.repeat(xy, len(heads), axis=0), np.tile(heads, len(xy))])
+
+
+_ARGSORT4 = kern.argsort4_table()
+_OFF_NORMAL = float(np.radians(20.0))
+"""A wall's fitted normal replaces its plateau bearing when within this of it (rad), as in ``features``."""
+_ARC_STEP = 0.03
+"""Arc step of :func:`arc_candidates` in the localizer (m)."""
+
+
+def _scan_rows(r: np.ndarray, sin_a: np.ndarray, cos_a: np.ndarray, range_max: float,
+               p: SonarLocalizerParams) -> tuple[np.ndarray, np.ndarray]:
+    """The scan's walls and corners ``(W, 3), (K, 3)`` (rows bearing, range, index) as
+    :func:`~parcover_env.localization.sonar.features.characteristic_points` finds them."""
+    _, corners, walls = scan_kernels.characteristic_points(
+        r, sin_a, cos_a, float(range_max), float(p.far_margin), float(p.jump_threshold), float(p.prominence),
+        int(p.window), float(p.plateau_tol), float(p.line_tol), _OFF_NORMAL)
+    return walls, corners
+
+
+_TABLES: dict[int, tuple[list, kern.FeatureTable]] = {}
+"""The last few feature lists' tables (keyed by identity; the list is held, so its id stays its own)."""
+
+
+_POLYGONS: dict[int, tuple[list, np.ndarray]] = {}
+"""The last few sector lists' polygons as an array (keyed by identity; the list is held)."""
+
+
+def _sector_polygons(sectors: list[Sector]) -> np.ndarray:
+    """The sectors' polygons as one array, for one vectorized ``intersects`` (the same GEOS predicate)."""
+    hit = _POLYGONS.get(id(sectors))
+    if hit is not None and hit[0] is sectors and len(hit[1]) == len(sectors):
+        return hit[1]
+    polys = np.empty(len(sectors), dtype=object)
+    polys[:] = [s.polygon for s in sectors]
+    if len(_POLYGONS) >= 16:
+        _POLYGONS.pop(next(iter(_POLYGONS)))
+    _POLYGONS[id(sectors)] = (sectors, polys)
+    return polys
+
+
+def _feature_table(feats: list[MapFeature]) -> kern.FeatureTable:
+    """The map features as arrays for the compiled candidates, built once per feature list."""
+    hit = _TABLES.get(id(feats))
+    if hit is not None and hit[0] is feats and len(feats) == len(hit[1].solvable):
+        return hit[1]
+    table = _build_table(feats)
+    if len(_TABLES) >= 16:
+        _TABLES.pop(next(iter(_TABLES)))
+    _TABLES[id(feats)] = (feats, table)
+    return table
+
+
+def _build_table(feats: list[MapFeature]) -> kern.FeatureTable:
+    solvable = np.ones(len(feats), dtype=bool)
+    for k, f in enumerate(feats):
+        try:
+            np.linalg.solve(f.normals, np.ones(2))
+        except np.linalg.LinAlgError:  # walls along one line: no pose from their two distances
+            solvable[k] = False
+    table = kern.FeatureTable(np.array([f.point for f in feats], dtype=float).reshape(-1, 2),
+                          np.array([f.normals for f in feats], dtype=float).reshape(-1, 2, 2),
+                          np.array([f.walls for f in feats], dtype=float).reshape(-1, 2, 2), solvable)
+    return table
+
+
+def _feature_poses(feats: list[MapFeature], f1: np.ndarray, scans: list[tuple[np.ndarray, np.ndarray]],
+                   ellipse: Ellipse, region: shapely.Geometry,
+                   p: SonarLocalizerParams) -> tuple[np.ndarray, np.ndarray]:
+    """Fig. 6 steps 5-7: for each feature of ``f1`` and each scan (walls, corners), the poses of
+    :func:`pose_candidates` within ``ellipse_distance`` of the ellipse, or, with ``arc_fallback`` and
+    none, those of :func:`arc_candidates` inside ``region``; ``(poses (M, 3), owners (M,))`` in that order."""
+    table = _feature_table(feats)
+    walls = np.ascontiguousarray(np.concatenate([s[0] for s in scans]).reshape(-1, 3))
+    corners = np.ascontiguousarray(np.concatenate([s[1] for s in scans]).reshape(-1, 3))
+    wstart = np.concatenate([[0], np.cumsum([len(s[0]) for s in scans])]).astype(np.int64)
+    cstart = np.concatenate([[0], np.cumsum([len(s[1]) for s in scans])]).astype(np.int64)
+    rules = kern.CandidateRules(math.radians(p.heading_tol_deg), float(p.line_tol), ellipse.kernel_record(),
+                                kern.EDGE_COS, kern.EDGE_SIN, float(p.ellipse_distance), bool(p.arc_fallback),
+                                _ARC_STEP)
+    poses, pair, arcs, arc_pair = kern.feature_candidates(table, f1, kern.ScanRows(walls, wstart, corners, cstart),
+                                                          rules)
+    if len(arcs):
+        inside = shapely.contains_xy(region, arcs[:, 0], arcs[:, 1])
+        poses, pair = np.concatenate([poses, arcs[inside]]), np.concatenate([pair, arc_pair[inside]])
+        order = np.argsort(pair, kind="stable")
+        poses, pair = poses[order], pair[order]
+    return poses, f1[pair // len(scans)] if len(pair) else np.zeros(0, dtype=np.int64)
+
+
+def _polish(pose: np.ndarray, r: np.ndarray, a: np.ndarray, map_model, ellipse: Ellipse, p: SonarLocalizerParams,
+            sonar: SonarConfig) -> tuple[np.ndarray, float]:
+    """The polish (extension ``polish``): Nelder-Mead from ``pose`` over the clipped, trimmed scan error,
+    a pose outside the free space or ``ellipse_distance`` or more from the ellipse costing
+    ``error_clip``. Compiled (:func:`~parcover_env.localization.sonar.localizer_kernels.nelder_mead`); a
+    pose within 1e-9 m of a wall leaves the decision to shapely, through scipy's Nelder-Mead (the same
+    steps). Returns the minimizer and its cost."""
+    segs = map_model.segments
+    keep = len(r) - int(math.floor(p.error_trim * len(r)))
+    axes = pose[2] + a[None, :]
+    walls, offsets, share, rules = beam_kernel_arguments(sonar, segs, axes)
+    discs = Discs(*disc_planes(np.zeros((0, 2)), 0.0, np.full(1, -1), 1))
+    fit = kern.ScanFit(measured=r, angles=a, clip=float(p.error_clip), keep=keep, ell=ellipse.kernel_record(),
+                       ecos=kern.EDGE_COS, esin=kern.EDGE_SIN, reach=float(p.ellipse_distance), free=segs, walls=walls,
+                       offsets=offsets, share=share, discs=discs, rules=rules, rmax=float(sonar.range_max))
+    x, f, undecided = kern.nelder_mead(pose, kern.Simplex(0.03, int(p.polish_iters), 1e-3, 1e-5, _ARGSORT4), fit)
+    if not undecided:
+        return x, float(f)
+
+    def cost(x):
+        if not map_model.contains(x[None, :2])[0] or ellipse.distance(x[None, :2])[0] >= p.ellipse_distance:
+            return p.error_clip
+        return float(scan_error(r, synthetic_scans(x[None], a, segs, sonar), p.error_clip, p.error_trim)[0])
+
+    res = minimize(cost, pose, method="Nelder-Mead",
+                   options={"maxiter": p.polish_iters, "xatol": 1e-3, "fatol": 1e-5,
+                            "initial_simplex": pose + np.array([[0, 0, 0], [0.03, 0, 0], [0, 0.03, 0], [0, 0, 0.03]])})
+    return np.asarray(res.x, dtype=float), float(res.fun)
 
 
 def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
@@ -234,33 +366,25 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
         raise ValueError(f"heading_tol must be > 0 (rad), got {heading_tol}")
     feats = map_features(map_model) if features is None else features
     region = ellipse.polygon().buffer(p.ellipse_distance)
-    f1 = sorted(set().union(*[s.features for s in sectors if s.polygon.intersects(region)]))
+    meets = shapely.intersects(_sector_polygons(sectors), region)
+    f1 = sorted(set().union(*[s.features for s, hit in zip(sectors, meets.tolist(), strict=True) if hit]))
     # Kim, Pearce & Amato Fig. 11: features also come from the filtered scan (too-long readings moved onto the
     # nearest walls); the raw scan's features stay candidates (the filter can erase a wall's end)
-    scans = [characteristic_points(r, a, sonar.range_max, p)]
+    sin_a, cos_a = np.ascontiguousarray(np.sin(a)), np.ascontiguousarray(np.cos(a))
+    r = np.ascontiguousarray(r)
+    scans = [_scan_rows(r, sin_a, cos_a, sonar.range_max, p)]
     if p.filter:
         r_filt = filter_scan(r, a, sonar.range_max, p.filter_repeats, p.filter_half_window, p.filter_line_tol)
         if not np.array_equal(r_filt, r):
-            scans.insert(0, characteristic_points(r_filt, a, sonar.range_max, p))
-    cands, owners = [], []
-    for fi in f1:
-        for scan in scans:
-            qs = [q for q in pose_candidates(feats[fi], scan, p)
-                  if ellipse.distance(q[None, :2])[0] < p.ellipse_distance]
-            if not qs and p.arc_fallback:
-                qs = arc_candidates(feats[fi], scan, region)
-            cands.extend(qs)
-            owners.extend([fi] * len(qs))
+            scans.insert(0, _scan_rows(r_filt, sin_a, cos_a, sonar.range_max, p))
+    poses, owners = _feature_poses(feats, np.array(f1, dtype=np.int64), scans, ellipse, region, p)
     segs = map_model.segments
-    poses = np.array(cands).reshape(-1, 3)
     keep = (ellipse.distance(poses[:, :2]) < p.ellipse_distance) & map_model.contains(poses[:, :2])
     if heading is not None:
         tol = math.radians(p.heading_prior_tol_deg) if heading_tol is None else float(heading_tol)
         keep &= np.abs(wrap_angle(poses[:, 2] - float(heading))) <= tol
-    poses, owners = poses[keep], np.asarray(owners, dtype=np.int64)[keep]
-    _, uniq = np.unique(np.round(np.column_stack([poses[:, :2] / 0.01, poses[:, 2] / 0.01])), axis=0,
-                        return_index=True)
-    uniq = np.sort(uniq)[: p.max_candidates]
+    poses, owners = poses[keep], owners[keep]
+    uniq = kern.first_unique(np.round(np.column_stack([poses[:, :2] / 0.01, poses[:, 2] / 0.01])))[: p.max_candidates]
     poses, owners = poses[uniq], owners[uniq]
     err = scan_error(r, synthetic_scans(poses, a, segs, sonar), p.error_clip, p.error_trim) if len(poses) \
         else np.zeros(0)
@@ -275,17 +399,8 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
     best = int(np.argmin(err))
     pose, e = poses[best].copy(), float(err[best])
     if p.polish:
-        def cost(x):
-            if not map_model.contains(x[None, :2])[0] or \
-                    ellipse.distance(x[None, :2])[0] >= p.ellipse_distance:
-                return p.error_clip
-            return float(scan_error(r, synthetic_scans(x[None], a, segs, sonar), p.error_clip, p.error_trim)[0])
-
-        res = minimize(cost, pose, method="Nelder-Mead",
-                       options={"maxiter": p.polish_iters, "xatol": 1e-3, "fatol": 1e-5,
-                                "initial_simplex": pose + np.array([[0, 0, 0], [0.03, 0, 0], [0, 0.03, 0],
-                                                                    [0, 0, 0.03]])})
-        if res.fun < e:
-            pose, e = np.asarray(res.x, dtype=float), float(res.fun)
+        res = _polish(pose, r, a, map_model, ellipse, p, sonar)
+        if res[1] < e:
+            pose, e = res
     pose[2] = float(wrap_angle(pose[2]))
     return LocalizationResult(pose, e, len(poses), e <= p.success_error, int(owners[best]))
