@@ -124,7 +124,8 @@ class BatchedVecEnv(VecEnv):
         acts, self._actions = self._actions, None
         n = self.n_robots
         # the (K N, A) slots as the (K, N, A) block of the worlds' agents (validated by the act phase)
-        world_obs, out = stepper.step_slots(self.worlds, acts.reshape(self.n_worlds, n, *acts.shape[1:]))
+        world_obs, out = stepper.step(self.worlds, acts.reshape(self.n_worlds, n, *acts.shape[1:]),
+                                      active=True)
         obs = world_obs.reshape(self.num_envs, *world_obs.shape[2:])  # the slots, world by world (a view)
         rewards = out.rewards.reshape(-1).astype(np.float32)
         dones = np.zeros(self.num_envs, dtype=bool)

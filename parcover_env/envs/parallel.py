@@ -10,7 +10,7 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from parcover_env.config import Scenario, deep_merge
-from parcover_env.envs import critic_state, outputs_phase, stepper
+from parcover_env.envs import act_phase, critic_state, outputs_phase, stepper
 from parcover_env.envs.estimator import KinectFixes, PoseEstimator
 from parcover_env.envs.handover import CameraView, update_team
 from parcover_env.envs.metrics import EpisodeMetrics
@@ -276,8 +276,8 @@ class ParallelCoverageEnv(ParallelEnv):
         return obs, outputs_phase.infos([self], true[None], [zeros] * len(self.terms), [False])[0]
 
     def step(self, actions: dict[str, Any]):
-        obs, ((rewards, terminations, truncations, infos),) = stepper.step([self], [actions])
-        return self._as_dict(obs[0]), rewards, terminations, truncations, infos
+        obs, out = stepper.step([self], [actions])
+        return self._as_dict(obs[0]), *outputs_phase.agent_dicts(self.possible_agents, out)
 
     def _as_dict(self, obs: np.ndarray) -> dict[str, np.ndarray]:
         return dict(zip(self.possible_agents, obs, strict=True))  # all agents live or end together
@@ -286,7 +286,7 @@ class ParallelCoverageEnv(ParallelEnv):
         """Stepper part 1a (:func:`parcover_env.envs.act_phase.act` of this world alone): act,
         integrate the physics, update the pose estimator (odometry, fixes).
         Returns the true poses ``(N, 3)`` before and after the step."""
-        before, true = stepper.act([self], [actions])
+        before, true = act_phase.act([self], [actions])
         return before[0], true[0]
 
     @property

@@ -3,18 +3,18 @@
 ``ParallelCoverageEnv``, the batched worlds (:mod:`parcover_env.envs.batched`) and the single-robot
 env all step through here, so the rules are written once:
 
-1. **act** (:func:`act`, all worlds at once in :mod:`~parcover_env.envs.act_phase`): act, integrate the
-   physics, update the pose estimator (odometry, fixes); **score** (:func:`score`, all worlds at once,
-   :mod:`parcover_env.envs.score_phase`): track the mission, hand over at splits (Alg. 1), score, record;
+1. **act** (all worlds at once, :func:`parcover_env.envs.act_phase.act`): act, integrate the
+   physics, update the pose estimator (odometry, fixes); **score** (all worlds at once,
+   :func:`parcover_env.envs.score_phase.score`): track the mission, hand over at splits (Alg. 1), score, record;
 2. **sense and observe** (:func:`observe`, all worlds at once): one :class:`SensingState` of every
    world; the follower cameras first, then one compiled pass writes every non-sensor entry of the
    observation spec of every world, then every ``sensor`` entry of the spec is filled by its sensor's ``sense`` for
    all worlds in one call (version 2's ``route`` and ``teammates`` entries too,
    :mod:`parcover_env.envs.obs_v2`); clipped into the bounds. World ``k`` draws from its own generator in the
    order a single world would, so it is bit for bit a separate env;
-3. **outputs** (:func:`outputs`, all worlds at once, :mod:`parcover_env.envs.outputs_phase`): rewards,
-   terminations, truncations, infos (by world and agent name; by agent slot: :func:`slot_outputs`, which
-   :func:`step_slots` returns, what a VecEnv reads);
+3. **outputs** (all worlds at once, :func:`parcover_env.envs.outputs_phase.slot_outputs`): rewards,
+   terminations, truncations, infos by agent slot, what a VecEnv reads (a world's PettingZoo dicts:
+   :func:`parcover_env.envs.outputs_phase.agent_dicts`);
 4. **slots** (:func:`slot_info`, :func:`with_metrics`): what a vectorized or single-agent view adds
    to an agent's info (``metrics``, ``terminal_observation``, ``TimeLimit.truncated``, ``active``);
    a world whose agents are all done is reset by the caller (auto-reset).
@@ -39,8 +39,7 @@ from parcover_env.envs.score_phase import Scores, gather, rows
 from parcover_env.scenarios.progress import goals_many
 from parcover_env.sensors.base import SensingState
 
-__all__ = ["sensing_state", "observe", "step", "step_slots", "act", "score", "outputs", "slot_outputs", "with_metrics",
-           "slot_info"]
+__all__ = ["sensing_state", "observe", "step", "with_metrics", "slot_info"]
 
 
 def sensing_state(worlds: Sequence[Any], true: np.ndarray, predecessor: np.ndarray | None = None) -> SensingState:
@@ -110,49 +109,16 @@ def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = Non
 
 
 def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray, *,
-         active: bool = False) -> tuple[np.ndarray, list[tuple]]:
+         active: bool = False) -> tuple[np.ndarray, SlotOutputs]:
     """One step of every world (``actions[k]``: world ``k``'s action dict, or one array ``(K, N, A)``
-    of every world's agents' actions in agent order, as :func:`act` takes them): the observations
-    ``(K, N, D)`` and each world's ``(rewards, terminations, truncations, infos)`` (``active``: every
-    info with ``"active": True``, as a VecEnv's slots have it)."""
-    before, true = act(worlds, actions)
-    scores = score(worlds, before, true)
+    of every world's agents' actions in agent order): act, score, observe, outputs. Returns the
+    observations ``(K, N, D)`` and the outputs by agent slot (:class:`SlotOutputs`; ``active``: every
+    info with ``"active": True``, as a VecEnv's slots have it); a world's PettingZoo dicts are
+    :func:`~parcover_env.envs.outputs_phase.agent_dicts` of them."""
+    before, true = act_phase.act(worlds, actions)
+    scores = score_phase.score(worlds, before, true)
     obs = observe(worlds, true, scores)
-    return obs, outputs(worlds, true, scores, active=active)
-
-
-def step_slots(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray, *,
-               active: bool = True) -> tuple[np.ndarray, SlotOutputs]:
-    """:func:`step` with the outputs by agent slot (:func:`slot_outputs`, what a VecEnv reads): the
-    observations ``(K, N, D)`` and the rewards, ends and infos of the ``K N`` agents."""
-    before, true = act(worlds, actions)
-    scores = score(worlds, before, true)
-    obs = observe(worlds, true, scores)
-    return obs, slot_outputs(worlds, true, scores, active=active)
-
-
-def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Part 1a of every world (:func:`parcover_env.envs.act_phase.act`: act, physics, pose estimates):
-    the true poses ``(K, N, 3)`` before and after the step."""
-    return act_phase.act(worlds, actions)
-
-
-def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores:
-    """Part 1b of every world at true poses ``before`` and ``true`` ``(K, N, 3)``, all worlds at once
-    (:func:`parcover_env.envs.score_phase.score`): their reward terms."""
-    return score_phase.score(worlds, before, true)
-
-
-def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *, active: bool = False) -> list[tuple]:
-    """Part 3 of every world, all at once (:func:`parcover_env.envs.outputs_phase.outputs`):
-    ``(rewards, terminations, truncations, infos)`` per world."""
-    return outputs_phase.outputs(worlds, true, scores, active=active)
-
-
-def slot_outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *, active: bool = True) -> SlotOutputs:
-    """Part 3 of every world by agent slot (:func:`parcover_env.envs.outputs_phase.slot_outputs`): the
-    rewards ``(K, N)``, the worlds' ends and the ``K N`` infos."""
-    return outputs_phase.slot_outputs(worlds, true, scores, active=active)
+    return obs, outputs_phase.slot_outputs(worlds, true, scores, active=active)
 
 
 def with_metrics(info: dict) -> dict:

@@ -13,7 +13,7 @@ import pytest
 from layout_helpers import layout_of
 
 import parcover_env
-from parcover_env.envs import outputs_phase, rewards, score_phase, step_kernels, stepper
+from parcover_env.envs import act_phase, outputs_phase, rewards, score_phase, step_kernels, stepper
 from parcover_env.envs.handover import CameraView, update_team, update_teams
 from parcover_env.envs.metrics import EpisodeMetrics, formation_errors, formation_errors_many, record_step, record_steps
 from parcover_env.envs.obs_v2 import target_kpois
@@ -287,9 +287,11 @@ def test_phases_of_two_worlds_are_each_world_alone(scenario, overrides):
     alone = copy.deepcopy(envs)
     rng = np.random.default_rng(9)
     acts = [{a: rng.uniform(-1, 1, e.action_space(a).shape).astype(np.float32) for a in e.agents} for e in envs]
-    obs, outs = stepper.step(envs, acts)
+    obs, out = stepper.step(envs, acts)
+    outs = [outputs_phase.agent_dicts(e.possible_agents, out, k) for k, e in enumerate(envs)]
     for k, e in enumerate(alone):
-        obs1, out1 = stepper.step([e], [acts[k]])
+        obs1, one = stepper.step([e], [acts[k]])
+        out1 = [outputs_phase.agent_dicts(e.possible_agents, one)]
         assert np.array_equal(obs[k], obs1[0])
         assert outs[k][:3] == out1[0][:3]
         infos, infos1 = outs[k][3], out1[0][3]
@@ -358,8 +360,8 @@ def test_score_state_starts_without_contacts_and_gather_copies():
 def test_scores_carry_a_copy_of_the_estimates_and_the_visits_to_the_later_phases():
     env = parcover_env.parallel_env("office")
     env.reset(seed=1)
-    before, true = stepper.act([env], [{a: np.array([0.5, 0.1], np.float32) for a in env.agents}])
-    scores = stepper.score([env], before, true)
+    before, true = act_phase.act([env], [{a: np.array([0.5, 0.1], np.float32) for a in env.agents}])
+    scores = score_phase.score([env], before, true)
     assert np.array_equal(scores.estimates[0], env.estimate) and not np.shares_memory(scores.estimates, env.estimate)
     assert np.array_equal(scores.visited[0], env.progress.visited)
     twin = copy.deepcopy(env)
@@ -395,12 +397,12 @@ def test_act_rows_of_are_the_act_phases_rows_of_these_very_estimators_only():
     envs = _two_worlds("office")
     rng = np.random.default_rng(5)
     acts = rng.uniform(-1, 1, (2, envs[0].n_robots, 2)).astype(np.float32)
-    before, true = stepper.act(envs, acts)
+    before, true = act_phase.act(envs, acts)
     rows = score_phase.act_rows_of(envs)
     assert rows is not None and rows is envs[0].estimator.act_rows
     np.testing.assert_array_equal(rows.odometry.blocks["estimate"], np.stack([e.estimate for e in envs]))
     assert score_phase.act_rows_of(envs[::-1]) is None and score_phase.act_rows_of(envs[:1]) is None
-    scores = stepper.score(envs, before, true)
+    scores = score_phase.score(envs, before, true)
     assert scores.act is rows and not np.shares_memory(scores.estimates, rows.odometry.blocks["estimate"])
     np.testing.assert_array_equal(scores.team["leader"], np.stack([e.team.leader for e in envs]))
     envs[1].reset(seed=3)  # a new estimator: not those rows' any more

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.envs import stepper
+from parcover_env.envs import outputs_phase, stepper
 from parcover_env.envs.handover import CameraView, update_team
 from parcover_env.envs.team import Team
 from parcover_env.sensors.relative import RelativeReading
@@ -81,7 +81,8 @@ def test_one_world_step_is_the_env_step():
     oa, _ = a.reset(seed=3)
     ob, _ = b.reset(seed=3)
     acts = {n: np.array([0.5, 0.2], np.float32) for n in a.agents}
-    obs, ((rew, term, trunc, infos),) = stepper.step([b], [acts])
+    obs, out = stepper.step([b], [acts])
+    rew, term, trunc, infos = outputs_phase.agent_dicts(b.possible_agents, out)
     ra = a.step(acts)
     assert all(np.array_equal(ra[0][n], obs[0][i]) for i, n in enumerate(a.possible_agents))
     assert ra[1] == rew and ra[2] == term and ra[3] == trunc
@@ -94,7 +95,7 @@ def test_one_world_step_is_the_env_step():
         stepper.step([b], [acts])
 
 
-def test_step_slots_is_step_by_agent_slot_and_clears_an_ended_world():
+def test_step_by_agent_slot_is_each_worlds_agent_dicts_and_clears_an_ended_world():
     import copy
 
     worlds = []
@@ -107,12 +108,15 @@ def test_step_slots_is_step_by_agent_slot_and_clears_an_ended_world():
     n = worlds[0].n_robots
     rng = np.random.default_rng(4)
     acts = rng.uniform(-1, 1, (2, n, 2)).astype(np.float32)
-    obs, out = stepper.step_slots(worlds, acts)
-    obs_ref, ref = stepper.step(twins, acts, active=True)
+    obs, out = stepper.step(worlds, acts, active=True)
+    obs_ref, ref = stepper.step(twins, [dict(zip(w.agents, a, strict=True)) for w, a in zip(twins, acts, strict=True)],
+                                active=True)  # the same actions as one dict per world
     assert np.array_equal(obs, obs_ref)
     assert out.terminated == [False, False] and out.truncated == [False, True]
     assert [w.agents for w in worlds] == [worlds[0].possible_agents, []]
-    for k, (rewards, term, trunc, infos) in enumerate(ref):
+    for k in range(2):
+        rewards, term, trunc, infos = outputs_phase.agent_dicts(twins[k].possible_agents, ref, k)
+        assert list(rewards) == list(infos) == twins[k].possible_agents
         assert out.rewards[k].tolist() == list(rewards.values())
         assert list(term.values()) == [out.terminated[k]] * n and list(trunc.values()) == [out.truncated[k]] * n
         slots = out.infos[k * n:(k + 1) * n]

@@ -11,7 +11,7 @@ import pytest
 
 from parcover_env import parcover_v2
 from parcover_env.config import RewardConfig
-from parcover_env.envs import stepper
+from parcover_env.envs import act_phase, score_phase
 from parcover_env.envs.rewards import TERMS_V2, reward_terms, sigma_major, terms_for
 
 
@@ -102,13 +102,13 @@ def test_score_phase_pays_each_worlds_own_sigma_from_the_act_rows_or_gathered():
         for _ in range(6 + 9 * seed):  # different covariances
             e.step({a: rng.uniform(-1, 1, 2).astype(np.float32) for a in e.agents})
     acts = rng.uniform(-1, 1, (2, envs[0].n_robots, 2)).astype(np.float32)
-    before, true = stepper.act(envs, acts)
+    before, true = act_phase.act(envs, acts)
     want = [-2.0 * sigma_major(e.estimator.covariance) for e in envs]
     assert not np.allclose(want[0], want[1])
-    scores = stepper.score(envs, before, true)  # the act phase's shared rows
+    scores = score_phase.score(envs, before, true)  # the act phase's shared rows
     assert scores.act is not None
     np.testing.assert_allclose(scores.terms["uncertainty"], want, rtol=1e-12)
     twins = copy.deepcopy(envs[::-1])  # reversed copies: not the act rows' estimators, so gathered
-    scores = stepper.score(twins, before[::-1], true[::-1])
+    scores = score_phase.score(twins, before[::-1], true[::-1])
     assert scores.act is None
     np.testing.assert_allclose(scores.terms["uncertainty"], want[::-1], rtol=1e-12)
