@@ -58,7 +58,7 @@ def update_team(team: Team, kinects: KinectSystem | None, estimate: np.ndarray, 
     if kinects is None:
         team.update(est, plan_progress)
         return
-    before, fixes = team.leader, kinects.last_fixes
+    before, fixes = team.leader.copy(), kinects.last_fixes  # a split writes the team's arrays in place
     in_view = np.zeros(team.n, dtype=bool)  # read for leaders without a fix only
     unfixed = [i for i in np.flatnonzero(before).tolist() if i not in fixes]
     if unfixed:
@@ -80,7 +80,7 @@ def update_teams(teams: Sequence[Team], kinects: Sequence[KinectSystem | None], 
     within ``tol`` of it (one compiled test of all worlds, widened by :data:`SPLIT_MARGIN`): in every
     other world :meth:`Team.update` would not split (its tests are a subset). ``tp``: the teams'
     :attr:`Team.tp_ahead` ``(K, N, 3)`` if at hand (gathered if not). Returns the worlds that ran
-    :func:`update_team` (a split there rebinds its team's arrays)."""
+    :func:`update_team` (a split there writes its team's arrays in place)."""
     from parcover_env.envs import step_kernels
 
     k = len(teams)

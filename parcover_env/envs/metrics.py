@@ -6,7 +6,7 @@ PettingZoo wrapper builds its spec from the reset infos). ``metrics/*`` entries 
 info back into the metrics dict.
 
 :func:`record_steps` adds one step to the metrics of ``K`` worlds: what the steps accumulate (the
-sums and counts of :data:`TOTALS`, the path lengths) are rows of shared ``(K, ...)`` blocks that one
+sums and counts of :data:`TOTALS`, the path lengths) are rows of ``(K, ...)`` blocks that one
 compiled call updates (:func:`~parcover_env.envs.step_kernels.record_many`); :func:`record_step` is
 its one-world call. Squared errors are summed as ``np.sum`` sums them (numpy's pairwise summation),
 the same floats for one world or ``K`` and on every CPU (the formation errors' sums were BLAS dots
@@ -20,12 +20,10 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from parcover_env.envs.score_rows import shared_rows
 from parcover_env.geometry import wrap_angle
-from parcover_env.geometry.row_owner import RowOwner
 
 __all__ = ["EpisodeMetrics", "formation_errors", "formation_errors_many", "MESSAGE_KINDS", "METRICS_PREFIX",
-           "TOTALS", "episode_metrics", "record_step", "record_steps"]
+           "TOTALS", "SUMS", "episode_metrics", "record_step", "record_steps"]
 
 MESSAGE_KINDS = ("split", "promotion", "waypoint", "pose")
 """Kinds of message the Kinect system sends (counted in ``messages``)."""
@@ -57,13 +55,15 @@ TOTALS = ("steps", "time", "kpois_visited", "wall_collisions", "robot_collisions
           "n_form", "unseen_leader_time", "makespan")
 """The entries of :attr:`EpisodeMetrics.totals`, what a step adds to (counts as floats; ``makespan`` NaN until set)."""
 _T = {name: i for i, name in enumerate(TOTALS)}
+SUMS = ("totals", "paths")
+"""The :class:`EpisodeMetrics` arrays a step adds to."""
 
 
-class EpisodeMetrics(RowOwner):
-    """The metrics of one episode. What the steps accumulate lives in two arrays, so that the
-    metrics of ``K`` worlds can be rows of shared blocks (:func:`record_steps`): :attr:`totals`
-    (the sums and counts of :data:`TOTALS`) and :attr:`paths`; the other values are
-    computed from them."""
+class EpisodeMetrics:
+    """The metrics of one episode. What the steps accumulate lives in two arrays (:data:`SUMS`), so
+    that the metrics of ``K`` worlds can be rows of ``(K, ...)`` blocks (:func:`record_steps`):
+    :attr:`totals` (the sums and counts of :data:`TOTALS`) and :attr:`paths`, made here and never
+    rebound (the steps add to them in place); the other values are computed from them."""
 
     def __init__(self, n_kpois: int, n_robots: int, c_max: float, max_speed: float,
                  path_lengths: Sequence[float] | None = None):
@@ -81,9 +81,6 @@ class EpisodeMetrics(RowOwner):
         self.team_counts: tuple[Mapping[str, int], Mapping[str, int]] = ({}, {})
         """The team's counters of messages and of splits by source (``Team.messages``, ``Team.splits``),
         linked (not copied) by the first recorded step: :attr:`messages` and the splits read them."""
-        self.rows = None
-        """The shared rows :attr:`totals` and :attr:`paths` are views of when recorded with
-        other worlds' metrics (:func:`record_steps`); not copied, not pickled (:class:`RowOwner`)."""
 
     def __repr__(self) -> str:
         return f"EpisodeMetrics({self.summary()!r})"
@@ -271,19 +268,24 @@ def record_steps(metrics: Sequence[EpisodeMetrics], before: np.ndarray, true: np
                  progress: Sequence, estimates: np.ndarray, new_contacts: tuple[np.ndarray, np.ndarray],
                  teams: Sequence, formation, kinects, control_dt: float,
                  visits: tuple[np.ndarray, np.ndarray] | None = None,
-                 team_rows: Mapping[str, np.ndarray] | None = None) -> None:
+                 team_rows: Mapping[str, np.ndarray] | None = None,
+                 sums: Mapping[str, np.ndarray] | None = None) -> None:
     """:func:`record_step` of ``K`` worlds of one scenario: their metrics, true poses ``before`` and
     ``true`` ``(K, N, 3)``, ``times``, route trackers (``progress``), estimates ``(K, N, 3)``, new
     wall and robot contacts ``(K, N)``, teams; ``kinects`` answers ``in_view`` for every world (the
     footprints are the scenario's) or is None; ``visits``: the trackers' ``visited`` and ``visit_time``
     ``(K, M)`` if at hand (read from the trackers if not); ``team_rows``: the teams' ``leader`` and
-    ``predecessor`` ``(K, N)`` by name if at hand (read from the teams if not). The metrics' sums are
-    rows of shared blocks (:func:`~parcover_env.envs.score_rows.shared_rows`) that one compiled call adds the step to
-    (:func:`~parcover_env.envs.step_kernels.record_many`); each world's metrics link its team's counters."""
+    ``predecessor`` ``(K, N)`` by name if at hand (read from the teams if not); ``sums``: the metrics'
+    :data:`SUMS` as ``(K, ...)`` blocks whose rows the metrics' arrays are (the score phase's,
+    :func:`~parcover_env.envs.score_rows.score_blocks`); if not given, one world's arrays are used as
+    they are and several worlds' are gathered and written back. One compiled call adds the step to the
+    sums (:func:`~parcover_env.envs.step_kernels.record_many`); each world's metrics link its team's counters."""
     from parcover_env.envs import step_kernels
 
     k_worlds = true.shape[0]
-    rows = shared_rows(metrics, ("totals", "paths"))
+    gathered = sums is None and k_worlds > 1
+    if sums is None:
+        sums = {name: _rows([getattr(m, name) for m in metrics]) for name in SUMS}
     leader = _rows([t.leader for t in teams]) if team_rows is None else team_rows["leader"]
     predecessor = _rows([t.predecessor for t in teams]) if team_rows is None else team_rows["predecessor"]
     seen = (kinects.in_view(true[leader][:, :2]) if kinects is not None
@@ -294,9 +296,12 @@ def record_steps(metrics: Sequence[EpisodeMetrics], before: np.ndarray, true: np
         _c(before), _c(true), _c(estimates), _c(predecessor, np.int64),
         _c(visited, bool), _c(visit_time),
         _c(new_contacts[0], np.int64), _c(new_contacts[1], np.int64), _c(unseen, np.int64), _c(times))
-    step_kernels.record_many(rows.blocks["totals"], rows.blocks["paths"], step,
+    step_kernels.record_many(sums["totals"], sums["paths"], step,
                              (float(formation.offset), float(formation.spacing), math.radians(formation.bearing_deg)),
                              float(control_dt))
+    if gathered:
+        for k, m in enumerate(metrics):
+            m.totals[...], m.paths[...] = sums["totals"][k], sums["paths"][k]
     for m, team in zip(metrics, teams, strict=True):
         counts = m.team_counts
         if counts[0] is not team.messages or counts[1] is not team.splits:  # once per episode

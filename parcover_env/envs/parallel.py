@@ -297,6 +297,7 @@ class ParallelCoverageEnv(ParallelEnv):
 
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
+        state.pop("score_group", None)  # the blocks of the worlds scored with this one: a copy holds its own arrays
         views = state.get("camera_views")
         if views is not None and len(views.predecessor) > 1:  # a copy keeps its own world's measurements only
             k = state["camera_index"]

@@ -6,23 +6,23 @@ After the act phase has moved every world, :func:`score` tracks the mission, spl
 * the pose estimates: a copy of the act phase's estimator rows (:func:`act_rows_of`; gathered from
   the worlds when the phase is called on its own);
 * route progress, KPOI visits, goals and the route length to go: one compiled call for all worlds
-  (:func:`parcover_env.scenarios.progress.step_many`) on the trackers' arrays as rows of shared
-  blocks (:func:`parcover_env.envs.score_rows.shared_rows`), updated in place;
-* the team update on the teams' arrays as rows of shared blocks too
+  (:func:`parcover_env.scenarios.progress.step_many`) on the trackers' arrays as rows of ``(K, ...)``
+  blocks (:func:`parcover_env.envs.score_rows.score_blocks`), updated in place;
+* the team update on the teams' arrays as rows of blocks too
   (:data:`~parcover_env.envs.team.TEAM_ROWS`): waypoint messages counted over ``(K, N)``; only the
   worlds where a leader may have reached its TP run the (rare) Python split
-  (:func:`parcover_env.envs.handover.update_teams`), whose rebound arrays are adopted again;
+  (:func:`parcover_env.envs.handover.update_teams`), which writes its team's arrays in place;
 * the reward terms as ``(K, N)`` arrays (:func:`parcover_env.envs.rewards.reward_terms`), returned
   in a :class:`Scores` for the outputs phase (with the goal points, the team rows and the estimator
   rows, for the observations);
 * the metrics of all worlds in one call (:func:`parcover_env.envs.metrics.record_steps`), their sums
-  rows of shared blocks too.
+  rows of blocks too.
 
-The worlds' trackers, teams, metrics and :class:`ScoreState` keep their own arrays, which are views of
-row ``k`` of shared ``(K, ...)`` blocks while they are scored together (the act phase's pattern,
-:mod:`parcover_env.envs.score_rows`): the compiled calls update every world in place, with no gather
-and no write-back; a copy or pickle of a world holds plain arrays, and a world reset since (or an
-array rebound, :class:`~parcover_env.geometry.row_owner.RowOwner`) is adopted again. So worlds stay
+The worlds' trackers, teams, metrics and :class:`ScoreState` keep their own arrays (never rebound),
+which are views of row ``k`` of ``(K, ...)`` blocks while they are scored together
+(:mod:`parcover_env.envs.score_rows`): the compiled calls update every world in place, with no gather
+and no write-back; a copy or pickle of a world holds plain arrays, and a world reset since is
+adopted again. So worlds stay
 independent (deepcopy, pickle) and the ParallelEnv is the ``K = 1`` call; world ``k`` gets bit for
 bit what it would alone (``tests/envs/test_batched.py``, ``tests/envs/test_score_phase.py``).
 No random numbers are drawn here.
@@ -30,9 +30,7 @@ No random numbers are drawn here.
 
 from __future__ import annotations
 
-from collections import deque
 from collections.abc import Sequence
-from itertools import repeat
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -40,11 +38,10 @@ import numpy as np
 from parcover_env.envs.handover import update_teams
 from parcover_env.envs.metrics import record_steps
 from parcover_env.envs.rewards import own_visits, reward_terms, sigma_major, touching
-from parcover_env.envs.score_rows import shared_rows
-from parcover_env.envs.team import TEAM_ROWS, count_waypoints_many
+from parcover_env.envs.score_rows import score_blocks
+from parcover_env.envs.team import count_waypoints_many
 from parcover_env.envs.world_rows import ActRows
-from parcover_env.geometry.row_owner import RowOwner
-from parcover_env.scenarios.progress import STATE, step_many
+from parcover_env.scenarios.progress import step_many
 from parcover_env.scenarios.progress_kernel import TrackerRows
 
 __all__ = ["ScoreState", "Scores", "score", "gather", "rows", "act_rows_of"]
@@ -61,9 +58,10 @@ def rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
     return arrays[0][None] if len(arrays) == 1 else np.array(arrays)
 
 
-class ScoreState(RowOwner):
-    """What scoring carries over from one step of a world to the next (its arrays rows of shared
-    blocks while the world is scored with others: :attr:`rows`)."""
+class ScoreState:
+    """What scoring carries over from one step of a world to the next: arrays made here and never
+    rebound (the score phase writes them in place, as rows of ``(K, ...)`` blocks when the world is
+    scored with others: :func:`~parcover_env.envs.score_rows.score_blocks`)."""
 
     def __init__(self, remaining: np.ndarray, wall: np.ndarray, robot: np.ndarray):
         self.remaining = remaining
@@ -72,9 +70,6 @@ class ScoreState(RowOwner):
         """``(N,)`` int64 wall contacts of each robot counted up to the last step."""
         self.robot = robot
         """``(N,)`` int64 robot contacts of each robot counted up to the last step."""
-        self.rows = None
-        """The shared rows the arrays are views of (:func:`~parcover_env.envs.score_rows.shared_rows`);
-        not copied, not pickled (:class:`~parcover_env.geometry.row_owner.RowOwner`)."""
 
     @property
     def contacts(self) -> tuple[np.ndarray, np.ndarray]:
@@ -86,10 +81,6 @@ class ScoreState(RowOwner):
         """At reset: the route length to go ``(N,)``, no contacts yet."""
         n = len(remaining)
         return cls(np.array(remaining, dtype=float), np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64))
-
-
-HELD = ("remaining", "wall", "robot")
-"""The :class:`ScoreState` arrays as shared rows."""
 
 
 class Scores(NamedTuple):
@@ -137,28 +128,28 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     trackers, teams = [w.progress for w in worlds], [w.team for w in worlds]
     act = act_rows_of(worlds)
     est = gather([w.estimate for w in worlds]) if act is None else act.odometry.blocks["estimate"].copy()
-    track = shared_rows(trackers, STATE)  # the trackers' arrays as rows of shared blocks, updated in place
-    state = TrackerRows(**track.blocks)
+    blocks = score_blocks(worlds)  # the worlds' arrays as rows of (K, ...) blocks, updated in place
+    state = TrackerRows(**blocks.progress)
     was = state.visited.copy() if first.version == 2 else None
     times = [w.world.time for w in worlds]
     true_xy = np.ascontiguousarray(true[..., :2])
     n_new, goals, remaining = step_many(trackers, true_xy, est[..., :2], times, state)
     velocity = (true_xy - before[..., :2]) / s.physics.control_dt
-    team = shared_rows(teams, TEAM_ROWS).blocks  # the teams' arrays as rows of shared blocks (read here)
+    team = blocks.team  # a split writes them in place
     count_waypoints_many(teams, state.advanced, team["leader"])
-    if update_teams(teams, [w.kinects for w in worlds], est, state.progress - first.progress.offsets,
-                    lambda k: worlds[k].camera_view, tp=team["tp_ahead"]):
-        team = shared_rows(teams, TEAM_ROWS).blocks  # a split rebinds a team's arrays: adopted again
+    update_teams(teams, [w.kinects for w in worlds], est, state.progress - first.progress.offsets,
+                 lambda k: worlds[k].camera_view, tp=team["tp_ahead"])
     own = None
     visited = state.visited
     if first.version == 2:
         own = own_visits(visited & ~was, state.visitor, first.kpoi_owner, first.n_robots)
-    held = shared_rows([w.score_state for w in worlds], HELD).blocks  # the last step's, updated in place
+    held = blocks.held  # the last step's, updated in place
     gained = held["remaining"] - remaining
     wall, robot = gather([w.world.wall_contacts for w in worlds]), gather([w.world.robot_contacts for w in worlds])
     new_wall, new_robot = wall - held["wall"], robot - held["robot"]
     held["remaining"][...], held["wall"][...], held["robot"][...] = remaining, wall, robot
-    _consume(map(setattr, worlds, repeat("true_velocity"), velocity))  # row views of the block, as the worlds' own
+    for w, v in zip(worlds, velocity, strict=True):  # row views of the block, as the worlds' own
+        w.true_velocity = v
     touch = None
     if "contact" in first.terms:
         gap = s.rewards.contact_gap
@@ -171,13 +162,11 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     terms = reward_terms(s.rewards, n_new, gained, new_wall + new_robot, own, touch, sigma)
     record_steps([w.metrics for w in worlds], before, true, times=times, progress=trackers, estimates=est,
                  new_contacts=(new_wall, new_robot), teams=teams, formation=s.formation, kinects=first.kinects,
-                 control_dt=s.physics.control_dt, visits=(state.visited, state.visit_time), team_rows=team)
+                 control_dt=s.physics.control_dt, visits=(state.visited, state.visit_time), team_rows=team,
+                 sums=blocks.metrics)
     for k, w in enumerate(worlds):
         if w.render_mode is not None:
             for trail, p in zip(w.trails, true[k], strict=True):
                 trail.append(p[:2].copy())
     return Scores(terms, goals, est, visited, team, act, state)
 
-
-_consume = deque(maxlen=0).extend
-"""Runs an iterator to its end at C speed, keeping nothing."""

@@ -63,8 +63,8 @@ def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = Non
         teams = [w.team for w in worlds]
         team = {"leader": rows([t.leader for t in teams]), "slot": rows([t.slot for t in teams]),
                 "predecessor": rows([t.predecessor for t in teams])}
-    else:  # the teams' rows change at the next split: the camera view keeps a copy
-        team = {**team, "predecessor": team["predecessor"].copy()}
+    # a split writes the teams' arrays in place: the camera view keeps a copy of what it was measured against
+    team = {**team, "predecessor": team["predecessor"].copy()}
     state = sensing_state(worlds, true, team["predecessor"])
     rngs = [w.np_random for w in worlds]
     seen = first.camera.measure_many(true, state.predecessor, state.segments, rngs)

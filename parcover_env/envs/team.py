@@ -30,17 +30,17 @@ from collections import Counter
 
 import numpy as np
 
-from parcover_env.geometry.row_owner import RowOwner
 from parcover_env.planning.plan import Plan
 
 __all__ = ["Team", "TEAM_ROWS", "count_waypoints_many"]
 
 TEAM_ROWS = ("leader", "slot", "predecessor", "tp_ahead")
-"""The :class:`Team` arrays the stepper reads for ``K`` worlds as rows of shared blocks
-(:func:`~parcover_env.envs.score_rows.shared_rows`, :attr:`Team.rows`)."""
+"""The :class:`Team` arrays the stepper reads for ``K`` worlds as ``(K, N, ...)`` blocks
+(:func:`~parcover_env.envs.score_rows.score_blocks`). Made once with the team and never rebound:
+a split writes them in place, so a block whose row they are views of stays theirs."""
 
 
-class Team(RowOwner):
+class Team:
     def __init__(self, plan: Plan, mode: str = "formation", reach_tol: float = 0.2):
         self.n = plan.r
         self.mode = mode
@@ -51,17 +51,20 @@ class Team(RowOwner):
         self._tps = {tuple(tp.robots): tp for tp in plan.turning_points}
         self.groups: list[tuple[int, int]] = ([(i, i + 1) for i in range(self.n)] if mode == "individual"
                                               else [(0, self.n)])
-        self.rows = None
-        """The shared rows (:data:`TEAM_ROWS`) the arrays are views of while the team is scored with
-        other worlds' teams (:func:`~parcover_env.envs.score_rows.shared_rows`; None once a split rebinds
-        the arrays: they are adopted again); not copied, not pickled (:class:`RowOwner`)."""
-        self._refresh()
-
-    def _pending(self) -> None:
-        """:attr:`tp_ahead` from the groups and the TPs not passed yet."""
+        self.leader = np.zeros(self.n, dtype=bool)
+        """``(N,)`` group leaders."""
+        self.slot = np.zeros(self.n, dtype=np.int64)
+        """``(N,)`` each robot's place in its group's column (0: the leader)."""
+        self.predecessor = np.full(self.n, -1, dtype=np.int64)
+        """``(N,)`` the robot each robot follows (-1: none, a leader)."""
         self.tp_ahead = np.full((self.n, 3), np.nan)
         """``(N, 3)``: ``(x, y, distance)`` of the TP each group leader heads for (m; its position
         and its distance along the plan path), NaN for the other robots and in ``individual`` mode."""
+        self._refresh()
+
+    def _pending(self) -> None:
+        """:attr:`tp_ahead` from the groups and the TPs not passed yet (in place)."""
+        self.tp_ahead[...] = np.nan
         if self.mode == "individual":
             return
         for g in self.groups:
@@ -70,9 +73,10 @@ class Team(RowOwner):
                 self.tp_ahead[g[0]] = (*tp.position, tp.distance)
 
     def _refresh(self) -> None:
-        self.leader = np.zeros(self.n, dtype=bool)
-        self.slot = np.zeros(self.n, dtype=np.int64)
-        self.predecessor = np.full(self.n, -1, dtype=np.int64)
+        """The :data:`TEAM_ROWS` arrays from the groups (in place)."""
+        self.leader[...] = False
+        self.slot[...] = 0
+        self.predecessor[...] = -1
         for lo, hi in self.groups:
             self.leader[lo] = True
             self.slot[lo:hi] = np.arange(hi - lo)
