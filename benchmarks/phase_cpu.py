@@ -30,8 +30,8 @@ PHASES = ("act", "score", "observe", "outputs", "resets")
 def chunks(k: int, model: str, steps: int, count: int):
     """Set up batched ``tree`` at ``k`` worlds, then yield ``count`` chunks of ``steps`` steps each: per
     chunk, the seconds of CPU of each phase and of the whole ``VecEnv.step`` (``step``)."""
-    from parcover_env.envs import act_phase, outputs_phase, score_phase, stepper
     from parcover_env.envs.vec_env import make_vec_env
+    from parcover_env.sim import act_phase, outputs_phase, pipeline, score_phase
 
     venv = make_vec_env("tree", n_envs=k, overrides={"robot": {"sonar": {"model": model}}}, backend="batched",
                         monitor=False)
@@ -50,7 +50,7 @@ def chunks(k: int, model: str, steps: int, count: int):
             t1 = clock()
             scores = score_phase.score(worlds, before, true)
             t2 = clock()
-            stepper.observe(worlds, true, scores)
+            pipeline.observe(worlds, true, scores)
             t3 = clock()
             outputs_phase.slot_outputs(worlds, true, scores, active=True)  # what a VecEnv calls
             t4 = clock()

@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from runners import merge  # noqa: E402
 from throughput import MODES, SCENARIOS, open_box  # noqa: E402
 
-from parcover_env.envs import stepper  # noqa: E402
+from parcover_env.sim import pipeline  # noqa: E402
 
 
 def make_env(scenario: str, mode: str, n_robots: int | None):
@@ -89,7 +89,7 @@ def breakdown(env, steps: int) -> None:
     tm.wrap(env.team, "update", "team: splits at TPs")
     tm.wrap(env, "_rewards", "rewards")
     tm.wrap(env, "_record", "metrics")
-    tm.wrap(stepper, "observe", "observation assembly (all)")
+    tm.wrap(pipeline, "observe", "observation assembly (all)")
     if env.sonar is not None:
         tm.wrap(env.sonar, "sense", "  sonar ring")
     tm.wrap(env.camera.__class__, "measure", "  follower camera")

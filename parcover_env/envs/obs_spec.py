@@ -13,7 +13,7 @@ from the env's state; ``route`` and ``teammates`` entries (observation version 2
 stepper from ``env.localization_entries()`` (the sonar localization service,
 :mod:`parcover_env.envs.sonar_fixes`); a ``sensor`` entry is the reading of the sensor its ``sensor``
 factory builds from the scenario (a :class:`~parcover_env.sensors.base.Sensor`), filled for every world
-at once by the stepper (:mod:`parcover_env.envs.stepper`). A new sensor is a sensor module, a config
+at once by the stepper (:mod:`parcover_env.sim.pipeline`). A new sensor is a sensor module, a config
 field and one ``sensor`` entry here: neither the env nor the batched worlds change.
 """
 

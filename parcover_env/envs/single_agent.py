@@ -5,7 +5,7 @@ from __future__ import annotations
 import gymnasium as gym
 
 from parcover_env.envs import ParallelCoverageEnv
-from parcover_env.envs.stepper import with_metrics
+from parcover_env.envs.slots import with_metrics
 
 __all__ = ["SingleRobotCoverageEnv"]
 

@@ -21,8 +21,8 @@ FLOORS = {
     "world": 3, "sensors": 3,
     "planning": 4, "localization": 4, "control": 4,
     "scenarios": 5,
-    "viz": 6,
-    "envs": 7,
+    "viz": 6, "mission": 6,
+    "envs": 7, "sim": 7,  # sim still reads envs' estimator and observation spec (issue 41: sim below envs)
     "expert": 8, "policies": 8,
     "harness": 9,
     "cli": 10,

@@ -8,8 +8,8 @@ import pytest
 
 from parcover_env import parcover_v2
 from parcover_env.config import RewardConfig
-from parcover_env.envs.rewards import TERMS, TERMS_V2, reward_terms, terms_for, touching
 from parcover_env.errors import ConfigError
+from parcover_env.mission.rewards import TERMS, TERMS_V2, reward_terms, terms_for, touching
 
 WALL = np.array([[0.0, 0.0, 4.0, 0.0]])  # the x axis from 0 to 4 m
 

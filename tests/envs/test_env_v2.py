@@ -15,8 +15,8 @@ from parcover_env.config import RewardConfig
 from parcover_env.envs import ParallelCoverageEnv, critic_state
 from parcover_env.envs.obs_spec import ENTRIES, V2_ENTRIES
 from parcover_env.envs.obs_v2 import RouteFacts, TeamRows, fill, group_sizes, route_facts, target_kpois, team_rows
-from parcover_env.envs.rewards import TERMS, TERMS_V2, own_visits, reward_terms
 from parcover_env.errors import ConfigError
+from parcover_env.mission.rewards import TERMS, TERMS_V2, own_visits, reward_terms
 
 NAMES = [e.name for e in ENTRIES if e.name in V2_ENTRIES]
 K = 4

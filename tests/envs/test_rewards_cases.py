@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from parcover_env.envs.rewards import touching
+from parcover_env.mission.rewards import touching
 
 WALL = np.array([[0.0, -1.0, 0.0, 1.0]])  # the segment x = 0, -1 <= y <= 1
 

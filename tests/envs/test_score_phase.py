@@ -13,15 +13,23 @@ import pytest
 from layout_helpers import layout_of
 
 import parcover_env
-from parcover_env.envs import act_phase, outputs_phase, rewards, score_phase, step_kernels, stepper
-from parcover_env.envs.handover import CameraView, update_team, update_teams
-from parcover_env.envs.metrics import EpisodeMetrics, formation_errors, formation_errors_many, record_step, record_steps
 from parcover_env.envs.obs_v2 import target_kpois
 from parcover_env.envs.observations import ScalarInputs
-from parcover_env.envs.rewards import own_visits, reward_terms
-from parcover_env.envs.team import Team, count_waypoints_many
+from parcover_env.mission import kernels as step_kernels
+from parcover_env.mission import rewards
+from parcover_env.mission.handover import CameraView, update_team, update_teams
+from parcover_env.mission.metrics import (
+    EpisodeMetrics,
+    formation_errors,
+    formation_errors_many,
+    record_step,
+    record_steps,
+)
+from parcover_env.mission.rewards import own_visits, reward_terms
+from parcover_env.mission.team import Team, count_waypoints_many
 from parcover_env.scenarios.progress import RouteTracker, goals_many, step_many, update_many
 from parcover_env.sensors.relative import RelativeReading
+from parcover_env.sim import act_phase, outputs_phase, pipeline, score_phase
 
 ROUTE = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.5], [2.0, 0.0], [4.0, 0.0]])
 KPOIS = np.array([[2.0, 1.5], [4.0, 0.0]])
@@ -287,10 +295,10 @@ def test_phases_of_two_worlds_are_each_world_alone(scenario, overrides):
     alone = copy.deepcopy(envs)
     rng = np.random.default_rng(9)
     acts = [{a: rng.uniform(-1, 1, e.action_space(a).shape).astype(np.float32) for a in e.agents} for e in envs]
-    obs, out = stepper.step(envs, acts)
+    obs, out = pipeline.step(envs, acts)
     outs = [outputs_phase.agent_dicts(e.possible_agents, out, k) for k, e in enumerate(envs)]
     for k, e in enumerate(alone):
-        obs1, one = stepper.step([e], [acts[k]])
+        obs1, one = pipeline.step([e], [acts[k]])
         out1 = [outputs_phase.agent_dicts(e.possible_agents, one)]
         assert np.array_equal(obs[k], obs1[0])
         assert outs[k][:3] == out1[0][:3]
@@ -365,9 +373,9 @@ def test_scores_carry_a_copy_of_the_estimates_and_the_visits_to_the_later_phases
     assert np.array_equal(scores.estimates[0], env.estimate) and not np.shares_memory(scores.estimates, env.estimate)
     assert np.array_equal(scores.visited[0], env.progress.visited)
     twin = copy.deepcopy(env)
-    obs = stepper.observe([env], true, scores)
+    obs = pipeline.observe([env], true, scores)
     assert not np.shares_memory(env.camera_view.estimates, env.estimate)
-    assert np.array_equal(obs, stepper.observe([twin], true))  # read from the worlds: the same
+    assert np.array_equal(obs, pipeline.observe([twin], true))  # read from the worlds: the same
 
 
 def test_infos_take_the_team_terms_from_the_first_agent_and_reward_terms_make_them_one_per_world():

@@ -1,4 +1,4 @@
-"""The score phase's per-world state as rows of ``(K, ...)`` blocks (:mod:`parcover_env.envs.score_rows`)
+"""The score phase's per-world state as rows of ``(K, ...)`` blocks (:mod:`parcover_env.sim.rows`)
 and the compiled calls over them: the metrics' sums (:func:`step_kernels.record_many`) by value on a
 hand-built step, ``K = 2`` worlds equal to two ``K = 1`` calls, a group owning the blocks of its worlds
 (views handed out, reused while it holds them, a reset world adopted again), copies and pickles of
@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.envs import metrics, step_kernels
-from parcover_env.envs.score_rows import PARTS, ScoreGroup, score_blocks
-from parcover_env.envs.team import TEAM_ROWS, Team
-from parcover_env.envs.world_rows import SharedRows
 from parcover_env.geometry import wrap_angle
+from parcover_env.mission import kernels as step_kernels
+from parcover_env.mission import metrics
+from parcover_env.mission.team import TEAM_ROWS, Team
+from parcover_env.sim.rows import PARTS, ScoreGroup, SharedRows, score_blocks
 
 
 def _worlds(k, scenario="office"):
@@ -181,16 +181,16 @@ def test_metrics_link_the_teams_counters_once_and_a_copied_world_keeps_the_link(
 
 def test_each_world_reads_its_row_of_the_camera_views_and_a_copy_keeps_its_own_row_only():
     import parcover_env
-    from parcover_env.envs import stepper
+    from parcover_env.sim import pipeline
 
     envs = [parcover_env.parallel_env("office") for _ in range(3)]
     for seed, e in enumerate(envs):
         e.reset(seed=seed)
     alone = copy.deepcopy(envs)
     acts = [{a: np.array([0.5, 0.1 * k], np.float32) for a in e.agents} for k, e in enumerate(envs)]
-    stepper.step(envs, acts)
+    pipeline.step(envs, acts)
     for k, (e, one) in enumerate(zip(envs, alone, strict=True)):
-        stepper.step([one], [acts[k]])
+        pipeline.step([one], [acts[k]])
         assert e.camera_views is envs[0].camera_views and e.camera_index == k
         view, ref = e.camera_view, one.camera_view
         assert np.array_equal(view.predecessor, ref.predecessor) and np.array_equal(view.estimates, ref.estimates)

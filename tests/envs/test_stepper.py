@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.envs import outputs_phase, stepper
-from parcover_env.envs.handover import CameraView, update_team
-from parcover_env.envs.team import Team
+from parcover_env.envs import slots
+from parcover_env.mission.handover import CameraView, update_team
+from parcover_env.mission.team import Team
 from parcover_env.sensors.relative import RelativeReading
+from parcover_env.sim import outputs_phase, pipeline
 
 
 class FakeKinects:
@@ -63,16 +64,16 @@ def test_slot_info_rules():
     env.reset(seed=0)
     still = {a: np.zeros(2, np.float32) for a in env.agents}
     _, _, term, trunc, infos = env.step(still)
-    info = stepper.slot_info(dict(infos["robot_0"]), np.ones(3), False, False)
+    info = slots.slot_info(dict(infos["robot_0"]), np.ones(3), False, False)
     assert info["active"] and "metrics" not in info and "terminal_observation" not in info
     _, _, term, trunc, infos = env.step(still)
     assert trunc["robot_0"] and not term["robot_0"]
-    info = stepper.slot_info(dict(infos["robot_0"]), np.ones(3), False, True)
+    info = slots.slot_info(dict(infos["robot_0"]), np.ones(3), False, True)
     assert info["TimeLimit.truncated"] is True and info["terminal_observation"].tolist() == [1.0] * 3
     assert info["metrics"]["steps"] == 2 and "ended" not in info["metrics"]
-    done = stepper.slot_info(dict(infos["robot_0"]), np.ones(3), True, True)
+    done = slots.slot_info(dict(infos["robot_0"]), np.ones(3), True, True)
     assert done["TimeLimit.truncated"] is False  # terminated wins
-    gone = stepper.slot_info({}, np.zeros(3), False, False, ended=True)  # left before its team
+    gone = slots.slot_info({}, np.zeros(3), False, False, ended=True)  # left before its team
     assert gone["TimeLimit.truncated"] is False and "terminal_observation" in gone
 
 
@@ -81,7 +82,7 @@ def test_one_world_step_is_the_env_step():
     oa, _ = a.reset(seed=3)
     ob, _ = b.reset(seed=3)
     acts = {n: np.array([0.5, 0.2], np.float32) for n in a.agents}
-    obs, out = stepper.step([b], [acts])
+    obs, out = pipeline.step([b], [acts])
     rew, term, trunc, infos = outputs_phase.agent_dicts(b.possible_agents, out)
     ra = a.step(acts)
     assert all(np.array_equal(ra[0][n], obs[0][i]) for i, n in enumerate(a.possible_agents))
@@ -92,7 +93,7 @@ def test_one_world_step_is_the_env_step():
     assert b.camera_views.predecessor.shape == (1, b.n_robots) and b.camera_index == 0
     with pytest.raises(RuntimeError, match="finished episode"):
         b.agents = []
-        stepper.step([b], [acts])
+        pipeline.step([b], [acts])
 
 
 def test_step_by_agent_slot_is_each_worlds_agent_dicts_and_clears_an_ended_world():
@@ -108,8 +109,8 @@ def test_step_by_agent_slot_is_each_worlds_agent_dicts_and_clears_an_ended_world
     n = worlds[0].n_robots
     rng = np.random.default_rng(4)
     acts = rng.uniform(-1, 1, (2, n, 2)).astype(np.float32)
-    obs, out = stepper.step(worlds, acts, active=True)
-    obs_ref, ref = stepper.step(twins, [dict(zip(w.agents, a, strict=True)) for w, a in zip(twins, acts, strict=True)],
+    obs, out = pipeline.step(worlds, acts, active=True)
+    obs_ref, ref = pipeline.step(twins, [dict(zip(w.agents, a, strict=True)) for w, a in zip(twins, acts, strict=True)],
                                 active=True)  # the same actions as one dict per world
     assert np.array_equal(obs, obs_ref)
     assert out.terminated == [False, False] and out.truncated == [False, True]

@@ -11,8 +11,8 @@ import pytest
 
 from parcover_env import parcover_v2
 from parcover_env.config import RewardConfig
-from parcover_env.envs import act_phase, score_phase
-from parcover_env.envs.rewards import TERMS_V2, reward_terms, sigma_major, terms_for
+from parcover_env.mission.rewards import TERMS_V2, reward_terms, sigma_major, terms_for
+from parcover_env.sim import act_phase, score_phase
 
 
 def _cov(a: float, b: float, c: float, h: float = 0.01) -> np.ndarray:

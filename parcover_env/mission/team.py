@@ -21,7 +21,7 @@ scripted expert observe the same roles; the expert implements the robots' contro
 
 :attr:`Team.tp_ahead` lists each group leader's pending TP as numbers, so that the worlds of a batch
 can tell in a few array operations which teams may split this step
-(:func:`parcover_env.envs.handover.update_teams`); only those run :meth:`Team.update`.
+(:func:`parcover_env.mission.handover.update_teams`); only those run :meth:`Team.update`.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ __all__ = ["Team", "TEAM_ROWS", "count_waypoints_many"]
 
 TEAM_ROWS = ("leader", "slot", "predecessor", "tp_ahead")
 """The :class:`Team` arrays the stepper reads for ``K`` worlds as ``(K, N, ...)`` blocks
-(:func:`~parcover_env.envs.score_rows.score_blocks`). Made once with the team and never rebound:
+(:func:`~parcover_env.sim.rows.score_blocks`). Made once with the team and never rebound:
 a split writes them in place, so a block whose row they are views of stays theirs."""
 
 

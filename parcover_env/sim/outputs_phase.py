@@ -7,7 +7,7 @@ turned into Python floats once (``tolist``); each agent's info is a copy of its 
 (the reward terms, the ``metrics/*`` entries, ...) updated with its own values, the key order fixed:
 ``reward_<term>`` (the world's terms order), ``metrics/*``, ``pose_error``, ``heading_error``, then
 ``sonar_fix`` (with ``observation.scan``), then ``route_done`` (version 2). The ``metrics/*`` entries
-are the zeros of :meth:`~parcover_env.envs.metrics.EpisodeMetrics.flat` (a fresh ``path_lengths``
+are the zeros of :meth:`~parcover_env.mission.metrics.EpisodeMetrics.flat` (a fresh ``path_lengths``
 array per world) except in a world whose episode ends this step, where they are its metrics.
 """
 
@@ -19,11 +19,11 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from parcover_env.envs.metrics import EpisodeMetrics
 from parcover_env.envs.obs_v2 import target_kpois
-from parcover_env.envs.rewards import TEAM_TERMS
-from parcover_env.envs.score_phase import Scores, rows
 from parcover_env.geometry import wrap_angle
+from parcover_env.mission.metrics import EpisodeMetrics
+from parcover_env.mission.rewards import TEAM_TERMS
+from parcover_env.sim.score_phase import Scores, rows
 
 __all__ = ["SlotOutputs", "slot_outputs", "agent_dicts", "infos", "slot_infos"]
 
@@ -90,7 +90,7 @@ def slot_infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarr
     ``estimates (K, N, 3)``, ``visited (K, M)``: the worlds' pose estimates and visited KPOIs if already
     gathered (read from the worlds if not); ``active``: every info also has ``"active": True`` (its
     last key; a VecEnv's agent slots); ``team_terms``: the terms whose values are one per world (the
-    same for all its agents, as :data:`~parcover_env.envs.rewards.TEAM_TERMS` are): their first column is read.
+    same for all its agents, as :data:`~parcover_env.mission.rewards.TEAM_TERMS` are): their first column is read.
 
     Each column becomes Python floats once for all worlds (one ``tolist``); each agent's dict is a
     copy of its world's template updated with its row."""

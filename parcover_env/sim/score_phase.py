@@ -7,20 +7,20 @@ After the act phase has moved every world, :func:`score` tracks the mission, spl
   the worlds when the phase is called on its own);
 * route progress, KPOI visits, goals and the route length to go: one compiled call for all worlds
   (:func:`parcover_env.scenarios.progress.step_many`) on the trackers' arrays as rows of ``(K, ...)``
-  blocks (:func:`parcover_env.envs.score_rows.score_blocks`), updated in place;
+  blocks (:func:`parcover_env.sim.rows.score_blocks`), updated in place;
 * the team update on the teams' arrays as rows of blocks too
-  (:data:`~parcover_env.envs.team.TEAM_ROWS`): waypoint messages counted over ``(K, N)``; only the
+  (:data:`~parcover_env.mission.team.TEAM_ROWS`): waypoint messages counted over ``(K, N)``; only the
   worlds where a leader may have reached its TP run the (rare) Python split
-  (:func:`parcover_env.envs.handover.update_teams`), which writes its team's arrays in place;
-* the reward terms as ``(K, N)`` arrays (:func:`parcover_env.envs.rewards.reward_terms`), returned
+  (:func:`parcover_env.mission.handover.update_teams`), which writes its team's arrays in place;
+* the reward terms as ``(K, N)`` arrays (:func:`parcover_env.mission.rewards.reward_terms`), returned
   in a :class:`Scores` for the outputs phase (with the goal points, the team rows and the estimator
   rows, for the observations);
-* the metrics of all worlds in one call (:func:`parcover_env.envs.metrics.record_steps`), their sums
+* the metrics of all worlds in one call (:func:`parcover_env.mission.metrics.record_steps`), their sums
   rows of blocks too.
 
 The worlds' trackers, teams, metrics and :class:`ScoreState` keep their own arrays (never rebound),
 which are views of row ``k`` of ``(K, ...)`` blocks while they are scored together
-(:mod:`parcover_env.envs.score_rows`): the compiled calls update every world in place, with no gather
+(:mod:`parcover_env.sim.rows`): the compiled calls update every world in place, with no gather
 and no write-back; a copy or pickle of a world holds plain arrays, and a world reset since is
 adopted again. So worlds stay
 independent (deepcopy, pickle) and the ParallelEnv is the ``K = 1`` call; world ``k`` gets bit for
@@ -35,14 +35,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from parcover_env.envs.handover import update_teams
-from parcover_env.envs.metrics import record_steps
-from parcover_env.envs.rewards import own_visits, reward_terms, sigma_major, touching
-from parcover_env.envs.score_rows import score_blocks
-from parcover_env.envs.team import count_waypoints_many
-from parcover_env.envs.world_rows import ActRows
+from parcover_env.mission.handover import update_teams
+from parcover_env.mission.metrics import record_steps
+from parcover_env.mission.rewards import own_visits, reward_terms, sigma_major, touching
+from parcover_env.mission.team import count_waypoints_many
 from parcover_env.scenarios.progress import step_many
 from parcover_env.scenarios.progress_kernel import TrackerRows
+from parcover_env.sim.rows import ActRows, score_blocks
 
 __all__ = ["ScoreState", "Scores", "score", "gather", "rows", "act_rows_of"]
 
@@ -61,7 +60,7 @@ def rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
 class ScoreState:
     """What scoring carries over from one step of a world to the next: arrays made here and never
     rebound (the score phase writes them in place, as rows of ``(K, ...)`` blocks when the world is
-    scored with others: :func:`~parcover_env.envs.score_rows.score_blocks`)."""
+    scored with others: :func:`~parcover_env.sim.rows.score_blocks`)."""
 
     def __init__(self, remaining: np.ndarray, wall: np.ndarray, robot: np.ndarray):
         self.remaining = remaining
@@ -95,7 +94,7 @@ class Scores(NamedTuple):
     visited: np.ndarray
     """The KPOIs visited ``(K, M)`` after this step's progress (to read only)."""
     team: dict[str, np.ndarray] | None = None
-    """The teams' :data:`~parcover_env.envs.team.TEAM_ROWS` blocks ``(K, N, ...)`` after this step's
+    """The teams' :data:`~parcover_env.mission.team.TEAM_ROWS` blocks ``(K, N, ...)`` after this step's
     splits (to read only, this step: the rows of the worlds' teams)."""
     act: ActRows | None = None
     """The act phase's shared rows of the worlds' pose estimators, every world's attached (to read
@@ -108,7 +107,7 @@ class Scores(NamedTuple):
 def act_rows_of(worlds: Sequence[Any]) -> ActRows | None:
     """The act phase's shared rows of the ``K`` worlds' pose estimators
     (:attr:`~parcover_env.envs.estimator.PoseEstimator.act_rows`) if they are those of these very
-    estimators, in order (as right after :func:`~parcover_env.envs.act_phase.act` of these worlds, which
+    estimators, in order (as right after :func:`~parcover_env.sim.act_phase.act` of these worlds, which
     attaches them and writes the estimates in place); None otherwise (a world reset, copied or
     stepped with other worlds since)."""
     first = worlds[0].estimator

@@ -3,21 +3,20 @@
 ``ParallelCoverageEnv``, the batched worlds (:mod:`parcover_env.envs.batched`) and the single-robot
 env all step through here, so the rules are written once:
 
-1. **act** (all worlds at once, :func:`parcover_env.envs.act_phase.act`): act, integrate the
+1. **act** (all worlds at once, :func:`parcover_env.sim.act_phase.act`): act, integrate the
    physics, update the pose estimator (odometry, fixes); **score** (all worlds at once,
-   :func:`parcover_env.envs.score_phase.score`): track the mission, hand over at splits (Alg. 1), score, record;
+   :func:`parcover_env.sim.score_phase.score`): track the mission, hand over at splits (Alg. 1), score, record;
 2. **sense and observe** (:func:`observe`, all worlds at once): one :class:`SensingState` of every
    world; the follower cameras first, then one compiled pass writes every non-sensor entry of the
    observation spec of every world, then every ``sensor`` entry of the spec is filled by its sensor's ``sense`` for
    all worlds in one call (version 2's ``route`` and ``teammates`` entries too,
    :mod:`parcover_env.envs.obs_v2`); clipped into the bounds. World ``k`` draws from its own generator in the
    order a single world would, so it is bit for bit a separate env;
-3. **outputs** (all worlds at once, :func:`parcover_env.envs.outputs_phase.slot_outputs`): rewards,
+3. **outputs** (all worlds at once, :func:`parcover_env.sim.outputs_phase.slot_outputs`): rewards,
    terminations, truncations, infos by agent slot, what a VecEnv reads (a world's PettingZoo dicts:
-   :func:`parcover_env.envs.outputs_phase.agent_dicts`);
-4. **slots** (:func:`slot_info`, :func:`with_metrics`): what a vectorized or single-agent view adds
-   to an agent's info (``metrics``, ``terminal_observation``, ``TimeLimit.truncated``, ``active``);
-   a world whose agents are all done is reset by the caller (auto-reset).
+   :func:`parcover_env.sim.outputs_phase.agent_dicts`);
+4. a world whose agents are all done is reset by the caller (auto-reset); what a vectorized or
+   single-agent view adds to an agent's info is :mod:`parcover_env.envs.slots`.
 
 The stepper reads the worlds through public names only (``team``, ``estimator``, ``progress``,
 ``layout``, ``sensors``, ``camera``, ``np_random``, ...).
@@ -30,16 +29,16 @@ from typing import Any
 
 import numpy as np
 
-from parcover_env.envs import act_phase, obs_v2, outputs_phase, score_phase
-from parcover_env.envs.handover import CameraView
-from parcover_env.envs.metrics import episode_metrics
+from parcover_env.envs import obs_v2
 from parcover_env.envs.observations import ScalarInputs
-from parcover_env.envs.outputs_phase import SlotOutputs
-from parcover_env.envs.score_phase import Scores, gather, rows
+from parcover_env.mission.handover import CameraView
 from parcover_env.scenarios.progress import goals_many
 from parcover_env.sensors.base import SensingState
+from parcover_env.sim import act_phase, outputs_phase, score_phase
+from parcover_env.sim.outputs_phase import SlotOutputs
+from parcover_env.sim.score_phase import Scores, gather, rows
 
-__all__ = ["sensing_state", "observe", "step", "with_metrics", "slot_info"]
+__all__ = ["sensing_state", "observe", "step"]
 
 
 def sensing_state(worlds: Sequence[Any], true: np.ndarray, predecessor: np.ndarray | None = None) -> SensingState:
@@ -114,29 +113,8 @@ def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray, 
     of every world's agents' actions in agent order): act, score, observe, outputs. Returns the
     observations ``(K, N, D)`` and the outputs by agent slot (:class:`SlotOutputs`; ``active``: every
     info with ``"active": True``, as a VecEnv's slots have it); a world's PettingZoo dicts are
-    :func:`~parcover_env.envs.outputs_phase.agent_dicts` of them."""
+    :func:`~parcover_env.sim.outputs_phase.agent_dicts` of them."""
     before, true = act_phase.act(worlds, actions)
     scores = score_phase.score(worlds, before, true)
     obs = observe(worlds, true, scores)
     return obs, outputs_phase.slot_outputs(worlds, true, scores, active=active)
-
-
-def with_metrics(info: dict) -> dict:
-    """``info`` with the episode's metrics gathered into ``info["metrics"]`` (a dict) on the step that
-    ends it (Gymnasium's and SB3's wrappers own ``info["episode"]``)."""
-    metrics = episode_metrics(info)
-    if metrics is not None:
-        info["metrics"] = metrics
-    return info
-
-
-def slot_info(info: dict, obs: np.ndarray, terminated: bool, truncated: bool, ended: bool | None = None) -> dict:
-    """An active agent slot's info in a VecEnv: :func:`with_metrics`, ``active``, and when its episode
-    ``ended`` (default: terminated or truncated) its last observation (``terminal_observation``) and
-    ``TimeLimit.truncated``."""
-    info = with_metrics(info)
-    info["active"] = True
-    if terminated or truncated if ended is None else ended:
-        info["terminal_observation"] = obs
-        info["TimeLimit.truncated"] = truncated and not terminated
-    return info

@@ -2,7 +2,7 @@
 
 The worlds of one scenario act together; the single env is ``K = 1`` of the same code. The joint
 actions of all worlds become one ``(K, N, A)`` array of commands
-(:func:`~parcover_env.envs.actions.to_commands_all`), the drives of all worlds turn them into body
+(:func:`~parcover_env.sim.actions.to_commands_all`), the drives of all worlds turn them into body
 velocities in one compiled call (:func:`~parcover_env.world.drive.command_steps_rows`), each world's
 pymunk space integrates its physics (one space per world; :func:`~parcover_env.world.physics.step_all`
 points the compiled velocity callbacks of all worlds' bodies at their rows in one call and steps
@@ -21,10 +21,10 @@ from typing import Any
 import numpy as np
 
 from parcover_env.config import PhysicsConfig
-from parcover_env.envs.actions import to_commands_all
 from parcover_env.envs.estimator import FixRequest, update_all
-from parcover_env.envs.world_rows import ActRows, act_rows
 from parcover_env.geometry.stacking import stack
+from parcover_env.sim.actions import to_commands_all
+from parcover_env.sim.rows import ActRows, act_rows
 from parcover_env.world.drive import command_steps_rows
 from parcover_env.world.physics import poses_all, step_all
 

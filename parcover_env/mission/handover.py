@@ -21,8 +21,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from parcover_env.envs.team import Team
 from parcover_env.localization.kinect.system import KinectSystem, handover_poses
+from parcover_env.mission.team import Team
 from parcover_env.sensors.relative import RelativeReading
 
 __all__ = ["CameraView", "SPLIT_MARGIN", "update_team", "update_teams"]
@@ -81,7 +81,7 @@ def update_teams(teams: Sequence[Team], kinects: Sequence[KinectSystem | None], 
     other world :meth:`Team.update` would not split (its tests are a subset). ``tp``: the teams'
     :attr:`Team.tp_ahead` ``(K, N, 3)`` if at hand (gathered if not). Returns the worlds that ran
     :func:`update_team` (a split there writes its team's arrays in place)."""
-    from parcover_env.envs import step_kernels
+    from parcover_env.mission import kernels as step_kernels
 
     k = len(teams)
     if tp is None:

@@ -1,4 +1,4 @@
-"""Compiled (numba) loop behind :func:`parcover_env.envs.actions.to_commands_all` (import only through
+"""Compiled (numba) loop behind :func:`parcover_env.sim.actions.to_commands_all` (import only through
 it): the common case's finiteness check, clip and scaling in one pass, the same float operations as
 the numpy formulas (``np.clip`` to [-1, 1], then ``v * max_speed`` and ``omega * max_turn_rate``)."""
 

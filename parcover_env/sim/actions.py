@@ -67,7 +67,7 @@ def _scaled_block(actions: np.ndarray, shape: tuple, max_speed: float, max_turn_
     if actions.shape != shape or actions.dtype not in (np.float32, np.float64):
         return None
     if not _KERNELS:  # numba is imported on first use, not with the package
-        from parcover_env.envs.action_kernels import scaled_commands
+        from parcover_env.sim.action_kernels import scaled_commands
 
         _KERNELS.append(scaled_commands)
     out = np.empty(shape)
