@@ -25,8 +25,7 @@ from __future__ import annotations
 import gc
 import time
 
-from profile_step import Timers
-from runners import VecRunner, VmasBatchedRunner, measure_parallel, our_env, peer_mpe, rss_mb, timed_chunks
+from runners import Timers, VecRunner, VmasBatchedRunner, measure_parallel, our_env, peer_mpe, rss_mb, timed_chunks
 
 MODELS = ("specular", "fast")
 """Sonar models compared; ``specular`` is the shipped default."""

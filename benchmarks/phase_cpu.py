@@ -46,13 +46,13 @@ def chunks(k: int, model: str, steps: int, count: int):
         total = dict.fromkeys(PHASES, 0.0)
         for a in acts[10 + c * steps: 10 + (c + 1) * steps]:
             t0 = clock()
-            before, true = act_phase.act(worlds, a.reshape(k, n, -1))
+            acted = act_phase.act(worlds, a.reshape(k, n, -1))
             t1 = clock()
-            scores = score_phase.score(worlds, before, true)
+            scores = score_phase.score(worlds, acted)
             t2 = clock()
-            pipeline.observe(worlds, true, scores)
+            pipeline.observe(worlds, acted.true, scores)
             t3 = clock()
-            outputs_phase.slot_outputs(worlds, true, scores, active=True)  # what a VecEnv calls
+            outputs_phase.slot_outputs(worlds, acted.true, scores, active=True)  # what a VecEnv calls
             t4 = clock()
             for w in worlds:
                 if not w.agents:

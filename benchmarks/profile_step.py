@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import cProfile
-import functools
 import io
 import pstats
 import sys
@@ -23,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from runners import merge  # noqa: E402
+from runners import Timers, merge  # noqa: E402
 from throughput import MODES, SCENARIOS, open_box  # noqa: E402
 
 from parcover_env.sim import pipeline  # noqa: E402
@@ -41,26 +40,6 @@ def make_env(scenario: str, mode: str, n_robots: int | None):
     if n_robots and scenario != "open":
         base = merge(base, {"n_robots": n_robots})
     return ParallelCoverageEnv(name, overrides=merge(base, MODES[mode]) or None)
-
-
-class Timers:
-    """Wall-clock totals of wrapped callables (nested parts are counted in their parents too)."""
-
-    def __init__(self):
-        self.total: dict[str, float] = {}
-
-    def wrap(self, obj, attr: str, label: str) -> None:
-        fn = getattr(obj, attr)
-
-        @functools.wraps(fn)
-        def timed(*a, **kw):
-            t0 = time.perf_counter()
-            try:
-                return fn(*a, **kw)
-            finally:
-                self.total[label] = self.total.get(label, 0.0) + time.perf_counter() - t0
-
-        setattr(obj, attr, timed)
 
 
 def run(env, steps: int, seed: int = 0) -> float:

@@ -287,8 +287,8 @@ class ParallelCoverageEnv(ParallelEnv):
         """Stepper part 1a (:func:`parcover_env.sim.act_phase.act` of this world alone): act,
         integrate the physics, update the pose estimator (odometry, fixes).
         Returns the true poses ``(N, 3)`` before and after the step."""
-        before, true = act_phase.act([self], [actions])
-        return before[0], true[0]
+        acted = act_phase.act([self], [actions])
+        return acted.before[0], acted.true[0]
 
     @property
     def camera_view(self) -> CameraView | None:

@@ -16,7 +16,7 @@ separate env.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -28,13 +28,26 @@ from parcover_env.sim.rows import ActRows, act_rows
 from parcover_env.world.drive import command_steps_rows
 from parcover_env.world.physics import poses_all, step_all
 
-__all__ = ["act"]
+__all__ = ["Acted", "act"]
 
 
-def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+class Acted(NamedTuple):
+    """What the act phase hands to the score phase."""
+
+    before: np.ndarray
+    """The true poses ``(K, N, 3)`` before the step."""
+    true: np.ndarray
+    """The true poses ``(K, N, 3)`` after the step."""
+    rows: ActRows
+    """The shared rows of the worlds' pose estimators (estimates, covariances, ...), every world's
+    attached (to read only, this step)."""
+
+
+def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -> Acted:
     """Act, integrate the physics and update the pose estimator of every world (``actions[k]``: world
     ``k``'s joint action dict, or ``actions`` one array ``(K, N, A)``: row ``[k, i]`` the action of
-    world ``k``'s ``i``-th agent); returns the true poses ``(K, N, 3)`` before and after the step.
+    world ``k``'s ``i``-th agent); returns the true poses ``(K, N, 3)`` before and after the step and
+    the estimators' rows.
     Bad actions raise :class:`~parcover_env.errors.ActionError` before any world changes."""
     for w in worlds:
         if not w.agents:
@@ -67,7 +80,7 @@ def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -
         for w, t in zip(worlds, true, strict=True):
             w.scanner.fixes(FixRequest(w.world.time, t, w.estimate.copy(), w.team.leader, w.estimator.covariance),
                             w.np_random)
-    return before, true
+    return Acted(before, true, rows)
 
 
 def _drive(rows: ActRows, physics: PhysicsConfig, commands: np.ndarray) -> np.ndarray | None:

@@ -98,7 +98,8 @@ def slot_infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarr
     n = first.n_robots
     est = rows([w.estimate for w in worlds]) if estimates is None else estimates
     d = est[..., :2] - true[..., :2]
-    base, reward_keys, keys = _template(tuple(first.terms), first.version == 2, first.scanner is not None, active)
+    routes = first.route_facts  # the worlds' own routes (version 2): each agent's ``route_done``
+    base, reward_keys, keys = _template(tuple(first.terms), routes is not None, first.scanner is not None, active)
     columns, agent_keys, team_keys, team_columns = [], [], [], []
     for name, key, term in zip(first.terms, reward_keys, terms, strict=True):
         c = np.asarray(term, dtype=float)
@@ -112,9 +113,9 @@ def slot_infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarr
     columns += [np.hypot(d[..., 0], d[..., 1]), np.abs(wrap_angle(est[..., 2] - true[..., 2]))]
     if first.scanner is not None:
         columns.append(rows([w.scanner.outcome for w in worlds]))
-    if first.version == 2:
+    if routes is not None:
         visited = rows([w.progress.visited for w in worlds]) if visited is None else visited
-        columns.append(target_kpois(first.route_facts, visited)[1].astype(float))
+        columns.append(target_kpois(routes, visited)[1].astype(float))
     values = np.stack(columns, axis=-1).tolist()  # [world][agent][column]
     team_values = np.stack(team_columns, axis=-1).tolist() if team_columns else [()] * len(worlds)
     flat = []

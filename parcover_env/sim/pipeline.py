@@ -57,11 +57,12 @@ def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = Non
     ``camera_index`` (the cameras' measurements of all worlds, blocks, and its row: its ``camera_view``,
     which Alg. 1's next hand-over uses)."""
     first = worlds[0]
-    team = None if scores is None else scores.team
-    if team is None:
+    if scores is None:  # at reset: the worlds' state as it is
         teams = [w.team for w in worlds]
         team = {"leader": rows([t.leader for t in teams]), "slot": rows([t.slot for t in teams]),
                 "predecessor": rows([t.predecessor for t in teams])}
+    else:  # this step's blocks
+        team = scores.team
     # a split writes the teams' arrays in place: the camera view keeps a copy of what it was measured against
     team = {**team, "predecessor": team["predecessor"].copy()}
     state = sensing_state(worlds, true, team["predecessor"])
@@ -73,12 +74,12 @@ def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = Non
                                rows([w.progress.visited for w in worlds]))
     else:
         goals, est, visited = scores.goals, scores.estimates, scores.visited
-    act = None if scores is None else scores.act
-    if act is None:
+    if scores is None:
         estimators = [w.estimator for w in worlds]
         velocity, fix_age = rows([e.velocity for e in estimators]), rows([e.fix_age for e in estimators])
         covariance = rows([e.covariance for e in estimators])
     else:
+        act = scores.act
         velocity, fix_age = act.estimators.blocks["velocity"], act.estimators.blocks["fix_age"]
         covariance = act.odometry.blocks["covariance"]
     rel_xy, rel_heading, visible = seen
@@ -94,7 +95,7 @@ def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = Non
             for name, values in w.localization_entries().items():
                 obs[k][:, w.layout.slices[name]] = values[:, None]
     if first.route_facts is not None:  # observation version 2: route and teammate entries, all worlds at once
-        if scores is None or scores.act is None or scores.track is None:
+        if scores is None:
             mates = obs_v2.team_rows(worlds)
         else:  # this step's blocks
             mates = obs_v2.TeamRows(est, velocity, team["leader"], obs_v2.group_sizes(team["leader"]),
@@ -114,7 +115,7 @@ def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray, 
     observations ``(K, N, D)`` and the outputs by agent slot (:class:`SlotOutputs`; ``active``: every
     info with ``"active": True``, as a VecEnv's slots have it); a world's PettingZoo dicts are
     :func:`~parcover_env.sim.outputs_phase.agent_dicts` of them."""
-    before, true = act_phase.act(worlds, actions)
-    scores = score_phase.score(worlds, before, true)
-    obs = observe(worlds, true, scores)
-    return obs, outputs_phase.slot_outputs(worlds, true, scores, active=active)
+    acted = act_phase.act(worlds, actions)
+    scores = score_phase.score(worlds, acted)
+    obs = observe(worlds, acted.true, scores)
+    return obs, outputs_phase.slot_outputs(worlds, acted.true, scores, active=active)

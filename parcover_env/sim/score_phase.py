@@ -3,8 +3,7 @@
 After the act phase has moved every world, :func:`score` tracks the mission, splits and hands over
 (Alg. 1), scores and records each world, on ``(K, N)`` blocks:
 
-* the pose estimates: a copy of the act phase's estimator rows (:func:`act_rows_of`; gathered from
-  the worlds when the phase is called on its own);
+* the pose estimates: a copy of the act phase's estimator rows (:class:`~parcover_env.sim.act_phase.Acted`);
 * route progress, KPOI visits, goals and the route length to go: one compiled call for all worlds
   (:func:`parcover_env.scenarios.progress.step_many`) on the trackers' arrays as rows of ``(K, ...)``
   blocks (:func:`parcover_env.sim.rows.score_blocks`), updated in place;
@@ -31,19 +30,22 @@ No random numbers are drawn here.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
 from parcover_env.mission.handover import update_teams
 from parcover_env.mission.metrics import record_steps
-from parcover_env.mission.rewards import own_visits, reward_terms, sigma_major, touching
+from parcover_env.mission.rewards import RewardInputs, inputs_needed, own_visits, reward_terms, sigma_major, touching
 from parcover_env.mission.team import count_waypoints_many
 from parcover_env.scenarios.progress import step_many
 from parcover_env.scenarios.progress_kernel import TrackerRows
 from parcover_env.sim.rows import ActRows, score_blocks
 
-__all__ = ["ScoreState", "Scores", "score", "gather", "rows", "act_rows_of"]
+if TYPE_CHECKING:  # an annotation only: act_phase imports the estimator, whose package imports the env
+    from parcover_env.sim.act_phase import Acted
+
+__all__ = ["ScoreState", "Scores", "score", "gather", "rows"]
 
 
 def gather(arrays: Sequence[np.ndarray]) -> np.ndarray:
@@ -93,43 +95,30 @@ class Scores(NamedTuple):
     """The pose estimates ``(K, N, 3)`` of this step (a copy; scoring does not move them)."""
     visited: np.ndarray
     """The KPOIs visited ``(K, M)`` after this step's progress (to read only)."""
-    team: dict[str, np.ndarray] | None = None
+    team: dict[str, np.ndarray]
     """The teams' :data:`~parcover_env.mission.team.TEAM_ROWS` blocks ``(K, N, ...)`` after this step's
     splits (to read only, this step: the rows of the worlds' teams)."""
-    act: ActRows | None = None
+    act: ActRows
     """The act phase's shared rows of the worlds' pose estimators, every world's attached (to read
-    only, this step); None: the estimates were gathered from the worlds."""
-    track: TrackerRows | None = None
+    only, this step)."""
+    track: TrackerRows
     """The route trackers' :data:`~parcover_env.scenarios.progress.STATE` blocks after this step's
     progress (to read only, this step)."""
 
 
-def act_rows_of(worlds: Sequence[Any]) -> ActRows | None:
-    """The act phase's shared rows of the ``K`` worlds' pose estimators
-    (:attr:`~parcover_env.envs.estimator.PoseEstimator.act_rows`) if they are those of these very
-    estimators, in order (as right after :func:`~parcover_env.sim.act_phase.act` of these worlds, which
-    attaches them and writes the estimates in place); None otherwise (a world reset, copied or
-    stepped with other worlds since)."""
-    first = worlds[0].estimator
-    rows = first.act_rows
-    if (rows is None or rows.estimators.size != len(worlds) or not rows.estimators.attached(0, first)
-            or not rows.odometry.attached(0, first.odometry)
-            or rows.estimators.owners != [w.estimator for w in worlds]):
-        return None
-    return rows
-
-
-def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores:
-    """Part 1b of the ``K`` worlds at true poses ``before`` and ``true`` ``(K, N, 3)`` (see the module
-    docstring); returns their reward terms and goal points."""
+def score(worlds: Sequence[Any], acted: Acted) -> Scores:
+    """Part 1b of the ``K`` worlds after the act phase (``acted``: the true poses before and after the
+    step ``(K, N, 3)``, the estimators' rows; see the module docstring); returns their reward terms and
+    goal points."""
     first = worlds[0]
     s = first.scenario
+    before, true, act = acted
     trackers, teams = [w.progress for w in worlds], [w.team for w in worlds]
-    act = act_rows_of(worlds)
-    est = gather([w.estimate for w in worlds]) if act is None else act.odometry.blocks["estimate"].copy()
+    est = act.odometry.blocks["estimate"].copy()
     blocks = score_blocks(worlds)  # the worlds' arrays as rows of (K, ...) blocks, updated in place
     state = TrackerRows(**blocks.progress)
-    was = state.visited.copy() if first.version == 2 else None
+    needs = inputs_needed(first.terms)  # the optional inputs of the worlds' reward terms
+    was = state.visited.copy() if "own_new" in needs else None
     times = [w.world.time for w in worlds]
     true_xy = np.ascontiguousarray(true[..., :2])
     n_new, goals, remaining = step_many(trackers, true_xy, est[..., :2], times, state)
@@ -140,7 +129,7 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
                  lambda k: worlds[k].camera_view, tp=team["tp_ahead"])
     own = None
     visited = state.visited
-    if first.version == 2:
+    if "own_new" in needs:
         own = own_visits(visited & ~was, state.visitor, first.kpoi_owner, first.n_robots)
     held = blocks.held  # the last step's, updated in place
     gained = held["remaining"] - remaining
@@ -150,15 +139,14 @@ def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores
     for w, v in zip(worlds, velocity, strict=True):  # row views of the block, as the worlds' own
         w.true_velocity = v
     touch = None
-    if "contact" in first.terms:
+    if "touch" in needs:
         gap = s.rewards.contact_gap
         touch = np.array([touching(xy, w.world.map.segments, w.world.radius, gap)
                           for w, xy in zip(worlds, true_xy, strict=True)])
     sigma = None
-    if "uncertainty" in first.terms:  # the estimates' covariances after this step's fixes
-        cov = gather([w.estimator.covariance for w in worlds]) if act is None else act.odometry.blocks["covariance"]
-        sigma = sigma_major(cov)
-    terms = reward_terms(s.rewards, n_new, gained, new_wall + new_robot, own, touch, sigma)
+    if "sigma" in needs:  # of the estimates' covariances after this step's fixes
+        sigma = sigma_major(act.odometry.blocks["covariance"])
+    terms = reward_terms(s.rewards, first.terms, RewardInputs(n_new, gained, new_wall + new_robot, own, touch, sigma))
     record_steps([w.metrics for w in worlds], before, true, times=times, progress=trackers, estimates=est,
                  new_contacts=(new_wall, new_robot), teams=teams, formation=s.formation, kinects=first.kinects,
                  control_dt=s.physics.control_dt, visits=(state.visited, state.visit_time), team_rows=team,

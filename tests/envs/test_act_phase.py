@@ -194,7 +194,7 @@ def test_act_of_two_worlds_is_act_of_each_alone(scenario, overrides):
     for step in range(25):
         block = rng.uniform(-1, 1, (2, len(batch[0].agents), width)).astype(np.float32)
         actions = [dict(zip(w.agents, rows, strict=True)) for w, rows in zip(batch, block, strict=True)]
-        before, true = act_phase.act(batch, block if step % 2 else actions)
+        before, true, _ = act_phase.act(batch, block if step % 2 else actions)
         for k, w in enumerate(alone):
             b1, t1 = w.act(dict(actions[k]))
             np.testing.assert_array_equal(before[k], b1)
