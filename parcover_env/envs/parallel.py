@@ -17,10 +17,9 @@ from parcover_env.envs.obs_v2 import route_facts, target_kpois
 from parcover_env.envs.observations import ObservationLayout, build_sensors
 from parcover_env.envs.sonar_fixes import SonarFixes
 from parcover_env.localization.kinect.system import KinectSystem
-from parcover_env.mission.handover import CameraView, update_team
 from parcover_env.mission.metrics import EpisodeMetrics
 from parcover_env.mission.rewards import terms_for
-from parcover_env.mission.team import Team
+from parcover_env.mission.team import CameraView, Team, update_team
 from parcover_env.scenarios import load_scenario, mission_for
 from parcover_env.sensors.relative import RelativeCamera
 from parcover_env.sim import act_phase, outputs_phase, pipeline

@@ -1,6 +1,6 @@
 """Compiled (numba) loops of the mission's step: the formation errors, the episode metrics' sums
 (:func:`record_many`) and the test for teams that may split; import only through
-:mod:`parcover_env.mission.metrics` and :mod:`parcover_env.mission.handover`. The same float
+:mod:`parcover_env.mission.metrics` and :mod:`parcover_env.mission.team`. The same float
 operations, in the same order, as the numpy formulas they replace (``tests/envs/test_values.py``
 keeps references). The ``*_many`` loops run a one-world loop over ``K`` worlds (leading axis)."""
 

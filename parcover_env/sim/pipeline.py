@@ -31,7 +31,7 @@ import numpy as np
 
 from parcover_env.envs import obs_v2
 from parcover_env.envs.observations import ScalarInputs
-from parcover_env.mission.handover import CameraView
+from parcover_env.mission.team import CameraView
 from parcover_env.scenarios.progress import goals_many
 from parcover_env.sensors.base import SensingState
 from parcover_env.sim import act_phase, outputs_phase, score_phase

@@ -10,7 +10,7 @@ After the act phase has moved every world, :func:`score` tracks the mission, spl
 * the team update on the teams' arrays as rows of blocks too
   (:data:`~parcover_env.mission.team.TEAM_ROWS`): waypoint messages counted over ``(K, N)``; only the
   worlds where a leader may have reached its TP run the (rare) Python split
-  (:func:`parcover_env.mission.handover.update_teams`), which writes its team's arrays in place;
+  (:func:`parcover_env.mission.team.update_teams`), which writes its team's arrays in place;
 * the reward terms as ``(K, N)`` arrays (:func:`parcover_env.mission.rewards.reward_terms`), returned
   in a :class:`Scores` for the outputs phase (with the goal points, the team rows and the estimator
   rows, for the observations);
@@ -34,10 +34,9 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from parcover_env.mission.handover import update_teams
 from parcover_env.mission.metrics import record_steps
 from parcover_env.mission.rewards import RewardInputs, inputs_needed, own_visits, reward_terms, sigma_major, touching
-from parcover_env.mission.team import count_waypoints_many
+from parcover_env.mission.team import count_waypoints_many, update_teams
 from parcover_env.scenarios.progress import step_many
 from parcover_env.scenarios.progress_kernel import TrackerRows
 from parcover_env.sim.rows import ActRows, score_blocks

@@ -17,7 +17,6 @@ from parcover_env.envs.obs_v2 import target_kpois
 from parcover_env.envs.observations import ScalarInputs
 from parcover_env.mission import kernels as step_kernels
 from parcover_env.mission import rewards
-from parcover_env.mission.handover import CameraView, update_team, update_teams
 from parcover_env.mission.metrics import (
     EpisodeMetrics,
     formation_errors,
@@ -26,7 +25,7 @@ from parcover_env.mission.metrics import (
     record_steps,
 )
 from parcover_env.mission.rewards import TERMS, TERMS_V2, RewardInputs, own_visits, reward_terms
-from parcover_env.mission.team import Team, count_waypoints_many
+from parcover_env.mission.team import CameraView, Team, count_waypoints_many, update_team, update_teams
 from parcover_env.scenarios.progress import RouteTracker, goals_many, step_many, update_many
 from parcover_env.sensors.relative import RelativeReading
 from parcover_env.sim import act_phase, outputs_phase, pipeline, score_phase

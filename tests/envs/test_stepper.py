@@ -7,8 +7,7 @@ import pytest
 
 import parcover_env
 from parcover_env.envs import slots
-from parcover_env.mission.handover import CameraView, update_team
-from parcover_env.mission.team import Team
+from parcover_env.mission.team import CameraView, Team, update_team
 from parcover_env.sensors.relative import RelativeReading
 from parcover_env.sim import outputs_phase, pipeline
 
