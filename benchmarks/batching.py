@@ -25,8 +25,7 @@ from __future__ import annotations
 import gc
 import time
 
-from profile_step import Timers
-from runners import VecRunner, VmasBatchedRunner, measure_parallel, our_env, peer_mpe, rss_mb, timed_chunks
+from runners import Timers, VecRunner, VmasBatchedRunner, measure_parallel, our_env, peer_mpe, rss_mb, timed_chunks
 
 MODELS = ("specular", "fast")
 """Sonar models compared; ``specular`` is the shipped default."""
@@ -108,10 +107,11 @@ def breakdown(model: str, k: int, steps: int) -> dict:
     """Microseconds per world-step of the stepper's act phase (physics, drives, pose estimators in
     it), sonar, the score and outputs phases (all worlds at once) and the rest, batched ``tree`` at
     ``k`` worlds."""
-    from parcover_env.envs import act_phase, stepper
+    from parcover_env.sim import act_phase, outputs_phase, score_phase
 
-    calls = {"act": "act", "score": "score", "outputs": "slot_outputs"}  # the stepper calls a VecEnv step makes
-    phases = {name: getattr(stepper, call) for name, call in calls.items()}
+    # the phases a VecEnv step makes (parcover_env.sim.pipeline.step calls them through their modules)
+    calls = {"act": (act_phase, "act"), "score": (score_phase, "score"), "outputs": (outputs_phase, "slot_outputs")}
+    phases = {name: getattr(module, call) for name, (module, call) in calls.items()}
     inner = {name: getattr(act_phase, name) for name in ("step_all", "command_steps_rows", "update_all")}
     venv = _venv(model, k)
     try:
@@ -125,8 +125,8 @@ def breakdown(model: str, k: int, steps: int) -> dict:
                 seen.add(id(w.sonar))
                 clock.wrap(w.sonar, "draw", "sonar")
                 clock.wrap(w.sonar, "readings", "sonar")
-        for name, call in calls.items():
-            clock.wrap(stepper, call, name)
+        for name, (module, call) in calls.items():
+            clock.wrap(module, call, name)
         clock.wrap(act_phase, "command_steps_rows", "drives")
         clock.wrap(act_phase, "update_all", "estimators")
         t0 = time.perf_counter()
@@ -135,7 +135,7 @@ def breakdown(model: str, k: int, steps: int) -> dict:
         total = time.perf_counter() - t0
     finally:
         for name, fn in phases.items():
-            setattr(stepper, calls[name], fn)
+            setattr(*calls[name], fn)
         for name, fn in inner.items():
             setattr(act_phase, name, fn)
         venv.close()

@@ -30,8 +30,8 @@ PHASES = ("act", "score", "observe", "outputs", "resets")
 def chunks(k: int, model: str, steps: int, count: int):
     """Set up batched ``tree`` at ``k`` worlds, then yield ``count`` chunks of ``steps`` steps each: per
     chunk, the seconds of CPU of each phase and of the whole ``VecEnv.step`` (``step``)."""
-    from parcover_env.envs import stepper
     from parcover_env.envs.vec_env import make_vec_env
+    from parcover_env.sim import act_phase, outputs_phase, pipeline, score_phase
 
     venv = make_vec_env("tree", n_envs=k, overrides={"robot": {"sonar": {"model": model}}}, backend="batched",
                         monitor=False)
@@ -46,13 +46,13 @@ def chunks(k: int, model: str, steps: int, count: int):
         total = dict.fromkeys(PHASES, 0.0)
         for a in acts[10 + c * steps: 10 + (c + 1) * steps]:
             t0 = clock()
-            before, true = stepper.act(worlds, a.reshape(k, n, -1))
+            acted = act_phase.act(worlds, a.reshape(k, n, -1))
             t1 = clock()
-            scores = stepper.score(worlds, before, true)
+            scores = score_phase.score(worlds, acted)
             t2 = clock()
-            stepper.observe(worlds, true, scores)
+            pipeline.observe(worlds, acted.true, scores)
             t3 = clock()
-            getattr(stepper, "slot_outputs", stepper.outputs)(worlds, true, scores, active=True)  # what a VecEnv calls
+            outputs_phase.slot_outputs(worlds, acted.true, scores, active=True)  # what a VecEnv calls
             t4 = clock()
             for w in worlds:
                 if not w.agents:

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import cProfile
-import functools
 import io
 import pstats
 import sys
@@ -23,10 +22,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from runners import merge  # noqa: E402
+from runners import Timers, merge  # noqa: E402
 from throughput import MODES, SCENARIOS, open_box  # noqa: E402
 
-from parcover_env.envs import stepper  # noqa: E402
+from parcover_env.sim import pipeline  # noqa: E402
 
 
 def make_env(scenario: str, mode: str, n_robots: int | None):
@@ -41,26 +40,6 @@ def make_env(scenario: str, mode: str, n_robots: int | None):
     if n_robots and scenario != "open":
         base = merge(base, {"n_robots": n_robots})
     return ParallelCoverageEnv(name, overrides=merge(base, MODES[mode]) or None)
-
-
-class Timers:
-    """Wall-clock totals of wrapped callables (nested parts are counted in their parents too)."""
-
-    def __init__(self):
-        self.total: dict[str, float] = {}
-
-    def wrap(self, obj, attr: str, label: str) -> None:
-        fn = getattr(obj, attr)
-
-        @functools.wraps(fn)
-        def timed(*a, **kw):
-            t0 = time.perf_counter()
-            try:
-                return fn(*a, **kw)
-            finally:
-                self.total[label] = self.total.get(label, 0.0) + time.perf_counter() - t0
-
-        setattr(obj, attr, timed)
 
 
 def run(env, steps: int, seed: int = 0) -> float:
@@ -89,7 +68,7 @@ def breakdown(env, steps: int) -> None:
     tm.wrap(env.team, "update", "team: splits at TPs")
     tm.wrap(env, "_rewards", "rewards")
     tm.wrap(env, "_record", "metrics")
-    tm.wrap(stepper, "observe", "observation assembly (all)")
+    tm.wrap(pipeline, "observe", "observation assembly (all)")
     if env.sonar is not None:
         tm.wrap(env.sonar, "sense", "  sonar ring")
     tm.wrap(env.camera.__class__, "measure", "  follower camera")

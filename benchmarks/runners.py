@@ -4,6 +4,7 @@ and its peers (MPE2, VMAS) with pre-drawn random actions (used by ``throughput.p
 
 from __future__ import annotations
 
+import functools
 import gc
 import os
 import resource
@@ -12,7 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["rss_mb", "peak_rss_mb", "timed_chunks", "ParallelRunner", "measure_parallel", "our_env", "merge",
+__all__ = ["Timers", "rss_mb", "peak_rss_mb", "timed_chunks", "ParallelRunner", "measure_parallel", "our_env", "merge",
            "peer_mpe", "VmasRunner", "VecRunner", "VmasBatchedRunner"]
 
 
@@ -152,3 +153,23 @@ class VmasBatchedRunner:
         if bool(done.any()):  # reset only the finished worlds, as VMAS training loops do
             for i in done.nonzero().flatten().tolist():
                 self.env.reset_at(i)
+
+
+class Timers:
+    """Wall-clock totals of wrapped callables (nested parts are counted in their parents too)."""
+
+    def __init__(self):
+        self.total: dict[str, float] = {}
+
+    def wrap(self, obj, attr: str, label: str) -> None:
+        fn = getattr(obj, attr)
+
+        @functools.wraps(fn)
+        def timed(*a, **kw):
+            t0 = time.perf_counter()
+            try:
+                return fn(*a, **kw)
+            finally:
+                self.total[label] = self.total.get(label, 0.0) + time.perf_counter() - t0
+
+        setattr(obj, attr, timed)

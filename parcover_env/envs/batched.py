@@ -5,7 +5,7 @@ robots are slots ``k * n_robots ... (k + 1) * n_robots - 1``) and the semantics 
 :class:`~parcover_env.envs.vec_env.ParallelVecEnv` (parameter sharing, auto-reset, per-world
 seeding, ``terminal_observation`` / ``TimeLimit.truncated`` / ``metrics`` in the infos), so a
 policy trained on one trains on the other. The worlds step through the same public stepper as
-the ParallelEnv (:mod:`parcover_env.envs.stepper`), with ``K`` worlds instead of one:
+the ParallelEnv (:mod:`parcover_env.sim.pipeline`), with ``K`` worlds instead of one:
 
 * the ``(K n_robots, A)`` actions go to the stepper as one ``(K, n_robots, A)`` block (validated
   there: a bad action raises the ActionError naming the agent before any world steps);
@@ -36,9 +36,10 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
-from parcover_env.envs import stepper
+from parcover_env.envs import slots
 from parcover_env.envs.entry_checks import check_options, check_seed
 from parcover_env.envs.parallel import ParallelCoverageEnv
+from parcover_env.sim import pipeline
 
 __all__ = ["BatchedVecEnv"]
 
@@ -127,11 +128,12 @@ class BatchedVecEnv(VecEnv):
         acts, self._actions = self._actions, None
         n = self.n_robots
         # the (K N, A) slots as the (K, N, A) block of the worlds' agents (validated by the act phase)
-        world_obs, out = stepper.step_slots(self.worlds, acts.reshape(self.n_worlds, n, *acts.shape[1:]))
+        world_obs, out = pipeline.step(self.worlds, acts.reshape(self.n_worlds, n, *acts.shape[1:]),
+                                      active=True)
         obs = world_obs.reshape(self.num_envs, *world_obs.shape[2:])  # the slots, world by world (a view)
         rewards = out.rewards.reshape(-1).astype(np.float32)
         dones = np.zeros(self.num_envs, dtype=bool)
-        infos = out.infos  # ``active`` set; a running episode's are complete (stepper.slot_info adds nothing)
+        infos = out.infos  # ``active`` set; a running episode's are complete (slots.slot_info adds nothing)
         copied = False
         for k, (t, tr) in enumerate(zip(out.terminated, out.truncated, strict=True)):
             if t or tr:  # all robots of a world end together
@@ -139,7 +141,7 @@ class BatchedVecEnv(VecEnv):
                     obs, copied = obs.copy(), True
                 o, rows = world_obs[k], slice(k * n, (k + 1) * n)
                 for i, info in enumerate(infos[rows]):
-                    stepper.slot_info(info, o[i], t, tr)  # in place
+                    slots.slot_info(info, o[i], t, tr)  # in place
                 dones[rows] = True
                 obs[rows] = self._reset_world(k)
         return obs, rewards, dones, infos

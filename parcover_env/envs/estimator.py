@@ -18,11 +18,11 @@ from typing import NamedTuple, Protocol
 import numpy as np
 
 from parcover_env.config import Scenario
-from parcover_env.envs.world_rows import ActRows, act_rows
 from parcover_env.localization.kinect.batch_update import update_systems
 from parcover_env.localization.kinect.system import KinectSystem
 from parcover_env.sensors.odometry import Odometry
 from parcover_env.sensors.onboard_kernels import OdometryState, wheel_odometry_rows
+from parcover_env.sim.rows import ActRows, act_rows
 from parcover_env.world.drive import wheel_targets
 
 __all__ = ["FixRequest", "FixSource", "KinectFixes", "PoseEstimator", "update_all"]
@@ -94,7 +94,7 @@ class PoseEstimator:
         self.fix_age = np.zeros(len(true))
         self.act_rows: ActRows | None = None
         """The shared rows this estimator's arrays are views of, when it steps with others
-        (:func:`~parcover_env.envs.world_rows.act_rows`); not copied, not pickled."""
+        (:func:`~parcover_env.sim.rows.act_rows`); not copied, not pickled."""
 
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
@@ -127,7 +127,7 @@ def update_all(estimators: Sequence[PoseEstimator], true: Sequence[np.ndarray], 
     ``true`` ``(K, N, 3)``, ``commands`` ``(K, N, 2)``, ``leaders`` ``(K, N)`` (arrays, or sequences of
     the ``K`` worlds' arrays: the sources see those very arrays), and per estimator its
     world's drive, time and generator; ``rows``: their shared rows
-    (:func:`~parcover_env.envs.world_rows.act_rows`, made here if not given). The wheel odometry of
+    (:func:`~parcover_env.sim.rows.act_rows`, made here if not given). The wheel odometry of
     all ``K N`` robots (dead reckoning, encoder velocity, fix age) runs in one compiled call on the
     rows, the Kinect systems in one batch
     (:func:`~parcover_env.localization.kinect.batch_update.update_systems`), and each source's fixes

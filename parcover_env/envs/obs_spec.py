@@ -13,7 +13,7 @@ from the env's state; ``route`` and ``teammates`` entries (observation version 2
 stepper from ``env.localization_entries()`` (the sonar localization service,
 :mod:`parcover_env.envs.sonar_fixes`); a ``sensor`` entry is the reading of the sensor its ``sensor``
 factory builds from the scenario (a :class:`~parcover_env.sensors.base.Sensor`), filled for every world
-at once by the stepper (:mod:`parcover_env.envs.stepper`). A new sensor is a sensor module, a config
+at once by the stepper (:mod:`parcover_env.sim.pipeline`). A new sensor is a sensor module, a config
 field and one ``sensor`` entry here: neither the env nor the batched worlds change.
 """
 
@@ -240,7 +240,7 @@ V2_ENTRIES = tuple(e.name for e in ENTRIES if e.source in ("route", "teammates")
 
 KERNEL_COLUMNS = np.dtype([(name, "i8") for name in KERNEL_ENTRIES])
 """Record of the column of each :data:`KERNEL_ENTRIES` entry in a layout (-1: absent), addressed by
-name in the compiled pass (``parcover_env.envs.step_kernels.scalar_entries``). A structured array,
+name in the compiled pass (``parcover_env.envs.obs_kernels.scalar_entries``). A structured array,
 not a NamedTuple: numba types it in its C dispatcher (a NamedTuple is typed field by field)."""
 
 

@@ -111,7 +111,7 @@ class ObservationLayout:
     def fill_scalars_many(self, obs: np.ndarray, inputs: ScalarInputs) -> None:
         """:meth:`fill_scalars` of ``K`` worlds in one compiled call: ``obs (K, N, D)``, every field of
         ``inputs`` with a leading ``K`` axis (the two fractions ``(K,)``)."""
-        from parcover_env.envs import step_kernels
+        from parcover_env.envs import obs_kernels as step_kernels
 
         rows = step_kernels.RobotRows(*inputs[:10])
         step_kernels.scalar_entries_many(obs, self.columns, rows, float(max(obs.shape[1] - 1, 1)), MAX_FIX_AGE,

@@ -10,22 +10,22 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from parcover_env.config import Scenario, deep_merge
-from parcover_env.envs import critic_state, outputs_phase, stepper
+from parcover_env.envs import critic_state
 from parcover_env.envs.entry_checks import check_options, check_seed, require_episode
 from parcover_env.envs.estimator import KinectFixes, PoseEstimator
-from parcover_env.envs.handover import CameraView, update_team
-from parcover_env.envs.metrics import EpisodeMetrics
 from parcover_env.envs.obs_spec import markdown_table
 from parcover_env.envs.obs_v2 import route_facts, target_kpois
 from parcover_env.envs.observations import ObservationLayout, build_sensors
-from parcover_env.envs.rewards import terms_for
-from parcover_env.envs.score_phase import ScoreState
 from parcover_env.envs.sonar_fixes import SonarFixes
-from parcover_env.envs.team import Team
 from parcover_env.errors import CallOrderError, ParcoverError
 from parcover_env.localization.kinect.system import KinectSystem
+from parcover_env.mission.metrics import EpisodeMetrics
+from parcover_env.mission.rewards import terms_for
+from parcover_env.mission.team import CameraView, Team, update_team
 from parcover_env.scenarios import load_scenario, mission_for
 from parcover_env.sensors.relative import RelativeCamera
+from parcover_env.sim import act_phase, outputs_phase, pipeline
+from parcover_env.sim.score_phase import ScoreState
 from parcover_env.world.physics import World
 
 __all__ = ["ParallelCoverageEnv"]
@@ -140,7 +140,7 @@ class ParallelCoverageEnv(ParallelEnv):
     every step): the ``reward_<term>`` values and ``metrics/<name>`` entries that are 0 until
     the step that ends the episode (``metrics/ended`` = 1), where they hold the metrics (makespan,
     KPOIs visited, collisions, path lengths, localization error, makespan / (c_max / v_max), ...);
-    ``parcover_env.envs.metrics.episode_metrics(info)`` gives them back as a dict.
+    ``parcover_env.mission.metrics.episode_metrics(info)`` gives them back as a dict.
 
     ## Infos and analysis
     ``info[agent]`` also holds the per-step estimate error ``pose_error`` (m) and
@@ -148,7 +148,7 @@ class ParallelCoverageEnv(ParallelEnv):
     ``(n_robots, 3)`` arrays (x, y, theta) in agent order, ``env.pose_covariances()`` ``(n_robots, 3, 3)``.
 
     ## Step and rates
-    ``step`` runs the public stepper (``parcover_env.envs.stepper``), shared with the batched worlds
+    ``step`` runs the public stepper (``parcover_env.sim.pipeline``), shared with the batched worlds
     and the single-robot env: ``act`` (act, physics, estimator), ``score`` (mission, Alg. 1, rewards,
     metrics), ``observe`` (the spec's entries, every sensor of every world in one call), ``outputs``.
     One step is ``physics.substeps x physics.dt`` seconds (default 5 x 0.02 s); pymunk runs at ``dt``.
@@ -291,26 +291,26 @@ class ParallelCoverageEnv(ParallelEnv):
         self.trails = [[p[:2].copy()] for p in true]
         self.progress.update(true[:, :2], self.estimate[:, :2], 0.0)
         update_team(self.team, self.kinects, self.estimate, self.progress.plan_progress, self.camera_view)
-        obs = self._as_dict(stepper.observe([self], true[None])[0])
+        obs = self._as_dict(pipeline.observe([self], true[None])[0])
         zeros = [[0.0] * self.n_robots]
         return obs, outputs_phase.infos([self], true[None], [zeros] * len(self.terms), [False])[0]
 
     def step(self, actions: dict[str, Any]):
-        require_episode(self, "step()")
-        if not self.agents:
+        if not self.agents:  # checked here, not in entry_checks: a step runs as few modules as it can
+            require_episode(self, "step()")
             raise CallOrderError("step() called on a finished episode; call reset() first")
-        obs, ((rewards, terminations, truncations, infos),) = stepper.step([self], [actions])
-        return self._as_dict(obs[0]), rewards, terminations, truncations, infos
+        obs, out = pipeline.step([self], [actions])
+        return self._as_dict(obs[0]), *outputs_phase.agent_dicts(self.possible_agents, out)
 
     def _as_dict(self, obs: np.ndarray) -> dict[str, np.ndarray]:
         return dict(zip(self.possible_agents, obs, strict=True))  # all agents live or end together
 
     def act(self, actions: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
-        """Stepper part 1a (:func:`parcover_env.envs.act_phase.act` of this world alone): act,
+        """Stepper part 1a (:func:`parcover_env.sim.act_phase.act` of this world alone): act,
         integrate the physics, update the pose estimator (odometry, fixes).
         Returns the true poses ``(N, 3)`` before and after the step."""
-        before, true = stepper.act([self], [actions])
-        return before[0], true[0]
+        acted = act_phase.act([self], [actions])
+        return acted.before[0], acted.true[0]
 
     @property
     def camera_view(self) -> CameraView | None:
@@ -320,6 +320,7 @@ class ParallelCoverageEnv(ParallelEnv):
 
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
+        state.pop("score_group", None)  # the blocks of the worlds scored with this one: a copy holds its own arrays
         views = state.get("camera_views")
         if views is not None and len(views.predecessor) > 1:  # a copy keeps its own world's measurements only
             k = state["camera_index"]

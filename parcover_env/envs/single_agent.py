@@ -6,7 +6,7 @@ import gymnasium as gym
 
 from parcover_env.envs import ParallelCoverageEnv
 from parcover_env.envs.entry_checks import check_options, check_seed
-from parcover_env.envs.stepper import with_metrics
+from parcover_env.envs.slots import with_metrics
 
 __all__ = ["SingleRobotCoverageEnv"]
 

@@ -38,7 +38,7 @@ from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import CloudpickleWrapper, VecEnv
 
 from parcover_env.envs.entry_checks import check_options, check_seed
-from parcover_env.envs.stepper import slot_info
+from parcover_env.envs.slots import slot_info
 
 __all__ = ["AgentSlots", "BACKENDS", "ParallelVecEnv", "make_vec_env"]  # + BatchedVecEnv (lazy)
 

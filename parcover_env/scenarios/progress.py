@@ -14,7 +14,6 @@ from typing import NamedTuple
 import numpy as np
 
 from parcover_env.geometry.records import record
-from parcover_env.geometry.row_owner import RowOwner
 from parcover_env.scenarios import progress_kernel
 
 __all__ = ["RouteTracker", "RouteTable", "ProgressStep", "STATE", "step_many", "update_many", "goals_many"]
@@ -42,7 +41,7 @@ class RouteTable(NamedTuple):
     """``(N,)`` each route's length (m)."""
 
 
-class RouteTracker(RowOwner):
+class RouteTracker:
     """Routes are polylines ``(M_i, 2)`` (a lead-in from the robot's start place, then its plan path).
 
     Progress along a route is the arc length of the robot's pose estimate projected onto the route,
@@ -85,9 +84,6 @@ class RouteTracker(RowOwner):
         self.advanced = np.zeros(n, dtype=bool)
         """Each robot's waypoint moved at the last update."""
         self._goal_cache: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-        self.rows = None
-        """The shared rows the :data:`STATE` arrays are views of when the tracker steps with other
-        worlds' (the env's score phase); not copied, not pickled (:class:`RowOwner`)."""
 
     @property
     def window(self) -> float:
@@ -156,7 +152,8 @@ def _rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
 
 STATE = ("visited", "visit_time", "visitor", "progress", "waypoint", "advanced")
 """A tracker's arrays that a step updates: ``visited``, ``visit_time``, ``visitor`` ``(n_kpois,)``,
-``progress``, ``waypoint``, ``advanced`` ``(N,)`` (:class:`~parcover_env.scenarios.progress_kernel.TrackerRows`)."""
+``progress``, ``waypoint``, ``advanced`` ``(N,)`` (:class:`~parcover_env.scenarios.progress_kernel.TrackerRows`).
+Made with the tracker and never rebound: every update writes them in place."""
 
 
 class ProgressStep(NamedTuple):

@@ -11,10 +11,10 @@ import pytest
 
 import parcover_env
 from parcover_env.config import DriveConfig, MapConfig, OdometryConfig, PhysicsConfig
-from parcover_env.envs import act_phase
-from parcover_env.envs.actions import to_commands, to_commands_all
 from parcover_env.errors import ActionError
 from parcover_env.sensors.odometry import Odometry, measure_wheels_all
+from parcover_env.sim import act_phase
+from parcover_env.sim.actions import to_commands, to_commands_all
 from parcover_env.world.drive import DiffDrive, advance_steps_all, take_travel_all
 from parcover_env.world.map_model import MapModel
 from parcover_env.world.physics import World, poses_all
@@ -194,7 +194,7 @@ def test_act_of_two_worlds_is_act_of_each_alone(scenario, overrides):
     for step in range(25):
         block = rng.uniform(-1, 1, (2, len(batch[0].agents), width)).astype(np.float32)
         actions = [dict(zip(w.agents, rows, strict=True)) for w, rows in zip(batch, block, strict=True)]
-        before, true = act_phase.act(batch, block if step % 2 else actions)
+        before, true, _ = act_phase.act(batch, block if step % 2 else actions)
         for k, w in enumerate(alone):
             b1, t1 = w.act(dict(actions[k]))
             np.testing.assert_array_equal(before[k], b1)

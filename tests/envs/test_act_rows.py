@@ -1,5 +1,5 @@
 """The act phase on shared rows (issue 31): the per-world arrays as views of ``(K, ...)`` blocks
-(:mod:`parcover_env.envs.world_rows`), the drive, odometry and physics calls over those rows. Each
+(:mod:`parcover_env.sim.rows`), the drive, odometry and physics calls over those rows. Each
 block function over K = 2 worlds of different states gives what two K = 1 calls give, and a pinned
 value on a hand-built case."""
 
@@ -14,9 +14,9 @@ import pytest
 import parcover_env
 from parcover_env.config import DriveConfig, MapConfig, OdometryConfig, PhysicsConfig
 from parcover_env.envs.estimator import PoseEstimator, update_all
-from parcover_env.envs.world_rows import SharedRows, act_rows
 from parcover_env.sensors import onboard_kernels
 from parcover_env.sensors.odometry import Odometry, measure_wheels_all
+from parcover_env.sim.rows import SharedRows, act_rows
 from parcover_env.world.drive import DiffDrive, advance_steps_all, command_steps_all, command_steps_rows, wheel_targets
 from parcover_env.world.map_model import MapModel
 from parcover_env.world.physics import World, step_all

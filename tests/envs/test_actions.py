@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from parcover_env.envs.actions import to_commands
 from parcover_env.errors import ActionError
+from parcover_env.sim.actions import to_commands
 
 AGENTS = ["robot_0", "robot_1"]
 

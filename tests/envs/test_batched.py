@@ -14,9 +14,9 @@ pytest.importorskip("stable_baselines3")
 
 import parcover_env  # noqa: E402
 from parcover_env.envs.batched import BatchedVecEnv  # noqa: E402
-from parcover_env.envs.metrics import episode_metrics  # noqa: E402
 from parcover_env.envs.vec_env import ParallelVecEnv, make_vec_env  # noqa: E402
 from parcover_env.errors import ActionError  # noqa: E402
+from parcover_env.mission.metrics import episode_metrics  # noqa: E402
 
 
 def _equal(a, b) -> bool:

@@ -187,4 +187,4 @@ def test_room_modules_import_as_names_next_to_the_aec_factory():
     module = importlib.import_module("parcover_env.envs.vec_env")
     assert callable(parcover_env.env)
     assert module.__name__ == "parcover_env.envs.vec_env"
-    exec("import parcover_env.envs.metrics as m\nassert m.episode_metrics", {})
+    exec("import parcover_env.mission.metrics as m\nassert m.episode_metrics", {})

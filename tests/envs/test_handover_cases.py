@@ -7,8 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 import parcover_env
-from parcover_env.envs.handover import CameraView, update_team, update_teams
-from parcover_env.envs.team import Team
+from parcover_env.mission.team import CameraView, Team, update_team, update_teams
 from parcover_env.sensors.relative import RelativeReading
 
 

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from parcover_env.envs.metrics import EpisodeMetrics, episode_metrics, formation_errors, record_step, record_steps
+from parcover_env.mission.metrics import EpisodeMetrics, episode_metrics, formation_errors, record_step, record_steps
 
 FORMATION = SimpleNamespace(offset=0.0, spacing=1.0, bearing_deg=180.0)
 

@@ -9,8 +9,8 @@ import pytest
 from pettingzoo.test import api_test, parallel_api_test
 
 import parcover_env
-from parcover_env.envs.metrics import episode_metrics
 from parcover_env.errors import ActionError, ConfigError
+from parcover_env.mission.metrics import episode_metrics
 
 SCENARIOS = ["office", "tree", "hallway", "t_room"]
 

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from parcover_env.envs.metrics import EpisodeMetrics, record_step
+from parcover_env.mission.metrics import EpisodeMetrics, record_step
 
 
 class Footprint:

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.envs.score_phase import ScoreState
 from parcover_env.envs.vec_env import make_vec_env
+from parcover_env.sim.score_phase import ScoreState
 
 
 def _office(**kw):

@@ -13,15 +13,22 @@ import pytest
 from layout_helpers import layout_of
 
 import parcover_env
-from parcover_env.envs import outputs_phase, rewards, score_phase, step_kernels, stepper
-from parcover_env.envs.handover import CameraView, update_team, update_teams
-from parcover_env.envs.metrics import EpisodeMetrics, formation_errors, formation_errors_many, record_step, record_steps
 from parcover_env.envs.obs_v2 import target_kpois
 from parcover_env.envs.observations import ScalarInputs
-from parcover_env.envs.rewards import own_visits, reward_terms
-from parcover_env.envs.team import Team, count_waypoints_many
+from parcover_env.mission import kernels as step_kernels
+from parcover_env.mission import rewards
+from parcover_env.mission.metrics import (
+    EpisodeMetrics,
+    formation_errors,
+    formation_errors_many,
+    record_step,
+    record_steps,
+)
+from parcover_env.mission.rewards import TERMS, TERMS_V2, RewardInputs, own_visits, reward_terms
+from parcover_env.mission.team import CameraView, Team, count_waypoints_many, update_team, update_teams
 from parcover_env.scenarios.progress import RouteTracker, goals_many, step_many, update_many
 from parcover_env.sensors.relative import RelativeReading
+from parcover_env.sim import act_phase, outputs_phase, pipeline, score_phase
 
 ROUTE = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.5], [2.0, 0.0], [4.0, 0.0]])
 KPOIS = np.array([[2.0, 1.5], [4.0, 0.0]])
@@ -157,9 +164,10 @@ def test_reward_terms_and_own_visits_of_two_worlds_are_each_world_alone():
     assert own.tolist() == [[0.0, 1.0, 0.0], [1.0, 0.0, 1.0]]  # robot 2 of world 0 visited robot 0's
     progress = np.array([[0.5, -0.25, 0.0], [1.0, 0.0, 0.125]])
     contacts = np.array([[0, 1, 2], [3, 0, 0]])
-    block = reward_terms(w, newly.sum(axis=1), progress, contacts, own)
+    block = reward_terms(w, TERMS_V2, RewardInputs(newly.sum(axis=1), progress, contacts, own))
     for k in range(2):
-        one = reward_terms(w, int(newly[k].sum()), progress[k], contacts[k], own_visits(newly[k], visitor[k], owner, 3))
+        one = reward_terms(w, TERMS_V2, RewardInputs(int(newly[k].sum()), progress[k], contacts[k],
+                                                    own_visits(newly[k], visitor[k], owner, 3)))
         assert list(one) == list(block) and all(np.array_equal(one[t], block[t][k]) for t in one)
     assert block["kpoi"].tolist() == [[20.0] * 3] * 2 and block["collision"][1].tolist() == [-3.0, 0.0, 0.0]
     assert block["progress"][0].tolist() == [1.0, -0.5, 0.0] and block["own_kpoi"][1].tolist() == [5.0, 0.0, 5.0]
@@ -287,9 +295,11 @@ def test_phases_of_two_worlds_are_each_world_alone(scenario, overrides):
     alone = copy.deepcopy(envs)
     rng = np.random.default_rng(9)
     acts = [{a: rng.uniform(-1, 1, e.action_space(a).shape).astype(np.float32) for a in e.agents} for e in envs]
-    obs, outs = stepper.step(envs, acts)
+    obs, out = pipeline.step(envs, acts)
+    outs = [outputs_phase.agent_dicts(e.possible_agents, out, k) for k, e in enumerate(envs)]
     for k, e in enumerate(alone):
-        obs1, out1 = stepper.step([e], [acts[k]])
+        obs1, one = pipeline.step([e], [acts[k]])
+        out1 = [outputs_phase.agent_dicts(e.possible_agents, one)]
         assert np.array_equal(obs[k], obs1[0])
         assert outs[k][:3] == out1[0][:3]
         infos, infos1 = outs[k][3], out1[0][3]
@@ -358,14 +368,15 @@ def test_score_state_starts_without_contacts_and_gather_copies():
 def test_scores_carry_a_copy_of_the_estimates_and_the_visits_to_the_later_phases():
     env = parcover_env.parallel_env("office")
     env.reset(seed=1)
-    before, true = stepper.act([env], [{a: np.array([0.5, 0.1], np.float32) for a in env.agents}])
-    scores = stepper.score([env], before, true)
+    acted = act_phase.act([env], [{a: np.array([0.5, 0.1], np.float32) for a in env.agents}])
+    true = acted.true
+    scores = score_phase.score([env], acted)
     assert np.array_equal(scores.estimates[0], env.estimate) and not np.shares_memory(scores.estimates, env.estimate)
     assert np.array_equal(scores.visited[0], env.progress.visited)
     twin = copy.deepcopy(env)
-    obs = stepper.observe([env], true, scores)
+    obs = pipeline.observe([env], true, scores)
     assert not np.shares_memory(env.camera_view.estimates, env.estimate)
-    assert np.array_equal(obs, stepper.observe([twin], true))  # read from the worlds: the same
+    assert np.array_equal(obs, pipeline.observe([twin], true))  # read from the worlds: the same
 
 
 def test_infos_take_the_team_terms_from_the_first_agent_and_reward_terms_make_them_one_per_world():
@@ -386,22 +397,20 @@ def test_infos_take_the_team_terms_from_the_first_agent_and_reward_terms_make_th
             assert all(np.array_equal(world[a][x], ref[a][x]) for x in ref[a] if not x.startswith("reward_"))
     assert math.copysign(1.0, infos[1]["robot_1"]["reward_time"]) == -1.0  # time: the world's first agent's
     w = SimpleNamespace(kpoi=10.0, own_kpoi=5.0, progress=2.0, time=-0.01, collision=-1.0)
-    block = reward_terms(w, np.array([0, 2]), np.ones((2, 3)), np.zeros((2, 3), dtype=int))
+    block = reward_terms(w, TERMS, RewardInputs(np.array([0, 2]), np.ones((2, 3)), np.zeros((2, 3), dtype=int)))
     for t in rewards.TEAM_TERMS:
         assert (block[t].view(np.int64) == block[t][:, :1].view(np.int64)).all(), t
 
 
-def test_act_rows_of_are_the_act_phases_rows_of_these_very_estimators_only():
+def test_the_score_phase_reads_the_estimates_from_the_act_phases_rows_as_a_copy():
     envs = _two_worlds("office")
     rng = np.random.default_rng(5)
     acts = rng.uniform(-1, 1, (2, envs[0].n_robots, 2)).astype(np.float32)
-    before, true = stepper.act(envs, acts)
-    rows = score_phase.act_rows_of(envs)
-    assert rows is not None and rows is envs[0].estimator.act_rows
+    acted = act_phase.act(envs, acts)
+    rows = acted.rows
+    assert rows is envs[0].estimator.act_rows and rows is envs[1].estimator.act_rows
     np.testing.assert_array_equal(rows.odometry.blocks["estimate"], np.stack([e.estimate for e in envs]))
-    assert score_phase.act_rows_of(envs[::-1]) is None and score_phase.act_rows_of(envs[:1]) is None
-    scores = stepper.score(envs, before, true)
+    np.testing.assert_array_equal(acted.true, np.stack([e.true_poses() for e in envs]))
+    scores = score_phase.score(envs, acted)
     assert scores.act is rows and not np.shares_memory(scores.estimates, rows.odometry.blocks["estimate"])
-    np.testing.assert_array_equal(scores.team["leader"], np.stack([e.team.leader for e in envs]))
-    envs[1].reset(seed=3)  # a new estimator: not those rows' any more
-    assert score_phase.act_rows_of(envs) is None
+    np.testing.assert_array_equal(scores.estimates, np.stack([e.estimate for e in envs]))

@@ -1,7 +1,8 @@
-"""The score phase's per-world state as rows of shared blocks (:mod:`parcover_env.envs.score_rows`)
+"""The score phase's per-world state as rows of ``(K, ...)`` blocks (:mod:`parcover_env.sim.rows`)
 and the compiled calls over them: the metrics' sums (:func:`step_kernels.record_many`) by value on a
-hand-built step, ``K = 2`` worlds equal to two ``K = 1`` calls, copies and pickles of owners that
-hold row views."""
+hand-built step, ``K = 2`` worlds equal to two ``K = 1`` calls, a group owning the blocks of its worlds
+(views handed out, reused while it holds them, a reset world adopted again), copies and pickles of
+worlds that hold row views."""
 
 from __future__ import annotations
 
@@ -13,42 +14,92 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.envs import metrics, step_kernels
-from parcover_env.envs.metrics import EpisodeMetrics
-from parcover_env.envs.score_rows import shared_rows
-from parcover_env.envs.team import TEAM_ROWS, Team
-from parcover_env.envs.world_rows import SharedRows
 from parcover_env.geometry import wrap_angle
-from parcover_env.geometry.row_owner import RowOwner
+from parcover_env.mission import kernels as step_kernels
+from parcover_env.mission import metrics
+from parcover_env.mission.team import TEAM_ROWS, Team
+from parcover_env.sim.rows import PARTS, ScoreGroup, SharedRows, score_blocks
 
 
-class Owner:
-    def __init__(self, a, b):
-        self.a, self.b, self.rows = np.array(a, dtype=float), np.array(b, dtype=np.int64), None
+def _worlds(k, scenario="office"):
+    worlds = [parcover_env.parallel_env(scenario) for _ in range(k)]
+    for seed, w in enumerate(worlds):
+        w.reset(seed=seed)
+    return worlds
 
-    def __getstate__(self):
-        return {**self.__dict__, "rows": None}
+
+def _arrays(world):
+    return {(part, name): getattr(getattr(world, attr), name)
+            for part, (attr, names) in PARTS.items() for name in names}
 
 
-def test_shared_rows_attach_reuse_and_adopt_again():
-    x, y = Owner([1.0, 2.0], [3]), Owner([4.0, 5.0], [6])
-    rows = shared_rows([x, y], ("a", "b"))
-    assert rows.blocks["a"].tolist() == [[1.0, 2.0], [4.0, 5.0]] and rows.blocks["b"].tolist() == [[3], [6]]
-    assert x.rows is rows and y.rows is rows and np.shares_memory(x.a, rows.blocks["a"])
-    rows.blocks["a"] += 1.0  # one call on the block updates every owner
-    assert x.a.tolist() == [2.0, 3.0] and y.a.tolist() == [5.0, 6.0]
-    assert shared_rows([x, y], ("a", "b")) is rows  # reused while attached
-    z = Owner([7.0, 8.0], [9])  # a world reset since: a new owner takes row 1
-    assert shared_rows([x, z], ("a", "b")) is rows
-    assert rows.blocks["a"][1].tolist() == [7.0, 8.0] and y.a.tolist() == [5.0, 6.0]
-    assert not np.shares_memory(y.a, rows.blocks["a"])  # the old owner keeps its values, as its own array
-    x.a = np.array([0.5, 0.25])  # rebound by a per-world method: copied in again
-    shared_rows([x, z], ("a", "b"))
-    assert rows.blocks["a"][0].tolist() == [0.5, 0.25] and np.shares_memory(x.a, rows.blocks["a"])
-    one = shared_rows([z], ("a", "b"))  # another K: rows of its own
-    assert one is not rows and one.size == 1 and z.rows is one and one.blocks["a"].tolist() == [[7.0, 8.0]]
-    for c in (copy.deepcopy(x), pickle.loads(pickle.dumps(x))):
-        assert c.rows is None and c.a.tolist() == [0.5, 0.25] and not np.shares_memory(c.a, rows.blocks["a"])
+def test_one_worlds_blocks_are_views_of_its_own_arrays():
+    w, = _worlds(1)
+    blocks = score_blocks([w])
+    for (part, name), array in _arrays(w).items():
+        block = getattr(blocks, part)[name]
+        assert block.shape == (1, *array.shape) and np.shares_memory(block, array)
+    assert getattr(w, "score_group", None) is None  # nothing attached, nothing copied
+
+
+def test_a_group_holds_its_worlds_arrays_as_views_of_its_rows_and_attaches_only_what_changed(monkeypatch):
+    worlds = _worlds(2)
+    before = [copy.deepcopy(_arrays(w)) for w in worlds]
+    blocks = score_blocks(worlds)
+    group = worlds[0].score_group
+    assert isinstance(group, ScoreGroup) and worlds[1].score_group is group and group.blocks is blocks
+    for k, w in enumerate(worlds):
+        for (part, name), array in _arrays(w).items():
+            block = getattr(blocks, part)[name]
+            assert np.shares_memory(array, block[k]) and np.array_equal(array, before[k][part, name], equal_nan=True)
+    blocks.held["remaining"] += 1.0  # one call on a block updates every world
+    assert worlds[1].score_state.remaining.tolist() == (before[1]["held", "remaining"] + 1.0).tolist()
+    calls = []
+    monkeypatch.setattr(ScoreGroup, "attach", lambda self, ws: calls.append(list(ws)))
+    assert score_blocks(worlds) is blocks and calls == []  # the very worlds and owners: nothing to attach
+    assert score_blocks(worlds[::-1]) is blocks and calls == [worlds[::-1]]  # another order: attached again
+
+
+def test_a_world_reset_since_is_adopted_and_its_old_owners_keep_their_values():
+    worlds = _worlds(2)
+    blocks = score_blocks(worlds)
+    old_team, old_metrics = worlds[1].team, worlds[1].metrics
+    blocks.metrics["paths"][1] = [5.0] * worlds[1].n_robots
+    worlds[1].reset(seed=7)
+    assert score_blocks(worlds) is blocks  # the same group: world 1's new owners take row 1
+    assert np.shares_memory(worlds[1].team.leader, blocks.team["leader"]) and blocks.metrics["paths"][1].sum() == 0
+    assert old_metrics.path_lengths == [5.0] * worlds[1].n_robots  # the old owner keeps its values, as its own
+    assert not np.shares_memory(old_metrics.paths, blocks.metrics["paths"])
+    assert not np.shares_memory(old_team.leader, blocks.team["leader"])
+
+
+def _shares(world, blocks):
+    return [np.shares_memory(array, getattr(blocks, part)[name]) for (part, name), array in _arrays(world).items()]
+
+
+def test_a_world_attached_to_another_group_is_adopted_again_with_its_values():
+    a, b, c = _worlds(3)
+    blocks = score_blocks([a, b])
+    blocks.progress["progress"][0] = 1.5  # a's progress, written through the block
+    kept = copy.deepcopy(_arrays(a))
+    assert score_blocks([b, c]) is blocks  # b's group fits: b and c take its rows, a gets copies of its values
+    assert not any(_shares(a, blocks)) and all(_shares(b, blocks)) and all(_shares(c, blocks))
+    assert all(np.array_equal(array, kept[key], equal_nan=True) for key, array in _arrays(a).items())
+    assert a.progress.progress.tolist() == [1.5] * a.n_robots
+    assert score_blocks([a, b]) is blocks  # a's group still names it, but holds b and c: attached again
+    assert all(_shares(a, blocks)) and all(_shares(b, blocks)) and not any(_shares(c, blocks))
+    assert blocks.progress["progress"][0].tolist() == [1.5] * a.n_robots
+
+
+def test_copies_and_pickles_of_a_grouped_world_hold_plain_arrays_of_their_own():
+    worlds = _worlds(2)
+    blocks = score_blocks(worlds)
+    blocks.held["robot"][1] += 2
+    for c in (copy.deepcopy(worlds[1]), pickle.loads(pickle.dumps(worlds[1]))):
+        assert getattr(c, "score_group", None) is None
+        assert c.score_state.robot.tolist() == worlds[1].score_state.robot.tolist()
+        for (part, name), array in _arrays(c).items():
+            assert not np.shares_memory(array, getattr(blocks, part)[name])
 
 
 def test_metric_totals_are_the_kernels_columns():
@@ -93,17 +144,22 @@ def test_record_many_by_value():
     assert totals[1, 5] == pytest.approx(0.5) and totals[1, 6] == 4  # squared errors summed over steps
 
 
-def test_episode_metrics_rows_survive_copies_and_are_adopted_after_a_reset():
-    ms = [EpisodeMetrics(2, 2, 4.0, 0.5, path_lengths=[1.0, 2.0]) for _ in range(2)]
-    rows = shared_rows(ms, ("totals", "paths"))
-    rows.blocks["paths"] += 1.0
-    rows.blocks["totals"][:, 0] = 3.0
-    c = copy.deepcopy(ms[1])
-    assert c.rows is None and c.path_lengths == [2.0, 3.0] and c.steps == 3
-    fresh = EpisodeMetrics(2, 2, 4.0, 0.5)
-    assert shared_rows([ms[0], fresh], ("totals", "paths")) is rows
-    assert fresh.steps == 0 and ms[1].steps == 3 and rows.blocks["totals"][:, 0].tolist() == [3.0, 0.0]
-    assert pickle.loads(pickle.dumps(ms[0])).summary() == ms[0].summary()
+def test_record_steps_of_several_worlds_without_blocks_gathers_and_writes_back():
+    worlds = _worlds(2)
+    twins = copy.deepcopy(worlds)
+    w = worlds[0]
+    true = np.stack([x.true_poses() for x in worlds])
+    moved = true + [0.3, 0.4, 0.0]
+    kwargs = dict(times=[0.1, 0.1], progress=[x.progress for x in worlds], estimates=moved,
+                  new_contacts=(np.zeros((2, w.n_robots), np.int64), np.zeros((2, w.n_robots), np.int64)),
+                  formation=w.scenario.formation, kinects=w.kinects, control_dt=0.1)
+    metrics.record_steps([x.metrics for x in worlds], true, moved, teams=[x.team for x in worlds], **kwargs)
+    for x in worlds:  # 0.5 m each, written back into each world's own arrays
+        assert x.metrics.path_lengths == pytest.approx([0.5] * w.n_robots, abs=1e-15) and x.metrics.steps == 1
+    blocks = score_blocks(twins)
+    metrics.record_steps([x.metrics for x in twins], true, moved, teams=[x.team for x in twins],
+                         sums=blocks.metrics, **kwargs)
+    assert [x.metrics.summary() for x in twins] == [x.metrics.summary() for x in worlds]
 
 
 def test_metrics_link_the_teams_counters_once_and_a_copied_world_keeps_the_link():
@@ -125,16 +181,16 @@ def test_metrics_link_the_teams_counters_once_and_a_copied_world_keeps_the_link(
 
 def test_each_world_reads_its_row_of_the_camera_views_and_a_copy_keeps_its_own_row_only():
     import parcover_env
-    from parcover_env.envs import stepper
+    from parcover_env.sim import pipeline
 
     envs = [parcover_env.parallel_env("office") for _ in range(3)]
     for seed, e in enumerate(envs):
         e.reset(seed=seed)
     alone = copy.deepcopy(envs)
     acts = [{a: np.array([0.5, 0.1 * k], np.float32) for a in e.agents} for k, e in enumerate(envs)]
-    stepper.step(envs, acts)
+    pipeline.step(envs, acts)
     for k, (e, one) in enumerate(zip(envs, alone, strict=True)):
-        stepper.step([one], [acts[k]])
+        pipeline.step([one], [acts[k]])
         assert e.camera_views is envs[0].camera_views and e.camera_index == k
         view, ref = e.camera_view, one.camera_view
         assert np.array_equal(view.predecessor, ref.predecessor) and np.array_equal(view.estimates, ref.estimates)
@@ -144,18 +200,6 @@ def test_each_world_reads_its_row_of_the_camera_views_and_a_copy_keeps_its_own_r
             assert np.array_equal(c.camera_view.estimates, view.estimates)
             assert not np.shares_memory(c.camera_views.estimates, view.estimates)
     assert np.array_equal(envs[1].camera_view.estimates, envs[1].estimate)  # measured at this step's estimates
-
-
-def test_score_states_as_shared_rows():
-    from parcover_env.envs.score_phase import HELD, ScoreState
-
-    states = [ScoreState.start(np.array([3.0, 4.0])), ScoreState.start(np.array([1.0, 2.0]))]
-    held = shared_rows(states, HELD).blocks
-    assert held["remaining"].tolist() == [[3.0, 4.0], [1.0, 2.0]] and held["wall"].dtype == np.int64
-    held["robot"][1] += [2, 0]
-    assert states[1].contacts[1].tolist() == [2, 0] and states[0].contacts[1].tolist() == [0, 0]
-    for c in (copy.deepcopy(states[1]), pickle.loads(pickle.dumps(states[1]))):
-        assert c.rows is None and c.robot.tolist() == [2, 0] and not np.shares_memory(c.robot, held["robot"])
 
 
 ROUTE = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.5], [2.0, 0.0], [4.0, 0.0]])
@@ -176,7 +220,8 @@ def test_trackers_stepped_on_shared_rows_are_each_tracker_alone():
     for x in np.arange(0.0, 2.05, 0.25):  # world a walks to the foot of the spur, world b stays behind
         a.update(np.array([[x, 0.05], [x - 0.3, 0.1]]), np.array([[x, 0.05], [x - 0.3, 0.1]]), 1.0)
     alone = [copy.deepcopy(a), copy.deepcopy(b)]
-    rows = shared_rows([a, b], STATE)
+    rows = SharedRows(2, STATE, a)
+    rows.attach([a, b])
     state = TrackerRows(**rows.blocks)
     true = np.array([[[2.0, 1.45], [0.5, 0.1]], [[0.4, 0.0], [0.2, 0.1]]])  # a's robot 0 reaches KPOI 0
     got = step_many([a, b], true, true + 0.01, [3.0, 4.0], state)
@@ -192,56 +237,20 @@ def test_trackers_stepped_on_shared_rows_are_each_tracker_alone():
     assert rows.blocks["progress"][1].tolist() == b.progress.tolist() and b.progress[0] > 0.0  # b moved on too
 
 
-class Tracked(RowOwner):
-    def __init__(self, a, b):
-        self.a, self.b, self.c = np.array(a, dtype=float), np.array(b, dtype=np.int64), 0
-
-
-def test_a_row_owner_forgets_its_rows_when_a_row_array_is_rebound_only():
-    x, y = Tracked([1.0, 2.0], [3]), Tracked([4.0, 5.0], [6])
-    rows = shared_rows([x, y], ("a", "b"))
-    assert x.rows is rows and y.rows is rows
-    x.a += 1.0  # in place: the same view, still attached
-    x.c = 5  # not a row array
-    assert x.rows is rows and rows.blocks["a"][0].tolist() == [2.0, 3.0]
-    x.b = np.array([7])  # rebound: the rows are forgotten, adopted again at the next call
-    assert x.rows is None and y.rows is rows
-    assert shared_rows([x, y], ("a", "b")) is rows and x.rows is rows
-    assert rows.blocks["b"].tolist() == [[7], [6]] and np.shares_memory(x.b, rows.blocks["b"])
-    for c in (copy.deepcopy(x), pickle.loads(pickle.dumps(x))):
-        assert c.rows is None and c.a.tolist() == [2.0, 3.0] and not np.shares_memory(c.a, rows.blocks["a"])
-
-
-def test_shared_rows_skip_attaching_only_while_every_owner_holds_its_row(monkeypatch):
-    x, y = Tracked([1.0, 2.0], [3]), Tracked([4.0, 5.0], [6])
-    rows = shared_rows([x, y], ("a", "b"))
-    calls = []
-    attach = SharedRows.attach
-    monkeypatch.setattr(SharedRows, "attach", lambda self, owners: calls.append(list(owners)) or attach(self, owners))
-    assert shared_rows([x, y], ("a", "b")) is rows and calls == []  # all attached: nothing to do
-    assert shared_rows([y, x], ("a", "b")) is rows and calls == [[y, x]]  # another order: rows follow it
-    assert rows.blocks["a"].tolist() == [[4.0, 5.0], [1.0, 2.0]] and np.shares_memory(y.a, rows.blocks["a"][0])
-    z = Tracked([8.0, 9.0], [0])  # a world reset since: a new owner
-    assert shared_rows([y, z], ("a", "b")) is rows and len(calls) == 2
-    assert x.rows is None and not np.shares_memory(x.a, rows.blocks["a"]) and x.a.tolist() == [1.0, 2.0]
-    assert rows.blocks["a"].tolist() == [[4.0, 5.0], [8.0, 9.0]]
-    y.a = np.array([0.5, 0.25])  # rebound by a method of its own
-    shared_rows([y, z], ("a", "b"))
-    assert len(calls) == 3 and rows.blocks["a"][0].tolist() == [0.5, 0.25]
-
-
-def test_a_split_rebinds_a_teams_arrays_and_its_rows_take_them_in():
+def test_a_split_writes_a_teams_arrays_in_place_so_its_rows_follow():
     env = parcover_env.parallel_env("tree")
     plan = env.plan
     teams = [Team(plan, reach_tol=0.2), Team(plan, reach_tol=0.2)]
-    rows = shared_rows(teams, TEAM_ROWS)
+    rows = SharedRows(2, TEAM_ROWS, teams[0])
+    rows.attach(teams)
+    held = [getattr(teams[1], name) for name in TEAM_ROWS]
     assert rows.blocks["leader"].tolist() == [[True] + [False] * (plan.r - 1)] * 2
     tp = next(t for t in plan.turning_points if tuple(t.robots) == (0, plan.r))
     est = np.zeros((plan.r, 2))
     est[0] = tp.position  # the leader of world 1's team at its first TP: it splits
     assert teams[1].update(est, np.zeros(plan.r))
-    assert teams[1].rows is None and teams[0].rows is rows
-    assert shared_rows(teams, TEAM_ROWS) is rows
-    np.testing.assert_array_equal(rows.blocks["leader"][1], teams[1].leader)
-    np.testing.assert_array_equal(rows.blocks["predecessor"][1], teams[1].predecessor)
+    assert all(getattr(teams[1], name) is a for name, a in zip(TEAM_ROWS, held, strict=True))  # not rebound
+    assert rows.attached(1, teams[1]) and rows.attached(0, teams[0])
     assert rows.blocks["leader"][1].sum() == len(tp.branches) > 1 and rows.blocks["leader"][0].sum() == 1
+    np.testing.assert_array_equal(rows.blocks["predecessor"][1], teams[1].predecessor)
+    assert np.isnan(rows.blocks["tp_ahead"][1][0]).all() or rows.blocks["tp_ahead"][1][0, 2] > tp.distance

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.envs import stepper
-from parcover_env.envs.handover import CameraView, update_team
-from parcover_env.envs.team import Team
+from parcover_env.envs import slots
+from parcover_env.mission.team import CameraView, Team, update_team
 from parcover_env.sensors.relative import RelativeReading
+from parcover_env.sim import outputs_phase, pipeline
 
 
 class FakeKinects:
@@ -63,16 +63,16 @@ def test_slot_info_rules():
     env.reset(seed=0)
     still = {a: np.zeros(2, np.float32) for a in env.agents}
     _, _, term, trunc, infos = env.step(still)
-    info = stepper.slot_info(dict(infos["robot_0"]), np.ones(3), False, False)
+    info = slots.slot_info(dict(infos["robot_0"]), np.ones(3), False, False)
     assert info["active"] and "metrics" not in info and "terminal_observation" not in info
     _, _, term, trunc, infos = env.step(still)
     assert trunc["robot_0"] and not term["robot_0"]
-    info = stepper.slot_info(dict(infos["robot_0"]), np.ones(3), False, True)
+    info = slots.slot_info(dict(infos["robot_0"]), np.ones(3), False, True)
     assert info["TimeLimit.truncated"] is True and info["terminal_observation"].tolist() == [1.0] * 3
     assert info["metrics"]["steps"] == 2 and "ended" not in info["metrics"]
-    done = stepper.slot_info(dict(infos["robot_0"]), np.ones(3), True, True)
+    done = slots.slot_info(dict(infos["robot_0"]), np.ones(3), True, True)
     assert done["TimeLimit.truncated"] is False  # terminated wins
-    gone = stepper.slot_info({}, np.zeros(3), False, False, ended=True)  # left before its team
+    gone = slots.slot_info({}, np.zeros(3), False, False, ended=True)  # left before its team
     assert gone["TimeLimit.truncated"] is False and "terminal_observation" in gone
 
 
@@ -81,7 +81,8 @@ def test_one_world_step_is_the_env_step():
     oa, _ = a.reset(seed=3)
     ob, _ = b.reset(seed=3)
     acts = {n: np.array([0.5, 0.2], np.float32) for n in a.agents}
-    obs, ((rew, term, trunc, infos),) = stepper.step([b], [acts])
+    obs, out = pipeline.step([b], [acts])
+    rew, term, trunc, infos = outputs_phase.agent_dicts(b.possible_agents, out)
     ra = a.step(acts)
     assert all(np.array_equal(ra[0][n], obs[0][i]) for i, n in enumerate(a.possible_agents))
     assert ra[1] == rew and ra[2] == term and ra[3] == trunc
@@ -91,10 +92,10 @@ def test_one_world_step_is_the_env_step():
     assert b.camera_views.predecessor.shape == (1, b.n_robots) and b.camera_index == 0
     with pytest.raises(RuntimeError, match="finished episode"):
         b.agents = []
-        stepper.step([b], [acts])
+        pipeline.step([b], [acts])
 
 
-def test_step_slots_is_step_by_agent_slot_and_clears_an_ended_world():
+def test_step_by_agent_slot_is_each_worlds_agent_dicts_and_clears_an_ended_world():
     import copy
 
     worlds = []
@@ -107,12 +108,15 @@ def test_step_slots_is_step_by_agent_slot_and_clears_an_ended_world():
     n = worlds[0].n_robots
     rng = np.random.default_rng(4)
     acts = rng.uniform(-1, 1, (2, n, 2)).astype(np.float32)
-    obs, out = stepper.step_slots(worlds, acts)
-    obs_ref, ref = stepper.step(twins, acts, active=True)
+    obs, out = pipeline.step(worlds, acts, active=True)
+    obs_ref, ref = pipeline.step(twins, [dict(zip(w.agents, a, strict=True)) for w, a in zip(twins, acts, strict=True)],
+                                active=True)  # the same actions as one dict per world
     assert np.array_equal(obs, obs_ref)
     assert out.terminated == [False, False] and out.truncated == [False, True]
     assert [w.agents for w in worlds] == [worlds[0].possible_agents, []]
-    for k, (rewards, term, trunc, infos) in enumerate(ref):
+    for k in range(2):
+        rewards, term, trunc, infos = outputs_phase.agent_dicts(twins[k].possible_agents, ref, k)
+        assert list(rewards) == list(infos) == twins[k].possible_agents
         assert out.rewards[k].tolist() == list(rewards.values())
         assert list(term.values()) == [out.terminated[k]] * n and list(trunc.values()) == [out.truncated[k]] * n
         slots = out.infos[k * n:(k + 1) * n]

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from parcover_env.envs.metrics import episode_metrics
-from parcover_env.envs.team import Team
+from parcover_env.mission.metrics import episode_metrics
+from parcover_env.mission.team import Team
 from parcover_env.planning import plan_scenario
 from parcover_env.scenarios import load_scenario
 

@@ -11,8 +11,8 @@ import pytest
 
 from parcover_env import parcover_v2
 from parcover_env.config import RewardConfig
-from parcover_env.envs import stepper
-from parcover_env.envs.rewards import TERMS_V2, reward_terms, sigma_major, terms_for
+from parcover_env.mission.rewards import TERMS_V2, RewardInputs, reward_terms, sigma_major, terms_for
+from parcover_env.sim import act_phase, score_phase
 
 
 def _cov(a: float, b: float, c: float, h: float = 0.01) -> np.ndarray:
@@ -32,12 +32,14 @@ def test_sigma_major_is_the_root_of_the_larger_xy_eigenvalue():
 def test_reward_terms_pay_the_uncertainty_weight_per_metre_last():
     w = RewardConfig(contact=-0.1, uncertainty=-2.0)
     sigma = np.array([0.1, 0.0, 0.25])
-    t = reward_terms(w, 0, np.zeros(3), np.zeros(3, int), np.zeros(3), touch=np.zeros(3), sigma=sigma)
-    assert list(t) == [*TERMS_V2, "contact", "uncertainty"] == list(terms_for(2, True, True))
+    t = reward_terms(w, terms_for(2, True, True),
+                     RewardInputs(0, np.zeros(3), np.zeros(3, int), np.zeros(3), touch=np.zeros(3), sigma=sigma))
+    assert list(t) == [*TERMS_V2, "contact", "uncertainty"]
     np.testing.assert_allclose(t["uncertainty"], [-0.2, 0.0, -0.5], rtol=1e-12)
-    assert list(reward_terms(w, 0, np.zeros(3), np.zeros(3, int), sigma=sigma))[-1] == "uncertainty"
+    assert list(reward_terms(w, terms_for(1, False, True), RewardInputs(0, np.zeros(3), np.zeros(3, int),
+                                                                       sigma=sigma)))[-1] == "uncertainty"
     assert terms_for(2, False, True) == (*TERMS_V2, "uncertainty")
-    assert "uncertainty" not in reward_terms(w, 0, np.zeros(3), np.zeros(3, int))
+    assert "uncertainty" not in terms_for(2, True)
 
 
 def _env(uncertainty: float):
@@ -94,7 +96,7 @@ def test_env_without_uncertainty_weight_has_no_uncertainty_term():
     assert env.terms == TERMS_V2 and "reward_uncertainty" not in infos["robot_0"]
 
 
-def test_score_phase_pays_each_worlds_own_sigma_from_the_act_rows_or_gathered():
+def test_score_phase_pays_each_worlds_own_sigma_in_any_order_of_the_worlds():
     envs = [_env(-2.0) for _ in range(2)]
     rng = np.random.default_rng(4)
     for seed, e in enumerate(envs):
@@ -102,13 +104,12 @@ def test_score_phase_pays_each_worlds_own_sigma_from_the_act_rows_or_gathered():
         for _ in range(6 + 9 * seed):  # different covariances
             e.step({a: rng.uniform(-1, 1, 2).astype(np.float32) for a in e.agents})
     acts = rng.uniform(-1, 1, (2, envs[0].n_robots, 2)).astype(np.float32)
-    before, true = stepper.act(envs, acts)
+    twins = copy.deepcopy(envs[::-1])  # the same worlds in the other order
+    acted = act_phase.act(envs, acts)
     want = [-2.0 * sigma_major(e.estimator.covariance) for e in envs]
     assert not np.allclose(want[0], want[1])
-    scores = stepper.score(envs, before, true)  # the act phase's shared rows
-    assert scores.act is not None
+    scores = score_phase.score(envs, acted)  # the act phase's shared rows
+    assert scores.act is acted.rows
     np.testing.assert_allclose(scores.terms["uncertainty"], want, rtol=1e-12)
-    twins = copy.deepcopy(envs[::-1])  # reversed copies: not the act rows' estimators, so gathered
-    scores = stepper.score(twins, before[::-1], true[::-1])
-    assert scores.act is None
-    np.testing.assert_allclose(scores.terms["uncertainty"], want[::-1], rtol=1e-12)
+    scores = score_phase.score(twins, act_phase.act(twins, acts[::-1]))
+    np.testing.assert_array_equal(scores.terms["uncertainty"], np.asarray(want)[::-1])  # bit for bit

@@ -11,18 +11,18 @@ from layout_helpers import layout_of
 
 import parcover_env
 from parcover_env.config import RewardConfig
-from parcover_env.envs.actions import to_commands
-from parcover_env.envs.metrics import EpisodeMetrics, episode_metrics, formation_errors
 from parcover_env.envs.observations import MAX_FIX_AGE
-from parcover_env.envs.rewards import REWARD_KEYS, TERMS, reward_terms
 from parcover_env.errors import ActionError
+from parcover_env.mission.metrics import EpisodeMetrics, episode_metrics, formation_errors
+from parcover_env.mission.rewards import REWARD_KEYS, TERMS, RewardInputs, reward_terms
+from parcover_env.sim.actions import to_commands
 
 W = RewardConfig(kpoi=10.0, progress=2.0, time=-0.05, collision=-3.0)
 
 
 # ---------------------------------------------------------------- rewards (pure)
 def test_reward_terms_follow_the_weights():
-    t = reward_terms(W, 1, np.array([1.0, -0.5, 0.0]), np.array([0, 2, 1]))
+    t = reward_terms(W, TERMS, RewardInputs(1, np.array([1.0, -0.5, 0.0]), np.array([0, 2, 1])))
     assert list(t) == list(TERMS) == ["kpoi", "progress", "time", "collision"]
     np.testing.assert_array_equal(t["kpoi"], [10.0, 10.0, 10.0])  # a KPOI visit pays every agent
     np.testing.assert_array_equal(t["progress"], [2.0, -1.0, 0.0])  # 1 m closer earns progress x 1
@@ -32,9 +32,9 @@ def test_reward_terms_follow_the_weights():
 
 
 def test_reward_terms_scale_with_the_count_of_new_kpois():
-    t = reward_terms(W, 3, np.zeros(2), np.zeros(2, dtype=int))
+    t = reward_terms(W, TERMS, RewardInputs(3, np.zeros(2), np.zeros(2, dtype=int)))
     np.testing.assert_array_equal(t["kpoi"], [30.0, 30.0])
-    t0 = reward_terms(W, 0, np.zeros(2), np.zeros(2, dtype=int))
+    t0 = reward_terms(W, TERMS, RewardInputs(0, np.zeros(2), np.zeros(2, dtype=int)))
     np.testing.assert_array_equal(t0["kpoi"], [0.0, 0.0])
     np.testing.assert_array_equal(t0["collision"], [0.0, 0.0])
     assert t0["collision"].dtype == float

@@ -10,8 +10,8 @@ pytest.importorskip("stable_baselines3")
 
 from stable_baselines3.common.vec_env import VecMonitor  # noqa: E402
 
-from parcover_env.envs.metrics import EpisodeMetrics  # noqa: E402
 from parcover_env.envs.vec_env import ParallelVecEnv, _EnvFactory, make_vec_env  # noqa: E402
+from parcover_env.mission.metrics import EpisodeMetrics  # noqa: E402
 
 
 class FakeParallelEnv:

@@ -84,10 +84,16 @@ def test_integer_kpois_routes_and_positions_are_the_float_ones():
     assert ints.remaining([[1, 0]]).tolist() == floats.remaining(np.array([[1.0, 0.0]])).tolist()
 
 
-def test_copies_and_pickles_drop_the_shared_rows():
+def test_an_update_writes_the_state_arrays_in_place_and_copies_own_theirs():
+    from parcover_env.scenarios.progress import STATE
+
     t = RouteTracker(np.array([[3.0, 0.0]]), 0.1, [LINE], waypoint_tol=0.1)
-    t.rows = object()
-    assert copy.deepcopy(t).rows is None and pickle.loads(pickle.dumps(t)).rows is None
+    held = [getattr(t, name) for name in STATE]
+    _walk(t, [0.75, 0.0])
+    assert all(getattr(t, name) is a for name, a in zip(STATE, held, strict=True))  # never rebound
+    assert t.progress.tolist() == [0.75]
+    for c in (copy.deepcopy(t), pickle.loads(pickle.dumps(t))):
+        assert c.progress.tolist() == [0.75] and not np.shares_memory(c.progress, t.progress)
 
 
 def test_route_table_pads_every_route_to_the_longest_repeating_its_last_vertex():

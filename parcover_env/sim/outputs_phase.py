@@ -1,34 +1,31 @@
 """The stepper's outputs phase (part 3) for ``K`` worlds of one scenario at once: the rewards,
-terminations, truncations and infos of every agent slot (:func:`slot_outputs`, what a VecEnv reads), or
-each world's PettingZoo ``(rewards, terminations, truncations, infos)`` dicts (:func:`outputs`).
+terminations, truncations and infos of every agent slot (:func:`slot_outputs`, what a VecEnv reads);
+a world's PettingZoo ``(rewards, terminations, truncations, infos)`` dicts are :func:`agent_dicts` of them.
 
 Rewards, estimate errors and the other per-agent info values are computed as ``(K, N)`` arrays and
 turned into Python floats once (``tolist``); each agent's info is a copy of its world's template
 (the reward terms, the ``metrics/*`` entries, ...) updated with its own values, the key order fixed:
 ``reward_<term>`` (the world's terms order), ``metrics/*``, ``pose_error``, ``heading_error``, then
 ``sonar_fix`` (with ``observation.scan``), then ``route_done`` (version 2). The ``metrics/*`` entries
-are the zeros of :meth:`~parcover_env.envs.metrics.EpisodeMetrics.flat` (a fresh ``path_lengths``
+are the zeros of :meth:`~parcover_env.mission.metrics.EpisodeMetrics.flat` (a fresh ``path_lengths``
 array per world) except in a world whose episode ends this step, where they are its metrics.
 """
 
 from __future__ import annotations
 
 import functools
-from collections import deque
 from collections.abc import Sequence
-from itertools import chain, repeat
-from operator import setitem
 from typing import Any, NamedTuple
 
 import numpy as np
 
-from parcover_env.envs.metrics import EpisodeMetrics
 from parcover_env.envs.obs_v2 import target_kpois
-from parcover_env.envs.rewards import TEAM_TERMS
-from parcover_env.envs.score_phase import Scores, rows
 from parcover_env.geometry import wrap_angle
+from parcover_env.mission.metrics import EpisodeMetrics
+from parcover_env.mission.rewards import TEAM_TERMS
+from parcover_env.sim.score_phase import Scores, rows
 
-__all__ = ["SlotOutputs", "slot_outputs", "outputs", "infos", "slot_infos"]
+__all__ = ["SlotOutputs", "slot_outputs", "agent_dicts", "infos", "slot_infos"]
 
 
 class SlotOutputs(NamedTuple):
@@ -66,17 +63,12 @@ def slot_outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *, act
     return SlotOutputs(total, done, truncated, flat)
 
 
-def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *,
-            active: bool = False) -> list[tuple[dict, dict, dict, dict]]:
-    """:func:`slot_outputs` as each world's PettingZoo ``(rewards, terminations, truncations, infos)``
-    dicts (by agent name)."""
-    agents = [w.agents for w in worlds]
-    out = slot_outputs(worlds, true, scores, active=active)
-    n = worlds[0].n_robots
-    return [(dict(zip(names, rewards, strict=True)), dict.fromkeys(names, d), dict.fromkeys(names, t),
-             dict(zip(names, out.infos[k * n:(k + 1) * n], strict=True)))
-            for k, (names, rewards, d, t) in enumerate(zip(agents, out.rewards.tolist(), out.terminated,
-                                                           out.truncated, strict=True))]
+def agent_dicts(names: Sequence[str], out: SlotOutputs, k: int = 0) -> tuple[dict, dict, dict, dict]:
+    """World ``k``'s PettingZoo ``(rewards, terminations, truncations, infos)`` dicts of ``out`` by
+    agent name (``names``: the world's agents in slot order)."""
+    n = len(names)
+    return (dict(zip(names, out.rewards[k].tolist(), strict=True)), dict.fromkeys(names, out.terminated[k]),
+            dict.fromkeys(names, out.truncated[k]), dict(zip(names, out.infos[k * n:(k + 1) * n], strict=True)))
 
 
 def infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray], ended: Sequence[bool], *,
@@ -98,17 +90,16 @@ def slot_infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarr
     ``estimates (K, N, 3)``, ``visited (K, M)``: the worlds' pose estimates and visited KPOIs if already
     gathered (read from the worlds if not); ``active``: every info also has ``"active": True`` (its
     last key; a VecEnv's agent slots); ``team_terms``: the terms whose values are one per world (the
-    same for all its agents, as :data:`~parcover_env.envs.rewards.TEAM_TERMS` are): their first column is read.
+    same for all its agents, as :data:`~parcover_env.mission.rewards.TEAM_TERMS` are): their first column is read.
 
-    Built with the fewest Python operations: each per-agent column becomes Python floats once for
-    all worlds (one ``tolist``), the worlds' templates and every agent's dict are C-level copies
-    (of the template, of its world's template), and each other column is written into all ``K N``
-    dicts by one C-level ``map`` (no Python loop per world or agent)."""
+    Each column becomes Python floats once for all worlds (one ``tolist``); each agent's dict is a
+    copy of its world's template updated with its row."""
     first = worlds[0]
-    n, k_worlds = first.n_robots, len(worlds)
+    n = first.n_robots
     est = rows([w.estimate for w in worlds]) if estimates is None else estimates
     d = est[..., :2] - true[..., :2]
-    base, reward_keys, keys = _template(tuple(first.terms), first.version == 2, first.scanner is not None, active)
+    routes = first.route_facts  # the worlds' own routes (version 2): each agent's ``route_done``
+    base, reward_keys, keys = _template(tuple(first.terms), routes is not None, first.scanner is not None, active)
     columns, agent_keys, team_keys, team_columns = [], [], [], []
     for name, key, term in zip(first.terms, reward_keys, terms, strict=True):
         c = np.asarray(term, dtype=float)
@@ -122,25 +113,23 @@ def slot_infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarr
     columns += [np.hypot(d[..., 0], d[..., 1]), np.abs(wrap_angle(est[..., 2] - true[..., 2]))]
     if first.scanner is not None:
         columns.append(rows([w.scanner.outcome for w in worlds]))
-    if first.version == 2:
+    if routes is not None:
         visited = rows([w.progress.visited for w in worlds]) if visited is None else visited
-        columns.append(target_kpois(first.route_facts, visited)[1].astype(float))
-    templates = list(map(dict.copy, repeat(base, k_worlds)))
-    _consume(map(setitem, templates, repeat(_PATH_KEY), map(np.zeros, repeat(n, k_worlds))))
-    for template, w, e in zip(templates, worlds, ended, strict=True):
+        columns.append(target_kpois(routes, visited)[1].astype(float))
+    values = np.stack(columns, axis=-1).tolist()  # [world][agent][column]
+    team_values = np.stack(team_columns, axis=-1).tolist() if team_columns else [()] * len(worlds)
+    flat = []
+    for w, e, agents, team in zip(worlds, ended, values, team_values, strict=True):
+        template = dict(base)
+        template["metrics/path_lengths"] = np.zeros(n)
         if e:  # the step that ends the episode: its metrics
             template.update(w.metrics.flat(ended=True))
-    for key, column in zip(team_keys, team_columns, strict=True):  # one value for all the world's agents
-        _consume(map(setitem, templates, repeat(key), column.tolist()))
-    flat = list(map(dict.copy, chain.from_iterable(map(repeat, templates, repeat(n, k_worlds)))))
-    for key, column in zip(keys, columns, strict=True):
-        _consume(map(setitem, flat, repeat(key), column.reshape(-1).tolist()))
+        template.update(zip(team_keys, team, strict=True))  # one value for all the world's agents
+        for row in agents:
+            info = template.copy()
+            info.update(zip(keys, row, strict=True))
+            flat.append(info)
     return flat
-
-
-_PATH_KEY = "metrics/path_lengths"
-_consume = deque(maxlen=0).extend
-"""Runs an iterator to its end at C speed, keeping nothing."""
 
 
 @functools.lru_cache(maxsize=16)

@@ -3,21 +3,20 @@
 ``ParallelCoverageEnv``, the batched worlds (:mod:`parcover_env.envs.batched`) and the single-robot
 env all step through here, so the rules are written once:
 
-1. **act** (:func:`act`, all worlds at once in :mod:`~parcover_env.envs.act_phase`): act, integrate the
-   physics, update the pose estimator (odometry, fixes); **score** (:func:`score`, all worlds at once,
-   :mod:`parcover_env.envs.score_phase`): track the mission, hand over at splits (Alg. 1), score, record;
+1. **act** (all worlds at once, :func:`parcover_env.sim.act_phase.act`): act, integrate the
+   physics, update the pose estimator (odometry, fixes); **score** (all worlds at once,
+   :func:`parcover_env.sim.score_phase.score`): track the mission, hand over at splits (Alg. 1), score, record;
 2. **sense and observe** (:func:`observe`, all worlds at once): one :class:`SensingState` of every
    world; the follower cameras first, then one compiled pass writes every non-sensor entry of the
    observation spec of every world, then every ``sensor`` entry of the spec is filled by its sensor's ``sense`` for
    all worlds in one call (version 2's ``route`` and ``teammates`` entries too,
    :mod:`parcover_env.envs.obs_v2`); clipped into the bounds. World ``k`` draws from its own generator in the
    order a single world would, so it is bit for bit a separate env;
-3. **outputs** (:func:`outputs`, all worlds at once, :mod:`parcover_env.envs.outputs_phase`): rewards,
-   terminations, truncations, infos (by world and agent name; by agent slot: :func:`slot_outputs`, which
-   :func:`step_slots` returns, what a VecEnv reads);
-4. **slots** (:func:`slot_info`, :func:`with_metrics`): what a vectorized or single-agent view adds
-   to an agent's info (``metrics``, ``terminal_observation``, ``TimeLimit.truncated``, ``active``);
-   a world whose agents are all done is reset by the caller (auto-reset).
+3. **outputs** (all worlds at once, :func:`parcover_env.sim.outputs_phase.slot_outputs`): rewards,
+   terminations, truncations, infos by agent slot, what a VecEnv reads (a world's PettingZoo dicts:
+   :func:`parcover_env.sim.outputs_phase.agent_dicts`);
+4. a world whose agents are all done is reset by the caller (auto-reset); what a vectorized or
+   single-agent view adds to an agent's info is :mod:`parcover_env.envs.slots`.
 
 The stepper reads the worlds through public names only (``team``, ``estimator``, ``progress``,
 ``layout``, ``sensors``, ``camera``, ``np_random``, ...).
@@ -30,17 +29,16 @@ from typing import Any
 
 import numpy as np
 
-from parcover_env.envs import act_phase, obs_v2, outputs_phase, score_phase
-from parcover_env.envs.handover import CameraView
-from parcover_env.envs.metrics import episode_metrics
+from parcover_env.envs import obs_v2
 from parcover_env.envs.observations import ScalarInputs
-from parcover_env.envs.outputs_phase import SlotOutputs
-from parcover_env.envs.score_phase import Scores, gather, rows
+from parcover_env.mission.team import CameraView
 from parcover_env.scenarios.progress import goals_many
 from parcover_env.sensors.base import SensingState
+from parcover_env.sim import act_phase, outputs_phase, score_phase
+from parcover_env.sim.outputs_phase import SlotOutputs
+from parcover_env.sim.score_phase import Scores, gather, rows
 
-__all__ = ["sensing_state", "observe", "step", "step_slots", "act", "score", "outputs", "slot_outputs", "with_metrics",
-           "slot_info"]
+__all__ = ["sensing_state", "observe", "step"]
 
 
 def sensing_state(worlds: Sequence[Any], true: np.ndarray, predecessor: np.ndarray | None = None) -> SensingState:
@@ -59,13 +57,14 @@ def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = Non
     ``camera_index`` (the cameras' measurements of all worlds, blocks, and its row: its ``camera_view``,
     which Alg. 1's next hand-over uses)."""
     first = worlds[0]
-    team = None if scores is None else scores.team
-    if team is None:
+    if scores is None:  # at reset: the worlds' state as it is
         teams = [w.team for w in worlds]
         team = {"leader": rows([t.leader for t in teams]), "slot": rows([t.slot for t in teams]),
                 "predecessor": rows([t.predecessor for t in teams])}
-    else:  # the teams' rows change at the next split: the camera view keeps a copy
-        team = {**team, "predecessor": team["predecessor"].copy()}
+    else:  # this step's blocks
+        team = scores.team
+    # a split writes the teams' arrays in place: the camera view keeps a copy of what it was measured against
+    team = {**team, "predecessor": team["predecessor"].copy()}
     state = sensing_state(worlds, true, team["predecessor"])
     rngs = [w.np_random for w in worlds]
     seen = first.camera.measure_many(true, state.predecessor, state.segments, rngs)
@@ -75,12 +74,12 @@ def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = Non
                                rows([w.progress.visited for w in worlds]))
     else:
         goals, est, visited = scores.goals, scores.estimates, scores.visited
-    act = None if scores is None else scores.act
-    if act is None:
+    if scores is None:
         estimators = [w.estimator for w in worlds]
         velocity, fix_age = rows([e.velocity for e in estimators]), rows([e.fix_age for e in estimators])
         covariance = rows([e.covariance for e in estimators])
     else:
+        act = scores.act
         velocity, fix_age = act.estimators.blocks["velocity"], act.estimators.blocks["fix_age"]
         covariance = act.odometry.blocks["covariance"]
     rel_xy, rel_heading, visible = seen
@@ -96,7 +95,7 @@ def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = Non
             for name, values in w.localization_entries().items():
                 obs[k][:, w.layout.slices[name]] = values[:, None]
     if first.route_facts is not None:  # observation version 2: route and teammate entries, all worlds at once
-        if scores is None or scores.act is None or scores.track is None:
+        if scores is None:
             mates = obs_v2.team_rows(worlds)
         else:  # this step's blocks
             mates = obs_v2.TeamRows(est, velocity, team["leader"], obs_v2.group_sizes(team["leader"]),
@@ -110,67 +109,13 @@ def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = Non
 
 
 def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray, *,
-         active: bool = False) -> tuple[np.ndarray, list[tuple]]:
+         active: bool = False) -> tuple[np.ndarray, SlotOutputs]:
     """One step of every world (``actions[k]``: world ``k``'s action dict, or one array ``(K, N, A)``
-    of every world's agents' actions in agent order, as :func:`act` takes them): the observations
-    ``(K, N, D)`` and each world's ``(rewards, terminations, truncations, infos)`` (``active``: every
-    info with ``"active": True``, as a VecEnv's slots have it)."""
-    before, true = act(worlds, actions)
-    scores = score(worlds, before, true)
-    obs = observe(worlds, true, scores)
-    return obs, outputs(worlds, true, scores, active=active)
-
-
-def step_slots(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray, *,
-               active: bool = True) -> tuple[np.ndarray, SlotOutputs]:
-    """:func:`step` with the outputs by agent slot (:func:`slot_outputs`, what a VecEnv reads): the
-    observations ``(K, N, D)`` and the rewards, ends and infos of the ``K N`` agents."""
-    before, true = act(worlds, actions)
-    scores = score(worlds, before, true)
-    obs = observe(worlds, true, scores)
-    return obs, slot_outputs(worlds, true, scores, active=active)
-
-
-def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Part 1a of every world (:func:`parcover_env.envs.act_phase.act`: act, physics, pose estimates):
-    the true poses ``(K, N, 3)`` before and after the step."""
-    return act_phase.act(worlds, actions)
-
-
-def score(worlds: Sequence[Any], before: np.ndarray, true: np.ndarray) -> Scores:
-    """Part 1b of every world at true poses ``before`` and ``true`` ``(K, N, 3)``, all worlds at once
-    (:func:`parcover_env.envs.score_phase.score`): their reward terms."""
-    return score_phase.score(worlds, before, true)
-
-
-def outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *, active: bool = False) -> list[tuple]:
-    """Part 3 of every world, all at once (:func:`parcover_env.envs.outputs_phase.outputs`):
-    ``(rewards, terminations, truncations, infos)`` per world."""
-    return outputs_phase.outputs(worlds, true, scores, active=active)
-
-
-def slot_outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *, active: bool = True) -> SlotOutputs:
-    """Part 3 of every world by agent slot (:func:`parcover_env.envs.outputs_phase.slot_outputs`): the
-    rewards ``(K, N)``, the worlds' ends and the ``K N`` infos."""
-    return outputs_phase.slot_outputs(worlds, true, scores, active=active)
-
-
-def with_metrics(info: dict) -> dict:
-    """``info`` with the episode's metrics gathered into ``info["metrics"]`` (a dict) on the step that
-    ends it (Gymnasium's and SB3's wrappers own ``info["episode"]``)."""
-    metrics = episode_metrics(info)
-    if metrics is not None:
-        info["metrics"] = metrics
-    return info
-
-
-def slot_info(info: dict, obs: np.ndarray, terminated: bool, truncated: bool, ended: bool | None = None) -> dict:
-    """An active agent slot's info in a VecEnv: :func:`with_metrics`, ``active``, and when its episode
-    ``ended`` (default: terminated or truncated) its last observation (``terminal_observation``) and
-    ``TimeLimit.truncated``."""
-    info = with_metrics(info)
-    info["active"] = True
-    if terminated or truncated if ended is None else ended:
-        info["terminal_observation"] = obs
-        info["TimeLimit.truncated"] = truncated and not terminated
-    return info
+    of every world's agents' actions in agent order): act, score, observe, outputs. Returns the
+    observations ``(K, N, D)`` and the outputs by agent slot (:class:`SlotOutputs`; ``active``: every
+    info with ``"active": True``, as a VecEnv's slots have it); a world's PettingZoo dicts are
+    :func:`~parcover_env.sim.outputs_phase.agent_dicts` of them."""
+    acted = act_phase.act(worlds, actions)
+    scores = score_phase.score(worlds, acted)
+    obs = observe(worlds, acted.true, scores)
+    return obs, outputs_phase.slot_outputs(worlds, acted.true, scores, active=active)

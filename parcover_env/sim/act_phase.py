@@ -2,7 +2,7 @@
 
 The worlds of one scenario act together; the single env is ``K = 1`` of the same code. The joint
 actions of all worlds become one ``(K, N, A)`` array of commands
-(:func:`~parcover_env.envs.actions.to_commands_all`), the drives of all worlds turn them into body
+(:func:`~parcover_env.sim.actions.to_commands_all`), the drives of all worlds turn them into body
 velocities in one compiled call (:func:`~parcover_env.world.drive.command_steps_rows`), each world's
 pymunk space integrates its physics (one space per world; :func:`~parcover_env.world.physics.step_all`
 points the compiled velocity callbacks of all worlds' bodies at their rows in one call and steps
@@ -16,25 +16,38 @@ separate env.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from parcover_env.config import PhysicsConfig
-from parcover_env.envs.actions import to_commands_all
 from parcover_env.envs.estimator import FixRequest, update_all
-from parcover_env.envs.world_rows import ActRows, act_rows
 from parcover_env.geometry.stacking import stack
+from parcover_env.sim.actions import to_commands_all
+from parcover_env.sim.rows import ActRows, act_rows
 from parcover_env.world.drive import command_steps_rows
 from parcover_env.world.physics import poses_all, step_all
 
-__all__ = ["act"]
+__all__ = ["Acted", "act"]
 
 
-def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+class Acted(NamedTuple):
+    """What the act phase hands to the score phase."""
+
+    before: np.ndarray
+    """The true poses ``(K, N, 3)`` before the step."""
+    true: np.ndarray
+    """The true poses ``(K, N, 3)`` after the step."""
+    rows: ActRows
+    """The shared rows of the worlds' pose estimators (estimates, covariances, ...), every world's
+    attached (to read only, this step)."""
+
+
+def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -> Acted:
     """Act, integrate the physics and update the pose estimator of every world (``actions[k]``: world
     ``k``'s joint action dict, or ``actions`` one array ``(K, N, A)``: row ``[k, i]`` the action of
-    world ``k``'s ``i``-th agent); returns the true poses ``(K, N, 3)`` before and after the step.
+    world ``k``'s ``i``-th agent); returns the true poses ``(K, N, 3)`` before and after the step and
+    the estimators' rows.
     Bad actions raise :class:`~parcover_env.errors.ActionError` before any world changes."""
     for w in worlds:
         if not w.agents:
@@ -67,7 +80,7 @@ def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -
         for w, t in zip(worlds, true, strict=True):
             w.scanner.fixes(FixRequest(w.world.time, t, w.estimate.copy(), w.team.leader, w.estimator.covariance),
                             w.np_random)
-    return before, true
+    return Acted(before, true, rows)
 
 
 def _drive(rows: ActRows, physics: PhysicsConfig, commands: np.ndarray) -> np.ndarray | None:

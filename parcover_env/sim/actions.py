@@ -1,10 +1,15 @@
-"""Validation of the joint action: one clear ActionError, and never a state change, on bad input."""
+"""Validation of the joint action: one clear ActionError, and never a state change, on bad input; the
+common case (finite values of the right shape) checked, clipped and scaled in one compiled pass
+(:func:`scaled_commands`, the same float operations as the numpy formulas: ``np.clip`` to [-1, 1], then
+``v * max_speed`` and ``omega * max_turn_rate``)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+from numba import njit
 
 from parcover_env.errors import ActionError
 
@@ -57,7 +62,24 @@ def to_commands_all(actions: Sequence[Mapping] | np.ndarray, agents: Sequence[Se
                      for a, names in zip(actions, agents, strict=True)])
 
 
-_KERNELS: list = []
+@njit(cache=True)
+def scaled_commands(raw, max_speed, max_turn_rate, out):
+    """Actions ``raw (m, width)`` (float32 or float64) -> commands ``out (m, width)`` (float64): each
+    value clipped to [-1, 1], column 0 times ``max_speed``, column 1 times ``max_turn_rate``, any
+    further column as clipped. Returns False, with ``out`` partly written, at the first value that
+    is not finite."""
+    for i in range(raw.shape[0]):
+        for c in range(raw.shape[1]):
+            v = float(raw[i, c])
+            if not math.isfinite(v):
+                return False
+            v = min(max(v, -1.0), 1.0)
+            if c == 0:
+                v *= max_speed
+            elif c == 1:
+                v *= max_turn_rate
+            out[i, c] = v
+    return True
 
 
 def _scaled_block(actions: np.ndarray, shape: tuple, max_speed: float, max_turn_rate: float) -> np.ndarray | None:
@@ -66,13 +88,9 @@ def _scaled_block(actions: np.ndarray, shape: tuple, max_speed: float, max_turn_
     common case (another shape or dtype, or a value not finite)."""
     if actions.shape != shape or actions.dtype not in (np.float32, np.float64):
         return None
-    if not _KERNELS:  # numba is imported on first use, not with the package
-        from parcover_env.envs.action_kernels import scaled_commands
-
-        _KERNELS.append(scaled_commands)
     out = np.empty(shape)
     width = shape[-1]
-    if _KERNELS[0](actions.reshape(-1, width), float(max_speed), float(max_turn_rate), out.reshape(-1, width)):
+    if scaled_commands(actions.reshape(-1, width), float(max_speed), float(max_turn_rate), out.reshape(-1, width)):
         return out
     return None
 
