@@ -185,29 +185,38 @@ class ScriptedExpert(Policy):
 
     def _goal(self, obs: np.ndarray, agent: str, bel: np.ndarray | None) -> np.ndarray:
         """The route point in the robot frame: the observed one, or with sonar fixes the expert's own
-        tracker's from the corrected pose (identical while there is no correction); see
-        :meth:`_visible_goal` for a robot off its route."""
+        tracker's from its belief (the corrected pose, or the observed estimate while no correction is
+        on: the env's progress follows the env's estimate, which a follower's chained belief may have
+        left far behind, generated:289 and 314); see :meth:`_visible_goal` for a robot off its route."""
         i = int(agent.rsplit("_", 1)[1])
         if agent in self.detours:
             pose = self._odom(obs) if bel is None else bel[i]
             return rotate(self.detours[agent] - pose[:2], -pose[2])
-        if bel is None or not self.fixer.corrected(agent):
+        if bel is None:
             pose = self._odom(obs)
             rel = np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
         else:
+            # the expert's own tracker, also when no correction is on: the env's progress followed the
+            # env's estimate, which as a follower's may have drifted beyond the tracker's ``max_offset``
+            # (no progress) or onto a later leg, while the expert's belief was chained to the leader
             pose = bel[i]
             rel = rotate(self.track.goals()[i] - pose[:2], -pose[2])
         return self._visible_goal(i, pose, rel)
 
     def _visible_goal(self, i: int, pose: np.ndarray, rel: np.ndarray) -> np.ndarray:
         """``rel`` (robot frame), unless robot ``i`` is farther than ``off_route_distance`` from its
-        route and a wall of the known map lies between it and that point: then the latest route
-        vertex before the point that it can see (it drives back to its route around the corner)."""
+        route ahead (from its tracked progress on; the whole route without a tracker) and a wall of the
+        known map lies between it and that point: then the latest route vertex before the point that it
+        can see (it drives back to its route around the corner). Measured from the progress on: a robot
+        coming back to its route from a teammate's branch may lie nearer a later leg than the leg it
+        needs, and progress then jumps there (generated:201, robot 5: 0.4 m from its route, its goal
+        behind a wall, braking and backing off against it to the end of the episode)."""
         route = self.mission.routes[i]
         if len(route) < 2:
             return rel
         xy = pose[:2]
-        off = float(point_segment_distance(xy[None], np.c_[route[:-1], route[1:]]).min())
+        ahead = route if self.track is None else route_from(route, float(self.track.progress[i]))
+        off = float(point_segment_distance(xy[None], np.c_[ahead[:-1], ahead[1:]]).min())
         walls = self.mission.known_map.segments
         goal = xy + rotate(rel, pose[2])
         if off <= self.cfg.off_route_distance or not segments_blocked(xy[None], goal[None], walls)[0]:
@@ -375,10 +384,14 @@ class ScriptedExpert(Policy):
         reach = self.cfg.sonar_fix.kpoi_check_distance
         if reach <= 0 or self.fixer.corrected(agent):
             return None
-        rel = np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
+        if self.track is not None:  # the goal it steers by (:meth:`_goal`)
+            goal = self.track.goals()[int(agent.rsplit("_", 1)[1])]
+            rel = goal - odom[:2]
+        else:
+            rel = np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
+            goal = odom[:2] + rotate(rel, odom[2])
         if np.hypot(*rel) > reach:
             return None
-        goal = odom[:2] + rotate(rel, odom[2])
         kpois = self.mission.kpois
         if not len(kpois):
             return None
@@ -412,6 +425,18 @@ class ScriptedExpert(Policy):
             self.blocked[agent] = 0
             self.backing[agent] = int(round(self.cfg.backoff_time / self.dt))
         return v * factor, w
+
+
+def route_from(route: np.ndarray, s: float) -> np.ndarray:
+    """The part ``(K, 2)`` (at least two points) of the polyline ``route (M, 2)`` from arc length ``s`` (m) on:
+    the point at ``s``, then the later vertices; past the end, the end point twice."""
+    route = np.asarray(route, dtype=float)
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(route, axis=0).T))])
+    if s >= arc[-1]:
+        return np.vstack([route[-1], route[-1]])
+    k = int(np.searchsorted(arc, max(s, 0.0), side="right")) - 1
+    u = (max(s, 0.0) - arc[k]) / max(arc[k + 1] - arc[k], 1e-12)
+    return np.vstack([route[k] + u * (route[k + 1] - route[k]), route[k + 1:]])
 
 
 def route_tree_waypoint(routes, xy: np.ndarray, target: np.ndarray, walls: np.ndarray) -> np.ndarray | None:
