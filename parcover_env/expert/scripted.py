@@ -91,6 +91,9 @@ class ScriptedExpert(Policy):
         self.still: dict[str, tuple[np.ndarray, int]] = {}
         """Per relocating robot: where its estimate was when it last moved ``stuck_distance``, and the
         steps since (:meth:`_stuck`)."""
+        self.back: dict[str, float] = {}
+        """Per robot: how far back from its route's end (m) its last detour place there lies, until a fix: a
+        scan there without a fix means the known map's prediction failed, and the next one is farther back."""
         self.escaping: set[str] = set()
         """Robots driving into the freest direction of their sonar ring before their next scan."""
         # with sonar fixes, the robots' progress along their routes is tracked on the corrected pose
@@ -138,6 +141,7 @@ class ScriptedExpert(Policy):
         self.checked.clear()
         self.detours.clear()
         self.still.clear()
+        self.back.clear()
         self.escaping.clear()
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -307,9 +311,15 @@ class ScriptedExpert(Policy):
         (``expert.sonar_fix.relocate_distance``): the first place ahead along its route where the known map
         predicts an informative scan (after a second uninformative scan in a row, :meth:`SonarFixer.spaced`,
         and an uninformative last one: ``rescan_distance`` on); at its route's end, such a place back along
-        it (a detour, scanned on arrival). A stuck robot (:meth:`_stuck`; after a held scan, or an
-        uninformative one away from its route's end) drives into the freest direction of its sonar ``ranges``
+        it (a detour, scanned on arrival): within ``rescan_distance`` or, in open space, farther back as far as
+        it sees its route (generated:198, 201, 367, 399: at a wall of an open room it stood uninformed at its
+        route's end to the episode's end), beyond the last detour place whose scan gave no fix; a robot that
+        reaches its route's end before the place chosen ahead chooses again there. A stuck robot
+        (:meth:`_stuck`; after a held scan, or an uninformative one away from its route's end) drives into
+        the freest direction of its sonar ``ranges``
         first (:meth:`_escape`). Drops the detour once the robot scans or is fixed."""
+        if not self.fixer.relocating(agent):  # fixed: a place behind its route's end worked or is not needed
+            self.back.pop(agent, None)
         if self.fixer.scanning(agent) or not self.fixer.relocating(agent):
             self.detours.pop(agent, None)
             self.still.pop(agent, None)
@@ -327,6 +337,11 @@ class ScriptedExpert(Policy):
         if stuck and (self.fixer.held(agent) or not at_end):  # at its route's end it stands still on purpose
             self._escape(agent, pose, ranges)
             return
+        wait = self.fixer.waiting_distance(agent)
+        if at_end and wait is not None and np.isfinite(wait) and agent not in self.detours:
+            # it reached its route's end before the place chosen ahead (generated:314, robot 1, spaced
+            # scans in an open room): it would stand there for good; choose as at its route's end
+            self.fixer.choose_again(agent)
         if self.places is None or not self.fixer.needs_place(agent):
             return
         c = self.cfg.sonar_fix
@@ -336,9 +351,14 @@ class ScriptedExpert(Policy):
             self.fixer.scan_after(agent, c.rescan_distance)
             return
         if at_end:
-            place = self.places.behind(route, bel, near, far)
-            if place is not None:
-                self.detours[agent] = place
+            if agent in self.back:  # its scan at the last place behind gave no fix: beyond that place
+                near = self.back[agent] + c.relocate_distance
+                far = max(far, near)
+            found = self.places.behind_at(route, bel, near, far)
+            if found is None:  # none within ``far`` (open space): farther back, as far as it sees its route
+                found = self.places.behind_at(route, bel, far, route_length(route))
+            if found is not None:
+                self.detours[agent], self.back[agent] = found
             self.fixer.scan_after(agent, np.inf)
             return
         progress = float(self.track.progress[i]) if self.track is not None else 0.0
@@ -425,6 +445,11 @@ class ScriptedExpert(Policy):
             self.blocked[agent] = 0
             self.backing[agent] = int(round(self.cfg.backoff_time / self.dt))
         return v * factor, w
+
+
+def route_length(route: np.ndarray) -> float:
+    """Length (m) of the polyline ``route (M, 2)``."""
+    return float(np.hypot(*np.diff(np.asarray(route, dtype=float), axis=0).T).sum())
 
 
 def route_from(route: np.ndarray, s: float) -> np.ndarray:

@@ -1,14 +1,18 @@
 """The expert steers by its own route tracker on its belief, measures "off its route" from its progress
-on (issue 42: generated:201, 289, 314; traces in ``docs/expert_benchmark.md``)."""
+on, and a robot at its route's end with no informative place nearby drives farther back to scan
+(issue 42: generated:201, 289, 314, 198; traces in ``docs/expert_benchmark.md``)."""
 
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 import parcover_env
-from parcover_env.expert.scripted import route_from
+from parcover_env.envs.sonar_fixes import UNINFORMATIVE
+from parcover_env.expert.scripted import route_from, route_length
 from parcover_env.geometry import rotate
 
 RELOCATE = {"observation": {"scan": {"enabled": True, "confirm_widened": True}},
@@ -32,6 +36,7 @@ def test_route_from_cuts_the_polyline_at_an_arc_length():
     np.testing.assert_allclose(route_from(route, 3.5), [[2.0, 1.5], [2.0, 3.0]])
     np.testing.assert_allclose(route_from(route, 9.0), [[2.0, 3.0], [2.0, 3.0]])  # past the end
     np.testing.assert_allclose(route_from(route, -1.0), route)
+    assert route_length(route) == pytest.approx(5.0)
 
 
 def test_off_route_is_measured_from_the_progress_on_so_a_goal_behind_a_wall_gives_way_to_a_seen_vertex():
@@ -90,3 +95,75 @@ def test_the_pose_check_before_a_kpoi_reads_the_experts_own_goal():
     expert.track.progress[0] = 9.0  # 0.39 m before its route's end, the KPOI
     assert np.hypot(*(expert.track.goals()[0] - odom[:2])) <= expert.cfg.sonar_fix.kpoi_check_distance
     assert expert._kpoi_check(a, obs[a], odom) == 2
+
+
+def _relocating_at_start(behind):
+    """generated:3's robot 0 after an uninformative env scan, the place prediction stubbed: 0.7 m ahead,
+    ``behind(near, far)`` back from the route's end."""
+    from test_scan_elsewhere import _after_scan
+
+    env, expert, _ = _expert(3)
+    route = env.mission.routes[0]
+    _after_scan(expert.fixer, UNINFORMATIVE)
+    expert.fixer.states["robot_0"].move = None
+    expert.places = SimpleNamespace(ahead=lambda *args: 0.7, behind_at=lambda r, xy, near, far: behind(near, far))
+    return expert, route
+
+
+def test_at_its_route_end_with_no_informative_place_within_rescan_distance_it_drives_farther_back():
+    """generated:198, robot 1 (traced): at its route's end by the wall of an open room every scan was
+    uninformative, and no place 0.5-2 m back was predicted informative: it stood there 190 s, 0.48 m
+    from its KPOI. Now it drives back to the first predicted place farther along its route in sight."""
+    far_place = np.array([7.2, 4.9])
+    calls = []
+
+    def behind(near, far):
+        calls.append((near, far))
+        return (far_place, 3.1) if near >= 2.0 else None
+
+    expert, route = _relocating_at_start(behind)
+    end = np.array([route[-1][0], route[-1][1], 0.0])
+    expert._relocate("robot_0", 0, end, True, np.full(16, 2.5))
+    length = route_length(route)
+    assert calls == [(0.5, 2.0), (2.0, pytest.approx(length))]
+    np.testing.assert_array_equal(expert.detours["robot_0"], far_place)
+    assert expert.fixer.states["robot_0"].move == math.inf  # scans on arrival
+    assert expert.back["robot_0"] == 3.1
+    # its scan there is uninformative too (no fix): back at its route's end, the next place is farther back
+    from test_scan_elsewhere import _scan_again
+
+    _scan_again(expert.fixer, UNINFORMATIVE)
+    expert.fixer.states["robot_0"].move = None
+    expert.detours.clear()
+    calls.clear()
+    expert._relocate("robot_0", 0, end, True, np.full(16, 2.5))
+    assert calls == [(pytest.approx(3.6), pytest.approx(3.6))]  # 3.1 + relocate_distance 0.5 on
+    np.testing.assert_array_equal(expert.detours["robot_0"], far_place)
+    # a fix ends it: the next time from 0.5 m back again
+    expert.fixer.step("robot_0", np.array([1.0, 1.0, 0.0]), 0.0, 0.0, np.full(len(expert.fixer.beams), 1.0), True)
+    assert not expert.fixer.relocating("robot_0")
+    expert._relocate("robot_0", 0, end, True, np.full(16, 2.5))
+    assert "robot_0" not in expert.back
+    # nothing in sight at all: it stands (as before)
+    expert, route = _relocating_at_start(lambda near, far: None)
+    expert._relocate("robot_0", 0, end, True, np.full(16, 2.5))
+    assert "robot_0" not in expert.detours and expert.fixer.states["robot_0"].move == math.inf
+
+
+def test_a_robot_reaching_its_route_end_before_the_place_chosen_ahead_chooses_again():
+    """generated:314 (re-run), robot 1: spaced scans in an open room, the next one due 2 m on, but its
+    route ended before: it never scanned again. At its route's end the choice is made again."""
+    place = np.array([7.8, 8.0])
+    expert, route = _relocating_at_start(lambda near, far: (place, 0.5))
+    start = np.array([route[0][0], route[0][1], 0.0])
+    expert._relocate("robot_0", 0, start, False, np.full(16, 2.5))
+    assert expert.fixer.waiting_distance("robot_0") == pytest.approx(0.7)  # the place ahead
+    end = np.array([route[-1][0], route[-1][1], 0.0])
+    expert._relocate("robot_0", 0, end, True, np.full(16, 2.5))
+    np.testing.assert_array_equal(expert.detours["robot_0"], place)
+    assert expert.fixer.waiting_distance("robot_0") == math.inf
+    expert._relocate("robot_0", 0, end, True, np.full(16, 2.5))  # chosen at the end: kept
+    np.testing.assert_array_equal(expert.detours["robot_0"], place)
+    assert expert.fixer.waiting_distance("robot_0") == math.inf
+    expert.fixer.choose_again("robot_0")
+    assert expert.fixer.needs_place("robot_0")
