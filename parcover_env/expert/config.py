@@ -98,9 +98,11 @@ class SonarFixConfig:
     repeats there, and an uninformative scene stays uninformative) but at the first place at least this
     far along its route, at most ``rescan_distance``, where the known map predicts an informative
     scan (:class:`~parcover_env.expert.scan_places.ScanPlaces`; none: after ``rescan_distance``); at
-    its route's end, at such a place back along its route in its sight, then it returns (none: it
-    scans no more). Short against ``rescan_distance``: a held fix may be right and the estimate
-    wrong. 0: such scans count as rejected ones (m). After a second uninformative scan in a row the
+    its route's end (also reached before the place chosen ahead), at such a place back along its route
+    in its sight, within ``rescan_distance`` or else farther back, and beyond the last such place whose
+    scan gave no fix, then it returns (none: it scans no more). Short against ``rescan_distance``: a
+    held fix may be right and the estimate wrong. 0: such scans count as rejected ones (m). After a
+    second uninformative scan in a row the
     predicted places are not used until a fix: the next scans after an uninformative one are
     ``rescan_distance`` apart (the noise-free prediction is optimistic along corridors, where a real
     scan every ``relocate_distance`` stays uninformative); after a held one (the scene was

@@ -70,6 +70,12 @@ class ScanPlaces:
     def behind(self, route: np.ndarray, xy: np.ndarray, near: float, far: float) -> np.ndarray | None:
         """The first informative place (x, y) between ``near`` and ``far`` metres back from the end of
         ``route (M, 2)`` that the robot at ``xy`` sees (no wall of the known map between), or None."""
+        found = self.behind_at(route, xy, near, far)
+        return None if found is None else found[0]
+
+    def behind_at(self, route: np.ndarray, xy: np.ndarray, near: float,
+                  far: float) -> tuple[np.ndarray, float] | None:
+        """:meth:`behind`'s place and how far back from the route's end it lies (m), or None."""
         line = shapely.LineString(route)
         end = line.length
         for d in np.arange(near, far + 1e-9, self.sample):
@@ -80,7 +86,7 @@ class ScanPlaces:
             if segments_blocked(xy, pose[:2], self.segments)[0]:
                 return None
             if self.informative(pose):
-                return pose[:2]
+                return pose[:2], float(d)
         return None
 
 

@@ -91,6 +91,9 @@ class ScriptedExpert(Policy):
         self.still: dict[str, tuple[np.ndarray, int]] = {}
         """Per relocating robot: where its estimate was when it last moved ``stuck_distance``, and the
         steps since (:meth:`_stuck`)."""
+        self.back: dict[str, float] = {}
+        """Per robot: how far back from its route's end (m) its last detour place there lies, until a fix: a
+        scan there without a fix means the known map's prediction failed, and the next one is farther back."""
         self.escaping: set[str] = set()
         """Robots driving into the freest direction of their sonar ring before their next scan."""
         # with sonar fixes, the robots' progress along their routes is tracked on the corrected pose
@@ -138,6 +141,7 @@ class ScriptedExpert(Policy):
         self.checked.clear()
         self.detours.clear()
         self.still.clear()
+        self.back.clear()
         self.escaping.clear()
 
     def act(self, observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -185,29 +189,38 @@ class ScriptedExpert(Policy):
 
     def _goal(self, obs: np.ndarray, agent: str, bel: np.ndarray | None) -> np.ndarray:
         """The route point in the robot frame: the observed one, or with sonar fixes the expert's own
-        tracker's from the corrected pose (identical while there is no correction); see
-        :meth:`_visible_goal` for a robot off its route."""
+        tracker's from its belief (the corrected pose, or the observed estimate while no correction is
+        on: the env's progress follows the env's estimate, which a follower's chained belief may have
+        left far behind, generated:289 and 314); see :meth:`_visible_goal` for a robot off its route."""
         i = int(agent.rsplit("_", 1)[1])
         if agent in self.detours:
             pose = self._odom(obs) if bel is None else bel[i]
             return rotate(self.detours[agent] - pose[:2], -pose[2])
-        if bel is None or not self.fixer.corrected(agent):
+        if bel is None:
             pose = self._odom(obs)
             rel = np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
         else:
+            # the expert's own tracker, also when no correction is on: the env's progress followed the
+            # env's estimate, which as a follower's may have drifted beyond the tracker's ``max_offset``
+            # (no progress) or onto a later leg, while the expert's belief was chained to the leader
             pose = bel[i]
             rel = rotate(self.track.goals()[i] - pose[:2], -pose[2])
         return self._visible_goal(i, pose, rel)
 
     def _visible_goal(self, i: int, pose: np.ndarray, rel: np.ndarray) -> np.ndarray:
         """``rel`` (robot frame), unless robot ``i`` is farther than ``off_route_distance`` from its
-        route and a wall of the known map lies between it and that point: then the latest route
-        vertex before the point that it can see (it drives back to its route around the corner)."""
+        route ahead (from its tracked progress on; the whole route without a tracker) and a wall of the
+        known map lies between it and that point: then the latest route vertex before the point that it
+        can see (it drives back to its route around the corner). Measured from the progress on: a robot
+        coming back to its route from a teammate's branch may lie nearer a later leg than the leg it
+        needs, and progress then jumps there (generated:201, robot 5: 0.4 m from its route, its goal
+        behind a wall, braking and backing off against it to the end of the episode)."""
         route = self.mission.routes[i]
         if len(route) < 2:
             return rel
         xy = pose[:2]
-        off = float(point_segment_distance(xy[None], np.c_[route[:-1], route[1:]]).min())
+        ahead = route if self.track is None else route_from(route, float(self.track.progress[i]))
+        off = float(point_segment_distance(xy[None], np.c_[ahead[:-1], ahead[1:]]).min())
         walls = self.mission.known_map.segments
         goal = xy + rotate(rel, pose[2])
         if off <= self.cfg.off_route_distance or not segments_blocked(xy[None], goal[None], walls)[0]:
@@ -298,9 +311,15 @@ class ScriptedExpert(Policy):
         (``expert.sonar_fix.relocate_distance``): the first place ahead along its route where the known map
         predicts an informative scan (after a second uninformative scan in a row, :meth:`SonarFixer.spaced`,
         and an uninformative last one: ``rescan_distance`` on); at its route's end, such a place back along
-        it (a detour, scanned on arrival). A stuck robot (:meth:`_stuck`; after a held scan, or an
-        uninformative one away from its route's end) drives into the freest direction of its sonar ``ranges``
+        it (a detour, scanned on arrival): within ``rescan_distance`` or, in open space, farther back as far as
+        it sees its route (generated:198, 201, 367, 399: at a wall of an open room it stood uninformed at its
+        route's end to the episode's end), beyond the last detour place whose scan gave no fix; a robot that
+        reaches its route's end before the place chosen ahead chooses again there. A stuck robot
+        (:meth:`_stuck`; after a held scan, or an uninformative one away from its route's end) drives into
+        the freest direction of its sonar ``ranges``
         first (:meth:`_escape`). Drops the detour once the robot scans or is fixed."""
+        if not self.fixer.relocating(agent):  # fixed: a place behind its route's end worked or is not needed
+            self.back.pop(agent, None)
         if self.fixer.scanning(agent) or not self.fixer.relocating(agent):
             self.detours.pop(agent, None)
             self.still.pop(agent, None)
@@ -318,6 +337,11 @@ class ScriptedExpert(Policy):
         if stuck and (self.fixer.held(agent) or not at_end):  # at its route's end it stands still on purpose
             self._escape(agent, pose, ranges)
             return
+        wait = self.fixer.waiting_distance(agent)
+        if at_end and wait is not None and np.isfinite(wait) and agent not in self.detours:
+            # it reached its route's end before the place chosen ahead (generated:314, robot 1, spaced
+            # scans in an open room): it would stand there for good; choose as at its route's end
+            self.fixer.choose_again(agent)
         if self.places is None or not self.fixer.needs_place(agent):
             return
         c = self.cfg.sonar_fix
@@ -327,9 +351,14 @@ class ScriptedExpert(Policy):
             self.fixer.scan_after(agent, c.rescan_distance)
             return
         if at_end:
-            place = self.places.behind(route, bel, near, far)
-            if place is not None:
-                self.detours[agent] = place
+            if agent in self.back:  # its scan at the last place behind gave no fix: beyond that place
+                near = self.back[agent] + c.relocate_distance
+                far = max(far, near)
+            found = self.places.behind_at(route, bel, near, far)
+            if found is None:  # none within ``far`` (open space): farther back, as far as it sees its route
+                found = self.places.behind_at(route, bel, far, route_length(route))
+            if found is not None:
+                self.detours[agent], self.back[agent] = found
             self.fixer.scan_after(agent, np.inf)
             return
         progress = float(self.track.progress[i]) if self.track is not None else 0.0
@@ -375,10 +404,14 @@ class ScriptedExpert(Policy):
         reach = self.cfg.sonar_fix.kpoi_check_distance
         if reach <= 0 or self.fixer.corrected(agent):
             return None
-        rel = np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
+        if self.track is not None:  # the goal it steers by (:meth:`_goal`)
+            goal = self.track.goals()[int(agent.rsplit("_", 1)[1])]
+            rel = goal - odom[:2]
+        else:
+            rel = np.array([self.layout.get(obs, "goal_dx")[0], self.layout.get(obs, "goal_dy")[0]])
+            goal = odom[:2] + rotate(rel, odom[2])
         if np.hypot(*rel) > reach:
             return None
-        goal = odom[:2] + rotate(rel, odom[2])
         kpois = self.mission.kpois
         if not len(kpois):
             return None
@@ -412,6 +445,23 @@ class ScriptedExpert(Policy):
             self.blocked[agent] = 0
             self.backing[agent] = int(round(self.cfg.backoff_time / self.dt))
         return v * factor, w
+
+
+def route_length(route: np.ndarray) -> float:
+    """Length (m) of the polyline ``route (M, 2)``."""
+    return float(np.hypot(*np.diff(np.asarray(route, dtype=float), axis=0).T).sum())
+
+
+def route_from(route: np.ndarray, s: float) -> np.ndarray:
+    """The part ``(K, 2)`` (at least two points) of the polyline ``route (M, 2)`` from arc length ``s`` (m) on:
+    the point at ``s``, then the later vertices; past the end, the end point twice."""
+    route = np.asarray(route, dtype=float)
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(route, axis=0).T))])
+    if s >= arc[-1]:
+        return np.vstack([route[-1], route[-1]])
+    k = int(np.searchsorted(arc, max(s, 0.0), side="right")) - 1
+    u = (max(s, 0.0) - arc[k]) / max(arc[k + 1] - arc[k], 1e-12)
+    return np.vstack([route[k] + u * (route[k + 1] - route[k]), route[k + 1:]])
 
 
 def route_tree_waypoint(routes, xy: np.ndarray, target: np.ndarray, walls: np.ndarray) -> np.ndarray | None:

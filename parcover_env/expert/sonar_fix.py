@@ -298,6 +298,18 @@ class SonarFixer:
         st = self.states.get(agent)
         return st is not None and st.relocate and st.move is None
 
+    def waiting_distance(self, agent: str) -> float | None:
+        """The distance (m) a relocating robot drives since its last scan before the next one, as the
+        expert chose it (:meth:`scan_after`); None if it is not relocating or nothing is chosen yet."""
+        st = self.states.get(agent)
+        return st.move if st is not None and st.relocate else None
+
+    def choose_again(self, agent: str) -> None:
+        """Forget where a relocating robot was to scan next (:meth:`needs_place` is True again)."""
+        st = self.states.get(agent)
+        if st is not None and st.relocate:
+            st.move = None
+
     def relocating(self, agent: str) -> bool:
         """Whether this robot waits to scan from elsewhere (after a held or uninformative scan)."""
         st = self.states.get(agent)

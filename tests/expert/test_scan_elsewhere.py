@@ -246,7 +246,7 @@ def _relocating_expert(result, count=1, then=()):
     for later in [result] * (count - 1) + list(then):
         _scan_again(expert.fixer, later)
     expert.fixer.states["robot_0"].move = None  # the expert has not chosen the place of the next scan yet
-    expert.places = SimpleNamespace(ahead=lambda *args: 0.7, behind=lambda *args: None)
+    expert.places = SimpleNamespace(ahead=lambda *args: 0.7, behind=lambda *args: None, behind_at=lambda *args: None)
     return expert, pose
 
 
@@ -341,3 +341,12 @@ def test_the_registered_expert_holds_widened_fixes_except_for_the_sonar_navigato
     first = policy_overrides("expert", "generated:3")
     first["observation"]["scan"]["confirm_widened"] = False  # a caller's change does not stick
     assert policy_overrides("expert", "generated:3") == held
+
+
+def test_behind_at_says_how_far_back_the_place_lies():
+    places = _corridor_places()
+    route = np.array([[1.0, 0.6], [6.0, 0.6]])
+    place, back = places.behind_at(route, np.array([6.0, 0.6]), 0.5, 5.0)
+    np.testing.assert_allclose(place, [2.4, 0.6], atol=1e-9)
+    assert back == pytest.approx(3.6)
+    assert places.behind_at(route, np.array([6.0, 0.6]), 0.5, 2.0) is None

@@ -369,23 +369,21 @@ def test_expert_checks_its_pose_by_a_scan_before_each_kpoi():
     expert = expert_for(env)
     obs, _ = env.reset(seed=3)
     expert.reset(obs)
-    lay, kpoi = env.layout, env.mission.kpois[0]
-    o = obs["robot_0"].copy()
-
-    def at(pose, goal):
-        rel = goal - pose[:2]
-        c, s = np.cos(pose[2]), np.sin(pose[2])
-        values = {"x": pose[0], "y": pose[1], "cos_theta": c, "sin_theta": s,
-                  "goal_dx": c * rel[0] + s * rel[1], "goal_dy": -s * rel[0] + c * rel[1]}
-        for name, value in values.items():
-            o[lay.slices[name]] = value
-        return o
-
-    pose = np.array([kpoi[0] - 0.5, kpoi[1], 0.3])
-    assert expert._kpoi_check("robot_0", at(pose, kpoi), pose) == 0  # 0.5 m before KPOI 0: check
-    far = np.array([kpoi[0] - 0.7, kpoi[1], 0.3])
-    assert expert._kpoi_check("robot_0", at(far, kpoi), far) is None  # beyond kpoi_check_distance
-    other = kpoi + np.array([0.0, 0.4])  # a route point that is not a KPOI
-    assert expert._kpoi_check("robot_0", at(pose, other), pose) is None
-    expert.checked.add(("robot_0", 0))
-    assert expert._kpoi_check("robot_0", at(pose, kpoi), pose) is None  # once per robot and KPOI
+    o = obs["robot_0"]
+    # robot 0's route ends at KPOI 2; the check reads the goal it steers by, its own tracker's (issue 42)
+    route, kpoi = env.mission.routes[0], env.mission.kpois[2]
+    np.testing.assert_allclose([route[-1], kpoi], [[2.58, 0.32], [2.59, 0.35]], atol=0.01)
+    expert.track.progress[0] = 9.2  # the goal: the route's end (lookahead 0.3 m, clamped at the KPOI vertex)
+    np.testing.assert_allclose(expert.track.goals()[0], route[-1])
+    back = (route[-2] - route[-1]) / np.hypot(*(route[-2] - route[-1]))
+    pose = np.r_[route[-1] + 0.5 * back, 0.3]
+    assert expert._kpoi_check("robot_0", o, pose) == 2  # 0.5 m before KPOI 2: check
+    far = np.r_[route[-1] + 0.7 * back, 0.3]
+    assert expert._kpoi_check("robot_0", o, far) is None  # beyond kpoi_check_distance
+    expert.track.progress[0] = 4.0  # a goal mid-route, on no KPOI
+    goal = expert.track.goals()[0]
+    assert np.hypot(*(env.mission.kpois - goal).T).min() > 1.0
+    assert expert._kpoi_check("robot_0", o, np.r_[goal - [0.3, 0.0], 0.0]) is None
+    expert.track.progress[0] = 9.2
+    expert.checked.add(("robot_0", 2))
+    assert expert._kpoi_check("robot_0", o, pose) is None  # once per robot and KPOI

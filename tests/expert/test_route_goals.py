@@ -1,0 +1,169 @@
+"""The expert steers by its own route tracker on its belief, measures "off its route" from its progress
+on, and a robot at its route's end with no informative place nearby drives farther back to scan
+(issue 42: generated:201, 289, 314, 198; traces in ``docs/expert_benchmark.md``)."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import parcover_env
+from parcover_env.envs.sonar_fixes import UNINFORMATIVE
+from parcover_env.expert.scripted import route_from, route_length
+from parcover_env.geometry import rotate
+
+RELOCATE = {"observation": {"scan": {"enabled": True, "confirm_widened": True}},
+            "expert": {"sonar_fix": {"relocate_distance": 0.5}}}
+
+
+def _expert(seed: int):
+    from parcover_env.expert import expert_for
+
+    env = parcover_env.parallel_env(f"generated:{seed}", overrides=RELOCATE)
+    expert = expert_for(env)
+    obs, _ = env.reset(seed=seed)
+    expert.reset(obs)
+    return env, expert, obs
+
+
+def test_route_from_cuts_the_polyline_at_an_arc_length():
+    route = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 3.0]])
+    np.testing.assert_allclose(route_from(route, 0.5), [[0.5, 0.0], [2.0, 0.0], [2.0, 3.0]])
+    np.testing.assert_allclose(route_from(route, 2.0), [[2.0, 0.0], [2.0, 3.0]])  # at a vertex: from it
+    np.testing.assert_allclose(route_from(route, 3.5), [[2.0, 1.5], [2.0, 3.0]])
+    np.testing.assert_allclose(route_from(route, 9.0), [[2.0, 3.0], [2.0, 3.0]])  # past the end
+    np.testing.assert_allclose(route_from(route, -1.0), route)
+    assert route_length(route) == pytest.approx(5.0)
+
+
+def test_off_route_is_measured_from_the_progress_on_so_a_goal_behind_a_wall_gives_way_to_a_seen_vertex():
+    """generated:201, robot 5 (traced): coming back west along the corridor to its turn north at
+    (3.03, 5.38) -> (3.08, 6.48), its progress jumped to the next leg (3.08, 6.48) -> (4.08, 6.78) in
+    the room above; at (3.45, 5.77), 0.4 m from the leg it needs, its goal lay behind the room's wall."""
+    env, expert, _ = _expert(201)
+    route = env.mission.routes[5]
+    np.testing.assert_allclose(route[3:6], [[3.03, 5.38], [3.08, 6.48], [4.08, 6.78]], atol=0.01)
+    assert expert.cfg.off_route_distance == 0.5
+    pose = np.array([3.45, 5.77, 1.08])
+    expert.track.progress[5] = 5.29  # as traced, on the leg in the room
+    goal = expert.track.goals()[5]
+    np.testing.assert_allclose(goal, [4.06, 6.89], atol=0.02)
+    rel = rotate(goal - pose[:2], -pose[2])
+    out = expert._visible_goal(5, pose, rel)
+    np.testing.assert_allclose(out, rotate(route[4] - pose[:2], -pose[2]), atol=1e-9)  # the turn, through the door
+    # measured from the whole route (0.4 m from the leg it needs) the goal behind the wall stood
+    track, expert.track = expert.track, None
+    np.testing.assert_allclose(expert._visible_goal(5, pose, rel), rel)
+    expert.track = track
+    # progress still on the leg it needs (before the jump): its goal is in sight, unchanged
+    expert.track.progress[5] = 3.49
+    rel = rotate(expert.track.goals()[5] - pose[:2], -pose[2])
+    np.testing.assert_allclose(expert._visible_goal(5, pose, rel), rel)
+
+
+def test_the_goal_is_the_experts_own_tracker_point_also_without_a_correction():
+    """generated:289 and 314 (traced): a promoted follower, its env estimate 0.6-1.3 m off while it
+    followed, the env's progress stalled or on another leg; after the env's fix it steered by the
+    env's goal into a wall, while its own tracker (on its chained belief) had the right one."""
+    env, expert, obs = _expert(3)
+    a = "robot_0"
+    assert not expert.fixer.corrected(a)
+    for i in range(len(obs)):  # the poses it steers by: the observed estimates (no correction)
+        expert._last_odom[i] = expert._odom(obs[f"robot_{i}"])
+    bel = expert.belief()
+    env_goal = np.array([env.layout.get(obs[a], k)[0] for k in ("goal_dx", "goal_dy")])
+    expert.track.progress[0] = 4.0  # its own progress differs from the env's (0 m, at the start)
+    want = rotate(expert.track.goals()[0] - bel[0, :2], -bel[0, 2])
+    got = expert._goal(obs[a], a, bel)
+    np.testing.assert_allclose(got, want, atol=1e-9)
+    assert np.hypot(*(got - env_goal)) > 1.0
+    # without sonar fixes (no tracker of its own) the observed goal is used
+    assert np.allclose(expert._goal(obs[a], a, None), env_goal, atol=1e-6)
+
+
+def test_the_pose_check_before_a_kpoi_reads_the_experts_own_goal():
+    env, expert, obs = _expert(3)
+    a = "robot_0"
+    kpois = env.mission.kpois
+    np.testing.assert_allclose(env.mission.routes[0][-1], [2.58, 0.32], atol=0.01)
+    np.testing.assert_allclose(kpois[2], [2.59, 0.35], atol=0.01)
+    odom = np.array([3.0, 0.6, math.pi])
+    assert expert._kpoi_check(a, obs[a], odom) is None  # its progress at the start: no KPOI ahead
+    expert.track.progress[0] = 9.0  # 0.39 m before its route's end, the KPOI
+    assert np.hypot(*(expert.track.goals()[0] - odom[:2])) <= expert.cfg.sonar_fix.kpoi_check_distance
+    assert expert._kpoi_check(a, obs[a], odom) == 2
+
+
+def _relocating_at_start(behind):
+    """generated:3's robot 0 after an uninformative env scan, the place prediction stubbed: 0.7 m ahead,
+    ``behind(near, far)`` back from the route's end."""
+    from test_scan_elsewhere import _after_scan
+
+    env, expert, _ = _expert(3)
+    route = env.mission.routes[0]
+    _after_scan(expert.fixer, UNINFORMATIVE)
+    expert.fixer.states["robot_0"].move = None
+    expert.places = SimpleNamespace(ahead=lambda *args: 0.7, behind_at=lambda r, xy, near, far: behind(near, far))
+    return expert, route
+
+
+def test_at_its_route_end_with_no_informative_place_within_rescan_distance_it_drives_farther_back():
+    """generated:198, robot 1 (traced): at its route's end by the wall of an open room every scan was
+    uninformative, and no place 0.5-2 m back was predicted informative: it stood there 190 s, 0.48 m
+    from its KPOI. Now it drives back to the first predicted place farther along its route in sight."""
+    far_place = np.array([7.2, 4.9])
+    calls = []
+
+    def behind(near, far):
+        calls.append((near, far))
+        return (far_place, 3.1) if near >= 2.0 else None
+
+    expert, route = _relocating_at_start(behind)
+    end = np.array([route[-1][0], route[-1][1], 0.0])
+    expert._relocate("robot_0", 0, end, True, np.full(16, 2.5))
+    length = route_length(route)
+    assert calls == [(0.5, 2.0), (2.0, pytest.approx(length))]
+    np.testing.assert_array_equal(expert.detours["robot_0"], far_place)
+    assert expert.fixer.states["robot_0"].move == math.inf  # scans on arrival
+    assert expert.back["robot_0"] == 3.1
+    # its scan there is uninformative too (no fix): back at its route's end, the next place is farther back
+    from test_scan_elsewhere import _scan_again
+
+    _scan_again(expert.fixer, UNINFORMATIVE)
+    expert.fixer.states["robot_0"].move = None
+    expert.detours.clear()
+    calls.clear()
+    expert._relocate("robot_0", 0, end, True, np.full(16, 2.5))
+    assert calls == [(pytest.approx(3.6), pytest.approx(3.6))]  # 3.1 + relocate_distance 0.5 on
+    np.testing.assert_array_equal(expert.detours["robot_0"], far_place)
+    # a fix ends it: the next time from 0.5 m back again
+    expert.fixer.step("robot_0", np.array([1.0, 1.0, 0.0]), 0.0, 0.0, np.full(len(expert.fixer.beams), 1.0), True)
+    assert not expert.fixer.relocating("robot_0")
+    expert._relocate("robot_0", 0, end, True, np.full(16, 2.5))
+    assert "robot_0" not in expert.back
+    # nothing in sight at all: it stands (as before)
+    expert, route = _relocating_at_start(lambda near, far: None)
+    expert._relocate("robot_0", 0, end, True, np.full(16, 2.5))
+    assert "robot_0" not in expert.detours and expert.fixer.states["robot_0"].move == math.inf
+
+
+def test_a_robot_reaching_its_route_end_before_the_place_chosen_ahead_chooses_again():
+    """generated:314 (re-run), robot 1: spaced scans in an open room, the next one due 2 m on, but its
+    route ended before: it never scanned again. At its route's end the choice is made again."""
+    place = np.array([7.8, 8.0])
+    expert, route = _relocating_at_start(lambda near, far: (place, 0.5))
+    start = np.array([route[0][0], route[0][1], 0.0])
+    expert._relocate("robot_0", 0, start, False, np.full(16, 2.5))
+    assert expert.fixer.waiting_distance("robot_0") == pytest.approx(0.7)  # the place ahead
+    end = np.array([route[-1][0], route[-1][1], 0.0])
+    expert._relocate("robot_0", 0, end, True, np.full(16, 2.5))
+    np.testing.assert_array_equal(expert.detours["robot_0"], place)
+    assert expert.fixer.waiting_distance("robot_0") == math.inf
+    expert._relocate("robot_0", 0, end, True, np.full(16, 2.5))  # chosen at the end: kept
+    np.testing.assert_array_equal(expert.detours["robot_0"], place)
+    assert expert.fixer.waiting_distance("robot_0") == math.inf
+    expert.fixer.choose_again("robot_0")
+    assert expert.fixer.needs_place("robot_0")
