@@ -40,23 +40,25 @@ SPLIT = (("localizer", "parcover_env/localization/"),
          ("policy", "torch/nn/modules/", "torch/distributions/", "marl_scan_head", "torchrl_policy"),
          ("adapter", "parcover_env/harness/marl_env", "parcover_env/harness/map_pool"),
          ("env", "parcover_env/"), ("TorchRL", "torchrl/", "tensordict/"))
-"""Collection split: a sample goes to the group of its innermost frame whose path holds a marker (groups
-tried in this order per frame): the sonar localizer, the actor's forward pass and sampling, the array->tensor
-adapter (:class:`~parcover_env.harness.marl_env.RobotsEnv`, the map pool's padding), the rest of the env, and
-TorchRL (collector, ``SerialEnv``, tensordicts); numba kernels count for the Python function that calls them."""
+"""Collection split: a sample with a frame of the sonar localizer is the localizer's (with the ray casts and
+kernels it calls); any other goes to the group of its innermost frame whose path holds a marker (groups tried
+in this order per frame): the actor's forward pass and sampling, the array->tensor adapter
+(:class:`~parcover_env.harness.marl_env.RobotsEnv`, the map pool's padding), the rest of the env, and TorchRL
+(collector, ``SerialEnv``, tensordicts); numba kernels count for the Python function that calls them."""
 
 
 def collection_split(frame_records) -> dict[str, float]:
     """Fractions of the collection samples of a pyinstrument session's ``frame_records`` (stacks of
     ``function\\0path\\0line`` identifiers) per group of :data:`SPLIT`; collection samples are those
     under a TorchRL collector's ``iterator``/``rollout``."""
-    seconds = dict.fromkeys([g[0] for g in SPLIT] + ["other"], 0.0)
+    seconds = dict.fromkeys([g[0] for g in SPLIT], 0.0)
     for stack, dt in frame_records:
         frames = [(f[0], f[1].replace("\\", "/")) for f in (ident.split("\x00") for ident in stack) if len(f) > 1]
         if not any(fn in ("iterator", "rollout") and "torchrl/collectors/" in path for fn, path in frames):
             continue
-        groups = (next((g[0] for g in SPLIT if any(m in path for m in g[1:])), None) for _, path in reversed(frames))
-        seconds[next((g for g in groups if g is not None), "other")] += dt
+        inner = SPLIT[1:] if not any(SPLIT[0][1] in path for _, path in frames) else SPLIT[:1]
+        groups = (next((g[0] for g in inner if any(m in path for m in g[1:])), None) for _, path in reversed(frames))
+        seconds[next(g for g in groups if g is not None)] += dt  # the collector's frame is TorchRL's
     total = sum(seconds.values())
     return {k: v / total for k, v in seconds.items()} if total else {}
 
