@@ -9,10 +9,11 @@ SCENARIO ?= office
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 
-# Reinstall only when the package metadata or the pins change.
-$(VENV)/.installed: pyproject.toml constraints.txt | $(BIN)/python
+# Reinstall only when the package metadata, the pins or this file change. [bench] (pyinstrument, VMAS, MPE2)
+# lets the tests run benchmarks/train_throughput.py whole, its VMAS row and profile included.
+$(VENV)/.installed: pyproject.toml constraints.txt Makefile | $(BIN)/python
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -c constraints.txt -e ".[dev,train,docs]"
+	$(BIN)/python -m pip install --quiet -c constraints.txt -e ".[dev,train,docs,bench]"
 	touch $@
 
 run: $(VENV)/.installed

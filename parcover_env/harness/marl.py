@@ -33,6 +33,7 @@ import json
 import math
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -315,10 +316,13 @@ def _progress(agent_steps: int, wall: float, ended: list[dict]) -> None:
               f"KPOI {mean['kpoi_fraction']:.2f}, success {mean['success']:.2f}", flush=True)
 
 
-def train(req: TrainRequest) -> dict:
+def train(req: TrainRequest, on_batch: Callable[[object, float, float], object] | None = None) -> dict:
     """Train, then write ``policy.pt``, ``critic.pt``, ``run.json``, ``curve.csv`` and ``curve.png``
     into ``req.out`` (also every ``checkpoint_every`` seconds of wall time during the run, the files
-    replaced whole); returns the sidecar."""
+    replaced whole); returns the sidecar. ``on_batch(batch, collect_s, update_s)``, if given, is called
+    after every batch with the seconds spent collecting it and updating on it (GAE and the PPO epochs;
+    0.0 for the first batch of an ``obs_scale: rollout`` run, which only fits the input scale); a true
+    return stops the run after that batch, as SIGTERM does (``benchmarks/train_throughput.py``)."""
     import torch
     from torchrl.data import LazyTensorStorage, ReplayBuffer
     from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
@@ -356,7 +360,9 @@ def train(req: TrainRequest) -> dict:
     stop = _StopOnSigterm()
     fit_pending = cfg.obs_scale == "rollout" and source is None  # an init run keeps its init's scale
     try:
+        tick = time.perf_counter()
         for batch in collector:
+            collect_s = time.perf_counter() - tick
             run.agent_steps += _agent_steps(batch, n_robots)
             wall = time.perf_counter() - t0
             ended = [{"agent_steps": run.agent_steps, "wall_time": round(wall, 3), **ep} for ep in _episodes(batch)]
@@ -368,7 +374,11 @@ def train(req: TrainRequest) -> dict:
                         if scale is not None:
                             fit_scale(scale, batch.get((GROUP, "observation")), batch.get(REAL, None))
                 fit_pending = False
+                if on_batch is not None and on_batch(batch, collect_s, 0.0):
+                    break
+                tick = time.perf_counter()
                 continue
+            update_start = time.perf_counter()
             with torch.no_grad(), warnings.catch_warnings():
                 # the estimator vmaps the critic over (params, target params); attention has no batching
                 # rule there, so torch loops over the two: same values, a "performance drop" warning
@@ -388,12 +398,14 @@ def train(req: TrainRequest) -> dict:
                 total.backward()
                 torch.nn.utils.clip_grad_norm_(loss.parameters(), cfg.max_grad_norm)
                 optim.step()
-            if (run.agent_steps >= req.steps or stop.requested
+            halt = on_batch is not None and bool(on_batch(batch, collect_s, time.perf_counter() - update_start))
+            if (halt or run.agent_steps >= req.steps or stop.requested
                     or (cfg.wall_time and time.perf_counter() - t0 > cfg.wall_time)):
                 break
             if cfg.checkpoint_every and time.perf_counter() - last_save > cfg.checkpoint_every:
                 run.save()
                 last_save = time.perf_counter()
+            tick = time.perf_counter()
     finally:
         stop.restore()
         collector.shutdown()

@@ -11,8 +11,9 @@ with the same keys as that wrapper for a one-group env (``("robot", "observation
 ``("robot", "real")`` ``[N, 1]`` bool: the agent is one of the map's robots, not padding of a map
 pool (``info["pad"]``; every agent of a single scenario is real), the mask of the PPO loss
 (:mod:`~parcover_env.harness.marl_loss`); with ``mask_done`` a robot whose own route is done
-(``info["route_done"]``, env version 2) is not ``real`` either. Collection speed of both:
-``benchmarks/train_throughput.py``.
+(``info["route_done"]``, env version 2) is not ``real`` either. Collection speed of both: the lab
+page ``docs/lab/train_and_compare.md`` (measured then with ``benchmarks/train_throughput.py``, which now
+times the whole training loop).
 
 ``max_steps`` (``MarlConfig.episode_steps``) cuts training episodes short: the env is truncated at
 that step (bootstrapped like any truncation) while the ParallelEnv keeps its own step limit, so the
