@@ -77,22 +77,26 @@ def wall_set(segs: np.ndarray) -> WallSet:
     with their unit wall directions, each listed at the first of its two walls (``owned``)."""
     n = len(segs)
     lengths = np.hypot(segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1])
-    ends: dict[tuple[float, float], list[tuple[np.ndarray, int]]] = {}  # vertex: (other end, segment index)
-    for i, (x1, y1, x2, y2) in enumerate(segs):
-        a, b = (round(x1, 9), round(y1, 9)), (round(x2, 9), round(y2, 9))
+    # the ends rounded as numpy rounds a float64 scalar (``round(np.float64, 9)``), all at once; the
+    # first end of each vertex keeps its key (and the sign of a zero), as a dict does
+    rounded = np.round(segs, 9).tolist()
+    ends: dict[tuple[float, float], list[tuple[float, float, int]]] = {}  # vertex: (other end, segment index)
+    for i, (x1, y1, x2, y2) in enumerate(rounded):
+        a, b = (x1, y1), (x2, y2)
         if a == b:
             continue
-        ends.setdefault(a, []).append((np.array(b), i))
-        ends.setdefault(b, []).append((np.array(a), i))
+        ends.setdefault(a, []).append((x2, y2, i))
+        ends.setdefault(b, []).append((x1, y1, i))
     pts, u1s, u2s = [], [], []
     owned = np.full((n, 2), -1, dtype=np.int64)  # a corner is listed at the first of its two walls
+    norm = np.linalg.norm
     for v, others in ends.items():
         if len(others) != 2:
             continue
         vv = np.array(v)
-        (end1, i1), (end2, i2) = others
-        u1, u2 = end1 - vv, end2 - vv
-        u1, u2 = u1 / np.linalg.norm(u1), u2 / np.linalg.norm(u2)
+        (x1, y1, i1), (x2, y2, i2) = others
+        u1, u2 = np.array((x1, y1)) - vv, np.array((x2, y2)) - vv
+        u1, u2 = u1 / norm(u1), u2 / norm(u2)
         if abs(u1[0] * u2[1] - u1[1] * u2[0]) < 1e-9:  # collinear: not a corner
             continue
         first = min(i1, i2)
