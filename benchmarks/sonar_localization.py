@@ -37,17 +37,28 @@ time, the machine may be shared). ``--reference`` adds the same for the localize
 was compiled (``tests/references/sonar_localizer.py``: numpy, shapely, scipy) and ``same``, the trials
 whose result (accepted or not, pose, error, feature, candidates) is bit-identical to the compiled one's.
 
+``--service`` times the env's scan service instead (``envs/sonar_fixes.py``, :meth:`SonarFixes.match`:
+the team map with the teammates at their estimates, the localizer, the unmasked match and the
+pin-down test) on the scans pinned in ``tests/localization/sonar/pinned_scans.json`` (seeded
+episodes; their inputs and outcomes), CPU ms per scan median / p90: over all scans, over the scans
+that fall back to the grid (their feature poses explain nothing: the localizer with the grid and the
+polish off finds no pose within ``success_error``), the others, and all scans with the grid off.
+Each outcome is checked against the fixture (``same``: bit-identical pose and informativeness).
+
     PYTHONPATH=. python benchmarks/sonar_localization.py [--trials 200] [--seed 0] [--maps hallway t_room generated:1]
         [--unknown] [--reference]
+    PYTHONPATH=. python benchmarks/sonar_localization.py --service
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import math
 import time
 import zlib
+from pathlib import Path
 
 import numpy as np
 import shapely
@@ -295,6 +306,72 @@ def _reference_localize():
     return reference
 
 
+SERVICE_FIXTURE = Path(__file__).resolve().parents[1] / "tests" / "localization" / "sonar" / "pinned_scans.json"
+SERVICE_OVERRIDES = {"observation": {"scan": {"enabled": True}, "pose_source": "odometry"}}
+"""The scenario overrides the pinned service scans were taken with (``tests/localization/sonar/pinned_scans.py``)."""
+
+
+def _grid_scan(svc, i: int, ranges: np.ndarray, request, inflation: float) -> bool:
+    """Whether the service's localizer falls back to the grid on this scan: with the grid and the polish
+    off (the localizer's error then is the feature poses' smallest), no pose within ``success_error``."""
+    from parcover_env.localization.sonar.localizer import Ellipse
+
+    others = np.delete(np.arange(len(request.estimate)), i)
+    prior = request.estimate[i]
+    cov = request.covariance[i] if request.covariance is not None else np.zeros((3, 3))
+    pos, turn = svc.gate(cov * inflation**2)
+    region = Ellipse.from_covariance(prior[:2], pos, svc.cfg.gate_sigmas)
+    params = dataclasses.replace(svc.params, grid_fallback=False, polish=False)
+    res = localize(ranges, svc.ring.scan_angles, svc.team_map(request.estimate[others, :2]), svc.sectors, region,
+                   params, sonar=svc.ring.cfg, features=svc.features, heading=float(prior[2]), heading_tol=turn)
+    return res.pose is None or res.error > svc.params.success_error
+
+
+def run_service() -> None:
+    """CPU ms per scan of the env's scan service on the pinned episode scans (see the module docstring)."""
+    from parcover_env.envs.estimator import FixRequest
+    from parcover_env.envs.sonar_fixes import SonarFixes
+
+    data = json.loads(SERVICE_FIXTURE.read_text())["service"]
+    scans, no_grid = [], {}
+    for run, cases in sorted(data.items()):
+        sc = load_scenario(run.split("@")[0], SERVICE_OVERRIDES)
+        svc = SonarFixes(sc, MapModel.from_config(sc.map).segments, len(cases[0]["estimate"]))
+        twin = no_grid[id(svc)] = SonarFixes(sc, svc.segments, len(cases[0]["estimate"]))  # without the grid
+        twin.params = dataclasses.replace(twin.params, grid_fallback=False)
+        for c in cases:
+            est = np.array(c["estimate"])
+            cov = None if c["covariance"] is None else np.array(c["covariance"])
+            request = FixRequest(0.0, est.copy(), est, np.zeros(len(est), bool), cov)  # the truth is never read
+            scans.append((svc, c, np.array(c["ranges"]), request))
+    grid = np.array([_grid_scan(svc, c["i"], r, req, c["inflation"]) for svc, c, r, req in scans])
+
+    def timed(pick) -> tuple[np.ndarray, int]:
+        ms, same = [], 0
+        for svc, c, r, req in scans:
+            s = pick(svc)
+            t = time.process_time()
+            pose, informative = s.match(c["i"], r, req, c["inflation"])
+            ms.append(1e3 * (time.process_time() - t))
+            want = c["pose"]
+            same += informative == c["informative"] and (
+                pose is None and want is None or pose is not None and want is not None
+                and np.array_equal(pose, np.array(want)))
+        return np.array(ms), same
+
+    timed(lambda s: s)  # untimed warm-up: numba loads its compiled kernels on the first calls
+    ms, same = timed(lambda s: s)
+    ms_off, _ = timed(lambda s: no_grid[id(s)])
+    print(f"env scan service (SonarFixes.match) on {len(scans)} pinned episode scans "
+          f"({SERVICE_FIXTURE.name}); CPU ms per scan; same = bit-identical to the pinned outcome")
+    print(f"  {'scans':44s} {'n':>4s} {'ms med':>7s} {'ms p90':>7s}")
+    for label, t in (("all (default)", ms), ("grid fallback (feature poses explain nothing)", ms[grid]),
+                     ("no grid fallback needed", ms[~grid]), ("all, grid fallback off", ms_off)):
+        med, p90 = (np.median(t), np.percentile(t, 90)) if len(t) else (math.nan, math.nan)
+        print(f"  {label:44s} {len(t):4d} {med:7.2f} {p90:7.2f}")
+    print(f"  same: {same}/{len(scans)}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=200, help="trials per map")
@@ -306,7 +383,12 @@ def main() -> None:
                     help="also run the localizer as it was before it was compiled (tests/references/"
                          "sonar_localizer.py): its CPU ms per scan side by side, and how many results are "
                          "bit-identical ('same')")
+    ap.add_argument("--service", action="store_true",
+                    help="time the env's scan service on the pinned episode scans instead (ms per scan)")
     args = ap.parse_args()
+    if args.service:
+        run_service()
+        return
     reference = _reference_localize() if args.reference else None
     print(f"success: accepted fix within {100 * POS_OK:.0f} cm and {HEAD_OK:.0f} deg of the truth; wrong: accepted "
           f"fixes outside that; errors over accepted fixes. Mismatch rows: {MISMATCH}.")

@@ -77,30 +77,33 @@ def wall_set(segs: np.ndarray) -> WallSet:
     with their unit wall directions, each listed at the first of its two walls (``owned``)."""
     n = len(segs)
     lengths = np.hypot(segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1])
-    ends: dict[tuple[float, float], list[tuple[np.ndarray, int]]] = {}  # vertex: (other end, segment index)
-    for i, (x1, y1, x2, y2) in enumerate(segs):
-        a, b = (round(x1, 9), round(y1, 9)), (round(x2, 9), round(y2, 9))
+    # the ends rounded as numpy rounds a float64 scalar (``round(np.float64, 9)``), all at once; the
+    # first end of each vertex keeps its key (and the sign of a zero), as a dict does
+    rounded = np.round(segs, 9).tolist()
+    ends: dict[tuple[float, float], list[tuple[float, float, int]]] = {}  # vertex: (other end, segment index)
+    for i, (x1, y1, x2, y2) in enumerate(rounded):
+        a, b = (x1, y1), (x2, y2)
         if a == b:
             continue
-        ends.setdefault(a, []).append((np.array(b), i))
-        ends.setdefault(b, []).append((np.array(a), i))
-    pts, u1s, u2s = [], [], []
+        ends.setdefault(a, []).append((x2, y2, i))
+        ends.setdefault(b, []).append((x1, y1, i))
+    # vertices shared by exactly two segments, in the order the dict met them: their wall directions
+    # normalized as ``u / np.linalg.norm(u)`` does (``sqrt(u.dot(u))``), collinear pairs dropped
+    pairs = [(v, o[0], o[1]) for v, o in ends.items() if len(o) == 2]
     owned = np.full((n, 2), -1, dtype=np.int64)  # a corner is listed at the first of its two walls
-    for v, others in ends.items():
-        if len(others) != 2:
-            continue
-        vv = np.array(v)
-        (end1, i1), (end2, i2) = others
-        u1, u2 = end1 - vv, end2 - vv
-        u1, u2 = u1 / np.linalg.norm(u1), u2 / np.linalg.norm(u2)
-        if abs(u1[0] * u2[1] - u1[1] * u2[0]) < 1e-9:  # collinear: not a corner
-            continue
-        first = min(i1, i2)
-        owned[first, int(owned[first, 0] >= 0)] = len(pts)
-        pts.append(vv)
-        u1s.append(u1)
-        u2s.append(u2)
-    corners = (np.array(pts), np.array(u1s), np.array(u2s)) if pts else (np.zeros((0, 2)),) * 3
+    corners = (np.zeros((0, 2)),) * 3
+    if pairs:
+        vv = np.array([v for v, _, _ in pairs])
+        u1 = np.array([e1[:2] for _, e1, _ in pairs]) - vv
+        u2 = np.array([e2[:2] for _, _, e2 in pairs]) - vv
+        u1 = u1 / np.sqrt(np.array([u.dot(u) for u in u1]))[:, None]
+        u2 = u2 / np.sqrt(np.array([u.dot(u) for u in u2]))[:, None]
+        corner = ~(np.abs(u1[:, 0] * u2[:, 1] - u1[:, 1] * u2[:, 0]) < 1e-9)  # collinear: not a corner
+        for c, k in enumerate(np.flatnonzero(corner).tolist()):
+            first = min(pairs[k][1][2], pairs[k][2][2])
+            owned[first, int(owned[first, 0] >= 0)] = c
+        if corner.any():
+            corners = (vv[corner], u1[corner], u2[corner])
     for a in (lengths, *corners, owned):
         a.setflags(write=False)
     return WallSet(segs, lengths, *corners, owned)

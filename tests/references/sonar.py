@@ -249,3 +249,37 @@ def crosstalk(cfg, poses, beams, segs):
                 if in_cone(bearing - ti - beam):
                     out[i, b] = min(out[i, b], d / 2)
     return out
+
+
+def wall_set(segs: np.ndarray) -> tuple[np.ndarray, ...]:
+    """:func:`~parcover_env.sensors.sonar_kernels.wall_set` one segment and one vertex at a time, as it
+    was written before it was vectorized: ``(lengths, points, u1, u2, owned)``. Each end rounded as
+    ``round(np.float64, 9)``; a vertex shared by exactly two segments whose unit directions
+    ``u / np.linalg.norm(u)`` are not collinear is a corner, listed at the first of its two walls."""
+    n = len(segs)
+    lengths = np.hypot(segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1])
+    ends: dict = {}
+    for i, (x1, y1, x2, y2) in enumerate(segs):
+        a, b = (round(x1, 9), round(y1, 9)), (round(x2, 9), round(y2, 9))
+        if a == b:
+            continue
+        ends.setdefault(a, []).append((np.array(b), i))
+        ends.setdefault(b, []).append((np.array(a), i))
+    pts, u1s, u2s = [], [], []
+    owned = np.full((n, 2), -1, dtype=np.int64)
+    for v, others in ends.items():
+        if len(others) != 2:
+            continue
+        vv = np.array(v)
+        (end1, i1), (end2, i2) = others
+        u1, u2 = end1 - vv, end2 - vv
+        u1, u2 = u1 / np.linalg.norm(u1), u2 / np.linalg.norm(u2)
+        if abs(u1[0] * u2[1] - u1[1] * u2[0]) < 1e-9:
+            continue
+        first = min(i1, i2)
+        owned[first, int(owned[first, 0] >= 0)] = len(pts)
+        pts.append(vv)
+        u1s.append(u1)
+        u2s.append(u2)
+    corners = (np.array(pts), np.array(u1s), np.array(u2s)) if pts else (np.zeros((0, 2)),) * 3
+    return (lengths, *corners, owned)

@@ -215,3 +215,52 @@ def test_sense_draws_each_world_into_one_array_as_its_own_draw(change):
         assert np.array_equal(alone[0], got[k])
     assert [g.random() for g in gens] == [g.random() for g in mine]
     assert (got < ring.cfg.range_max).sum() > 4
+
+
+def test_wall_set_of_a_square_room_with_a_collinear_split():
+    """Hand-built: a 2 x 1 m room whose bottom wall is split in two at (1, 0) (collinear: no corner) and a
+    dangling wall (its free end is no corner): the four room corners, each listed at its lower-indexed wall,
+    with the unit directions along its two walls."""
+    from parcover_env.sensors.sonar_kernels import wall_set
+
+    segs = np.array([[0.0, 0.0, 1.0, 0.0], [1.0, 0.0, 2.0, 0.0], [2.0, 0.0, 2.0, 1.0], [2.0, 1.0, 0.0, 1.0],
+                     [0.0, 1.0, 0.0, 0.0], [0.5, 0.5, 0.7, 0.5]])
+    w = wall_set(segs)
+    assert np.allclose(w.lengths, [1.0, 1.0, 1.0, 2.0, 1.0, 0.2], rtol=0.0, atol=1e-12)
+    assert w.points.tolist() == [[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0]]
+    assert w.u1.tolist() == [[1.0, 0.0], [-1.0, 0.0], [0.0, -1.0], [1.0, 0.0]]
+    assert w.u2.tolist() == [[0.0, 1.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]]
+    assert w.owned.tolist() == [[0, -1], [1, -1], [2, -1], [3, -1], [-1, -1], [-1, -1]]
+
+
+def test_wall_set_is_the_one_vertex_at_a_time_reference_bit_for_bit():
+    """The vectorized wall set equals the loop it replaced, every array's bytes: room maps with robots cut
+    in as discs (the scan service's team maps), ends off by a rounding step, signed zeros, a lattice of
+    random walls with shared, collinear and triple vertices."""
+    import shapely
+
+    from parcover_env.sensors.sonar_kernels import wall_set
+    from parcover_env.world.map_model import MapModel
+
+    rng = np.random.default_rng(5)
+    room = shapely.Polygon([(0, 0), (6, 0), (6, 4), (3, 4), (3, 2.5), (0, 2.5)]).difference(
+        shapely.box(1.0, 0.7, 1.6, 1.1))
+    sets = []
+    for k in range(6):
+        discs = shapely.union_all([shapely.Point(*q).buffer(0.165, quad_segs=4)
+                                   for q in rng.uniform([0.3, 0.3], [5.7, 2.2], (k, 2))])
+        sets.append(MapModel(free=room.difference(discs), bounds=(0, 0, 6, 4)).segments)
+    lattice = np.round(rng.uniform(-1.5, 1.5, (400, 4)) * 4) / 4
+    lattice[::7] += rng.integers(-2, 3, (len(lattice[::7]), 4)) * 1e-10  # ends within a rounding step
+    zeros = np.flatnonzero(lattice == 0.0)
+    lattice.flat[zeros[::2]] = -0.0  # signed zeros: a vertex keeps the sign of its first end
+    assert len(zeros) > 10
+    sets.append(np.ascontiguousarray(lattice))
+    sets.append(_oblique_room())
+    corners = 0
+    for segs in sets:
+        got, want = wall_set(segs), reference.wall_set(segs)
+        for g, w in zip(got[1:], want, strict=True):
+            assert g.shape == w.shape and g.dtype == w.dtype and g.tobytes() == w.tobytes()
+        corners += len(want[1])
+    assert corners > 100
