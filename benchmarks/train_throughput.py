@@ -31,7 +31,7 @@ def main(argv: list[str] | None = None) -> int:
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("scenario", nargs="?", default="generated:0-499")
-    p.add_argument("--config", default="configs/train/ippo_generated_worlds.yaml")
+    p.add_argument("--config", default="docs/lab/train_configs/ippo_generated_worlds.yaml")
     p.add_argument("--frames", type=int, default=4096, help="env steps collected per path (all worlds)")
     p.add_argument("--worlds", type=int, nargs="+", default=[8])
     p.add_argument("--paths", nargs="+", default=["pettingzoo", "robots", "worlds"])
