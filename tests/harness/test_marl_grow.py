@@ -134,7 +134,7 @@ def test_the_env_layout_names_the_scan_entries_in_the_middle():
 
 def test_train_grows_an_init_run_into_the_scan_env(tmp_path):
     cfg = dataclasses.replace(load_marl_config("ippo"), frames_per_batch=64, minibatch_size=64, epochs=1,
-                              hidden=(8,), episode_steps=30)
+                              hidden=(8,), episode_steps=30, env={})  # env v1: the scan env below is v1 + scan
     a = train(TrainRequest("ippo", "office", 64, tmp_path / "a", cfg, "x", seed=1))
     scan_env = {"observation": {"scan": {"enabled": True}}}
     plain = dataclasses.replace(cfg, env=scan_env, learning_rate=1e-12, scan_head="continuous")
