@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -179,9 +180,7 @@ def test_init_grow_needs_the_init_sidecar(tmp_path):
 
 
 def test_the_stage_6_config_is_stage_5_with_the_scan_service_and_growth():
-    from parcover_env.harness.marl_config import default_config_path
-
-    here = default_config_path("mappo").parent
+    here = Path(__file__).resolve().parents[2] / "docs" / "lab" / "train_configs"  # staged history
     stage5 = load_marl_config("mappo", here / "mappo_generated_attention.yaml")
     stage6 = load_marl_config("mappo", here / "mappo_generated_scan.yaml")
     env = {**stage5.env, "observation": {**stage5.env["observation"], "scan": {"enabled": True}}}
