@@ -1,7 +1,7 @@
 """Train PPO with parameter sharing on parcover scenarios (one policy for every robot).
 
     python baselines/train_ppo.py --scenario office --total-timesteps 600000 --out runs/ppo_office
-    python baselines/train_ppo.py --curriculum configs/train/generated_to_tree.yaml --out runs/ppo_tree
+    python baselines/train_ppo.py --curriculum docs/lab/train_configs/generated_to_tree.yaml --out runs/ppo_tree
     python baselines/train_ppo.py --scenario tree --bc-episodes 6 --out runs/bcppo_tree   # BC-initialized
     # BC from Minari datasets (parcover collect), PPO held near it, best network by validation
     python baselines/train_ppo.py --scenario generated:RANDOM --map-seed0 200 \
@@ -17,7 +17,7 @@ validation seeds, disjoint from the training seeds and from the benchmark's seed
 ``checkpoints/step_<N>.zip`` (+ stats) every ``--checkpoint-freq`` agent-steps, and TensorBoard
 event files under ``OUT/tb`` when the ``tensorboard`` package is installed.
 
-Curriculum: ``--curriculum FILE`` (YAML, see ``configs/train/``) lists stages
+Curriculum: ``--curriculum FILE`` (YAML, e.g. ``docs/lab/train_configs/generated.yaml``) lists stages
 ``{scenario, steps, n_envs, wall_time}``; the policy, its optimizer and the observation/return
 normalization carry over from stage to stage (the VecEnv is rebuilt, so team sizes may change).
 ``scenario: generated:RANDOM`` gives each ParallelEnv of the stage its own procedural map
@@ -53,7 +53,8 @@ class Args:
     """Scenario name or YAML path; ``generated:RANDOM`` = a different procedural map per env.
     Ignored when ``curriculum`` is given."""
     curriculum: str = ""
-    """YAML file with ``stages: [{scenario, steps, n_envs?, wall_time?}]`` (configs/train/)."""
+    """YAML file with ``stages: [{scenario, steps, n_envs?, wall_time?}]``
+    (e.g. docs/lab/train_configs/generated.yaml)."""
     preset: str = "realistic"
     """``realistic`` (default error models) or ``ideal`` (every error model off)."""
     seed: int = 0

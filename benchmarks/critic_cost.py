@@ -2,9 +2,9 @@
 ``critic: attention`` (the token critic), both on the version-2 state of a real env.
 
 For ``--scenario`` (default ``tree``, 15 robots) one reset's state and observations are tiled into a
-minibatch of ``--batch`` env steps; each critic of the shipped ``configs/train/mappo*.yaml`` sizes runs
-forward + backward ``--repeats`` times on one torch thread; prints the median ms per minibatch and the
-parameter counts.
+minibatch of ``--batch`` env steps; each critic of the sizes in ``configs/train/mappo.yaml`` and
+``docs/lab/train_configs/mappo_attention.yaml`` runs forward + backward ``--repeats`` times on one torch
+thread; prints the median ms per minibatch and the parameter counts.
 
     PYTHONPATH=. nice -n 10 .venv/bin/python benchmarks/critic_cost.py --scenario tree --batch 256
 """
@@ -40,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
                      GROUP: {"observation": obs_t.expand(a.batch, -1, -1).clone()}}, batch_size=[a.batch])
     print(f"{a.scenario}: {env.n_robots} robots, minibatch {a.batch} env steps, forward + backward, 1 thread")
     for name, cfg in (("mlp", load_marl_config("mappo")),
-                      ("attention", load_marl_config("mappo", "configs/train/mappo_attention.yaml"))):
+                      ("attention", load_marl_config("mappo", "docs/lab/train_configs/mappo_attention.yaml"))):
         critic = build_critic("mappo", env.observation_space("robot_0"), env.state_space, cfg)
         times = []
         for _ in range(a.repeats + 2):

@@ -4,6 +4,11 @@
 (:func:`parcover_env.config.from_mapping`): an unknown key, a wrong type or a value out of range is
 one :class:`~parcover_env.errors.ConfigError` naming the file and the key. Every field is a knob of a
 TorchRL component (named beside it); the trainer only passes them on.
+
+The defaults of ``parcover train`` are the files ``configs/train/ippo.yaml`` and ``mappo.yaml``, which set
+every PPO key (the recipe that learned office, each value's source in a comment). The dataclass defaults
+below only fill keys a file leaves out; they stay as they were so that the configs of earlier runs, which
+rely on them, keep their meaning.
 """
 
 from __future__ import annotations

@@ -146,7 +146,8 @@ def test_short_run_writes_policy_sidecar_and_curve(backend, tmp_path):
     from parcover_env.harness.rollout import run_episode
     from parcover_env.policies.registry import make_policy
 
-    env = parallel_env("office")
+    env = parallel_env("office", overrides=record["env_overrides"])  # the defaults train on env v2
+    assert record["env_overrides"] == {"observation": {"version": 2}, "rewards": {"own_kpoi": 10.0, "kpoi": 1.0}}
     metrics = run_episode(env, make_policy(record["policy"], env, 0), seed=0, max_steps=20)
     assert metrics["steps"] == 20
 

@@ -5,6 +5,7 @@ cache, padding agents left out of the PPO loss and of the advantage statistics, 
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -35,6 +36,8 @@ from parcover_env.harness.marl_config import MarlConfig, load_marl_config  # noq
 from parcover_env.harness.marl_env import RobotsEnv  # noqa: E402
 
 V2 = {"observation": {"version": 2}, "rewards": {"own_kpoi": 10.0, "kpoi": 1.0}}
+LAB_CONFIGS = Path(__file__).resolve().parents[2] / "docs" / "lab" / "train_configs"
+"""Training configs of staged runs that are no README row (moved out of configs/train/)."""
 
 
 class _Scripted:
@@ -302,9 +305,7 @@ def test_value_normalizer_learns_from_the_real_robots_only(kind):
 
 
 def test_the_generated_worlds_config_loads_with_its_stated_changes():
-    from parcover_env.scenarios.registry import configs_dir
-
-    cfg = load_marl_config("ippo", configs_dir() / "train" / "ippo_generated_worlds.yaml")
+    cfg = load_marl_config("ippo", LAB_CONFIGS / "ippo_generated_worlds.yaml")
     assert (cfg.worlds, cfg.frames_per_batch, cfg.minibatch_size, cfg.entropy_coeff) == (8, 4096, 512, 0.005)
     assert cfg.env == {**V2, "rewards": {**V2["rewards"], "collision": -0.25}} and cfg.preset == "realistic"
     assert cfg.checkpoint_every > 0 and cfg.wall_time > 0 and cfg.episode_steps == 800
@@ -357,10 +358,8 @@ def test_mask_done_makes_a_robot_whose_route_is_done_not_real(mask_done):
 
 
 def test_the_shaped_configs_load_with_their_stated_changes():
-    from parcover_env.scenarios.registry import configs_dir
-
-    s3 = load_marl_config("ippo", configs_dir() / "train" / "ippo_generated_shaped.yaml")
-    s4 = load_marl_config("ippo", configs_dir() / "train" / "ippo_generated_shaped_mask.yaml")
+    s3 = load_marl_config("ippo", LAB_CONFIGS / "ippo_generated_shaped.yaml")
+    s4 = load_marl_config("ippo", LAB_CONFIGS / "ippo_generated_shaped_mask.yaml")
     rewards = {"own_kpoi": 10.0, "kpoi": 1.0, "collision": -0.25, "progress": 5.0, "contact": -0.1}
     assert s3.env["rewards"] == s4.env["rewards"] == rewards
     assert (s3.mask_done, s4.mask_done, s3.entropy_coeff, s4.entropy_coeff) == (False, True, 0.0, 0.0)
@@ -369,7 +368,6 @@ def test_the_shaped_configs_load_with_their_stated_changes():
 
 def test_the_shipped_shaped_checkpoint_names_its_four_stage_chain():
     import json
-    from pathlib import Path
 
     import parcover_env
     from parcover_env.policies.torchrl_policy import TorchRLPolicy

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -134,7 +135,7 @@ def test_the_env_layout_names_the_scan_entries_in_the_middle():
 
 def test_train_grows_an_init_run_into_the_scan_env(tmp_path):
     cfg = dataclasses.replace(load_marl_config("ippo"), frames_per_batch=64, minibatch_size=64, epochs=1,
-                              hidden=(8,), episode_steps=30)
+                              hidden=(8,), episode_steps=30, env={})  # env v1: the scan env below is v1 + scan
     a = train(TrainRequest("ippo", "office", 64, tmp_path / "a", cfg, "x", seed=1))
     scan_env = {"observation": {"scan": {"enabled": True}}}
     plain = dataclasses.replace(cfg, env=scan_env, learning_rate=1e-12, scan_head="continuous")
@@ -179,9 +180,7 @@ def test_init_grow_needs_the_init_sidecar(tmp_path):
 
 
 def test_the_stage_6_config_is_stage_5_with_the_scan_service_and_growth():
-    from parcover_env.harness.marl_config import default_config_path
-
-    here = default_config_path("mappo").parent
+    here = Path(__file__).resolve().parents[2] / "docs" / "lab" / "train_configs"  # staged history
     stage5 = load_marl_config("mappo", here / "mappo_generated_attention.yaml")
     stage6 = load_marl_config("mappo", here / "mappo_generated_scan.yaml")
     env = {**stage5.env, "observation": {**stage5.env["observation"], "scan": {"enabled": True}}}

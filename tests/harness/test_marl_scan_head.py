@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -274,9 +275,10 @@ def test_config_scan_head_and_the_shipped_continuous_scan_configs():
     from parcover_env.harness.marl_config import default_config_path
 
     assert MarlConfig().scan_head == "bernoulli"
-    here = default_config_path("mappo").parent
-    for name in ("mappo_generated_scan", "mappo_generated_scan_cont", "mappo_generated_scan_sigma"):
-        assert load_marl_config("mappo", here / f"{name}.yaml").scan_head == "continuous", name  # as shipped
+    lab = Path(__file__).resolve().parents[2] / "docs" / "lab" / "train_configs"  # staged history
+    for path in (lab / "mappo_generated_scan.yaml", lab / "mappo_generated_scan_cont.yaml",
+                 default_config_path("mappo").with_name("mappo_generated_scan_sigma.yaml")):
+        assert load_marl_config("mappo", path).scan_head == "continuous", path  # as shipped
     with pytest.raises(ConfigError, match="scan_head"):
         from_mapping(MarlConfig, {"scan_head": "gaussian"}, "x.yaml")
 
@@ -374,7 +376,7 @@ def test_train_grows_an_init_run_into_the_bernoulli_head(tmp_path):
     from parcover_env import parallel_env
 
     cfg = dataclasses.replace(load_marl_config("ippo"), frames_per_batch=64, minibatch_size=64, epochs=1,
-                              hidden=(8,), episode_steps=30)
+                              hidden=(8,), episode_steps=30, env={})  # env v1: the scan env below is v1 + scan
     train(TrainRequest("ippo", "office", 64, tmp_path / "a", cfg, "x", seed=1))
     scan_env = {"observation": {"scan": {"enabled": True}}}
     grow = dataclasses.replace(cfg, env=scan_env, learning_rate=1e-12, init_grow=True)

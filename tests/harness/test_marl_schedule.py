@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import pytest
 
 from parcover_env.harness.marl_config import MarlConfig, load_marl_config, scheduled_lr
-from parcover_env.scenarios.registry import configs_dir
+
+LAB_CONFIGS = Path(__file__).resolve().parents[2] / "docs" / "lab" / "train_configs"
+"""Training configs of staged runs that are no README row (moved out of configs/train/)."""
+
 
 
 def test_scheduled_lr_is_constant_without_lr_end():
@@ -27,8 +31,8 @@ def test_scheduled_lr_decays_linearly_by_the_larger_used_fraction():
 
 
 def test_the_stage5_config_loads_with_its_stated_changes():
-    cfg = load_marl_config("mappo", configs_dir() / "train" / "mappo_generated_attention.yaml")
-    stage4 = load_marl_config("ippo", configs_dir() / "train" / "ippo_generated_shaped_mask.yaml")
+    cfg = load_marl_config("mappo", LAB_CONFIGS / "mappo_generated_attention.yaml")
+    stage4 = load_marl_config("ippo", LAB_CONFIGS / "ippo_generated_shaped_mask.yaml")
     assert (cfg.critic, cfg.lr_end, cfg.critic_warmup) == ("attention", 3e-5, 300000)
     same = {f.name for f in dataclasses.fields(MarlConfig)} - {"critic", "lr_end", "critic_warmup", "wall_time"}
     assert {k: getattr(cfg, k) for k in same} == {k: getattr(stage4, k) for k in same}
@@ -77,7 +81,6 @@ def test_critic_warmup_and_the_schedule_drive_the_training_loop(tmp_path, monkey
 
 def test_the_shipped_mappo_checkpoint_names_its_five_stage_chain():
     import json
-    from pathlib import Path
 
     import parcover_env
     from parcover_env.policies.torchrl_policy import TorchRLPolicy
@@ -97,7 +100,6 @@ def test_the_shipped_mappo_checkpoint_names_its_five_stage_chain():
 
 def test_the_shipped_stage_7_names_its_chain_its_budget_and_its_sampled_spec():
     import json
-    from pathlib import Path
 
     import parcover_env
     from parcover_env.policies.torchrl_policy import TorchRLPolicy

@@ -9,6 +9,7 @@ import json
 import os
 import signal
 import threading
+from pathlib import Path
 
 import pytest
 
@@ -25,8 +26,10 @@ V2 = {"observation": {"version": 2}, "rewards": {"own_kpoi": 10.0, "kpoi": 1.0}}
 def test_shipped_scratch_configs_train_env_v2(tmp_path):
     from parcover_env.scenarios.registry import configs_dir
 
-    for name in ("ippo_office_scratch", "ippo_generated_scratch", "ippo_tree_scratch"):
-        cfg = load_marl_config("ippo", configs_dir() / "train" / f"{name}.yaml")
+    lab = Path(__file__).resolve().parents[2] / "docs" / "lab" / "train_configs"
+    for path in (configs_dir() / "train" / "ippo_office_scratch.yaml", lab / "ippo_generated_scratch.yaml",
+                 configs_dir() / "train" / "ippo_tree_scratch.yaml"):
+        cfg = load_marl_config("ippo", path)
         assert cfg.env == V2 and cfg.preset == "realistic" and cfg.wall_time > 0
     (tmp_path / "bad.yaml").write_text("env: [1, 2]\n")
     with pytest.raises(ConfigError, match="mapping") as err:
