@@ -26,12 +26,12 @@ PACKAGE = Path(parcover_env.__file__).resolve().parent
 
 
 def _package_file(filename: str) -> str | None:
-    """``filename`` relative to the package's parent (``parcover_env/envs/parallel.py``), None outside it."""
+    """``filename`` as ``parcover_env/envs/parallel.py`` when it is a file of the package, else None."""
     path = Path(filename)
     if path.suffix != ".py" or not path.is_absolute():  # <string>, <frozen ...>: not a package file
         return None
-    try:
-        return path.resolve().relative_to(PACKAGE.parent).as_posix()
+    try:  # relative to the package itself: a virtualenv inside the checkout (.venv/lib/...) is not the package
+        return (PACKAGE.name / path.resolve().relative_to(PACKAGE)).as_posix()
     except ValueError:
         return None
 

@@ -34,3 +34,14 @@ def test_the_counter_keeps_package_files_only():
     assert module._package_file("<string>") is None and module._package_file("<frozen importlib._bootstrap>") is None
     assert module._package_file(str(module.PACKAGE / "envs" / "parallel.py")) == "parcover_env/envs/parallel.py"
     assert module._package_file("/usr/lib/python3/json/__init__.py") is None
+
+
+def test_only_files_of_the_package_count():
+    """A virtualenv inside the checkout (CI's ``.venv``) sits beside the package: its files do not count."""
+    module = _step_files()
+    root = module.PACKAGE.parent
+    assert module._package_file(str(module.PACKAGE / "envs" / "parallel.py")) == "parcover_env/envs/parallel.py"
+    assert module._package_file(str(root / ".venv" / "lib" / "numpy" / "_methods.py")) is None
+    assert module._package_file(str(root / "benchmarks" / "step_files.py")) is None
+    assert module._package_file("<frozen importlib._bootstrap>") is None
+    assert module._package_file(str(module.PACKAGE / "configs" / "office.yaml")) is None
