@@ -46,6 +46,7 @@ from scipy.optimize import minimize
 
 from parcover_env.config import SonarConfig
 from parcover_env.geometry import wrap_angle
+from parcover_env.geometry.numpy_order import argsort4_table
 from parcover_env.geometry.rays import disc_planes
 from parcover_env.localization.sonar import localizer_kernels as kern
 from parcover_env.localization.sonar import scan_kernels
@@ -221,7 +222,7 @@ def _grid_candidates(ellipse: Ellipse, heading: float, map_model, p: SonarLocali
     return np.column_stack([np.repeat(xy, len(heads), axis=0), np.tile(heads, len(xy))])
 
 
-_ARGSORT4 = kern.argsort4_table()
+_ARGSORT4 = argsort4_table()
 _OFF_NORMAL = float(np.radians(20.0))
 """A wall's fitted normal replaces its plateau bearing when within this of it (rad), as in ``features``."""
 _ARC_STEP = 0.03

@@ -4,8 +4,7 @@ Each kernel does the float operations of the numpy code it replaces, in the same
 localizer's poses are bit-identical to what it gave before it was compiled (issue 40;
 ``tests/references/sonar_localizer.py`` keeps that code, ``tests/localization/sonar`` compares):
 
-* :func:`mean_of` sums like numpy's ``add.reduce`` over a contiguous row (pairwise: eight
-  accumulators per block of up to 128 values, halves above that), after numpy's 0.0 identity;
+* sums and means go through :mod:`parcover_env.geometry.numpy_order` (numpy's pairwise order);
 * :func:`scan_error_row` is ``scan_error`` for one synthetic scan: with a trim, the kept errors are
   summed in ascending order (numpy's ``partition`` of a row of at most 256 values sorts it on CPUs with
   AVX-512; on other CPUs numpy's order, and so its last bits, differed from CPU to CPU);
@@ -13,14 +12,13 @@ localizer's poses are bit-identical to what it gave before it was compiled (issu
   sines computed by numpy once: :data:`EDGE_COS`, :data:`EDGE_SIN`);
 * :func:`nelder_mead` is scipy's ``minimize(method="Nelder-Mead")`` with an initial simplex (scipy
   1.17: reflection 1, expansion 2, contraction 0.5, shrink 0.5), its simplex ordered as numpy's
-  ``argsort`` orders four values (ties included: :func:`argsort4_table`, taken from numpy);
+  ``argsort`` orders four values (ties included: ``numpy_order.argsort4_table``, taken from numpy);
 * :func:`free_status` tells whether a point lies in the free space (crossing number); a point within
   :data:`BOUNDARY_GUARD` of a wall is reported as undecided and the caller asks shapely instead.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 from typing import NamedTuple
 
@@ -28,9 +26,10 @@ import numpy as np
 from numba import njit
 
 from parcover_env.geometry.angle_kernels import wrap
+from parcover_env.geometry.numpy_order import mean_of
 from parcover_env.sensors.sonar_kernels import Discs, WallSet, beam_readings
 
-__all__ = ["EDGE_COS", "EDGE_SIN", "BOUNDARY_GUARD", "MAX_SUM", "argsort4_table", "mean_of", "scan_error_row",
+__all__ = ["EDGE_COS", "EDGE_SIN", "BOUNDARY_GUARD", "scan_error_row",
            "scan_errors", "ellipse_distance", "ellipse_beyond", "ellipse_distances", "free_status", "order_simplex",
            "nelder_mead", "pair_poses", "arc_count", "arc_poses", "feature_candidates", "first_unique", "ScanFit",
            "Simplex", "FeatureTable", "ScanRows", "CandidateRules"]
@@ -88,7 +87,7 @@ class Simplex(NamedTuple):
     xatol: float
     fatol: float
     table: np.ndarray
-    """:func:`argsort4_table`."""
+    """``numpy_order.argsort4_table``."""
 
 
 class FeatureTable(NamedTuple):
@@ -132,84 +131,6 @@ class CandidateRules(NamedTuple):
     """A pair without candidates gives arc poses."""
     arc_step: float
     """Their spacing along the arc (m)."""
-
-
-def argsort4_table() -> np.ndarray:
-    """``(256, 4)`` int64: numpy's ``argsort`` of every four values with order pattern ``t`` (each value
-    coded 0-3 by rank, row ``sum(t[k] * 4**k)``): how numpy orders ties on this machine."""
-    table = np.zeros((256, 4), dtype=np.int64)
-    for t in itertools.product(range(4), repeat=4):
-        table[sum(v * 4**k for k, v in enumerate(t))] = np.argsort(np.array(t, dtype=float))
-    return table
-
-
-@njit(cache=True, nogil=True)
-def _block(x, lo, n):
-    """numpy's pairwise sum of ``x[lo:lo + n]``, ``n <= 128`` (one block)."""
-    if n < 8:
-        res = 0.0
-        for i in range(lo, lo + n):
-            res += x[i]
-        return res
-    r0, r1, r2, r3 = x[lo], x[lo + 1], x[lo + 2], x[lo + 3]
-    r4, r5, r6, r7 = x[lo + 4], x[lo + 5], x[lo + 6], x[lo + 7]
-    i = 8
-    stop = n - n % 8
-    while i < stop:
-        r0 += x[lo + i]
-        r1 += x[lo + i + 1]
-        r2 += x[lo + i + 2]
-        r3 += x[lo + i + 3]
-        r4 += x[lo + i + 4]
-        r5 += x[lo + i + 5]
-        r6 += x[lo + i + 6]
-        r7 += x[lo + i + 7]
-        i += 8
-    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    while i < n:
-        res += x[lo + i]
-        i += 1
-    return res
-
-
-@njit(cache=True, nogil=True)
-def _halves1(x, lo, n):
-    """numpy's pairwise sum of ``x[lo:lo + n]``, ``n <= 256``: halves (the first a multiple of 8) above 128."""
-    if n <= 128:
-        return _block(x, lo, n)
-    n2 = n // 2
-    n2 -= n2 % 8
-    return _block(x, lo, n2) + _block(x, lo + n2, n - n2)
-
-
-@njit(cache=True, nogil=True)
-def _halves2(x, lo, n):
-    """The same, ``n <= 512``."""
-    if n <= 128:
-        return _block(x, lo, n)
-    n2 = n // 2
-    n2 -= n2 % 8
-    return _halves1(x, lo, n2) + _halves1(x, lo + n2, n - n2)
-
-
-@njit(cache=True, nogil=True)
-def _pairwise(x, lo, n):
-    """The same, ``n <= MAX_SUM`` (numba compiles no recursion: three levels of halving)."""
-    if n <= 128:
-        return _block(x, lo, n)
-    n2 = n // 2
-    n2 -= n2 % 8
-    return _halves2(x, lo, n2) + _halves2(x, lo + n2, n - n2)
-
-
-MAX_SUM = 1024
-"""Longest row :func:`mean_of` sums like numpy (a scan of up to 1024 readings)."""
-
-
-@njit(cache=True, nogil=True)
-def mean_of(x, n):
-    """Mean of ``x[:n]`` as numpy's ``mean`` of a contiguous row (pairwise sum), ``n <= MAX_SUM``."""
-    return (0.0 + _pairwise(x, 0, n)) / n
 
 
 @njit(cache=True, nogil=True)
@@ -320,7 +241,7 @@ def _cost(x, fit, axes, reading, synth, buf):
 
 @njit(cache=True, nogil=True)
 def order_simplex(sim, fsim, table):
-    """Reorder the simplex as numpy's ``argsort`` of ``fsim (4,)`` does (``table``: :func:`argsort4_table`)."""
+    """Reorder the simplex as numpy's ``argsort`` of ``fsim (4,)`` does (``table``: ``numpy_order.argsort4_table``)."""
     code = 0
     for k in range(4):
         rank = 0

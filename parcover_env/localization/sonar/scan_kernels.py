@@ -3,7 +3,7 @@
 (:func:`parcover_env.localization.sonar.filter.filter_scan`).
 
 The same float operations in the same order as the numpy code they replace
-(``tests/references/sonar_localizer.py``): means as numpy sums (:func:`~.localizer_kernels.mean_of`
+(``tests/references/sonar_localizer.py``): means as numpy sums (:func:`~parcover_env.geometry.numpy_order.mean_of`
 for a row, in row order for the column means of a point set), line fits by the same LAPACK SVD
 (numba's ``np.linalg.svd``) and dot products by the same BLAS ``ddot`` (numba's ``np.dot`` of
 contiguous vectors), sines and cosines of the reading angles computed once by numpy (``sin_a``,
@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 
 from parcover_env.geometry.angle_kernels import wrap
-from parcover_env.localization.sonar.localizer_kernels import mean_of
+from parcover_env.geometry.numpy_order import mean_of
 
 __all__ = ["LABEL_CODES", "characteristic_points", "filter_scan"]
 

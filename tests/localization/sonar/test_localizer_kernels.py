@@ -18,6 +18,7 @@ sys.path.insert(0, str(Path(__file__).parents[2]))
 import pinned_scans as pinned  # noqa: E402
 from references import sonar_localizer as ref  # noqa: E402
 
+from parcover_env.geometry import numpy_order  # noqa: E402
 from parcover_env.localization.sonar import localizer as loc  # noqa: E402
 from parcover_env.localization.sonar import localizer_kernels as kern  # noqa: E402
 from parcover_env.localization.sonar.config import SonarLocalizerConfig  # noqa: E402
@@ -48,10 +49,10 @@ def _pinned_scans(extra: int = 150) -> list[np.ndarray]:
 
 def test_mean_of_sums_like_numpy():
     g = np.random.default_rng(1)
-    for n in [*range(1, 300), 511, 512, 513, 1000, kern.MAX_SUM]:
+    for n in [*range(1, 300), 511, 512, 513, 1000, numpy_order.MAX_SUM]:
         x = g.normal(size=n) * 10.0 ** g.integers(-3, 3, n)
-        assert kern.mean_of(x, n) == x.mean(), n
-    assert kern.mean_of(np.array([0.5, 0.25, 0.0]), 3) == 0.25
+        assert numpy_order.mean_of(x, n) == x.mean(), n
+    assert numpy_order.mean_of(np.array([0.5, 0.25, 0.0]), 3) == 0.25
 
 
 def test_scan_error_by_hand_and_as_the_sorted_numpy_mean():
@@ -109,7 +110,7 @@ def test_free_status_agrees_with_shapely_and_leaves_the_boundary_undecided():
 
 
 def test_argsort_table_orders_ties_as_numpy():
-    table = kern.argsort4_table()
+    table = numpy_order.argsort4_table()
     g = np.random.default_rng(5)
     for _ in range(500):
         f = g.integers(0, 3, 4).astype(float) * 0.25
@@ -181,7 +182,7 @@ def test_polish_equals_scipys_nelder_mead_also_next_to_a_wall():
     fit = kern.ScanFit(measured=r, angles=ANGLES, clip=p.error_clip, keep=65, ell=rec, ecos=kern.EDGE_COS,
                        esin=kern.EDGE_SIN, reach=p.ellipse_distance, free=known.segments, walls=walls, offsets=offsets,
                        share=share, discs=no_discs, rules=rules, rmax=2.54)
-    nm = kern.Simplex(0.03, p.polish_iters, 1e-3, 1e-5, kern.argsort4_table())
+    nm = kern.Simplex(0.03, p.polish_iters, 1e-3, 1e-5, numpy_order.argsort4_table())
     *_, undecided = kern.nelder_mead(on_wall, nm, fit)
     assert undecided
     got = loc._polish(on_wall.copy(), r, ANGLES, known, ell, p, sc.robot.sonar)
