@@ -13,7 +13,7 @@ import itertools
 import numpy as np
 from numba import njit
 
-__all__ = ["MAX_SUM", "argsort4_table", "mean_of"]
+__all__ = ["MAX_SUM", "argsort4_table", "block_sum", "mean_of"]
 
 
 def argsort4_table() -> np.ndarray:
@@ -26,7 +26,7 @@ def argsort4_table() -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _block(x, lo, n):
+def block_sum(x, lo, n):
     """numpy's pairwise sum of ``x[lo:lo + n]``, ``n <= 128`` (one block)."""
     if n < 8:
         res = 0.0
@@ -58,17 +58,17 @@ def _block(x, lo, n):
 def _halves1(x, lo, n):
     """numpy's pairwise sum of ``x[lo:lo + n]``, ``n <= 256``: halves (the first a multiple of 8) above 128."""
     if n <= 128:
-        return _block(x, lo, n)
+        return block_sum(x, lo, n)
     n2 = n // 2
     n2 -= n2 % 8
-    return _block(x, lo, n2) + _block(x, lo + n2, n - n2)
+    return block_sum(x, lo, n2) + block_sum(x, lo + n2, n - n2)
 
 
 @njit(cache=True, nogil=True)
 def _halves2(x, lo, n):
     """The same, ``n <= 512``."""
     if n <= 128:
-        return _block(x, lo, n)
+        return block_sum(x, lo, n)
     n2 = n // 2
     n2 -= n2 % 8
     return _halves1(x, lo, n2) + _halves1(x, lo + n2, n - n2)
@@ -78,7 +78,7 @@ def _halves2(x, lo, n):
 def _pairwise(x, lo, n):
     """The same, ``n <= MAX_SUM`` (numba compiles no recursion: three levels of halving)."""
     if n <= 128:
-        return _block(x, lo, n)
+        return block_sum(x, lo, n)
     n2 = n // 2
     n2 -= n2 % 8
     return _halves2(x, lo, n2) + _halves2(x, lo + n2, n - n2)

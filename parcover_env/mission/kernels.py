@@ -13,6 +13,7 @@ import numpy as np
 from numba import njit
 
 from parcover_env.geometry.angle_kernels import wrap
+from parcover_env.geometry.numpy_order import block_sum
 
 
 @njit(cache=True, nogil=True)
@@ -66,33 +67,12 @@ def may_split(tp, est, plan_progress, fix, tol, margin, out):
 
 
 @njit(cache=True, nogil=True)
-def _pairwise_block(a, lo, n):
-    """``a[lo:lo + n]``, ``n <= 128``, summed as numpy does (eight running sums from 8 values on)."""
-    if n < 8:
-        res = 0.0
-        for i in range(lo, lo + n):
-            res += a[i]
-        return res
-    r = a[lo:lo + 8].copy()
-    i = 8
-    while i < n - n % 8:
-        for j in range(8):
-            r[j] += a[lo + i + j]
-        i += 8
-    res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
-    while i < n:
-        res += a[lo + i]
-        i += 1
-    return res
-
-
-@njit(cache=True, nogil=True)
 def pairwise_sum(a, lo, n):
     """``a[lo:lo + n]`` summed as numpy sums a contiguous float64 run (its pairwise summation: blocks of
     at most 128 values, longer runs halved at a multiple of 8 and the halves' sums added), so the same
     float as ``np.sum``. The halving is walked with an explicit stack (no recursion: numba's cache)."""
     if n <= 128:
-        return _pairwise_block(a, lo, n)
+        return block_sum(a, lo, n)
     los, ns, stage = np.empty(128, np.int64), np.empty(128, np.int64), np.zeros(128, np.int64)
     vals = np.empty(128)
     top, nv = 0, 0
@@ -100,7 +80,7 @@ def pairwise_sum(a, lo, n):
     while top >= 0:
         at, m = los[top], ns[top]
         if m <= 128:
-            vals[nv] = _pairwise_block(a, at, m)
+            vals[nv] = block_sum(a, at, m)
             nv += 1
             top -= 1
             continue
