@@ -11,7 +11,7 @@ Sources: ``estimate``, ``team``, ``mission`` and ``camera`` entries are written 
 from the env's state; ``route`` and ``teammates`` entries (observation version 2 only) by
 :func:`parcover_env.envs.obs_v2.fill` for all robots of all worlds at once; ``scan`` entries by the
 stepper from ``env.localization_entries()`` (the sonar localization service,
-:mod:`parcover_env.envs.sonar_fixes`); a ``sensor`` entry is the reading of the sensor its ``sensor``
+:mod:`parcover_env.localization.sonar.service`); a ``sensor`` entry is the reading of the sensor its ``sensor``
 factory builds from the scenario (a :class:`~parcover_env.sensors.base.Sensor`), filled for every world
 at once by the stepper (:mod:`parcover_env.sim.pipeline`). A new sensor is a sensor module, a config
 field and one ``sensor`` entry here: neither the env nor the batched worlds change.

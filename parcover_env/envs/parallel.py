@@ -12,13 +12,13 @@ from pettingzoo import ParallelEnv
 from parcover_env.config import Scenario, deep_merge
 from parcover_env.envs import critic_state
 from parcover_env.envs.entry_checks import check_options, check_seed, require_episode
-from parcover_env.envs.estimator import KinectFixes, PoseEstimator
 from parcover_env.envs.obs_spec import markdown_table
 from parcover_env.envs.obs_v2 import route_facts, target_kpois
 from parcover_env.envs.observations import ObservationLayout, build_sensors
-from parcover_env.envs.sonar_fixes import SonarFixes
 from parcover_env.errors import CallOrderError, ParcoverError
+from parcover_env.localization.estimator import KinectFixes, PoseEstimator
 from parcover_env.localization.kinect.system import KinectSystem
+from parcover_env.localization.sonar.service import SonarFixes
 from parcover_env.mission.metrics import EpisodeMetrics
 from parcover_env.mission.rewards import terms_for
 from parcover_env.mission.team import CameraView, Team, update_team
@@ -73,7 +73,7 @@ class ParallelCoverageEnv(ParallelEnv):
     same spot will not pin it either); -1 rejected (the next region is wider); 0 none yet. Off by
     default, so the v1 action and observation spaces (and checkpoints) are unchanged; the ``waypoint``
     policy turns it on (``parcover_env.policies.registry``).
-    Module: ``parcover_env.envs.sonar_fixes``; a test with a known answer: ``tests/envs/test_sonar_fixes.py``.
+    Module: ``parcover_env.localization.sonar.service``; a test with a known answer: ``tests/envs/test_sonar_fixes.py``.
 
     How an actor of ``parcover train`` fills ``scan`` (``MarlConfig.scan_head``; ``v``, ``omega`` are a
     TanhNormal with either head: ``tanh(loc)`` under ``torchrl:``, a sample under ``torchrl_sampled:``):
@@ -210,7 +210,7 @@ class ParallelCoverageEnv(ParallelEnv):
         sxy, sth = s.observation.fix_sigma_xy, np.radians(s.observation.fix_sigma_heading_deg)
         self.fix_sources = [KinectFixes(self.kinects, s.robot.markers, np.diag([sxy**2, sxy**2, sth**2]))
                             ] if self.kinects is not None else []
-        """The estimator's sources of absolute pose fixes (:class:`~parcover_env.envs.estimator.FixSource`)."""
+        """The estimator's sources of absolute pose fixes (:class:`~parcover_env.localization.estimator.FixSource`)."""
         self.scanner = SonarFixes(s, self.map.segments, self.n_robots) if s.observation.scan.enabled else None
         """The sonar localization service (``observation.scan``; None = off), the last fix source."""
         if self.scanner is not None:

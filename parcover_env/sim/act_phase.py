@@ -7,7 +7,7 @@ velocities in one compiled call (:func:`~parcover_env.world.drive.command_steps_
 pymunk space integrates its physics (one space per world; :func:`~parcover_env.world.physics.step_all`
 points the compiled velocity callbacks of all worlds' bodies at their rows in one call and steps
 all spaces in one compiled loop), and the
-pose estimators of all worlds update together (:func:`~parcover_env.envs.estimator.update_all`: the
+pose estimators of all worlds update together (:func:`~parcover_env.localization.estimator.update_all`: the
 wheel odometry of all ``K N`` robots in one compiled call, the Kinect systems in one batch). World
 ``k`` draws from its own generator in the order it would alone, so every world is bit for bit a
 separate env.
@@ -21,8 +21,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from parcover_env.config import PhysicsConfig
-from parcover_env.envs.estimator import FixRequest, update_all
 from parcover_env.geometry.stacking import stack
+from parcover_env.localization.estimator import FixRequest, update_all
 from parcover_env.sim.actions import to_commands_all
 from parcover_env.sim.rows import ActRows, act_rows
 from parcover_env.world.drive import command_steps_rows

@@ -120,7 +120,7 @@ class ActRows(NamedTuple):
 
 
 ESTIMATOR = ("velocity", "fix_age")
-"""Rows of :class:`~parcover_env.envs.estimator.PoseEstimator`."""
+"""Rows of :class:`~parcover_env.localization.estimator.PoseEstimator`."""
 ODOMETRY = ("estimate", "covariance", "travelled", "turned", "factors", "believed_base")
 """Rows of :class:`~parcover_env.sensors.odometry.Odometry`."""
 DRIVE = ("wheels", "travel", "speed_change")

@@ -13,7 +13,7 @@ import pytest
 
 import parcover_env
 from parcover_env.config import DriveConfig, MapConfig, OdometryConfig, PhysicsConfig
-from parcover_env.envs.estimator import PoseEstimator, update_all
+from parcover_env.localization.estimator import PoseEstimator, update_all
 from parcover_env.sensors import onboard_kernels
 from parcover_env.sensors.odometry import Odometry, measure_wheels_all
 from parcover_env.sim.rows import SharedRows, act_rows

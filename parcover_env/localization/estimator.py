@@ -5,7 +5,7 @@ Each step :meth:`PoseEstimator.update` advances every robot's belief by its whee
 asks each fix source in turn for absolute pose fixes and resets the fixed robots' beliefs
 (:meth:`PoseEstimator.fix`). A fix source is anything with the :class:`FixSource` shape: the overhead
 Kinect system (:class:`KinectFixes`, Min, Fehr & Papanikolopoulos) and the sonar localizer fix of a
-robot that stops and scans (Kim, Pearce & Amato; :class:`~parcover_env.envs.sonar_fixes.SonarFixes`,
+robot that stops and scans (Kim, Pearce & Amato; :class:`~parcover_env.localization.sonar.service.SonarFixes`,
 ``observation.scan``), in that order.
 """
 
