@@ -3,50 +3,21 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
 
 from parcover_env.config import Scenario
+from parcover_env.envs.feature_sets import feature_set
 from parcover_env.envs.obs_spec import ENTRIES, KERNEL_COLUMNS, KERNEL_ENTRIES, MAX_FIX_AGE
 from parcover_env.geometry import atan2
 from parcover_env.sensors.base import Sensor
+from parcover_env.sim.pipeline import ScalarInputs
 
 __all__ = ["ObservationLayout", "MAX_FIX_AGE", "SCALAR_ENTRIES", "ScalarInputs", "build_sensors", "ellipse_entries"]
 
 SCALAR_ENTRIES = KERNEL_ENTRIES
 """The one-column entries :meth:`ObservationLayout.fill_scalars` writes (all but the sensors')."""
-
-
-class ScalarInputs(NamedTuple):
-    """What :meth:`ObservationLayout.fill_scalars` reads, per robot ``(N, ...)`` and team-wide (for
-    :meth:`ObservationLayout.fill_scalars_many`, every field with a leading worlds axis ``K``)."""
-
-    est: np.ndarray
-    """Pose estimates ``(N, 3)``."""
-    velocity: np.ndarray
-    """Encoder ``(v, omega)`` ``(N, 2)``."""
-    leader: np.ndarray
-    """Leader flags ``(N,)`` bool."""
-    slot: np.ndarray
-    """Column slots ``(N,)`` int (reported / ``max(N - 1, 1)``)."""
-    fix_age: np.ndarray
-    """Seconds since the last absolute fix ``(N,)`` (reported capped at :data:`MAX_FIX_AGE`)."""
-    covariance: np.ndarray
-    """Pose covariances ``(N, 3, 3)``."""
-    goals: np.ndarray
-    """Lookahead waypoints ``(N, 2)``, world frame."""
-    rel_xy: np.ndarray
-    """The follower camera's predecessor position ``(N, 2)``, robot frame."""
-    rel_heading: np.ndarray
-    """Its relative heading ``(N,)``."""
-    visible: np.ndarray
-    """Predecessor seen ``(N,)`` bool."""
-    kpois_visited: float
-    """Fraction of KPOIs visited by the team."""
-    time: float
-    """Fraction of the step limit elapsed."""
 
 
 def ellipse_entries(cov: np.ndarray, heading: np.ndarray) -> np.ndarray:
@@ -75,9 +46,10 @@ class ObservationLayout:
         (:data:`~parcover_env.envs.obs_spec.ENTRIES`); ``sensors``: the built sensor of each
         ``sensor`` entry (None = off; built from the scenario if not given)."""
         sensors = sensors if sensors is not None else build_sensors(scenario)
+        sources = feature_set(scenario.observation.version).sources  # the entries of the scenario's version
         names, slices, low, high, at = [], {}, [], [], 0
         for e in ENTRIES:
-            size = e.n_columns(scenario, sensors.get(e.name))
+            size = e.n_columns(scenario, sensors.get(e.name), sources)
             if size == 0:
                 continue
             lo, hi = e.bounds(scenario, tuple(box))

@@ -1,5 +1,6 @@
 """Named reward terms, one table (:data:`TERM_TABLE`). Each agent's reward is the sum of its world's
-terms (:func:`terms_for`); the terms go into ``info``. A term is its weight's name in
+terms (its feature set's, :mod:`parcover_env.envs.feature_sets`, with :func:`with_optional_terms`); the
+terms go into ``info``. A term is its weight's name in
 :class:`~parcover_env.config.RewardConfig`, the function of the step's :class:`RewardInputs` it pays,
 and the optional input it needs (computed by the score phase only for worlds that pay the term).
 
@@ -18,15 +19,13 @@ import numpy as np
 from parcover_env.config import RewardConfig
 from parcover_env.geometry.rays import point_segment_distance
 
-__all__ = ["TERMS", "TERMS_V2", "VERSION_TERMS", "TEAM_TERMS", "REWARD_KEYS", "RewardInputs", "Term", "TERM_TABLE",
-           "terms_for", "inputs_needed", "reward_terms", "own_visits", "touching", "sigma_major"]
+__all__ = ["TERMS", "TERMS_V2", "TEAM_TERMS", "REWARD_KEYS", "RewardInputs", "Term", "TERM_TABLE",
+           "with_optional_terms", "inputs_needed", "reward_terms", "own_visits", "touching", "sigma_major"]
 
 TERMS = ("kpoi", "progress", "time", "collision")
 """The terms of version 1 (and of version 2 after ``own_kpoi``)."""
 TERMS_V2 = ("own_kpoi", *TERMS)
 """The terms of version 2: the per-robot ``own_kpoi`` first."""
-VERSION_TERMS = {1: TERMS, 2: TERMS_V2}
-"""The terms every world of an observation version pays, by version."""
 REWARD_KEYS = tuple(f"reward_{t}" for t in TERMS)
 """Info keys of the version-1 terms: ``info[agent]["reward_kpoi"]`` etc. (flat, present at reset as 0)."""
 
@@ -88,10 +87,11 @@ TEAM_TERMS = tuple(name for name, t in TERM_TABLE.items() if t.team)
 """The terms with one value for all agents of a world (one number broadcast)."""
 
 
-def terms_for(version: int, contact: bool = False, uncertainty: bool = False) -> tuple[str, ...]:
-    """The reward terms of observation ``version`` (1: :data:`TERMS`, 2: :data:`TERMS_V2`), then
-    ``contact`` when ``contact`` and ``uncertainty`` when ``uncertainty`` (their weights are not 0)."""
-    return (*VERSION_TERMS[version], *(("contact",) if contact else ()), *(("uncertainty",) if uncertainty else ()))
+def with_optional_terms(terms: Sequence[str], contact: bool = False, uncertainty: bool = False) -> tuple[str, ...]:
+    """``terms`` (a feature set's own), then ``contact`` when ``contact`` and ``uncertainty`` when
+    ``uncertainty`` (their weights are not 0)."""
+    return (*terms, *(("contact",) if contact else ()), *(("uncertainty",) if uncertainty else ()))
+
 
 
 def inputs_needed(terms: Sequence[str]) -> frozenset[str]:

@@ -21,10 +21,10 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from parcover_env.config import PhysicsConfig
-from parcover_env.geometry.stacking import stack
-from parcover_env.localization.estimator import FixRequest, update_all
+from parcover_env.localization.estimator import ActRows, FixRequest, act_rows, update_all
 from parcover_env.sim.actions import to_commands_all
-from parcover_env.sim.rows import ActRows, act_rows
+from parcover_env.sim.contract import StepWorld
+from parcover_env.world.batching import stack
 from parcover_env.world.drive import command_steps_rows
 from parcover_env.world.physics import poses_all, step_all
 
@@ -43,7 +43,7 @@ class Acted(NamedTuple):
     attached (to read only, this step)."""
 
 
-def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -> Acted:
+def act(worlds: Sequence[StepWorld], actions: Sequence[dict[str, Any]] | np.ndarray) -> Acted:
     """Act, integrate the physics and update the pose estimator of every world (``actions[k]``: world
     ``k``'s joint action dict, or ``actions`` one array ``(K, N, A)``: row ``[k, i]`` the action of
     world ``k``'s ``i``-th agent); returns the true poses ``(K, N, 3)`` before and after the step and
@@ -65,12 +65,12 @@ def act(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray) -
         for w, r in zip(worlds, raw, strict=True):
             w.scanner.request(r[:, 2], w.commands)  # scanning robots are held still
     physics = [w.world for w in worlds]
-    estimators, drives = [w.estimator for w in worlds], [w.drive for w in physics]
+    estimators, drives = [w.estimator for w in worlds], [p.drive for p in physics]
     rows = act_rows(estimators, drives)  # the drives' and estimators' arrays as rows of shared blocks
     before = poses_all(physics)
     step_all(physics, commands, _drive(rows, s.physics, commands))
     true = poses_all(physics)
-    fixes = update_all(estimators, true, commands, drives, [w.time for w in physics],
+    fixes = update_all(estimators, true, commands, drives, [p.time for p in physics],
                        stack([w.team.leader for w in worlds]), [w.np_random for w in worlds], rows)
     for w, f in zip(worlds, fixes, strict=True):
         kinect = f.get("kinect")
