@@ -249,7 +249,7 @@ V2_ENTRIES = tuple(e.name for e in ENTRIES if e.source in ("route", "teammates")
 
 KERNEL_COLUMNS = np.dtype([(name, "i8") for name in KERNEL_ENTRIES])
 """Record of the column of each :data:`KERNEL_ENTRIES` entry in a layout (-1: absent), addressed by
-name in the compiled pass (``parcover_env.envs.obs_kernels.scalar_entries``). A structured array,
+name in the compiled pass (``parcover_env.envs.observations.scalar_entries``). A structured array,
 not a NamedTuple: numba types it in its C dispatcher (a NamedTuple is typed field by field)."""
 
 
