@@ -20,7 +20,7 @@ from parcover_env.localization.estimator import KinectFixes, PoseEstimator
 from parcover_env.localization.kinect.system import KinectSystem
 from parcover_env.localization.sonar.service import SonarFixes
 from parcover_env.mission.metrics import EpisodeMetrics
-from parcover_env.mission.rewards import with_optional_terms
+from parcover_env.mission.rewards import paid_terms
 from parcover_env.mission.team import CameraView, Team, update_team
 from parcover_env.scenarios import load_scenario, mission_for
 from parcover_env.sensors.relative import RelativeCamera
@@ -224,7 +224,7 @@ class ParallelCoverageEnv(ParallelEnv):
         self.features = feature_set(self.version)(self)
         """The version's feature set (:mod:`parcover_env.envs.feature_sets`): its entries' fill functions,
         info values, reward terms and ``state()``."""
-        self.terms = with_optional_terms(self.features.terms, s.rewards.contact != 0, s.rewards.uncertainty != 0)
+        self.terms = paid_terms(self.features.terms, s.rewards)
         """The reward terms, in summing order (``info[agent]["reward_<term>"]``)."""
         self.route_facts = self.features.route_facts
         """Version 2: the routes' static facts the v2 entries and ``state()`` read (``obs_v2.RouteFacts``)."""
