@@ -5,21 +5,24 @@ env all step through here, so the rules are written once:
 
 1. **act** (all worlds at once, :func:`parcover_env.sim.act_phase.act`): act, integrate the
    physics, update the pose estimator (odometry, fixes); **score** (all worlds at once,
-   :func:`parcover_env.sim.score_phase.score`): track the mission, hand over at splits (Alg. 1), score, record;
+   :func:`parcover_env.sim.score_phase.score`): track the mission, hand over at splits (Alg. 1),
+   score, record;
 2. **sense and observe** (:func:`observe`, all worlds at once): one :class:`SensingState` of every
-   world; the follower cameras first, then one compiled pass writes every non-sensor entry of the
-   observation spec of every world, then every ``sensor`` entry of the spec is filled by its sensor's ``sense`` for
-   all worlds in one call, and the entries the worlds' feature set fills itself (``features.fills``:
-   version 2's ``route`` and ``teammates``); clipped into the bounds. World ``k`` draws from its own generator in the
-   order a single world would, so it is bit for bit a separate env;
+   world; the follower cameras first, then one compiled pass (the layout's) writes every non-sensor
+   entry of the observation spec of every world, the worlds' feature set writes the entries it owns
+   (``features.fills``: version 2's ``route`` and ``teammates``), and every ``sensor`` entry of the
+   spec is filled by its sensor's ``sense`` for all worlds in one call; clipped into the bounds.
+   World ``k`` draws from its own generator in the order a single world would, so it is bit for bit
+   a separate env;
 3. **outputs** (all worlds at once, :func:`parcover_env.sim.outputs_phase.slot_outputs`): rewards,
    terminations, truncations, infos by agent slot, what a VecEnv reads (a world's PettingZoo dicts:
    :func:`parcover_env.sim.outputs_phase.agent_dicts`);
 4. a world whose agents are all done is reset by the caller (auto-reset); what a vectorized or
    single-agent view adds to an agent's info is :mod:`parcover_env.envs.slots`.
 
-The stepper reads the worlds through public names only (``team``, ``estimator``, ``progress``,
-``layout``, ``sensors``, ``camera``, ``np_random``, ...).
+The stepper reads the worlds through the names of its contract only
+(:class:`~parcover_env.sim.contract.StepWorld`: ``team``, ``estimator``, ``progress``, ``layout``,
+``features``, ``sensors``, ``camera``, ``np_random``, ...).
 """
 
 from __future__ import annotations
