@@ -1,14 +1,16 @@
 """The extension points of ``docs/extending.md``, done in tests: a reward term is one row of the term
-table (its weight a field of ``RewardConfig``: here an existing one), and a feature set's own info value
-is one entry of its ``info``; the engine (``sim/``) changes for neither."""
+table (its weight a field of ``RewardConfig``: here an existing one), a feature set's own info value is
+one entry of its ``info``, and an entry of one feature set is its spec ``Entry`` and the set's fill
+function; the engine (``sim/``) changes for none."""
 
 from __future__ import annotations
 
 import numpy as np
 
 import parcover_env
-from parcover_env.envs import feature_sets
+from parcover_env.envs import feature_sets, obs_spec, observations
 from parcover_env.envs.feature_sets import CoreFeatures
+from parcover_env.envs.obs_spec import Entry
 from parcover_env.mission import rewards
 from parcover_env.mission.rewards import TERMS, Term
 
@@ -50,3 +52,32 @@ def test_a_feature_sets_own_info_value_is_one_entry(monkeypatch):
     errors = env.estimate[:, 0] - env.true_poses()[:, 0]
     assert [infos[a]["x_error"] for a in env.agents] == errors.tolist()
     assert list(infos["robot_0"])[-1] == "x_error"
+
+
+def test_an_entry_of_a_feature_set_is_its_spec_entry_and_its_fill(monkeypatch):
+    """``steps_left`` (the fraction of the step limit left): one ``Entry`` of a source only this set
+    lists, and the set's fill function; the layout, bounds and space follow from the entry."""
+    entry = Entry("steps_left", "-", "fraction of the step limit left", lambda s, b: (0.0, 1.0), "extra",
+                  bounds_doc="[0, 1]")
+    monkeypatch.setattr(obs_spec, "ENTRIES", (*obs_spec.ENTRIES, entry))
+    monkeypatch.setattr(observations, "ENTRIES", (*observations.ENTRIES, entry))
+
+    def fill(obs: np.ndarray, slices: dict[str, slice], x) -> None:
+        obs[..., slices["steps_left"]] = (1.0 - x.scalars.time)[:, None, None]
+
+    class WithStepsLeft(CoreFeatures):
+        sources = (*CoreFeatures.sources, "extra")
+
+        def __init__(self, env):
+            super().__init__(env)
+            self.fills = (fill,)
+
+    monkeypatch.setitem(feature_sets.FEATURE_SETS, 1, WithStepsLeft)
+    env = parcover_env.parallel_env("tree")
+    assert env.layout.names[-1] == "steps_left" and env.layout.slices["steps_left"].stop == env.layout.size
+    obs, _ = env.reset(seed=4)
+    assert obs["robot_0"][-1] == 1.0
+    for _ in range(3):
+        obs, *_ = env.step(dict.fromkeys(env.agents, STILL))
+    assert [obs[a][-1] for a in env.agents] == [np.float32(1.0 - 3 / 1500)] * env.n_robots  # tree: 1500 steps
+    assert parcover_env.parallel_env("tree", overrides={"observation": {"version": 2}}).layout.names[-1] != "steps_left"
