@@ -37,7 +37,7 @@ time, the machine may be shared). ``--reference`` adds the same for the localize
 was compiled (``tests/references/sonar_localizer.py``: numpy, shapely, scipy) and ``same``, the trials
 whose result (accepted or not, pose, error, feature, candidates) is bit-identical to the compiled one's.
 
-``--service`` times the env's scan service instead (``envs/sonar_fixes.py``, :meth:`SonarFixes.match`:
+``--service`` times the env's scan service instead (``localization/sonar/service.py``, :meth:`SonarFixes.match`:
 the team map with the teammates at their estimates, the localizer, the unmasked match and the
 pin-down test) on the scans pinned in ``tests/localization/sonar/pinned_scans.json`` (seeded
 episodes; their inputs and outcomes), CPU ms per scan median / p90: over all scans, over the scans
@@ -329,8 +329,8 @@ def _grid_scan(svc, i: int, ranges: np.ndarray, request, inflation: float) -> bo
 
 def run_service() -> None:
     """CPU ms per scan of the env's scan service on the pinned episode scans (see the module docstring)."""
-    from parcover_env.envs.estimator import FixRequest
-    from parcover_env.envs.sonar_fixes import SonarFixes
+    from parcover_env.localization.estimator import FixRequest
+    from parcover_env.localization.sonar.service import SonarFixes
 
     data = json.loads(SERVICE_FIXTURE.read_text())["service"]
     scans, no_grid = [], {}

@@ -9,6 +9,7 @@ Units: metres, seconds, radians per second for rates. Angles typed by people in 
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -101,8 +102,9 @@ class PhysicsConfig:
         _check(self.substeps <= 1000, "substeps", f"must be <= 1000, got {self.substeps}")
         _check(0 <= self.collision_slop <= 0.01, "collision_slop", "must be in [0, 0.01] m")
 
-    @property
+    @functools.cached_property
     def control_dt(self) -> float:
+        """One control step, ``dt * substeps`` (s); computed once (the step reads it several times)."""
         return self.dt * self.substeps
 
 

@@ -10,7 +10,7 @@ from typing import Any
 from pettingzoo.utils.conversions import parallel_to_aec_wrapper
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
-from parcover_env.sim.actions import to_commands
+from parcover_env.sim.act_phase import to_commands
 
 __all__ = ["CheckedAEC", "aec_env"]
 

@@ -11,7 +11,7 @@ Sources: ``estimate``, ``team``, ``mission`` and ``camera`` entries are written 
 from the env's state; ``route`` and ``teammates`` entries (observation version 2 only) by
 :func:`parcover_env.envs.obs_v2.fill` for all robots of all worlds at once; ``scan`` entries by the
 stepper from ``env.localization_entries()`` (the sonar localization service,
-:mod:`parcover_env.envs.sonar_fixes`); a ``sensor`` entry is the reading of the sensor its ``sensor``
+:mod:`parcover_env.localization.sonar.service`); a ``sensor`` entry is the reading of the sensor its ``sensor``
 factory builds from the scenario (a :class:`~parcover_env.sensors.base.Sensor`), filled for every world
 at once by the stepper (:mod:`parcover_env.sim.pipeline`). A new sensor is a sensor module, a config
 field and one ``sensor`` entry here: neither the env nor the batched worlds change.
@@ -121,8 +121,6 @@ class Entry:
     """The size as the docstring table shows it."""
     bounds_doc: str = ""
     """The bounds as the docstring table shows them (default: those of the shared helpers)."""
-    versions: tuple[int, ...] = (1, 2)
-    """Observation versions (``observation.version``) the entry is part of."""
 
     def bounds_text(self) -> str:
         named = {_unit: "[-1, 1]", _flag: "[0, 1]", _goal: "+-(map diagonal + 2)", _pred: "+-camera_range",
@@ -130,8 +128,22 @@ class Entry:
                  _count: f"[0, {MAX_ROBOTS}]", _speed2: "+-2 max_speed"}
         return self.bounds_doc or named[self.bounds]
 
-    def n_columns(self, s: Scenario, sensor: Sensor | None = None) -> int:
-        if s.observation.version not in self.versions:
+    @property
+    def versions(self) -> tuple[int, ...]:
+        """The observation versions whose feature set holds the entry's source
+        (:data:`~parcover_env.envs.feature_sets.FEATURE_SETS`)."""
+        from parcover_env.envs.feature_sets import FEATURE_SETS  # the feature sets read the spec
+
+        return tuple(v for v, fs in FEATURE_SETS.items() if self.source in fs.sources)
+
+    def n_columns(self, s: Scenario, sensor: Sensor | None = None, sources: tuple[str, ...] | None = None) -> int:
+        """Columns of the entry in scenario ``s`` (0: absent): ``sensor`` its built sensor, ``sources`` the
+        entry sources of the scenario's feature set (looked up from ``observation.version`` if not given)."""
+        if sources is None:
+            from parcover_env.envs.feature_sets import feature_set
+
+            sources = feature_set(s.observation.version).sources
+        if self.source not in sources:
             return 0
         if self.source == "sensor":
             return sensor.size if sensor is not None else 0
@@ -180,49 +192,46 @@ ENTRIES: tuple[Entry, ...] = (
     Entry("pred_visible", "-", "1 if a follower's camera sees its predecessor (FOV, range, walls)", _flag, "camera"),
     Entry("kpois_visited", "-", "fraction of KPOIs visited by the team", _flag, "mission"),
     Entry("time", "-", "fraction of the step limit elapsed", _flag, "mission"),
-    # version 2: what a robot needs to decide to drive, wait, follow or split (filled by envs/obs_v2.py)
+    # version 2's feature set: what a robot needs to drive, wait, follow or split (filled by envs/obs_v2.py)
     Entry("own_kpoi_cos", "-", "bearing (cos, robot frame, from the estimate) of its target KPOI: the next "
-          "KPOI of its own route not yet visited (the last one once all are): where to drive", _unit, "route",
-          versions=(2,)),
-    Entry("own_kpoi_sin", "-", "bearing (sin) of its target KPOI", _unit, "route", versions=(2,)),
+          "KPOI of its own route not yet visited (the last one once all are): where to drive", _unit, "route"),
+    Entry("own_kpoi_sin", "-", "bearing (sin) of its target KPOI", _unit, "route"),
     Entry("own_kpoi_dist", "m", "straight distance from the estimate to its target KPOI: how far its own work is",
-          _dist, "route", versions=(2,)),
+          _dist, "route"),
     Entry("done_mask", "-", "1 once every KPOI of its own route is visited (by anyone; also its target KPOI's "
-          "visited flag): its work is done, mask it (death masking)", _flag, "route", versions=(2,)),
+          "visited flag): its work is done, mask it (death masking)", _flag, "route"),
     Entry("wp_dx", "m", f"route preview: its next {N_PREVIEW} route vertices (the last repeated at the end), x "
           "ahead in the robot frame, from the estimate: the road beyond the lookahead goal", _goal, "route", _preview,
-          versions=(2,), size_doc=str(N_PREVIEW)),
-    Entry("wp_dy", "m", "route preview, y left", _goal, "route", _preview, versions=(2,), size_doc=str(N_PREVIEW)),
+          size_doc=str(N_PREVIEW)),
+    Entry("wp_dy", "m", "route preview, y left", _goal, "route", _preview, size_doc=str(N_PREVIEW)),
     Entry("tp_ahead", "-", "1 if a turning point (TP) of its route lies ahead (plan progress before it): a split "
-          "is coming", _flag, "route", versions=(2,)),
+          "is coming", _flag, "route"),
     Entry("tp_dx", "m", "the next TP, x ahead in the robot frame (0 if none ahead): where its group splits", _goal,
-          "route", versions=(2,)),
-    Entry("tp_dy", "m", "the next TP, y left (0 if none ahead)", _goal, "route", versions=(2,)),
-    Entry("tp_group", "robots", "robots arriving together at the next TP (0 if none ahead)", _count, "route",
-          versions=(2,)),
-    Entry("tp_branches", "-", "branches leaving the next TP with robots on them (0 if none ahead)", _count, "route",
-          versions=(2,)),
+          "route"),
+    Entry("tp_dy", "m", "the next TP, y left (0 if none ahead)", _goal, "route"),
+    Entry("tp_group", "robots", "robots arriving together at the next TP (0 if none ahead)", _count, "route"),
+    Entry("tp_branches", "-", "branches leaving the next TP with robots on them (0 if none ahead)", _count, "route"),
     Entry("tp_own_branch", "robots", "robots taking its own branch at the next TP, itself included (0 if none "
-          "ahead): whether it leads, follows or goes alone after the split", _count, "route", versions=(2,)),
+          "ahead): whether it leads, follows or goes alone after the split", _count, "route"),
     Entry("group_size", "robots", "robots in its formation group now, itself included: whom it travels with",
-          _count, "teammates", versions=(2,)),
+          _count, "teammates"),
     Entry("mate_dx", "m", "k nearest teammates (by estimated distance, nearest first; ``observation.neighbours`` "
           "= k): x ahead in the robot frame, from the shared estimates (0 in padding): whom to follow or avoid",
-          _goal, "teammates", _k, versions=(2,), size_doc="k"),
-    Entry("mate_dy", "m", "those teammates, y left (0 in padding)", _goal, "teammates", _k, versions=(2,),
+          _goal, "teammates", _k, size_doc="k"),
+    Entry("mate_dy", "m", "those teammates, y left (0 in padding)", _goal, "teammates", _k,
           size_doc="k"),
     Entry("mate_cos", "-", "cos of each one's heading relative to this robot's (0 in padding)", _unit, "teammates",
-          _k, versions=(2,), size_doc="k"),
-    Entry("mate_sin", "-", "sin of that relative heading (0 in padding)", _unit, "teammates", _k, versions=(2,),
+          _k, size_doc="k"),
+    Entry("mate_sin", "-", "sin of that relative heading (0 in padding)", _unit, "teammates", _k,
           size_doc="k"),
     Entry("mate_dvx", "m/s", "its encoder velocity minus this robot's, x in the robot frame (0 in padding): closing "
-          "in or falling back", _speed2, "teammates", _k, versions=(2,), size_doc="k"),
+          "in or falling back", _speed2, "teammates", _k, size_doc="k"),
     Entry("mate_dvy", "m/s", "relative velocity, y in the robot frame (0 in padding)", _speed2, "teammates", _k,
-          versions=(2,), size_doc="k"),
+          size_doc="k"),
     Entry("mate_leader", "-", "1 if that teammate leads its group (0 in padding)", _flag, "teammates", _k,
-          versions=(2,), size_doc="k"),
+          size_doc="k"),
     Entry("mate_mask", "-", "1 for a real teammate, 0 for padding (fewer than k teammates)", _flag, "teammates", _k,
-          versions=(2,), size_doc="k"),
+          size_doc="k"),
     Entry("sonar", "m", "sonar ring ranges, one per beam (``robot.sonar``); max range = no echo",
           lambda s, b: (0.0, s.robot.sonar.range_max), "sensor", bounds_doc="[0, range_max]",
           sensor=lambda s: SonarRing(s.robot.sonar) if s.observation.sonar else None, size_doc="B (beams)"),
@@ -240,7 +249,7 @@ V2_ENTRIES = tuple(e.name for e in ENTRIES if e.source in ("route", "teammates")
 
 KERNEL_COLUMNS = np.dtype([(name, "i8") for name in KERNEL_ENTRIES])
 """Record of the column of each :data:`KERNEL_ENTRIES` entry in a layout (-1: absent), addressed by
-name in the compiled pass (``parcover_env.envs.obs_kernels.scalar_entries``). A structured array,
+name in the compiled pass (``parcover_env.envs.observations.scalar_entries``). A structured array,
 not a NamedTuple: numba types it in its C dispatcher (a NamedTuple is typed field by field)."""
 
 

@@ -15,12 +15,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
 from parcover_env.envs.obs_spec import N_PREVIEW
 from parcover_env.planning.plan import Plan
+from parcover_env.sim.contract import StepWorld
 
 __all__ = ["RouteFacts", "TeamRows", "route_facts", "team_rows", "group_sizes", "target_kpois", "fill"]
 
@@ -90,7 +91,7 @@ def route_facts(plan: Plan, pts: np.ndarray, length: np.ndarray, kpois: np.ndarr
                       table[:, :, 3:6])
 
 
-def team_rows(worlds: Sequence[Any]) -> TeamRows:
+def team_rows(worlds: Sequence[StepWorld]) -> TeamRows:
     """The :class:`TeamRows` of the worlds (through their public ``estimator``, ``team`` and
     ``progress``)."""
     sizes = []

@@ -12,15 +12,15 @@ from pettingzoo import ParallelEnv
 from parcover_env.config import Scenario, deep_merge
 from parcover_env.envs import critic_state
 from parcover_env.envs.entry_checks import check_options, check_seed, require_episode
-from parcover_env.envs.estimator import KinectFixes, PoseEstimator
+from parcover_env.envs.feature_sets import feature_set
 from parcover_env.envs.obs_spec import markdown_table
-from parcover_env.envs.obs_v2 import route_facts, target_kpois
 from parcover_env.envs.observations import ObservationLayout, build_sensors
-from parcover_env.envs.sonar_fixes import SonarFixes
-from parcover_env.errors import CallOrderError, ParcoverError
+from parcover_env.errors import CallOrderError
+from parcover_env.localization.estimator import KinectFixes, PoseEstimator
 from parcover_env.localization.kinect.system import KinectSystem
+from parcover_env.localization.sonar.service import SonarFixes
 from parcover_env.mission.metrics import EpisodeMetrics
-from parcover_env.mission.rewards import terms_for
+from parcover_env.mission.rewards import paid_terms
 from parcover_env.mission.team import CameraView, Team, update_team
 from parcover_env.scenarios import load_scenario, mission_for
 from parcover_env.sensors.relative import RelativeCamera
@@ -73,7 +73,7 @@ class ParallelCoverageEnv(ParallelEnv):
     same spot will not pin it either); -1 rejected (the next region is wider); 0 none yet. Off by
     default, so the v1 action and observation spaces (and checkpoints) are unchanged; the ``waypoint``
     policy turns it on (``parcover_env.policies.registry``).
-    Module: ``parcover_env.envs.sonar_fixes``; a test with a known answer: ``tests/envs/test_sonar_fixes.py``.
+    Module: ``parcover_env.localization.sonar.service``; a test with a known answer: ``tests/envs/test_sonar_fixes.py``.
 
     How an actor of ``parcover train`` fills ``scan`` (``MarlConfig.scan_head``; ``v``, ``omega`` are a
     TanhNormal with either head: ``tanh(loc)`` under ``torchrl:``, a sample under ``torchrl_sampled:``):
@@ -210,7 +210,7 @@ class ParallelCoverageEnv(ParallelEnv):
         sxy, sth = s.observation.fix_sigma_xy, np.radians(s.observation.fix_sigma_heading_deg)
         self.fix_sources = [KinectFixes(self.kinects, s.robot.markers, np.diag([sxy**2, sxy**2, sth**2]))
                             ] if self.kinects is not None else []
-        """The estimator's sources of absolute pose fixes (:class:`~parcover_env.envs.estimator.FixSource`)."""
+        """The estimator's sources of absolute pose fixes (:class:`~parcover_env.localization.estimator.FixSource`)."""
         self.scanner = SonarFixes(s, self.map.segments, self.n_robots) if s.observation.scan.enabled else None
         """The sonar localization service (``observation.scan``; None = off), the last fix source."""
         if self.scanner is not None:
@@ -219,19 +219,19 @@ class ParallelCoverageEnv(ParallelEnv):
         self._act_space = spaces.Box(-1.0, 1.0, (2 if self.scanner is None else 3,), dtype=np.float32)
         self.version = s.observation.version
         """Observation, reward and ``state()`` version (``observation.version``)."""
-        self.terms = terms_for(self.version, s.rewards.contact != 0, s.rewards.uncertainty != 0)
-        """The reward terms, in summing order (``info[agent]["reward_<term>"]``)."""
-        self.route_facts = None
-        """Version 2: the routes' static facts the v2 entries and ``state()`` read (``obs_v2.RouteFacts``)."""
         self.kpoi_owner = self.plan.kpoi_owner()
         """``(n_kpois,)`` the robot whose route the plan credits with each KPOI (``own_kpoi`` term)."""
-        if self.version == 2:
-            critic_state.check_maxima(s, self.n_robots)
-            table = self.mission.tracker().table
-            self.route_facts = route_facts(self.plan, table.pts, table.length, self.mission.kpois)
-            self.state_space = critic_state.state_space(s, self.map.bounds)
-        else:
-            self.state_space = critic_state.state_space_v1(self.map.bounds, self.n_robots, len(s.kpois))
+        self.features = feature_set(self.version)(self)
+        """The version's feature set (:mod:`parcover_env.envs.feature_sets`): its entries' fill functions,
+        info values, reward terms and ``state()``."""
+        self.terms = paid_terms(self.features.terms, s.rewards)
+        """The reward terms, in summing order (``info[agent]["reward_<term>"]``)."""
+        self.route_facts = self.features.route_facts
+        """Version 2: the routes' static facts the v2 entries and ``state()`` read (``obs_v2.RouteFacts``)."""
+        self.state_space = self.features.state_space
+        self.score_group = None
+        """The score phase's blocks this world's arrays are rows of, when scored with others
+        (:class:`~parcover_env.sim.score_phase.ScoreGroup`; None: its own)."""
         self._rng: np.random.Generator | None = None
         self._window: str | None = None
 
@@ -320,7 +320,7 @@ class ParallelCoverageEnv(ParallelEnv):
 
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
-        state.pop("score_group", None)  # the blocks of the worlds scored with this one: a copy holds its own arrays
+        state["score_group"] = None  # the blocks of the worlds scored with this one: a copy holds its own arrays
         views = state.get("camera_views")
         if views is not None and len(views.predecessor) > 1:  # a copy keeps its own world's measurements only
             k = state["camera_index"]
@@ -368,17 +368,12 @@ class ParallelCoverageEnv(ParallelEnv):
     def route_done(self) -> np.ndarray:
         """Version 2: ``(N,)`` bool, every KPOI of each robot's own route visited (its ``done_mask``)."""
         require_episode(self, "route_done()")
-        if self.route_facts is None:
-            raise ParcoverError(f"route_done() needs observation.version 2 (parcover_v2); this env is version "
-                                f"{self.version}")
-        return target_kpois(self.route_facts, self.progress.visited[None])[1][0]
+        return self.features.route_done(self)
 
     def state(self) -> np.ndarray:
         """The global state for a centralized critic (see the class docstring; its layout is the version's)."""
         require_episode(self, "state()")
-        if self.version == 2:
-            return critic_state.global_state(self, self.route_facts, self.state_space)
-        return critic_state.state_v1(self)
+        return self.features.state(self)
 
     def kinect_frames(self) -> dict:
         """Depth + IR frames (``KinectFrame``) of every overhead Kinect: in ``observation.kinect:

@@ -26,12 +26,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from parcover_env.config import OdometryConfig
-from parcover_env.envs.sonar_fixes import HELD, UNINFORMATIVE
 from parcover_env.expert.config import SonarFixConfig, expert_config
 from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.poses import compose, inverse
 from parcover_env.localization.sonar.config import sonar_localizer_config
 from parcover_env.localization.sonar.scan import ScanCollector
+from parcover_env.localization.sonar.service import HELD, UNINFORMATIVE
 from parcover_env.sensors.odometry import propagate_covariance, wheel_increment_cov
 
 ENV_SCAN = "env"

@@ -277,7 +277,7 @@ def record_steps(metrics: Sequence[EpisodeMetrics], before: np.ndarray, true: np
     ``(K, M)`` if at hand (read from the trackers if not); ``team_rows``: the teams' ``leader`` and
     ``predecessor`` ``(K, N)`` by name if at hand (read from the teams if not); ``sums``: the metrics'
     :data:`SUMS` as ``(K, ...)`` blocks whose rows the metrics' arrays are (the score phase's,
-    :func:`~parcover_env.sim.rows.score_blocks`); if not given, one world's arrays are used as
+    :func:`~parcover_env.sim.score_phase.score_blocks`); if not given, one world's arrays are used as
     they are and several worlds' are gathered and written back. One compiled call adds the step to the
     sums (:func:`~parcover_env.mission.kernels.record_many`); each world's metrics link its team's counters."""
     from parcover_env.mission import kernels as step_kernels

@@ -1,5 +1,6 @@
 """Named reward terms, one table (:data:`TERM_TABLE`). Each agent's reward is the sum of its world's
-terms (:func:`terms_for`); the terms go into ``info``. A term is its weight's name in
+terms (its feature set's, :mod:`parcover_env.envs.feature_sets`, then the optional terms it weights:
+:func:`paid_terms`); the terms go into ``info``. A term is its weight's name in
 :class:`~parcover_env.config.RewardConfig`, the function of the step's :class:`RewardInputs` it pays,
 and the optional input it needs (computed by the score phase only for worlds that pay the term).
 
@@ -18,15 +19,13 @@ import numpy as np
 from parcover_env.config import RewardConfig
 from parcover_env.geometry.rays import point_segment_distance
 
-__all__ = ["TERMS", "TERMS_V2", "VERSION_TERMS", "TEAM_TERMS", "REWARD_KEYS", "RewardInputs", "Term", "TERM_TABLE",
-           "terms_for", "inputs_needed", "reward_terms", "own_visits", "touching", "sigma_major"]
+__all__ = ["TERMS", "TERMS_V2", "TEAM_TERMS", "REWARD_KEYS", "RewardInputs", "Term", "TERM_TABLE",
+           "paid_terms", "inputs_needed", "reward_terms", "own_visits", "touching", "sigma_major"]
 
 TERMS = ("kpoi", "progress", "time", "collision")
 """The terms of version 1 (and of version 2 after ``own_kpoi``)."""
 TERMS_V2 = ("own_kpoi", *TERMS)
 """The terms of version 2: the per-robot ``own_kpoi`` first."""
-VERSION_TERMS = {1: TERMS, 2: TERMS_V2}
-"""The terms every world of an observation version pays, by version."""
 REWARD_KEYS = tuple(f"reward_{t}" for t in TERMS)
 """Info keys of the version-1 terms: ``info[agent]["reward_kpoi"]`` etc. (flat, present at reset as 0)."""
 
@@ -61,6 +60,9 @@ class Term:
     """One value for all the agents of a world (the infos read it once per world)."""
     needs: str | None = None
     """The optional :class:`RewardInputs` field the term reads (computed only for worlds that pay it)."""
+    optional: bool = False
+    """Paid only when its weight is not 0 (:func:`paid_terms`): with weight 0 the term is absent (no info
+    key, no input computed), so rollouts are those without it."""
 
 
 def _kpoi(c: float, x: RewardInputs, shape: tuple[int, ...]) -> np.ndarray:
@@ -78,9 +80,9 @@ TERM_TABLE: dict[str, Term] = {
     "time": Term("time", lambda c, x, shape: np.full(shape, c), team=True, doc="every step"),
     "collision": Term("collision", lambda c, x, shape: c * x.new_contacts.astype(float),
                       doc="per new contact of this agent"),
-    "contact": Term("contact", lambda c, x, shape: c * x.touch, needs="touch",
+    "contact": Term("contact", lambda c, x, shape: c * x.touch, needs="touch", optional=True,
                     doc="per step in contact (within ``contact_gap`` of a wall or robot)"),
-    "uncertainty": Term("uncertainty", lambda c, x, shape: c * x.sigma, needs="sigma",
+    "uncertainty": Term("uncertainty", lambda c, x, shape: c * x.sigma, needs="sigma", optional=True,
                         doc="times the agent's position uncertainty (1-sigma major axis, m), per step"),
 }
 """Every reward term by name, in the order a world sums (and reports) them."""
@@ -88,10 +90,11 @@ TEAM_TERMS = tuple(name for name, t in TERM_TABLE.items() if t.team)
 """The terms with one value for all agents of a world (one number broadcast)."""
 
 
-def terms_for(version: int, contact: bool = False, uncertainty: bool = False) -> tuple[str, ...]:
-    """The reward terms of observation ``version`` (1: :data:`TERMS`, 2: :data:`TERMS_V2`), then
-    ``contact`` when ``contact`` and ``uncertainty`` when ``uncertainty`` (their weights are not 0)."""
-    return (*VERSION_TERMS[version], *(("contact",) if contact else ()), *(("uncertainty",) if uncertainty else ()))
+def paid_terms(terms: Sequence[str], weights: RewardConfig) -> tuple[str, ...]:
+    """The terms a world pays: ``terms`` (its feature set's), then every :attr:`~Term.optional` term of
+    :data:`TERM_TABLE` whose weight in ``weights`` is not 0, in the table's order."""
+    return (*terms, *(name for name, t in TERM_TABLE.items() if t.optional and getattr(weights, t.weight) != 0))
+
 
 
 def inputs_needed(terms: Sequence[str]) -> frozenset[str]:

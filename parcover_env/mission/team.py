@@ -51,7 +51,7 @@ __all__ = ["Team", "TEAM_ROWS", "count_waypoints_many", "CameraView", "SPLIT_MAR
 
 TEAM_ROWS = ("leader", "slot", "predecessor", "tp_ahead")
 """The :class:`Team` arrays the stepper reads for ``K`` worlds as ``(K, N, ...)`` blocks
-(:func:`~parcover_env.sim.rows.score_blocks`). Made once with the team and never rebound:
+(:func:`~parcover_env.sim.score_phase.score_blocks`). Made once with the team and never rebound:
 a split writes them in place, so a block whose row they are views of stays theirs."""
 
 

@@ -6,7 +6,8 @@ Rewards, estimate errors and the other per-agent info values are computed as ``(
 turned into Python floats once (``tolist``); each agent's info is a copy of its world's template
 (the reward terms, the ``metrics/*`` entries, ...) updated with its own values, the key order fixed:
 ``reward_<term>`` (the world's terms order), ``metrics/*``, ``pose_error``, ``heading_error``, then
-``sonar_fix`` (with ``observation.scan``), then ``route_done`` (version 2). The ``metrics/*`` entries
+``sonar_fix`` (with ``observation.scan``), then the feature set's own values (``features.info``:
+version 2's ``route_done``). The ``metrics/*`` entries
 are the zeros of :meth:`~parcover_env.mission.metrics.EpisodeMetrics.flat` (a fresh ``path_lengths``
 array per world) except in a world whose episode ends this step, where they are its metrics.
 """
@@ -15,14 +16,14 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
-from parcover_env.envs.obs_v2 import target_kpois
 from parcover_env.geometry import wrap_angle
 from parcover_env.mission.metrics import EpisodeMetrics
 from parcover_env.mission.rewards import TEAM_TERMS
+from parcover_env.sim.contract import StepWorld
 from parcover_env.sim.score_phase import Scores, rows
 
 __all__ = ["SlotOutputs", "slot_outputs", "agent_dicts", "infos", "slot_infos"]
@@ -42,7 +43,7 @@ class SlotOutputs(NamedTuple):
     """The ``K N`` agents' infos, world by world (:func:`slot_infos`)."""
 
 
-def slot_outputs(worlds: Sequence[Any], true: np.ndarray, scores: Scores, *, active: bool = False) -> SlotOutputs:
+def slot_outputs(worlds: Sequence[StepWorld], true: np.ndarray, scores: Scores, *, active: bool = False) -> SlotOutputs:
     """Part 3 of the ``K`` worlds at true poses ``(K, N, 3)`` with the score phase's ``scores``, by
     agent slot (a world's agents are cleared when its episode ends); ``active``: every info has
     ``"active": True`` (a VecEnv's agent slots)."""
@@ -71,7 +72,7 @@ def agent_dicts(names: Sequence[str], out: SlotOutputs, k: int = 0) -> tuple[dic
             dict.fromkeys(names, out.truncated[k]), dict(zip(names, out.infos[k * n:(k + 1) * n], strict=True)))
 
 
-def infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray], ended: Sequence[bool], *,
+def infos(worlds: Sequence[StepWorld], true: np.ndarray, terms: Sequence[np.ndarray], ended: Sequence[bool], *,
           estimates: np.ndarray | None = None, visited: np.ndarray | None = None,
           active: bool = False, team_terms: Sequence[str] = ()) -> list[dict[str, dict]]:
     """``info[agent]`` of every agent of the ``K`` worlds: :func:`slot_infos` by world and agent name."""
@@ -81,7 +82,7 @@ def infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray], 
     return [dict(zip(w.agents, flat[k * n:(k + 1) * n], strict=True)) for k, w in enumerate(worlds)]
 
 
-def slot_infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarray], ended: Sequence[bool], *,
+def slot_infos(worlds: Sequence[StepWorld], true: np.ndarray, terms: Sequence[np.ndarray], ended: Sequence[bool], *,
                estimates: np.ndarray | None = None, visited: np.ndarray | None = None,
                active: bool = False, team_terms: Sequence[str] = ()) -> list[dict]:
     """The info of every agent of the ``K`` worlds, world by world (``K N`` dicts; see the module
@@ -98,8 +99,9 @@ def slot_infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarr
     n = first.n_robots
     est = rows([w.estimate for w in worlds]) if estimates is None else estimates
     d = est[..., :2] - true[..., :2]
-    routes = first.route_facts  # the worlds' own routes (version 2): each agent's ``route_done``
-    base, reward_keys, keys = _template(tuple(first.terms), routes is not None, first.scanner is not None, active)
+    own = first.features.info  # the info values of the worlds' feature set (version 2's ``route_done``)
+    base, reward_keys, keys = _template(tuple(first.terms), tuple(key for key, _ in own) if own else (),
+                                        first.scanner is not None, active)
     columns, agent_keys, team_keys, team_columns = [], [], [], []
     for name, key, term in zip(first.terms, reward_keys, terms, strict=True):
         c = np.asarray(term, dtype=float)
@@ -113,9 +115,9 @@ def slot_infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarr
     columns += [np.hypot(d[..., 0], d[..., 1]), np.abs(wrap_angle(est[..., 2] - true[..., 2]))]
     if first.scanner is not None:
         columns.append(rows([w.scanner.outcome for w in worlds]))
-    if routes is not None:
+    if own:
         visited = rows([w.progress.visited for w in worlds]) if visited is None else visited
-        columns.append(target_kpois(routes, visited)[1].astype(float))
+        columns += [column(visited) for _, column in own]
     values = np.stack(columns, axis=-1).tolist()  # [world][agent][column]
     team_values = np.stack(team_columns, axis=-1).tolist() if team_columns else [()] * len(worlds)
     flat = []
@@ -133,11 +135,11 @@ def slot_infos(worlds: Sequence[Any], true: np.ndarray, terms: Sequence[np.ndarr
 
 
 @functools.lru_cache(maxsize=16)
-def _template(terms: tuple[str, ...], route_done: bool, sonar_fix: bool,
+def _template(terms: tuple[str, ...], own: tuple[str, ...], sonar_fix: bool,
               active: bool) -> tuple[dict, tuple[str, ...], tuple[str, ...]]:
     """The info of an agent before its own values (zeros; ``metrics/path_lengths`` to be replaced by a
     fresh array), the keys of the reward terms, and the keys of the agent's other values in the order
-    :func:`slot_infos` builds their columns. Read only: copy it."""
+    :func:`slot_infos` builds their columns (``own``: the keys of the feature set's own values). Read only: copy it."""
     reward_keys = tuple(f"reward_{t}" for t in terms)
     keys = ("pose_error", "heading_error")
     base = dict.fromkeys(reward_keys, 0.0)
@@ -146,9 +148,9 @@ def _template(terms: tuple[str, ...], route_done: bool, sonar_fix: bool,
     if sonar_fix:
         base["sonar_fix"] = 0.0
         keys = (*keys, "sonar_fix")
-    if route_done:
-        base["route_done"] = 0.0
-        keys = (*keys, "route_done")
+    for key in own:  # the feature set's own values
+        base[key] = 0.0
+        keys = (*keys, key)
     if active:
         base["active"] = True
     return base, reward_keys, keys

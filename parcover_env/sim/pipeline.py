@@ -5,43 +5,88 @@ env all step through here, so the rules are written once:
 
 1. **act** (all worlds at once, :func:`parcover_env.sim.act_phase.act`): act, integrate the
    physics, update the pose estimator (odometry, fixes); **score** (all worlds at once,
-   :func:`parcover_env.sim.score_phase.score`): track the mission, hand over at splits (Alg. 1), score, record;
+   :func:`parcover_env.sim.score_phase.score`): track the mission, hand over at splits (Alg. 1),
+   score, record;
 2. **sense and observe** (:func:`observe`, all worlds at once): one :class:`SensingState` of every
-   world; the follower cameras first, then one compiled pass writes every non-sensor entry of the
-   observation spec of every world, then every ``sensor`` entry of the spec is filled by its sensor's ``sense`` for
-   all worlds in one call (version 2's ``route`` and ``teammates`` entries too,
-   :mod:`parcover_env.envs.obs_v2`); clipped into the bounds. World ``k`` draws from its own generator in the
-   order a single world would, so it is bit for bit a separate env;
+   world; the follower cameras first, then one compiled pass (the layout's) writes every non-sensor
+   entry of the observation spec of every world, the worlds' feature set writes the entries it owns
+   (``features.fills``: version 2's ``route`` and ``teammates``), and every ``sensor`` entry of the
+   spec is filled by its sensor's ``sense`` for all worlds in one call; clipped into the bounds.
+   World ``k`` draws from its own generator in the order a single world would, so it is bit for bit
+   a separate env;
 3. **outputs** (all worlds at once, :func:`parcover_env.sim.outputs_phase.slot_outputs`): rewards,
    terminations, truncations, infos by agent slot, what a VecEnv reads (a world's PettingZoo dicts:
    :func:`parcover_env.sim.outputs_phase.agent_dicts`);
 4. a world whose agents are all done is reset by the caller (auto-reset); what a vectorized or
    single-agent view adds to an agent's info is :mod:`parcover_env.envs.slots`.
 
-The stepper reads the worlds through public names only (``team``, ``estimator``, ``progress``,
-``layout``, ``sensors``, ``camera``, ``np_random``, ...).
+The stepper reads the worlds through the names of its contract only
+(:class:`~parcover_env.sim.contract.StepWorld`: ``team``, ``estimator``, ``progress``, ``layout``,
+``features``, ``sensors``, ``camera``, ``np_random``, ...).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from parcover_env.envs import obs_v2
-from parcover_env.envs.observations import ScalarInputs
 from parcover_env.mission.team import CameraView
 from parcover_env.scenarios.progress import goals_many
 from parcover_env.sensors.base import SensingState
 from parcover_env.sim import act_phase, outputs_phase, score_phase
+from parcover_env.sim.contract import StepWorld
 from parcover_env.sim.outputs_phase import SlotOutputs
 from parcover_env.sim.score_phase import Scores, gather, rows
 
-__all__ = ["sensing_state", "observe", "step"]
+__all__ = ["ScalarInputs", "ObsInputs", "sensing_state", "observe", "step"]
 
 
-def sensing_state(worlds: Sequence[Any], true: np.ndarray, predecessor: np.ndarray | None = None) -> SensingState:
+class ScalarInputs(NamedTuple):
+    """What the observation layout's compiled pass reads (``layout.fill_scalars``), per robot ``(N, ...)``
+    and team-wide (for ``layout.fill_scalars_many``, every field with a leading worlds axis ``K``)."""
+
+    est: np.ndarray
+    """Pose estimates ``(N, 3)``."""
+    velocity: np.ndarray
+    """Encoder ``(v, omega)`` ``(N, 2)``."""
+    leader: np.ndarray
+    """Leader flags ``(N,)`` bool."""
+    slot: np.ndarray
+    """Column slots ``(N,)`` int (reported / ``max(N - 1, 1)``)."""
+    fix_age: np.ndarray
+    """Seconds since the last absolute fix ``(N,)`` (reported capped at ``obs_spec.MAX_FIX_AGE``)."""
+    covariance: np.ndarray
+    """Pose covariances ``(N, 3, 3)``."""
+    goals: np.ndarray
+    """Lookahead waypoints ``(N, 2)``, world frame."""
+    rel_xy: np.ndarray
+    """The follower camera's predecessor position ``(N, 2)``, robot frame."""
+    rel_heading: np.ndarray
+    """Its relative heading ``(N,)``."""
+    visible: np.ndarray
+    """Predecessor seen ``(N,)`` bool."""
+    kpois_visited: float
+    """Fraction of KPOIs visited by the team."""
+    time: float
+    """Fraction of the step limit elapsed."""
+
+
+class ObsInputs(NamedTuple):
+    """What a feature set's own fill functions read (``world.features.fills``), ``K`` worlds at once."""
+
+    scalars: ScalarInputs
+    """The compiled pass's inputs ``(K, N, ...)`` (estimates, encoder velocities, leader flags, ...)."""
+    waypoint: np.ndarray
+    """``(K, N)`` int64 index of each robot's next route vertex (the route tracker's)."""
+    plan_progress: np.ndarray
+    """``(K, N)`` progress along the plan path (m)."""
+    visited: np.ndarray
+    """``(K, M)`` bool, the KPOIs visited."""
+
+
+def sensing_state(worlds: Sequence[StepWorld], true: np.ndarray, predecessor: np.ndarray | None = None) -> SensingState:
     """What the sensors read: ``true (K, N, 3)`` poses of the worlds, their shared walls and radius,
     and who follows whom in each world (``predecessor (K, N)``, gathered from the teams if not given)."""
     first = worlds[0]
@@ -50,7 +95,7 @@ def sensing_state(worlds: Sequence[Any], true: np.ndarray, predecessor: np.ndarr
     return SensingState(true, first.map.segments, float(first.scenario.robot.radius), predecessor)
 
 
-def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = None) -> np.ndarray:
+def observe(worlds: Sequence[StepWorld], true: np.ndarray, scores: Scores | None = None) -> np.ndarray:
     """Observations ``(K, N, D)`` float32 of every robot of the ``K`` worlds at true poses ``(K, N, 3)``
     (``scores``: this step's score phase, whose goal points, estimates, visits, team rows and estimator
     rows it reads instead of gathering them again). Sets each world's ``camera_views`` and
@@ -86,21 +131,24 @@ def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = Non
     views = CameraView(state.predecessor, seen, est)  # of all worlds; world k reads its row (camera_view)
     for k, w in enumerate(worlds):
         w.camera_views, w.camera_index = views, k
-    first.layout.fill_scalars_many(obs, ScalarInputs(
-        est, velocity, team["leader"], team["slot"], fix_age, covariance, goals, rel_xy, rel_heading,
-        visible, visited.sum(axis=1) / visited.shape[1],
-        np.array([w.steps for w in worlds]) / first.scenario.episode.max_steps))
+    scalars = ScalarInputs(est, velocity, team["leader"], team["slot"], fix_age, covariance, goals, rel_xy, rel_heading,
+                           visible, visited.sum(axis=1) / visited.shape[1],
+                           np.array([w.steps for w in worlds]) / first.scenario.episode.max_steps)
+    first.layout.fill_scalars_many(obs, scalars)
     if first.scanner is not None:  # the ``scan`` entries of the spec
         for k, w in enumerate(worlds):
             for name, values in w.localization_entries().items():
                 obs[k][:, w.layout.slices[name]] = values[:, None]
-    if first.route_facts is not None:  # observation version 2: route and teammate entries, all worlds at once
+    fills = first.features.fills  # the entries the worlds' feature set fills itself (version 2's route, teammates)
+    if fills:
         if scores is None:
-            mates = obs_v2.team_rows(worlds)
+            waypoint, plan_progress = rows([w.progress.waypoint for w in worlds]), rows([w.progress.plan_progress
+                                                                                       for w in worlds])
         else:  # this step's blocks
-            mates = obs_v2.TeamRows(est, velocity, team["leader"], obs_v2.group_sizes(team["leader"]),
-                                    scores.track.waypoint, scores.track.progress - first.progress.offsets, visited)
-        obs_v2.fill(obs, first.layout.slices, first.route_facts, mates, first.scenario.observation.neighbours)
+            waypoint, plan_progress = scores.track.waypoint, scores.track.progress - first.progress.offsets
+        inputs = ObsInputs(scalars, waypoint, plan_progress, visited)
+        for fill in fills:
+            fill(obs, first.layout.slices, inputs)
     for name, sensor in first.sensors.items():  # every sensor entry of the spec, all worlds in one call
         if sensor is not None:
             obs[..., first.layout.slices[name]] = sensor.sense(state, rngs)
@@ -108,7 +156,7 @@ def observe(worlds: Sequence[Any], true: np.ndarray, scores: Scores | None = Non
     return obs
 
 
-def step(worlds: Sequence[Any], actions: Sequence[dict[str, Any]] | np.ndarray, *,
+def step(worlds: Sequence[StepWorld], actions: Sequence[dict[str, Any]] | np.ndarray, *,
          active: bool = False) -> tuple[np.ndarray, SlotOutputs]:
     """One step of every world (``actions[k]``: world ``k``'s action dict, or one array ``(K, N, A)``
     of every world's agents' actions in agent order): act, score, observe, outputs. Returns the

@@ -6,7 +6,7 @@ After the act phase has moved every world, :func:`score` tracks the mission, spl
 * the pose estimates: a copy of the act phase's estimator rows (:class:`~parcover_env.sim.act_phase.Acted`);
 * route progress, KPOI visits, goals and the route length to go: one compiled call for all worlds
   (:func:`parcover_env.scenarios.progress.step_many`) on the trackers' arrays as rows of ``(K, ...)``
-  blocks (:func:`parcover_env.sim.rows.score_blocks`), updated in place;
+  blocks (:func:`score_blocks`), updated in place;
 * the team update on the teams' arrays as rows of blocks too
   (:data:`~parcover_env.mission.team.TEAM_ROWS`): waypoint messages counted over ``(K, N)``; only the
   worlds where a leader may have reached its TP run the (rare) Python split
@@ -19,32 +19,34 @@ After the act phase has moved every world, :func:`score` tracks the mission, spl
 
 The worlds' trackers, teams, metrics and :class:`ScoreState` keep their own arrays (never rebound),
 which are views of row ``k`` of ``(K, ...)`` blocks while they are scored together
-(:mod:`parcover_env.sim.rows`): the compiled calls update every world in place, with no gather
-and no write-back; a copy or pickle of a world holds plain arrays, and a world reset since is
-adopted again. So worlds stay
-independent (deepcopy, pickle) and the ParallelEnv is the ``K = 1`` call; world ``k`` gets bit for
-bit what it would alone (``tests/envs/test_batched.py``, ``tests/envs/test_score_phase.py``).
+(:func:`score_blocks`, :class:`~parcover_env.world.batching.SharedRows`): the compiled calls update every
+world in place, with no gather and no write-back; a copy or pickle of a world holds plain arrays,
+and a world reset since is adopted again. So worlds stay independent (deepcopy, pickle) and the
+ParallelEnv is the ``K = 1`` call; world ``k`` gets bit for bit what it would alone
+(``tests/envs/test_batched.py``, ``tests/envs/test_score_phase.py``).
 No random numbers are drawn here.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any, NamedTuple
+from operator import attrgetter
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from parcover_env.mission.metrics import record_steps
+from parcover_env.localization.estimator import ActRows
+from parcover_env.mission.metrics import SUMS, record_steps
 from parcover_env.mission.rewards import RewardInputs, inputs_needed, own_visits, reward_terms, sigma_major, touching
-from parcover_env.mission.team import count_waypoints_many, update_teams
-from parcover_env.scenarios.progress import step_many
+from parcover_env.mission.team import TEAM_ROWS, count_waypoints_many, update_teams
+from parcover_env.scenarios.progress import STATE, step_many
 from parcover_env.scenarios.progress_kernel import TrackerRows
-from parcover_env.sim.rows import ActRows, score_blocks
+from parcover_env.sim.act_phase import Acted
+from parcover_env.sim.contract import StepWorld
+from parcover_env.world.batching import SharedRows
 
-if TYPE_CHECKING:  # an annotation only: act_phase imports the estimator, whose package imports the env
-    from parcover_env.sim.act_phase import Acted
-
-__all__ = ["ScoreState", "Scores", "score", "gather", "rows"]
+__all__ = ["ScoreState", "Scores", "score", "gather", "rows", "HELD", "PARTS", "ScoreBlocks", "ScoreGroup",
+           "score_blocks"]
 
 
 def gather(arrays: Sequence[np.ndarray]) -> np.ndarray:
@@ -61,7 +63,7 @@ def rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
 class ScoreState:
     """What scoring carries over from one step of a world to the next: arrays made here and never
     rebound (the score phase writes them in place, as rows of ``(K, ...)`` blocks when the world is
-    scored with others: :func:`~parcover_env.sim.rows.score_blocks`)."""
+    scored with others: :func:`score_blocks`)."""
 
     def __init__(self, remaining: np.ndarray, wall: np.ndarray, robot: np.ndarray):
         self.remaining = remaining
@@ -105,7 +107,7 @@ class Scores(NamedTuple):
     progress (to read only, this step)."""
 
 
-def score(worlds: Sequence[Any], acted: Acted) -> Scores:
+def score(worlds: Sequence[StepWorld], acted: Acted) -> Scores:
     """Part 1b of the ``K`` worlds after the act phase (``acted``: the true poses before and after the
     step ``(K, N, 3)``, the estimators' rows; see the module docstring); returns their reward terms and
     goal points."""
@@ -156,3 +158,84 @@ def score(worlds: Sequence[Any], acted: Acted) -> Scores:
                 trail.append(p[:2].copy())
     return Scores(terms, goals, est, visited, team, act, state)
 
+
+HELD = ("remaining", "wall", "robot")
+"""The arrays of a world's ``score_state`` (:class:`ScoreState`)."""
+
+PARTS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "progress": ("progress", STATE),
+    "team": ("team", TEAM_ROWS),
+    "metrics": ("metrics", SUMS),
+    "held": ("score_state", HELD),
+}
+"""Each part of a world the score phase updates: the world's attribute holding the owner, and the
+owner's arrays."""
+
+
+class ScoreBlocks(NamedTuple):
+    """The :data:`PARTS` of ``K`` worlds, each a dict ``{array name: (K, ...) block}``."""
+
+    progress: dict[str, np.ndarray]
+    team: dict[str, np.ndarray]
+    metrics: dict[str, np.ndarray]
+    held: dict[str, np.ndarray]
+
+
+def _owners(worlds: Sequence[StepWorld], attr: str) -> list[Any]:
+    return list(map(attrgetter(attr), worlds))
+
+
+class ScoreGroup:
+    """The blocks of ``K > 1`` worlds of one scenario.
+
+    Each world's route tracker, team, metrics and score state make their arrays (:data:`PARTS`) once
+    and never rebind them: every step, split and record writes into them in place. So for one world
+    the blocks are simply ``(1, ...)`` views of its own arrays. For ``K > 1`` worlds a group owns a
+    ``(K, ...)`` block per array and the worlds' arrays are views of their rows
+    (:class:`~parcover_env.world.batching.SharedRows`: an owner is adopted by copying its values in and
+    handing it the row's views). Each world records the group it was attached to last
+    (``score_group``, which the env leaves out of its copies and pickles); a group stepped again with
+    the very worlds and owners it holds has nothing to attach, and a world reset since (new owners) or
+    attached to another group since is adopted again."""
+
+    def __init__(self, worlds: Sequence[StepWorld]):
+        self.rows = {part: SharedRows(len(worlds), names, getattr(worlds[0], attr))
+                     for part, (attr, names) in PARTS.items()}
+        self.blocks = ScoreBlocks(**{part: rows.blocks for part, rows in self.rows.items()})
+
+    @property
+    def size(self) -> int:
+        """The number of worlds ``K``."""
+        return self.rows["team"].size
+
+    def fits(self, worlds: Sequence[StepWorld]) -> bool:
+        """True if these blocks can hold ``worlds`` (as many, shaped as these)."""
+        return all(rows.fits(len(worlds), getattr(worlds[0], PARTS[part][0])) for part, rows in self.rows.items())
+
+    def holds(self, worlds: Sequence[StepWorld]) -> bool:
+        """True if ``worlds`` were attached to this group last, in this order, with the owners they hold now."""
+        return ([getattr(w, "score_group", None) for w in worlds].count(self) == len(worlds)
+                and all(rows.owners == _owners(worlds, PARTS[part][0]) for part, rows in self.rows.items()))
+
+    def attach(self, worlds: Sequence[StepWorld]) -> None:
+        """Make world ``k``'s owners those of row ``k`` (:meth:`SharedRows.attach`) and this group theirs."""
+        for part, rows in self.rows.items():
+            rows.attach(_owners(worlds, PARTS[part][0]))
+        for w in worlds:
+            w.score_group = self
+
+
+def score_blocks(worlds: Sequence[StepWorld]) -> ScoreBlocks:
+    """The :data:`PARTS` of the ``K`` worlds as ``(K, ...)`` blocks that the worlds' arrays are rows of:
+    for one world, views of its own arrays; for more, the blocks of their :class:`ScoreGroup` (the
+    group the first world was attached to, if it fits; else a new one), every world attached."""
+    if len(worlds) == 1:
+        w = worlds[0]
+        return ScoreBlocks(**{part: {name: getattr(getattr(w, attr), name)[None] for name in names}
+                              for part, (attr, names) in PARTS.items()})
+    group = getattr(worlds[0], "score_group", None)
+    if group is None or not group.fits(worlds):
+        group = ScoreGroup(worlds)
+    if not group.holds(worlds):
+        group.attach(worlds)
+    return group.blocks

@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from parcover_env.config import DriveConfig
-from parcover_env.geometry.stacking import stack
+from parcover_env.world.batching import stack
 
 __all__ = ["DiffDrive", "wheel_targets", "lag_step", "body_velocity", "advance_steps_all", "command_steps_all",
            "command_steps_rows", "take_travel_all"]

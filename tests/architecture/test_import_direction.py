@@ -22,10 +22,11 @@ FLOORS = {
     "planning": 4, "localization": 4, "control": 4,
     "scenarios": 5,
     "viz": 6, "mission": 6,
-    "envs": 7, "sim": 7,  # sim still reads envs' estimator and observation spec (issue 41: sim below envs)
-    "expert": 8, "policies": 8,
-    "harness": 9,
-    "cli": 10,
+    "sim": 7,
+    "envs": 8,
+    "expert": 9, "policies": 9,
+    "harness": 10,
+    "cli": 11,
 }
 VIZ_CLIENTS = {"envs", "harness", "cli"}
 

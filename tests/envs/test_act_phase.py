@@ -14,7 +14,7 @@ from parcover_env.config import DriveConfig, MapConfig, OdometryConfig, PhysicsC
 from parcover_env.errors import ActionError
 from parcover_env.sensors.odometry import Odometry, measure_wheels_all
 from parcover_env.sim import act_phase
-from parcover_env.sim.actions import to_commands, to_commands_all
+from parcover_env.sim.act_phase import to_commands, to_commands_all
 from parcover_env.world.drive import DiffDrive, advance_steps_all, take_travel_all
 from parcover_env.world.map_model import MapModel
 from parcover_env.world.physics import World, poses_all

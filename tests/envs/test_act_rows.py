@@ -1,7 +1,7 @@
 """The act phase on shared rows (issue 31): the per-world arrays as views of ``(K, ...)`` blocks
-(:mod:`parcover_env.sim.rows`), the drive, odometry and physics calls over those rows. Each
-block function over K = 2 worlds of different states gives what two K = 1 calls give, and a pinned
-value on a hand-built case."""
+(:mod:`parcover_env.world.batching`, :func:`parcover_env.localization.estimator.act_rows`), the drive, odometry
+and physics calls over those rows. Each block function over K = 2 worlds of different states gives what
+two K = 1 calls give, and a pinned value on a hand-built case."""
 
 from __future__ import annotations
 
@@ -13,10 +13,10 @@ import pytest
 
 import parcover_env
 from parcover_env.config import DriveConfig, MapConfig, OdometryConfig, PhysicsConfig
-from parcover_env.envs.estimator import PoseEstimator, update_all
+from parcover_env.localization.estimator import PoseEstimator, act_rows, update_all
 from parcover_env.sensors import onboard_kernels
 from parcover_env.sensors.odometry import Odometry, measure_wheels_all
-from parcover_env.sim.rows import SharedRows, act_rows
+from parcover_env.world.batching import SharedRows
 from parcover_env.world.drive import DiffDrive, advance_steps_all, command_steps_all, command_steps_rows, wheel_targets
 from parcover_env.world.map_model import MapModel
 from parcover_env.world.physics import World, step_all

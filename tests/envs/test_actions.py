@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from parcover_env.errors import ActionError
-from parcover_env.sim.actions import to_commands
+from parcover_env.sim.act_phase import to_commands
 
 AGENTS = ["robot_0", "robot_1"]
 

@@ -9,7 +9,7 @@ import pytest
 from parcover_env import parcover_v2
 from parcover_env.config import RewardConfig
 from parcover_env.errors import ConfigError
-from parcover_env.mission.rewards import TERMS, TERMS_V2, RewardInputs, reward_terms, terms_for, touching
+from parcover_env.mission.rewards import TERMS, TERMS_V2, RewardInputs, paid_terms, reward_terms, touching
 
 WALL = np.array([[0.0, 0.0, 4.0, 0.0]])  # the x axis from 0 to 4 m
 
@@ -31,15 +31,16 @@ def test_touching_robots_counts_both_and_never_a_robot_with_itself():
 
 def test_reward_terms_pay_the_contact_weight_per_touching_step_last():
     w = RewardConfig(contact=-0.3)
-    t = reward_terms(w, terms_for(2, True), RewardInputs(0, np.zeros(3), np.zeros(3, int), np.zeros(3),
-                                                       touch=np.array([1.0, 0.0, 1.0])))
+    t = reward_terms(w, paid_terms(TERMS_V2, w), RewardInputs(0, np.zeros(3), np.zeros(3, int), np.zeros(3),
+                                                              touch=np.array([1.0, 0.0, 1.0])))
     assert list(t) == [*TERMS_V2, "contact"]
     np.testing.assert_array_equal(t["contact"], [-0.3, 0.0, -0.3])
     block = reward_terms(w, ("contact",), RewardInputs(np.zeros(2), np.zeros((2, 2)), np.zeros((2, 2), int),
                                                       touch=np.array([[0.0, 1.0], [1.0, 1.0]])))
     np.testing.assert_array_equal(block["contact"], [[0.0, -0.3], [-0.3, -0.3]])  # K worlds
-    assert "contact" not in terms_for(2, False, True)
-    assert terms_for(1) == TERMS and terms_for(2) == TERMS_V2  # weight 0: no term
+    assert "contact" not in paid_terms(TERMS_V2, RewardConfig(uncertainty=1.0))
+    none = RewardConfig()  # weight 0: no term
+    assert paid_terms(TERMS, none) == TERMS and paid_terms(TERMS_V2, none) == TERMS_V2
 
 
 def test_contact_gap_must_be_positive():

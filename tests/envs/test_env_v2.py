@@ -16,7 +16,7 @@ from parcover_env.envs import ParallelCoverageEnv, critic_state
 from parcover_env.envs.obs_spec import ENTRIES, V2_ENTRIES
 from parcover_env.envs.obs_v2 import RouteFacts, TeamRows, fill, group_sizes, route_facts, target_kpois, team_rows
 from parcover_env.errors import ConfigError
-from parcover_env.mission.rewards import TERMS, TERMS_V2, RewardInputs, own_visits, reward_terms, terms_for
+from parcover_env.mission.rewards import TERMS, TERMS_V2, RewardInputs, own_visits, paid_terms, reward_terms
 
 NAMES = [e.name for e in ENTRIES if e.name in V2_ENTRIES]
 K = 4
@@ -166,11 +166,12 @@ def test_own_visits_pay_only_the_owner_who_visits():
     np.testing.assert_array_equal(own_visits(newly, visitor, owner, 3), [1.0, 0.0, 1.0])  # KPOI 1 is robot 1's
     w = RewardConfig(kpoi=1.0, own_kpoi=10.0)
     own = own_visits(newly, visitor, owner, 3)
-    t = reward_terms(w, terms_for(2), RewardInputs(3, np.zeros(3), np.zeros(3, int), own))
+    t = reward_terms(w, paid_terms(TERMS_V2, RewardConfig()), RewardInputs(3, np.zeros(3), np.zeros(3, int), own))
     assert list(t) == list(TERMS_V2) == ["own_kpoi", *TERMS]
     np.testing.assert_array_equal(t["own_kpoi"], [10.0, 0.0, 10.0])
     np.testing.assert_array_equal(t["kpoi"], [3.0, 3.0, 3.0])
-    assert list(reward_terms(w, terms_for(1), RewardInputs(3, np.zeros(3), np.zeros(3, int)))) == list(TERMS)  # v1
+    v1 = reward_terms(w, paid_terms(TERMS, RewardConfig()), RewardInputs(3, np.zeros(3), np.zeros(3, int)))
+    assert list(v1) == list(TERMS)
 
 
 def _v2_env():

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.envs.estimator import FixRequest, PoseEstimator
+from parcover_env.localization.estimator import FixRequest, PoseEstimator
 
 
 class FixedSource:

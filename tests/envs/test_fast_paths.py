@@ -115,7 +115,7 @@ def test_kinect_view_box_never_rejects_a_visible_robot():
 
 
 def test_fast_action_path_matches_validated_path():
-    from parcover_env.sim.actions import _common_case, _validated, to_commands
+    from parcover_env.sim.act_phase import _common_case, _validated, to_commands
 
     agents = ["robot_0", "robot_1"]
     acts = {a: np.array([2.0, -0.5], dtype=np.float32) for a in agents}
@@ -144,7 +144,7 @@ def test_sonar_config_replace_keeps_fast_path_exact_on_a_scenario(monkeypatch):
 
 
 def test_fast_action_path_with_a_scan_component():
-    from parcover_env.sim.actions import _common_case, _validated, to_commands
+    from parcover_env.sim.act_phase import _common_case, _validated, to_commands
 
     agents = ["robot_0", "robot_1"]
     acts = {a: np.array([2.0, -0.5, 0.7], dtype=np.float32) for a in agents}

@@ -32,13 +32,13 @@ def test_the_term_table_names_real_weights_and_the_inputs_each_term_needs():
     import dataclasses
 
     from parcover_env.config import RewardConfig
-    from parcover_env.mission.rewards import TEAM_TERMS, TERM_TABLE, TERMS, inputs_needed, terms_for
+    from parcover_env.mission.rewards import TEAM_TERMS, TERM_TABLE, TERMS, TERMS_V2, inputs_needed, paid_terms
 
     fields = {f.name for f in dataclasses.fields(RewardConfig)}
     assert {t.weight for t in TERM_TABLE.values()} <= fields
     assert TEAM_TERMS == ("kpoi", "time")
-    assert inputs_needed(TERMS) == frozenset() and inputs_needed(terms_for(2)) == {"own_new"}
-    assert inputs_needed(terms_for(1, True, True)) == {"touch", "sigma"}
+    assert inputs_needed(TERMS) == frozenset() and inputs_needed(paid_terms(TERMS_V2, RewardConfig())) == {"own_new"}
+    assert inputs_needed(paid_terms(TERMS, RewardConfig(contact=1.0, uncertainty=1.0))) == {"touch", "sigma"}
     assert list(TERM_TABLE)[:5] == ["own_kpoi", *TERMS]  # a world sums its terms in the table's order
 
 

@@ -1,4 +1,4 @@
-"""The score phase's per-world state as rows of ``(K, ...)`` blocks (:mod:`parcover_env.sim.rows`)
+"""The score phase's per-world state as rows of ``(K, ...)`` blocks (:func:`parcover_env.sim.score_phase.score_blocks`)
 and the compiled calls over them: the metrics' sums (:func:`step_kernels.record_many`) by value on a
 hand-built step, ``K = 2`` worlds equal to two ``K = 1`` calls, a group owning the blocks of its worlds
 (views handed out, reused while it holds them, a reset world adopted again), copies and pickles of
@@ -18,7 +18,8 @@ from parcover_env.geometry import wrap_angle
 from parcover_env.mission import kernels as step_kernels
 from parcover_env.mission import metrics
 from parcover_env.mission.team import TEAM_ROWS, Team
-from parcover_env.sim.rows import PARTS, ScoreGroup, SharedRows, score_blocks
+from parcover_env.sim.score_phase import PARTS, ScoreGroup, score_blocks
+from parcover_env.world.batching import SharedRows
 
 
 def _worlds(k, scenario="office"):

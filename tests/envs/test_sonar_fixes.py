@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.envs.sonar_fixes import ACCEPTED, HELD, REJECTED, UNINFORMATIVE, scan_steps, scan_turn
 from parcover_env.errors import ActionError
+from parcover_env.localization.sonar.service import ACCEPTED, HELD, REJECTED, UNINFORMATIVE, scan_steps, scan_turn
 
 SCAN = {"observation": {"scan": {"enabled": True}, "pose_source": "odometry"}}
 CONFIRM = {"observation": {"scan": {"enabled": True, "confirm_widened": True}, "pose_source": "odometry"}}
@@ -104,7 +104,7 @@ def test_a_rejected_scan_leaves_estimate_and_covariance():
 
 
 def test_localizer_prior_is_the_estimate_never_the_truth(monkeypatch):
-    from parcover_env.envs import sonar_fixes
+    from parcover_env.localization.sonar import service as sonar_fixes
 
     seen = []
     orig = sonar_fixes.localize

@@ -1,4 +1,4 @@
-"""The env's sonar localization service (``envs/sonar_fixes.py``) on hand-built situations, without an
+"""The env's sonar localization service (``localization/sonar/service.py``) on hand-built situations, without an
 env: the scan's duration, the bookkeeping of scans under way and of their outcomes, the search region's
 widening, and the gate's edges."""
 
@@ -11,8 +11,16 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.envs.estimator import FixRequest
-from parcover_env.envs.sonar_fixes import ACCEPTED, HELD, REJECTED, UNINFORMATIVE, SonarFixes, scan_steps, scan_turn
+from parcover_env.localization.estimator import FixRequest
+from parcover_env.localization.sonar.service import (
+    ACCEPTED,
+    HELD,
+    REJECTED,
+    UNINFORMATIVE,
+    SonarFixes,
+    scan_steps,
+    scan_turn,
+)
 from parcover_env.sensors.sonar import SonarRing
 from parcover_env.world.map_model import MapModel
 

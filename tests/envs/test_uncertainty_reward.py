@@ -11,7 +11,7 @@ import pytest
 
 from parcover_env import parcover_v2
 from parcover_env.config import RewardConfig
-from parcover_env.mission.rewards import TERMS_V2, RewardInputs, reward_terms, sigma_major, terms_for
+from parcover_env.mission.rewards import TERMS, TERMS_V2, RewardInputs, paid_terms, reward_terms, sigma_major
 from parcover_env.sim import act_phase, score_phase
 
 
@@ -32,14 +32,16 @@ def test_sigma_major_is_the_root_of_the_larger_xy_eigenvalue():
 def test_reward_terms_pay_the_uncertainty_weight_per_metre_last():
     w = RewardConfig(contact=-0.1, uncertainty=-2.0)
     sigma = np.array([0.1, 0.0, 0.25])
-    t = reward_terms(w, terms_for(2, True, True),
+    t = reward_terms(w, paid_terms(TERMS_V2, RewardConfig(contact=1.0, uncertainty=1.0)),
                      RewardInputs(0, np.zeros(3), np.zeros(3, int), np.zeros(3), touch=np.zeros(3), sigma=sigma))
     assert list(t) == [*TERMS_V2, "contact", "uncertainty"]
     np.testing.assert_allclose(t["uncertainty"], [-0.2, 0.0, -0.5], rtol=1e-12)
-    assert list(reward_terms(w, terms_for(1, False, True), RewardInputs(0, np.zeros(3), np.zeros(3, int),
-                                                                       sigma=sigma)))[-1] == "uncertainty"
-    assert terms_for(2, False, True) == (*TERMS_V2, "uncertainty")
-    assert "uncertainty" not in terms_for(2, True)
+    alone = RewardConfig(uncertainty=1.0)
+    paid = paid_terms(TERMS, alone)
+    assert paid == (*TERMS, "uncertainty")
+    assert list(reward_terms(w, paid, RewardInputs(0, np.zeros(3), np.zeros(3, int), sigma=sigma)))[-1] == "uncertainty"
+    assert paid_terms(TERMS_V2, RewardConfig(uncertainty=1.0)) == (*TERMS_V2, "uncertainty")
+    assert "uncertainty" not in paid_terms(TERMS_V2, RewardConfig(contact=1.0))
 
 
 def _env(uncertainty: float):

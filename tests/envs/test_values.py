@@ -15,7 +15,7 @@ from parcover_env.envs.observations import MAX_FIX_AGE
 from parcover_env.errors import ActionError
 from parcover_env.mission.metrics import EpisodeMetrics, episode_metrics, formation_errors
 from parcover_env.mission.rewards import REWARD_KEYS, TERMS, RewardInputs, reward_terms
-from parcover_env.sim.actions import to_commands
+from parcover_env.sim.act_phase import to_commands
 
 W = RewardConfig(kpoi=10.0, progress=2.0, time=-0.05, collision=-3.0)
 

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.envs.sonar_fixes import UNINFORMATIVE
 from parcover_env.expert.scripted import route_from, route_length
 from parcover_env.geometry import rotate
+from parcover_env.localization.sonar.service import UNINFORMATIVE
 
 RELOCATE = {"observation": {"scan": {"enabled": True, "confirm_widened": True}},
             "expert": {"sonar_fix": {"relocate_distance": 0.5}}}

@@ -10,9 +10,9 @@ import pytest
 
 import parcover_env
 from parcover_env.config.schema import MapConfig
-from parcover_env.envs.sonar_fixes import ACCEPTED, HELD, REJECTED, UNINFORMATIVE
 from parcover_env.expert.scan_places import ScanPlaces
 from parcover_env.localization.sonar.known_map import known_map_features
+from parcover_env.localization.sonar.service import ACCEPTED, HELD, REJECTED, UNINFORMATIVE
 
 
 def _corridor_places():

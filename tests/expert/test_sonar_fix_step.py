@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 from sonar_fix_helpers import ODOM, make_fixer, ranges_at, step
 
-from parcover_env.envs.sonar_fixes import HELD, REJECTED
 from parcover_env.expert.sonar_fix import SCAN_REQUEST, _State
 from parcover_env.geometry.poses import compose
+from parcover_env.localization.sonar.service import HELD, REJECTED
 
 
 def _state(**kw) -> _State:

@@ -11,9 +11,9 @@ import pytest
 from sonar_fix_helpers import ODOM, make_fixer, scan_at, step
 
 import parcover_env
-from parcover_env.envs.sonar_fixes import UNINFORMATIVE
 from parcover_env.expert.sonar_fix import SCAN_REQUEST, _State
 from parcover_env.geometry.poses import compose
+from parcover_env.localization.sonar.service import UNINFORMATIVE
 
 
 def test_the_belief_is_the_odometry_until_a_correction_then_the_correction_composed_with_it():

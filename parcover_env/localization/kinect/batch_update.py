@@ -25,11 +25,11 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from parcover_env.geometry.stacking import stack
 from parcover_env.geometry.wrap_formula import wrap
 from parcover_env.localization.kinect import batch_kernels, estimate_kernel, track_kernel
 from parcover_env.localization.kinect.pipeline import PoseEstimate
 from parcover_env.sensors.kinect import check_poses
+from parcover_env.world.batching import stack
 
 __all__ = ["update_systems", "fast_estimates", "track_all", "Detections"]
 

@@ -1,7 +1,7 @@
 """Tunables of the sonar feature localizer (Kim, Pearce & Amato 2001), read from a scenario's
 ``sonar_localizer`` section: :func:`sonar_localizer_config`.
 
-The env's sonar localization service (``observation.scan``, :mod:`parcover_env.envs.sonar_fixes`) and
+The env's sonar localization service (``observation.scan``, :mod:`parcover_env.localization.sonar.service`) and
 the scripted experts run the localizer; the ``Scenario`` keeps that YAML section as a plain mapping
 and this module owns its schema: every field has a unit and is validated with a ``ConfigError``
 naming the file and the key.

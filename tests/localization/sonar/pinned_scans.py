@@ -7,7 +7,7 @@ Two kinds of cases, every prior from an estimate and its covariance (never the t
 * ``trial``: the oracle-free benchmark's trials (``benchmarks/sonar_localization.py``: a drive steered
   by odometry, the odometry estimate and covariance as prior, a realistic or mismatched sonar scan),
   localized with each row's configuration (the paper's method, each extension, all of them).
-* ``service``: scans the env's sonar localization service (``envs/sonar_fixes.py``) localized during
+* ``service``: scans the env's sonar localization service (``localization/sonar/service.py``) localized during
   seeded episodes (random driving, scan requests), with the team's estimates and covariances and the
   search region's inflation of that moment; the outcome of :meth:`SonarFixes.match`.
 """
@@ -99,7 +99,7 @@ def localize_trial(name: str, inputs: dict, k: int, params, mismatch: bool):
 
 def service(name: str, n_robots: int):
     """The env's scan service of scenario ``name`` (scans enabled), outside an env."""
-    from parcover_env.envs.sonar_fixes import SonarFixes
+    from parcover_env.localization.sonar.service import SonarFixes
     from parcover_env.scenarios import load_scenario
     from parcover_env.world.map_model import MapModel
 

@@ -25,7 +25,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 import pinned_scans as pinned  # noqa: E402
 
-from parcover_env.envs.estimator import FixRequest  # noqa: E402
+from parcover_env.localization.estimator import FixRequest  # noqa: E402
 from parcover_env.localization.sonar.config import SonarLocalizerConfig  # noqa: E402
 
 DATA = json.loads(pinned.FIXTURE.read_text())

@@ -1,11 +1,11 @@
-"""geometry.stacking.stack: np.stack's values, cheaper."""
+"""batching.stack: np.stack's values, cheaper."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from parcover_env.geometry.stacking import stack
+from parcover_env.world.batching import stack
 
 
 def test_stack_equals_np_stack_for_blocks_of_one_shape():

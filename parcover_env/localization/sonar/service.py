@@ -40,9 +40,9 @@ import numpy as np
 import shapely
 
 from parcover_env.config import Scenario
-from parcover_env.envs.estimator import FixRequest
 from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.poses import compose, inverse
+from parcover_env.localization.estimator import FixRequest
 from parcover_env.localization.sonar.config import sonar_localizer_config
 from parcover_env.localization.sonar.known_map import known_map_features
 from parcover_env.localization.sonar.localizer import Ellipse, localize, scan_error

@@ -5,7 +5,7 @@ Each step :meth:`PoseEstimator.update` advances every robot's belief by its whee
 asks each fix source in turn for absolute pose fixes and resets the fixed robots' beliefs
 (:meth:`PoseEstimator.fix`). A fix source is anything with the :class:`FixSource` shape: the overhead
 Kinect system (:class:`KinectFixes`, Min, Fehr & Papanikolopoulos) and the sonar localizer fix of a
-robot that stops and scans (Kim, Pearce & Amato; :class:`~parcover_env.envs.sonar_fixes.SonarFixes`,
+robot that stops and scans (Kim, Pearce & Amato; :class:`~parcover_env.localization.sonar.service.SonarFixes`,
 ``observation.scan``), in that order.
 """
 
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from itertools import chain
+from operator import attrgetter, is_
 from typing import NamedTuple, Protocol
 
 import numpy as np
@@ -22,10 +23,11 @@ from parcover_env.localization.kinect.batch_update import update_systems
 from parcover_env.localization.kinect.system import KinectSystem
 from parcover_env.sensors.odometry import Odometry
 from parcover_env.sensors.onboard_kernels import OdometryState, wheel_odometry_rows
-from parcover_env.sim.rows import ActRows, act_rows
-from parcover_env.world.drive import wheel_targets
+from parcover_env.world.batching import SharedRows
+from parcover_env.world.drive import DiffDrive, wheel_targets
 
-__all__ = ["FixRequest", "FixSource", "KinectFixes", "PoseEstimator", "update_all"]
+__all__ = ["FixRequest", "FixSource", "KinectFixes", "PoseEstimator", "update_all", "ActRows", "act_rows",
+           "ESTIMATOR", "ODOMETRY", "DRIVE", "KINECT"]
 
 
 class FixRequest(NamedTuple):
@@ -94,7 +96,7 @@ class PoseEstimator:
         self.fix_age = np.zeros(len(true))
         self.act_rows: ActRows | None = None
         """The shared rows this estimator's arrays are views of, when it steps with others
-        (:func:`~parcover_env.sim.rows.act_rows`); not copied, not pickled."""
+        (:func:`act_rows`); not copied, not pickled."""
 
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
@@ -127,7 +129,7 @@ def update_all(estimators: Sequence[PoseEstimator], true: Sequence[np.ndarray], 
     ``true`` ``(K, N, 3)``, ``commands`` ``(K, N, 2)``, ``leaders`` ``(K, N)`` (arrays, or sequences of
     the ``K`` worlds' arrays: the sources see those very arrays), and per estimator its
     world's drive, time and generator; ``rows``: their shared rows
-    (:func:`~parcover_env.sim.rows.act_rows`, made here if not given). The wheel odometry of
+    (:func:`act_rows`, made here if not given). The wheel odometry of
     all ``K N`` robots (dead reckoning, encoder velocity, fix age) runs in one compiled call on the
     rows, the Kinect systems in one batch
     (:func:`~parcover_env.localization.kinect.batch_update.update_systems`), and each source's fixes
@@ -212,3 +214,108 @@ def _apply_fixes(rows: ActRows, fixes: Sequence[dict[int, np.ndarray]], cov: np.
 
 _FEW_FIXES = 4
 """Up to this many fixes are written row by row."""
+
+
+class ActRows(NamedTuple):
+    """The act phase's per-robot state of ``K`` worlds as shared rows (:func:`act_rows`)."""
+
+    estimators: SharedRows
+    """The pose estimators' :data:`ESTIMATOR` arrays."""
+    odometry: SharedRows
+    """Their wheel odometries' :data:`ODOMETRY` arrays."""
+    drives: SharedRows | None
+    """The worlds' drives' :data:`DRIVE` arrays (None: no drive, ``drive: instant``)."""
+    kinect: SharedRows | None = None
+    """The estimators' Kinect systems' :data:`KINECT` arrays (None: no Kinect source, or ``K = 1``)."""
+
+
+ESTIMATOR = ("velocity", "fix_age")
+"""Rows of :class:`PoseEstimator`."""
+ODOMETRY = ("estimate", "covariance", "travelled", "turned", "factors", "believed_base")
+"""Rows of :class:`~parcover_env.sensors.odometry.Odometry`."""
+DRIVE = ("wheels", "travel", "speed_change")
+"""Rows of :class:`~parcover_env.world.drive.DiffDrive`."""
+KINECT = ("next_tick",)
+"""Rows of :class:`~parcover_env.localization.kinect.system.KinectSystem` (each Kinect's next frame time)."""
+
+
+def act_rows(estimators: Sequence[PoseEstimator], drives: Sequence[DiffDrive | None]) -> ActRows:
+    """The shared rows of ``K`` worlds' pose ``estimators`` (of one scenario), their Kinect systems
+    (``kinect_system``) and their ``drives`` (``None`` s for ``drive: instant``), every array attached
+    (:meth:`SharedRows.attach`). The rows are kept on the estimators (``act_rows``, never copied or
+    pickled) and reused while they fit. When every estimator, odometry, Kinect system and drive
+    still holds the very objects it held when last attached (the common step), one identity check
+    per world replaces the attach passes."""
+    first = estimators[0]
+    rows = first.act_rows
+    if rows is not None and _unchanged(rows, estimators, drives):
+        return rows
+    if rows is None:  # after world 0's reset: the rows another world holds
+        rows = next((e.act_rows for e in estimators if e.act_rows is not None), None)
+    k = len(estimators)
+    if rows is None or rows.estimators.size != k or not (_holds(rows, first, drives[0])
+                                                         or _fits(rows, k, first, drives[0])):
+        rows = ActRows(SharedRows(k, ESTIMATOR, first), SharedRows(k, ODOMETRY, first.odometry),
+                       None if drives[0] is None else SharedRows(k, DRIVE, drives[0]))
+    rows.estimators.attach(estimators)
+    rows.odometry.attach([e.odometry for e in estimators])
+    if rows.drives is not None:
+        rows.drives.attach(drives)
+    if k > 1:  # K = 1 updates its one system's ticks in place already
+        rows = _with_kinect(rows, k, [e.kinect_system for e in estimators])
+    for e in estimators:
+        if e.act_rows is not rows:
+            e.act_rows = rows
+    _remember(rows, estimators, drives)
+    return rows
+
+
+def _getter(rows: ActRows):
+    """``f(estimator, drive)``: the objects and arrays of one world that :func:`act_rows` attaches."""
+    names = ["act_rows", "kinect_system", *ESTIMATOR, *(f"odometry.{n}" for n in ODOMETRY)]
+    if rows.kinect is not None:
+        names += [f"kinect_system.{n}" for n in KINECT]
+    mine = attrgetter(*names)
+    if rows.drives is None:
+        return lambda e, d: (*mine(e), d)
+    theirs = attrgetter(*DRIVE)
+    return lambda e, d: (*mine(e), d, *theirs(d))
+
+
+def _remember(rows: ActRows, estimators: Sequence[PoseEstimator], drives: Sequence[DiffDrive | None]) -> None:
+    """Keep what every world holds now that ``rows`` are attached (for :func:`_unchanged`)."""
+    get = _getter(rows)
+    rows.estimators.memo = (rows, get, [get(e, d) for e, d in zip(estimators, drives, strict=True)])
+
+
+def _unchanged(rows: ActRows, estimators: Sequence[PoseEstimator], drives: Sequence[DiffDrive | None]) -> bool:
+    """True if every world still holds what it held when ``rows`` were last attached to these
+    estimators and drives (so all of them are attached)."""
+    memo = rows.estimators.memo
+    if memo is None or memo[0] is not rows or len(memo[2]) != len(estimators):
+        return False
+    get = memo[1]
+    return all(all(map(is_, get(e, d), held)) for e, d, held in zip(estimators, drives, memo[2], strict=True))
+
+
+def _with_kinect(rows: ActRows, k: int, systems: Sequence[KinectSystem | None]) -> ActRows:
+    """``rows`` with the Kinect ``systems``' rows attached (made when missing or not fitting); without
+    rows for them when some world has no Kinect system."""
+    if any(s is None for s in systems):
+        return rows if rows.kinect is None else ActRows(rows.estimators, rows.odometry, rows.drives)
+    if rows.kinect is None or not rows.kinect.fits(k, systems[0]):
+        rows = ActRows(rows.estimators, rows.odometry, rows.drives, SharedRows(k, KINECT, systems[0]))
+    rows.kinect.attach(systems)
+    return rows
+
+
+def _holds(rows: ActRows, estimator: PoseEstimator, drive: DiffDrive | None) -> bool:
+    """True if ``estimator`` (and its odometry and ``drive``) hold row 0 of ``rows`` (so they fit)."""
+    return (rows.estimators.attached(0, estimator) and rows.odometry.attached(0, estimator.odometry)
+            and (drive is None if rows.drives is None else rows.drives.attached(0, drive)))
+
+
+def _fits(rows: ActRows, k: int, estimator: PoseEstimator, drive: DiffDrive | None) -> bool:
+    """True if ``rows`` can hold ``k`` worlds like ``estimator``'s (and its odometry's and ``drive``'s)."""
+    return (rows.estimators.fits(k, estimator) and rows.odometry.fits(k, estimator.odometry)
+            and (rows.drives is None) == (drive is None) and (drive is None or rows.drives.fits(k, drive)))
