@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from parcover_env.harness import training
+from parcover_env.harness import sb3_training, training
 
 BASELINES = Path(__file__).resolve().parents[2] / "baselines"
 
@@ -25,7 +25,7 @@ def test_no_trainer_imports_another():
 
 
 def test_discounted_returns_by_hand():
-    to_go, running = training._discounted([1.0, 0.0, 2.0], 0.5)
+    to_go, running = sb3_training._discounted([1.0, 0.0, 2.0], 0.5)
     np.testing.assert_allclose(to_go, [1.0 + 0.5 * 1.0, 0.0 + 0.5 * 2.0, 2.0])  # g_t = r_t + gamma g_{t+1}
     np.testing.assert_allclose(running, [1.0, 0.5, 0.25 + 2.0])  # acc_t = gamma acc_{t-1} + r_t
 
