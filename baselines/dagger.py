@@ -8,8 +8,8 @@ seeds ``seed0 + k``); every later round r lets the network of round r-1 drive on
 ``driver_probs[r]`` of the steps while the teacher labels every step (Ross et al. 2011,
 :func:`parcover_env.harness.datasets.record_episodes`), on fresh episode seeds of the same maps.
 After each round the actor is refit from scratch on all rounds' data (mean action, MSE) and the
-critic on the discounted returns (:func:`parcover_env.harness.training.bc_initialize`); the result is an SB3 PPO model
-(``OUT/round_<r>/model.zip`` + ``vecnormalize.pkl`` + ``model.json``), a ``--policies ppo:PATH``
+critic on the discounted returns (:func:`parcover_env.harness.sb3_training.bc_initialize`); the result is an
+SB3 PPO model (``OUT/round_<r>/model.zip`` + ``vecnormalize.pkl`` + ``model.json``), a ``--policies ppo:PATH``
 policy that ``train_ppo.py --resume`` can fine-tune. Each round is scored on validation maps
 (``--val-scenarios``, seeds ``val_seed0 ..``, disjoint from training maps and from the benchmark's
 maps/seeds >= 1000); the best round (mean KPOI fraction, then success; earlier wins ties) is copied
@@ -121,7 +121,7 @@ def fit(args: Args, eps: list, out: Path, info: dict) -> Path:
     import torch
     from stable_baselines3 import PPO
 
-    from parcover_env.harness.training import bc_initialize, make_sb3_venv, observation_selection
+    from parcover_env.harness.sb3_training import bc_initialize, make_sb3_venv, observation_selection
 
     scenario = f"generated:{args.map_seed0}"
     torch.manual_seed(args.seed)

@@ -184,8 +184,8 @@ def stage_scenarios(scenario: str, n_envs: int, map_seed: int) -> list[str]:
 
 
 def make_venv(args: Args, scenarios: list[str], seed: int):
-    """The normalized SB3 VecEnv of a stage (:func:`parcover_env.harness.training.make_sb3_venv`)."""
-    from parcover_env.harness.training import make_sb3_venv
+    """The normalized SB3 VecEnv of a stage (:func:`parcover_env.harness.sb3_training.make_sb3_venv`)."""
+    from parcover_env.harness.sb3_training import make_sb3_venv
 
     return make_sb3_venv(scenarios, seed, preset=args.preset, gamma=args.gamma, max_steps=args.max_steps,
                          multiprocess=args.multiprocess)
@@ -238,8 +238,8 @@ def load_demos(args: Args, scenario: str) -> tuple[list[dict], dict]:
 
 
 def bc_initialize(model, venv, args: Args, eps: list[dict]) -> dict:
-    """Clone the expert into the PPO actor and the critic (:func:`parcover_env.harness.training.bc_initialize`)."""
-    from parcover_env.harness.training import bc_initialize as clone
+    """Clone the expert into the PPO actor and the critic (:func:`parcover_env.harness.sb3_training.bc_initialize`)."""
+    from parcover_env.harness.sb3_training import bc_initialize as clone
 
     return clone(model, venv, eps, gamma=args.gamma, seed=args.seed, epochs=args.bc_epochs, log_std=args.bc_log_std)
 
@@ -515,7 +515,7 @@ def set_actor_trainable(model, on: bool) -> None:
 
 def obs_selection(args: Args, scenario: str) -> dict:
     """``policy_kwargs`` entries that hide the fields ``args.drop_obs`` from the networks."""
-    from parcover_env.harness.training import observation_selection
+    from parcover_env.harness.sb3_training import observation_selection
 
     return observation_selection(scenario, args.preset, args.drop_obs)
 

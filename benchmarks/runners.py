@@ -1,6 +1,6 @@
 """Shared pieces of the throughput benchmarks: timing, memory readings, and the runners that step our env
 and its peers (MPE2, VMAS) with pre-drawn random actions (used by ``throughput.py``, ``batching.py``,
-``memory_soak.py``)."""
+``memory_soak.py`` and the lab script ``docs/lab/scripts/profile_step.py``)."""
 
 from __future__ import annotations
 

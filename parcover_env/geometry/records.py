@@ -4,7 +4,7 @@ array whose fields have names, so a kernel reads ``rules.range_max``, never ``pa
 Why structured arrays: numba types an array argument in its C dispatcher, so a record of any
 number of fields adds about 0.3 us to a kernel call, where a ``NamedTuple`` is typed field by
 field in Python: about 1.2-1.4 us for a few fields, more when nested
-(``benchmarks/kernel_records.py``). Kernels take the one-element array :func:`record` builds and
+(``docs/lab/scripts/kernel_records.py``). Kernels take the one-element array :func:`record` builds and
 read ``rules[0]``; per-item tables (one row per Kinect, say) come from :func:`table`. Bundles of
 arrays are ``NamedTuple`` classes next to the kernels that take them, used where a kernel would
 otherwise take more than 12 arguments.

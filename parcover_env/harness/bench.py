@@ -9,7 +9,7 @@ its bootstrap CI, and, over several procedural maps, one aggregate row whose boo
 episodes within each map (stratified bootstrap). No normal-approximation intervals.
 
 Policies by spec: ``expert``, ``waypoint``, ``random``, ``ppo:PATH`` (``train_ppo.py`` output dir
-or ``model.zip``), ``bc:PATH`` (``train_bc.py`` output dir or ``bc.pt``), ... and ``py:MODULE:ATTR``
+or ``model.zip``), ``bc:PATH`` (``docs/lab/scripts/train_bc.py`` output dir or ``bc.pt``), ... and ``py:MODULE:ATTR``
 (a policy of your own, imported in every worker); :func:`parcover_env.compare` benches a policy
 object or factory from Python with this module's runner and statistics. Backends: ``local``
 (a process pool, or in-process with ``--workers 1``) and ``ray`` (local Ray by default, or

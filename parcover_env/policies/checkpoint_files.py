@@ -16,7 +16,7 @@ from parcover_env.errors import CheckpointError
 __all__ = ["load_torch_dict", "build_or_explain", "first_line", "as_int", "as_widths", "KNOWN_FORMATS"]
 
 KNOWN_FORMATS: dict[str, tuple[str, ...]] = {
-    "bc:PATH or mappo:PATH (a behaviour-cloned or MAPPO actor)": ("n_in", "n_out", "hidden", "state_dict"),
+    "bc:PATH (a behaviour-cloned actor)": ("n_in", "n_out", "hidden", "state_dict"),
     "torchrl:PATH (a parcover train policy.pt)": ("obs_dim", "act_dim", "hidden", "state_dict"),
     "a parcover train critic.pt (not a policy)": ("spec", "state_dict"),
 }
@@ -68,7 +68,7 @@ def load_torch_dict(file: Path, what: str, keys: tuple[str, ...], weights_only: 
     except Exception as exc:  # unpickling a corrupt or foreign file may raise anything (struct.error, ...)
         if weights_only and "Unsupported global" in str(exc):
             problem = (f"it holds Python objects other than tensors ({first_line(exc)}): another program's or "
-                       "another policy's file, e.g. a bc: or mappo: checkpoint (weights-only loading runs no code "
+                       "another policy's file, e.g. a bc: checkpoint (weights-only loading runs no code "
                        "in it)")
         else:
             problem = f"not a torch checkpoint (corrupt, truncated or another format; {first_line(exc)})"

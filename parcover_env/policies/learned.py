@@ -110,16 +110,16 @@ def make_mlp(n_in: int, n_out: int, hidden: tuple[int, ...] = (256, 256)):
 
 
 class BCPolicy(Policy):
-    """A tanh-output MLP actor: behaviour cloning (``baselines/train_bc.py``, ``bc.pt``) or the
-    MAPPO actor (``baselines/train_mappo.py``, ``actor.pt``, same format)."""
+    """A behaviour-cloned tanh-output MLP actor (``bc.pt``: ``n_in``, ``n_out``, ``hidden``,
+    ``state_dict``, ``obs_mean``, ``obs_std``; written by ``docs/lab/scripts/train_bc.py``)."""
 
-    def __init__(self, path: str | Path, filename: str = "bc.pt"):
+    def __init__(self, path: str | Path):
 
         path = Path(path)
-        file = path / filename if path.is_dir() else path
+        file = path / "bc.pt" if path.is_dir() else path
         if not file.is_file():
             raise ParcoverError(f"BC checkpoint not found: {file}")
-        what = "MAPPO actor" if filename == "actor.pt" else "BC actor"
+        what = "BC actor"
         ckpt = load_torch_dict(file, what, ("n_in", "n_out", "hidden", "state_dict", "obs_mean", "obs_std"),
                                weights_only=False)
         n_in, n_out = as_int(ckpt["n_in"], file, what, "n_in"), as_int(ckpt["n_out"], file, what, "n_out")

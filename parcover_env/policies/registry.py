@@ -27,11 +27,11 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from parcover_env.errors import ParcoverError
+from parcover_env.errors import ArgumentError, ParcoverError
 from parcover_env.policies.protocol import Policy
 
 __all__ = ["POLICIES", "PolicyEntry", "BASIC_POLICIES", "POLICY_SPECS", "make_policy", "check_policy_spec",
-           "policy_overrides", "policy_specs", "fitting_policy"]
+           "policy_overrides", "policy_specs", "fitting_policy", "REMOVED_POLICIES"]
 
 
 @dataclass(frozen=True)
@@ -142,7 +142,7 @@ def _learned(kind: str) -> Callable[[Any, int | None, str], Policy]:
         from parcover_env.policies.learned import BCPolicy, PPOPolicy
 
         torch.set_num_threads(1)  # small MLPs: one thread is fastest and avoids oversubscribing workers
-        policy = PPOPolicy(path) if kind == "ppo" else BCPolicy(path, "actor.pt" if kind == "mappo" else "bc.pt")
+        policy = PPOPolicy(path) if kind == "ppo" else BCPolicy(path)
         return _fitting(policy, env, f"{kind}:{path}")
 
     return build
@@ -182,7 +182,6 @@ POLICIES: dict[str, PolicyEntry] = {
     "random": PolicyEntry(_random, "uniform random actions"),
     "ppo": PolicyEntry(_learned("ppo"), "a saved SB3 PPO model (model.zip + vecnormalize.pkl)", needs_path=True),
     "bc": PolicyEntry(_learned("bc"), "a behaviour-cloned MLP (bc.pt)", needs_path=True),
-    "mappo": PolicyEntry(_learned("mappo"), "a MAPPO actor (actor.pt)", needs_path=True),
     "torchrl": PolicyEntry(_torchrl(False), "an IPPO/MAPPO actor from parcover train (DIR/policy.pt; the env "
                            "overrides it was trained with come from DIR/run.json), deterministic: tanh(loc), "
                            "and a Bernoulli scan head's mode (scan iff p > 0.5)",
@@ -197,6 +196,13 @@ POLICIES: dict[str, PolicyEntry] = {
                       check_path=_python_check, path_hint="MODULE:ATTR"),
 }
 """Every policy by name; see the module docstring to add one."""
+
+REMOVED_POLICIES: dict[str, str] = {
+    "mappo": "mappo: checkpoints of the removed hand-written trainer (baselines/train_mappo.py) are no longer a "
+             "spec; use torchrl: (parcover train mappo writes DIR/policy.pt); an old DIR/actor.pt has the bc: "
+             "format and loads as bc:DIR/actor.pt",
+}
+"""Spec names that no longer exist -> what to use instead (:func:`check_policy_spec` raises it)."""
 
 
 def policy_specs() -> str:
@@ -214,6 +220,8 @@ def check_policy_spec(spec: str) -> None:
     """Raise ParcoverError unless ``spec`` names a registered policy (with an existing path if it needs one)."""
     name, _, path = spec.partition(":")
     entry = POLICIES.get(name)
+    if entry is None and name in REMOVED_POLICIES:
+        raise ArgumentError(f"policy '{spec}': {REMOVED_POLICIES[name]}")
     if entry is None or (path and not entry.needs_path):
         raise ParcoverError(f"unknown policy '{spec}' (choose from {policy_specs()})")
     if entry.needs_path:

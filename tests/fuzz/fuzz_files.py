@@ -32,7 +32,7 @@ PPO_OFFICE = SHIPPED / "ppo_office.zip"
 
 
 def bc_checkpoint(n_in: int, hidden: tuple[int, ...] = (8,), n_out: int = 2, **fields) -> dict:
-    """A BC / MAPPO actor checkpoint dict as ``baselines/train_bc.py`` saves it (small net, seeded)."""
+    """A BC actor checkpoint dict as ``docs/lab/scripts/train_bc.py`` saves it (small net, seeded)."""
     import torch
 
     from parcover_env.policies.learned import make_mlp

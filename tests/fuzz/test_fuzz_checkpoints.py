@@ -22,7 +22,7 @@ from parcover_env.policies.registry import make_policy
 
 torch = pytest.importorskip("torch")
 
-KINDS = ("bc", "mappo", "torchrl", "torchrl_sampled", "ppo")
+KINDS = ("bc", "torchrl", "torchrl_sampled", "ppo")
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +55,7 @@ def test_every_broken_file_is_one_checkpoint_error(kind, name, office):
 
 @pytest.mark.parametrize(("kind", "name", "words"), [
     ("bc", "empty", "the file is empty (0 bytes)"),
-    ("mappo", "junk", "not a torch checkpoint (corrupt, truncated or another format; UnpicklingError"),
+    ("bc", "junk", "not a torch checkpoint (corrupt, truncated or another format; UnpicklingError"),
     ("bc", "bc_tail", "not a torch checkpoint (corrupt, truncated or another format; OSError: [Errno 22]"),
     ("bc", "bc_trunc", "not a torch checkpoint (corrupt, truncated or another format; RuntimeError"),
     ("bc", "list", "it holds a list, expected a dict with n_in, n_out, hidden"),
@@ -65,12 +65,12 @@ def test_every_broken_file_is_one_checkpoint_error(kind, name, office):
     ("torchrl", "nokeys", "not a TorchRL policy checkpoint: no obs_dim, act_dim, hidden, state_dict (it has foo)"),
     ("bc", "bc_shape", "its fields or weights do not fit the network it describes (RuntimeError: Error(s) in "
                        "loading state_dict"),
-    ("mappo", "bc_hidden", "hidden must be a list of layer widths, got 'abc'"),
+    ("bc", "bc_hidden", "hidden must be a list of layer widths, got 'abc'"),
     ("ppo", "bc", "not an SB3 PPO model.zip"),
 ])
 def test_the_error_says_what_is_wrong(kind, name, words, office):
     exc = _load(kind, files()[name], office)
-    what = {"bc": "BC actor", "mappo": "MAPPO actor", "torchrl": "TorchRL policy", "ppo": "PPO checkpoint"}[kind]
+    what = {"bc": "BC actor", "torchrl": "TorchRL policy", "ppo": "PPO checkpoint"}[kind]
     assert str(exc).startswith(f"cannot load {what} {files()[name]}"), str(exc)
     assert words in str(exc), str(exc)
 
@@ -85,6 +85,28 @@ def test_a_valid_bc_file_loads_and_acts(office):
     with torch.no_grad():  # obs_mean 0, obs_std 1: the normalization is a clip to [-10, 10]
         want = net(torch.as_tensor(np.clip(obs["robot_0"], -10, 10)[None])).numpy()[0]
     np.testing.assert_allclose(policy.act(obs)["robot_0"], want, rtol=1e-6)
+
+
+def test_the_removed_mappo_spec_is_one_argument_error_and_its_files_load_as_bc(tmp_path, office):
+    """``mappo:`` (the removed hand-written trainer's actor.pt) names the replacement; the old file, the
+    bc: format plus two fields, still acts through ``bc:DIR/actor.pt`` exactly as a bc.pt does."""
+    from parcover_env.errors import ArgumentError
+
+    torch.save(bc_checkpoint(OFFICE_OBS, algorithm="mappo", critic_state_dim=13), tmp_path / "actor.pt")
+    with pytest.raises(ArgumentError) as info:
+        make_policy(f"mappo:{tmp_path}", office, 0)
+    assert str(info.value).startswith(f"policy 'mappo:{tmp_path}': mappo: checkpoints of the removed hand-written "
+                                      "trainer (baselines/train_mappo.py) are no longer a spec; use torchrl:")
+    assert str(info.value).endswith("an old DIR/actor.pt has the bc: format and loads as bc:DIR/actor.pt")
+    back = pickle.loads(pickle.dumps(info.value))
+    assert type(back) is ArgumentError and str(back) == str(info.value)
+    status, out, err = run_cli(["run", "office", "--policy", f"mappo:{tmp_path}", "--steps", "2", "--quiet"])
+    lines = err.strip().splitlines()
+    assert status == 2 and len(lines) == 1 and lines[0].startswith("parcover: error: policy 'mappo:"), err
+    obs, _ = office.reset(seed=0)
+    old = make_policy(f"bc:{tmp_path / 'actor.pt'}", office, 0).act(obs)
+    new = make_policy(f"bc:{files()['bc']}", office, 0).act(obs)
+    assert set(old) == set(obs) and all(np.array_equal(old[a], new[a]) for a in obs)
 
 
 _MUTATED = Path(tempfile.mkdtemp(prefix="parcover_ckpt_fuzz_"))
@@ -109,7 +131,7 @@ def mutated(draw) -> tuple[str, bytes]:
 
 
 @fuzz_settings(25)
-@given(case=mutated(), kind=st.sampled_from(["bc", "mappo", "torchrl", "torchrl_sampled"]))
+@given(case=mutated(), kind=st.sampled_from(["bc", "torchrl", "torchrl_sampled"]))
 def test_fuzz_mutated_checkpoints(case, kind):
     """A damaged checkpoint either still loads (a flipped byte in a weight) or is one CheckpointError."""
     _, data = case
@@ -133,7 +155,7 @@ def _office_once():
     return _ENV[0]
 
 
-@pytest.mark.parametrize("kind", ["mappo", "bc", "torchrl"])
+@pytest.mark.parametrize("kind", ["bc", "torchrl"])
 def test_cli_run_with_a_broken_checkpoint_is_one_line(kind):
     path = files()["junk"]
     status, out, err = run_cli(["run", "office", "--policy", f"{kind}:{path}", "--steps", "2", "--quiet"])
@@ -144,9 +166,9 @@ def test_cli_run_with_a_broken_checkpoint_is_one_line(kind):
 
 def test_cli_bench_with_broken_checkpoints_is_one_line_across_workers(tmp_path):
     """Formerly three tracebacks: the workers' errors reach the parent as one CheckpointError."""
-    spec = f"mappo:{files()['empty']}"
+    spec = f"bc:{files()['empty']}"
     status, _, err = run_cli(["bench", "office", "--policies", f"random,{spec}", "--seeds", "2", "--max-steps", "2",
                               "--workers", "2", "--no-plots", "--quiet", "--out", str(tmp_path)])
     lines = err.strip().splitlines()
     assert status == 2 and len(lines) == 1, err
-    assert lines[0] == f"parcover: error: cannot load MAPPO actor {files()['empty']}: the file is empty (0 bytes)"
+    assert lines[0] == f"parcover: error: cannot load BC actor {files()['empty']}: the file is empty (0 bytes)"

@@ -39,8 +39,7 @@ SCENARIOS = mostly(_pick(["office", "hallway", "t_room", "tree", "triangle_room"
 CHECKPOINTS = ("bc", "torchrl", "ppo", "empty", "junk", "text", "pickle", "list", "nokeys", "bc_trunc", "bc_tail",
                "bc_shape", "bc_hidden", "dir", "missing")
 POLICIES = mostly(_pick(["expert", "waypoint", "random"]) | st.builds(
-    lambda kind: f"{kind}:{files()['bc' if kind in ('bc', 'mappo') else kind.split('_')[0]]}",
-    _pick(["bc", "mappo", "torchrl", "torchrl_sampled", "ppo"])),
+    lambda kind: f"{kind}:{files()[kind.split('_')[0]]}", _pick(["bc", "torchrl", "torchrl_sampled", "ppo"])),
     _pick(["nosuch", "", ":", "expert:x", "bc:", "random:1"]) | st.builds(
         lambda kind, name: f"{kind}:{files()[name]}", _pick(["bc", "mappo", "torchrl", "torchrl_sampled", "ppo"]),
         _pick(CHECKPOINTS)))

@@ -47,7 +47,6 @@ LEARNED = {
     "torchrl": f"torchrl:{SHIPPED / 'ippo_office_scratch'}",
     "torchrl_sampled": f"torchrl_sampled:{SHIPPED / 'mappo_generated_scan_sigma'}",
     "bc": "bc:BC",
-    "mappo": "mappo:BC",
 }
 
 

@@ -159,7 +159,7 @@ def test_every_refusal_names_the_file_and_the_kind(tmp_path):
     with pytest.raises(CheckpointError) as info:
         load_torch_dict(path, "TorchRL policy", KEYS, weights_only=True)
     assert str(info.value).endswith("was not an allowed global by default): another program's or another policy's "
-                                    "file, e.g. a bc: or mappo: checkpoint (weights-only loading runs no code in it)")
+                                    "file, e.g. a bc: checkpoint (weights-only loading runs no code in it)")
 
 
 def test_more_bounds():

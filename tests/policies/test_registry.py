@@ -67,13 +67,13 @@ def test_one_entry_adds_a_policy(monkeypatch, capsys):
         with pytest.raises(SystemExit):
             build_parser().parse_args([command, "--help"])
         help_text = " ".join(capsys.readouterr().out.split())
-        assert ("random | ppo:PATH | bc:PATH | mappo:PATH | torchrl:PATH | torchrl_sampled:PATH | py:MODULE:ATTR "
+        assert ("random | ppo:PATH | bc:PATH | torchrl:PATH | torchrl_sampled:PATH | py:MODULE:ATTR "
                 "| still") in help_text
 
 
 def test_specs_and_errors():
-    assert policy_specs() == ("expert | waypoint | random | ppo:PATH | bc:PATH | mappo:PATH | torchrl:PATH | "
-                              "torchrl_sampled:PATH | py:MODULE:ATTR")
+    assert policy_specs() == ("expert | waypoint | random | ppo:PATH | bc:PATH | torchrl:PATH | torchrl_sampled:PATH | "
+                              "py:MODULE:ATTR")
     with pytest.raises(ParcoverError, match=r"unknown policy 'greedy' \(choose from expert \| waypoint"):
         check_policy_spec("greedy")
     with pytest.raises(ParcoverError, match="give a checkpoint"):

@@ -1,4 +1,4 @@
-"""Scenario-file mutations for config fuzzing (shared by the CI fuzz test and benchmarks/fuzz_report.py).
+"""Scenario-file mutations for config fuzzing (shared by the CI fuzz test and docs/lab/scripts/fuzz_report.py).
 
 A mutation is a plain tuple ``(kind, selector, value)``; ``apply_mutations`` applies a list of them to
 the mapping parsed from a shipped scenario YAML and returns the text to write (a mutation may also

@@ -1,6 +1,6 @@
 """Config fuzzing: mutated scenario files either load (scenario + env + reset + steps) or raise the
 package's ConfigError naming the file and the key; nothing else. CI runs a few hundred hypothesis
-cases; ``benchmarks/fuzz_report.py --cases 1000`` is the long run."""
+cases; ``docs/lab/scripts/fuzz_report.py --cases 1000`` is the long run."""
 
 from __future__ import annotations
 

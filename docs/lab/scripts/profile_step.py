@@ -4,9 +4,9 @@ The breakdown wraps the parts of one step (physics, odometry + Kinect, mission, 
 metrics, observation assembly with the sonar and the follower camera) with wall-clock timers; the
 profile is cProfile (or pyinstrument with ``--pyinstrument``) over the same random-action run.
 
-    .venv/bin/python benchmarks/profile_step.py --scenario tree --steps 500
-    .venv/bin/python benchmarks/profile_step.py --scenario tree --mode frames --steps 100
-    .venv/bin/python benchmarks/profile_step.py --scenario tree --mode sonar72 --pyinstrument
+    .venv/bin/python docs/lab/scripts/profile_step.py --scenario tree --steps 500
+    .venv/bin/python docs/lab/scripts/profile_step.py --scenario tree --mode frames --steps 100
+    .venv/bin/python docs/lab/scripts/profile_step.py --scenario tree --mode sonar72 --pyinstrument
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "benchmarks"))
 from runners import Timers, merge  # noqa: E402
 from throughput import MODES, SCENARIOS, open_box  # noqa: E402
 

@@ -4,7 +4,7 @@ Every file must either load (``load_scenario`` + env constructor + reset + steps
 package's ``ConfigError`` naming the file and a key. Prints outcome counts, the most frequent error
 keys, and every failure (with its mutations) — the acceptance figure is ``FAIL = 0``.
 
-    .venv/bin/python benchmarks/fuzz_report.py --cases 1000
+    .venv/bin/python docs/lab/scripts/fuzz_report.py --cases 1000
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "reliability"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "tests" / "reliability"))
 
 from config_mutations import apply_mutations, base_mapping, cases_strategy, check_file  # noqa: E402
 from hypothesis import HealthCheck, Phase, given, seed, settings  # noqa: E402

@@ -5,7 +5,7 @@ Random actions (seeded) on one scenario; an episode that ends is reset without a
 sampled every ``--every`` steps after a warm-up; the last line compares the end with the post-warm-up
 level and prints the slope of a least-squares fit.
 
-    .venv/bin/python benchmarks/soak.py --steps 1000000 --scenario office
+    .venv/bin/python docs/lab/scripts/soak.py --steps 1000000 --scenario office
 """
 
 from __future__ import annotations

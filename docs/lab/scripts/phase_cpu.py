@@ -6,9 +6,9 @@ and compare the minimum over chunks (the least disturbed) phase by phase, or let
 with ``--against``: one child process per checkout, their chunks taken in turn (A, B, A, B, ...), so
 that both see the same minutes of a machine whose speed drifts.
 
-    PYTHONPATH=. python benchmarks/phase_cpu.py --ks 1,64 --model fast
-    PYTHONPATH=/path/to/other python benchmarks/phase_cpu.py --ks 1,64 --model fast
-    python benchmarks/phase_cpu.py --ks 64 --model fast --against /path/to/other   # this checkout vs other
+    PYTHONPATH=. python docs/lab/scripts/phase_cpu.py --ks 1,64 --model fast
+    PYTHONPATH=/path/to/other python docs/lab/scripts/phase_cpu.py --ks 1,64 --model fast
+    python docs/lab/scripts/phase_cpu.py --ks 64 --model fast --against /path/to/other   # this checkout vs other
 """
 
 from __future__ import annotations
@@ -92,7 +92,7 @@ def against(other: str, k: int, model: str, steps: int, count: int) -> dict[str,
     import json
     import subprocess
 
-    here = str(Path(__file__).resolve().parents[1])
+    here = str(Path(__file__).resolve().parents[3])
     kids = {}
     for path in (here, other):
         env = dict(os.environ, PYTHONPATH=path)

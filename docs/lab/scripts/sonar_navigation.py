@@ -5,7 +5,7 @@ makespan, scans / fixes accepted / rejected, the navigator's belief error agains
 (read here from ``env.world`` for reporting only; the navigator never sees it) right after each
 accepted fix and at the episode end, and the wall time.
 
-    .venv/bin/python benchmarks/sonar_navigation.py --seeds 10 [--maps hallway t_room] [--max-axis 0.35]
+    .venv/bin/python docs/lab/scripts/sonar_navigation.py --seeds 10 [--maps hallway t_room] [--max-axis 0.35]
 """
 
 from __future__ import annotations

@@ -8,7 +8,8 @@ weights, so one episode serves every weighting). The spread of a term's return t
 to the spread of the returns the critic fits and the advantages are standardized by; also the
 fraction of agent-steps in contact and of those whose own route is done.
 
-    PYTHONPATH=. python benchmarks/reward_signal.py torchrl:baselines/checkpoints/ippo_generated_scaled/policy.pt \
+    PYTHONPATH=. python docs/lab/scripts/reward_signal.py \
+        torchrl:baselines/checkpoints/ippo_generated_scaled/policy.pt \
         --maps 17,42 --seed 7 --weights progress=5,contact=-0.1
 
 Training maps only (seeds < 1000).

@@ -2,7 +2,7 @@
 :mod:`parcover_env.geometry.records` (why constants travel as structured arrays and bundles of
 arrays as NamedTuples only where needed).
 
-    PYTHONPATH=. python benchmarks/kernel_records.py
+    PYTHONPATH=. python docs/lab/scripts/kernel_records.py
 
 Prints the wall time per call (minimum over chunks) of a kernel that does nothing with its argument:
 numba types every argument at every call, so the difference to a float argument is the price of

@@ -2,8 +2,8 @@
 
 Median of ``--repeats`` chunks of ``--steps`` steps with seeded random actions, resets excluded.
 
-    .venv/bin/python benchmarks/obs_v2_cost.py                # office, tree, generated:7; batched tree K = 16
-    .venv/bin/python benchmarks/obs_v2_cost.py --steps 100 --repeats 3
+    .venv/bin/python docs/lab/scripts/obs_v2_cost.py                # office, tree, generated:7; batched tree K = 16
+    .venv/bin/python docs/lab/scripts/obs_v2_cost.py --steps 100 --repeats 3
 """
 
 from __future__ import annotations

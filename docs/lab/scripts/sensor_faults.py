@@ -3,7 +3,7 @@
 Prints, per scenario and fault level, the expert's success rate, KPOIs visited, RMS localization
 error (m), makespan (s) and wall time over a few seeds.
 
-    .venv/bin/python benchmarks/sensor_faults.py --seeds 3
+    .venv/bin/python docs/lab/scripts/sensor_faults.py --seeds 3
 """
 
 from __future__ import annotations

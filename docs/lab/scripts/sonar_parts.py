@@ -9,7 +9,7 @@ casting's overhead (:func:`simulate_beams`), the near-wall lists
 (:func:`near_segments`, what a grid of wall indices would replace) and the ``fast`` ring. Also
 prints how many walls lie within ``range_max`` of a robot (the walls a sub-ray tests).
 
-    .venv/bin/python benchmarks/sonar_parts.py [--k 64] [--calls 100] [--repeats 5]
+    .venv/bin/python docs/lab/scripts/sonar_parts.py [--k 64] [--calls 100] [--repeats 5]
 """
 
 from __future__ import annotations

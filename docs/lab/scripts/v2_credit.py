@@ -5,8 +5,8 @@ comes from its own visits (v1's team reward: 1 / n_kpois of it at best), whether
 ``own_kpoi`` sum equals 10 x its own KPOIs (each owner visited its own KPOIs), and the fraction of
 agent-steps whose ``route_done`` is 1 (what death masking removes from the losses).
 
-    .venv/bin/python benchmarks/v2_credit.py
-    .venv/bin/python benchmarks/v2_credit.py --scenarios office,tree --seeds 1000,1001
+    .venv/bin/python docs/lab/scripts/v2_credit.py
+    .venv/bin/python docs/lab/scripts/v2_credit.py --scenarios office,tree --seeds 1000,1001
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """Behaviour cloning from expert demonstrations (parameter sharing: one MLP for every robot).
 
-    python baselines/train_bc.py --scenario office --episodes 40 --epochs 30 --out runs/bc_office
-    python baselines/train_bc.py --dataset-id parcover/office-expert-v0 --dataset-root runs/datasets
-    python baselines/train_bc.py --dataset-id 'parcover/generated-*-expert-v0' --out runs/bc_generated
+    python docs/lab/scripts/train_bc.py --scenario office --episodes 40 --epochs 30 --out runs/bc_office
+    python docs/lab/scripts/train_bc.py --dataset-id parcover/office-expert-v0 --dataset-root runs/datasets
+    python docs/lab/scripts/train_bc.py --dataset-id 'parcover/generated-*-expert-v0' --out runs/bc_generated
 
 Demonstrations come from a Minari dataset written by ``parcover collect`` (``--dataset-id``) or,
 without one, are recorded on the fly from the scripted expert. The network regresses the expert's

@@ -6,7 +6,7 @@ minibatch of ``--batch`` env steps; each critic of the sizes in ``configs/train/
 ``docs/lab/train_configs/mappo_attention.yaml`` runs forward + backward ``--repeats`` times on one torch
 thread; prints the median ms per minibatch and the parameter counts.
 
-    PYTHONPATH=. nice -n 10 .venv/bin/python benchmarks/critic_cost.py --scenario tree --batch 256
+    PYTHONPATH=. nice -n 10 .venv/bin/python docs/lab/scripts/critic_cost.py --scenario tree --batch 256
 """
 
 from __future__ import annotations

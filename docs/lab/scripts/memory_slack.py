@@ -1,7 +1,7 @@
 """RSS of the batched backend (``office``, K = 16) over a run, then after ``malloc_trim(0)``: tells
 allocator slack (returned by the trim) from live objects (counted: worlds, pymunk bodies).
 
-    PYTHONPATH=. python benchmarks/memory_slack.py --steps 6000     # 96 000 world-steps
+    PYTHONPATH=. python docs/lab/scripts/memory_slack.py --steps 6000     # 96 000 world-steps
 """
 
 from __future__ import annotations

@@ -2,9 +2,9 @@
 a loaded, shared machine disturbs less than wall-clock rates. Run it on two checkouts, one after
 the other, and compare:
 
-    PYTHONPATH=. python benchmarks/step_cpu.py            # this checkout
-    PYTHONPATH=/path/to/other python benchmarks/step_cpu.py
-    PYTHONPATH=. python benchmarks/step_cpu.py --frames   # Kinect frames mode
+    PYTHONPATH=. python docs/lab/scripts/step_cpu.py            # this checkout
+    PYTHONPATH=/path/to/other python docs/lab/scripts/step_cpu.py
+    PYTHONPATH=. python docs/lab/scripts/step_cpu.py --frames   # Kinect frames mode
 
 Prints the minimum over chunks (the least disturbed) of the process CPU time per call.
 """

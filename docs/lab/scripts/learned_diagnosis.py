@@ -8,9 +8,10 @@ the goal entries (standard deviation of the scaled input over the episode) and h
 command moves per metre of ``goal_dy`` (mean |d tanh(w) / d goal_dy|), against the ``waypoint``
 controller's ``k_w / lookahead``.
 
-    PYTHONPATH=. python benchmarks/learned_diagnosis.py torchrl:baselines/checkpoints/ippo_generated_scratch/policy.pt \
+    PYTHONPATH=. python docs/lab/scripts/learned_diagnosis.py \
+        torchrl:baselines/checkpoints/ippo_generated_scratch/policy.pt \
         --maps 3,17,42 --seed 7
-    PYTHONPATH=. python benchmarks/learned_diagnosis.py waypoint --maps 3,17,42 --seed 7 \
+    PYTHONPATH=. python docs/lab/scripts/learned_diagnosis.py waypoint --maps 3,17,42 --seed 7 \
         --overrides-from baselines/checkpoints/ippo_generated_scratch/run.json
 
 Training maps only (seeds < 1000): this is for finding what goes wrong, not for scoring.
