@@ -24,7 +24,7 @@ FLOORS = {
     "viz": 6, "mission": 6,
     "envs": 7, "sim": 7,  # sim still reads envs' estimator and observation spec (issue 41: sim below envs)
     "expert": 8, "policies": 8,
-    "harness": 9,
+    "harness": 9, "train": 9,  # train: the training stack on the batched worlds (issue 41), beside harness
     "cli": 10,
 }
 VIZ_CLIENTS = {"envs", "harness", "cli"}
