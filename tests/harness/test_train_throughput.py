@@ -89,11 +89,15 @@ def test_medians_per_column(bench):
 def test_one_table_with_every_row_and_the_target(bench, capsys):
     assert bench.main(["--frames", "32", "--repeats", "1"]) == 0
     out = capsys.readouterr().out
-    rows = {}
+    rows, idle = {}, {}
     for line in out.splitlines():
-        if m := re.match(r"^(pool scan|pool no scan|vmas navigation) +(\d+) +(\d+) +(\d+) ", line):
+        if m := re.match(r"^(pool (?:no )?scan(?: grouped| serial)?|vmas navigation) +(\d+) +(\d+) +(\d+) +"
+                         r"(?:[\d.]+x|n/a) +(\d+%|-) ", line):
             rows[m[1]] = [float(x) for x in m.group(2, 3, 4)]
-    assert {"pool scan", "pool no scan"} <= set(rows) and all(min(v) > 0 for v in rows.values())
+            idle[m[1]] = m[5]
+    pool = {f"pool {s}{k}" for s in ("scan", "no scan") for k in ("", " grouped", " serial")}
+    assert pool <= set(rows) and all(min(v) > 0 for v in rows.values())
+    assert all(re.fullmatch(r"\d+%", idle[r]) for r in pool) and idle.get("vmas navigation", "-") == "-"
     for collect, update, loop in rows.values():  # the loop's time is the sum of the two (one batch: no median)
         assert 1 / loop == pytest.approx(1 / collect + 1 / update, rel=0.03)  # printed rounded
     assert re.search(r"^pool scan .*(NOT met|met) \(\d+%\); VMAS: ", out, re.M)
