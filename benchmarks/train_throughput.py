@@ -21,8 +21,11 @@ One run, one table, every row with the same worlds, hidden sizes, frames per bat
 Each row trains ``--repeats + 1`` batches; the first is warm-up (``parcover train`` only fits its input scale
 on it) and each column is the median over the others. collect: the collector's batch; update: GAE, buffer and
 ``epochs x frames / minibatch`` Adam steps; loop: agent-steps / (collect + update seconds). Agent-steps exclude
-a map pool's padding robots and idle worlds (idle: the share of world-steps a world idled, grouped rows). One torch thread (as ``parcover train`` sets). The collection split of the scan
+a map pool's padding robots and idle worlds (idle: the share of the timed world-steps a world idled, waiting
+for its group's next map). One torch thread (as ``parcover train`` sets). The collection split of the scan
 row's warm-up batch is sampled by pyinstrument (the ``bench`` extra), printed when it is importable.
+Rows with scans draw other maps and scans per collector, so their localizer cost differs by more than the
+collectors do; compare collectors on the no-scan rows.
 
     PYTHONPATH=. nice -n 10 .venv/bin/python benchmarks/train_throughput.py
 """

@@ -234,3 +234,17 @@ def test_a_bad_config_is_one_config_error(field, value, match):
         WorldGroups(cfg, seed=-1)
     with pytest.raises(ConfigError, match="evaluation maps"):
         WorldGroups(WorldsConfig("generated:998-1001"))
+
+
+@pytest.mark.parametrize("mask_done", [False, True])
+def test_mask_done_makes_a_robot_whose_route_is_done_not_real(mask_done):
+    cfg = WorldsConfig("office", worlds=2, preset="ideal", overrides=V2, mask_done=mask_done)
+    groups = WorldGroups(cfg, seed=3)
+    t = groups.reset()
+    assert t.real.tolist() == [[True, True], [True, True]]
+    inner = groups.worlds[1]
+    for k in inner.plan.robots[0].kpois:  # world 1's robot 0 on each of its own KPOIs in turn: its route is done
+        inner.world.bodies[0].position = tuple(inner.scenario.kpois[k])
+        t = groups.step(np.zeros((2, 2, 2), dtype=np.float32))
+    assert t.real.tolist() == [[True, True], [not mask_done, True]]
+    assert (t.info["pad"] == 0).all()
