@@ -24,8 +24,8 @@ on it) and each column is the median over the others. collect: the collector's b
 a map pool's padding robots and idle worlds (idle: the share of the timed world-steps a world idled, waiting
 for its group's next map). One torch thread (as ``parcover train`` sets). The collection split of the scan
 row's warm-up batch is sampled by pyinstrument (the ``bench`` extra), printed when it is importable.
-Rows with scans draw other maps and scans per collector, so their localizer cost differs by more than the
-collectors do; compare collectors on the no-scan rows.
+The collectors seed their worlds differently, so each row runs other maps; with scans the localizer's cost
+depends on the map and on how often the fresh actor scans: compare collectors on the no-scan rows.
 
     PYTHONPATH=. nice -n 10 .venv/bin/python benchmarks/train_throughput.py
 """
