@@ -22,7 +22,8 @@ Each row trains ``--repeats + 1`` batches; the first is warm-up (``parcover trai
 on it) and each column is the median over the others. collect: the collector's batch; update: GAE, buffer and
 ``epochs x frames / minibatch`` Adam steps; loop: agent-steps / (collect + update seconds). Agent-steps exclude
 a map pool's padding robots and idle worlds (idle: the share of the timed world-steps a world idled, waiting
-for its group's next map). One torch thread (as ``parcover train`` sets). The collection split of the scan
+for its group's next map); worlds/s: world-steps (frames) collected per second, which the maps' team sizes do
+not change. One torch thread (as ``parcover train`` sets). The collection split of the scan
 row's warm-up batch is sampled by pyinstrument (the ``bench`` extra), printed when it is importable.
 The collectors seed their worlds differently, so each row runs other maps; with scans the localizer's cost
 depends on the map and on how often the fresh actor scans: compare collectors on the no-scan rows.
@@ -99,7 +100,7 @@ def parcover_row(scenario: str, cfg, config_path: str, repeats: int, profile: bo
         scans = float(((action[..., 2] > 0) * real).sum() / real.sum()) if action.shape[-1] == 3 else 0.0
         idle = float((real.amax(-1) == 0).float().mean())  # world-steps without a real robot
         rows.append({"steps": float(real.sum()), "collect_s": collect_s, "update_s": update_s, "scans": scans,
-                     "idle": idle})
+                     "idle": idle, "frames": float(batch.numel())})
         return len(rows) > repeats
 
     steps = (repeats + 1) * cfg.frames_per_batch * cfg.max_robots  # an upper bound: on_batch stops the run
@@ -174,7 +175,7 @@ def vmas_row(cfg, worlds: int, agents: int, repeats: int, max_steps: int = 100) 
             torch.nn.utils.clip_grad_norm_(loss.parameters(), cfg.max_grad_norm)
             optim.step()
         collector.update_policy_weights_()
-        rows.append({"steps": float(batch.numel() * agents), "collect_s": collect_s,
+        rows.append({"steps": float(batch.numel() * agents), "frames": float(batch.numel()), "collect_s": collect_s,
                      "update_s": time.perf_counter() - start})
         tick = time.perf_counter()
     collector.shutdown()
@@ -182,9 +183,11 @@ def vmas_row(cfg, worlds: int, agents: int, repeats: int, max_steps: int = 100) 
 
 
 def medians(batches: list[dict]) -> dict[str, float]:
-    """Median agent-steps/s of collection, update and the loop (collect + update) over ``batches``."""
+    """Median agent-steps/s of collection, update and the loop (collect + update) over ``batches``, and the
+    median world-steps/s of collection (``worlds``: frames / collect seconds, whatever the team sizes)."""
     med = statistics.median
-    return {"collect": med(b["steps"] / b["collect_s"] for b in batches),
+    return {"worlds": med(b["frames"] / b["collect_s"] for b in batches),
+            "collect": med(b["steps"] / b["collect_s"] for b in batches),
             "update": med(b["steps"] / b["update_s"] for b in batches),
             "loop": med(b["steps"] / (b["collect_s"] + b["update_s"]) for b in batches)}
 
@@ -237,7 +240,8 @@ def main(argv: list[str] | None = None) -> int:
           f"minibatch {base.minibatch_size}; medians of {a.repeats} batches after 1 warm-up; 1 torch thread; "
           f"load average {load:.1f} on {os.cpu_count()} cores (shared machine: figures are lower bounds)")
     vmas_loop = medians(results["vmas navigation"]["batches"])["loop"] if "vmas navigation" in results else None
-    head = (f"{'row':<20} {'collect/s':>10} {'update/s':>10} {'loop/s':>10} {'vs VMAS':>8} {'idle':>5}  "
+    head = (f"{'row':<20} {'collect/s':>10} {'update/s':>10} {'loop/s':>10} {'vs VMAS':>8} {'idle':>5} "
+            f"{'worlds/s':>9}  "
             f"target (loop >= {TARGET:.0f}/s; >= 1x VMAS)")
     print(head + "\n" + "-" * len(head))
     for name, res in results.items():
@@ -248,7 +252,8 @@ def main(argv: list[str] | None = None) -> int:
         if name.startswith("pool scan"):
             ok_vmas = "n/a" if vmas_loop is None else ("met" if m["loop"] >= vmas_loop else "NOT met")
             target = f"{'met' if m['loop'] >= TARGET else 'NOT met'} ({m['loop'] / TARGET:.0%}); VMAS: {ok_vmas}"
-        print(f"{name:<20} {m['collect']:>10.0f} {m['update']:>10.0f} {m['loop']:>10.0f} {ratio:>8} {idle:>5}  "
+        print(f"{name:<20} {m['collect']:>10.0f} {m['update']:>10.0f} {m['loop']:>10.0f} {ratio:>8} {idle:>5} "
+              f"{m['worlds']:>9.0f}  "
               f"{target}")
     for note in notes:
         print(note)
