@@ -6,8 +6,14 @@ One run, one table, every row with the same worlds, hidden sizes, frames per bat
 
 * ``pool scan``: ``parcover train``'s own loop (:func:`~parcover_env.harness.marl.train`, timed through its
   ``on_batch`` hook) with ``--config`` (MAPPO, realistic preset, scan service on, attention critic) and the
-  ``bernoulli`` scan head, on ``generated:0-499``;
-* ``pool no scan``: the same with ``observation.scan.enabled: false``;
+  ``bernoulli`` scan head, on ``generated:0-499``, collecting from the batched env (``collector_env:
+  batched``, :class:`~parcover_env.train.batched_env.BatchedRobotsEnv`) with every world on its own maps
+  (``worlds_per_map: 1``, one stepper call per world);
+* ``pool scan grouped``: the same with all worlds on one drawn map at a time (``worlds_per_map`` = worlds:
+  one stepper call for all; a world whose episode ends early idles until its group's last ends);
+* ``pool scan serial``: the same through TorchRL's ``SerialEnv`` of one PettingZoo env per world
+  (``collector_env: serial``, how ``parcover train`` collected before);
+* ``pool no scan`` (``grouped``, ``serial``): the three with ``observation.scan.enabled: false``;
 * ``vmas navigation``: TorchRL's MAPPO recipe, written here: ``VmasEnv`` (``worlds`` vectorized envs,
   ``--vmas-agents`` agents), ``MultiAgentMLP`` actor (TanhNormal) and centralised critic, ``ClipPPOLoss``
   with GAE, Adam, the same clip, coefficients, learning rate and gradient-norm clip.
@@ -15,8 +21,12 @@ One run, one table, every row with the same worlds, hidden sizes, frames per bat
 Each row trains ``--repeats + 1`` batches; the first is warm-up (``parcover train`` only fits its input scale
 on it) and each column is the median over the others. collect: the collector's batch; update: GAE, buffer and
 ``epochs x frames / minibatch`` Adam steps; loop: agent-steps / (collect + update seconds). Agent-steps exclude
-a map pool's padding robots. One torch thread (as ``parcover train`` sets). The collection split of the scan
+a map pool's padding robots and idle worlds (idle: the share of the timed world-steps a world idled, waiting
+for its group's next map); worlds/s: world-steps (frames) collected per second, which the maps' team sizes do
+not change. One torch thread (as ``parcover train`` sets). The collection split of the scan
 row's warm-up batch is sampled by pyinstrument (the ``bench`` extra), printed when it is importable.
+The collectors seed their worlds differently, so each row runs other maps; with scans the localizer's cost
+depends on the map and on how often the fresh actor scans: compare collectors on the no-scan rows.
 
     PYTHONPATH=. nice -n 10 .venv/bin/python benchmarks/train_throughput.py
 """
@@ -38,13 +48,22 @@ TARGET = 10_000.0
 """Issue 40: whole-loop agent-steps/s on the generated pool with scans."""
 SPLIT = (("localizer", "parcover_env/localization/"),
          ("policy", "torch/nn/modules/", "torch/distributions/", "marl_scan_head", "torchrl_policy"),
-         ("adapter", "parcover_env/harness/marl_env", "parcover_env/harness/map_pool"),
+         ("adapter", "parcover_env/harness/marl_env", "parcover_env/harness/map_pool", "parcover_env/train/"),
          ("env", "parcover_env/"), ("TorchRL", "torchrl/", "tensordict/"))
 """Collection split: a sample with a frame of the sonar localizer is the localizer's (with the ray casts and
 kernels it calls); any other goes to the group of its innermost frame whose path holds a marker (groups tried
 in this order per frame): the actor's forward pass and sampling, the array->tensor adapter
-(:class:`~parcover_env.harness.marl_env.RobotsEnv`, the map pool's padding), the rest of the env, and TorchRL
+(:mod:`parcover_env.train`'s batched env, or :class:`~parcover_env.harness.marl_env.RobotsEnv` and the map
+pool's padding), the rest of the env, and TorchRL
 (collector, ``SerialEnv``, tensordicts); numba kernels count for the Python function that calls them."""
+
+
+ROWS = {"scan": ("pool scan", True, "batched", False), "scan-grouped": ("pool scan grouped", True, "batched", True),
+        "scan-serial": ("pool scan serial", True, "serial", False),
+        "noscan": ("pool no scan", False, "batched", False),
+        "noscan-grouped": ("pool no scan grouped", False, "batched", True),
+        "noscan-serial": ("pool no scan serial", False, "serial", False)}
+"""``--rows`` name: (printed name, scan service on, ``collector_env``, all worlds on one map at a time)."""
 
 
 def collection_split(frame_records) -> dict[str, float]:
@@ -79,7 +98,9 @@ def parcover_row(scenario: str, cfg, config_path: str, repeats: int, profile: bo
         action = batch.get((GROUP, "action"))  # [..., robots, components]
         real = 1.0 - batch.get((GROUP, "info", "pad")).reshape(action.shape[:-1])  # the map's robots
         scans = float(((action[..., 2] > 0) * real).sum() / real.sum()) if action.shape[-1] == 3 else 0.0
-        rows.append({"steps": float(real.sum()), "collect_s": collect_s, "update_s": update_s, "scans": scans})
+        idle = float((real.amax(-1) == 0).float().mean())  # world-steps without a real robot
+        rows.append({"steps": float(real.sum()), "collect_s": collect_s, "update_s": update_s, "scans": scans,
+                     "idle": idle, "frames": float(batch.numel())})
         return len(rows) > repeats
 
     steps = (repeats + 1) * cfg.frames_per_batch * cfg.max_robots  # an upper bound: on_batch stops the run
@@ -89,7 +110,8 @@ def parcover_row(scenario: str, cfg, config_path: str, repeats: int, profile: bo
             profiler.start()
         train(req, on_batch=on_batch)
     split = collection_split(profiler.last_session.frame_records) if profiler is not None else {}
-    return {"batches": rows[1:], "split": split, "scans": statistics.median(r["scans"] for r in rows)}
+    return {"batches": rows[1:], "split": split, "scans": statistics.median(r["scans"] for r in rows),
+            "idle": statistics.mean(r["idle"] for r in rows[1:])}
 
 
 def vmas_row(cfg, worlds: int, agents: int, repeats: int, max_steps: int = 100) -> dict:
@@ -153,7 +175,7 @@ def vmas_row(cfg, worlds: int, agents: int, repeats: int, max_steps: int = 100) 
             torch.nn.utils.clip_grad_norm_(loss.parameters(), cfg.max_grad_norm)
             optim.step()
         collector.update_policy_weights_()
-        rows.append({"steps": float(batch.numel() * agents), "collect_s": collect_s,
+        rows.append({"steps": float(batch.numel() * agents), "frames": float(batch.numel()), "collect_s": collect_s,
                      "update_s": time.perf_counter() - start})
         tick = time.perf_counter()
     collector.shutdown()
@@ -161,9 +183,11 @@ def vmas_row(cfg, worlds: int, agents: int, repeats: int, max_steps: int = 100) 
 
 
 def medians(batches: list[dict]) -> dict[str, float]:
-    """Median agent-steps/s of collection, update and the loop (collect + update) over ``batches``."""
+    """Median agent-steps/s of collection, update and the loop (collect + update) over ``batches``, and the
+    median world-steps/s of collection (``worlds``: frames / collect seconds, whatever the team sizes)."""
     med = statistics.median
-    return {"collect": med(b["steps"] / b["collect_s"] for b in batches),
+    return {"worlds": med(b["frames"] / b["collect_s"] for b in batches),
+            "collect": med(b["steps"] / b["collect_s"] for b in batches),
             "update": med(b["steps"] / b["update_s"] for b in batches),
             "loop": med(b["steps"] / (b["collect_s"] + b["update_s"]) for b in batches)}
 
@@ -180,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="frames (env steps, all worlds) per batch, every row (the config's: 4096, ~4x longer)")
     p.add_argument("--repeats", type=int, default=3, help="timed batches per row, after one warm-up batch")
     p.add_argument("--vmas-agents", type=int, default=None, help="VMAS agents (default: the config's max_robots)")
-    p.add_argument("--rows", nargs="+", default=["scan", "noscan", "vmas"], choices=["scan", "noscan", "vmas"])
+    p.add_argument("--rows", nargs="+", default=list(ROWS) + ["vmas"], choices=list(ROWS) + ["vmas"])
     p.add_argument("--no-profile", dest="profile", action="store_false", help="skip the collection split")
     a = p.parse_args(argv)
     base = load_marl_config("mappo", a.config)
@@ -206,26 +230,31 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             results["vmas navigation"] = vmas_row(base, base.worlds, agents, a.repeats)
         else:
-            cfg = base if row == "scan" else dataclasses.replace(base, env=noscan_env)
-            results[f"pool {'scan' if row == 'scan' else 'no scan'}"] = parcover_row(
-                a.scenario, cfg, a.config, a.repeats, profile and row == "scan")
+            name, scan, collector, grouped = ROWS[row]
+            cfg = dataclasses.replace(base, env=base.env if scan else noscan_env, collector_env=collector,
+                                      worlds_per_map=base.worlds if grouped else 1)
+            results[name] = parcover_row(a.scenario, cfg, a.config, a.repeats, profile and row == "scan")
     load = os.getloadavg()[0]
     print(f"{a.scenario} ({a.config}, realistic, MAPPO, bernoulli scan head) vs VMAS navigation ({agents} agents): "
           f"{base.worlds} worlds, hidden {list(base.hidden)}, {a.frames} frames/batch, {base.epochs} epochs x "
           f"minibatch {base.minibatch_size}; medians of {a.repeats} batches after 1 warm-up; 1 torch thread; "
           f"load average {load:.1f} on {os.cpu_count()} cores (shared machine: figures are lower bounds)")
     vmas_loop = medians(results["vmas navigation"]["batches"])["loop"] if "vmas navigation" in results else None
-    head = (f"{'row':<16} {'collect/s':>10} {'update/s':>10} {'loop/s':>10} {'vs VMAS':>8}  "
+    head = (f"{'row':<20} {'collect/s':>10} {'update/s':>10} {'loop/s':>10} {'vs VMAS':>8} {'idle':>5} "
+            f"{'worlds/s':>9}  "
             f"target (loop >= {TARGET:.0f}/s; >= 1x VMAS)")
     print(head + "\n" + "-" * len(head))
     for name, res in results.items():
         m = medians(res["batches"])
         ratio = f"{m['loop'] / vmas_loop:.2f}x" if vmas_loop else "n/a"
+        idle = f"{res['idle']:.0%}" if "idle" in res else "-"
         target = ""
-        if name == "pool scan":
+        if name.startswith("pool scan"):
             ok_vmas = "n/a" if vmas_loop is None else ("met" if m["loop"] >= vmas_loop else "NOT met")
             target = f"{'met' if m['loop'] >= TARGET else 'NOT met'} ({m['loop'] / TARGET:.0%}); VMAS: {ok_vmas}"
-        print(f"{name:<16} {m['collect']:>10.0f} {m['update']:>10.0f} {m['loop']:>10.0f} {ratio:>8}  {target}")
+        print(f"{name:<20} {m['collect']:>10.0f} {m['update']:>10.0f} {m['loop']:>10.0f} {ratio:>8} {idle:>5} "
+              f"{m['worlds']:>9.0f}  "
+              f"{target}")
     for note in notes:
         print(note)
     if "pool scan" in results:

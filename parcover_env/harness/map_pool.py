@@ -73,7 +73,7 @@ class MapPoolEnv(ParallelEnv):
         """Maps kept built (least recently drawn dropped first)."""
         self.possible_agents = [f"robot_{i}" for i in range(max_robots)]
         self.agents: list[str] = []
-        first = self._map(self.seeds[0])
+        first = self.map_env(self.seeds[0])
         self.scenario = first.scenario
         """The first map's scenario (the robot model and settings shared by every map)."""
         self._obs_space = ObservationLayout.build(first.scenario, POOL_BOX, first.sensors).space()
@@ -86,7 +86,10 @@ class MapPoolEnv(ParallelEnv):
         """The seed of that map (``generated:SEED``)."""
         self._rng = np.random.default_rng()
 
-    def _map(self, seed: int):
+    def map_env(self, seed: int):
+        """The env of map ``generated:SEED`` (built when first asked for, kept among the ``cache`` most
+        recently asked for); ConfigError naming the map if it has more robots than ``max_robots`` or
+        another observation shape than the pool's."""
         from parcover_env import parallel_env
 
         if seed not in self._envs:
@@ -124,7 +127,7 @@ class MapPoolEnv(ParallelEnv):
         if seed is not None:
             self._rng = np.random.default_rng(seed)
         self.map_seed = int(self._rng.choice(self.seeds))
-        self.env = self._map(self.map_seed)
+        self.env = self.map_env(self.map_seed)
         obs, infos = self.env.reset(seed=int(self._rng.integers(2**31)))
         self.agents = list(self.possible_agents)
         return self._pad_obs(obs), self._pad_infos(infos)

@@ -1,7 +1,9 @@
 """``parcover train``: IPPO and MAPPO with parameter sharing, through TorchRL's maintained parts.
 
-What is TorchRL's, not ours: the env runs as is through ``PettingZooWrapper`` (per-robot
-observation, reward, ``terminated`` and ``truncated``; ``env.state()`` under ``"state"``), episode
+What is TorchRL's, not ours: the worlds are one TorchRL env of batch ``[worlds]`` on the batched
+stepper (``collector_env: batched``, :class:`~parcover_env.train.batched_env.BatchedRobotsEnv`; or
+``serial``, ``SerialEnv`` of one :class:`~parcover_env.harness.marl_env.RobotsEnv` per world) with
+per-robot observation, reward, ``terminated`` and ``truncated`` and ``env.state()`` under ``"state"``; episode
 returns come from ``RewardSum``; ``Collector`` (``--backend local``) or ``RayCollector`` on Ray
 core (``--backend ray``: a local Ray, or the cluster at ``--ray-address``; ``ray_collectors``
 remote collectors, each with its own env seed, receive the new weights before every batch) collects;
@@ -74,18 +76,20 @@ class TrainRequest:
 
 
 class EnvMaker:
-    """Picklable ``() -> TorchRL env`` (Ray workers build their own): ``worlds`` copies of the
-    scenario's ParallelEnv, each a :class:`~parcover_env.harness.marl_env.RobotsEnv` (with the global
-    state when ``state``), side by side in TorchRL's ``SerialEnv`` when ``worlds > 1`` (batch
-    ``[worlds]``: the policy runs once for all), plus ``RewardSum`` of each robot's reward. With a
-    ``seed``, world 0's generator is seeded ``seed`` and world ``k``'s by ``SeedSequence([seed, k])``
-    before the first reset (every later reset continues that stream: a ParallelEnv reset without a
-    seed keeps its generator), and torch's generator of the process that builds the env, which samples
-    the collector's actions (in a Ray worker too), is seeded ``seed``."""
+    """Picklable ``() -> TorchRL env`` (Ray workers build their own), plus ``RewardSum`` of each robot's
+    reward. ``collector_env="batched"``: the ``worlds`` worlds as one
+    :class:`~parcover_env.train.batched_env.BatchedRobotsEnv` (batch ``[worlds]``; its groups' generators
+    seeded from ``seed``). ``"serial"``: ``worlds`` copies of the scenario's ParallelEnv, each a
+    :class:`~parcover_env.harness.marl_env.RobotsEnv` (with the global state when ``state``), side by
+    side in TorchRL's ``SerialEnv`` when ``worlds > 1`` (batch ``[worlds]``: the policy runs once for
+    all); with a ``seed``, world 0's generator is seeded ``seed`` and world ``k``'s by
+    ``SeedSequence([seed, k])`` before the first reset (every later reset continues that stream: a
+    ParallelEnv reset without a seed keeps its generator). Either way torch's generator of the process
+    that builds the env, which samples the collector's actions (in a Ray worker too), is seeded ``seed``."""
 
     def __init__(self, scenario: str, preset: str, episode_steps: int, seed: int | None = None,
                  overrides: dict | None = None, max_robots: int = 12, worlds: int = 1, state: bool = True,
-                 mask_done: bool = False):
+                 mask_done: bool = False, collector_env: str = "serial", worlds_per_map: int = 1):
         self.scenario, self.preset, self.episode_steps, self.seed = scenario, preset, episode_steps, seed
         self.overrides = overrides or None
         """Scenario overrides of the env (``MarlConfig.env``)."""
@@ -97,6 +101,11 @@ class EnvMaker:
         """Whether the env carries ``"state"`` (``env.state()``, MAPPO's critic input)."""
         self.mask_done = mask_done
         """Robots whose route is done are not ``("robot", "real")`` (``MarlConfig.mask_done``)."""
+        self.collector_env = collector_env
+        """``serial`` (``SerialEnv`` of :class:`~parcover_env.harness.marl_env.RobotsEnv`) or ``batched``
+        (:class:`~parcover_env.train.batched_env.BatchedRobotsEnv`), ``MarlConfig.collector_env``."""
+        self.worlds_per_map = worlds_per_map
+        """Worlds of a map pool that run one drawn map together (``batched``; ``MarlConfig.worlds_per_map``)."""
 
     def parallel(self):
         """The scenario's PettingZoo ParallelEnv (a map pool's padded env for ``generated:A-B``),
@@ -126,11 +135,31 @@ class EnvMaker:
             env.reset(seed=self.world_seed(k))
         return RobotsEnv(env, with_state=self.state, max_steps=self.episode_steps, mask_done=self.mask_done)
 
+    def batched(self):
+        """The ``worlds`` worlds as one :class:`~parcover_env.train.batched_env.BatchedRobotsEnv` of batch
+        ``[worlds]`` (``collector_env: batched``), its groups seeded from ``seed``."""
+        from parcover_env.train.batched_env import BatchedRobotsEnv
+        from parcover_env.train.world_groups import WorldsConfig
+
+        cfg = WorldsConfig(self.scenario, worlds=self.worlds, worlds_per_map=self.worlds_per_map,
+                           max_robots=self.max_robots, overrides=self.overrides, preset=self.preset,
+                           episode_steps=self.episode_steps, mask_done=self.mask_done, state=self.state)
+        return BatchedRobotsEnv(cfg, seed=self.seed)
+
+    def args(self) -> dict:
+        """The keyword arguments that rebuild this maker (but ``seed``)."""
+        return {"scenario": self.scenario, "preset": self.preset, "episode_steps": self.episode_steps,
+                "overrides": self.overrides, "max_robots": self.max_robots, "worlds": self.worlds,
+                "state": self.state, "mask_done": self.mask_done, "collector_env": self.collector_env,
+                "worlds_per_map": self.worlds_per_map}
+
     def __call__(self):
         import torch
         from torchrl.envs import RewardSum, SerialEnv, TransformedEnv
 
-        if self.worlds > 1:
+        if self.collector_env == "batched":
+            env = self.batched()
+        elif self.worlds > 1:
             env = SerialEnv(self.worlds, [functools.partial(self.world, k) for k in range(self.worlds)])
         else:
             env = self.world(0)
@@ -241,9 +270,7 @@ def _collector(req: TrainRequest, make_env: EnvMaker, actor, total_frames: int):
         from torchrl.collectors.distributed import RayCollector
 
         k = cfg.ray_collectors
-        makers = [EnvMaker(make_env.scenario, make_env.preset, make_env.episode_steps, seed=req.seed + i,
-                           overrides=make_env.overrides, max_robots=make_env.max_robots, worlds=make_env.worlds,
-                           state=make_env.state, mask_done=make_env.mask_done) for i in range(k)]
+        makers = [EnvMaker(seed=req.seed + i, **make_env.args()) for i in range(k)]  # the same env in every worker
         init = {"address": req.ray_address} if req.ray_address else {"num_cpus": k, "include_dashboard": False}
         init["log_to_driver"] = False  # the workers' warnings would print the collector's repr
         collector = RayCollector(makers, actor, frames_per_batch=cfg.frames_per_batch, total_frames=total_frames,
@@ -333,7 +360,7 @@ def train(req: TrainRequest, on_batch: Callable[[object, float, float], object] 
     source = find_init(req.init) if req.init else None  # a bad path fails before the env is built
     make_env = EnvMaker(req.scenario, cfg.preset, cfg.episode_steps, seed=req.seed, overrides=cfg.env,
                         max_robots=cfg.max_robots, worlds=cfg.worlds, state=req.algo == "mappo",
-                        mask_done=cfg.mask_done)
+                        mask_done=cfg.mask_done, collector_env=cfg.collector_env, worlds_per_map=cfg.worlds_per_map)
     base = make_env.parallel()  # spaces, robot and KPOI counts
     cfg.check_critic(req.algo, base.scenario.observation.version, req.config_path)
     n_robots = base.n_robots

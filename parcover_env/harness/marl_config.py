@@ -113,9 +113,21 @@ class MarlConfig:
     """Agents of a map pool (``generated:A-B``): each map's robots, padded to this count
     (:class:`~parcover_env.harness.map_pool.MapPoolEnv`)."""
     worlds: int = 1
-    """Worlds collected side by side in one process (TorchRL ``SerialEnv``; each its own generator and,
-    in a map pool, its own map): the policy runs once for all of them. ``frames_per_batch`` counts
-    the env steps of all worlds (each world runs ``frames_per_batch / worlds`` steps per batch)."""
+    """Worlds collected side by side in one process (each its own generator): the policy runs once for
+    all of them. ``frames_per_batch`` counts the env steps of all worlds (each world runs
+    ``frames_per_batch / worlds`` steps per batch)."""
+    collector_env: Literal["batched", "serial"] = "batched"
+    """How the worlds are collected: ``batched``, one TorchRL env of batch ``[worlds]`` on the batched
+    stepper (:class:`~parcover_env.train.batched_env.BatchedRobotsEnv`: arrays to tensors, ``worlds /
+    worlds_per_map`` stepper calls per step; every episode reset with a seed drawn by its group);
+    ``serial``, TorchRL's ``SerialEnv`` of one PettingZoo env per world
+    (:class:`~parcover_env.harness.marl_env.RobotsEnv`; world ``k`` seeded once), how runs collected
+    before the batched env (set it to replay one of their seeds)."""
+    worlds_per_map: int = 1
+    """``collector_env: batched`` on a map pool: worlds that run one drawn map together (must divide
+    ``worlds``): a group draws its next map when all its worlds' episodes have ended, a world that ends
+    earlier idles until then (padding: not learned from, not counted). 1: every world draws its own
+    maps, as ``serial`` does; larger: fewer, larger stepper calls, fewer maps per batch."""
     checkpoint_every: float = 0.0
     """Save the run (policy, critic, curve, sidecar) after the batch that ends past every this many
     seconds of wall time since the last save (0: only at the end)."""
@@ -130,7 +142,7 @@ class MarlConfig:
     def check(self, source: str) -> MarlConfig:
         """Self, or ConfigError naming ``source`` and the first out-of-range key."""
         positive = ("frames_per_batch", "epochs", "minibatch_size", "learning_rate", "max_grad_norm", "clip_epsilon",
-                    "ray_collectors", "critic_embed", "critic_heads", "max_robots", "worlds")
+                    "ray_collectors", "critic_embed", "critic_heads", "max_robots", "worlds", "worlds_per_map")
         if not self.init_grow_std > 0.01:  # the actor's scale floor (NormalParamExtractor's biased softplus)
             raise ConfigError(source, "init_grow_std", f"must be > 0.01, got {self.init_grow_std}")
         for key in positive:
@@ -154,6 +166,9 @@ class MarlConfig:
         if self.frames_per_batch % (self.ray_collectors * self.worlds):
             raise ConfigError(source, "worlds", f"worlds x ray_collectors ({self.worlds} x {self.ray_collectors}) "
                               f"must divide frames_per_batch ({self.frames_per_batch})")
+        if self.worlds % self.worlds_per_map:
+            raise ConfigError(source, "worlds_per_map",
+                              f"must divide worlds ({self.worlds}), got {self.worlds_per_map}")
         if not self.hidden or min(self.hidden) < 1:
             raise ConfigError(source, "hidden", f"expected one or more widths >= 1, got {list(self.hidden)}")
         if self.critic_embed % self.critic_heads:

@@ -25,7 +25,7 @@ FLOORS = {
     "sim": 7,
     "envs": 8,
     "expert": 9, "policies": 9,
-    "harness": 10,
+    "harness": 10, "train": 10,  # train: the training stack on the batched worlds (issue 41), beside harness
     "cli": 11,
 }
 VIZ_CLIENTS = {"envs", "harness", "cli"}

@@ -80,20 +80,27 @@ def test_collection_split_sorts_samples_by_what_runs(bench):
 
 
 def test_medians_per_column(bench):
-    batches = [{"steps": 1000.0, "collect_s": 1.0, "update_s": 0.25},   # 1000, 4000, 800
-               {"steps": 1000.0, "collect_s": 0.5, "update_s": 0.5},    # 2000, 2000, 1000
-               {"steps": 2000.0, "collect_s": 4.0, "update_s": 1.0}]    # 500, 2000, 400
-    assert bench.medians(batches) == pytest.approx({"collect": 1000.0, "update": 2000.0, "loop": 800.0})
+    batches = [{"steps": 1000.0, "frames": 100.0, "collect_s": 1.0, "update_s": 0.25},   # 1000, 4000, 800; 100
+               {"steps": 1000.0, "frames": 100.0, "collect_s": 0.5, "update_s": 0.5},    # 2000, 2000, 1000; 200
+               {"steps": 2000.0, "frames": 400.0, "collect_s": 4.0, "update_s": 1.0}]    # 500, 2000, 400; 100
+    assert bench.medians(batches) == pytest.approx({"collect": 1000.0, "update": 2000.0, "loop": 800.0,
+                                                    "worlds": 100.0})
 
 
 def test_one_table_with_every_row_and_the_target(bench, capsys):
     assert bench.main(["--frames", "32", "--repeats", "1"]) == 0
     out = capsys.readouterr().out
-    rows = {}
+    rows, idle, worlds = {}, {}, {}
     for line in out.splitlines():
-        if m := re.match(r"^(pool scan|pool no scan|vmas navigation) +(\d+) +(\d+) +(\d+) ", line):
+        if m := re.match(r"^(pool (?:no )?scan(?: grouped| serial)?|vmas navigation) +(\d+) +(\d+) +(\d+) +"
+                         r"(?:[\d.]+x|n/a) +(\d+%|-) +(\d+) ", line):
             rows[m[1]] = [float(x) for x in m.group(2, 3, 4)]
-    assert {"pool scan", "pool no scan"} <= set(rows) and all(min(v) > 0 for v in rows.values())
+            idle[m[1]], worlds[m[1]] = m[5], float(m[6])
+    pool = {f"pool {s}{k}" for s in ("scan", "no scan") for k in ("", " grouped", " serial")}
+    assert pool <= set(rows) and all(min(v) > 0 for v in rows.values())
+    assert all(re.fullmatch(r"\d+%", idle[r]) for r in pool) and idle.get("vmas navigation", "-") == "-"
+    for r in pool:  # 1-12 real robots per world-step (no idle world in a fresh 32-frame batch); printed rounded
+        assert worlds[r] - 1 <= rows[r][0] <= 12 * (worlds[r] + 1)
     for collect, update, loop in rows.values():  # the loop's time is the sum of the two (one batch: no median)
         assert 1 / loop == pytest.approx(1 / collect + 1 / update, rel=0.03)  # printed rounded
     assert re.search(r"^pool scan .*(NOT met|met) \(\d+%\); VMAS: ", out, re.M)
