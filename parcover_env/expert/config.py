@@ -298,8 +298,10 @@ class ExpertConfig:
     split may go unnoticed, and such a follower would otherwise approach its KPOIs on odometry."""
     off_route_distance: float = 0.5
     """A leader farther than this from its route (m; e.g. carried past its turn by the robot ahead
-    before it was promoted) whose route point lies behind a wall heads for the last earlier point
-    of its route it can see instead: back to its route, not into the wall."""
+    before it was promoted) that cannot drive straight to its route point with its body (radius +
+    ``stop_margin`` clear of the known map's walls) heads for the last earlier point of its route it
+    can drive straight to instead (back to its route, not into the wall), else along the shortest
+    path of its body to the route point."""
     sonar_fix: SonarFixConfig = field(default_factory=SonarFixConfig)
     navigator: NavigatorConfig = field(default_factory=NavigatorConfig)
 

@@ -44,6 +44,7 @@ from parcover_env.expert.sonar_fix import SCAN_REQUEST, chain_pose, covariance_f
 from parcover_env.geometry import atan2, rotate, segments_blocked, wrap_angle
 from parcover_env.geometry.poses import compose, inverse
 from parcover_env.geometry.rays import point_segment_distance
+from parcover_env.planning.free_space import DiscPaths
 from parcover_env.policies.protocol import Policy
 from parcover_env.scenarios import Mission, RouteTracker
 
@@ -94,6 +95,8 @@ class ScriptedExpert(Policy):
         self.back: dict[str, float] = {}
         """Per robot: how far back from its route's end (m) its last detour place there lies, until a fix: a
         scan there without a fix means the known map's prediction failed, and the next one is farther back."""
+        self.paths: DiscPaths | None = None
+        """Shortest paths of the robot's disc grown by ``stop_margin`` through the known map (:meth:`_disc_paths`)."""
         self.escaping: set[str] = set()
         """Robots driving into the freest direction of their sonar ring before their next scan."""
         # with sonar fixes, the robots' progress along their routes is tracked on the corrected pose
@@ -209,29 +212,53 @@ class ScriptedExpert(Policy):
 
     def _visible_goal(self, i: int, pose: np.ndarray, rel: np.ndarray) -> np.ndarray:
         """``rel`` (robot frame), unless robot ``i`` is farther than ``off_route_distance`` from its
-        route ahead (from its tracked progress on; the whole route without a tracker) and a wall of the
-        known map lies between it and that point: then the latest route vertex before the point that it
-        can see (it drives back to its route around the corner). Measured from the progress on: a robot
-        coming back to its route from a teammate's branch may lie nearer a later leg than the leg it
-        needs, and progress then jumps there (generated:201, robot 5: 0.4 m from its route, its goal
-        behind a wall, braking and backing off against it to the end of the episode)."""
+        route ahead (from its tracked progress on; the whole route without a tracker) and its body
+        (radius + ``stop_margin``) cannot drive straight to that point through the known map: then
+        the latest route vertex before the point that it can drive straight to (back to its route
+        around the corner), else the first bend of the shortest path of its body to the point
+        (:class:`~parcover_env.planning.free_space.DiscPaths`, :func:`steer_point`). Measured from the
+        progress on: a robot coming back to its route from a teammate's branch may lie nearer a later
+        leg than the leg it needs, and progress then jumps there (generated:201, robot 5: 0.4 m from its
+        route, its goal behind a wall, braking and backing off against it to the end of the episode).
+        Tested with the body, not the centre line: generated:18 and 7190 (a robot promoted in a door
+        gap, its goal's line a few cm below the wall beside the door, braked and backed off there to
+        the episode's end)."""
         route = self.mission.routes[i]
         if len(route) < 2:
             return rel
         xy = pose[:2]
         ahead = route if self.track is None else route_from(route, float(self.track.progress[i]))
         off = float(point_segment_distance(xy[None], np.c_[ahead[:-1], ahead[1:]]).min())
-        walls = self.mission.known_map.segments
+        if off <= self.cfg.off_route_distance:
+            return rel
         goal = xy + rotate(rel, pose[2])
-        if off <= self.cfg.off_route_distance or not segments_blocked(xy[None], goal[None], walls)[0]:
+        paths = self._disc_paths()
+        if paths.clear(xy, goal):
             return rel
         upto = int(np.argmin(np.hypot(*(route - goal).T))) + 1
+        for k in range(upto - 1, -1, -1):  # the latest route vertex it can drive straight to
+            if paths.clear(xy, route[k]):
+                return rotate(route[k] - xy, -pose[2])
+        way = paths.path(xy, goal)
+        if way is not None:
+            return rotate(steer_point(way, xy, self.scenario.robot.radius) - xy, -pose[2])
+        # no way for its body on the known map: by the centre line (as before 2026-11-28)
+        walls = self.mission.known_map.segments
+        if not segments_blocked(xy[None], goal[None], walls)[0]:
+            return rel
         seen = ~segments_blocked(np.repeat(xy[None], upto, axis=0), route[:upto], walls)
         if seen.any():
             return rotate(route[int(np.flatnonzero(seen)[-1])] - xy, -pose[2])
         # none of its own route in sight (carried into a teammate's branch): back along the plan tree
         via = route_tree_waypoint(self.mission.routes, xy, route[upto - 1], walls)
         return rel if via is None else rotate(via - xy, -pose[2])
+
+    def _disc_paths(self) -> DiscPaths:
+        """Shortest paths through the known map for the robot's body and its ``stop_margin`` (built on
+        first use: only a robot off its route steers by them)."""
+        if self.paths is None:
+            self.paths = DiscPaths(self.mission.known_map.free, self.stop)
+        return self.paths
 
     def _odom(self, obs: np.ndarray) -> np.ndarray:
         g = self.layout.get
@@ -462,6 +489,14 @@ def route_from(route: np.ndarray, s: float) -> np.ndarray:
     k = int(np.searchsorted(arc, max(s, 0.0), side="right")) - 1
     u = (max(s, 0.0) - arc[k]) / max(arc[k + 1] - arc[k], 1e-12)
     return np.vstack([route[k] + u * (route[k + 1] - route[k]), route[k + 1:]])
+
+
+def steer_point(way: np.ndarray, xy: np.ndarray, reach: float) -> np.ndarray:
+    """The point to steer for from ``xy`` along the path ``way (K, 2)``: the vertex after the last one
+    within ``reach`` (m) of ``xy`` (its last vertex if that is within reach; its first if none is)."""
+    way = np.asarray(way, dtype=float)
+    near = np.flatnonzero(np.hypot(*(way - xy).T) <= reach)
+    return way[min(int(near[-1]) + 1, len(way) - 1) if len(near) else 0].copy()
 
 
 def route_tree_waypoint(routes, xy: np.ndarray, target: np.ndarray, walls: np.ndarray) -> np.ndarray | None:

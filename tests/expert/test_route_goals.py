@@ -12,8 +12,9 @@ import pytest
 
 import parcover_env
 from parcover_env.envs.sonar_fixes import UNINFORMATIVE
-from parcover_env.expert.scripted import route_from, route_length
-from parcover_env.geometry import rotate
+from parcover_env.expert.scripted import route_from, route_length, steer_point
+from parcover_env.geometry import rotate, segments_blocked
+from parcover_env.geometry.rays import point_segment_distance
 
 RELOCATE = {"observation": {"scan": {"enabled": True, "confirm_widened": True}},
             "expert": {"sonar_fix": {"relocate_distance": 0.5}}}
@@ -53,7 +54,18 @@ def test_off_route_is_measured_from_the_progress_on_so_a_goal_behind_a_wall_give
     np.testing.assert_allclose(goal, [4.06, 6.89], atol=0.02)
     rel = rotate(goal - pose[:2], -pose[2])
     out = expert._visible_goal(5, pose, rel)
-    np.testing.assert_allclose(out, rotate(route[4] - pose[:2], -pose[2]), atol=1e-9)  # the turn, through the door
+    # its body (0.12 m + stop_margin 0.05 m) cannot drive straight to the turn (3.08, 6.48): the line passes
+    # the door's east jamb (3.45, 5.97) at 0.094 m (until 2026-11-28 it steered there, by the centre line);
+    # the latest route vertex it can drive straight to is the one before, (3.03, 5.38), below the door
+    paths = expert._disc_paths()
+    assert not paths.clear(pose[:2], route[4]) and paths.clear(pose[:2], route[3])
+    line = np.c_[pose[None, :2], route[4][None]]
+    assert float(point_segment_distance(np.array([[3.45, 5.97]]), line).min()) == pytest.approx(0.094, abs=1e-3)
+    np.testing.assert_allclose(out, rotate(route[3] - pose[:2], -pose[2]), atol=1e-9)
+    # there, the turn through the door (x 2.61-3.45) is in reach of its body
+    there = np.array([*route[3], 2.0])
+    np.testing.assert_allclose(expert._visible_goal(5, there, rotate(goal - route[3], -2.0)),
+                               rotate(route[4] - route[3], -2.0), atol=1e-9)
     # measured from the whole route (0.4 m from the leg it needs) the goal behind the wall stood
     track, expert.track = expert.track, None
     np.testing.assert_allclose(expert._visible_goal(5, pose, rel), rel)
@@ -62,6 +74,46 @@ def test_off_route_is_measured_from_the_progress_on_so_a_goal_behind_a_wall_give
     expert.track.progress[5] = 3.49
     rel = rotate(expert.track.goals()[5] - pose[:2], -pose[2])
     np.testing.assert_allclose(expert._visible_goal(5, pose, rel), rel)
+
+
+def test_a_robot_whose_body_would_graze_a_wall_on_the_way_to_its_goal_takes_the_disc_path():
+    """generated:18, robot 4 (traced; also 7190): a follower carried 4.5 m past its turn, promoted in the door
+    gap at the corridor's top wall (y 7.53, x 6.39-7.51), its belief right; the line to its goal 4.4 m west
+    ran a few cm below the wall's face: the front sonar braked it, it backed off and drove in again from
+    43 s to the episode's end. Now it steers by the shortest path of its body plus ``stop_margin`` (0.17 m)."""
+    env, expert, _ = _expert(18)
+    walls = env.mission.known_map.segments
+    assert expert.stop == pytest.approx(0.17) and env.scenario.robot.radius == 0.12
+    expert.track.progress[4] = 3.49  # as traced: the leg north at x = 3.2-3.3
+    goal = expert.track.goals()[4]
+    np.testing.assert_allclose(goal, [3.243, 7.498], atol=1e-3)
+    pose = np.array([7.65, 7.50, math.radians(-174.0)])
+    rel = rotate(goal - pose[:2], -pose[2])
+    # the centre line is in sight of the goal (what was tested), 0.03 m below the jamb's corner (7.51, 7.53)
+    assert not segments_blocked(pose[None, :2], goal[None], walls)[0]
+    line = np.c_[pose[None, :2], goal[None]]
+    assert float(point_segment_distance(np.array([[7.51, 7.53]]), line).min()) == pytest.approx(0.030, abs=1e-3)
+    out = expert._visible_goal(4, pose, rel)
+    target = pose[:2] + rotate(out, pose[2])
+    # down into the corridor first, away from the wall's face: not the straight line west
+    assert target[1] < 7.40 and abs(target[0] - pose[0]) < 0.06
+    way = expert._disc_paths().path(pose[:2], goal)
+    np.testing.assert_allclose(target, steer_point(way, pose[:2], 0.12), atol=1e-12)
+    clearance = np.array([float(point_segment_distance(p[None], walls).min()) for p in way[:-1]])
+    np.testing.assert_allclose(clearance, 0.17, atol=2e-4)  # it bends round corners at 0.17 m
+    long = np.flatnonzero(np.hypot(*np.diff(way, axis=0).T) > 1.0)  # one straight leg west along the corridor
+    np.testing.assert_allclose(way[[long[0], long[0] + 1]], [[7.51, 7.36], [3.65, 7.36]], atol=1e-9)
+    # on its route (within off_route_distance) it steers by its route as before
+    near = np.array([6.08, 7.30, math.pi])
+    rel = rotate(expert.track.goals()[4] - near[:2], -near[2])
+    np.testing.assert_allclose(expert._visible_goal(4, near, rel), rel)
+
+
+def test_steer_point_is_the_first_vertex_beyond_the_reach():
+    way = np.array([[0.0, 0.0], [0.05, 0.0], [0.3, 0.0], [0.3, 1.0]])
+    np.testing.assert_allclose(steer_point(way, np.zeros(2), 0.12), [0.3, 0.0])
+    np.testing.assert_allclose(steer_point(way, np.array([0.3, 0.95]), 0.12), [0.3, 1.0])  # the last one
+    np.testing.assert_allclose(steer_point(way, np.array([0.3, 0.5]), 0.12), [0.0, 0.0])
 
 
 def test_the_goal_is_the_experts_own_tracker_point_also_without_a_correction():
