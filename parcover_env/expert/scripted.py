@@ -109,6 +109,9 @@ class ScriptedExpert(Policy):
         self.backing: dict[str, int] = {}
         self.checked: set[tuple[str, int]] = set()
         """(robot, KPOI index) pairs whose pose check before the KPOI is done (``kpoi_check_distance``)."""
+        self.checking: dict[str, np.ndarray] = {}
+        """Per robot whose last scan was its pose check before a KPOI and gave no fix yet: that KPOI; it
+        scans from a place back along its route before going on (:meth:`_relocate`)."""
         self._last_odom = np.zeros((mission.n_robots, 3))
 
     @classmethod
@@ -142,6 +145,7 @@ class ScriptedExpert(Policy):
         self.backing.clear()
         self.unseen.clear()
         self.checked.clear()
+        self.checking.clear()
         self.detours.clear()
         self.still.clear()
         self.back.clear()
@@ -330,6 +334,7 @@ class ScriptedExpert(Policy):
                               check=check is not None, result=result)
         if check is not None and self.fixer.scanning(agent):
             self.checked.add((agent, check))
+            self.checking[agent] = self.mission.kpois[check]
         self._relocate(agent, i, odom, at_end, g(obs, "sonar").astype(float))
         return out
 
@@ -341,12 +346,16 @@ class ScriptedExpert(Policy):
         it (a detour, scanned on arrival): within ``rescan_distance`` or, in open space, farther back as far as
         it sees its route (generated:198, 201, 367, 399: at a wall of an open room it stood uninformed at its
         route's end to the episode's end), beyond the last detour place whose scan gave no fix; a robot that
-        reaches its route's end before the place chosen ahead chooses again there. A stuck robot
+        reaches its route's end before the place chosen ahead chooses again there. After its pose check
+        before a KPOI (``kpoi_check_distance``) gave no fix, the same place back along its route, up to that
+        KPOI's route vertex, before it goes on (generated:7018; :attr:`checking`). A stuck robot
         (:meth:`_stuck`; after a held scan, or an uninformative one away from its route's end) drives into
         the freest direction of its sonar ``ranges``
         first (:meth:`_escape`). Drops the detour once the robot scans or is fixed."""
         if not self.fixer.relocating(agent):  # fixed: a place behind its route's end worked or is not needed
             self.back.pop(agent, None)
+            if not self.fixer.scanning(agent):
+                self.checking.pop(agent, None)
         if self.fixer.scanning(agent) or not self.fixer.relocating(agent):
             self.detours.pop(agent, None)
             self.still.pop(agent, None)
@@ -374,23 +383,40 @@ class ScriptedExpert(Policy):
         c = self.cfg.sonar_fix
         near, far = c.relocate_distance, max(c.relocate_distance, c.rescan_distance)
         route = self.mission.routes[i]
+        progress = float(self.track.progress[i]) if self.track is not None else 0.0
+        if agent in self.checking and not at_end:
+            # its pose check before a KPOI gave no fix: scan from a place back along its route before the
+            # KPOI, as at its route's end (generated:7018, robot 3: it went on to the KPOI on a belief
+            # 0.4 m off after an uninformative check and never came nearer than 0.48 m to it)
+            upto = route_upto(route, progress, self.checking[agent], self.mission.waypoint_tol)
+            if upto is not None and self._detour_behind(agent, upto, bel, near, far):
+                return
+            self.checking.pop(agent)  # no such place: on along its route, as after any other scan
         if self.fixer.spaced(agent) and not self.fixer.held(agent) and not at_end:  # a held scan was informative
             self.fixer.scan_after(agent, c.rescan_distance)
             return
         if at_end:
-            if agent in self.back:  # its scan at the last place behind gave no fix: beyond that place
-                near = self.back[agent] + c.relocate_distance
-                far = max(far, near)
-            found = self.places.behind_at(route, bel, near, far)
-            if found is None:  # none within ``far`` (open space): farther back, as far as it sees its route
-                found = self.places.behind_at(route, bel, far, route_length(route))
-            if found is not None:
-                self.detours[agent], self.back[agent] = found
-            self.fixer.scan_after(agent, np.inf)
+            self._detour_behind(agent, route, bel, near, far)
             return
-        progress = float(self.track.progress[i]) if self.track is not None else 0.0
         d = self.places.ahead(route, progress, near, far)
         self.fixer.scan_after(agent, c.rescan_distance if d is None else d)
+
+    def _detour_behind(self, agent: str, route: np.ndarray, xy: np.ndarray, near: float, far: float) -> bool:
+        """Send the robot at ``xy`` (its belief) to scan at the first place back from the end of ``route``
+        that the known map predicts informative and it sees: ``near`` to ``far`` metres back (beyond the last
+        such place whose scan gave no fix, :attr:`back`), else farther, as far as it sees the route; it scans
+        there on arrival and not before. Whether a place was found (else it waits for a fix, at its route's end)."""
+        c = self.cfg.sonar_fix
+        if agent in self.back:  # its scan at the last place behind gave no fix: beyond that place
+            near = self.back[agent] + c.relocate_distance
+            far = max(far, near)
+        found = self.places.behind_at(route, xy, near, far)
+        if found is None:  # none within ``far`` (open space): farther back, as far as it sees its route
+            found = self.places.behind_at(route, xy, far, route_length(route))
+        if found is not None:
+            self.detours[agent], self.back[agent] = found
+        self.fixer.scan_after(agent, np.inf)
+        return found is not None
 
     def _stuck(self, agent: str, xy: np.ndarray) -> bool:
         """Whether a relocating robot at ``xy`` (its belief) has stayed within ``stuck_distance`` of one
@@ -497,6 +523,16 @@ def steer_point(way: np.ndarray, xy: np.ndarray, reach: float) -> np.ndarray:
     way = np.asarray(way, dtype=float)
     near = np.flatnonzero(np.hypot(*(way - xy).T) <= reach)
     return way[min(int(near[-1]) + 1, len(way) - 1) if len(near) else 0].copy()
+
+
+def route_upto(route: np.ndarray, s: float, point: np.ndarray, tol: float) -> np.ndarray | None:
+    """The polyline ``route (M, 2)`` from its start to its first vertex within ``tol`` (m) of ``point`` at
+    or beyond arc length ``s`` (m; the vertex the robot at progress ``s`` heads for: out-and-back
+    routes pass a vertex twice), or None if no vertex there lies that near ``point``."""
+    route = np.asarray(route, dtype=float)
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(route, axis=0).T))])
+    at = np.flatnonzero((np.hypot(*(route - np.asarray(point, dtype=float)).T) <= tol) & (arc >= s - 1e-9))
+    return route[: int(at[0]) + 1] if len(at) else None
 
 
 def route_tree_waypoint(routes, xy: np.ndarray, target: np.ndarray, walls: np.ndarray) -> np.ndarray | None:

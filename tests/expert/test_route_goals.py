@@ -12,7 +12,7 @@ import pytest
 
 import parcover_env
 from parcover_env.envs.sonar_fixes import UNINFORMATIVE
-from parcover_env.expert.scripted import route_from, route_length, steer_point
+from parcover_env.expert.scripted import route_from, route_length, route_upto, steer_point
 from parcover_env.geometry import rotate, segments_blocked
 from parcover_env.geometry.rays import point_segment_distance
 
@@ -219,3 +219,56 @@ def test_a_robot_reaching_its_route_end_before_the_place_chosen_ahead_chooses_ag
     assert expert.fixer.waiting_distance("robot_0") == math.inf
     expert.fixer.choose_again("robot_0")
     assert expert.fixer.needs_place("robot_0")
+
+
+def test_route_upto_ends_at_the_kpoi_vertex_the_robot_heads_for():
+    route = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [2.0, 0.0], [4.0, 0.0]])  # out and back to (2, 1)
+    np.testing.assert_allclose(route_upto(route, 0.5, np.array([2.05, 0.98]), 0.1), route[:3])
+    # progress past (2, 0) once: the next visit of (2, 0) is the one it heads for
+    np.testing.assert_allclose(route_upto(route, 2.5, np.array([2.0, 0.0]), 0.1), route[:4])
+    assert route_upto(route, 0.5, np.array([3.0, 3.0]), 0.1) is None
+    assert route_upto(route, 4.5, np.array([2.0, 1.0]), 0.1) is None  # passed
+
+
+def test_after_an_uninformative_pose_check_before_a_kpoi_it_scans_from_a_place_behind_first():
+    """generated:7018, robot 3 (traced): its pose check 0.43 m before the KPOI (7.48, 0.35), at the end of an
+    out-and-back leg, was uninformative (its belief 0.41 m off); with spaced scans (the known map's
+    predictions had failed there) its next scan was 2 m on, and it went on to the KPOI on that belief, never
+    nearer than 0.48 m. Now it first drives back along its route to a place predicted informative, as at
+    its route's end, and scans there on arrival."""
+    from parcover_env.expert.sonar_fix import _State
+
+    env, expert, _ = _expert(7018)
+    a, route, kpoi = "robot_3", env.mission.routes[3], env.mission.kpois[5]
+    np.testing.assert_allclose(route[4:8], [[6.48, 1.72], [7.48, 1.68], [7.48, 0.32], [7.48, 1.68]], atol=0.01)
+    np.testing.assert_allclose(kpoi, [7.48, 0.35], atol=0.01)
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(route, axis=0).T))])
+    expert.track.progress[3] = arc[5] + 0.93  # at (7.48, 0.75), as traced
+    odom = np.array([7.47, 0.75, -math.pi / 2])
+
+    def relocating() -> None:
+        expert.fixer.states[a] = _State(np.zeros(3), np.eye(3) * 1e-3, last_odom=odom.copy(), relocate=True,
+                                        uninformative=2, spaced=True, driven_since_scan=0.0)
+
+    relocating()  # without a check before the KPOI: spaced scans, 2 m on (as before)
+    expert._relocate(a, 3, odom, False, np.full(16, 2.5))
+    assert a not in expert.detours and expert.fixer.waiting_distance(a) == pytest.approx(2.0)
+    relocating()
+    expert.checking[a] = kpoi
+    upto = route_upto(route, float(expert.track.progress[3]), kpoi, env.mission.waypoint_tol)
+    np.testing.assert_array_equal(upto, route[:7])
+    expert._relocate(a, 3, odom, False, np.full(16, 2.5))
+    # nothing predicted informative 0.5-2 m back from the KPOI (the leg's corridor): farther back, 2.52 m,
+    # just round the corner into the corridor above (the place of the trace)
+    np.testing.assert_allclose(expert.detours[a], [6.475, 1.874], atol=1e-3)
+    assert expert.back[a] == pytest.approx(2.5, abs=0.05)
+    assert expert.fixer.waiting_distance(a) == math.inf  # it scans there on arrival, not before
+    assert expert.places.informative(np.array([*expert.detours[a], math.pi / 2]))
+    # the robot steers for that place, not for the KPOI
+    bel = np.array([odom])
+    np.testing.assert_allclose(expert._goal(None, a, np.repeat(bel, 4, axis=0)),
+                               rotate(expert.detours[a] - odom[:2], -odom[2]), atol=1e-12)
+    # a fix ends it
+    expert.fixer.states[a].relocate = False
+    expert._relocate(a, 3, odom, False, np.full(16, 2.5))
+    assert a not in expert.checking and a not in expert.detours and a not in expert.back
