@@ -131,6 +131,10 @@ class SonarFixConfig:
     (a Kalman update with the chained covariance): Min et al.'s followers are localized relative to
     their leader, so a follower promoted at a split starts from its leader's accuracy instead of its
     own drifted, contact-pushed odometry. False: followers keep pure odometry until they lead."""
+    calibrate_drift: bool = True
+    """With the ``wheels`` odometry: the expert estimates each robot's heading drift per metre and per
+    radian turned from the absolute headings it gets (env fixes, a follower's chained heading) and steers
+    by the odometry calibrated with it (:mod:`~parcover_env.expert.odometry_drift`; our extension)."""
 
     def __post_init__(self) -> None:
         positive(self, "stale_after", "scan_rate", "stop_speed", "gate_distance", "gate_heading_deg", "gate_sigmas",

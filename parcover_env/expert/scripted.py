@@ -40,6 +40,7 @@ from parcover_env.control.leader import go_to_goal
 from parcover_env.envs.observations import ObservationLayout
 from parcover_env.expert.avoidance import brake_factor
 from parcover_env.expert.config import ExpertConfig, expert_config
+from parcover_env.expert.odometry_drift import DriftCalibration
 from parcover_env.expert.sonar_fix import SCAN_REQUEST, chain_pose, covariance_from_entries
 from parcover_env.geometry import atan2, rotate, segments_blocked, wrap_angle
 from parcover_env.geometry.poses import compose, inverse
@@ -113,6 +114,11 @@ class ScriptedExpert(Policy):
         """Per robot whose last scan was its pose check before a KPOI and gave no fix yet: that KPOI; it
         scans from a place back along its route before going on (:meth:`_relocate`)."""
         self._last_odom = np.zeros((mission.n_robots, 3))
+        """The odometry pose of each robot at the last step (calibrated with :attr:`drift` when there is one)."""
+        self._raw = np.zeros((mission.n_robots, 3))
+        """The observed odometry pose (the env's estimate) of each robot at the last step."""
+        self.drift: DriftCalibration | None = None
+        """Heading drift calibration of the robots' odometry (``expert.sonar_fix.calibrate_drift``)."""
 
     @classmethod
     def for_env(cls, env, **kwargs) -> ScriptedExpert:
@@ -138,6 +144,10 @@ class ScriptedExpert(Policy):
 
     def reset(self, observations=None) -> None:
         self.track = self.mission.tracker() if self.fixer is not None else None
+        r = self.scenario.robot
+        self.drift = (DriftCalibration(self.mission.n_robots, r.odometry, r.drive.wheel_base)
+                      if self.fixer is not None and self.cfg.sonar_fix.calibrate_drift and r.odometry.model == "wheels"
+                      else None)
         if self.fixer is not None:
             self.fixer.states.clear()
         self.estimators.clear()
@@ -158,7 +168,7 @@ class ScriptedExpert(Policy):
         has_followers = {a: i + 1 < len(agents) and not leaders[agents[i + 1]] for i, a in enumerate(agents)}
         scans = {}
         for a in agents:
-            self._last_odom[int(a.rsplit("_", 1)[1])] = self._odom(observations[a])
+            self._read_odometry(a, observations[a])
         alone = self._alone(observations, agents, leaders)
         team = self._team_positions(observations, agents, leaders) if self.fixer is not None else None
         for a in agents:
@@ -264,6 +274,20 @@ class ScriptedExpert(Policy):
             self.paths = DiscPaths(self.mission.known_map.free, self.stop)
         return self.paths
 
+    def _read_odometry(self, agent: str, obs: np.ndarray) -> None:
+        """Store the robot's observed odometry pose and the pose it steers from: calibrated for its heading
+        drift (:attr:`drift`), restarted at each fresh fix (``fix_age``) and measured against it."""
+        i = int(agent.rsplit("_", 1)[1])
+        self._raw[i] = raw = self._odom(obs)
+        if self.drift is None:
+            self._last_odom[i] = raw
+            return
+        g = self.layout.get
+        fresh = float(g(obs, "fix_age")[0]) < 2 * self.dt
+        var = (float(g(obs, "sigma_heading")[0]) ** 2 if "sigma_heading" in self.layout.slices
+               else float(self.fixer.fix_cov[2, 2]))
+        self._last_odom[i] = self.drift.step(i, raw, fresh, var)
+
     def _odom(self, obs: np.ndarray) -> np.ndarray:
         g = self.layout.get
         return np.array([g(obs, "x")[0], g(obs, "y")[0], atan2(g(obs, "sin_theta")[0], g(obs, "cos_theta")[0])])
@@ -314,18 +338,20 @@ class ScriptedExpert(Policy):
             pose, cov = chain_pose(self.fixer.belief(ahead, self._last_odom[i - 1]), self.fixer.covariance(ahead), rel,
                                    f.camera_range_noise, f.camera_bearing_noise, f.camera_heading_noise)
             self.fixer.relative_update(a, self._last_odom[i], pose, cov)
+            if self.drift is not None and self.drift.due(i):  # its chained heading measures its odometry's drift
+                self.drift.measure(i, float(self._raw[i, 2]), float(pose[2]), float(cov[2, 2]))
 
     def _sonar_fix(self, agent: str, obs: np.ndarray, leader: bool,
                    others: np.ndarray | None = None) -> tuple[float, float] | None:
         g = self.layout.get
         i = int(agent.rsplit("_", 1)[1])
-        odom = self._odom(obs)
+        odom = self._last_odom[i].copy()
         end = self.mission.routes[i][-1]
         at_end = bool(np.hypot(*(self.fixer.belief(agent, odom)[:2] - end)) <= self.mission.waypoint_tol)
         cov = None
         if "sigma_major" in self.layout.slices:
             names = ("sigma_major", "sigma_minor", "sigma_axis_cos2", "sigma_axis_sin2", "sigma_heading")
-            cov = covariance_from_entries(np.array([g(obs, k)[0] for k in names], dtype=float), float(odom[2]))
+            cov = covariance_from_entries(np.array([g(obs, k)[0] for k in names], dtype=float), float(self._raw[i, 2]))
         scanning = "scanning" in self.layout.slices and bool(g(obs, "scanning")[0] > 0.5)
         check = self._kpoi_check(agent, obs, odom) if leader else None
         result = float(g(obs, "scan_result")[0]) if "scan_result" in self.layout.slices else 0.0
