@@ -118,3 +118,81 @@ def test_the_expert_calibrates_only_the_wheels_odometry_on_sonar_maps():
     expert = expert_for(ideal)
     expert.reset(obs)
     assert expert.drift is None
+
+
+def test_without_an_estimate_the_calibrated_pose_is_the_odometry_pose_along_a_curve():
+    cal = DriftCalibration(3, OdometryConfig(), 0.18)
+    assert cal.cov.shape == (3, 2, 2)
+    raw = np.array([1.0, 2.0, 0.3])
+    cal.step(1, raw, False, 0.7)
+    assert cal.reset_var[1] == 0.0  # the episode's start is no fix: its heading error is 0
+    for _ in range(30):  # an arc: 0.05 m and 0.04 rad per step
+        mid = raw[2] + 0.02
+        raw = raw + np.array([0.05 * math.cos(mid), 0.05 * math.sin(mid), 0.04])
+        out = cal.step(1, raw, False, 0.0)
+    np.testing.assert_allclose(out, raw, atol=1e-12)
+    np.testing.assert_allclose(cal.since[1], [1.5, 1.2, 1.5], atol=1e-9)
+
+
+def test_the_calibrated_position_follows_the_calibrated_heading():
+    cal = DriftCalibration(1, OdometryConfig(), 0.18)
+    cal.mean[0] = [0.1, 0.0]  # 0.1 rad/m believed drift: each 0.1 m step turns the calibrated heading by -0.01 rad
+    raw = np.zeros(3)
+    cal.step(0, raw, False, 0.0)
+    want = np.zeros(3)
+    for _ in range(5):
+        raw = raw + np.array([0.1, 0.0, 0.0])  # the odometry: straight along x
+        out = cal.step(0, raw, False, 0.0)
+        mid = want[2] - 0.005
+        want = want + np.array([0.1 * math.cos(mid), 0.1 * math.sin(mid), -0.01])
+    np.testing.assert_allclose(out, want, atol=1e-12)
+    assert out[1] < -0.005  # curving right of the odometry's straight line
+
+
+def test_measurements_by_hand_with_a_turned_reference_and_a_second_fix():
+    cfg = OdometryConfig()
+    cal = DriftCalibration(1, cfg, 0.18)
+    start = np.array([0.0, 0.0, math.pi / 2])  # heading north: the reference is not 0
+    _drive(cal, start, 0.5)
+    d, t, driven = cal.since[0]
+    assert driven == pytest.approx(0.5)
+    v1 = math.radians(2.0) ** 2
+    truth = math.pi / 2
+    cal.step(0, np.array([0.0, 0.5, truth]), True, v1)  # a fix after 0.5 m: still a measurement
+    h, p = np.array([d, t]), cal.prior
+    e = 0.5 * KAPPA
+    s = h @ p @ h + v1 + cal.walk * 0.5
+    gain = p @ h / s
+    np.testing.assert_allclose(cal.mean[0], gain * e, rtol=1e-9, atol=1e-15)
+    p1 = p - np.outer(gain, h @ p)
+    np.testing.assert_allclose(cal.cov[0], p1, rtol=1e-9)
+    # a second fix: the first fix's heading variance counts as the error at the reset
+    _drive(cal, np.array([0.0, 0.5, truth]), 3.0)
+    d, t, _ = cal.since[0]
+    v2 = math.radians(1.0) ** 2
+    m1 = cal.mean[0].copy()
+    cal.step(0, np.array([0.0, 3.5, truth]), True, v2)
+    h = np.array([d, t])
+    s = h @ p1 @ h + v2 + v1 + cal.walk * 3.0
+    gain = p1 @ h / s
+    np.testing.assert_allclose(cal.mean[0], m1 + gain * (3.0 * KAPPA - h @ m1), rtol=1e-9)
+    assert cal.reset_var[0] == v2
+
+
+def test_nothing_measured_without_a_drive_and_spacing_checked():
+    cal = DriftCalibration(1, OdometryConfig(), 0.18)
+    cal.step(0, np.zeros(3), False, 0.0)
+    cal.measure(0, 0.3, 0.0, 0.0)  # no distance, no turn, no variance: no information, no NaN
+    np.testing.assert_array_equal(cal.mean[0], 0.0)
+    cal.step(0, np.zeros(3), True, 0.0)  # a fix before any drive: no measurement either
+    np.testing.assert_array_equal(cal.mean[0], 0.0)
+    cal.unmeasured[0] = 2.0
+    assert cal.due(0)
+    cal.measure(0, 0.0, 0.0, 1e-4)
+    _drive(cal, cal.raw[0].copy(), 1.5)
+    assert not cal.due(0)  # counted again from 0 after the measurement
+    _drive(cal, cal.raw[0].copy(), 0.5)
+    assert cal.due(0)
+    assert DriftCalibration(1, OdometryConfig(), 0.18, spacing=0.5).spacing == 0.5
+    with pytest.raises(ValueError, match="spacing"):
+        DriftCalibration(1, OdometryConfig(), 0.18, spacing=0.0)
