@@ -131,6 +131,10 @@ class SonarFixConfig:
     (a Kalman update with the chained covariance): Min et al.'s followers are localized relative to
     their leader, so a follower promoted at a split starts from its leader's accuracy instead of its
     own drifted, contact-pushed odometry. False: followers keep pure odometry until they lead."""
+    calibrate_drift: bool = True
+    """With the ``wheels`` odometry: the expert estimates each robot's heading drift per metre and per
+    radian turned from the absolute headings it gets (env fixes, a follower's chained heading) and steers
+    by the odometry calibrated with it (:mod:`~parcover_env.expert.odometry_drift`; our extension)."""
 
     def __post_init__(self) -> None:
         positive(self, "stale_after", "scan_rate", "stop_speed", "gate_distance", "gate_heading_deg", "gate_sigmas",
@@ -298,8 +302,10 @@ class ExpertConfig:
     split may go unnoticed, and such a follower would otherwise approach its KPOIs on odometry."""
     off_route_distance: float = 0.5
     """A leader farther than this from its route (m; e.g. carried past its turn by the robot ahead
-    before it was promoted) whose route point lies behind a wall heads for the last earlier point
-    of its route it can see instead: back to its route, not into the wall."""
+    before it was promoted) that cannot drive straight to its route point with its body (radius +
+    ``stop_margin`` clear of the known map's walls) heads for the last earlier point of its route it
+    can drive straight to instead (back to its route, not into the wall), else along the shortest
+    path of its body to the route point."""
     sonar_fix: SonarFixConfig = field(default_factory=SonarFixConfig)
     navigator: NavigatorConfig = field(default_factory=NavigatorConfig)
 

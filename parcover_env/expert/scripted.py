@@ -40,10 +40,12 @@ from parcover_env.control.leader import go_to_goal
 from parcover_env.envs.observations import ObservationLayout
 from parcover_env.expert.avoidance import brake_factor
 from parcover_env.expert.config import ExpertConfig, expert_config
+from parcover_env.expert.odometry_drift import DriftCalibration
 from parcover_env.expert.sonar_fix import SCAN_REQUEST, chain_pose, covariance_from_entries
 from parcover_env.geometry import atan2, rotate, segments_blocked, wrap_angle
 from parcover_env.geometry.poses import compose, inverse
 from parcover_env.geometry.rays import point_segment_distance
+from parcover_env.planning.free_space import DiscPaths
 from parcover_env.policies.protocol import Policy
 from parcover_env.scenarios import Mission, RouteTracker
 
@@ -94,6 +96,8 @@ class ScriptedExpert(Policy):
         self.back: dict[str, float] = {}
         """Per robot: how far back from its route's end (m) its last detour place there lies, until a fix: a
         scan there without a fix means the known map's prediction failed, and the next one is farther back."""
+        self.paths: DiscPaths | None = None
+        """Shortest paths of the robot's disc grown by ``stop_margin`` through the known map (:meth:`_disc_paths`)."""
         self.escaping: set[str] = set()
         """Robots driving into the freest direction of their sonar ring before their next scan."""
         # with sonar fixes, the robots' progress along their routes is tracked on the corrected pose
@@ -106,7 +110,15 @@ class ScriptedExpert(Policy):
         self.backing: dict[str, int] = {}
         self.checked: set[tuple[str, int]] = set()
         """(robot, KPOI index) pairs whose pose check before the KPOI is done (``kpoi_check_distance``)."""
+        self.checking: dict[str, np.ndarray] = {}
+        """Per robot whose last scan was its pose check before a KPOI and gave no fix yet: that KPOI; it
+        scans from a place back along its route before going on (:meth:`_relocate`)."""
         self._last_odom = np.zeros((mission.n_robots, 3))
+        """The odometry pose of each robot at the last step (calibrated with :attr:`drift` when there is one)."""
+        self._raw = np.zeros((mission.n_robots, 3))
+        """The observed odometry pose (the env's estimate) of each robot at the last step."""
+        self.drift: DriftCalibration | None = None
+        """Heading drift calibration of the robots' odometry (``expert.sonar_fix.calibrate_drift``)."""
 
     @classmethod
     def for_env(cls, env, **kwargs) -> ScriptedExpert:
@@ -132,6 +144,10 @@ class ScriptedExpert(Policy):
 
     def reset(self, observations=None) -> None:
         self.track = self.mission.tracker() if self.fixer is not None else None
+        r = self.scenario.robot
+        self.drift = (DriftCalibration(self.mission.n_robots, r.odometry, r.drive.wheel_base)
+                      if self.fixer is not None and self.cfg.sonar_fix.calibrate_drift and r.odometry.model == "wheels"
+                      else None)
         if self.fixer is not None:
             self.fixer.states.clear()
         self.estimators.clear()
@@ -139,6 +155,7 @@ class ScriptedExpert(Policy):
         self.backing.clear()
         self.unseen.clear()
         self.checked.clear()
+        self.checking.clear()
         self.detours.clear()
         self.still.clear()
         self.back.clear()
@@ -151,7 +168,7 @@ class ScriptedExpert(Policy):
         has_followers = {a: i + 1 < len(agents) and not leaders[agents[i + 1]] for i, a in enumerate(agents)}
         scans = {}
         for a in agents:
-            self._last_odom[int(a.rsplit("_", 1)[1])] = self._odom(observations[a])
+            self._read_odometry(a, observations[a])
         alone = self._alone(observations, agents, leaders)
         team = self._team_positions(observations, agents, leaders) if self.fixer is not None else None
         for a in agents:
@@ -209,29 +226,67 @@ class ScriptedExpert(Policy):
 
     def _visible_goal(self, i: int, pose: np.ndarray, rel: np.ndarray) -> np.ndarray:
         """``rel`` (robot frame), unless robot ``i`` is farther than ``off_route_distance`` from its
-        route ahead (from its tracked progress on; the whole route without a tracker) and a wall of the
-        known map lies between it and that point: then the latest route vertex before the point that it
-        can see (it drives back to its route around the corner). Measured from the progress on: a robot
-        coming back to its route from a teammate's branch may lie nearer a later leg than the leg it
-        needs, and progress then jumps there (generated:201, robot 5: 0.4 m from its route, its goal
-        behind a wall, braking and backing off against it to the end of the episode)."""
+        route ahead (from its tracked progress on; the whole route without a tracker) and its body
+        (radius + ``stop_margin``) cannot drive straight to that point through the known map: then
+        the latest route vertex before the point that it can drive straight to (back to its route
+        around the corner), else the first bend of the shortest path of its body to the point
+        (:class:`~parcover_env.planning.free_space.DiscPaths`, :func:`steer_point`). Measured from the
+        progress on: a robot coming back to its route from a teammate's branch may lie nearer a later
+        leg than the leg it needs, and progress then jumps there (generated:201, robot 5: 0.4 m from its
+        route, its goal behind a wall, braking and backing off against it to the end of the episode).
+        Tested with the body, not the centre line: generated:18 and 7190 (a robot promoted in a door
+        gap, its goal's line a few cm below the wall beside the door, braked and backed off there to
+        the episode's end)."""
         route = self.mission.routes[i]
         if len(route) < 2:
             return rel
         xy = pose[:2]
         ahead = route if self.track is None else route_from(route, float(self.track.progress[i]))
         off = float(point_segment_distance(xy[None], np.c_[ahead[:-1], ahead[1:]]).min())
-        walls = self.mission.known_map.segments
+        if off <= self.cfg.off_route_distance:
+            return rel
         goal = xy + rotate(rel, pose[2])
-        if off <= self.cfg.off_route_distance or not segments_blocked(xy[None], goal[None], walls)[0]:
+        paths = self._disc_paths()
+        if paths.clear(xy, goal):
             return rel
         upto = int(np.argmin(np.hypot(*(route - goal).T))) + 1
+        for k in range(upto - 1, -1, -1):  # the latest route vertex it can drive straight to
+            if paths.clear(xy, route[k]):
+                return rotate(route[k] - xy, -pose[2])
+        way = paths.path(xy, goal)
+        if way is not None:
+            return rotate(steer_point(way, xy, self.scenario.robot.radius) - xy, -pose[2])
+        # no way for its body on the known map: by the centre line (as before 2026-11-28)
+        walls = self.mission.known_map.segments
+        if not segments_blocked(xy[None], goal[None], walls)[0]:
+            return rel
         seen = ~segments_blocked(np.repeat(xy[None], upto, axis=0), route[:upto], walls)
         if seen.any():
             return rotate(route[int(np.flatnonzero(seen)[-1])] - xy, -pose[2])
         # none of its own route in sight (carried into a teammate's branch): back along the plan tree
         via = route_tree_waypoint(self.mission.routes, xy, route[upto - 1], walls)
         return rel if via is None else rotate(via - xy, -pose[2])
+
+    def _disc_paths(self) -> DiscPaths:
+        """Shortest paths through the known map for the robot's body and its ``stop_margin`` (built on
+        first use: only a robot off its route steers by them)."""
+        if self.paths is None:
+            self.paths = DiscPaths(self.mission.known_map.free, self.stop)
+        return self.paths
+
+    def _read_odometry(self, agent: str, obs: np.ndarray) -> None:
+        """Store the robot's observed odometry pose and the pose it steers from: calibrated for its heading
+        drift (:attr:`drift`), restarted at each fresh fix (``fix_age``) and measured against it."""
+        i = int(agent.rsplit("_", 1)[1])
+        self._raw[i] = raw = self._odom(obs)
+        if self.drift is None:
+            self._last_odom[i] = raw
+            return
+        g = self.layout.get
+        fresh = float(g(obs, "fix_age")[0]) < 2 * self.dt
+        var = (float(g(obs, "sigma_heading")[0]) ** 2 if "sigma_heading" in self.layout.slices
+               else float(self.fixer.fix_cov[2, 2]))
+        self._last_odom[i] = self.drift.step(i, raw, fresh, var)
 
     def _odom(self, obs: np.ndarray) -> np.ndarray:
         g = self.layout.get
@@ -283,18 +338,20 @@ class ScriptedExpert(Policy):
             pose, cov = chain_pose(self.fixer.belief(ahead, self._last_odom[i - 1]), self.fixer.covariance(ahead), rel,
                                    f.camera_range_noise, f.camera_bearing_noise, f.camera_heading_noise)
             self.fixer.relative_update(a, self._last_odom[i], pose, cov)
+            if self.drift is not None and self.drift.due(i):  # its chained heading measures its odometry's drift
+                self.drift.measure(i, float(self._raw[i, 2]), float(pose[2]), float(cov[2, 2]))
 
     def _sonar_fix(self, agent: str, obs: np.ndarray, leader: bool,
                    others: np.ndarray | None = None) -> tuple[float, float] | None:
         g = self.layout.get
         i = int(agent.rsplit("_", 1)[1])
-        odom = self._odom(obs)
+        odom = self._last_odom[i].copy()
         end = self.mission.routes[i][-1]
         at_end = bool(np.hypot(*(self.fixer.belief(agent, odom)[:2] - end)) <= self.mission.waypoint_tol)
         cov = None
         if "sigma_major" in self.layout.slices:
             names = ("sigma_major", "sigma_minor", "sigma_axis_cos2", "sigma_axis_sin2", "sigma_heading")
-            cov = covariance_from_entries(np.array([g(obs, k)[0] for k in names], dtype=float), float(odom[2]))
+            cov = covariance_from_entries(np.array([g(obs, k)[0] for k in names], dtype=float), float(self._raw[i, 2]))
         scanning = "scanning" in self.layout.slices and bool(g(obs, "scanning")[0] > 0.5)
         check = self._kpoi_check(agent, obs, odom) if leader else None
         result = float(g(obs, "scan_result")[0]) if "scan_result" in self.layout.slices else 0.0
@@ -303,6 +360,7 @@ class ScriptedExpert(Policy):
                               check=check is not None, result=result)
         if check is not None and self.fixer.scanning(agent):
             self.checked.add((agent, check))
+            self.checking[agent] = self.mission.kpois[check]
         self._relocate(agent, i, odom, at_end, g(obs, "sonar").astype(float))
         return out
 
@@ -314,12 +372,16 @@ class ScriptedExpert(Policy):
         it (a detour, scanned on arrival): within ``rescan_distance`` or, in open space, farther back as far as
         it sees its route (generated:198, 201, 367, 399: at a wall of an open room it stood uninformed at its
         route's end to the episode's end), beyond the last detour place whose scan gave no fix; a robot that
-        reaches its route's end before the place chosen ahead chooses again there. A stuck robot
+        reaches its route's end before the place chosen ahead chooses again there. After its pose check
+        before a KPOI (``kpoi_check_distance``) gave no fix, the same place back along its route, up to that
+        KPOI's route vertex, before it goes on (generated:7018; :attr:`checking`). A stuck robot
         (:meth:`_stuck`; after a held scan, or an uninformative one away from its route's end) drives into
         the freest direction of its sonar ``ranges``
         first (:meth:`_escape`). Drops the detour once the robot scans or is fixed."""
         if not self.fixer.relocating(agent):  # fixed: a place behind its route's end worked or is not needed
             self.back.pop(agent, None)
+            if not self.fixer.scanning(agent):
+                self.checking.pop(agent, None)
         if self.fixer.scanning(agent) or not self.fixer.relocating(agent):
             self.detours.pop(agent, None)
             self.still.pop(agent, None)
@@ -347,23 +409,40 @@ class ScriptedExpert(Policy):
         c = self.cfg.sonar_fix
         near, far = c.relocate_distance, max(c.relocate_distance, c.rescan_distance)
         route = self.mission.routes[i]
+        progress = float(self.track.progress[i]) if self.track is not None else 0.0
+        if agent in self.checking and not at_end:
+            # its pose check before a KPOI gave no fix: scan from a place back along its route before the
+            # KPOI, as at its route's end (generated:7018, robot 3: it went on to the KPOI on a belief
+            # 0.4 m off after an uninformative check and never came nearer than 0.48 m to it)
+            upto = route_upto(route, progress, self.checking[agent], self.mission.waypoint_tol)
+            if upto is not None and self._detour_behind(agent, upto, bel, near, far):
+                return
+            self.checking.pop(agent)  # no such place: on along its route, as after any other scan
         if self.fixer.spaced(agent) and not self.fixer.held(agent) and not at_end:  # a held scan was informative
             self.fixer.scan_after(agent, c.rescan_distance)
             return
         if at_end:
-            if agent in self.back:  # its scan at the last place behind gave no fix: beyond that place
-                near = self.back[agent] + c.relocate_distance
-                far = max(far, near)
-            found = self.places.behind_at(route, bel, near, far)
-            if found is None:  # none within ``far`` (open space): farther back, as far as it sees its route
-                found = self.places.behind_at(route, bel, far, route_length(route))
-            if found is not None:
-                self.detours[agent], self.back[agent] = found
-            self.fixer.scan_after(agent, np.inf)
+            self._detour_behind(agent, route, bel, near, far)
             return
-        progress = float(self.track.progress[i]) if self.track is not None else 0.0
         d = self.places.ahead(route, progress, near, far)
         self.fixer.scan_after(agent, c.rescan_distance if d is None else d)
+
+    def _detour_behind(self, agent: str, route: np.ndarray, xy: np.ndarray, near: float, far: float) -> bool:
+        """Send the robot at ``xy`` (its belief) to scan at the first place back from the end of ``route``
+        that the known map predicts informative and it sees: ``near`` to ``far`` metres back (beyond the last
+        such place whose scan gave no fix, :attr:`back`), else farther, as far as it sees the route; it scans
+        there on arrival and not before. Whether a place was found (else it waits for a fix, at its route's end)."""
+        c = self.cfg.sonar_fix
+        if agent in self.back:  # its scan at the last place behind gave no fix: beyond that place
+            near = self.back[agent] + c.relocate_distance
+            far = max(far, near)
+        found = self.places.behind_at(route, xy, near, far)
+        if found is None:  # none within ``far`` (open space): farther back, as far as it sees its route
+            found = self.places.behind_at(route, xy, far, route_length(route))
+        if found is not None:
+            self.detours[agent], self.back[agent] = found
+        self.fixer.scan_after(agent, np.inf)
+        return found is not None
 
     def _stuck(self, agent: str, xy: np.ndarray) -> bool:
         """Whether a relocating robot at ``xy`` (its belief) has stayed within ``stuck_distance`` of one
@@ -462,6 +541,24 @@ def route_from(route: np.ndarray, s: float) -> np.ndarray:
     k = int(np.searchsorted(arc, max(s, 0.0), side="right")) - 1
     u = (max(s, 0.0) - arc[k]) / max(arc[k + 1] - arc[k], 1e-12)
     return np.vstack([route[k] + u * (route[k + 1] - route[k]), route[k + 1:]])
+
+
+def steer_point(way: np.ndarray, xy: np.ndarray, reach: float) -> np.ndarray:
+    """The point to steer for from ``xy`` along the path ``way (K, 2)``: the vertex after the last one
+    within ``reach`` (m) of ``xy`` (its last vertex if that is within reach; its first if none is)."""
+    way = np.asarray(way, dtype=float)
+    near = np.flatnonzero(np.hypot(*(way - xy).T) <= reach)
+    return way[min(int(near[-1]) + 1, len(way) - 1) if len(near) else 0].copy()
+
+
+def route_upto(route: np.ndarray, s: float, point: np.ndarray, tol: float) -> np.ndarray | None:
+    """The polyline ``route (M, 2)`` from its start to its first vertex within ``tol`` (m) of ``point`` at
+    or beyond arc length ``s`` (m; the vertex the robot at progress ``s`` heads for: out-and-back
+    routes pass a vertex twice), or None if no vertex there lies that near ``point``."""
+    route = np.asarray(route, dtype=float)
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(route, axis=0).T))])
+    at = np.flatnonzero((np.hypot(*(route - np.asarray(point, dtype=float)).T) <= tol) & (arc >= s - 1e-9))
+    return route[: int(at[0]) + 1] if len(at) else None
 
 
 def route_tree_waypoint(routes, xy: np.ndarray, target: np.ndarray, walls: np.ndarray) -> np.ndarray | None:

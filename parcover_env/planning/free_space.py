@@ -27,7 +27,7 @@ from shapely.geometry import Point, Polygon
 from shapely.geometry.polygon import orient
 from shapely.ops import nearest_points
 
-__all__ = ["FREE_QUAD_SEGS", "free_space_distances", "reflex_vertices"]
+__all__ = ["FREE_QUAD_SEGS", "DiscPaths", "free_space_distances", "reflex_vertices"]
 
 FREE_QUAD_SEGS = 16
 """Chords per quarter circle of an inflated corner (see the module docstring for the error)."""
@@ -111,3 +111,67 @@ def free_space_distances(free: Polygon, start, targets, radius: float,
     graph.add_weighted_edges_from(zip(i[ok].tolist(), j[ok].tolist(), length[ok].tolist()))
     dist = nx.single_source_dijkstra_path_length(graph, 0)
     return np.array([dist.get(k, math.inf) for k in range(1, 1 + len(tg))])
+
+
+class DiscPaths:
+    """Shortest paths of a disc of ``radius`` through ``free`` for many queries (a robot steering
+    around corners): the eroded free space, its bends and the visibility edges among them are built
+    once; each :meth:`path` adds only its two ends. The same taut-string construction as
+    :func:`free_space_distances`."""
+
+    def __init__(self, free: Polygon, radius: float, quad_segs: int = FREE_QUAD_SEGS):
+        if not (radius >= 0 and int(quad_segs) >= 1):
+            raise ValueError(f"radius must be >= 0 and quad_segs >= 1, got {radius}, {quad_segs}")
+        self.radius = float(radius)
+        self.region = free.buffer(-radius, quad_segs=int(quad_segs)) if radius > 0 else free
+        self._seen = self.region.buffer(_EPS)
+        shapely.prepare(self._seen)
+        self._bends, self._before, self._after = _reflex(self.region)
+        n = len(self._bends)
+        i, j = np.triu_indices(n, k=1)
+        b, bb, ba = self._bends, self._before, self._after
+        cand = _tangent(b, bb, ba, i, j) & _tangent(b, bb, ba, j, i)
+        i, j = i[cand], j[cand]
+        ok = shapely.covers(self._seen, shapely.linestrings(np.stack([b[i], b[j]], axis=1))) if len(i) else i > 0
+        self._graph = nx.Graph()
+        self._graph.add_nodes_from(range(n))
+        length = np.hypot(*(b[i] - b[j]).T)
+        self._graph.add_weighted_edges_from(zip(i[ok].tolist(), j[ok].tolist(), length[ok].tolist()))
+
+    def clear(self, a, b) -> bool:
+        """Whether the disc's centre can go straight from ``a`` to ``b`` without the disc leaving the
+        free space (the segment lies in the eroded region)."""
+        a, b = np.asarray(a, dtype=float).reshape(2), np.asarray(b, dtype=float).reshape(2)
+        return bool(shapely.covers(self._seen, shapely.linestrings(np.stack([a, b])[None])[0]))
+
+    def path(self, start, target) -> np.ndarray | None:
+        """``(K, 2)`` vertices of the shortest path of the disc's centre from ``start`` to ``target``
+        (each first moved to the nearest point of the eroded region if it lies outside): the moved
+        start, the bends, the moved target; None when they lie in different components of it."""
+        if self.region.is_empty:
+            return None
+        ends = np.stack([_snap(self.region, np.asarray(start, dtype=float).reshape(2)),
+                         _snap(self.region, np.asarray(target, dtype=float).reshape(2))])
+        if self.clear(ends[0], ends[1]):
+            return ends
+        b = self._bends
+        n = len(b)
+        graph = self._graph.copy()
+        s_node, t_node = n, n + 1
+        graph.add_nodes_from((s_node, t_node))
+        if n:
+            nan = np.full((1, 2), np.nan)
+            for node, end in ((s_node, ends[0]), (t_node, ends[1])):
+                pts = np.vstack([end[None], b])
+                k = np.arange(1, n + 1)
+                z = np.zeros(n, dtype=int)
+                cand = _tangent(pts, np.vstack([nan, self._before]), np.vstack([nan, self._after]), k, z)
+                lines = shapely.linestrings(np.stack([np.repeat(end[None], n, axis=0), b], axis=1))
+                ok = cand & shapely.covers(self._seen, lines)
+                length = np.hypot(*(b - end).T)
+                graph.add_weighted_edges_from((node, int(m), float(length[m])) for m in np.flatnonzero(ok))
+        try:
+            nodes = nx.dijkstra_path(graph, s_node, t_node, weight="weight")
+        except nx.NetworkXNoPath:
+            return None
+        return np.vstack([ends[0], *(b[m] for m in nodes[1:-1]), ends[1]])

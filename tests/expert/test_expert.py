@@ -122,8 +122,11 @@ def test_visible_goal_only_redirects_a_leader_off_its_route_with_a_wall_in_betwe
 
     expert = expert_for(parcover_env.parallel_env("office", preset="ideal"))
     routes = (np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]]), np.array([[0.0, 0.0], [2.0, 0.0], [4.0, 0.0]]))
+    from shapely.geometry import box
+
     wall = np.array([[2.2, 0.3, 2.2, 3.0]])
-    expert.mission = SimpleNamespace(routes=routes, known_map=SimpleNamespace(segments=wall))
+    free = box(-1.0, -1.0, 5.0, 4.0).difference(box(2.2, 0.3, 2.2 + 1e-6, 3.0))  # the wall, 1 um thick
+    expert.mission = SimpleNamespace(routes=routes, known_map=SimpleNamespace(segments=wall, free=free))
     goal = np.array([2.0, 1.5])  # robot 0's lookahead point on its branch A
 
     def steer(xy, heading=0.0):
@@ -133,7 +136,11 @@ def test_visible_goal_only_redirects_a_leader_off_its_route_with_a_wall_in_betwe
 
     np.testing.assert_allclose(steer([3.5, 0.5], heading=1.0), [2.0, 0.0], atol=1e-12)  # via the TP
     np.testing.assert_allclose(steer([2.0, 0.5]), goal, atol=1e-12)  # on its route: unchanged
-    np.testing.assert_allclose(steer([2.6, 0.5]), [2.0, 0.0], atol=1e-12)  # 0.6 m off, own TP in sight
+    # 0.6 m off, its own TP in sight, but its body (radius + stop_margin) would graze the wall's end
+    # (2.2, 0.3) on the way there: it rounds that end first, on the arc at that distance from it
+    near = steer([2.6, 0.5])
+    assert np.hypot(*(near - [2.2, 0.3])) == pytest.approx(expert.stop, abs=2e-6) and near[0] > 2.2
+    assert np.hypot(*(near - [2.6, 0.5])) > expert.scenario.robot.radius
     expert.cfg = replace(expert.cfg, off_route_distance=0.7)
     np.testing.assert_allclose(steer([3.5, 0.5]), [2.0, 0.0], atol=1e-12)  # 1.5 m off: still redirected
     np.testing.assert_allclose(steer([2.6, 0.5]), goal, atol=1e-12)  # 0.6 m off < 0.7: unchanged

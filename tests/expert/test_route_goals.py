@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 import parcover_env
-from parcover_env.expert.scripted import route_from, route_length
-from parcover_env.geometry import rotate
+from parcover_env.expert.scripted import route_from, route_length, route_upto, steer_point
+from parcover_env.geometry import rotate, segments_blocked
+from parcover_env.geometry.rays import point_segment_distance
 from parcover_env.localization.sonar.service import UNINFORMATIVE
 
 RELOCATE = {"observation": {"scan": {"enabled": True, "confirm_widened": True}},
@@ -53,7 +54,18 @@ def test_off_route_is_measured_from_the_progress_on_so_a_goal_behind_a_wall_give
     np.testing.assert_allclose(goal, [4.06, 6.89], atol=0.02)
     rel = rotate(goal - pose[:2], -pose[2])
     out = expert._visible_goal(5, pose, rel)
-    np.testing.assert_allclose(out, rotate(route[4] - pose[:2], -pose[2]), atol=1e-9)  # the turn, through the door
+    # its body (0.12 m + stop_margin 0.05 m) cannot drive straight to the turn (3.08, 6.48): the line passes
+    # the door's east jamb (3.45, 5.97) at 0.094 m (until 2026-11-28 it steered there, by the centre line);
+    # the latest route vertex it can drive straight to is the one before, (3.03, 5.38), below the door
+    paths = expert._disc_paths()
+    assert not paths.clear(pose[:2], route[4]) and paths.clear(pose[:2], route[3])
+    line = np.c_[pose[None, :2], route[4][None]]
+    assert float(point_segment_distance(np.array([[3.45, 5.97]]), line).min()) == pytest.approx(0.094, abs=1e-3)
+    np.testing.assert_allclose(out, rotate(route[3] - pose[:2], -pose[2]), atol=1e-9)
+    # there, the turn through the door (x 2.61-3.45) is in reach of its body
+    there = np.array([*route[3], 2.0])
+    np.testing.assert_allclose(expert._visible_goal(5, there, rotate(goal - route[3], -2.0)),
+                               rotate(route[4] - route[3], -2.0), atol=1e-9)
     # measured from the whole route (0.4 m from the leg it needs) the goal behind the wall stood
     track, expert.track = expert.track, None
     np.testing.assert_allclose(expert._visible_goal(5, pose, rel), rel)
@@ -62,6 +74,46 @@ def test_off_route_is_measured_from_the_progress_on_so_a_goal_behind_a_wall_give
     expert.track.progress[5] = 3.49
     rel = rotate(expert.track.goals()[5] - pose[:2], -pose[2])
     np.testing.assert_allclose(expert._visible_goal(5, pose, rel), rel)
+
+
+def test_a_robot_whose_body_would_graze_a_wall_on_the_way_to_its_goal_takes_the_disc_path():
+    """generated:18, robot 4 (traced; also 7190): a follower carried 4.5 m past its turn, promoted in the door
+    gap at the corridor's top wall (y 7.53, x 6.39-7.51), its belief right; the line to its goal 4.4 m west
+    ran a few cm below the wall's face: the front sonar braked it, it backed off and drove in again from
+    43 s to the episode's end. Now it steers by the shortest path of its body plus ``stop_margin`` (0.17 m)."""
+    env, expert, _ = _expert(18)
+    walls = env.mission.known_map.segments
+    assert expert.stop == pytest.approx(0.17) and env.scenario.robot.radius == 0.12
+    expert.track.progress[4] = 3.49  # as traced: the leg north at x = 3.2-3.3
+    goal = expert.track.goals()[4]
+    np.testing.assert_allclose(goal, [3.243, 7.498], atol=1e-3)
+    pose = np.array([7.65, 7.50, math.radians(-174.0)])
+    rel = rotate(goal - pose[:2], -pose[2])
+    # the centre line is in sight of the goal (what was tested), 0.03 m below the jamb's corner (7.51, 7.53)
+    assert not segments_blocked(pose[None, :2], goal[None], walls)[0]
+    line = np.c_[pose[None, :2], goal[None]]
+    assert float(point_segment_distance(np.array([[7.51, 7.53]]), line).min()) == pytest.approx(0.030, abs=1e-3)
+    out = expert._visible_goal(4, pose, rel)
+    target = pose[:2] + rotate(out, pose[2])
+    # down into the corridor first, away from the wall's face: not the straight line west
+    assert target[1] < 7.40 and abs(target[0] - pose[0]) < 0.06
+    way = expert._disc_paths().path(pose[:2], goal)
+    np.testing.assert_allclose(target, steer_point(way, pose[:2], 0.12), atol=1e-12)
+    clearance = np.array([float(point_segment_distance(p[None], walls).min()) for p in way[:-1]])
+    np.testing.assert_allclose(clearance, 0.17, atol=2e-4)  # it bends round corners at 0.17 m
+    long = np.flatnonzero(np.hypot(*np.diff(way, axis=0).T) > 1.0)  # one straight leg west along the corridor
+    np.testing.assert_allclose(way[[long[0], long[0] + 1]], [[7.51, 7.36], [3.65, 7.36]], atol=1e-9)
+    # on its route (within off_route_distance) it steers by its route as before
+    near = np.array([6.08, 7.30, math.pi])
+    rel = rotate(expert.track.goals()[4] - near[:2], -near[2])
+    np.testing.assert_allclose(expert._visible_goal(4, near, rel), rel)
+
+
+def test_steer_point_is_the_first_vertex_beyond_the_reach():
+    way = np.array([[0.0, 0.0], [0.05, 0.0], [0.3, 0.0], [0.3, 1.0]])
+    np.testing.assert_allclose(steer_point(way, np.zeros(2), 0.12), [0.3, 0.0])
+    np.testing.assert_allclose(steer_point(way, np.array([0.3, 0.95]), 0.12), [0.3, 1.0])  # the last one
+    np.testing.assert_allclose(steer_point(way, np.array([0.3, 0.5]), 0.12), [0.0, 0.0])
 
 
 def test_the_goal_is_the_experts_own_tracker_point_also_without_a_correction():
@@ -167,3 +219,56 @@ def test_a_robot_reaching_its_route_end_before_the_place_chosen_ahead_chooses_ag
     assert expert.fixer.waiting_distance("robot_0") == math.inf
     expert.fixer.choose_again("robot_0")
     assert expert.fixer.needs_place("robot_0")
+
+
+def test_route_upto_ends_at_the_kpoi_vertex_the_robot_heads_for():
+    route = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [2.0, 0.0], [4.0, 0.0]])  # out and back to (2, 1)
+    np.testing.assert_allclose(route_upto(route, 0.5, np.array([2.05, 0.98]), 0.1), route[:3])
+    # progress past (2, 0) once: the next visit of (2, 0) is the one it heads for
+    np.testing.assert_allclose(route_upto(route, 2.5, np.array([2.0, 0.0]), 0.1), route[:4])
+    assert route_upto(route, 0.5, np.array([3.0, 3.0]), 0.1) is None
+    assert route_upto(route, 4.5, np.array([2.0, 1.0]), 0.1) is None  # passed
+
+
+def test_after_an_uninformative_pose_check_before_a_kpoi_it_scans_from_a_place_behind_first():
+    """generated:7018, robot 3 (traced): its pose check 0.43 m before the KPOI (7.48, 0.35), at the end of an
+    out-and-back leg, was uninformative (its belief 0.41 m off); with spaced scans (the known map's
+    predictions had failed there) its next scan was 2 m on, and it went on to the KPOI on that belief, never
+    nearer than 0.48 m. Now it first drives back along its route to a place predicted informative, as at
+    its route's end, and scans there on arrival."""
+    from parcover_env.expert.sonar_fix import _State
+
+    env, expert, _ = _expert(7018)
+    a, route, kpoi = "robot_3", env.mission.routes[3], env.mission.kpois[5]
+    np.testing.assert_allclose(route[4:8], [[6.48, 1.72], [7.48, 1.68], [7.48, 0.32], [7.48, 1.68]], atol=0.01)
+    np.testing.assert_allclose(kpoi, [7.48, 0.35], atol=0.01)
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(route, axis=0).T))])
+    expert.track.progress[3] = arc[5] + 0.93  # at (7.48, 0.75), as traced
+    odom = np.array([7.47, 0.75, -math.pi / 2])
+
+    def relocating() -> None:
+        expert.fixer.states[a] = _State(np.zeros(3), np.eye(3) * 1e-3, last_odom=odom.copy(), relocate=True,
+                                        uninformative=2, spaced=True, driven_since_scan=0.0)
+
+    relocating()  # without a check before the KPOI: spaced scans, 2 m on (as before)
+    expert._relocate(a, 3, odom, False, np.full(16, 2.5))
+    assert a not in expert.detours and expert.fixer.waiting_distance(a) == pytest.approx(2.0)
+    relocating()
+    expert.checking[a] = kpoi
+    upto = route_upto(route, float(expert.track.progress[3]), kpoi, env.mission.waypoint_tol)
+    np.testing.assert_array_equal(upto, route[:7])
+    expert._relocate(a, 3, odom, False, np.full(16, 2.5))
+    # nothing predicted informative 0.5-2 m back from the KPOI (the leg's corridor): farther back, 2.52 m,
+    # just round the corner into the corridor above (the place of the trace)
+    np.testing.assert_allclose(expert.detours[a], [6.475, 1.874], atol=1e-3)
+    assert expert.back[a] == pytest.approx(2.5, abs=0.05)
+    assert expert.fixer.waiting_distance(a) == math.inf  # it scans there on arrival, not before
+    assert expert.places.informative(np.array([*expert.detours[a], math.pi / 2]))
+    # the robot steers for that place, not for the KPOI
+    bel = np.array([odom])
+    np.testing.assert_allclose(expert._goal(None, a, np.repeat(bel, 4, axis=0)),
+                               rotate(expert.detours[a] - odom[:2], -odom[2]), atol=1e-12)
+    # a fix ends it
+    expert.fixer.states[a].relocate = False
+    expert._relocate(a, 3, odom, False, np.full(16, 2.5))
+    assert a not in expert.checking and a not in expert.detours and a not in expert.back
