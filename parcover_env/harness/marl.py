@@ -41,6 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
+from parcover_env.harness.map_pool import is_pool
 from parcover_env.harness.marl_config import MarlConfig, scheduled_lr
 from parcover_env.harness.marl_grow import ACTION_COMPONENTS, Growth, env_io
 from parcover_env.harness.marl_init import CRITIC_FILE, apply_init, critic_spec, find_init, init_env_args, save_critic
@@ -362,7 +363,7 @@ def train(req: TrainRequest, on_batch: Callable[[object, float, float], object] 
                         max_robots=cfg.max_robots, worlds=cfg.worlds, state=req.algo == "mappo",
                         mask_done=cfg.mask_done, collector_env=cfg.collector_env, worlds_per_map=cfg.worlds_per_map)
     base = make_env.parallel()  # spaces, robot and KPOI counts
-    cfg.check_critic(req.algo, base.scenario.observation.version, req.config_path)
+    cfg.check_critic(req.algo, base.scenario.observation.version, req.config_path, pool=is_pool(req.scenario))
     n_robots = base.n_robots
     obs_space, act_dim = base.observation_space(base.possible_agents[0]), base.action_space("robot_0").shape[0]
     head = run_scan_head(cfg, act_dim)

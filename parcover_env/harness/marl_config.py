@@ -176,9 +176,14 @@ class MarlConfig:
                               f"got {self.critic_heads}")
         return self
 
-    def check_critic(self, algo: str, version: int, source: str) -> None:
+    def check_critic(self, algo: str, version: int, source: str, pool: bool = False) -> None:
         """ConfigError naming ``source`` if the critic does not fit ``algo`` or an env of observation
-        ``version`` (``critic: attention`` reads the version-2 state tokens, and only MAPPO has a state critic)."""
+        ``version`` (``critic: attention`` reads the version-2 state tokens, and only MAPPO has a state critic;
+        MAPPO on a map pool (``pool``) needs version 2's ``state()``, the one of the same shape on every map)."""
+        if algo == "mappo" and pool and version != 2:
+            raise ConfigError(source, "env.observation.version", f"MAPPO's critic reads env.state(), whose shape "
+                              f"under observation version {version} differs from map to map of a pool: set env: "
+                              "{observation: {version: 2}} (a state of one shape) or train ippo")
         if self.critic != "attention":
             return
         if algo != "mappo":

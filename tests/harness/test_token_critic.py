@@ -114,6 +114,23 @@ def test_attention_critic_needs_mappo_and_a_version_2_env():
         CFG.check_critic("ippo", 2, "x.yaml")
 
 
+def test_mappo_on_a_map_pool_needs_the_version_2_state():
+    mlp = MarlConfig()
+    mlp.check_critic("mappo", 1, "x.yaml")  # one scenario: its state has one shape
+    mlp.check_critic("mappo", 2, "x.yaml", pool=True)
+    mlp.check_critic("ippo", 1, "x.yaml", pool=True)  # IPPO's critic reads no state
+    with pytest.raises(ConfigError, match=r"x.yaml: env.observation.version: MAPPO's critic.*version 1 differs"):
+        mlp.check_critic("mappo", 1, "x.yaml", pool=True)
+
+
+def test_train_refuses_mappo_on_a_version_1_pool_before_writing(tmp_path):
+    cfg = dataclasses.replace(MarlConfig(), frames_per_batch=64, minibatch_size=64, epochs=1, hidden=(8,),
+                              episode_steps=20, env={"observation": {"version": 1}})
+    with pytest.raises(ConfigError, match="env.observation.version"):
+        train(TrainRequest("mappo", "generated:0-20", 2000, tmp_path / "run", cfg, "cfg.yaml"))
+    assert not (tmp_path / "run").exists()
+
+
 def test_train_refuses_attention_on_a_version_1_env(tmp_path):
     with pytest.raises(ConfigError, match="observation version 1"):
         train(TrainRequest("mappo", "office", 64, tmp_path / "run", CFG, "cfg.yaml"))
