@@ -18,6 +18,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from parcover_env.geometry.angle_kernels import wrap
 from parcover_env.geometry.ray_kernels import (
     COS_FLOOR,
     disc_fan,
@@ -26,6 +27,7 @@ from parcover_env.geometry.ray_kernels import (
     near_segments,
     segment_fan,
     segment_hit,
+    wall_before,
 )
 
 __all__ = ["SONAR_RULES", "WallSet", "wall_set", "Discs", "sonar_echoes", "sonar_corner_echoes", "beam_readings"]
@@ -339,10 +341,14 @@ def sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading):
     rmax, half = rules[0].range_max, rules[0].half_cone
     has_discs = cx.shape[1] > 0
     per_origin = cx.shape[0] > 1
+    n_beams = axes.shape[1]
+    step = 2.0 * math.pi / n_beams if n_beams > 0 else 0.0
+    span = int(math.floor((half + _FAN_MARGIN) / step)) + 1 if n_beams > 0 else 0
     for n in range(ox.shape[0]):
         x0 = ox[n]
         y0 = oy[n]
         near = idx[n, :cnt[n]]
+        fan = 2 * span + 1 < n_beams and even_fan(axes[n], step)
         for q in range(2 * near.shape[0]):
             c = owned[near[q // 2], q % 2]
             if c < 0:
@@ -359,19 +365,39 @@ def sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading):
                 continue  # not inside the corner's wedge
             bearing = math.atan2(vy, vx)
             seen = -1  # line of sight: unknown until a beam's cone holds the corner
-            for b in range(axes.shape[1]):
+            first, count = 0, n_beams
+            if fan:  # an even fan: only the beams whose axis lies within the cone (and a margin) of the bearing
+                first = int(math.floor(wrap(bearing - axes[n, 0]) / step)) - span
+                count = 2 * span + 2
+            for k in range(count):
+                b = (first + k) % n_beams
                 if not (dist < reading[n, b] and in_cone(bearing - axes[n, b], half)):
                     continue
                 if seen < 0:
                     dx = vx / dist
                     dy = vy / dist
-                    t, _, _ = segment_hit(x0, y0, dx, dy, segs, near, np.inf, False, False)
-                    seen = 1 if t >= dist * (1.0 - 1e-7) - 1e-9 else 0  # else a wall in between
+                    seen = 0 if wall_before(x0, y0, dx, dy, segs, near, dist * (1.0 - 1e-7) - 1e-9, dist) else 1
                     if seen and has_discs and not disc_hit(x0, y0, dx, dy, cx, cy, n if per_origin else 0, r2,
                                                             owner[n]) >= dist:
                         seen = 0  # a robot in between
                 if seen:
                     reading[n, b] = dist
+
+
+_FAN_MARGIN = 1e-6
+"""Margin (rad) by which :func:`sonar_corner_echoes` widens a cone when it picks the beams of an even
+fan that may hold a corner (far above the rounding of the axes, ~1e-15 rad)."""
+
+
+@njit(cache=True, inline="always")
+def even_fan(axes, step):
+    """Whether the beam axes ``axes (B,)`` (rad) lie ``step`` apart in order, ``axes[b] = axes[0] + b
+    step`` within 1e-9 rad (a 360-degree scan at any heading), so that the beams within an angle of
+    a bearing follow from its offset to ``axes[0]``."""
+    for b in range(1, axes.shape[0]):
+        if not abs(wrap((axes[b] - axes[0]) - b * step)) <= 1e-9:
+            return False
+    return True
 
 
 @njit(cache=True, nogil=True)
