@@ -26,6 +26,7 @@ from parcover_env.geometry.ray_kernels import (
     in_cone,
     near_segments,
     segment_fan,
+    segment_fan_spans,
     segment_hit,
     wall_before,
 )
@@ -185,12 +186,17 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
     fan_den = np.empty(n_traced)
     fan_td = np.empty(n_traced)
     no_boxes = np.empty((0, n_traced))  # segment_fan without culling
+    spans = n_traced >= FAN_SPANS_MIN  # a wide fan (a 360-degree scan): each wall against the rays of its span
+    fan_order = np.arange(n_traced)  # segment_fan_spans' ray order, kept from one origin to the next
+    fan_keys = np.empty(n_traced)
     direct = np.empty(n_pairs)  # per origin, per sub-ray traced: its direct echo (inf if none)
     leg_t = np.empty(n_pairs)  # where an oblique wall mirrored it (inf: not mirrored)
     leg_i = np.empty(n_pairs, dtype=np.int64)
     leg_x = np.empty(n_pairs)
     leg_y = np.empty(n_pairs)
     leg_echo = np.empty(n_pairs)  # its two-leg echo, once traced (nan: not yet)
+    leg_bound = np.empty(n_pairs)  # the best echo it was traced for (_second_leg's bound)
+    legs = np.empty(n_sub, dtype=np.int64)  # a beam's sub-rays, nearest mirror first
     ocx = np.empty(n_discs)  # per origin: the terms of the discs a sub-ray within rmax can hit
     ocy = np.empty(n_discs)
     cc = np.empty(n_discs)
@@ -213,7 +219,10 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
                     fdy[p] = ay * co[j] + ax * so[j]
         # first hits of every traced sub-ray at once (no cull: a hit within rmax is the same, and one
         # beyond rmax, or beyond a cone's nearest echo, never changes a reading)
-        segment_fan(x0, y0, fdx, fdy, segs, near, no_boxes, fan_t, fan_i, fan_den)
+        if spans:
+            segment_fan_spans(x0, y0, fdx, fdy, segs, near, fan_order, fan_keys, fan_t, fan_i, fan_den)
+        else:
+            segment_fan(x0, y0, fdx, fdy, segs, near, no_boxes, fan_t, fan_i, fan_den)
         fan_td[:] = np.inf
         disc_fan(fdx, fdy, ocx[:m], ocy[:m], cc[:m], fan_td)
         for b in range(axes.shape[1]):
@@ -245,16 +254,39 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
                             leg_y[u] = fdy[p]
                     direct[u] = echo
                 best = min(best, direct[u])
-            for j in range(n_sub):  # second legs, once the cone's direct echoes bound what can be nearer
-                u = share[b, j]
-                if leg_t[u] < best:
-                    if math.isnan(leg_echo[u]):
-                        leg_echo[u] = _second_leg(x0, y0, leg_x[u], leg_y[u], leg_t[u], leg_i[u], walls, normals, near,
-                                                  leg_discs, rules)
-                    best = min(best, leg_echo[u])
+            # second legs, once the cone's direct echoes bound what can be nearer: nearest mirror first (a leg
+            # reads more than its first leg, so one that starts beyond the best echo so far cannot lower it);
+            # each traced only as far as that best (leg_bound: the best it was traced for; a leg traced for a
+            # bound B reads its own echo, or something above B when its echo lies above B: the minimum with any
+            # best <= B is the same)
+            for j in range(n_sub):
+                legs[j] = share[b, j]
+            for j in range(1, n_sub):  # insertion sort by the first leg's length (5 sub-rays)
+                v = legs[j]
+                k = j - 1
+                while k >= 0 and leg_t[legs[k]] > leg_t[v]:
+                    legs[k + 1] = legs[k]
+                    k -= 1
+                legs[k + 1] = v
+            for j in range(n_sub):
+                u = legs[j]
+                if not leg_t[u] < best:
+                    break
+                if math.isnan(leg_echo[u]) or best > leg_bound[u]:
+                    leg_echo[u] = _second_leg(x0, y0, leg_x[u], leg_y[u], leg_t[u], leg_i[u], walls, normals, near,
+                                              leg_discs, rules, best)
+                    leg_bound[u] = best
+                best = min(best, leg_echo[u])
             reading[n, b] = best
 
 
+_LEG_MARGIN = 1e-9
+"""Margin (m) beyond a bound that :func:`_second_leg` traces a second leg: far above the rounding of
+``t1 + t2`` (~1e-15 m), so a wall left out lies above the bound in the sum as well."""
+FAN_SPANS_MIN = 64
+"""From this many traced sub-rays per origin (a 360-degree scan: 144) :func:`sonar_echoes` casts them with
+:func:`~parcover_env.geometry.ray_kernels.segment_fan_spans` (the same hits; cheaper for a wide fan), else
+with :func:`~parcover_env.geometry.ray_kernels.segment_fan` (a ring's few beams)."""
 _DISC_SLACK = 1e-6
 """Margin (m) of the disc range cull of :func:`sonar_echoes`: rounding never culls a disc a sub-ray hits."""
 @njit(cache=True, inline="always")
@@ -300,7 +332,7 @@ def _normals(segs):
 
 
 @njit(cache=True, inline="always")
-def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, normals, near, discs, rules):
+def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, normals, near, discs, rules, bound=np.inf):
     """Echo length ``t1 + t2`` of a sub-ray from ``(x0, y0)`` mirrored at ``t1`` by segment ``i1`` (unit
     normals ``normals``), inf if its second leg finds no echoing surface within ``rmax - t1`` (walls
     ``near``; the :class:`Discs` ``discs``, one set (row 0), none skipped: the origin's discs within
@@ -316,6 +348,8 @@ def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, normals, near, discs, rules):
     px = (x0 + ddx * t1) + d2x * nudge
     py = (y0 + ddy * t1) + d2y * nudge
     reach = rmax - t1
+    if bound < rmax:  # walls only as far as the bound (and a margin): the echo, or one read above ``bound``
+        reach = min(reach, (bound - t1) + _LEG_MARGIN)
     t2w, i2, den2 = segment_hit(px, py, d2x, d2y, segs, near, reach, box_cull and math.isfinite(reach), False)
     if not (i2 >= 0 and t2w <= reach):
         t2w = np.inf
