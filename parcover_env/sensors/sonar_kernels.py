@@ -428,10 +428,12 @@ def even_fan(axes, step):
     """Whether the beam axes ``axes (B,)`` (rad) lie ``step`` apart in order, ``axes[b] = axes[0] + b
     step`` within 1e-9 rad (a 360-degree scan at any heading), so that the beams within an angle of
     a bearing follow from its offset to ``axes[0]``."""
-    for b in range(1, axes.shape[0]):
-        if not abs(wrap((axes[b] - axes[0]) - b * step)) <= 1e-9:
-            return False
-    return True
+    even = True
+    b = 1
+    while even and b < axes.shape[0]:
+        even = abs(wrap((axes[b] - axes[0]) - b * step)) <= 1e-9
+        b += 1
+    return even
 
 
 @njit(cache=True, nogil=True)

@@ -13,10 +13,10 @@ import pytest
 from references import sonar as reference
 
 from parcover_env.config import SonarConfig
-from parcover_env.geometry import rays
 from parcover_env.geometry import ray_kernels as rk
+from parcover_env.geometry import rays
 from parcover_env.sensors import sonar_kernels as kern
-from parcover_env.sensors.sonar import SonarRing, _NUDGE, _rules, _share, _subray_offsets, _walls
+from parcover_env.sensors.sonar import _NUDGE, SonarRing, _rules, _share, _subray_offsets, _walls
 
 SQUARE = np.array([[0.0, 0.0, 4.0, 0.0], [4.0, 0.0, 4.0, 4.0], [4.0, 4.0, 0.0, 4.0], [0.0, 4.0, 0.0, 0.0]])
 """A 4 m square room, walls in counter-clockwise order (bottom, right, top, left)."""
@@ -60,7 +60,7 @@ def test_pseudo_angle_is_monotone_and_quarters_a_turn():
         [0.0, 1.0, 2.0, 3.0, 0.5]
     ang = np.linspace(0.0, 2 * math.pi, 2001)[:-1]
     keys = np.array([rk.pseudo_angle(math.cos(a), math.sin(a)) for a in ang])
-    assert (np.diff(keys) > 0).all() and 0.0 <= keys.min() and keys.max() < 4.0
+    assert (np.diff(keys) > 0).all() and keys.min() >= 0.0 and keys.max() < 4.0
     slope = np.diff(keys) / np.diff(ang)  # between 1/2 and 1 per radian (the margin's premise)
     assert slope.min() > 0.5 - 1e-3 and slope.max() < 1.0 + 1e-3
 
