@@ -439,3 +439,83 @@ def segment_fan_spans(x0, y0, dx, dy, segs, near, order, keys, t, index, dens):
                 t[b] = tt
                 index[b] = s
                 dens[b] = den
+
+
+@njit(cache=True, inline="always")
+def near_boxes(segs, near, boxes):
+    """Fill ``boxes[:, :len(near)]`` (``(4, >= len(near))``) with the bounding boxes (x low, x high, y low,
+    y high) of the segments ``near``, contiguous for :func:`segment_hit_boxed` and :func:`wall_before_boxed`."""
+    for j in range(near.shape[0]):
+        s = near[j]
+        boxes[0, j] = min(segs[s, 0], segs[s, 2])
+        boxes[1, j] = max(segs[s, 0], segs[s, 2])
+        boxes[2, j] = min(segs[s, 1], segs[s, 3])
+        boxes[3, j] = max(segs[s, 1], segs[s, 3])
+
+
+@njit(cache=True, inline="always")
+def _boxes_meeting(boxes, m, bx0, bx1, by0, by1, meets):
+    """``meets[j]`` for ``j < m``: box ``j`` of ``boxes`` meets the box ``[bx0, bx1] x [by0, by1]`` (the test
+    of :func:`segment_hit`'s culling, branch-free over contiguous rows)."""
+    for j in range(m):
+        meets[j] = not (boxes[0, j] > bx1 or boxes[1, j] < bx0 or boxes[2, j] > by1 or boxes[3, j] < by0)
+
+
+@njit(cache=True, inline="always")
+def segment_hit_boxed(x0, y0, ddx, ddy, segs, idx, boxes, meets, reach):
+    """:func:`segment_hit` with ``cull`` (not ``open_end``; ``reach`` finite), the same ``(t, index, d x e)``
+    bit for bit, the segments' boxes read from ``boxes`` (:func:`near_boxes` of ``idx``) and tested in one
+    pass before any segment's hit; ``meets`` (bool, ``>= len(idx)``) is scratch."""
+    fx = x0 + ddx * reach
+    fy = y0 + ddy * reach
+    m = idx.shape[0]
+    _boxes_meeting(boxes, m, min(x0, fx) - _BOX_SLACK, max(x0, fx) + _BOX_SLACK, min(y0, fy) - _BOX_SLACK,
+                   max(y0, fy) + _BOX_SLACK, meets)
+    best = np.inf
+    best_i = -1
+    best_den = 0.0
+    for j in range(m):
+        if not meets[j]:
+            continue
+        s = idx[j]
+        ex = segs[s, 2] - segs[s, 0]
+        ey = segs[s, 3] - segs[s, 1]
+        den = ddx * ey - ddy * ex
+        if not abs(den) > _EPS:
+            continue
+        wx = segs[s, 0] - x0
+        wy = segs[s, 1] - y0
+        t = (wx * ey - wy * ex) / den
+        u = (wx * ddy - wy * ddx) / den
+        if t >= 0.0 and u >= -_EPS and u <= 1.0 + _EPS and t < best:
+            best = t
+            best_i = s
+            best_den = den
+    return best, best_i, best_den
+
+
+@njit(cache=True, inline="always")
+def wall_before_boxed(x0, y0, ddx, ddy, segs, idx, boxes, meets, limit, far):
+    """:func:`wall_before` (the same answer) with the segments' boxes read from ``boxes`` (:func:`near_boxes`
+    of ``idx``) and tested in one pass first; ``meets`` (bool, ``>= len(idx)``) is scratch."""
+    fx = x0 + ddx * far
+    fy = y0 + ddy * far
+    m = idx.shape[0]
+    _boxes_meeting(boxes, m, min(x0, fx) - _SIGHT_SLACK, max(x0, fx) + _SIGHT_SLACK, min(y0, fy) - _SIGHT_SLACK,
+                   max(y0, fy) + _SIGHT_SLACK, meets)
+    for j in range(m):
+        if not meets[j]:
+            continue
+        s = idx[j]
+        ex = segs[s, 2] - segs[s, 0]
+        ey = segs[s, 3] - segs[s, 1]
+        den = ddx * ey - ddy * ex
+        if not abs(den) > _EPS:
+            continue
+        wx = segs[s, 0] - x0
+        wy = segs[s, 1] - y0
+        t = (wx * ey - wy * ex) / den
+        u = (wx * ddy - wy * ddx) / den
+        if t >= 0.0 and u >= -_EPS and u <= 1.0 + _EPS and t < limit:
+            return True
+    return False

@@ -24,11 +24,13 @@ from parcover_env.geometry.ray_kernels import (
     disc_fan,
     disc_hit,
     in_cone,
+    near_boxes,
     near_segments,
     segment_fan,
     segment_fan_spans,
     segment_hit,
-    wall_before,
+    segment_hit_boxed,
+    wall_before_boxed,
 )
 
 __all__ = ["SONAR_RULES", "WallSet", "wall_set", "Discs", "sonar_echoes", "sonar_corner_echoes", "beam_readings"]
@@ -197,6 +199,8 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
     leg_echo = np.empty(n_pairs)  # its two-leg echo, once traced (nan: not yet)
     leg_bound = np.empty(n_pairs)  # the best echo it was traced for (_second_leg's bound)
     legs = np.empty(n_sub, dtype=np.int64)  # a beam's sub-rays, nearest mirror first
+    boxes = np.empty((4, segs.shape[0]))  # per origin: the near walls' bounding boxes (the second legs' culls)
+    meets = np.empty(segs.shape[0], dtype=np.bool_)
     ocx = np.empty(n_discs)  # per origin: the terms of the discs a sub-ray within rmax can hit
     ocy = np.empty(n_discs)
     cc = np.empty(n_discs)
@@ -207,6 +211,7 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
         y0 = oy[n]
         row = n if per_origin else 0
         near = idx[n, :cnt[n]]
+        near_boxes(segs, near, boxes)
         m = _near_discs(x0, y0, cx[row], cy[row], r2, owner[n], rmax, terms)
         leg_discs = Discs(terms.cx[:, :m], terms.cy[:, :m], terms.r2[:m], owner)  # a second leg stays within rmax
         for b in range(axes.shape[1]):
@@ -274,7 +279,7 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
                     break
                 if math.isnan(leg_echo[u]) or best > leg_bound[u]:
                     leg_echo[u] = _second_leg(x0, y0, leg_x[u], leg_y[u], leg_t[u], leg_i[u], walls, normals, near,
-                                              leg_discs, rules, best)
+                                              leg_discs, rules, best, boxes, meets)
                     leg_bound[u] = best
                 best = min(best, leg_echo[u])
             reading[n, b] = best
@@ -332,7 +337,7 @@ def _normals(segs):
 
 
 @njit(cache=True, inline="always")
-def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, normals, near, discs, rules, bound=np.inf):
+def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, normals, near, discs, rules, bound, boxes, meets):
     """Echo length ``t1 + t2`` of a sub-ray from ``(x0, y0)`` mirrored at ``t1`` by segment ``i1`` (unit
     normals ``normals``), inf if its second leg finds no echoing surface within ``rmax - t1`` (walls
     ``near``; the :class:`Discs` ``discs``, one set (row 0), none skipped: the origin's discs within
@@ -350,7 +355,10 @@ def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, normals, near, discs, rules, bo
     reach = rmax - t1
     if bound < rmax:  # walls only as far as the bound (and a margin): the echo, or one read above ``bound``
         reach = min(reach, (bound - t1) + _LEG_MARGIN)
-    t2w, i2, den2 = segment_hit(px, py, d2x, d2y, segs, near, reach, box_cull and math.isfinite(reach), False)
+    if box_cull and math.isfinite(reach):  # the near walls' boxes (near_boxes) culled in one pass
+        t2w, i2, den2 = segment_hit_boxed(px, py, d2x, d2y, segs, near, boxes, meets, reach)
+    else:
+        t2w, i2, den2 = segment_hit(px, py, d2x, d2y, segs, near, reach, False, False)
     if not (i2 >= 0 and t2w <= reach):
         t2w = np.inf
         i2 = -1
@@ -378,10 +386,13 @@ def sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading):
     n_beams = axes.shape[1]
     step = 2.0 * math.pi / n_beams if n_beams > 0 else 0.0
     span = int(math.floor((half + _FAN_MARGIN) / step)) + 1 if n_beams > 0 else 0
+    boxes = np.empty((4, segs.shape[0]))  # per origin: the near walls' bounding boxes (the sight lines' culls)
+    meets = np.empty(segs.shape[0], dtype=np.bool_)
     for n in range(ox.shape[0]):
         x0 = ox[n]
         y0 = oy[n]
         near = idx[n, :cnt[n]]
+        boxed = False  # the boxes filled for this origin (at its first sight line)
         fan = 2 * span + 1 < n_beams and even_fan(axes[n], step)
         for q in range(2 * near.shape[0]):
             c = owned[near[q // 2], q % 2]
@@ -410,7 +421,11 @@ def sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading):
                 if seen < 0:
                     dx = vx / dist
                     dy = vy / dist
-                    seen = 0 if wall_before(x0, y0, dx, dy, segs, near, dist * (1.0 - 1e-7) - 1e-9, dist) else 1
+                    if not boxed:
+                        near_boxes(segs, near, boxes)
+                        boxed = True
+                    seen = 0 if wall_before_boxed(x0, y0, dx, dy, segs, near, boxes, meets,
+                                                  dist * (1.0 - 1e-7) - 1e-9, dist) else 1
                     if seen and has_discs and not disc_hit(x0, y0, dx, dy, cx, cy, n if per_origin else 0, r2,
                                                             owner[n]) >= dist:
                         seen = 0  # a robot in between

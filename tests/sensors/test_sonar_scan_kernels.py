@@ -195,3 +195,30 @@ def test_corner_echoes_of_an_even_fan_equal_each_beam_alone():
     inside = [b for b in range(72) if abs(math.remainder(bearing - axes0[0, b], 2 * math.pi)) <= math.radians(15)]
     assert len(inside) == 6 and np.flatnonzero(got0[0] == math.sqrt(0.5)).tolist() == inside
     assert not kern.even_fan(np.array([0.0, 0.1, 0.25]), 0.1)  # not evenly spaced: every beam is tested
+
+
+def test_boxed_hits_equal_the_culled_hits():
+    """The second legs' and sight lines' casts with the near walls' boxes tested in one pass: from (1, 1)
+    along +x within 3.5 m the right wall (1) at 3 m, nothing within 2.5 m; random rays on random walls
+    give :func:`segment_hit` (culled) and :func:`wall_before` bit for bit."""
+    every = np.arange(4)
+    boxes, meets = np.empty((4, 4)), np.empty(4, dtype=np.bool_)
+    rk.near_boxes(SQUARE, every, boxes)
+    assert boxes[:, 1].tolist() == [4.0, 4.0, 0.0, 4.0]
+    assert rk.segment_hit_boxed(1.0, 1.0, 1.0, 0.0, SQUARE, every, boxes, meets, 3.5) == (3.0, 1, 4.0)
+    assert rk.segment_hit_boxed(1.0, 1.0, 1.0, 0.0, SQUARE, every, boxes, meets, 2.5)[1] == -1
+    rng = np.random.default_rng(21)
+    segs = rng.uniform(0, 4, (40, 4))
+    idx = np.sort(rng.choice(40, 25, replace=False))
+    boxes, meets = np.empty((4, 40)), np.empty(40, dtype=np.bool_)
+    rk.near_boxes(segs, idx, boxes)
+    hits = 0
+    for _ in range(400):
+        x, y, a, reach = *rng.uniform(0, 4, 2), rng.uniform(-4, 4), rng.uniform(0.05, 3)
+        dx, dy = math.cos(a), math.sin(a)
+        want = rk.segment_hit(x, y, dx, dy, segs, idx, reach, True, False)
+        assert rk.segment_hit_boxed(x, y, dx, dy, segs, idx, boxes, meets, reach) == want
+        assert rk.wall_before_boxed(x, y, dx, dy, segs, idx, boxes, meets, reach, reach) == \
+            rk.wall_before(x, y, dx, dy, segs, idx, reach, reach)
+        hits += want[1] >= 0
+    assert 100 < hits < 390
