@@ -412,8 +412,9 @@ def sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading):
             seen = -1  # line of sight: unknown until a beam's cone holds the corner
             first, count = 0, n_beams
             if fan:  # an even fan: only the beams whose axis lies within the cone (and a margin) of the bearing
-                first = int(math.floor(wrap(bearing - axes[n, 0]) / step)) - span
-                count = 2 * span + 2
+                rel = wrap(bearing - axes[n, 0])
+                first = int(math.floor((rel - (half + _FAN_MARGIN)) / step))
+                count = int(math.floor((rel + (half + _FAN_MARGIN)) / step)) - first + 1
             for k in range(count):
                 b = (first + k) % n_beams
                 if not (dist < reading[n, b] and in_cone(bearing - axes[n, b], half)):
