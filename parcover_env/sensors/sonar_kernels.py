@@ -145,6 +145,179 @@ def _incidence(den, seg_len, i):
     return abs(den) / max(seg_len[i], COS_FLOOR) if i >= 0 else 0.0
 
 
+class EchoScratch(NamedTuple):
+    """The scratch arrays of :func:`sonar_echoes`' steps for one origin (:func:`echo_scratch`), reused origin
+    after origin: the traced sub-rays' directions and first hits, each sub-ray's direct echo and mirror,
+    the near walls' boxes and the discs' terms."""
+
+    slot: np.ndarray
+    """``(B * J,)`` int64: the traced index of each pair that traces its direction."""
+    co: np.ndarray
+    """``(J,)`` cosines and sines of the sub-ray offsets."""
+    so: np.ndarray
+    fdx: np.ndarray
+    """``(T,)`` the traced sub-rays' unit directions, first wall hits (``t``, wall, ``d x e``) and disc hits."""
+    fdy: np.ndarray
+    fan_t: np.ndarray
+    fan_i: np.ndarray
+    fan_den: np.ndarray
+    fan_td: np.ndarray
+    fan_order: np.ndarray
+    """``(T,)`` :func:`~parcover_env.geometry.ray_kernels.segment_fan_spans`' ray order (kept between origins)."""
+    fan_keys: np.ndarray
+    no_boxes: np.ndarray
+    """``(0, T)``: :func:`~parcover_env.geometry.ray_kernels.segment_fan` without culling."""
+    direct: np.ndarray
+    """``(B * J,)`` per traced pair: its direct echo (inf if none), where an oblique wall mirrored it
+    (``leg_t``, inf: not mirrored; ``leg_i``, ``leg_x``, ``leg_y``), its two-leg echo (nan: not traced yet)
+    and the bound it was traced for (:func:`_second_leg`)."""
+    leg_t: np.ndarray
+    leg_i: np.ndarray
+    leg_x: np.ndarray
+    leg_y: np.ndarray
+    leg_echo: np.ndarray
+    leg_bound: np.ndarray
+    legs: np.ndarray
+    """``(J,)`` int64: a beam's sub-rays, nearest mirror first."""
+    boxes: np.ndarray
+    """``(4, S)`` the near walls' bounding boxes (the second legs' culls) and ``(S,)`` bool scratch."""
+    meets: np.ndarray
+    terms: _DiscTerms
+    """The terms of the discs a sub-ray within ``rmax`` can hit (:func:`_near_discs`)."""
+    normals: np.ndarray
+    """``(S, 2)`` the walls' unit normals."""
+
+
+@njit(cache=True)
+def echo_scratch(offsets, share, segs, n_discs):
+    """The :class:`EchoScratch` of beams whose sub-rays are shared as ``share (B, J)`` (offsets ``(J,)``), among
+    the walls ``segs (S, 4)`` and ``n_discs`` discs."""
+    n_sub = offsets.shape[0]
+    n_pairs = share.shape[0] * n_sub
+    slot = np.empty(n_pairs, dtype=np.int64)  # the traced sub-rays (a direction's first pair), in order
+    n_traced = 0
+    for b in range(share.shape[0]):
+        for j in range(n_sub):
+            if share[b, j] == b * n_sub + j:
+                slot[b * n_sub + j] = n_traced
+                n_traced += 1
+    terms = _DiscTerms(np.empty(n_discs), np.empty(n_discs), np.empty(n_discs), np.empty((1, n_discs)),
+                       np.empty((1, n_discs)), np.empty(n_discs))
+    return EchoScratch(slot, np.cos(offsets), np.sin(offsets), np.empty(n_traced), np.empty(n_traced),
+                       np.empty(n_traced), np.empty(n_traced, dtype=np.int64), np.empty(n_traced),
+                       np.empty(n_traced), np.arange(n_traced), np.empty(n_traced), np.empty((0, n_traced)),
+                       np.empty(n_pairs), np.empty(n_pairs), np.empty(n_pairs, dtype=np.int64), np.empty(n_pairs),
+                       np.empty(n_pairs), np.empty(n_pairs), np.empty(n_pairs), np.empty(n_sub, dtype=np.int64),
+                       np.empty((4, segs.shape[0])), np.empty(segs.shape[0], dtype=np.bool_), terms, _normals(segs))
+
+
+@njit(cache=True, nogil=True)
+def origin_first_legs(x0, y0, axes, share, walls, near, cx, cy, r2, mine, rules, sc, best, mirror):
+    """:func:`sonar_echoes`' first step for the origin ``(x0, y0)`` with beam axes ``axes (B,)``, near walls
+    ``near`` and the discs ``cx, cy (D,)``, ``r2`` but ``mine``: each traced sub-ray's first hits (one fan)
+    and direct echo, into the :class:`EchoScratch` ``sc``; per beam ``b``, ``best[b]`` = its cone's nearest
+    direct echo (inf if none) and ``mirror[b]`` = the nearest first leg of its sub-rays that an oblique wall
+    mirrored (inf if none: the beam's echo lies between ``min(best, mirror)`` and ``best``). Returns how
+    many discs a second leg may meet (the first of ``sc.terms``)."""
+    segs, seg_len = walls.segments, walls.lengths
+    rule = rules[0]
+    rmax, multipath, cos_min = rule.range_max, rule.multipath, rule.cos_min
+    specular = rule.specular and segs.shape[0] > 0
+    n_sub = sc.co.shape[0]
+    slot, fdx, fdy, co, so = sc.slot, sc.fdx, sc.fdy, sc.co, sc.so
+    fan_t, fan_i, fan_den, fan_td = sc.fan_t, sc.fan_i, sc.fan_den, sc.fan_td
+    direct, leg_echo, leg_i, leg_x, leg_y = sc.direct, sc.leg_echo, sc.leg_i, sc.leg_x, sc.leg_y
+    near_boxes(segs, near, sc.boxes)
+    m = _near_discs(x0, y0, cx, cy, r2, mine, rmax, sc.terms)
+    for b in range(axes.shape[0]):
+        ax = math.cos(axes[b])
+        ay = math.sin(axes[b])
+        for j in range(n_sub):
+            if share[b, j] == b * n_sub + j:
+                p = slot[b * n_sub + j]
+                fdx[p] = ax * co[j] - ay * so[j]
+                fdy[p] = ay * co[j] + ax * so[j]
+    # first hits of every traced sub-ray at once (no cull: a hit within rmax is the same, and one
+    # beyond rmax, or beyond a cone's nearest echo, never changes a reading)
+    if fdx.shape[0] >= FAN_SPANS_MIN:
+        segment_fan_spans(x0, y0, fdx, fdy, segs, near, sc.fan_order, sc.fan_keys, fan_t, fan_i, fan_den)
+    else:
+        segment_fan(x0, y0, fdx, fdy, segs, near, sc.no_boxes, fan_t, fan_i, fan_den)
+    fan_td[:] = np.inf
+    disc_fan(fdx, fdy, sc.terms.ocx[:m], sc.terms.ocy[:m], sc.terms.cc[:m], fan_td)
+    leg_t = sc.leg_t
+    for b in range(axes.shape[0]):
+        near_echo = np.inf
+        near_mirror = np.inf
+        for j in range(n_sub):  # first legs: direct echoes (walls near the normal, discs)
+            u = share[b, j]
+            if u == b * n_sub + j:  # a direction not traced yet
+                p = slot[u]
+                t1, i1, den, td = fan_t[p], fan_i[p], fan_den[p], fan_td[p]
+                if not td <= rmax:
+                    td = np.inf
+                if not (i1 >= 0 and t1 <= rmax):
+                    t1 = np.inf
+                    i1 = -1
+                leg_t[u] = np.inf
+                leg_echo[u] = np.nan
+                if not specular:
+                    echo = min(t1, td)
+                elif td < t1:
+                    echo = td
+                elif _incidence(den, seg_len, i1) >= cos_min:
+                    echo = t1
+                else:
+                    echo = np.inf
+                    if multipath and i1 >= 0:  # mirrored by an oblique wall: its second leg comes after
+                        leg_t[u] = t1
+                        leg_i[u] = i1
+                        leg_x[u] = fdx[p]
+                        leg_y[u] = fdy[p]
+                direct[u] = echo
+            near_echo = min(near_echo, direct[u])
+            near_mirror = min(near_mirror, leg_t[u])
+        best[b] = near_echo
+        mirror[b] = near_mirror
+    return m
+
+
+@njit(cache=True, nogil=True)
+def origin_second_legs(x0, y0, share, walls, near, m, owner, rules, sc, best):
+    """:func:`sonar_echoes`' second step for the origin of :func:`origin_first_legs` (``sc``, ``m`` discs): each
+    beam ``b``'s reading into ``best[b]``, the nearest of ``best[b]`` (at least its cone's nearest direct echo,
+    at most the reading without second legs: e.g. lowered by a corner) and its sub-rays' two-leg echoes,
+    nearest mirror first (a leg reads more than its first leg, so one that starts beyond the best echo so far
+    cannot lower it), each traced only as far as that best (``leg_bound``: the best it was traced for; a leg
+    traced for a bound B reads its own echo, or something above B when its echo lies above B: the minimum with
+    any best <= B is the same). One call per origin (the scratch is passed once, not per beam)."""
+    n_sub = sc.co.shape[0]
+    legs, leg_t, leg_echo, leg_bound = sc.legs, sc.leg_t, sc.leg_echo, sc.leg_bound
+    leg_x, leg_y, leg_i, normals, boxes, meets = sc.leg_x, sc.leg_y, sc.leg_i, sc.normals, sc.boxes, sc.meets
+    leg_discs = Discs(sc.terms.cx[:, :m], sc.terms.cy[:, :m], sc.terms.r2[:m], owner)  # legs stay within rmax
+    for b in range(best.shape[0]):
+        for j in range(n_sub):
+            legs[j] = share[b, j]
+        for j in range(1, n_sub):  # insertion sort by the first leg's length (5 sub-rays)
+            v = legs[j]
+            k = j - 1
+            while k >= 0 and leg_t[legs[k]] > leg_t[v]:
+                legs[k + 1] = legs[k]
+                k -= 1
+            legs[k + 1] = v
+        near_best = best[b]
+        for j in range(n_sub):
+            u = legs[j]
+            if not leg_t[u] < near_best:
+                break
+            if math.isnan(leg_echo[u]) or near_best > leg_bound[u]:
+                leg_echo[u] = _second_leg(x0, y0, leg_x[u], leg_y[u], leg_t[u], leg_i[u], walls, normals, near,
+                                          leg_discs, rules, near_best, boxes, meets)
+                leg_bound[u] = near_best
+            near_best = min(near_best, leg_echo[u])
+        best[b] = near_best
+
+
 @njit(cache=True, nogil=True)
 def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, reading):
     """Nearest echo ``reading (N, B)`` over the sub-rays of every beam, inf if none (the rules of
@@ -163,126 +336,20 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
     ``rmax - t1`` (``t2 + nudge`` compared). A disc nearer than the wall echoes (``td``). Walls
     are looked up in the origin's list ``idx`` of those within ``rmax`` (plus the nudge;
     :func:`near_segments`): a two-leg path of length <= ``rmax`` stays within it, ``idx[n, :cnt[n]]``."""
-    segs, seg_len = walls.segments, walls.lengths
     cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
-    rule = rules[0]
-    rmax, multipath, cos_min = rule.range_max, rule.multipath, rule.cos_min
-    specular = rule.specular and segs.shape[0] > 0
     per_origin = cx.shape[0] > 1
-    n_discs = cx.shape[1]
-    n_sub = offsets.shape[0]
-    co = np.cos(offsets)
-    so = np.sin(offsets)
-    n_pairs = share.shape[0] * n_sub
-    slot = np.empty(n_pairs, dtype=np.int64)  # the traced sub-rays (a direction's first pair), in order
-    n_traced = 0
-    for b in range(share.shape[0]):
-        for j in range(n_sub):
-            if share[b, j] == b * n_sub + j:
-                slot[b * n_sub + j] = n_traced
-                n_traced += 1
-    fdx = np.empty(n_traced)  # per origin: the traced sub-rays as one fan, their first wall and disc hits
-    fdy = np.empty(n_traced)
-    fan_t = np.empty(n_traced)
-    fan_i = np.empty(n_traced, dtype=np.int64)
-    fan_den = np.empty(n_traced)
-    fan_td = np.empty(n_traced)
-    no_boxes = np.empty((0, n_traced))  # segment_fan without culling
-    spans = n_traced >= FAN_SPANS_MIN  # a wide fan (a 360-degree scan): each wall against the rays of its span
-    fan_order = np.arange(n_traced)  # segment_fan_spans' ray order, kept from one origin to the next
-    fan_keys = np.empty(n_traced)
-    direct = np.empty(n_pairs)  # per origin, per sub-ray traced: its direct echo (inf if none)
-    leg_t = np.empty(n_pairs)  # where an oblique wall mirrored it (inf: not mirrored)
-    leg_i = np.empty(n_pairs, dtype=np.int64)
-    leg_x = np.empty(n_pairs)
-    leg_y = np.empty(n_pairs)
-    leg_echo = np.empty(n_pairs)  # its two-leg echo, once traced (nan: not yet)
-    leg_bound = np.empty(n_pairs)  # the best echo it was traced for (_second_leg's bound)
-    legs = np.empty(n_sub, dtype=np.int64)  # a beam's sub-rays, nearest mirror first
-    boxes = np.empty((4, segs.shape[0]))  # per origin: the near walls' bounding boxes (the second legs' culls)
-    meets = np.empty(segs.shape[0], dtype=np.bool_)
-    ocx = np.empty(n_discs)  # per origin: the terms of the discs a sub-ray within rmax can hit
-    ocy = np.empty(n_discs)
-    cc = np.empty(n_discs)
-    terms = _DiscTerms(ocx, ocy, cc, np.empty((1, n_discs)), np.empty((1, n_discs)), np.empty(n_discs))
-    normals = _normals(segs)
+    sc = echo_scratch(offsets, share, walls.segments, cx.shape[1])
+    best = np.empty(axes.shape[1])
+    mirror = np.empty(axes.shape[1])
     for n in range(ox.shape[0]):
         x0 = ox[n]
         y0 = oy[n]
         row = n if per_origin else 0
         near = idx[n, :cnt[n]]
-        near_boxes(segs, near, boxes)
-        m = _near_discs(x0, y0, cx[row], cy[row], r2, owner[n], rmax, terms)
-        leg_discs = Discs(terms.cx[:, :m], terms.cy[:, :m], terms.r2[:m], owner)  # a second leg stays within rmax
-        for b in range(axes.shape[1]):
-            ax = math.cos(axes[n, b])
-            ay = math.sin(axes[n, b])
-            for j in range(n_sub):
-                if share[b, j] == b * n_sub + j:
-                    p = slot[b * n_sub + j]
-                    fdx[p] = ax * co[j] - ay * so[j]
-                    fdy[p] = ay * co[j] + ax * so[j]
-        # first hits of every traced sub-ray at once (no cull: a hit within rmax is the same, and one
-        # beyond rmax, or beyond a cone's nearest echo, never changes a reading)
-        if spans:
-            segment_fan_spans(x0, y0, fdx, fdy, segs, near, fan_order, fan_keys, fan_t, fan_i, fan_den)
-        else:
-            segment_fan(x0, y0, fdx, fdy, segs, near, no_boxes, fan_t, fan_i, fan_den)
-        fan_td[:] = np.inf
-        disc_fan(fdx, fdy, ocx[:m], ocy[:m], cc[:m], fan_td)
-        for b in range(axes.shape[1]):
-            best = np.inf
-            for j in range(n_sub):  # first legs: direct echoes (walls near the normal, discs)
-                u = share[b, j]
-                if u == b * n_sub + j:  # a direction not traced yet
-                    p = slot[u]
-                    t1, i1, den, td = fan_t[p], fan_i[p], fan_den[p], fan_td[p]
-                    if not td <= rmax:
-                        td = np.inf
-                    if not (i1 >= 0 and t1 <= rmax):
-                        t1 = np.inf
-                        i1 = -1
-                    leg_t[u] = np.inf
-                    leg_echo[u] = np.nan
-                    if not specular:
-                        echo = min(t1, td)
-                    elif td < t1:
-                        echo = td
-                    elif _incidence(den, seg_len, i1) >= cos_min:
-                        echo = t1
-                    else:
-                        echo = np.inf
-                        if multipath and i1 >= 0:  # mirrored by an oblique wall: its second leg comes after
-                            leg_t[u] = t1
-                            leg_i[u] = i1
-                            leg_x[u] = fdx[p]
-                            leg_y[u] = fdy[p]
-                    direct[u] = echo
-                best = min(best, direct[u])
-            # second legs, once the cone's direct echoes bound what can be nearer: nearest mirror first (a leg
-            # reads more than its first leg, so one that starts beyond the best echo so far cannot lower it);
-            # each traced only as far as that best (leg_bound: the best it was traced for; a leg traced for a
-            # bound B reads its own echo, or something above B when its echo lies above B: the minimum with any
-            # best <= B is the same)
-            for j in range(n_sub):
-                legs[j] = share[b, j]
-            for j in range(1, n_sub):  # insertion sort by the first leg's length (5 sub-rays)
-                v = legs[j]
-                k = j - 1
-                while k >= 0 and leg_t[legs[k]] > leg_t[v]:
-                    legs[k + 1] = legs[k]
-                    k -= 1
-                legs[k + 1] = v
-            for j in range(n_sub):
-                u = legs[j]
-                if not leg_t[u] < best:
-                    break
-                if math.isnan(leg_echo[u]) or best > leg_bound[u]:
-                    leg_echo[u] = _second_leg(x0, y0, leg_x[u], leg_y[u], leg_t[u], leg_i[u], walls, normals, near,
-                                              leg_discs, rules, best, boxes, meets)
-                    leg_bound[u] = best
-                best = min(best, leg_echo[u])
-            reading[n, b] = best
+        m = origin_first_legs(x0, y0, axes[n], share, walls, near, cx[row], cy[row], r2, owner[n], rules, sc, best,
+                              mirror)
+        origin_second_legs(x0, y0, share, walls, near, m, owner, rules, sc, best)
+        reading[n] = best
 
 
 _LEG_MARGIN = 1e-9
@@ -378,60 +445,65 @@ def sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading):
     ``idx[n, :cnt[n]]`` of those within ``range_max`` (:func:`near_segments`), and so are the
     corners (those listed at these walls, ``owned``: a corner within range lies on a wall within
     it). A reading is the nearest qualifying corner whatever the order they come in."""
-    segs, pts, u1, u2, owned = walls.segments, walls.points, walls.u1, walls.u2, walls.owned
+    segs = walls.segments
     cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
-    rmax, half = rules[0].range_max, rules[0].half_cone
-    has_discs = cx.shape[1] > 0
     per_origin = cx.shape[0] > 1
-    n_beams = axes.shape[1]
-    step = 2.0 * math.pi / n_beams if n_beams > 0 else 0.0
-    span = int(math.floor((half + _FAN_MARGIN) / step)) + 1 if n_beams > 0 else 0
     boxes = np.empty((4, segs.shape[0]))  # per origin: the near walls' bounding boxes (the sight lines' culls)
     meets = np.empty(segs.shape[0], dtype=np.bool_)
     for n in range(ox.shape[0]):
-        x0 = ox[n]
-        y0 = oy[n]
-        near = idx[n, :cnt[n]]
-        boxed = False  # the boxes filled for this origin (at its first sight line)
-        fan = 2 * span + 1 < n_beams and even_fan(axes[n], step)
-        for q in range(2 * near.shape[0]):
-            c = owned[near[q // 2], q % 2]
-            if c < 0:
+        origin_corners(ox[n], oy[n], axes[n], walls, idx[n, :cnt[n]], cx, cy, n if per_origin else 0, r2, owner[n],
+                       rules, reading[n], boxes, meets, False)
+
+
+@njit(cache=True, nogil=True)
+def origin_corners(x0, y0, axes, walls, near, cx, cy, row, r2, mine, rules, reading, boxes, meets, boxed):
+    """:func:`sonar_corner_echoes` of one origin ``(x0, y0)``: lower its readings ``reading (B,)`` of the beams
+    ``axes (B,)``, the walls ``near`` (their boxes in ``boxes`` if ``boxed``, else filled at the first sight
+    line; ``meets`` scratch), the discs ``cx, cy`` row ``row`` but ``mine``."""
+    segs, pts, u1, u2, owned = walls.segments, walls.points, walls.u1, walls.u2, walls.owned
+    rmax, half = rules[0].range_max, rules[0].half_cone
+    has_discs = cx.shape[1] > 0
+    n_beams = axes.shape[0]
+    step = 2.0 * math.pi / n_beams if n_beams > 0 else 0.0
+    span = int(math.floor((half + _FAN_MARGIN) / step)) + 1 if n_beams > 0 else 0
+    fan = 2 * span + 1 < n_beams and even_fan(axes, step)
+    for q in range(2 * near.shape[0]):
+        c = owned[near[q // 2], q % 2]
+        if c < 0:
+            continue
+        vx = pts[c, 0] - x0
+        vy = pts[c, 1] - y0
+        dist = math.sqrt(vx * vx + vy * vy)
+        if not (dist <= rmax and dist > 1e-9):
+            continue
+        s = u1[c, 0] * u2[c, 1] - u1[c, 1] * u2[c, 0]
+        wx = x0 - pts[c, 0]
+        wy = y0 - pts[c, 1]
+        if not ((u1[c, 0] * wy - u1[c, 1] * wx) * s > 0 and (wx * u2[c, 1] - wy * u2[c, 0]) * s > 0):
+            continue  # not inside the corner's wedge
+        bearing = math.atan2(vy, vx)
+        seen = -1  # line of sight: unknown until a beam's cone holds the corner
+        first, count = 0, n_beams
+        if fan:  # an even fan: only the beams whose axis lies within the cone (and a margin) of the bearing
+            rel = wrap(bearing - axes[0])
+            first = int(math.floor((rel - (half + _FAN_MARGIN)) / step))
+            count = int(math.floor((rel + (half + _FAN_MARGIN)) / step)) - first + 1
+        for k in range(count):
+            b = (first + k) % n_beams
+            if not (dist < reading[b] and in_cone(bearing - axes[b], half)):
                 continue
-            vx = pts[c, 0] - x0
-            vy = pts[c, 1] - y0
-            dist = math.sqrt(vx * vx + vy * vy)
-            if not (dist <= rmax and dist > 1e-9):
-                continue
-            s = u1[c, 0] * u2[c, 1] - u1[c, 1] * u2[c, 0]
-            wx = x0 - pts[c, 0]
-            wy = y0 - pts[c, 1]
-            if not ((u1[c, 0] * wy - u1[c, 1] * wx) * s > 0 and (wx * u2[c, 1] - wy * u2[c, 0]) * s > 0):
-                continue  # not inside the corner's wedge
-            bearing = math.atan2(vy, vx)
-            seen = -1  # line of sight: unknown until a beam's cone holds the corner
-            first, count = 0, n_beams
-            if fan:  # an even fan: only the beams whose axis lies within the cone (and a margin) of the bearing
-                rel = wrap(bearing - axes[n, 0])
-                first = int(math.floor((rel - (half + _FAN_MARGIN)) / step))
-                count = int(math.floor((rel + (half + _FAN_MARGIN)) / step)) - first + 1
-            for k in range(count):
-                b = (first + k) % n_beams
-                if not (dist < reading[n, b] and in_cone(bearing - axes[n, b], half)):
-                    continue
-                if seen < 0:
-                    dx = vx / dist
-                    dy = vy / dist
-                    if not boxed:
-                        near_boxes(segs, near, boxes)
-                        boxed = True
-                    seen = 0 if wall_before_boxed(x0, y0, dx, dy, segs, near, boxes, meets,
-                                                  dist * (1.0 - 1e-7) - 1e-9, dist) else 1
-                    if seen and has_discs and not disc_hit(x0, y0, dx, dy, cx, cy, n if per_origin else 0, r2,
-                                                            owner[n]) >= dist:
-                        seen = 0  # a robot in between
-                if seen:
-                    reading[n, b] = dist
+            if seen < 0:
+                dx = vx / dist
+                dy = vy / dist
+                if not boxed:
+                    near_boxes(segs, near, boxes)
+                    boxed = True
+                seen = 0 if wall_before_boxed(x0, y0, dx, dy, segs, near, boxes, meets,
+                                              dist * (1.0 - 1e-7) - 1e-9, dist) else 1
+                if seen and has_discs and not disc_hit(x0, y0, dx, dy, cx, cy, row, r2, mine) >= dist:
+                    seen = 0  # a robot in between
+            if seen:
+                reading[b] = dist
 
 
 _FAN_MARGIN = 1e-6

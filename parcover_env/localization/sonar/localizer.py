@@ -48,8 +48,8 @@ from parcover_env.config import SonarConfig
 from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.numpy_order import argsort4_table
 from parcover_env.geometry.rays import disc_planes
+from parcover_env.localization.sonar import grid_kernels, scan_kernels
 from parcover_env.localization.sonar import localizer_kernels as kern
-from parcover_env.localization.sonar import scan_kernels
 from parcover_env.localization.sonar.features import (
     MapFeature,
     ScanPoints,
@@ -220,6 +220,24 @@ def _grid_candidates(ellipse: Ellipse, heading: float, map_model, p: SonarLocali
     dh = math.radians(p.grid_heading_step_deg)
     heads = heading + dh * np.arange(-p.grid_heading_steps, p.grid_heading_steps + 1)
     return np.column_stack([np.repeat(xy, len(heads), axis=0), np.tile(heads, len(xy))])
+
+
+def _grid_errors(r: np.ndarray, poses: np.ndarray, a: np.ndarray, segs: np.ndarray, sonar: SonarConfig,
+                 p: SonarLocalizerParams, best: float) -> np.ndarray:
+    """The grid poses' ``(H, 3)`` scan errors (:func:`scan_error` of their :func:`synthetic_scans`, bit for
+    bit), inf for a pose whose error provably exceeds ``best`` (the feature poses' smallest) and those of the
+    poses before it (:func:`~parcover_env.localization.sonar.grid_kernels.bounded_scan_errors`): the first
+    smallest error, the one the localizer picks, is the same."""
+    n = len(poses)
+    axes = np.ascontiguousarray(poses[:, 2:3] + a[None, :])
+    walls, offsets, share, rules = beam_kernel_arguments(sonar, segs, axes)
+    discs = Discs(*disc_planes(np.zeros((0, 2)), 0.0, np.full(n, -1), n))
+    out = np.empty(n)
+    keep = len(r) - int(math.floor(p.error_trim * len(r)))
+    grid_kernels.bounded_scan_errors(np.ascontiguousarray(poses[:, 0]), np.ascontiguousarray(poses[:, 1]), axes,
+                                     offsets, share, walls, discs, rules, np.ascontiguousarray(r, dtype=float),
+                                     float(p.error_clip), keep, float(best), out)
+    return out
 
 
 _ARGSORT4 = argsort4_table()
@@ -394,7 +412,8 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
         grid = _grid_candidates(ellipse, float(heading), map_model, p)
         poses = np.concatenate([poses, grid])
         owners = np.concatenate([owners, np.full(len(grid), -1)])
-        err = np.concatenate([err, scan_error(r, synthetic_scans(grid, a, segs, sonar), p.error_clip, p.error_trim)])
+        best = float(err.min()) if len(err) else math.inf
+        err = np.concatenate([err, _grid_errors(r, grid, a, segs, sonar, p, best)])
     if len(poses) == 0:
         return LocalizationResult(None, math.inf, 0, False)
     best = int(np.argmin(err))
