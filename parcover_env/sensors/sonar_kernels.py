@@ -450,23 +450,45 @@ def sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading):
     per_origin = cx.shape[0] > 1
     boxes = np.empty((4, segs.shape[0]))  # per origin: the near walls' bounding boxes (the sight lines' culls)
     meets = np.empty(segs.shape[0], dtype=np.bool_)
+    view = corner_scratch(walls)
     for n in range(ox.shape[0]):
-        origin_corners(ox[n], oy[n], axes[n], walls, idx[n, :cnt[n]], cx, cy, n if per_origin else 0, r2, owner[n],
-                       rules, reading[n], boxes, meets, False)
+        near = idx[n, :cnt[n]]
+        corner_view(ox[n], oy[n], walls, near, rules, view)
+        origin_corners(ox[n], oy[n], axes[n], walls, near, cx, cy, n if per_origin else 0, r2, owner[n], rules,
+                       reading[n], boxes, meets, False, view)
+
+
+class CornerView(NamedTuple):
+    """The concave corners one origin sees from inside their wedges within ``range_max`` (:func:`corner_view`),
+    for the beams of any heading from there (:func:`origin_corners`)."""
+
+    dist: np.ndarray
+    """``(C,)`` distance (m), bearing (rad) and the vector to each corner (m), the first ``count[0]`` of them."""
+    bearing: np.ndarray
+    vx: np.ndarray
+    vy: np.ndarray
+    seen: np.ndarray
+    """``(C,)`` int64 line of sight (1 clear, 0 blocked by a wall or robot, -1 not looked yet)."""
+    count: np.ndarray
+    """``(1,)`` int64: how many corners are listed."""
+
+
+@njit(cache=True)
+def corner_scratch(walls):
+    """An empty :class:`CornerView` for the corners of the :class:`WallSet` ``walls``."""
+    c = walls.points.shape[0]
+    return CornerView(np.empty(c), np.empty(c), np.empty(c), np.empty(c), np.empty(c, dtype=np.int64),
+                      np.zeros(1, dtype=np.int64))
 
 
 @njit(cache=True, nogil=True)
-def origin_corners(x0, y0, axes, walls, near, cx, cy, row, r2, mine, rules, reading, boxes, meets, boxed):
-    """:func:`sonar_corner_echoes` of one origin ``(x0, y0)``: lower its readings ``reading (B,)`` of the beams
-    ``axes (B,)``, the walls ``near`` (their boxes in ``boxes`` if ``boxed``, else filled at the first sight
-    line; ``meets`` scratch), the discs ``cx, cy`` row ``row`` but ``mine``."""
-    segs, pts, u1, u2, owned = walls.segments, walls.points, walls.u1, walls.u2, walls.owned
-    rmax, half = rules[0].range_max, rules[0].half_cone
-    has_discs = cx.shape[1] > 0
-    n_beams = axes.shape[0]
-    step = 2.0 * math.pi / n_beams if n_beams > 0 else 0.0
-    span = int(math.floor((half + _FAN_MARGIN) / step)) + 1 if n_beams > 0 else 0
-    fan = 2 * span + 1 < n_beams and even_fan(axes, step)
+def corner_view(x0, y0, walls, near, rules, view):
+    """Fill the :class:`CornerView` ``view`` for the origin ``(x0, y0)`` with the near walls ``near``: the corners
+    listed at them (``owned``), within ``range_max`` and seen from inside their wedge, in that order, their
+    lines of sight not looked at yet."""
+    pts, u1, u2, owned = walls.points, walls.u1, walls.u2, walls.owned
+    rmax = rules[0].range_max
+    k = 0
     for q in range(2 * near.shape[0]):
         c = owned[near[q // 2], q % 2]
         if c < 0:
@@ -481,8 +503,31 @@ def origin_corners(x0, y0, axes, walls, near, cx, cy, row, r2, mine, rules, read
         wy = y0 - pts[c, 1]
         if not ((u1[c, 0] * wy - u1[c, 1] * wx) * s > 0 and (wx * u2[c, 1] - wy * u2[c, 0]) * s > 0):
             continue  # not inside the corner's wedge
-        bearing = math.atan2(vy, vx)
-        seen = -1  # line of sight: unknown until a beam's cone holds the corner
+        view.dist[k] = dist
+        view.bearing[k] = math.atan2(vy, vx)
+        view.vx[k] = vx
+        view.vy[k] = vy
+        view.seen[k] = -1
+        k += 1
+    view.count[0] = k
+
+
+@njit(cache=True, nogil=True)
+def origin_corners(x0, y0, axes, walls, near, cx, cy, row, r2, mine, rules, reading, boxes, meets, boxed, view):
+    """:func:`sonar_corner_echoes` of one origin ``(x0, y0)`` whose corners :func:`corner_view` listed in ``view``
+    (their lines of sight kept there, for other headings from the same origin): lower its readings
+    ``reading (B,)`` of the beams ``axes (B,)``, the walls ``near`` (their boxes in ``boxes`` if ``boxed``, else
+    filled at the first sight line; ``meets`` scratch), the discs ``cx, cy`` row ``row`` but ``mine``."""
+    segs = walls.segments
+    half = rules[0].half_cone
+    has_discs = cx.shape[1] > 0
+    n_beams = axes.shape[0]
+    step = 2.0 * math.pi / n_beams if n_beams > 0 else 0.0
+    span = int(math.floor((half + _FAN_MARGIN) / step)) + 1 if n_beams > 0 else 0
+    fan = 2 * span + 1 < n_beams and even_fan(axes, step)
+    for c in range(view.count[0]):
+        dist = view.dist[c]
+        bearing = view.bearing[c]
         first, count = 0, n_beams
         if fan:  # an even fan: only the beams whose axis lies within the cone (and a margin) of the bearing
             rel = wrap(bearing - axes[0])
@@ -492,9 +537,9 @@ def origin_corners(x0, y0, axes, walls, near, cx, cy, row, r2, mine, rules, read
             b = (first + k) % n_beams
             if not (dist < reading[b] and in_cone(bearing - axes[b], half)):
                 continue
-            if seen < 0:
-                dx = vx / dist
-                dy = vy / dist
+            if view.seen[c] < 0:  # line of sight: looked at when a beam's cone first holds the corner
+                dx = view.vx[c] / dist
+                dy = view.vy[c] / dist
                 if not boxed:
                     near_boxes(segs, near, boxes)
                     boxed = True
@@ -502,7 +547,8 @@ def origin_corners(x0, y0, axes, walls, near, cx, cy, row, r2, mine, rules, read
                                               dist * (1.0 - 1e-7) - 1e-9, dist) else 1
                 if seen and has_discs and not disc_hit(x0, y0, dx, dy, cx, cy, row, r2, mine) >= dist:
                     seen = 0  # a robot in between
-            if seen:
+                view.seen[c] = seen
+            if view.seen[c]:
                 reading[b] = dist
 
 

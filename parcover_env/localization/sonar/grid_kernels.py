@@ -18,7 +18,14 @@ from numba import njit
 
 from parcover_env.geometry.ray_kernels import near_segments
 from parcover_env.localization.sonar.localizer_kernels import scan_error_row
-from parcover_env.sensors.sonar_kernels import echo_scratch, origin_corners, origin_first_legs, origin_second_legs
+from parcover_env.sensors.sonar_kernels import (
+    corner_scratch,
+    corner_view,
+    echo_scratch,
+    origin_corners,
+    origin_first_legs,
+    origin_second_legs,
+)
 
 __all__ = ["BOUND_SLACK", "bounded_scan_errors", "error_floor"]
 
@@ -69,6 +76,7 @@ def bounded_scan_errors(ox, oy, axes, offsets, share, walls, discs, rules, measu
     synth = np.empty(nb)
     buf = np.empty(nb)
     corners = rule.specular and walls.points.shape[0] > 0
+    view = corner_scratch(walls)
     limit = best
     for h in range(n):
         x0 = ox[h]
@@ -78,8 +86,12 @@ def bounded_scan_errors(ox, oy, axes, offsets, share, walls, discs, rules, measu
         m = origin_first_legs(x0, y0, axes[h], share, walls, near, cx[row], cy[row], r2, owner[h], rules, sc, reading,
                               mirror)
         if corners:  # the corners lower the direct readings now (the same minimum as after the second legs)
+            # the corners seen and their lines of sight are those of the pose before at the same spot (the grid's
+            # headings follow each other)
+            if h == 0 or per_origin or x0 != ox[h - 1] or y0 != oy[h - 1] or owner[h] != owner[h - 1]:
+                corner_view(x0, y0, walls, near, rules, view)
             origin_corners(x0, y0, axes[h], walls, near, cx, cy, row, r2, owner[h], rules, reading, sc.boxes, sc.meets,
-                           True)
+                           True, view)
         if limit < np.inf:
             for b in range(nb):
                 low[b] = min(reading[b], mirror[b])
