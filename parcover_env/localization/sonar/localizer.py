@@ -222,12 +222,13 @@ def _grid_candidates(ellipse: Ellipse, heading: float, map_model, p: SonarLocali
     return np.column_stack([np.repeat(xy, len(heads), axis=0), np.tile(heads, len(xy))])
 
 
-def _grid_errors(r: np.ndarray, poses: np.ndarray, a: np.ndarray, segs: np.ndarray, sonar: SonarConfig,
-                 p: SonarLocalizerParams, best: float) -> np.ndarray:
-    """The grid poses' ``(H, 3)`` scan errors (:func:`scan_error` of their :func:`synthetic_scans`, bit for
-    bit), inf for a pose whose error provably exceeds ``best`` (the feature poses' smallest) and those of the
-    poses before it (:func:`~parcover_env.localization.sonar.grid_kernels.bounded_scan_errors`): the first
-    smallest error, the one the localizer picks, is the same."""
+def _bounded_errors(r: np.ndarray, poses: np.ndarray, a: np.ndarray, segs: np.ndarray, sonar: SonarConfig,
+                    p: SonarLocalizerParams, best: float) -> np.ndarray:
+    """The candidate poses' ``(H, 3)`` scan errors (:func:`scan_error` of their :func:`synthetic_scans`, bit for
+    bit), inf for a pose whose error provably exceeds ``best`` (e.g. the feature poses' smallest, before the
+    grid's) and those of the poses before it
+    (:func:`~parcover_env.localization.sonar.grid_kernels.bounded_scan_errors`): the smallest error and the
+    first pose with it, what the localizer uses, are the same."""
     n = len(poses)
     axes = np.ascontiguousarray(poses[:, 2:3] + a[None, :])
     walls, offsets, share, rules = beam_kernel_arguments(sonar, segs, axes)
@@ -405,15 +406,16 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
     poses, owners = poses[keep], owners[keep]
     uniq = kern.first_unique(np.round(np.column_stack([poses[:, :2] / 0.01, poses[:, 2] / 0.01])))[: p.max_candidates]
     poses, owners = poses[uniq], owners[uniq]
-    err = scan_error(r, synthetic_scans(poses, a, segs, sonar), p.error_clip, p.error_trim) if len(poses) \
-        else np.zeros(0)
+    # the feature poses' and the grid's errors: each one's exactly, or inf where it provably exceeds an error
+    # before it (only the first smallest is used)
+    err = _bounded_errors(r, poses, a, segs, sonar, p, math.inf) if len(poses) else np.zeros(0)
     if heading is not None and p.grid_fallback and (len(err) == 0 or err.min() > p.success_error):
         # no feature pose explains the scan: scan matching over the uncertainty region instead
         grid = _grid_candidates(ellipse, float(heading), map_model, p)
         poses = np.concatenate([poses, grid])
         owners = np.concatenate([owners, np.full(len(grid), -1)])
         best = float(err.min()) if len(err) else math.inf
-        err = np.concatenate([err, _grid_errors(r, grid, a, segs, sonar, p, best)])
+        err = np.concatenate([err, _bounded_errors(r, grid, a, segs, sonar, p, best)])
     if len(poses) == 0:
         return LocalizationResult(None, math.inf, 0, False)
     best = int(np.argmin(err))

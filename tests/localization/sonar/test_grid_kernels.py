@@ -10,7 +10,7 @@ import pytest
 
 from parcover_env.config import SonarConfig
 from parcover_env.localization.sonar import grid_kernels
-from parcover_env.localization.sonar.localizer import _grid_errors, scan_error, synthetic_scans
+from parcover_env.localization.sonar.localizer import _bounded_errors, scan_error, synthetic_scans
 from parcover_env.localization.sonar.params import SonarLocalizerParams
 from parcover_env.sensors.sonar import SonarRing, simulate_beams
 
@@ -46,7 +46,7 @@ def test_skipped_poses_could_not_have_won_and_the_others_are_bit_identical(best)
     xs, ys, hs = np.meshgrid(np.linspace(1.5, 2.3, 9), np.linspace(0.7, 1.5, 9), 0.4 + np.radians([-8, -4, 0, 4, 8]))
     poses = np.column_stack([xs.ravel(), ys.ravel(), hs.ravel()])
     full = scan_error(measured, synthetic_scans(poses, ring.scan_angles, segs, cfg), p.error_clip, p.error_trim)
-    got = _grid_errors(measured, poses, ring.scan_angles, segs, cfg, p, best)
+    got = _bounded_errors(measured, poses, ring.scan_angles, segs, cfg, p, best)
     done = np.isfinite(got)
     assert got[done].tobytes() == full[done].tobytes()
     so_far = np.minimum.accumulate(np.concatenate([[best], full]))[:-1]  # the smallest before each pose
