@@ -587,3 +587,44 @@ def beam_readings(ox, oy, axes, offsets, share, walls, discs, rules, reading):
         sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading)
 
 
+
+
+class PoseScratch(NamedTuple):
+    """Scratch of :func:`pose_readings` for one pose after another (allocated once: e.g. a polish's every
+    step)."""
+
+    idx: np.ndarray
+    """``(1, S)`` int64 and ``(1,)``: the pose's near-wall list (:func:`near_segments`)."""
+    cnt: np.ndarray
+    echoes: EchoScratch
+    seen: CornerView
+    mirror: np.ndarray
+    """``(B,)`` scratch of :func:`origin_first_legs`."""
+
+
+@njit(cache=True)
+def pose_scratch(offsets, share, walls, n_discs):
+    """The :class:`PoseScratch` of beams shared as ``share (B, J)`` among ``walls`` and ``n_discs`` discs."""
+    segs = walls.segments
+    return PoseScratch(np.empty((1, segs.shape[0]), dtype=np.int64), np.empty(1, dtype=np.int64),
+                       echo_scratch(offsets, share, segs, n_discs), corner_scratch(walls), np.empty(share.shape[0]))
+
+
+@njit(cache=True, nogil=True)
+def pose_readings(x0, y0, axes, share, walls, discs, rules, reading, ps):
+    """:func:`beam_readings` of one origin ``(x0, y0)`` (``axes (B,)``, discs row 0, none of them its own) into
+    ``reading (B,)``, the same numbers, with the :class:`PoseScratch` ``ps`` (no allocation)."""
+    rule = rules[0]
+    segs = walls.segments
+    ox = np.full(1, x0)
+    oy = np.full(1, y0)
+    near_segments(ox, oy, segs, rule.range_max + rule.near_slack, ps.idx, ps.cnt)
+    near = ps.idx[0, :ps.cnt[0]]
+    cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
+    m = origin_first_legs(x0, y0, axes, share, walls, near, cx[0], cy[0], r2, owner[0], rules, ps.echoes, reading,
+                          ps.mirror)
+    origin_second_legs(x0, y0, share, walls, near, m, owner, rules, ps.echoes, reading)
+    if rule.specular and walls.points.shape[0] > 0:
+        corner_view(x0, y0, walls, near, rules, ps.seen)
+        origin_corners(x0, y0, axes, walls, near, cx, cy, 0, r2, owner[0], rules, reading, ps.echoes.boxes,
+                       ps.echoes.meets, True, ps.seen)
