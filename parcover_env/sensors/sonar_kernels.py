@@ -239,7 +239,7 @@ def origin_first_legs(x0, y0, axes, share, walls, near, cx, cy, r2, mine, rules,
                 fdy[p] = ay * co[j] + ax * so[j]
     # first hits of every traced sub-ray at once (no cull: a hit within rmax is the same, and one
     # beyond rmax, or beyond a cone's nearest echo, never changes a reading)
-    if fdx.shape[0] >= FAN_SPANS_MIN:
+    if fdx.shape[0] >= FAN_SPANS_MIN and near.shape[0] >= FAN_SPANS_WALLS:
         segment_fan_spans(x0, y0, fdx, fdy, segs, near, sc.fan_order, sc.fan_keys, fan_t, fan_i, fan_den)
     else:
         segment_fan(x0, y0, fdx, fdy, segs, near, sc.no_boxes, fan_t, fan_i, fan_den)
@@ -356,9 +356,12 @@ _LEG_MARGIN = 1e-9
 """Margin (m) beyond a bound that :func:`_second_leg` traces a second leg: far above the rounding of
 ``t1 + t2`` (~1e-15 m), so a wall left out lies above the bound in the sum as well."""
 FAN_SPANS_MIN = 64
-"""From this many traced sub-rays per origin (a 360-degree scan: 144) :func:`sonar_echoes` casts them with
-:func:`~parcover_env.geometry.ray_kernels.segment_fan_spans` (the same hits; cheaper for a wide fan), else
-with :func:`~parcover_env.geometry.ray_kernels.segment_fan` (a ring's few beams)."""
+"""From this many traced sub-rays per origin (a 360-degree scan: 144) and :data:`FAN_SPANS_WALLS` near walls,
+:func:`sonar_echoes` casts them with :func:`~parcover_env.geometry.ray_kernels.segment_fan_spans` (the same
+hits; cheaper for a wide fan among many walls), else with :func:`~parcover_env.geometry.ray_kernels.segment_fan`
+(a ring's few beams, or a few walls)."""
+FAN_SPANS_WALLS = 16
+"""See :data:`FAN_SPANS_MIN` (the two casts cost the same at about 16 walls around a 144-ray fan)."""
 _DISC_SLACK = 1e-6
 """Margin (m) of the disc range cull of :func:`sonar_echoes`: rounding never culls a disc a sub-ray hits."""
 @njit(cache=True, inline="always")

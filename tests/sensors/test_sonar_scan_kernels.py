@@ -135,14 +135,17 @@ def _oblique_room() -> np.ndarray:
 @pytest.mark.parametrize("range_max", [3.0, 1.2])
 def test_scan_echoes_equal_every_path_traced_bit_for_bit(range_max):
     """A 72-beam scan (144 traced sub-rays: the span fan, second legs nearest mirror first and only as far
-    as the cone's best echo) in a room of oblique walls among robots reads bit for bit what tracing
-    every sub-ray's two legs against every wall and robot reads."""
+    as the cone's best echo) in a room of oblique walls and short free-standing ones, among robots, reads
+    bit for bit what tracing every sub-ray's two legs against every wall and robot reads."""
     cfg = SonarConfig(range_max=range_max)
     ring = SonarRing(cfg)
-    walls = _walls(_oblique_room())
+    rng = np.random.default_rng(13)
+    ends = rng.uniform([0.3, 0.3], [3.5, 2.8], (40, 2))  # 40 short free-standing walls: >= 16 near walls
+    turn = rng.uniform(-math.pi, math.pi, 40)
+    sticks = np.column_stack([ends, ends + 0.2 * np.column_stack([np.cos(turn), np.sin(turn)])])
+    walls = _walls(np.ascontiguousarray(np.concatenate([_oblique_room(), sticks])))
     offsets = _subray_offsets(cfg.cone_deg, 5)
     cos_min = math.cos(math.radians(cfg.incidence_max_deg)) - 1e-12
-    rng = np.random.default_rng(13)
     xy = np.column_stack([rng.uniform(0.3, 3.5, 6), rng.uniform(0.3, 2.8, 6)])
     axes = np.ascontiguousarray(rng.uniform(-4, 4, (6, 1)) + ring.scan_angles[None, :])
     share = _share(axes, offsets)
@@ -150,6 +153,7 @@ def test_scan_echoes_equal_every_path_traced_bit_for_bit(range_max):
     ox, oy = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
     discs = kern.Discs(*rays.disc_planes(xy, 0.15, np.arange(6), 6))
     idx, cnt = rays.near_segments(ox, oy, walls.segments, cfg.range_max)
+    assert (cnt >= kern.FAN_SPANS_WALLS).sum() >= 3  # the span fan's case for most origins
     got = np.empty(axes.shape)
     kern.sonar_echoes(ox, oy, axes, offsets, share, walls.kernel, idx, cnt, discs, _rules(cfg), got)
     for n in range(6):
