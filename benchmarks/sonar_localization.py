@@ -40,10 +40,13 @@ whose result (accepted or not, pose, error, feature, candidates) is bit-identica
 ``--service`` times the env's scan service instead (``envs/sonar_fixes.py``, :meth:`SonarFixes.match`:
 the team map with the teammates at their estimates, the localizer, the unmasked match and the
 pin-down test) on the scans pinned in ``tests/localization/sonar/pinned_scans.json`` (seeded
-episodes; their inputs and outcomes), CPU ms per scan median / p90: over all scans, over the scans
-that fall back to the grid (their feature poses explain nothing: the localizer with the grid and the
-polish off finds no pose within ``success_error``), the others, and all scans with the grid off.
-Each outcome is checked against the fixture (``same``: bit-identical pose and informativeness).
+episodes; their inputs and outcomes), CPU ms per scan median / p90: over all scans with the default
+localizer, over the scans that fall back to the grid (their feature poses explain nothing: the
+localizer with the grid and the polish off finds no pose within ``success_error``) and the others;
+then all scans with the paper's method alone, with each extension added alone, and with every
+extension but the grid (:data:`SERVICE_ROWS`). Each outcome is checked against the fixture (``same``:
+bit-identical pose and informativeness; the fixture holds the default's outcomes, so only the default
+row must read all of them).
 
     PYTHONPATH=. python benchmarks/sonar_localization.py [--trials 200] [--seed 0] [--maps hallway t_room generated:1]
         [--unknown] [--reference]
