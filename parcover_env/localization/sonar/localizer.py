@@ -32,6 +32,11 @@ at 0.4-1.8 ms of CPU per scan (median per row and map) instead of 5-31 ms (``ben
 --reference``; docs/fidelity.md).
 Shapely still decides which sectors meet the grown ellipse, which candidates lie in free space and
 which arc poses lie in the grown ellipse (one vectorized call each).
+
+The candidates' scan errors (the feature poses', then the grid's, nearest the region's centre first) come
+from :func:`~parcover_env.localization.sonar.grid_kernels.bounded_scan_errors`: each error bit for bit, or
+inf for a pose whose error provably exceeds a smaller one found before it, so the pose chosen is the same
+(``tests/localization/sonar/test_grid_kernels.py``). A skipped pose's sonar stops before its second legs.
 """
 
 from __future__ import annotations
