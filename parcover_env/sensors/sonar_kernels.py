@@ -227,7 +227,8 @@ def origin_first_legs(x0, y0, axes, share, walls, near, cx, cy, r2, mine, rules,
     slot, fdx, fdy, co, so = sc.slot, sc.fdx, sc.fdy, sc.co, sc.so
     fan_t, fan_i, fan_den, fan_td = sc.fan_t, sc.fan_i, sc.fan_den, sc.fan_td
     direct, leg_echo, leg_i, leg_x, leg_y = sc.direct, sc.leg_echo, sc.leg_i, sc.leg_x, sc.leg_y
-    near_boxes(segs, near, sc.boxes)
+    if fdx.shape[0] >= FAN_SPANS_MIN:  # a scan's many second legs test the near walls' boxes (_second_leg)
+        near_boxes(segs, near, sc.boxes)
     m = _near_discs(x0, y0, cx, cy, r2, mine, rmax, sc.terms)
     for b in range(axes.shape[0]):
         ax = math.cos(axes[b])
@@ -283,22 +284,27 @@ def origin_first_legs(x0, y0, axes, share, walls, near, cx, cy, r2, mine, rules,
 
 
 @njit(cache=True, nogil=True)
-def origin_second_legs(x0, y0, share, walls, near, m, owner, rules, sc, best):
+def origin_second_legs(x0, y0, share, walls, near, m, owner, rules, sc, best, mirror):
     """:func:`sonar_echoes`' second step for the origin of :func:`origin_first_legs` (``sc``, ``m`` discs): each
     beam ``b``'s reading into ``best[b]``, the nearest of ``best[b]`` (at least its cone's nearest direct echo,
     at most the reading without second legs: e.g. lowered by a corner) and its sub-rays' two-leg echoes,
     nearest mirror first (a leg reads more than its first leg, so one that starts beyond the best echo so far
     cannot lower it), each traced only as far as that best (``leg_bound``: the best it was traced for; a leg
     traced for a bound B reads its own echo, or something above B when its echo lies above B: the minimum with
-    any best <= B is the same). One call per origin (the scratch is passed once, not per beam)."""
+    any best <= B is the same). ``mirror``: :func:`origin_first_legs`' nearest first leg of each beam's mirrored
+    sub-rays (a beam whose ``mirror`` is not below its best has nothing to trace). One call per origin (the
+    scratch is passed once, not per beam)."""
     n_sub = sc.co.shape[0]
     legs, leg_t, leg_echo, leg_bound = sc.legs, sc.leg_t, sc.leg_echo, sc.leg_bound
     leg_x, leg_y, leg_i, normals, boxes, meets = sc.leg_x, sc.leg_y, sc.leg_i, sc.normals, sc.boxes, sc.meets
     leg_discs = Discs(sc.terms.cx[:, :m], sc.terms.cy[:, :m], sc.terms.r2[:m], owner)  # legs stay within rmax
+    wide = sc.fdx.shape[0] >= FAN_SPANS_MIN  # a scan: legs nearest first, bounded, boxes (a ring: as they come)
     for b in range(best.shape[0]):
+        if not mirror[b] < best[b]:  # no sub-ray mirrored before the best echo: no leg can lower it
+            continue
         for j in range(n_sub):
             legs[j] = share[b, j]
-        for j in range(1, n_sub):  # insertion sort by the first leg's length (5 sub-rays)
+        for j in range(1, n_sub if wide else 0):  # insertion sort by the first leg's length (5 sub-rays)
             v = legs[j]
             k = j - 1
             while k >= 0 and leg_t[legs[k]] > leg_t[v]:
@@ -309,11 +315,14 @@ def origin_second_legs(x0, y0, share, walls, near, m, owner, rules, sc, best):
         for j in range(n_sub):
             u = legs[j]
             if not leg_t[u] < near_best:
-                break
+                if wide:
+                    break
+                continue
             if math.isnan(leg_echo[u]) or near_best > leg_bound[u]:
+                bound = near_best if wide else np.inf
                 leg_echo[u] = _second_leg(x0, y0, leg_x[u], leg_y[u], leg_t[u], leg_i[u], walls, normals, near,
-                                          leg_discs, rules, near_best, boxes, meets)
-                leg_bound[u] = near_best
+                                          leg_discs, rules, bound, boxes, meets, wide)
+                leg_bound[u] = bound
             near_best = min(near_best, leg_echo[u])
         best[b] = near_best
 
@@ -336,20 +345,127 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
     ``rmax - t1`` (``t2 + nudge`` compared). A disc nearer than the wall echoes (``td``). Walls
     are looked up in the origin's list ``idx`` of those within ``rmax`` (plus the nudge;
     :func:`near_segments`): a two-leg path of length <= ``rmax`` stays within it, ``idx[n, :cnt[n]]``."""
+    segs, seg_len = walls.segments, walls.lengths
     cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
+    rule = rules[0]
+    rmax, multipath, cos_min = rule.range_max, rule.multipath, rule.cos_min
+    specular = rule.specular and segs.shape[0] > 0
     per_origin = cx.shape[0] > 1
-    sc = echo_scratch(offsets, share, walls.segments, cx.shape[1])
-    best = np.empty(axes.shape[1])
-    mirror = np.empty(axes.shape[1])
+    n_discs = cx.shape[1]
+    n_sub = offsets.shape[0]
+    co = np.cos(offsets)
+    so = np.sin(offsets)
+    n_pairs = share.shape[0] * n_sub
+    slot = np.empty(n_pairs, dtype=np.int64)  # the traced sub-rays (a direction's first pair), in order
+    n_traced = 0
+    for b in range(share.shape[0]):
+        for j in range(n_sub):
+            if share[b, j] == b * n_sub + j:
+                slot[b * n_sub + j] = n_traced
+                n_traced += 1
+    fdx = np.empty(n_traced)  # per origin: the traced sub-rays as one fan, their first wall and disc hits
+    fdy = np.empty(n_traced)
+    fan_t = np.empty(n_traced)
+    fan_i = np.empty(n_traced, dtype=np.int64)
+    fan_den = np.empty(n_traced)
+    fan_td = np.empty(n_traced)
+    no_boxes = np.empty((0, n_traced))  # segment_fan without culling
+    wide = n_traced >= FAN_SPANS_MIN  # a wide fan (a 360-degree scan): spans, boxes, legs nearest first and bounded
+    fan_order = np.arange(n_traced)  # segment_fan_spans' ray order, kept from one origin to the next
+    fan_keys = np.empty(n_traced)
+    direct = np.empty(n_pairs)  # per origin, per sub-ray traced: its direct echo (inf if none)
+    leg_t = np.empty(n_pairs)  # where an oblique wall mirrored it (inf: not mirrored)
+    leg_i = np.empty(n_pairs, dtype=np.int64)
+    leg_x = np.empty(n_pairs)
+    leg_y = np.empty(n_pairs)
+    leg_echo = np.empty(n_pairs)  # its two-leg echo, once traced (nan: not yet)
+    leg_bound = np.empty(n_pairs)  # the best echo it was traced for (_second_leg's bound)
+    legs = np.empty(n_sub, dtype=np.int64)  # a beam's sub-rays, nearest mirror first
+    boxes = np.empty((4, segs.shape[0]))  # per origin: the near walls' bounding boxes (the second legs' culls)
+    meets = np.empty(segs.shape[0], dtype=np.bool_)
+    ocx = np.empty(n_discs)  # per origin: the terms of the discs a sub-ray within rmax can hit
+    ocy = np.empty(n_discs)
+    cc = np.empty(n_discs)
+    terms = _DiscTerms(ocx, ocy, cc, np.empty((1, n_discs)), np.empty((1, n_discs)), np.empty(n_discs))
+    normals = _normals(segs)
     for n in range(ox.shape[0]):
         x0 = ox[n]
         y0 = oy[n]
         row = n if per_origin else 0
         near = idx[n, :cnt[n]]
-        m = origin_first_legs(x0, y0, axes[n], share, walls, near, cx[row], cy[row], r2, owner[n], rules, sc, best,
-                              mirror)
-        origin_second_legs(x0, y0, share, walls, near, m, owner, rules, sc, best)
-        reading[n] = best
+        if wide:
+            near_boxes(segs, near, boxes)
+        m = _near_discs(x0, y0, cx[row], cy[row], r2, owner[n], rmax, terms)
+        leg_discs = Discs(terms.cx[:, :m], terms.cy[:, :m], terms.r2[:m], owner)  # a second leg stays within rmax
+        for b in range(axes.shape[1]):
+            ax = math.cos(axes[n, b])
+            ay = math.sin(axes[n, b])
+            for j in range(n_sub):
+                if share[b, j] == b * n_sub + j:
+                    p = slot[b * n_sub + j]
+                    fdx[p] = ax * co[j] - ay * so[j]
+                    fdy[p] = ay * co[j] + ax * so[j]
+        # first hits of every traced sub-ray at once (no cull: a hit within rmax is the same, and one
+        # beyond rmax, or beyond a cone's nearest echo, never changes a reading)
+        if wide and near.shape[0] >= FAN_SPANS_WALLS:
+            segment_fan_spans(x0, y0, fdx, fdy, segs, near, fan_order, fan_keys, fan_t, fan_i, fan_den)
+        else:
+            segment_fan(x0, y0, fdx, fdy, segs, near, no_boxes, fan_t, fan_i, fan_den)
+        fan_td[:] = np.inf
+        disc_fan(fdx, fdy, ocx[:m], ocy[:m], cc[:m], fan_td)
+        for b in range(axes.shape[1]):
+            best = np.inf
+            for j in range(n_sub):  # first legs: direct echoes (walls near the normal, discs)
+                u = share[b, j]
+                if u == b * n_sub + j:  # a direction not traced yet
+                    p = slot[u]
+                    t1, i1, den, td = fan_t[p], fan_i[p], fan_den[p], fan_td[p]
+                    if not td <= rmax:
+                        td = np.inf
+                    if not (i1 >= 0 and t1 <= rmax):
+                        t1 = np.inf
+                        i1 = -1
+                    leg_t[u] = np.inf
+                    leg_echo[u] = np.nan
+                    if not specular:
+                        echo = min(t1, td)
+                    elif td < t1:
+                        echo = td
+                    elif _incidence(den, seg_len, i1) >= cos_min:
+                        echo = t1
+                    else:
+                        echo = np.inf
+                        if multipath and i1 >= 0:  # mirrored by an oblique wall: its second leg comes after
+                            leg_t[u] = t1
+                            leg_i[u] = i1
+                            leg_x[u] = fdx[p]
+                            leg_y[u] = fdy[p]
+                    direct[u] = echo
+                best = min(best, direct[u])
+            # second legs, once the cone's direct echoes bound what can be nearer (origin_second_legs: on a wide
+            # fan nearest mirror first, each traced only as far as the best echo so far, walls' boxes first)
+            for j in range(n_sub):
+                legs[j] = share[b, j]
+            for j in range(1, n_sub if wide else 0):  # insertion sort by the first leg's length (5 sub-rays)
+                v = legs[j]
+                k = j - 1
+                while k >= 0 and leg_t[legs[k]] > leg_t[v]:
+                    legs[k + 1] = legs[k]
+                    k -= 1
+                legs[k + 1] = v
+            for j in range(n_sub):
+                u = legs[j]
+                if not leg_t[u] < best:
+                    if wide:
+                        break
+                    continue
+                if math.isnan(leg_echo[u]) or best > leg_bound[u]:
+                    bound = best if wide else np.inf
+                    leg_echo[u] = _second_leg(x0, y0, leg_x[u], leg_y[u], leg_t[u], leg_i[u], walls, normals, near,
+                                              leg_discs, rules, bound, boxes, meets, wide)
+                    leg_bound[u] = bound
+                best = min(best, leg_echo[u])
+            reading[n, b] = best
 
 
 _LEG_MARGIN = 1e-9
@@ -407,7 +523,7 @@ def _normals(segs):
 
 
 @njit(cache=True, inline="always")
-def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, normals, near, discs, rules, bound, boxes, meets):
+def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, normals, near, discs, rules, bound, boxes, meets, boxed):
     """Echo length ``t1 + t2`` of a sub-ray from ``(x0, y0)`` mirrored at ``t1`` by segment ``i1`` (unit
     normals ``normals``), inf if its second leg finds no echoing surface within ``rmax - t1`` (walls
     ``near``; the :class:`Discs` ``discs``, one set (row 0), none skipped: the origin's discs within
@@ -425,10 +541,10 @@ def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, normals, near, discs, rules, bo
     reach = rmax - t1
     if bound < rmax:  # walls only as far as the bound (and a margin): the echo, or one read above ``bound``
         reach = min(reach, (bound - t1) + _LEG_MARGIN)
-    if box_cull and math.isfinite(reach):  # the near walls' boxes (near_boxes) culled in one pass
+    if boxed and box_cull and math.isfinite(reach):  # the near walls' boxes (near_boxes) culled in one pass
         t2w, i2, den2 = segment_hit_boxed(px, py, d2x, d2y, segs, near, boxes, meets, reach)
     else:
-        t2w, i2, den2 = segment_hit(px, py, d2x, d2y, segs, near, reach, False, False)
+        t2w, i2, den2 = segment_hit(px, py, d2x, d2y, segs, near, reach, box_cull and math.isfinite(reach), False)
     if not (i2 >= 0 and t2w <= reach):
         t2w = np.inf
         i2 = -1
@@ -448,17 +564,60 @@ def sonar_corner_echoes(ox, oy, axes, walls, idx, cnt, discs, rules, reading):
     ``idx[n, :cnt[n]]`` of those within ``range_max`` (:func:`near_segments`), and so are the
     corners (those listed at these walls, ``owned``: a corner within range lies on a wall within
     it). A reading is the nearest qualifying corner whatever the order they come in."""
-    segs = walls.segments
+    segs, pts, u1, u2, owned = walls.segments, walls.points, walls.u1, walls.u2, walls.owned
     cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
+    rmax, half = rules[0].range_max, rules[0].half_cone
+    has_discs = cx.shape[1] > 0
     per_origin = cx.shape[0] > 1
+    n_beams = axes.shape[1]
+    step = 2.0 * math.pi / n_beams if n_beams > 0 else 0.0
+    span = int(math.floor((half + _FAN_MARGIN) / step)) + 1 if n_beams > 0 else 0
     boxes = np.empty((4, segs.shape[0]))  # per origin: the near walls' bounding boxes (the sight lines' culls)
     meets = np.empty(segs.shape[0], dtype=np.bool_)
-    view = corner_scratch(walls)
     for n in range(ox.shape[0]):
+        x0 = ox[n]
+        y0 = oy[n]
         near = idx[n, :cnt[n]]
-        corner_view(ox[n], oy[n], walls, near, rules, view)
-        origin_corners(ox[n], oy[n], axes[n], walls, near, cx, cy, n if per_origin else 0, r2, owner[n], rules,
-                       reading[n], boxes, meets, False, view)
+        boxed = False  # the boxes filled for this origin (at its first sight line)
+        fan = 2 * span + 1 < n_beams and owned.shape[0] > 0 and even_fan(axes[n], step)
+        for q in range(2 * near.shape[0]):
+            c = owned[near[q // 2], q % 2]
+            if c < 0:
+                continue
+            vx = pts[c, 0] - x0
+            vy = pts[c, 1] - y0
+            dist = math.sqrt(vx * vx + vy * vy)
+            if not (dist <= rmax and dist > 1e-9):
+                continue
+            s = u1[c, 0] * u2[c, 1] - u1[c, 1] * u2[c, 0]
+            wx = x0 - pts[c, 0]
+            wy = y0 - pts[c, 1]
+            if not ((u1[c, 0] * wy - u1[c, 1] * wx) * s > 0 and (wx * u2[c, 1] - wy * u2[c, 0]) * s > 0):
+                continue  # not inside the corner's wedge
+            bearing = math.atan2(vy, vx)
+            seen = -1  # line of sight: unknown until a beam's cone holds the corner
+            first, count = 0, n_beams
+            if fan:  # an even fan: only the beams whose axis lies within the cone (and a margin) of the bearing
+                rel = wrap(bearing - axes[n, 0])
+                first = int(math.floor((rel - (half + _FAN_MARGIN)) / step))
+                count = int(math.floor((rel + (half + _FAN_MARGIN)) / step)) - first + 1
+            for k in range(count):
+                b = (first + k) % n_beams
+                if not (dist < reading[n, b] and in_cone(bearing - axes[n, b], half)):
+                    continue
+                if seen < 0:
+                    dx = vx / dist
+                    dy = vy / dist
+                    if not boxed:
+                        near_boxes(segs, near, boxes)
+                        boxed = True
+                    seen = 0 if wall_before_boxed(x0, y0, dx, dy, segs, near, boxes, meets,
+                                                  dist * (1.0 - 1e-7) - 1e-9, dist) else 1
+                    if seen and has_discs and not disc_hit(x0, y0, dx, dy, cx, cy, n if per_origin else 0, r2,
+                                                            owner[n]) >= dist:
+                        seen = 0  # a robot in between
+                if seen:
+                    reading[n, b] = dist
 
 
 class CornerView(NamedTuple):
@@ -527,7 +686,7 @@ def origin_corners(x0, y0, axes, walls, near, cx, cy, row, r2, mine, rules, read
     n_beams = axes.shape[0]
     step = 2.0 * math.pi / n_beams if n_beams > 0 else 0.0
     span = int(math.floor((half + _FAN_MARGIN) / step)) + 1 if n_beams > 0 else 0
-    fan = 2 * span + 1 < n_beams and even_fan(axes, step)
+    fan = view.count[0] > 0 and 2 * span + 1 < n_beams and even_fan(axes, step)
     for c in range(view.count[0]):
         dist = view.dist[c]
         bearing = view.bearing[c]
@@ -563,12 +722,12 @@ fan that may hold a corner (far above the rounding of the axes, ~1e-15 rad)."""
 @njit(cache=True, inline="always")
 def even_fan(axes, step):
     """Whether the beam axes ``axes (B,)`` (rad) lie ``step`` apart in order, ``axes[b] = axes[0] + b
-    step`` within 1e-9 rad (a 360-degree scan at any heading), so that the beams within an angle of
+    step`` within 1e-9 rad, unwrapped (a 360-degree scan at any heading), so that the beams within an angle of
     a bearing follow from its offset to ``axes[0]``."""
     even = True
     b = 1
     while even and b < axes.shape[0]:
-        even = abs(wrap((axes[b] - axes[0]) - b * step)) <= 1e-9
+        even = abs((axes[b] - axes[0]) - b * step) <= 1e-9
         b += 1
     return even
 
@@ -626,8 +785,8 @@ def pose_readings(x0, y0, axes, share, walls, discs, rules, reading, ps):
     cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
     m = origin_first_legs(x0, y0, axes, share, walls, near, cx[0], cy[0], r2, owner[0], rules, ps.echoes, reading,
                           ps.mirror)
-    origin_second_legs(x0, y0, share, walls, near, m, owner, rules, ps.echoes, reading)
+    origin_second_legs(x0, y0, share, walls, near, m, owner, rules, ps.echoes, reading, ps.mirror)
     if rule.specular and walls.points.shape[0] > 0:
         corner_view(x0, y0, walls, near, rules, ps.seen)
         origin_corners(x0, y0, axes, walls, near, cx, cy, 0, r2, owner[0], rules, reading, ps.echoes.boxes,
-                       ps.echoes.meets, True, ps.seen)
+                       ps.echoes.meets, ps.echoes.fdx.shape[0] >= FAN_SPANS_MIN, ps.seen)

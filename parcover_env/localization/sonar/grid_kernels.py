@@ -19,6 +19,7 @@ from numba import njit
 from parcover_env.geometry.ray_kernels import near_segments
 from parcover_env.localization.sonar.localizer_kernels import scan_error_row
 from parcover_env.sensors.sonar_kernels import (
+    FAN_SPANS_MIN,
     corner_scratch,
     corner_view,
     echo_scratch,
@@ -91,14 +92,14 @@ def bounded_scan_errors(ox, oy, axes, offsets, share, walls, discs, rules, measu
             if h == 0 or per_origin or x0 != ox[h - 1] or y0 != oy[h - 1] or owner[h] != owner[h - 1]:
                 corner_view(x0, y0, walls, near, rules, view)
             origin_corners(x0, y0, axes[h], walls, near, cx, cy, row, r2, owner[h], rules, reading, sc.boxes, sc.meets,
-                           True, view)
+                           sc.fdx.shape[0] >= FAN_SPANS_MIN, view)
         if limit < np.inf:
             for b in range(nb):
                 low[b] = min(reading[b], mirror[b])
             if error_floor(measured, low, reading, rmax, clip, keep, buf) > limit * keep * (1.0 + BOUND_SLACK) + 1e-12:
                 out[h] = np.inf
                 continue
-        origin_second_legs(x0, y0, share, walls, near, m, owner, rules, sc, reading)
+        origin_second_legs(x0, y0, share, walls, near, m, owner, rules, sc, reading, mirror)
         for b in range(nb):
             v = reading[b]
             synth[b] = v if v < rmax else rmax
