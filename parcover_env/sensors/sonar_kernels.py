@@ -145,6 +145,35 @@ def _incidence(den, seg_len, i):
     return abs(den) / max(seg_len[i], COS_FLOOR) if i >= 0 else 0.0
 
 
+class DiscRow(NamedTuple):
+    """The discs one origin sees: row ``row`` of the :class:`Discs` centres ``cx, cy (C, D)``, squared radii
+    ``r2 (D,)``, all but its own disc ``mine`` (-1: none)."""
+
+    cx: np.ndarray
+    cy: np.ndarray
+    row: int
+    r2: np.ndarray
+    mine: int
+
+
+class LegCull(NamedTuple):
+    """How :func:`_second_leg` culls: only as far as ``bound`` (inf: ``rmax``), and with the near walls' boxes
+    (:func:`~parcover_env.geometry.ray_kernels.near_boxes` in ``boxes``, ``meets`` scratch) if ``boxed``."""
+
+    bound: float
+    boxes: np.ndarray
+    meets: np.ndarray
+    boxed: bool
+
+
+class WallBoxes(NamedTuple):
+    """The near walls' boxes ``(4, S)`` (:func:`~parcover_env.geometry.ray_kernels.near_boxes`) and ``(S,)``
+    bool scratch for the sight lines of :func:`origin_corners`."""
+
+    boxes: np.ndarray
+    meets: np.ndarray
+
+
 class EchoScratch(NamedTuple):
     """The scratch arrays of :func:`sonar_echoes`' steps for one origin (:func:`echo_scratch`), reused origin
     after origin: the traced sub-rays' directions and first hits, each sub-ray's direct echo and mirror,
@@ -203,18 +232,21 @@ def echo_scratch(offsets, share, segs, n_discs):
                 n_traced += 1
     terms = _DiscTerms(np.empty(n_discs), np.empty(n_discs), np.empty(n_discs), np.empty((1, n_discs)),
                        np.empty((1, n_discs)), np.empty(n_discs))
-    return EchoScratch(slot, np.cos(offsets), np.sin(offsets), np.empty(n_traced), np.empty(n_traced),
-                       np.empty(n_traced), np.empty(n_traced, dtype=np.int64), np.empty(n_traced),
-                       np.empty(n_traced), np.arange(n_traced), np.empty(n_traced), np.empty((0, n_traced)),
-                       np.empty(n_pairs), np.empty(n_pairs), np.empty(n_pairs, dtype=np.int64), np.empty(n_pairs),
-                       np.empty(n_pairs), np.empty(n_pairs), np.empty(n_pairs), np.empty(n_sub, dtype=np.int64),
-                       np.empty((4, segs.shape[0])), np.empty(segs.shape[0], dtype=np.bool_), terms, _normals(segs))
+    return EchoScratch(
+        slot=slot, co=np.cos(offsets), so=np.sin(offsets), fdx=np.empty(n_traced), fdy=np.empty(n_traced),
+        fan_t=np.empty(n_traced), fan_i=np.empty(n_traced, dtype=np.int64), fan_den=np.empty(n_traced),
+        fan_td=np.empty(n_traced), fan_order=np.arange(n_traced), fan_keys=np.empty(n_traced),
+        no_boxes=np.empty((0, n_traced)), direct=np.empty(n_pairs), leg_t=np.empty(n_pairs),
+        leg_i=np.empty(n_pairs, dtype=np.int64), leg_x=np.empty(n_pairs), leg_y=np.empty(n_pairs),
+        leg_echo=np.empty(n_pairs), leg_bound=np.empty(n_pairs), legs=np.empty(n_sub, dtype=np.int64),
+        boxes=np.empty((4, segs.shape[0])), meets=np.empty(segs.shape[0], dtype=np.bool_), terms=terms,
+        normals=_normals(segs))
 
 
 @njit(cache=True, nogil=True)
-def origin_first_legs(x0, y0, axes, share, walls, near, cx, cy, r2, mine, rules, sc, best, mirror):
+def origin_first_legs(x0, y0, axes, share, walls, near, seen, rules, sc, best, mirror):
     """:func:`sonar_echoes`' first step for the origin ``(x0, y0)`` with beam axes ``axes (B,)``, near walls
-    ``near`` and the discs ``cx, cy (D,)``, ``r2`` but ``mine``: each traced sub-ray's first hits (one fan)
+    ``near`` and the discs it sees (a :class:`DiscRow` ``seen``): each traced sub-ray's first hits (one fan)
     and direct echo, into the :class:`EchoScratch` ``sc``; per beam ``b``, ``best[b]`` = its cone's nearest
     direct echo (inf if none) and ``mirror[b]`` = the nearest first leg of its sub-rays that an oblique wall
     mirrored (inf if none: the beam's echo lies between ``min(best, mirror)`` and ``best``). Returns how
@@ -229,7 +261,7 @@ def origin_first_legs(x0, y0, axes, share, walls, near, cx, cy, r2, mine, rules,
     direct, leg_echo, leg_i, leg_x, leg_y = sc.direct, sc.leg_echo, sc.leg_i, sc.leg_x, sc.leg_y
     if fdx.shape[0] >= FAN_SPANS_MIN:  # a scan's many second legs test the near walls' boxes (_second_leg)
         near_boxes(segs, near, sc.boxes)
-    m = _near_discs(x0, y0, cx, cy, r2, mine, rmax, sc.terms)
+    m = _near_discs(x0, y0, seen.cx[seen.row], seen.cy[seen.row], seen.r2, seen.mine, rmax, sc.terms)
     for b in range(axes.shape[0]):
         ax = math.cos(axes[b])
         ay = math.sin(axes[b])
@@ -321,7 +353,7 @@ def origin_second_legs(x0, y0, share, walls, near, m, owner, rules, sc, best, mi
             if math.isnan(leg_echo[u]) or near_best > leg_bound[u]:
                 bound = near_best if wide else np.inf
                 leg_echo[u] = _second_leg(x0, y0, leg_x[u], leg_y[u], leg_t[u], leg_i[u], walls, normals, near,
-                                          leg_discs, rules, bound, boxes, meets, wide)
+                                          leg_discs, rules, LegCull(bound, boxes, meets, wide))
                 leg_bound[u] = bound
             near_best = min(near_best, leg_echo[u])
         best[b] = near_best
@@ -462,7 +494,7 @@ def sonar_echoes(ox, oy, axes, offsets, share, walls, idx, cnt, discs, rules, re
                 if math.isnan(leg_echo[u]) or best > leg_bound[u]:
                     bound = best if wide else np.inf
                     leg_echo[u] = _second_leg(x0, y0, leg_x[u], leg_y[u], leg_t[u], leg_i[u], walls, normals, near,
-                                              leg_discs, rules, bound, boxes, meets, wide)
+                                              leg_discs, rules, LegCull(bound, boxes, meets, wide))
                     leg_bound[u] = bound
                 best = min(best, leg_echo[u])
             reading[n, b] = best
@@ -523,7 +555,7 @@ def _normals(segs):
 
 
 @njit(cache=True, inline="always")
-def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, normals, near, discs, rules, bound, boxes, meets, boxed):
+def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, normals, near, discs, rules, cull):
     """Echo length ``t1 + t2`` of a sub-ray from ``(x0, y0)`` mirrored at ``t1`` by segment ``i1`` (unit
     normals ``normals``), inf if its second leg finds no echoing surface within ``rmax - t1`` (walls
     ``near``; the :class:`Discs` ``discs``, one set (row 0), none skipped: the origin's discs within
@@ -539,10 +571,10 @@ def _second_leg(x0, y0, ddx, ddy, t1, i1, walls, normals, near, discs, rules, bo
     px = (x0 + ddx * t1) + d2x * nudge
     py = (y0 + ddy * t1) + d2y * nudge
     reach = rmax - t1
-    if bound < rmax:  # walls only as far as the bound (and a margin): the echo, or one read above ``bound``
-        reach = min(reach, (bound - t1) + _LEG_MARGIN)
-    if boxed and box_cull and math.isfinite(reach):  # the near walls' boxes (near_boxes) culled in one pass
-        t2w, i2, den2 = segment_hit_boxed(px, py, d2x, d2y, segs, near, boxes, meets, reach)
+    if cull.bound < rmax:  # walls only as far as the bound (and a margin): the echo, or one read above the bound
+        reach = min(reach, (cull.bound - t1) + _LEG_MARGIN)
+    if cull.boxed and box_cull and math.isfinite(reach):  # the near walls' boxes (near_boxes) culled in one pass
+        t2w, i2, den2 = segment_hit_boxed(px, py, d2x, d2y, segs, near, cull.boxes, cull.meets, reach)
     else:
         t2w, i2, den2 = segment_hit(px, py, d2x, d2y, segs, near, reach, box_cull and math.isfinite(reach), False)
     if not (i2 >= 0 and t2w <= reach):
@@ -675,14 +707,15 @@ def corner_view(x0, y0, walls, near, rules, view):
 
 
 @njit(cache=True, nogil=True)
-def origin_corners(x0, y0, axes, walls, near, cx, cy, row, r2, mine, rules, reading, boxes, meets, boxed, view):
+def origin_corners(x0, y0, axes, walls, near, seen, rules, reading, wb, boxed, view):
     """:func:`sonar_corner_echoes` of one origin ``(x0, y0)`` whose corners :func:`corner_view` listed in ``view``
     (their lines of sight kept there, for other headings from the same origin): lower its readings
-    ``reading (B,)`` of the beams ``axes (B,)``, the walls ``near`` (their boxes in ``boxes`` if ``boxed``, else
-    filled at the first sight line; ``meets`` scratch), the discs ``cx, cy`` row ``row`` but ``mine``."""
+    ``reading (B,)`` of the beams ``axes (B,)``, the walls ``near`` (their boxes in the :class:`WallBoxes` ``wb``
+    if ``boxed``, else filled at the first sight line) and the discs it sees (a :class:`DiscRow` ``seen``)."""
     segs = walls.segments
+    boxes, meets = wb.boxes, wb.meets
     half = rules[0].half_cone
-    has_discs = cx.shape[1] > 0
+    has_discs = seen.cx.shape[1] > 0
     n_beams = axes.shape[0]
     step = 2.0 * math.pi / n_beams if n_beams > 0 else 0.0
     span = int(math.floor((half + _FAN_MARGIN) / step)) + 1 if n_beams > 0 else 0
@@ -705,11 +738,12 @@ def origin_corners(x0, y0, axes, walls, near, cx, cy, row, r2, mine, rules, read
                 if not boxed:
                     near_boxes(segs, near, boxes)
                     boxed = True
-                seen = 0 if wall_before_boxed(x0, y0, dx, dy, segs, near, boxes, meets,
-                                              dist * (1.0 - 1e-7) - 1e-9, dist) else 1
-                if seen and has_discs and not disc_hit(x0, y0, dx, dy, cx, cy, row, r2, mine) >= dist:
-                    seen = 0  # a robot in between
-                view.seen[c] = seen
+                clear = 0 if wall_before_boxed(x0, y0, dx, dy, segs, near, boxes, meets,
+                                               dist * (1.0 - 1e-7) - 1e-9, dist) else 1
+                if clear and has_discs and not disc_hit(x0, y0, dx, dy, seen.cx, seen.cy, seen.row, seen.r2,
+                                                        seen.mine) >= dist:
+                    clear = 0  # a robot in between
+                view.seen[c] = clear
             if view.seen[c]:
                 reading[b] = dist
 
@@ -783,10 +817,10 @@ def pose_readings(x0, y0, axes, share, walls, discs, rules, reading, ps):
     near_segments(ox, oy, segs, rule.range_max + rule.near_slack, ps.idx, ps.cnt)
     near = ps.idx[0, :ps.cnt[0]]
     cx, cy, r2, owner = discs.cx, discs.cy, discs.r2, discs.owner
-    m = origin_first_legs(x0, y0, axes, share, walls, near, cx[0], cy[0], r2, owner[0], rules, ps.echoes, reading,
-                          ps.mirror)
+    seen = DiscRow(cx, cy, 0, r2, owner[0])
+    m = origin_first_legs(x0, y0, axes, share, walls, near, seen, rules, ps.echoes, reading, ps.mirror)
     origin_second_legs(x0, y0, share, walls, near, m, owner, rules, ps.echoes, reading, ps.mirror)
     if rule.specular and walls.points.shape[0] > 0:
         corner_view(x0, y0, walls, near, rules, ps.seen)
-        origin_corners(x0, y0, axes, walls, near, cx, cy, 0, r2, owner[0], rules, reading, ps.echoes.boxes,
-                       ps.echoes.meets, ps.echoes.fdx.shape[0] >= FAN_SPANS_MIN, ps.seen)
+        origin_corners(x0, y0, axes, walls, near, seen, rules, reading, WallBoxes(ps.echoes.boxes, ps.echoes.meets),
+                       ps.echoes.fdx.shape[0] >= FAN_SPANS_MIN, ps.seen)

@@ -13,6 +13,8 @@ error is at least the mean of the ``keep`` smallest of these.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -20,6 +22,8 @@ from parcover_env.geometry.ray_kernels import near_segments
 from parcover_env.localization.sonar.localizer_kernels import scan_error_row
 from parcover_env.sensors.sonar_kernels import (
     FAN_SPANS_MIN,
+    DiscRow,
+    WallBoxes,
     corner_scratch,
     corner_view,
     echo_scratch,
@@ -28,7 +32,17 @@ from parcover_env.sensors.sonar_kernels import (
     origin_second_legs,
 )
 
-__all__ = ["BOUND_SLACK", "bounded_scan_errors", "error_floor"]
+__all__ = ["BOUND_SLACK", "ScanTarget", "bounded_scan_errors", "error_floor"]
+
+class ScanTarget(NamedTuple):
+    """What :func:`bounded_scan_errors` scores against: the measured scan ``(B,)`` (m), the per-reading error
+    clip (m), how many of the smallest errors are kept, and the smallest error so far (m; inf: none)."""
+
+    measured: np.ndarray
+    clip: float
+    keep: int
+    best: float
+
 
 BOUND_SLACK = 1e-9
 """Relative margin (and 1e-12 m absolute) by which a pose's error bound must exceed the smallest error so far
@@ -54,13 +68,15 @@ def error_floor(measured, low, high, rmax, clip, keep, buf):
 
 
 @njit(cache=True, nogil=True)
-def bounded_scan_errors(ox, oy, axes, offsets, share, walls, discs, rules, measured, clip, keep, best, out):
-    """``out[h]``: the scan error (:func:`~parcover_env.localization.sonar.localizer_kernels.scan_error_row`,
-    ``keep`` smallest clipped errors) of ``measured (B,)`` against the noise-free readings of the beams
-    ``axes[h] (B,)`` from ``(ox[h], oy[h])`` (:func:`~parcover_env.sensors.sonar_kernels.beam_readings`' with
-    ``walls``, ``discs``, ``offsets``, ``share`` and ``rules``, then ``min(., range_max)``), or inf when
-    :func:`error_floor` of its echo intervals (known before its second legs) exceeds the smallest error so
-    far (``best``, then ``out`` of the poses before ``h``) by :data:`BOUND_SLACK`."""
+def bounded_scan_errors(ox, oy, axes, offsets, share, walls, discs, rules, target, out):
+    """``out[h]``: the scan error (:func:`~parcover_env.localization.sonar.localizer_kernels.scan_error_row`:
+    the :class:`ScanTarget` ``target``'s ``keep`` smallest clipped errors) of its measured scan ``(B,)`` against
+    the noise-free readings of the beams ``axes[h] (B,)`` from ``(ox[h], oy[h])``
+    (:func:`~parcover_env.sensors.sonar_kernels.beam_readings`' with ``walls``, ``discs``, ``offsets``, ``share``
+    and ``rules``, then ``min(., range_max)``), or inf when :func:`error_floor` of its echo intervals (known
+    before its second legs) exceeds the smallest error so far (``target.best``, then ``out`` of the poses
+    tried before ``h``) by :data:`BOUND_SLACK`."""
+    measured, clip, keep, best = target.measured, target.clip, target.keep, target.best
     rule = rules[0]
     rmax = rule.range_max
     segs = walls.segments
@@ -84,14 +100,14 @@ def bounded_scan_errors(ox, oy, axes, offsets, share, walls, discs, rules, measu
         y0 = oy[h]
         row = h if per_origin else 0
         near = idx[h, :cnt[h]]
-        m = origin_first_legs(x0, y0, axes[h], share, walls, near, cx[row], cy[row], r2, owner[h], rules, sc, reading,
-                              mirror)
+        seen = DiscRow(cx, cy, row, r2, owner[h])
+        m = origin_first_legs(x0, y0, axes[h], share, walls, near, seen, rules, sc, reading, mirror)
         if corners:  # the corners lower the direct readings now (the same minimum as after the second legs)
             # the corners seen and their lines of sight are those of the pose before at the same spot (the grid's
             # headings follow each other)
             if h == 0 or per_origin or x0 != ox[h - 1] or y0 != oy[h - 1] or owner[h] != owner[h - 1]:
                 corner_view(x0, y0, walls, near, rules, view)
-            origin_corners(x0, y0, axes[h], walls, near, cx, cy, row, r2, owner[h], rules, reading, sc.boxes, sc.meets,
+            origin_corners(x0, y0, axes[h], walls, near, seen, rules, reading, WallBoxes(sc.boxes, sc.meets),
                            sc.fdx.shape[0] >= FAN_SPANS_MIN, view)
         if limit < np.inf:
             for b in range(nb):

@@ -249,9 +249,10 @@ def _bounded_errors(r: np.ndarray, poses: np.ndarray, a: np.ndarray, segs: np.nd
     discs = Discs(*disc_planes(np.zeros((0, 2)), 0.0, np.full(n, -1), n))
     out = np.empty(n)
     keep = len(r) - int(math.floor(p.error_trim * len(r)))
+    target = grid_kernels.ScanTarget(measured=np.ascontiguousarray(r, dtype=float), clip=float(p.error_clip),
+                                     keep=keep, best=float(best))
     grid_kernels.bounded_scan_errors(np.ascontiguousarray(poses[:, 0]), np.ascontiguousarray(poses[:, 1]), axes,
-                                     offsets, share, walls, discs, rules, np.ascontiguousarray(r, dtype=float),
-                                     float(p.error_clip), keep, float(best), out)
+                                     offsets, share, walls, discs, rules, target, out)
     if order is not None:
         out[order] = out.copy()
     return out

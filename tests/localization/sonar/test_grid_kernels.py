@@ -86,7 +86,7 @@ def test_robots_among_the_walls_read_as_the_sonar_reads_them():
     out = np.empty(30)
     grid_kernels.bounded_scan_errors(np.ascontiguousarray(poses[:, 0]), np.ascontiguousarray(poses[:, 1]), axes,
                                      offsets, share, walls, Discs(*disc_planes(robots, 0.17, np.full(30, -1), 30)),
-                                     rules, measured, 0.5, 65, math.inf, out)
+                                     rules, grid_kernels.ScanTarget(measured, 0.5, 65, math.inf), out)
     full = scan_error(measured, want, 0.5, 0.1)
     done = np.isfinite(out)
     assert out[done].tobytes() == full[done].tobytes() and done[:16].sum() >= 3
