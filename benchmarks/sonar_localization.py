@@ -40,10 +40,13 @@ whose result (accepted or not, pose, error, feature, candidates) is bit-identica
 ``--service`` times the env's scan service instead (``localization/sonar/service.py``, :meth:`SonarFixes.match`:
 the team map with the teammates at their estimates, the localizer, the unmasked match and the
 pin-down test) on the scans pinned in ``tests/localization/sonar/pinned_scans.json`` (seeded
-episodes; their inputs and outcomes), CPU ms per scan median / p90: over all scans, over the scans
-that fall back to the grid (their feature poses explain nothing: the localizer with the grid and the
-polish off finds no pose within ``success_error``), the others, and all scans with the grid off.
-Each outcome is checked against the fixture (``same``: bit-identical pose and informativeness).
+episodes; their inputs and outcomes), CPU ms per scan median / p90: over all scans with the default
+localizer, over the scans that fall back to the grid (their feature poses explain nothing: the
+localizer with the grid and the polish off finds no pose within ``success_error``) and the others;
+then all scans with the paper's method alone, with each extension added alone, and with every
+extension but the grid (:data:`SERVICE_ROWS`). Each outcome is checked against the fixture (``same``:
+bit-identical pose and informativeness; the fixture holds the default's outcomes, so only the default
+row must read all of them).
 
     PYTHONPATH=. python benchmarks/sonar_localization.py [--trials 200] [--seed 0] [--maps hallway t_room generated:1]
         [--unknown] [--reference]
@@ -311,6 +314,15 @@ SERVICE_OVERRIDES = {"observation": {"scan": {"enabled": True}, "pose_source": "
 """The scenario overrides the pinned service scans were taken with (``tests/localization/sonar/pinned_scans.py``)."""
 
 
+SERVICE_ROWS = (("paper's method (no polish, arc, grid)", {}),
+                ("paper + polish", {"polish": True}),
+                ("paper + arc_fallback", {"arc_fallback": True}),
+                ("paper + grid_fallback", {"grid_fallback": True}),
+                ("all but grid_fallback", None))
+"""The service rows beside the default: the paper's method (:meth:`SonarLocalizerConfig.paper_method`), each
+extension added alone, and every extension but the grid (``None``: the default with ``grid_fallback`` off)."""
+
+
 def _grid_scan(svc, i: int, ranges: np.ndarray, request, inflation: float) -> bool:
     """Whether the service's localizer falls back to the grid on this scan: with the grid and the polish
     off (the localizer's error then is the feature poses' smallest), no pose within ``success_error``."""
@@ -333,12 +345,15 @@ def run_service() -> None:
     from parcover_env.localization.sonar.service import SonarFixes
 
     data = json.loads(SERVICE_FIXTURE.read_text())["service"]
-    scans, no_grid = [], {}
+    scans, twins = [], {}
     for run, cases in sorted(data.items()):
         sc = load_scenario(run.split("@")[0], SERVICE_OVERRIDES)
         svc = SonarFixes(sc, MapModel.from_config(sc.map).segments, len(cases[0]["estimate"]))
-        twin = no_grid[id(svc)] = SonarFixes(sc, svc.segments, len(cases[0]["estimate"]))  # without the grid
-        twin.params = dataclasses.replace(twin.params, grid_fallback=False)
+        twins[id(svc)] = {}
+        for label, change in SERVICE_ROWS:  # the same service with the localizer's extensions switched
+            twin = twins[id(svc)][label] = SonarFixes(sc, svc.segments, len(cases[0]["estimate"]))
+            twin.params = (dataclasses.replace(twin.params.paper_method(), **change) if change is not None
+                           else dataclasses.replace(twin.params, grid_fallback=False))
         for c in cases:
             est = np.array(c["estimate"])
             cov = None if c["covariance"] is None else np.array(c["covariance"])
@@ -361,15 +376,18 @@ def run_service() -> None:
 
     timed(lambda s: s)  # untimed warm-up: numba loads its compiled kernels on the first calls
     ms, same = timed(lambda s: s)
-    ms_off, _ = timed(lambda s: no_grid[id(s)])
     print(f"env scan service (SonarFixes.match) on {len(scans)} pinned episode scans "
-          f"({SERVICE_FIXTURE.name}); CPU ms per scan; same = bit-identical to the pinned outcome")
-    print(f"  {'scans':44s} {'n':>4s} {'ms med':>7s} {'ms p90':>7s}")
-    for label, t in (("all (default)", ms), ("grid fallback (feature poses explain nothing)", ms[grid]),
-                     ("no grid fallback needed", ms[~grid]), ("all, grid fallback off", ms_off)):
+          f"({SERVICE_FIXTURE.name}); CPU ms per scan; same = bit-identical to the pinned outcome "
+          f"(the default's; the other rows change the localizer)")
+    print(f"  {'scans':50s} {'n':>4s} {'ms med':>7s} {'ms p90':>7s} {'same':>5s}")
+    for label, t in (("all (default: paper + every extension)", ms),
+                     ("  grid fallback (feature poses explain nothing)", ms[grid]),
+                     ("  no grid fallback needed", ms[~grid])):
         med, p90 = (np.median(t), np.percentile(t, 90)) if len(t) else (math.nan, math.nan)
-        print(f"  {label:44s} {len(t):4d} {med:7.2f} {p90:7.2f}")
-    print(f"  same: {same}/{len(scans)}")
+        print(f"  {label:50s} {len(t):4d} {med:7.2f} {p90:7.2f} {same if t is ms else '':>5}")
+    for label, _ in SERVICE_ROWS:
+        t, n_same = timed(lambda s, label=label: twins[id(s)][label])
+        print(f"  {label:50s} {len(t):4d} {np.median(t):7.2f} {np.percentile(t, 90):7.2f} {n_same:5d}")
 
 
 def main() -> None:

@@ -78,6 +78,44 @@ def segment_hit(x0, y0, ddx, ddy, segs, idx, reach, cull, open_end):
     return best, best_i, best_den
 
 
+_SIGHT_SLACK = 1e-7
+"""Margin (m) of the box :func:`wall_before` culls with (a hundred times ``segment_hit``'s)."""
+
+
+@njit(cache=True, inline="always")
+def wall_before(x0, y0, ddx, ddy, segs, idx, limit, far):
+    """Whether one of the segments ``idx`` is hit nearer than ``limit`` by the ray from ``(x0, y0)``
+    along the unit ``(ddx, ddy)``: ``segment_hit(...)[0] < limit`` (no culling there), the same test of
+    each segment, stopping at the first such hit and skipping segments whose bounding box misses the
+    box of ``[o, o + far d]`` (``far >= limit``) by :data:`_SIGHT_SLACK` (they hold no hit before ``far``)."""
+    fx = x0 + ddx * far
+    fy = y0 + ddy * far
+    bx0 = min(x0, fx) - _SIGHT_SLACK
+    bx1 = max(x0, fx) + _SIGHT_SLACK
+    by0 = min(y0, fy) - _SIGHT_SLACK
+    by1 = max(y0, fy) + _SIGHT_SLACK
+    for j in range(idx.shape[0]):
+        s = idx[j]
+        ax = segs[s, 0]
+        ay = segs[s, 1]
+        sx = segs[s, 2]
+        sy = segs[s, 3]
+        if min(ax, sx) > bx1 or max(ax, sx) < bx0 or min(ay, sy) > by1 or max(ay, sy) < by0:
+            continue
+        ex = sx - ax
+        ey = sy - ay
+        den = ddx * ey - ddy * ex
+        if not abs(den) > _EPS:
+            continue
+        wx = ax - x0
+        wy = ay - y0
+        t = (wx * ey - wy * ex) / den
+        u = (wx * ddy - wy * ddx) / den
+        if t >= 0.0 and u >= -_EPS and u <= 1.0 + _EPS and t < limit:
+            return True
+    return False
+
+
 @njit(cache=True, inline="always")
 def _disc_t(b, c):
     """Distance to a disc along a unit ray from ``b = oc . d`` and ``c = |oc|^2 - r^2``
@@ -278,3 +316,206 @@ def disc_fan(dx, dy, ocx, ocy, cc, best):
             inside = c <= 0.0  # the ray starts inside: 0
             hit = disc >= 0.0 and (inside or (bb < 0.0 and t >= 0.0))
             best[b] = min(best[b], (0.0 if inside else t) if hit else np.inf)
+
+
+SPAN_MARGIN = 2e-6
+"""Margin of :func:`segment_fan_spans`' angular culling in pseudo-angle units (:func:`pseudo_angle`;
+one unit is at least 1/2 rad and at most 1 rad of turn, so this is at least 2e-6 rad: far above the
+angles that the segment ends' ``u`` slack and rounding move a hit by, with the origin at least
+:data:`SPAN_GUARD` off the segment's line)."""
+SPAN_GUARD = 1e-3
+"""An origin closer than this (m) to a segment's line tests the segment against every ray."""
+
+
+@njit(cache=True, inline="always")
+def pseudo_angle(x, y):
+    """A monotone stand-in for the angle of the vector ``(x, y)`` (not zero): ``[0, 4)`` over a turn
+    counter-clockwise from +x (``y / (x + y)`` in the first quadrant, likewise in the others); one
+    division. Its slope is between 1/2 and 1 per radian."""
+    if y >= 0.0:
+        return y / (x + y) if x >= 0.0 else 1.0 + (-x) / (y - x)
+    return 2.0 + (-y) / (-x - y) if x < 0.0 else 3.0 + x / (x - y)
+
+
+@njit(cache=True, inline="always")
+def _first_above(keys, value, n):
+    """The first position ``q`` of the ascending ``keys[:n]`` with ``keys[q] >= value`` (``n`` if none)."""
+    lo = 0
+    hi = n
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if keys[mid] < value:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def segment_fan_spans(x0, y0, dx, dy, segs, near, order, keys, t, index, dens):
+    """:func:`segment_fan` without culling (the same ``t``, ``index``, ``dens`` bit for bit), each segment
+    tested only against the rays within its angular span from ``(x0, y0)``: a ray that hits a segment
+    points between the directions to its two ends (widened by :data:`SPAN_MARGIN`), so the others
+    cannot (an origin within :data:`SPAN_GUARD` of a segment's line tests it against every ray).
+    ``order`` (R,) int64 is scratch that may hold the previous call's ray order (a fan turned by a
+    little, e.g. the next pose of a scan, sorts in one pass); ``keys`` (R,) is scratch. A ray's
+    segments are still met in ascending order, so a tie keeps the earlier segment, as there."""
+    nr = dx.shape[0]
+    for b in range(nr):
+        t[b] = np.inf
+        index[b] = -1
+        dens[b] = 0.0
+    if nr == 0:
+        return
+    valid = True  # ``order`` a permutation of the rays? (else start from the identity)
+    for q in range(nr):
+        if not (0 <= order[q] < nr):
+            valid = False
+    if valid:
+        seen = np.zeros(nr, dtype=np.bool_)
+        for q in range(nr):
+            if seen[order[q]]:
+                valid = False
+            seen[order[q]] = True
+    if not valid:
+        for q in range(nr):
+            order[q] = q
+    for q in range(nr):
+        keys[q] = pseudo_angle(dx[order[q]], dy[order[q]])
+    # rotate to the smallest key, then insertion sort (one pass when the order only turned)
+    low = 0
+    for q in range(1, nr):
+        if keys[q] < keys[low]:
+            low = q
+    if low > 0:
+        o2 = order.copy()
+        k2 = keys.copy()
+        for q in range(nr):
+            order[q] = o2[(q + low) % nr]
+            keys[q] = k2[(q + low) % nr]
+    for q in range(1, nr):
+        kq = keys[q]
+        oq = order[q]
+        p = q - 1
+        while p >= 0 and keys[p] > kq:
+            keys[p + 1] = keys[p]
+            order[p + 1] = order[p]
+            p -= 1
+        keys[p + 1] = kq
+        order[p + 1] = oq
+    for j in range(near.shape[0]):
+        s = near[j]
+        ax = segs[s, 0]
+        ay = segs[s, 1]
+        sx = segs[s, 2]
+        sy = segs[s, 3]
+        ex = sx - ax
+        ey = sy - ay
+        wx = ax - x0
+        wy = ay - y0
+        num = wx * ey - wy * ex
+        ll = math.sqrt(ex * ex + ey * ey)
+        first = 0
+        last = nr  # every ray (a guard case), else the rays from ``first`` to ``last`` (exclusive, wrapped)
+        if abs(num) > SPAN_GUARD * ll:  # the origin is off the segment's line: its span is below half a turn
+            pa = pseudo_angle(wx, wy)
+            pb = pseudo_angle(sx - x0, sy - y0)
+            lo, hi = (pa, pb) if num > 0.0 else (pb, pa)  # counter-clockwise from lo to hi
+            if hi < lo:
+                hi += 4.0
+            lo -= SPAN_MARGIN
+            hi += SPAN_MARGIN
+            if lo < 0.0:
+                lo += 4.0
+                hi += 4.0
+            first = _first_above(keys, lo, nr)
+            last = _first_above(keys, hi, nr) if hi < 4.0 else nr + _first_above(keys, hi - 4.0, nr)
+        for q in range(first, min(last, first + nr)):
+            b = order[q % nr]
+            den = dx[b] * ey - dy[b] * ex
+            tt = num / den
+            u = (wx * dy[b] - wy * dx[b]) / den
+            if abs(den) > _EPS and tt >= 0.0 and u >= -_EPS and u <= 1.0 + _EPS and tt < t[b]:
+                t[b] = tt
+                index[b] = s
+                dens[b] = den
+
+
+@njit(cache=True, inline="always")
+def near_boxes(segs, near, boxes):
+    """Fill ``boxes[:, :len(near)]`` (``(4, >= len(near))``) with the bounding boxes (x low, x high, y low,
+    y high) of the segments ``near``, contiguous for :func:`segment_hit_boxed` and :func:`wall_before_boxed`."""
+    for j in range(near.shape[0]):
+        s = near[j]
+        boxes[0, j] = min(segs[s, 0], segs[s, 2])
+        boxes[1, j] = max(segs[s, 0], segs[s, 2])
+        boxes[2, j] = min(segs[s, 1], segs[s, 3])
+        boxes[3, j] = max(segs[s, 1], segs[s, 3])
+
+
+@njit(cache=True, inline="always")
+def _boxes_meeting(boxes, m, bx0, bx1, by0, by1, meets):
+    """``meets[j]`` for ``j < m``: box ``j`` of ``boxes`` meets the box ``[bx0, bx1] x [by0, by1]`` (the test
+    of :func:`segment_hit`'s culling, branch-free over contiguous rows)."""
+    for j in range(m):
+        meets[j] = not (boxes[0, j] > bx1 or boxes[1, j] < bx0 or boxes[2, j] > by1 or boxes[3, j] < by0)
+
+
+@njit(cache=True, inline="always")
+def segment_hit_boxed(x0, y0, ddx, ddy, segs, idx, boxes, meets, reach):
+    """:func:`segment_hit` with ``cull`` (not ``open_end``; ``reach`` finite), the same ``(t, index, d x e)``
+    bit for bit, the segments' boxes read from ``boxes`` (:func:`near_boxes` of ``idx``) and tested in one
+    pass before any segment's hit; ``meets`` (bool, ``>= len(idx)``) is scratch."""
+    fx = x0 + ddx * reach
+    fy = y0 + ddy * reach
+    m = idx.shape[0]
+    _boxes_meeting(boxes, m, min(x0, fx) - _BOX_SLACK, max(x0, fx) + _BOX_SLACK, min(y0, fy) - _BOX_SLACK,
+                   max(y0, fy) + _BOX_SLACK, meets)
+    best = np.inf
+    best_i = -1
+    best_den = 0.0
+    for j in range(m):
+        if not meets[j]:
+            continue
+        s = idx[j]
+        ex = segs[s, 2] - segs[s, 0]
+        ey = segs[s, 3] - segs[s, 1]
+        den = ddx * ey - ddy * ex
+        if not abs(den) > _EPS:
+            continue
+        wx = segs[s, 0] - x0
+        wy = segs[s, 1] - y0
+        t = (wx * ey - wy * ex) / den
+        u = (wx * ddy - wy * ddx) / den
+        if t >= 0.0 and u >= -_EPS and u <= 1.0 + _EPS and t < best:
+            best = t
+            best_i = s
+            best_den = den
+    return best, best_i, best_den
+
+
+@njit(cache=True, inline="always")
+def wall_before_boxed(x0, y0, ddx, ddy, segs, idx, boxes, meets, limit, far):
+    """:func:`wall_before` (the same answer) with the segments' boxes read from ``boxes`` (:func:`near_boxes`
+    of ``idx``) and tested in one pass first; ``meets`` (bool, ``>= len(idx)``) is scratch."""
+    fx = x0 + ddx * far
+    fy = y0 + ddy * far
+    m = idx.shape[0]
+    _boxes_meeting(boxes, m, min(x0, fx) - _SIGHT_SLACK, max(x0, fx) + _SIGHT_SLACK, min(y0, fy) - _SIGHT_SLACK,
+                   max(y0, fy) + _SIGHT_SLACK, meets)
+    for j in range(m):
+        if not meets[j]:
+            continue
+        s = idx[j]
+        ex = segs[s, 2] - segs[s, 0]
+        ey = segs[s, 3] - segs[s, 1]
+        den = ddx * ey - ddy * ex
+        if not abs(den) > _EPS:
+            continue
+        wx = segs[s, 0] - x0
+        wy = segs[s, 1] - y0
+        t = (wx * ey - wy * ex) / den
+        u = (wx * ddy - wy * ddx) / den
+        if t >= 0.0 and u >= -_EPS and u <= 1.0 + _EPS and t < limit:
+            return True
+    return False

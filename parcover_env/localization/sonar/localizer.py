@@ -32,6 +32,11 @@ at 0.4-1.8 ms of CPU per scan (median per row and map) instead of 5-31 ms (``ben
 --reference``; docs/fidelity.md).
 Shapely still decides which sectors meet the grown ellipse, which candidates lie in free space and
 which arc poses lie in the grown ellipse (one vectorized call each).
+
+The candidates' scan errors (the feature poses', then the grid's, nearest the region's centre first) come
+from :func:`~parcover_env.localization.sonar.grid_kernels.bounded_scan_errors`: each error bit for bit, or
+inf for a pose whose error provably exceeds a smaller one found before it, so the pose chosen is the same
+(``tests/localization/sonar/test_grid_kernels.py``). A skipped pose's sonar stops before its second legs.
 """
 
 from __future__ import annotations
@@ -48,8 +53,8 @@ from parcover_env.config import SonarConfig
 from parcover_env.geometry import wrap_angle
 from parcover_env.geometry.numpy_order import argsort4_table
 from parcover_env.geometry.rays import disc_planes
+from parcover_env.localization.sonar import grid_kernels, scan_kernels
 from parcover_env.localization.sonar import localizer_kernels as kern
-from parcover_env.localization.sonar import scan_kernels
 from parcover_env.localization.sonar.features import (
     MapFeature,
     ScanPoints,
@@ -222,6 +227,37 @@ def _grid_candidates(ellipse: Ellipse, heading: float, map_model, p: SonarLocali
     return np.column_stack([np.repeat(xy, len(heads), axis=0), np.tile(heads, len(xy))])
 
 
+def _bounded_errors(r: np.ndarray, poses: np.ndarray, a: np.ndarray, segs: np.ndarray, sonar: SonarConfig,
+                    p: SonarLocalizerParams, best: float,
+                    centre: tuple[float, float, float] | None = None) -> np.ndarray:
+    """The candidate poses' ``(H, 3)`` scan errors (:func:`scan_error` of their :func:`synthetic_scans`, bit for
+    bit), inf for a pose whose error provably exceeds ``best`` (e.g. the feature poses' smallest, before the
+    grid's) and those of the poses before it
+    (:func:`~parcover_env.localization.sonar.grid_kernels.bounded_scan_errors`): the smallest error and the
+    first pose with it, what the localizer uses, are the same. ``centre`` ``(x, y, heading)``: the poses are
+    tried nearest it first (spot by spot, the nearest heading first): a small error found early skips more
+    (the same numbers: the order only decides which larger errors are skipped)."""
+    n = len(poses)
+    order = None
+    if centre is not None and n > 1:
+        spot = np.cumsum(np.r_[0, (np.diff(poses[:, 0]) != 0) | (np.diff(poses[:, 1]) != 0)])
+        dist = np.hypot(poses[:, 0] - centre[0], poses[:, 1] - centre[1])
+        order = np.lexsort((np.abs(wrap_angle(poses[:, 2] - centre[2])), spot, dist))
+        poses = poses[order]
+    axes = np.ascontiguousarray(poses[:, 2:3] + a[None, :])
+    walls, offsets, share, rules = beam_kernel_arguments(sonar, segs, axes)
+    discs = Discs(*disc_planes(np.zeros((0, 2)), 0.0, np.full(n, -1), n))
+    out = np.empty(n)
+    keep = len(r) - int(math.floor(p.error_trim * len(r)))
+    target = grid_kernels.ScanTarget(measured=np.ascontiguousarray(r, dtype=float), clip=float(p.error_clip),
+                                     keep=keep, best=float(best))
+    grid_kernels.bounded_scan_errors(np.ascontiguousarray(poses[:, 0]), np.ascontiguousarray(poses[:, 1]), axes,
+                                     offsets, share, walls, discs, rules, target, out)
+    if order is not None:
+        out[order] = out.copy()
+    return out
+
+
 _ARGSORT4 = argsort4_table()
 _OFF_NORMAL = float(np.radians(20.0))
 """A wall's fitted normal replaces its plateau bearing when within this of it (rad), as in ``features``."""
@@ -387,14 +423,17 @@ def localize(scan_ranges, scan_angles, map_model, sectors: list[Sector],
     poses, owners = poses[keep], owners[keep]
     uniq = kern.first_unique(np.round(np.column_stack([poses[:, :2] / 0.01, poses[:, 2] / 0.01])))[: p.max_candidates]
     poses, owners = poses[uniq], owners[uniq]
-    err = scan_error(r, synthetic_scans(poses, a, segs, sonar), p.error_clip, p.error_trim) if len(poses) \
-        else np.zeros(0)
+    # the feature poses' and the grid's errors: each one's exactly, or inf where it provably exceeds an error
+    # before it (only the first smallest is used)
+    err = _bounded_errors(r, poses, a, segs, sonar, p, math.inf) if len(poses) else np.zeros(0)
     if heading is not None and p.grid_fallback and (len(err) == 0 or err.min() > p.success_error):
         # no feature pose explains the scan: scan matching over the uncertainty region instead
         grid = _grid_candidates(ellipse, float(heading), map_model, p)
         poses = np.concatenate([poses, grid])
         owners = np.concatenate([owners, np.full(len(grid), -1)])
-        err = np.concatenate([err, scan_error(r, synthetic_scans(grid, a, segs, sonar), p.error_clip, p.error_trim)])
+        best = float(err.min()) if len(err) else math.inf
+        err = np.concatenate([err, _bounded_errors(r, grid, a, segs, sonar, p, best,
+                                                   (ellipse.center[0], ellipse.center[1], float(heading)))])
     if len(poses) == 0:
         return LocalizationResult(None, math.inf, 0, False)
     best = int(np.argmin(err))

@@ -27,7 +27,7 @@ from numba import njit
 
 from parcover_env.geometry.angle_kernels import wrap
 from parcover_env.geometry.numpy_order import mean_of
-from parcover_env.sensors.sonar_kernels import Discs, WallSet, beam_readings
+from parcover_env.sensors.sonar_kernels import Discs, WallSet, pose_readings, pose_scratch
 
 __all__ = ["EDGE_COS", "EDGE_SIN", "BOUNDARY_GUARD", "scan_error_row",
            "scan_errors", "ellipse_distance", "ellipse_beyond", "ellipse_distances", "free_status", "order_simplex",
@@ -217,7 +217,7 @@ def free_status(px, py, segs):
 
 
 @njit(cache=True, nogil=True)
-def _cost(x, fit, axes, reading, synth, buf):
+def _cost(x, fit, axes, reading, synth, buf, ps):
     """The polish's cost of pose ``x``: ``clip`` outside the free space or ``reach`` or more from the
     ellipse, else the scan error of its synthetic scan; and whether the point was undecided."""
     st = free_status(x[0], x[1], fit.free)
@@ -229,9 +229,7 @@ def _cost(x, fit, axes, reading, synth, buf):
     angles = fit.angles
     for i in range(angles.shape[0]):
         axes[0, i] = x[2] + angles[i]
-    ox = np.full(1, x[0])
-    oy = np.full(1, x[1])
-    beam_readings(ox, oy, axes, fit.offsets, fit.share, fit.walls, fit.discs, fit.rules, reading)
+    pose_readings(x[0], x[1], axes[0], fit.share, fit.walls, fit.discs, fit.rules, reading[0], ps)
     rmax = fit.rmax
     for i in range(angles.shape[0]):
         v = reading[0, i]
@@ -274,13 +272,14 @@ def nelder_mead(x0, nm, fit):
     reading = np.empty((1, n))
     synth = np.empty(n)
     buf = np.empty(n)
+    ps = pose_scratch(fit.offsets, fit.share, fit.walls, fit.discs.cx.shape[1])
     sim = np.empty((4, 3))
     for k in range(4):
         for j in range(3):
             sim[k, j] = x0[j] + (step if k == j + 1 else 0.0)
     fsim = np.empty(4)
     for k in range(4):
-        f, bad = _cost(sim[k], fit, axes, reading, synth, buf)
+        f, bad = _cost(sim[k], fit, axes, reading, synth, buf, ps)
         if bad:
             return sim[0].copy(), np.inf, True
         fsim[k] = f
@@ -303,14 +302,14 @@ def nelder_mead(x0, nm, fit):
         for j in range(3):
             xbar[j] = (((0.0 + sim[0, j]) + sim[1, j]) + sim[2, j]) / 3
             xr[j] = 2 * xbar[j] - sim[3, j]
-        fxr, bad = _cost(xr, fit, axes, reading, synth, buf)
+        fxr, bad = _cost(xr, fit, axes, reading, synth, buf, ps)
         if bad:
             return sim[0].copy(), np.inf, True
         shrink = False
         if fxr < fsim[0]:
             for j in range(3):
                 xe[j] = 3 * xbar[j] - 2 * sim[3, j]
-            fxe, bad = _cost(xe, fit, axes, reading, synth, buf)
+            fxe, bad = _cost(xe, fit, axes, reading, synth, buf, ps)
             if bad:
                 return sim[0].copy(), np.inf, True
             if fxe < fxr:
@@ -326,7 +325,7 @@ def nelder_mead(x0, nm, fit):
             if fxr < fsim[3]:
                 for j in range(3):
                     xe[j] = 1.5 * xbar[j] - 0.5 * sim[3, j]
-                fxc, bad = _cost(xe, fit, axes, reading, synth, buf)
+                fxc, bad = _cost(xe, fit, axes, reading, synth, buf, ps)
                 if bad:
                     return sim[0].copy(), np.inf, True
                 if fxc <= fxr:
@@ -337,7 +336,7 @@ def nelder_mead(x0, nm, fit):
             else:
                 for j in range(3):
                     xe[j] = 0.5 * xbar[j] + 0.5 * sim[3, j]
-                fxcc, bad = _cost(xe, fit, axes, reading, synth, buf)
+                fxcc, bad = _cost(xe, fit, axes, reading, synth, buf, ps)
                 if bad:
                     return sim[0].copy(), np.inf, True
                 if fxcc < fsim[3]:
@@ -349,7 +348,7 @@ def nelder_mead(x0, nm, fit):
                 for k in range(1, 4):
                     for j in range(3):
                         sim[k, j] = sim[0, j] + 0.5 * (sim[k, j] - sim[0, j])
-                    f, bad = _cost(sim[k], fit, axes, reading, synth, buf)
+                    f, bad = _cost(sim[k], fit, axes, reading, synth, buf, ps)
                     if bad:
                         return sim[0].copy(), np.inf, True
                     fsim[k] = f
