@@ -196,3 +196,62 @@ def test_nothing_measured_without_a_drive_and_spacing_checked():
     assert DriftCalibration(1, OdometryConfig(), 0.18, spacing=0.5).spacing == 0.5
     with pytest.raises(ValueError, match="spacing"):
         DriftCalibration(1, OdometryConfig(), 0.18, spacing=0.0)
+
+
+def test_a_fix_whose_heading_fails_the_chi_square_gate_is_neither_a_measurement_nor_steered_by():
+    """generated:8107, robot 0 (traced): an env fix 0.07 m right but 19.9 deg off in heading (its own heading
+    sigma 2 deg) flipped the drift estimate from +0.44 to -0.34 deg/m (innovation -15.0 deg, predicted sigma
+    3.2 deg: chi-square 21.9). Gated at 6.63 (99 %): the filter keeps its estimate and the calibrated odometry
+    keeps its heading at the fix's position."""
+    cal = DriftCalibration(1, OdometryConfig(), 0.18, gate=6.63)
+    _drive(cal, np.zeros(3), 2.0)  # 2 m: -0.04 rad of drift, uncorrected (no estimate yet)
+    fix_var = math.radians(2.0) ** 2
+    d, t, driven = cal.since[0]
+    s = np.array([d, t]) @ cal.prior @ np.array([d, t]) + fix_var + cal.walk * driven
+    assert cal.predicted_var(0) + fix_var == pytest.approx(s, rel=1e-12)
+    bad = math.radians(19.9)  # the fix's heading: 19.9 deg off the truth (0)
+    innovation = 2.0 * KAPPA - bad  # the odometry heading against the fix, nothing predicted yet
+    assert innovation**2 / s > 6.63
+    before = cal.cal[0].copy()
+    out = cal.step(0, np.array([2.0, 0.0, bad]), True, fix_var)
+    np.testing.assert_array_equal(cal.mean[0], 0.0)  # not a measurement
+    np.testing.assert_array_equal(cal.cov[0], cal.prior)
+    assert cal.rejected[0] == 1
+    # restarted at the fix's position with the heading it had (-0.04 rad, not 19.9 deg)
+    np.testing.assert_allclose(out, [2.0, 0.0, before[2]], atol=1e-12)
+    assert out[2] == pytest.approx(2.0 * KAPPA, abs=1e-12)
+    assert cal.offset[0] == pytest.approx(2.0 * KAPPA - bad, abs=1e-12)
+    assert cal.reset_var[0] == pytest.approx(s - fix_var, rel=1e-12)  # the kept heading's own variance
+    # the same fix on the next step (nothing driven): still the kept heading
+    out = cal.step(0, np.array([2.0, 0.0, bad]), True, fix_var)
+    assert out[2] == pytest.approx(2.0 * KAPPA, abs=1e-12) and cal.rejected[0] == 1
+    # on from there, the odometry's increments turn the kept heading (the offset rides along)
+    raw = np.array([2.0, 0.0, bad])
+    cal.step(0, raw + np.array([0.1 * math.cos(bad), 0.1 * math.sin(bad), 0.0]), False, 0.0)
+    assert cal.cal[0, 2] == pytest.approx(2.0 * KAPPA, abs=1e-12)
+    np.testing.assert_allclose(cal.cal[0, :2], [2.0 + 0.1 * math.cos(2 * KAPPA), 0.1 * math.sin(2 * KAPPA)],
+                               atol=1e-12)
+    # a later right fix is measured against the odometry heading plus that offset: a small error, taken
+    raw = cal.raw[0].copy()
+    truth = 2.0 * KAPPA  # the robot truly heads as the kept heading says
+    assert cal.measure(0, float(raw[2]), truth, fix_var)
+    assert cal.rejected[0] == 1 and cal.mean[0, 0] == pytest.approx(0.0, abs=1e-12)  # error 0: mean stays 0
+    with pytest.raises(ValueError, match="gate"):
+        DriftCalibration(1, OdometryConfig(), 0.18, gate=0.0)
+
+
+def test_the_gate_admits_a_heading_just_inside_and_refuses_one_just_outside():
+    for factor, taken in ((0.99, True), (1.01, False)):
+        cal = DriftCalibration(1, OdometryConfig(), 0.18, gate=6.63)
+        _drive(cal, np.zeros(3), 3.0)
+        ref_var = math.radians(1.0) ** 2
+        s = cal.predicted_var(0) + ref_var
+        raw_heading = float(cal.raw[0, 2])
+        ref = raw_heading - factor * math.sqrt(6.63 * s)  # innovation = factor * the gate's bound
+        assert cal.measure(0, raw_heading, ref, ref_var) is taken
+        assert bool(cal.mean[0, 0] != 0.0) is taken
+        assert cal.unmeasured[0] == 0.0  # measured or refused, the next chained heading is 2 m on
+    # inf (the default): any heading is taken
+    cal = DriftCalibration(1, OdometryConfig(), 0.18)
+    _drive(cal, np.zeros(3), 3.0)
+    assert cal.measure(0, 0.0, 1.0, 1e-6) and cal.mean[0, 0] < 0  # the odometry heading 1 rad short
