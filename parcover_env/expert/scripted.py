@@ -426,6 +426,14 @@ class ScriptedExpert(Policy):
             self._detour_behind(agent, route, bel, near, far)
             return
         d = self.places.ahead(route, progress, near, far)
+        if d is not None and d < near:
+            # the place ahead is its route's end, nearer than ``relocate_distance`` along the route while its
+            # belief is not there yet: a scan after driving d would be taken where it stands (generated:7061,
+            # robot 3: a held scan repeated in place six times, d = 0): as at its route's end, a place back
+            # along its route, else on at least ``relocate_distance``
+            if self._detour_behind(agent, route, bel, near, far):
+                return
+            d = near
         self.fixer.scan_after(agent, c.rescan_distance if d is None else d)
 
     def _detour_behind(self, agent: str, route: np.ndarray, xy: np.ndarray, near: float, far: float) -> bool:
