@@ -490,7 +490,10 @@ class ScriptedExpert(Policy):
         """The index of the KPOI at the robot's route point ahead (within ``waypoint_tol``), if the robot believes it is
         within ``kpoi_check_distance`` of it and has not checked its pose before it yet; else None."""
         reach = self.cfg.sonar_fix.kpoi_check_distance
-        if reach <= 0 or self.fixer.corrected(agent):
+        # a correction from the expert's own sonar fix needs no check; with the env's scans the only
+        # correction is a follower's camera chain (:meth:`_chain_followers`), never checked by a scan: a
+        # promoted follower reached its first KPOI on it unchecked
+        if reach <= 0 or (self.fixer.corrected(agent) and not self.fixer.env_scan):
             return None
         if self.track is not None:  # the goal it steers by (:meth:`_goal`)
             goal = self.track.goals()[int(agent.rsplit("_", 1)[1])]
