@@ -135,18 +135,13 @@ class SonarFixConfig:
     """With the ``wheels`` odometry: the expert estimates each robot's heading drift per metre and per
     radian turned from the absolute headings it gets (env fixes, a follower's chained heading) and steers
     by the odometry calibrated with it (:mod:`~parcover_env.expert.odometry_drift`; our extension)."""
-    drift_gate: float = 6.63
-    """Chi-square gate of the drift calibration's measurements (one degree of freedom; 6.63: 99 %): a heading
-    whose innovation squared exceeds this many times its predicted variance is not taken, and the heading of
-    an env fix that fails it is not steered by (generated:8107: a fix 19.9 deg off in heading, chi-square
-    21.9). ``inf``: every measurement is taken (the expert of 2026-11-28 before this gate)."""
 
     def __post_init__(self) -> None:
         positive(self, "stale_after", "scan_rate", "stop_speed", "gate_distance", "gate_heading_deg", "gate_sigmas",
                  "fix_sigma", "fix_sigma_heading_deg", "confirm_distance")
         check(self.shift_test >= 0, "shift_test", f"must be >= 0, got {self.shift_test}")
         check(self.relocate_distance >= 0, "relocate_distance", f"must be >= 0, got {self.relocate_distance}")
-        positive(self, "stuck_time", "stuck_distance", "drift_gate")
+        positive(self, "stuck_time", "stuck_distance")
         check(self.min_shift_increase >= 0, "min_shift_increase", f"must be >= 0, got {self.min_shift_increase}")
         check(self.miss_inflation >= 1, "miss_inflation", f"must be >= 1, got {self.miss_inflation}")
         check(self.max_inflation >= 1, "max_inflation", f"must be >= 1, got {self.max_inflation}")

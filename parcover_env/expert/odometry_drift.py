@@ -17,15 +17,6 @@ the robot ahead by its camera. The error is modelled as ``e = kappa D + beta T``
 at the reset, and of the wheels' random error over the distance (``wheel_variance``). The calibrated
 odometry integrates the odometry's increments with each heading increment reduced by
 ``kappa ds + beta dtheta``; it restarts from the env's estimate at every fix.
-
-Each measurement passes a chi-square gate first (``gate``, one degree of freedom): its innovation against
-the filter's own prediction, squared over the prediction's variance. generated:8107: an env fix 0.07 m
-right but 19.9 deg off in heading (the fix's own heading sigma 2 deg) flipped robot 0's drift estimate
-from +0.44 to -0.34 deg/m (innovation -15.0 deg against a predicted sigma of 3.2 deg: chi-square 21.9).
-A fix whose heading fails the gate is not a measurement, and its heading is not taken either: the
-calibrated odometry restarts at the fix's position with the heading it had before the fix (the same test
-asks whether the fix's heading agrees with the calibrated one within their joint sigma), and the
-odometry's heading stays offset from it (:attr:`DriftCalibration.offset`) until a fix passes the gate.
 """
 
 from __future__ import annotations
@@ -43,13 +34,9 @@ __all__ = ["DriftCalibration"]
 class DriftCalibration:
     """Per-robot heading drift estimates and calibrated odometry poses for ``n`` robots."""
 
-    def __init__(self, n: int, odometry: OdometryConfig, wheel_base: float, spacing: float = 2.0,
-                 gate: float = math.inf):
-        if not (n >= 1 and wheel_base > 0 and spacing > 0 and gate > 0):
-            raise ValueError(f"need n >= 1, wheel_base > 0, spacing > 0 and gate > 0, got {n}, {wheel_base}, "
-                             f"{spacing}, {gate}")
-        self.gate = float(gate)
-        """Chi-square bound of a measurement's squared innovation over its predicted variance (inf: no gate)."""
+    def __init__(self, n: int, odometry: OdometryConfig, wheel_base: float, spacing: float = 2.0):
+        if not (n >= 1 and wheel_base > 0 and spacing > 0):
+            raise ValueError(f"need n >= 1, wheel_base > 0 and spacing > 0, got {n}, {wheel_base}, {spacing}")
         self.prior = np.diag([(odometry.diameter_ratio_std / wheel_base) ** 2, odometry.wheelbase_std**2])
         """Prior covariance of ``(kappa (rad/m), beta (-))``."""
         self.walk = 2.0 * odometry.wheel_variance / wheel_base**2
@@ -68,11 +55,6 @@ class DriftCalibration:
         """Variance of the odometry's heading error at its last reset (rad^2; 0 at the episode's start)."""
         self.unmeasured = np.zeros(n)
         """Distance driven since the last measurement (m)."""
-        self.offset = np.zeros(n)
-        """Heading (rad) the calibrated odometry carries against the odometry's since its last reset: 0 after a
-        fix that passed the gate, the calibrated heading before it minus the fix's after one that failed it."""
-        self.rejected = np.zeros(n, dtype=int)
-        """Measurements per robot that failed the gate."""
 
     def step(self, i: int, raw: np.ndarray, fresh: bool, fix_var: float) -> np.ndarray:
         """Robot ``i``'s calibrated pose (x, y, theta) for its odometry pose ``raw`` at this step. ``fresh``:
@@ -80,23 +62,11 @@ class DriftCalibration:
         heading error of the pose before it is a measurement, and the calibrated pose restarts at ``raw``."""
         raw = np.asarray(raw, dtype=float)
         if fresh or not np.isfinite(self.raw[i, 0]):
-            reset_var = fix_var if fresh else 0.0
-            if not fresh:
-                self.offset[i] = 0.0
-            elif np.isfinite(self.raw[i, 0]) and self.since[i, 2] > 0:
-                before, var = float(self.cal[i, 2]), self.predicted_var(i)
-                if self.measure(i, float(self.raw[i, 2]), float(raw[2]), fix_var):
-                    self.offset[i] = 0.0
-                else:  # the fix's heading disagrees with the calibrated one: keep that (generated:8107)
-                    self.offset[i], reset_var = float(wrap_angle(before - raw[2])), var
-            elif self.offset[i] != 0.0:  # the same fix again, nothing driven since: its offset and variance hold
-                reset_var = float(self.reset_var[i])
-            self.since[i], self.unmeasured[i] = 0.0, 0.0
-            self.reset_var[i] = reset_var
-            self.raw[i] = raw
-            self.cal[i] = raw
-            self.cal[i, 2] = float(wrap_angle(raw[2] + self.offset[i]))
-            return self.cal[i].copy()
+            if fresh and np.isfinite(self.raw[i, 0]) and self.since[i, 2] > 0:
+                self.measure(i, float(self.raw[i, 2]), float(raw[2]), fix_var)
+            self.since[i], self.reset_var[i], self.unmeasured[i] = 0.0, fix_var if fresh else 0.0, 0.0
+            self.raw[i], self.cal[i] = raw, raw
+            return raw.copy()
         prev = self.raw[i]
         dth = float(wrap_angle(raw[2] - prev[2]))
         mid = prev[2] + 0.5 * dth
@@ -117,31 +87,19 @@ class DriftCalibration:
         """Whether robot ``i`` has driven ``spacing`` since its last measurement (a chained heading is taken then)."""
         return bool(self.unmeasured[i] >= self.spacing)
 
-    def predicted_var(self, i: int) -> float:
-        """Variance (rad^2) of robot ``i``'s calibrated heading error now: the drift estimate's over the
-        distance and turn since the odometry's last reset, the reset's, and the wheels' random error."""
-        d, t, driven = self.since[i]
-        h = np.array([d, t])
-        return float(h @ self.cov[i] @ h) + float(self.reset_var[i]) + self.walk * float(driven)
-
-    def measure(self, i: int, raw_heading: float, ref_heading: float, ref_var: float) -> bool:
+    def measure(self, i: int, raw_heading: float, ref_heading: float, ref_var: float) -> None:
         """Kalman update of robot ``i``'s ``(kappa, beta)`` with its odometry heading ``raw_heading`` against
         an absolute heading ``ref_heading`` of variance ``ref_var`` (rad, rad^2), since the odometry's last
-        reset (:attr:`since`), if the measurement passes the chi-square :attr:`gate`; whether it did."""
-        d, t, _ = self.since[i]
+        reset (:attr:`since`)."""
+        d, t, driven = self.since[i]
         h = np.array([d, t])
-        error = float(wrap_angle(raw_heading + self.offset[i] - ref_heading))
+        error = float(wrap_angle(raw_heading - ref_heading))
         p = self.cov[i]
-        s = self.predicted_var(i) + ref_var
-        self.unmeasured[i] = 0.0
+        s = float(h @ p @ h) + ref_var + self.reset_var[i] + self.walk * driven
         if s <= 0:
-            return True
-        innovation = error - float(h @ self.mean[i])
-        if innovation * innovation > self.gate * s:
-            self.rejected[i] += 1
-            return False
+            return
         gain = p @ h / s
-        self.mean[i] += gain * innovation
+        self.mean[i] += gain * (error - float(h @ self.mean[i]))
         cov = p - np.outer(gain, h @ p)
         self.cov[i] = 0.5 * (cov + cov.T)
-        return True
+        self.unmeasured[i] = 0.0

@@ -145,8 +145,7 @@ class ScriptedExpert(Policy):
     def reset(self, observations=None) -> None:
         self.track = self.mission.tracker() if self.fixer is not None else None
         r = self.scenario.robot
-        self.drift = (DriftCalibration(self.mission.n_robots, r.odometry, r.drive.wheel_base,
-                                       gate=self.cfg.sonar_fix.drift_gate)
+        self.drift = (DriftCalibration(self.mission.n_robots, r.odometry, r.drive.wheel_base)
                       if self.fixer is not None and self.cfg.sonar_fix.calibrate_drift and r.odometry.model == "wheels"
                       else None)
         if self.fixer is not None:
