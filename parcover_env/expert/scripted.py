@@ -425,6 +425,14 @@ class ScriptedExpert(Policy):
             self._detour_behind(agent, route, bel, near, far)
             return
         d = self.places.ahead(route, progress, near, far)
+        if d is not None and d < near:
+            # the place ahead is its route's end, nearer than ``relocate_distance`` along the route while its
+            # belief is not there yet: a scan after driving d would be taken where it stands (generated:7061,
+            # robot 3: a held scan repeated in place six times, d = 0): as at its route's end, a place back
+            # along its route, else on at least ``relocate_distance``
+            if self._detour_behind(agent, route, bel, near, far):
+                return
+            d = near
         self.fixer.scan_after(agent, c.rescan_distance if d is None else d)
 
     def _detour_behind(self, agent: str, route: np.ndarray, xy: np.ndarray, near: float, far: float) -> bool:
@@ -481,7 +489,10 @@ class ScriptedExpert(Policy):
         """The index of the KPOI at the robot's route point ahead (within ``waypoint_tol``), if the robot believes it is
         within ``kpoi_check_distance`` of it and has not checked its pose before it yet; else None."""
         reach = self.cfg.sonar_fix.kpoi_check_distance
-        if reach <= 0 or self.fixer.corrected(agent):
+        # a correction from the expert's own sonar fix needs no check; with the env's scans the only
+        # correction is a follower's camera chain (:meth:`_chain_followers`), never checked by a scan: a
+        # promoted follower reached its first KPOI on it unchecked
+        if reach <= 0 or (self.fixer.corrected(agent) and not self.fixer.env_scan):
             return None
         if self.track is not None:  # the goal it steers by (:meth:`_goal`)
             goal = self.track.goals()[int(agent.rsplit("_", 1)[1])]

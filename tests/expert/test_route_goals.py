@@ -14,7 +14,7 @@ import parcover_env
 from parcover_env.expert.scripted import route_from, route_length, route_upto, steer_point
 from parcover_env.geometry import rotate, segments_blocked
 from parcover_env.geometry.rays import point_segment_distance
-from parcover_env.localization.sonar.service import UNINFORMATIVE
+from parcover_env.localization.sonar.service import HELD, UNINFORMATIVE
 
 RELOCATE = {"observation": {"scan": {"enabled": True, "confirm_widened": True}},
             "expert": {"sonar_fix": {"relocate_distance": 0.5}}}
@@ -272,3 +272,64 @@ def test_after_an_uninformative_pose_check_before_a_kpoi_it_scans_from_a_place_b
     expert.fixer.states[a].relocate = False
     expert._relocate(a, 3, odom, False, np.full(16, 2.5))
     assert a not in expert.checking and a not in expert.detours and a not in expert.back
+
+
+def test_a_held_scan_whose_place_ahead_is_its_route_end_0_m_on_drives_back_instead_of_rescanning_in_place():
+    """generated:7061, robot 3 (traced): its tracked progress at its route's end, its belief beyond
+    ``waypoint_tol`` of it, a held scan: the place ahead was its route's end, 0 m on, so the next scan was
+    due at once, where it stood: the held scan repeated in place six times (98-104 s). A place ahead nearer
+    than ``relocate_distance`` is chosen as at the route's end: back along the route, else on at least
+    ``relocate_distance``."""
+    from test_scan_elsewhere import _scan_again
+
+    place = np.array([1.2, 0.4])
+    calls = []
+
+    def behind(near, far):
+        calls.append((near, far))
+        return place, 0.6
+
+    expert, route = _relocating_at_start(behind)
+    _scan_again(expert.fixer, HELD)
+    expert.fixer.states["robot_0"].move = None
+    assert expert.fixer.held("robot_0") and not expert.fixer.spaced("robot_0")
+    pose = np.array([route[0][0], route[0][1], 0.0])
+    ranges = np.full(16, 2.5)
+    expert.places.ahead = lambda *args: 0.0
+    expert._relocate("robot_0", 0, pose, False, ranges)
+    assert calls == [(0.5, 2.0)]
+    np.testing.assert_array_equal(expert.detours["robot_0"], place)
+    assert expert.fixer.waiting_distance("robot_0") == math.inf  # on arrival there, not where it stands
+    # nothing back along its route in sight: on at least relocate_distance (0.5 m), not 0
+    expert, route = _relocating_at_start(lambda near, far: None)
+    _scan_again(expert.fixer, HELD)
+    expert.fixer.states["robot_0"].move = None
+    expert.places.ahead = lambda *args: 0.3
+    expert._relocate("robot_0", 0, pose, False, ranges)
+    assert "robot_0" not in expert.detours
+    assert expert.fixer.waiting_distance("robot_0") == pytest.approx(0.5)
+    # a place ahead at relocate_distance or farther is kept as it is
+    expert, route = _relocating_at_start(lambda near, far: None)
+    _scan_again(expert.fixer, HELD)
+    expert.fixer.states["robot_0"].move = None
+    expert.places.ahead = lambda *args: 0.5
+    expert._relocate("robot_0", 0, pose, False, ranges)
+    assert expert.fixer.waiting_distance("robot_0") == pytest.approx(0.5)
+
+
+def test_a_promoted_follower_with_a_chained_belief_checks_its_pose_before_a_kpoi_with_the_envs_scans():
+    """With the env's scans the only correction on a belief is a follower's camera chain, never checked by a
+    scan: a promoted follower reached its KPOI on it unchecked (``_kpoi_check`` skipped any corrected robot).
+    The expert's own sonar fixes (``localization: both``) still need no check."""
+    env, expert, obs = _expert(3)
+    a = "robot_0"
+    odom = np.array([3.0, 0.6, math.pi])
+    expert.track.progress[0] = 9.0  # 0.39 m before its route's end, the KPOI 2
+    chained = np.array([0.0, 0.0, 0.01])  # its belief carries a chained correction
+    expert.fixer.relative_update(a, odom, odom + chained, np.eye(3) * 1e-6)
+    assert expert.fixer.corrected(a) and expert.fixer.env_scan
+    assert expert._kpoi_check(a, obs[a], odom) == 2
+    expert.fixer.env_scan = False  # its own sonar fix corrects it: no check
+    assert expert._kpoi_check(a, obs[a], odom) is None
+    expert.fixer.states.clear()  # uncorrected: checked either way
+    assert expert._kpoi_check(a, obs[a], odom) == 2
