@@ -77,7 +77,8 @@ def scan_steps(scenario: Scenario) -> int:
 
 
 class SonarFixes:
-    """Per-robot scans on request, localized on the known map (a :class:`~parcover_env.localization.estimator.FixSource`).
+    """Per-robot scans on request, localized on the known map
+    (a :class:`~parcover_env.localization.estimator.FixSource`).
 
     ``segments``: the true walls the simulated sonar sees; ``n_robots``: the team size.
     :attr:`remaining` ``(N,)`` counts the steps left of each robot's scan (0 = not scanning),
