@@ -16,6 +16,8 @@ __all__ = ["add_train_parser"]
 
 ALGOS = ("ippo", "mappo", "bc")  # marl_config.ALGOS and bc (not imported: keeps --help light)
 IMITATION = "bc"
+IMITATION_ALGOS = ("bc", "dagger")
+"""The sidecar ``algo`` of a ``parcover train bc`` run (no critic)."""
 BC_CONFIG = "ippo"
 """The config file ``bc`` reads by default: the actor ``parcover train ippo`` builds."""
 
@@ -142,7 +144,12 @@ def cmd_imitate(args) -> int:
 def init_line(init: dict) -> str:
     """What the sidecar's ``init`` record says, as one line: the run started from, whether the critic
     came along, and the entries the actor was grown by (``init_grow``)."""
-    critic = "and its critic" if init["critic"] else "(critic from scratch: another kind or size)"
+    if init["critic"]:
+        critic = "and its critic"
+    elif init.get("algo") in IMITATION_ALGOS:
+        critic = f"(a {init['algo']} run: the critic from scratch)"
+    else:
+        critic = "(critic from scratch: another kind or size)"
     line = f"started from {init['path']} {critic}"
     grown = init.get("grown")
     if grown:

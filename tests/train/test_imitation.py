@@ -164,6 +164,14 @@ def test_ppo_init_from_bc_loads_and_its_first_batch_is_the_bc_actor(dagger_run, 
     torch.testing.assert_close(batch.get(("robot", "loc")), out[..., :2], rtol=0, atol=0)
 
 
+def test_the_init_line_says_an_imitation_run_has_no_critic():
+    from parcover_env.cli.train import init_line
+
+    record = {"path": "runs/bc", "algo": "dagger", "init": None, "critic": False}
+    assert init_line(record) == "started from runs/bc (a dagger run: the critic from scratch)"
+    assert init_line({**record, "algo": "ippo"}) == "started from runs/bc (critic from scratch: another kind or size)"
+
+
 def test_bad_requests_are_one_error():
     cfg = load_marl_config("ippo")
     with pytest.raises(ArgumentError, match="--episodes must be >= 1, got 0"):
