@@ -45,7 +45,7 @@ from parcover_env.harness.map_pool import FIRST_EVAL_SEED, is_pool, parse_pool
 from parcover_env.harness.marl_config import MarlConfig
 from parcover_env.policies.torchrl_policy import POLICY_FILE, SIDECAR_FILE
 
-__all__ = ["ImitationRequest", "Demonstrations", "episode_maps", "imitation_loss", "fit", "imitate"]
+__all__ = ["ImitationRequest", "Demonstrations", "episode_maps", "record", "imitation_loss", "fit", "imitate"]
 
 LABELLER = "expert"
 
@@ -176,8 +176,9 @@ def fit(actor, data: Demonstrations, steps: int, learning_rate: float, batch_siz
     return losses, optimizer
 
 
-def _record(req: ImitationRequest, first: int, driver: str | None) -> Demonstrations:
-    """Episodes ``first .. first + episodes - 1`` (seeds ``seed + i``), labelled by the expert."""
+def record(req: ImitationRequest, first: int, driver: str | None) -> Demonstrations:
+    """Episodes ``first .. first + episodes - 1`` of ``req`` (seeds ``seed + i``, maps of
+    :func:`episode_maps`), labelled by the expert and driven by ``driver`` (a policy spec; None: the expert)."""
     from parcover_env.harness.datasets import record_episodes
 
     cfg, eps = req.config, []
@@ -207,7 +208,7 @@ def imitate(req: ImitationRequest, log=print) -> dict:
     driver = f"torchrl:{req.out / POLICY_FILE}"
     data, optimizer, rounds = None, None, []
     for r in range(req.dagger_rounds + 1):
-        new = _record(req, r * req.episodes, driver if r else None)
+        new = record(req, r * req.episodes, driver if r else None)
         data = new if data is None else data + new
         if r == 0 and cfg.obs_scale == "rollout":  # as PPO's first batch does, from the expert's observations
             with torch.no_grad():

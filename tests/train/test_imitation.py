@@ -25,6 +25,7 @@ from parcover_env.train.imitation import (  # noqa: E402
     fit,
     imitate,
     imitation_loss,
+    record,
 )
 
 LOW, HIGH = np.full(4, -2.0), np.full(4, 2.0)
@@ -57,7 +58,7 @@ def test_bernoulli_head_loss_is_the_drive_squared_error_plus_the_scan_label_nll(
     assert parts["loss"] == pytest.approx(drive + scan, rel=1e-5)
     only_scans = imitation_loss(actor, obs, torch.tensor([[0.5, -0.5, 1.0], [0.5, -0.5, 1.0]]))
     assert float(only_scans["scan"].detach()) == pytest.approx(math.log1p(math.exp(-1.5)), rel=1e-6)  # 0.2014
-    no_scans = imitation_loss(actor, obs, torch.tensor([[0.5, -0.5, -0.2], [0.5, -0.5, -1.0]]))
+    no_scans = imitation_loss(actor, obs, torch.tensor([[0.5, -0.5, 0.0], [0.5, -0.5, -1.0]]))
     assert float(no_scans["scan"].detach()) == pytest.approx(math.log1p(math.exp(1.5)), rel=1e-6)  # label is scan > 0
 
 
@@ -123,6 +124,16 @@ def test_the_sidecar_says_imitation_and_the_data(dagger_run):
     assert rounds[0]["new_samples"] == rounds[1]["new_samples"] == 6 * robots  # 6 steps of every robot
     assert record["policy"] == f"torchrl:{req.out / 'policy.pt'}" and record["env_overrides"] == req.config.env
     assert record["config"]["hidden"] == [8] and record["fit"]["steps_per_round"] == 20
+    assert data["episodes_per_round"] == 1 and data["labeller"] == "expert" and data["preset"] == "realistic"
+    fitted = record["fit"]
+    assert (fitted["batch_size"], fitted["learning_rate"], fitted["max_grad_norm"]) == (16, 3e-4, 0.5)
+    assert fitted["drive_loss"].startswith("squared error of tanh(loc)") and fitted["scan_loss"] is None
+    assert [r["round"] for r in rounds] == [0, 1] and all(r["final_loss"] >= 0 for r in rounds)
+    assert record["made_by"].startswith("imitation: DAgger, 1 round(s) after behaviour cloning")
+    assert record["library"]["name"] == "torchrl" and record["library"]["version"]
+    assert (record["agent_steps"], record["episodes"], record["init"]) == (0, 2, None)
+    assert record["scan_head"] == "continuous"
+    assert record["wall_time"] > 0 and record["config_file"] == "cfg.yaml" and "commit" in record
 
 
 def test_bc_without_rounds_is_bc_and_its_samples_are_the_expert_steps(tmp_path, small_config):
@@ -133,10 +144,52 @@ def test_bc_without_rounds_is_bc_and_its_samples_are_the_expert_steps(tmp_path, 
     expert = record_episodes("office", 1, seed=7, max_steps=4, overrides=small_config.env)
     expert += record_episodes("office", 1, seed=8, max_steps=4, overrides=small_config.env)
     assert record["algo"] == "bc" and record["data"]["rounds"] == 0 and record["data"]["seeds"] == [7, 8]
+    assert record["made_by"].startswith("imitation: behaviour cloning of the scripted expert")
     assert record["data"]["samples"] == sum(len(e["actions"]) for e in expert)
     again = imitate(dataclasses.replace(req, out=tmp_path / "again"), log=lambda line: None)
     a, b = (torch.load(d / "policy.pt", weights_only=True)["state_dict"] for d in (tmp_path / "bc", tmp_path / "again"))
     assert all(torch.equal(a[k], b[k]) for k in a) and again["data"] == record["data"]  # same seed, same fit
+
+
+def test_record_takes_seed_plus_index_and_a_driver_drives_while_the_expert_labels(small_config):
+    from parcover_env.harness.datasets import record_episodes
+
+    req = ImitationRequest("office", 1, None, small_config, "x", episodes=1, seed=4, max_steps=5)
+    expert = record(req, 1, None)  # episode 1: seed 5
+    same = record_episodes("office", 1, seed=5, max_steps=5, overrides=small_config.env)
+    np.testing.assert_array_equal(expert.observations, np.concatenate([e["observations"][:-1] for e in same]))
+    np.testing.assert_array_equal(expert.actions, np.concatenate([e["actions"] for e in same]))
+    driven = record(req, 1, "random")
+    labels = record_episodes("office", 1, seed=5, max_steps=5, overrides=small_config.env, driver="random")
+    np.testing.assert_array_equal(driven.actions, np.concatenate([e["actions"] for e in labels]))
+    assert not np.array_equal(driven.observations, expert.observations)  # the random team went elsewhere
+
+
+def test_dagger_rounds_record_new_seeds_driven_by_the_saved_actor(tmp_path, small_config, monkeypatch):
+    from parcover_env.train import imitation
+
+    calls = []
+
+    def spy(req, first, driver):
+        calls.append((first, driver, (req.out / "policy.pt").is_file()))
+        return record(req, first, None)
+
+    monkeypatch.setattr(imitation, "record", spy)
+    req = ImitationRequest("office", 2, tmp_path / "d", small_config, "x", episodes=2, dagger_rounds=2, max_steps=3)
+    imitate(req, log=lambda line: None)
+    driver = f"torchrl:{tmp_path / 'd' / 'policy.pt'}"
+    assert calls == [(0, None, False), (2, driver, True), (4, driver, True)]
+
+
+def test_rollout_obs_scale_is_fitted_on_the_expert_observations(tmp_path, small_config):
+    cfg = dataclasses.replace(small_config, obs_scale="rollout")
+    req = ImitationRequest("office", 1, tmp_path / "r", cfg, "x", episodes=1, seed=2, max_steps=4)
+    imitate(req, log=lambda line: None)
+    centre = torch.load(tmp_path / "r" / "policy.pt", weights_only=True)["state_dict"]["0.centre"]
+    data = record(req, 0, None)
+    varies = data.observations.astype(np.float64).std(axis=0) > 0  # a constant entry keeps its box centre
+    assert varies.sum() > 40
+    np.testing.assert_allclose(centre.numpy()[varies], data.observations.mean(axis=0)[varies], rtol=1e-5, atol=1e-6)
 
 
 def test_the_policy_evaluates_as_torchrl_spec(dagger_run):
@@ -178,7 +231,9 @@ def test_bad_requests_are_one_error():
         ImitationRequest("office", 1, None, cfg, "x", episodes=0).check()
     with pytest.raises(ArgumentError, match="--dagger-rounds must be >= 0, got -1"):
         ImitationRequest("office", 1, None, cfg, "x", dagger_rounds=-1).check()
-    with pytest.raises(ArgumentError, match="seeds up to 1009"):
+    with pytest.raises(ArgumentError, match="--steps must be >= 1, got 0"):
+        ImitationRequest("office", 0, None, cfg, "x").check()
+    with pytest.raises(ArgumentError, match=r"--seed 995 with 5 episodes x 3 round\(s\) records seeds up to 1009"):
         ImitationRequest("office", 1, None, cfg, "x", seed=995, episodes=5, dagger_rounds=2).check()
     with pytest.raises(ConfigError, match="evaluation maps"):
         ImitationRequest("generated:990-1005", 1, None, cfg, "x").check()
