@@ -134,6 +134,7 @@ def test_the_sidecar_says_imitation_and_the_data(dagger_run):
     assert (record["agent_steps"], record["episodes"], record["init"]) == (0, 2, None)
     assert record["scan_head"] == "continuous"
     assert record["wall_time"] > 0 and record["config_file"] == "cfg.yaml" and "commit" in record
+    assert (record["scenario"], record["seed"], record["command"]) == ("office", 4, "")
 
 
 def test_bc_without_rounds_is_bc_and_its_samples_are_the_expert_steps(tmp_path, small_config):
@@ -187,6 +188,13 @@ def test_rollout_obs_scale_is_fitted_on_the_expert_observations(tmp_path, small_
     imitate(req, log=lambda line: None)
     centre = torch.load(tmp_path / "r" / "policy.pt", weights_only=True)["state_dict"]["0.centre"]
     data = record(req, 0, None)
+    box = imitate(dataclasses.replace(req, config=small_config, out=tmp_path / "b"), log=lambda line: None)
+    kept = torch.load(tmp_path / "b" / "policy.pt", weights_only=True)["state_dict"]["0.centre"]
+    from parcover_env import parallel_env
+
+    space = parallel_env("office", overrides=small_config.env).observation_space("robot_0")
+    np.testing.assert_allclose(kept.numpy(), (space.low + space.high) / 2, rtol=1e-6)  # obs_scale box: the box's
+    assert box["config"]["obs_scale"] == "box"
     varies = data.observations.astype(np.float64).std(axis=0) > 0  # a constant entry keeps its box centre
     assert varies.sum() > 40
     np.testing.assert_allclose(centre.numpy()[varies], data.observations.mean(axis=0)[varies], rtol=1e-5, atol=1e-6)
