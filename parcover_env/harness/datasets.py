@@ -27,6 +27,7 @@ class AgentEpisode(dict):
 def record_episodes(
     scenario: Any, episodes: int, seed: int = 0, policy: str = "expert", max_steps: int | None = None,
     preset: str = "realistic", driver: str | None = None, driver_prob: float = 1.0,
+    overrides: dict | None = None,
 ) -> list[AgentEpisode]:
     """Run ``episodes`` episodes (seeds ``seed .. seed+episodes-1``) under ``preset``; one AgentEpisode
     per robot. ``policy`` labels every step (the recorded actions); without ``driver`` it also acts.
@@ -35,7 +36,10 @@ def record_episodes(
     actions on a fraction ``driver_prob`` of the steps (drawn per step from a generator seeded with
     the episode seed) and the labeller's on the others, while the recorded actions stay the
     labeller's: DAgger's data (Ross et al. 2011), the expert's answer in the states the learner
-    reaches. The labeller runs on every step, so a stateful expert tracks the real trajectory."""
+    reaches. The labeller runs on every step, so a stateful expert tracks the real trajectory.
+
+    ``overrides``: scenario overrides of the env (e.g. a training config's ``env`` mapping), under
+    ``max_steps``."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     if not 0.0 <= driver_prob <= 1.0:
@@ -43,7 +47,10 @@ def record_episodes(
     from parcover_env.envs import ParallelCoverageEnv
     from parcover_env.policies.registry import make_policy
 
-    overrides = {"episode": {"max_steps": max_steps}} if max_steps else None
+    if max_steps:
+        from parcover_env.config import deep_merge
+
+        overrides = deep_merge(overrides or {}, {"episode": {"max_steps": max_steps}})
     env = ParallelCoverageEnv(scenario, overrides=overrides, preset=preset)
     out: list[AgentEpisode] = []
     for k in range(episodes):
