@@ -29,6 +29,7 @@ import numpy as np
 from gymnasium import spaces
 
 from parcover_env.envs import critic_state
+from parcover_env.envs.obs_spec import VERSION_SOURCES
 from parcover_env.envs.obs_v2 import RouteFacts, TeamRows, fill, group_sizes, route_facts, target_kpois
 from parcover_env.errors import ParcoverError
 from parcover_env.mission.rewards import TERMS, TERMS_V2
@@ -48,7 +49,7 @@ class CoreFeatures:
 
     version: ClassVar[int] = 1
     name: ClassVar[str] = "parcover_v1"
-    sources: ClassVar[tuple[str, ...]] = ("estimate", "team", "mission", "camera", "scan", "sensor")
+    sources: ClassVar[tuple[str, ...]] = VERSION_SOURCES[1]
     """The observation spec's entry sources this version's observation holds."""
     terms: ClassVar[tuple[str, ...]] = TERMS
     """Its reward terms, in summing order (``contact`` and ``uncertainty`` follow when weighted)."""
@@ -82,7 +83,7 @@ class RouteFeatures(CoreFeatures):
 
     version: ClassVar[int] = 2
     name: ClassVar[str] = "parcover_v2"
-    sources: ClassVar[tuple[str, ...]] = (*CoreFeatures.sources, "route", "teammates")
+    sources: ClassVar[tuple[str, ...]] = VERSION_SOURCES[2]
     terms: ClassVar[tuple[str, ...]] = TERMS_V2
 
     def __init__(self, env: Any):

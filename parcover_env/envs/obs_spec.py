@@ -30,7 +30,14 @@ from parcover_env.sensors.lidar import Lidar
 from parcover_env.sensors.sonar import SonarRing
 
 __all__ = ["Entry", "ENTRIES", "KERNEL_ENTRIES", "KERNEL_COLUMNS", "V2_ENTRIES", "MAX_FIX_AGE", "MAX_ROBOTS",
-           "N_PREVIEW", "markdown_table"]
+           "N_PREVIEW", "VERSION_SOURCES", "markdown_table"]
+
+VERSION_SOURCES: dict[int, tuple[str, ...]] = {
+    1: ("estimate", "team", "mission", "camera", "scan", "sensor"),
+    2: ("estimate", "team", "mission", "camera", "scan", "sensor", "route", "teammates"),
+}
+"""The entry sources each observation version's observation holds (the ``sources`` of its feature set,
+:mod:`parcover_env.envs.feature_sets`; kept here, below the feature sets, which read the spec)."""
 
 MAX_FIX_AGE = 60.0
 """Seconds since the last absolute pose fix are reported capped at this value."""
@@ -131,18 +138,14 @@ class Entry:
     @property
     def versions(self) -> tuple[int, ...]:
         """The observation versions whose feature set holds the entry's source
-        (:data:`~parcover_env.envs.feature_sets.FEATURE_SETS`)."""
-        from parcover_env.envs.feature_sets import FEATURE_SETS  # the feature sets read the spec
-
-        return tuple(v for v, fs in FEATURE_SETS.items() if self.source in fs.sources)
+        (:data:`VERSION_SOURCES`, which :data:`~parcover_env.envs.feature_sets.FEATURE_SETS` own)."""
+        return tuple(v for v, sources in VERSION_SOURCES.items() if self.source in sources)
 
     def n_columns(self, s: Scenario, sensor: Sensor | None = None, sources: tuple[str, ...] | None = None) -> int:
         """Columns of the entry in scenario ``s`` (0: absent): ``sensor`` its built sensor, ``sources`` the
         entry sources of the scenario's feature set (looked up from ``observation.version`` if not given)."""
         if sources is None:
-            from parcover_env.envs.feature_sets import feature_set
-
-            sources = feature_set(s.observation.version).sources
+            sources = VERSION_SOURCES[s.observation.version]
         if self.source not in sources:
             return 0
         if self.source == "sensor":

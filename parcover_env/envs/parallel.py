@@ -25,7 +25,7 @@ from parcover_env.mission.team import CameraView, Team, update_team
 from parcover_env.scenarios import load_scenario, mission_for
 from parcover_env.sensors.relative import RelativeCamera
 from parcover_env.sim import act_phase, outputs_phase, pipeline
-from parcover_env.sim.score_phase import ScoreState
+from parcover_env.sim.contract import ScoreState
 from parcover_env.world.physics import World
 
 __all__ = ["ParallelCoverageEnv"]

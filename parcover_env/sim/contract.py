@@ -9,8 +9,8 @@ those the phases use.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -24,12 +24,91 @@ if TYPE_CHECKING:  # annotations only: the phases import this module
     from parcover_env.scenarios.progress import RouteTracker
     from parcover_env.sensors.base import Sensor
     from parcover_env.sensors.relative import RelativeCamera
-    from parcover_env.sim.pipeline import ObsInputs, ScalarInputs
-    from parcover_env.sim.score_phase import ScoreGroup, ScoreState
     from parcover_env.world.map_model import MapModel
     from parcover_env.world.physics import World
 
-__all__ = ["StepWorld", "Layout", "Features"]
+__all__ = ["StepWorld", "Layout", "Features", "WorldGroup", "ScoreState", "ScalarInputs", "ObsInputs"]
+
+
+class ScalarInputs(NamedTuple):
+    """What the observation layout's compiled pass reads (``layout.fill_scalars``), per robot ``(N, ...)``
+    and team-wide (for ``layout.fill_scalars_many``, every field with a leading worlds axis ``K``)."""
+
+    est: np.ndarray
+    """Pose estimates ``(N, 3)``."""
+    velocity: np.ndarray
+    """Encoder ``(v, omega)`` ``(N, 2)``."""
+    leader: np.ndarray
+    """Leader flags ``(N,)`` bool."""
+    slot: np.ndarray
+    """Column slots ``(N,)`` int (reported / ``max(N - 1, 1)``)."""
+    fix_age: np.ndarray
+    """Seconds since the last absolute fix ``(N,)`` (reported capped at ``obs_spec.MAX_FIX_AGE``)."""
+    covariance: np.ndarray
+    """Pose covariances ``(N, 3, 3)``."""
+    goals: np.ndarray
+    """Lookahead waypoints ``(N, 2)``, world frame."""
+    rel_xy: np.ndarray
+    """The follower camera's predecessor position ``(N, 2)``, robot frame."""
+    rel_heading: np.ndarray
+    """Its relative heading ``(N,)``."""
+    visible: np.ndarray
+    """Predecessor seen ``(N,)`` bool."""
+    kpois_visited: float
+    """Fraction of KPOIs visited by the team."""
+    time: float
+    """Fraction of the step limit elapsed."""
+
+
+class ObsInputs(NamedTuple):
+    """What a feature set's own fill functions read (``world.features.fills``), ``K`` worlds at once."""
+
+    scalars: ScalarInputs
+    """The compiled pass's inputs ``(K, N, ...)`` (estimates, encoder velocities, leader flags, ...)."""
+    waypoint: np.ndarray
+    """``(K, N)`` int64 index of each robot's next route vertex (the route tracker's)."""
+    plan_progress: np.ndarray
+    """``(K, N)`` progress along the plan path (m)."""
+    visited: np.ndarray
+    """``(K, M)`` bool, the KPOIs visited."""
+
+
+class ScoreState:
+    """What scoring carries over from one step of a world to the next: arrays made here and never
+    rebound (the score phase writes them in place, as rows of ``(K, ...)`` blocks when the world is
+    scored with others: :func:`score_blocks`)."""
+
+    def __init__(self, remaining: np.ndarray, wall: np.ndarray, robot: np.ndarray):
+        self.remaining = remaining
+        """``(N,)`` route length to go at the last step (m): the ``progress`` term's potential."""
+        self.wall = wall
+        """``(N,)`` int64 wall contacts of each robot counted up to the last step."""
+        self.robot = robot
+        """``(N,)`` int64 robot contacts of each robot counted up to the last step."""
+
+    @property
+    def contacts(self) -> tuple[np.ndarray, np.ndarray]:
+        """Wall and robot contacts of each robot counted up to the last step ``(N,)`` each."""
+        return self.wall, self.robot
+
+    @classmethod
+    def start(cls, remaining: np.ndarray) -> ScoreState:
+        """At reset: the route length to go ``(N,)``, no contacts yet."""
+        n = len(remaining)
+        return cls(np.array(remaining, dtype=float), np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64))
+
+
+class WorldGroup(Protocol):
+    """The score blocks a world was attached to last (:class:`~parcover_env.sim.score_phase.ScoreGroup`)."""
+
+    def fits(self, worlds: Sequence[StepWorld]) -> bool:
+        """True if the blocks can hold ``worlds``."""
+
+    def holds(self, worlds: Sequence[StepWorld]) -> bool:
+        """True if ``worlds`` were attached to these blocks last, in this order."""
+
+    def attach(self, worlds: Sequence[StepWorld]) -> None:
+        """Make the worlds' arrays rows of these blocks."""
 
 
 @runtime_checkable
@@ -99,7 +178,7 @@ class StepWorld(Protocol):
     progress: RouteTracker
     metrics: EpisodeMetrics
     score_state: ScoreState
-    score_group: ScoreGroup | None
+    score_group: WorldGroup | None
     """The score blocks it was attached to last (*written*; None: none, as in a copy)."""
     commands: np.ndarray
     """``(N, 2)`` this step's commands (*written*)."""

@@ -28,7 +28,7 @@ The stepper reads the worlds through the names of its contract only
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
@@ -36,54 +36,11 @@ from parcover_env.mission.team import CameraView
 from parcover_env.scenarios.progress import goals_many
 from parcover_env.sensors.base import SensingState
 from parcover_env.sim import act_phase, outputs_phase, score_phase
-from parcover_env.sim.contract import StepWorld
+from parcover_env.sim.contract import ObsInputs, ScalarInputs, StepWorld
 from parcover_env.sim.outputs_phase import SlotOutputs
 from parcover_env.sim.score_phase import Scores, gather, rows
 
 __all__ = ["ScalarInputs", "ObsInputs", "sensing_state", "observe", "step"]
-
-
-class ScalarInputs(NamedTuple):
-    """What the observation layout's compiled pass reads (``layout.fill_scalars``), per robot ``(N, ...)``
-    and team-wide (for ``layout.fill_scalars_many``, every field with a leading worlds axis ``K``)."""
-
-    est: np.ndarray
-    """Pose estimates ``(N, 3)``."""
-    velocity: np.ndarray
-    """Encoder ``(v, omega)`` ``(N, 2)``."""
-    leader: np.ndarray
-    """Leader flags ``(N,)`` bool."""
-    slot: np.ndarray
-    """Column slots ``(N,)`` int (reported / ``max(N - 1, 1)``)."""
-    fix_age: np.ndarray
-    """Seconds since the last absolute fix ``(N,)`` (reported capped at ``obs_spec.MAX_FIX_AGE``)."""
-    covariance: np.ndarray
-    """Pose covariances ``(N, 3, 3)``."""
-    goals: np.ndarray
-    """Lookahead waypoints ``(N, 2)``, world frame."""
-    rel_xy: np.ndarray
-    """The follower camera's predecessor position ``(N, 2)``, robot frame."""
-    rel_heading: np.ndarray
-    """Its relative heading ``(N,)``."""
-    visible: np.ndarray
-    """Predecessor seen ``(N,)`` bool."""
-    kpois_visited: float
-    """Fraction of KPOIs visited by the team."""
-    time: float
-    """Fraction of the step limit elapsed."""
-
-
-class ObsInputs(NamedTuple):
-    """What a feature set's own fill functions read (``world.features.fills``), ``K`` worlds at once."""
-
-    scalars: ScalarInputs
-    """The compiled pass's inputs ``(K, N, ...)`` (estimates, encoder velocities, leader flags, ...)."""
-    waypoint: np.ndarray
-    """``(K, N)`` int64 index of each robot's next route vertex (the route tracker's)."""
-    plan_progress: np.ndarray
-    """``(K, N)`` progress along the plan path (m)."""
-    visited: np.ndarray
-    """``(K, M)`` bool, the KPOIs visited."""
 
 
 def sensing_state(worlds: Sequence[StepWorld], true: np.ndarray, predecessor: np.ndarray | None = None) -> SensingState:

@@ -42,7 +42,7 @@ from parcover_env.mission.team import TEAM_ROWS, count_waypoints_many, update_te
 from parcover_env.scenarios.progress import STATE, step_many
 from parcover_env.scenarios.progress_kernel import TrackerRows
 from parcover_env.sim.act_phase import Acted
-from parcover_env.sim.contract import StepWorld
+from parcover_env.sim.contract import ScoreState, StepWorld
 from parcover_env.world.batching import SharedRows
 
 __all__ = ["ScoreState", "Scores", "score", "gather", "rows", "HELD", "PARTS", "ScoreBlocks", "ScoreGroup",
@@ -58,31 +58,6 @@ def rows(arrays: Sequence[np.ndarray]) -> np.ndarray:
     """The ``(K, ...)`` block of ``K`` worlds' arrays of one shape, to read only: for ``K = 1`` a
     view of the world's array (no copy), else a copy."""
     return arrays[0][None] if len(arrays) == 1 else np.array(arrays)
-
-
-class ScoreState:
-    """What scoring carries over from one step of a world to the next: arrays made here and never
-    rebound (the score phase writes them in place, as rows of ``(K, ...)`` blocks when the world is
-    scored with others: :func:`score_blocks`)."""
-
-    def __init__(self, remaining: np.ndarray, wall: np.ndarray, robot: np.ndarray):
-        self.remaining = remaining
-        """``(N,)`` route length to go at the last step (m): the ``progress`` term's potential."""
-        self.wall = wall
-        """``(N,)`` int64 wall contacts of each robot counted up to the last step."""
-        self.robot = robot
-        """``(N,)`` int64 robot contacts of each robot counted up to the last step."""
-
-    @property
-    def contacts(self) -> tuple[np.ndarray, np.ndarray]:
-        """Wall and robot contacts of each robot counted up to the last step ``(N,)`` each."""
-        return self.wall, self.robot
-
-    @classmethod
-    def start(cls, remaining: np.ndarray) -> ScoreState:
-        """At reset: the route length to go ``(N,)``, no contacts yet."""
-        n = len(remaining)
-        return cls(np.array(remaining, dtype=float), np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64))
 
 
 class Scores(NamedTuple):
